@@ -1,0 +1,104 @@
+# Top-level build. `make` builds everything buildable on this host and the
+# Python tools; `make test` runs every test; `make run` the demo job on the
+# simulated drive; `make bench` prints `name: value unit` lines; `make lint`.
+# Everything it needs is installed from scratch (apt, a private apt list for
+# Unity, PyPI into .venv) and cached under .cache/.
+SHELL := /bin/bash
+.DEFAULT_GOAL := all
+
+CACHE      ?= .cache
+BUILD      := build
+VENV       := .venv
+PY         := $(VENV)/bin/python
+STAMP      := $(CACHE)/stamps
+
+CC         ?= cc
+ARM_CC     := arm-none-eabi-gcc
+
+CORE_SRC   := $(shell find firmware/core -name '*.c' 2>/dev/null | sort)
+CORE_HDR   := $(shell find firmware/core firmware/hal -name '*.h' 2>/dev/null | sort)
+HIL_SRC    := $(sort $(wildcard hil_sim/*.c))
+HIL_HDR    := $(sort $(wildcard hil_sim/*.h))
+UNIT_SRC   := $(sort $(wildcard tests/unit/test_*.c))
+UNIT_SUP   := $(sort $(wildcard tests/unit/support/*.c))
+UNIT_BIN   := $(patsubst tests/unit/%.c,$(BUILD)/unit/%,$(UNIT_SRC))
+
+UNITY_DIR  := $(CACHE)/unity/usr/share/cmock/vendor/unity/src
+UNITY_C    := $(UNITY_DIR)/unity.c
+
+INC        := -Ifirmware/core -Ifirmware/hal -Ifirmware -Ihil_sim
+WARN       := -std=c99 -Wall -Wextra -Werror -pedantic
+SAN        := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+UNIT_CFLAGS := $(WARN) $(SAN) -g -O1 $(INC) -I$(UNITY_DIR) -Itests/unit/support \
+               -D_DEFAULT_SOURCE -DUNITY_INCLUDE_DOUBLE -DUNITY_SUPPORT_64
+HOST_CFLAGS := $(WARN) -D_DEFAULT_SOURCE -O2 -g -fPIC $(INC)
+M4_CFLAGS  := $(WARN) -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -O2 -ffreestanding \
+              -ffunction-sections -fdata-sections $(INC)
+
+.PHONY: all deps venv host test unit m4-check pytest run bench lint fuzz firmware clean distclean
+
+all: deps venv host
+
+# ---- set-up ---------------------------------------------------------------
+deps: $(STAMP)/apt $(UNITY_C)
+
+$(STAMP)/apt: mk/apt-deps.sh
+	@mkdir -p $(STAMP)
+	./mk/apt-deps.sh
+	@touch $@
+
+$(UNITY_C): mk/debian-fetch.sh | $(STAMP)/apt
+	./mk/debian-fetch.sh trixie $(CACHE)/unity cmock
+	@test -f $@ && touch $@
+
+venv: $(STAMP)/venv
+
+$(STAMP)/venv: host_tools/pyproject.toml | $(STAMP)/apt
+	@mkdir -p $(STAMP)
+	test -x $(PY) || python3 -m venv $(VENV)
+	$(PY) -m pip install -q -e 'host_tools[dev]'
+	@touch $@
+
+# ---- host build: the core and the simulator as one shared library ---------
+host: $(BUILD)/host/libcontour.so
+
+$(BUILD)/host/libcontour.so: $(CORE_SRC) $(HIL_SRC) $(CORE_HDR) $(HIL_HDR)
+	@mkdir -p $(@D)
+	$(CC) $(HOST_CFLAGS) -shared -o $@ $(CORE_SRC) $(HIL_SRC) -lm
+
+# ---- unit tests (Unity, ASan + UBSan) --------------------------------------
+$(BUILD)/unit/%: tests/unit/%.c $(CORE_SRC) $(HIL_SRC) $(UNIT_SUP) $(CORE_HDR) $(HIL_HDR) $(UNITY_C)
+	@mkdir -p $(@D)
+	$(CC) $(UNIT_CFLAGS) -o $@ $< $(CORE_SRC) $(HIL_SRC) $(UNIT_SUP) $(UNITY_C) -lm
+
+unit: deps $(UNIT_BIN)
+	./tests/run-unit.sh $(UNIT_BIN)
+
+# One module's tests: make unit-fixmath
+unit-%: deps $(BUILD)/unit/test_%
+	./tests/run-unit.sh $(BUILD)/unit/test_$*
+
+# The core must cross-compile for Cortex-M4 cleanly and without floating point.
+m4-check: deps
+	./mk/m4-check.sh $(CORE_SRC)
+
+pytest: venv host
+	$(PY) -m pytest -q tests/python
+
+test: deps unit m4-check pytest
+
+# ---- demo, benchmarks, lint ------------------------------------------------
+run: all
+	./mk/run-demo.sh
+
+bench: all
+	./bench/run.sh
+
+lint: all
+	./mk/lint.sh
+
+clean:
+	rm -rf $(BUILD)
+
+distclean: clean
+	rm -rf $(CACHE) $(VENV)

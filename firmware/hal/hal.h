@@ -1,0 +1,79 @@
+/*
+ * hal.h - the one boundary between the portable core and the hardware.
+ *
+ * A port (firmware/ports/<target>/) implements these functions; the core
+ * calls nothing else that touches hardware. The set is deliberately small:
+ * a time base, encoder inputs, motor outputs, enable/fault lines, a byte
+ * stream (UART), CAN frames, flash pages and a watchdog.
+ *
+ * Contexts: "tick" is the control-tick interrupt (or the simulator's step),
+ * "main" the background loop. Each function says where it may be called.
+ * Ports deliver encoder edges by calling the decoder directly from their
+ * edge interrupt (see quadrature.h); counter-mode ports are polled here.
+ */
+#ifndef HAL_H
+#define HAL_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#define HAL_MAX_AXES 4
+
+/* ---- time base ---------------------------------------------------------- */
+
+/* Free-running microsecond clock (wraps at 2^32 us, ~71 min). Any context. */
+uint32_t hal_time_us(void);
+
+/* ---- encoders (counter-mode ports; edge-mode ports return false) -------- */
+
+/* Snapshot of the hardware counter of encoder `ch` (axes 0..n-1, then the
+ * reference-scale inputs). Tick context. False when the port has no counter. */
+bool hal_encoder_counter(unsigned ch, uint32_t *count);
+
+/* ---- motor outputs and lines -------------------------------------------- */
+
+/* Motor command of one axis in millivolts at the amplifier input, already
+ * clamped by the core to the configured range. Tick context. */
+void hal_motor_set_mv(unsigned axis, int32_t millivolts);
+
+/* Amplifier enable line. Tick or main context. */
+void hal_motor_enable(unsigned axis, bool on);
+
+/* Amplifier fault input (true = fault). Tick context. */
+bool hal_amp_fault(unsigned axis);
+
+/* ---- host link ----------------------------------------------------------- */
+
+/* Non-blocking UART: returns bytes accepted / read (0 when none). Main. */
+size_t hal_uart_write(const uint8_t *data, size_t len);
+size_t hal_uart_read(uint8_t *data, size_t cap);
+
+/* CAN frames (classic CAN, 11-bit ids). Return false when the transmit
+ * mailbox is full / no frame is waiting. Main context. */
+bool hal_can_send(uint32_t id, const uint8_t *data, uint8_t len);
+bool hal_can_receive(uint32_t *id, uint8_t *data, uint8_t *len);
+
+/* ---- flash (bootloader, parameter and compensation store) ---------------- */
+
+typedef struct {
+    uint32_t base;       /* first address of the managed region */
+    uint32_t size;       /* bytes */
+    uint32_t page_size;  /* erase unit, bytes */
+    uint32_t write_size; /* write unit, bytes (address and length multiple) */
+} hal_flash_layout_t;
+
+const hal_flash_layout_t *hal_flash_layout(void);
+/* Erase the page containing addr (to 0xFF). False on error. Main context. */
+bool hal_flash_erase_page(uint32_t addr);
+/* Program len bytes; only erased bytes may be written. Main context. */
+bool hal_flash_write(uint32_t addr, const uint8_t *data, size_t len);
+bool hal_flash_read(uint32_t addr, uint8_t *data, size_t len);
+
+/* ---- system --------------------------------------------------------------- */
+
+void hal_watchdog_kick(void);
+/* Reset the processor (never returns on hardware; the simulator restarts). */
+void hal_system_reset(void);
+
+#endif /* HAL_H */

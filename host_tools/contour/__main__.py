@@ -1,0 +1,3 @@
+from contour.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""Sub-commands of the `contour` program; each module registers its own."""
