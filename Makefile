@@ -17,8 +17,8 @@ ARM_CC     := arm-none-eabi-gcc
 
 CORE_SRC   := $(shell find firmware/core -name '*.c' 2>/dev/null | sort)
 CORE_HDR   := $(shell find firmware/core firmware/hal -name '*.h' 2>/dev/null | sort)
-HIL_SRC    := $(sort $(wildcard hil_sim/*.c))
-HIL_HDR    := $(sort $(wildcard hil_sim/*.h))
+HIL_SRC    := $(sort $(wildcard hil_sim/*.c) $(wildcard firmware/ports/sim/*.c))
+HIL_HDR    := $(sort $(wildcard hil_sim/*.h) $(wildcard firmware/ports/sim/*.h))
 UNIT_SRC   := $(sort $(wildcard tests/unit/test_*.c))
 UNIT_SUP   := $(sort $(wildcard tests/unit/support/*.c))
 UNIT_BIN   := $(patsubst tests/unit/%.c,$(BUILD)/unit/%,$(UNIT_SRC))
@@ -26,7 +26,7 @@ UNIT_BIN   := $(patsubst tests/unit/%.c,$(BUILD)/unit/%,$(UNIT_SRC))
 UNITY_DIR  := $(CACHE)/unity/usr/share/cmock/vendor/unity/src
 UNITY_C    := $(UNITY_DIR)/unity.c
 
-INC        := -Ifirmware/core -Ifirmware/hal -Ifirmware -Ihil_sim
+INC        := -Ifirmware/core -Ifirmware/hal -Ifirmware -Ihil_sim -Ifirmware/ports/sim
 WARN       := -std=c99 -Wall -Wextra -Werror -pedantic
 SAN        := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 UNIT_CFLAGS := $(WARN) $(SAN) -g -O1 $(INC) -I$(UNITY_DIR) -Itests/unit/support \
@@ -35,6 +35,7 @@ HOST_CFLAGS := $(WARN) -D_DEFAULT_SOURCE -O2 -g -fPIC $(INC)
 M4_CFLAGS  := $(WARN) -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -O2 -ffreestanding \
               -ffunction-sections -fdata-sections $(INC)
 
+.SECONDARY:
 .PHONY: all deps venv host test unit m4-check pytest run bench lint fuzz firmware clean distclean
 
 all: deps venv host
@@ -67,9 +68,17 @@ $(BUILD)/host/libcontour.so: $(CORE_SRC) $(HIL_SRC) $(CORE_HDR) $(HIL_HDR)
 	$(CC) $(HOST_CFLAGS) -shared -o $@ $(CORE_SRC) $(HIL_SRC) -lm
 
 # ---- unit tests (Unity, ASan + UBSan) --------------------------------------
-$(BUILD)/unit/%: tests/unit/%.c $(CORE_SRC) $(HIL_SRC) $(UNIT_SUP) $(CORE_HDR) $(HIL_HDR) $(UNITY_C)
+# Shared sources are compiled once (sanitized) and linked into every test.
+UNIT_LIB_SRC := $(CORE_SRC) $(HIL_SRC) $(UNIT_SUP) $(UNITY_C)
+UNIT_LIB_OBJ := $(patsubst %.c,$(BUILD)/unit/obj/%.o,$(UNIT_LIB_SRC))
+
+$(BUILD)/unit/obj/%.o: %.c $(CORE_HDR) $(HIL_HDR) | $(UNITY_C)
 	@mkdir -p $(@D)
-	$(CC) $(UNIT_CFLAGS) -o $@ $< $(CORE_SRC) $(HIL_SRC) $(UNIT_SUP) $(UNITY_C) -lm
+	$(CC) $(UNIT_CFLAGS) -c -o $@ $<
+
+$(BUILD)/unit/%: tests/unit/%.c $(UNIT_LIB_OBJ) $(CORE_HDR) $(HIL_HDR)
+	@mkdir -p $(@D)
+	$(CC) $(UNIT_CFLAGS) -o $@ $< $(UNIT_LIB_OBJ) -lm
 
 unit: deps $(UNIT_BIN)
 	./tests/run-unit.sh $(UNIT_BIN)
