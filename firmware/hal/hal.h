@@ -9,7 +9,7 @@
  * Contexts: "tick" is the control-tick interrupt (or the simulator's step),
  * "main" the background loop. Each function says where it may be called.
  * Ports deliver encoder edges by calling the decoder directly from their
- * edge interrupt (see quadrature.h); counter-mode ports are polled here.
+ * edge interrupt (see qdec.h); counter-mode ports are polled here.
  */
 #ifndef HAL_H
 #define HAL_H

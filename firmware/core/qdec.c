@@ -1,0 +1,540 @@
+/*
+ * qdec.c - quadrature decoding and position feedback (specification in
+ * qdec.h).
+ */
+#include "qdec.h"
+
+#include <stddef.h>
+
+#define QDEC_ILL 2 /* table entry: both channels changed */
+
+#define QDEC_NS_PER_S 1000000000ull
+
+/* Index: (old A/B << 2) | new A/B; A = bit 0, B = bit 1; forward 0,1,3,2. */
+static const int8_t qdec_table_x4[16] = {
+    0,        1,        -1,       QDEC_ILL, /* from 00 */
+    -1,       0,        QDEC_ILL, 1,        /* from A  */
+    1,        QDEC_ILL, 0,        -1,       /* from B  */
+    QDEC_ILL, -1,       1,        0,        /* from AB */
+};
+static const int8_t qdec_table_x2[16] = {
+    0,        1,        0,        QDEC_ILL, /* from 00 */
+    -1,       0,        QDEC_ILL, 0,        /* from A  */
+    0,        QDEC_ILL, 0,        -1,       /* from B  */
+    QDEC_ILL, 0,        1,        0,        /* from AB */
+};
+static const int8_t qdec_table_x1[16] = {
+    0,        1,        0,        QDEC_ILL, /* from 00 */
+    -1,       0,        QDEC_ILL, 0,        /* from A  */
+    0,        QDEC_ILL, 0,        0,        /* from B  */
+    QDEC_ILL, 0,        0,        0,        /* from AB */
+};
+
+/* ---- helpers ----------------------------------------------------------------- */
+
+/* Sign-extend the low `bits` bits of d. */
+static int64_t qdec_sext(uint32_t d, uint8_t bits)
+{
+    uint32_t m = (bits >= 32u) ? 0xFFFFFFFFu : ((1u << bits) - 1u);
+    uint32_t sign = 1u << (bits - 1u);
+
+    d &= m;
+    if ((d & sign) != 0u) {
+        return (int64_t)d - ((int64_t)m + 1);
+    }
+    return (int64_t)d;
+}
+
+static uint64_t qdec_uabs(int64_t v)
+{
+    return (v < 0) ? (uint64_t)0 - (uint64_t)v : (uint64_t)v;
+}
+
+/* dp counts in dt ns (dt > 0) as q32_32 counts/s, truncated toward zero,
+ * saturated at +-2^31 counts/s. */
+static q32_32_t qdec_rate(int64_t dp, int64_t dt)
+{
+    uint64_t n = qdec_uabs(dp);
+    uint64_t d = (uint64_t)dt;
+    uint64_t num, ip, r, v;
+
+    if (n >= (1ull << 33)) {
+        return (dp < 0) ? -INT64_MAX : INT64_MAX;
+    }
+    num = n * QDEC_NS_PER_S;
+    ip = num / d;
+    r = num % d;
+    if (ip >= (1ull << 31)) {
+        return (dp < 0) ? -INT64_MAX : INT64_MAX;
+    }
+    while (d >= (1ull << 31)) {
+        d >>= 1;
+        r >>= 1;
+    }
+    v = (ip << 32) + (r << 32) / d;
+    return (dp < 0) ? -(int64_t)v : (int64_t)v;
+}
+
+/* ---- edge context -------------------------------------------------------------- */
+
+static void qdec_index_eval(qdec_t *q, uint32_t t)
+{
+    qdec_edge_state_t *e = &q->e;
+    uint8_t qual = q->cfg.index_qual;
+    uint8_t gated = (uint8_t)(e->z && (qual == QDEC_INDEX_UNGATED || e->ab == qual));
+
+    if (gated && !e->gated) {
+        e->idx_raw = e->count;
+        e->idx_t = t;
+        e->idx_dir = e->dir;
+        e->idx_events = e->idx_events + 1u;
+    }
+    e->gated = gated;
+}
+
+/* Decode one committed A/B state. */
+static void qdec_apply(qdec_t *q, uint32_t ab, uint32_t t)
+{
+    qdec_edge_state_t *e = &q->e;
+    int8_t d = q->table[((uint32_t)e->ab << 2) | ab];
+
+    if (d == QDEC_ILL) {
+        e->illegal = e->illegal + 1u;
+    } else if (d != 0) {
+        e->count = e->count + (uint32_t)(int32_t)d;
+        e->nedge = e->nedge + 1u;
+        e->t_last = t;
+        e->dir = d;
+        if ((e->count & q->cyc_mask) == 0u) {
+            e->cyc_count = e->count;
+            e->cyc_t = t;
+            e->ncyc = e->ncyc + 1u;
+        }
+    }
+    e->ab = (uint8_t)ab;
+    if (e->z) {
+        qdec_index_eval(q, t);
+    } else {
+        e->gated = 0;
+    }
+}
+
+/* Glitch filter: commit the pending edges that are confirmed at time t (the
+ * new level has lasted glitch_ns), oldest first; A and B pending with the
+ * same time are one simultaneous (illegal) change. */
+static void qdec_confirm(qdec_t *q, uint32_t t)
+{
+    qdec_edge_state_t *e = &q->e;
+    int32_t g = (int32_t)q->cfg.glitch_ns;
+    bool a_ok = (e->pend & QDEC_LINE_A) && (int32_t)(t - e->pend_t[0]) >= g;
+    bool b_ok = (e->pend & QDEC_LINE_B) && (int32_t)(t - e->pend_t[1]) >= g;
+
+    if (a_ok && b_ok) {
+        int32_t ab_order = (int32_t)(e->pend_t[0] - e->pend_t[1]);
+        if (ab_order == 0) {
+            qdec_apply(q, e->ab ^ 3u, e->pend_t[0]);
+        } else if (ab_order < 0) {
+            qdec_apply(q, e->ab ^ QDEC_LINE_A, e->pend_t[0]);
+            qdec_apply(q, e->ab ^ QDEC_LINE_B, e->pend_t[1]);
+        } else {
+            qdec_apply(q, e->ab ^ QDEC_LINE_B, e->pend_t[1]);
+            qdec_apply(q, e->ab ^ QDEC_LINE_A, e->pend_t[0]);
+        }
+        e->pend = 0;
+    } else if (a_ok) {
+        qdec_apply(q, e->ab ^ QDEC_LINE_A, e->pend_t[0]);
+        e->pend &= (uint8_t)~QDEC_LINE_A;
+    } else if (b_ok) {
+        qdec_apply(q, e->ab ^ QDEC_LINE_B, e->pend_t[1]);
+        e->pend &= (uint8_t)~QDEC_LINE_B;
+    }
+}
+
+static void qdec_filter_edge(qdec_t *q, uint32_t ab, uint32_t t)
+{
+    qdec_edge_state_t *e = &q->e;
+    uint32_t changed;
+    unsigned c;
+
+    qdec_confirm(q, t);
+    changed = ab ^ ((uint32_t)e->ab ^ e->pend);
+    for (c = 0; c < 2u; c++) {
+        uint8_t bit = (uint8_t)(1u << c);
+        if ((changed & bit) == 0u) {
+            continue;
+        }
+        if (e->pend & bit) {
+            e->pend &= (uint8_t)~bit; /* pulse shorter than glitch_ns */
+            e->glitches = e->glitches + 1u;
+        } else {
+            e->pend |= bit;
+            e->pend_t[c] = t;
+        }
+    }
+}
+
+void qdec_edge(qdec_t *q, uint32_t lines, uint32_t t_ns)
+{
+    qdec_edge_state_t *e = &q->e;
+    uint8_t z = (uint8_t)((lines >> 2) & 1u);
+
+    e->seq = e->seq + 1u;
+    if (q->cfg.glitch_ns == 0u) {
+        qdec_apply(q, lines & 3u, t_ns);
+    } else {
+        qdec_filter_edge(q, lines & 3u, t_ns);
+    }
+    if (z != e->z) {
+        e->z = z;
+        qdec_index_eval(q, t_ns);
+    }
+    e->seq = e->seq + 1u;
+}
+
+void qdec_index_capture(qdec_t *q, uint32_t raw, uint32_t t_ns)
+{
+    qdec_edge_state_t *e = &q->e;
+
+    e->seq = e->seq + 1u;
+    e->idx_raw = raw;
+    e->idx_t = t_ns;
+    e->idx_dir = q->out.dir;
+    e->idx_events = e->idx_events + 1u;
+    e->seq = e->seq + 1u;
+}
+
+/* ---- tick context ---------------------------------------------------------------- */
+
+typedef struct {
+    uint32_t raw;
+    uint32_t nedge;
+    uint32_t t_last;
+    uint32_t cyc_count;
+    uint32_t cyc_t;
+    uint32_t ncyc;
+    int8_t dir;
+    uint32_t illegal;
+    uint32_t glitches;
+    uint32_t idx_events;
+    uint32_t idx_raw;
+    uint32_t idx_t;
+    int8_t idx_dir;
+} qdec_snap_t;
+
+static void qdec_snapshot(const qdec_t *q, qdec_snap_t *s)
+{
+    const qdec_edge_state_t *e = &q->e;
+    uint32_t seq;
+
+    do {
+        seq = e->seq;
+        s->raw = e->count;
+        s->nedge = e->nedge;
+        s->t_last = e->t_last;
+        s->cyc_count = e->cyc_count;
+        s->cyc_t = e->cyc_t;
+        s->ncyc = e->ncyc;
+        s->dir = e->dir;
+        s->illegal = e->illegal;
+        s->glitches = e->glitches;
+        s->idx_events = e->idx_events;
+        s->idx_raw = e->idx_raw;
+        s->idx_t = e->idx_t;
+        s->idx_dir = e->idx_dir;
+    } while (seq != e->seq || (seq & 1u) != 0u);
+}
+
+static void qdec_velocity_edge(qdec_t *q, int64_t p_edge, int64_t t_edge)
+{
+    unsigned n = q->ring_n;
+    unsigned head = q->ring_head;
+    unsigned k, i, idx;
+    int64_t window = (int64_t)q->cfg.vel_window_ns;
+    int64_t dt;
+
+    /* record the newest edge */
+    head = (head + 1u) % QDEC_VEL_RING;
+    q->ring_p[head] = p_edge;
+    q->ring_t[head] = t_edge;
+    if (n < QDEC_VEL_RING) {
+        n++;
+    }
+    q->ring_head = (uint8_t)head;
+    q->ring_n = (uint8_t)n;
+    q->t_vel = t_edge;
+
+    if (n < 2u) {
+        return;
+    }
+    /* anchor: oldest entry within the window, at least the previous one */
+    k = 1;
+    for (i = 2; i < n; i++) {
+        idx = (head + QDEC_VEL_RING - i) % QDEC_VEL_RING;
+        if (t_edge - q->ring_t[idx] > window) {
+            break;
+        }
+        k = i;
+    }
+    idx = (head + QDEC_VEL_RING - k) % QDEC_VEL_RING;
+    dt = t_edge - q->ring_t[idx];
+    if (dt > 0) {
+        q->out.vel = qdec_rate(p_edge - q->ring_p[idx], dt);
+    }
+}
+
+static void qdec_velocity_idle(qdec_t *q)
+{
+    int64_t since = q->now - q->t_vel;
+    q32_32_t bound;
+
+    if (q->now - q->t_edge >= (int64_t)q->cfg.zero_timeout_ns) {
+        q->out.vel = 0;
+        q->out.stopped = true;
+        return;
+    }
+    if (since <= 0 || q->out.vel == 0) {
+        return;
+    }
+    /* still moving at vel, the next recorded edge would have come */
+    bound = qdec_rate(q->cfg.vel_cycle ? (int64_t)q->cyc_mask + 1 : 1, since);
+    if (q->out.vel > bound) {
+        q->out.vel = bound;
+    } else if (q->out.vel < -bound) {
+        q->out.vel = -bound;
+    }
+}
+
+static void qdec_illegal_window(qdec_t *q, uint32_t new_illegal)
+{
+    unsigned lim = q->cfg.illegal_limit;
+    unsigned i, oldest;
+
+    if (lim == 0u || new_illegal == 0u) {
+        return;
+    }
+    if (new_illegal > lim) {
+        new_illegal = lim;
+    }
+    for (i = 0; i < new_illegal; i++) {
+        q->ill_t[q->ill_head] = q->now;
+        q->ill_head = (uint8_t)((q->ill_head + 1u) % QDEC_ILLEGAL_MAX);
+        if (q->ill_n < QDEC_ILLEGAL_MAX) {
+            q->ill_n++;
+        }
+    }
+    if (q->ill_n >= lim) {
+        oldest = (q->ill_head + QDEC_ILLEGAL_MAX - lim) % QDEC_ILLEGAL_MAX;
+        if ((uint64_t)(q->now - q->ill_t[oldest]) <= q->cfg.illegal_window_ns) {
+            q->out.faults |= QDEC_FAULT_ILLEGAL;
+        }
+    }
+}
+
+/* Common part of both sample functions. `edges`: new counted edges since the
+ * last sample, the last one at s->t_last (raw clock); `vel_edge`: a new edge
+ * for the velocity estimate, the last one at (s->cyc_count, s->cyc_t). */
+static void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges, bool vel_edge, uint32_t now_ns)
+{
+    int64_t dt = qdec_sext(now_ns - q->now_raw, 32);
+    int64_t delta;
+    const comp_table_t *comp = q->cfg.comp;
+
+    if (dt > 0) {
+        q->now += dt;
+        q->now_raw = now_ns;
+    } else {
+        q->out.faults |= QDEC_FAULT_TIME;
+    }
+
+    delta = qdec_sext(s->raw - q->last_raw, q->bits);
+    q->last_raw = s->raw;
+    q->out.pos += delta;
+    if (qdec_uabs(delta) > q->max_delta) {
+        q->out.faults |= QDEC_FAULT_OVERSPEED;
+    }
+    if (s->dir != 0) {
+        q->out.dir = s->dir;
+    }
+
+    if (edges) {
+        q->t_edge = q->now + qdec_sext(s->t_last - q->now_raw, 32);
+        q->out.stopped = false;
+    }
+    if (vel_edge) {
+        qdec_velocity_edge(q, q->out.pos - qdec_sext(s->raw - s->cyc_count, q->bits),
+                           q->now + qdec_sext(s->cyc_t - q->now_raw, 32));
+    } else {
+        qdec_velocity_idle(q);
+    }
+
+    qdec_illegal_window(q, s->illegal - q->last_illegal);
+    q->last_illegal = s->illegal;
+    q->out.illegal = s->illegal;
+    q->out.glitches = s->glitches;
+
+    if (s->idx_events != q->last_idx_events) {
+        q->last_idx_events = s->idx_events;
+        q->out.index_pos = q->out.pos - qdec_sext(s->raw - s->idx_raw, q->bits);
+        q->out.index_t_ns = s->idx_t;
+        q->out.index_dir = s->idx_dir;
+        q->out.index_events = s->idx_events;
+    }
+
+    q->out.pos_nm_raw = qdec_counts_to_nm(q, q->out.pos);
+    q->out.pos_nm = comp_correct(comp, q->out.pos_nm_raw, (comp_dir_t)q->out.dir);
+    q->out.vel_nm_s = fx_div_round64(fx_mul64_shift(q->out.vel, q->cfg.nm_per_count_num, 32),
+                                     q->cfg.nm_per_count_den);
+}
+
+void qdec_sample(qdec_t *q, uint32_t now_ns)
+{
+    qdec_snap_t s;
+
+    if (q->cfg.glitch_ns != 0u) {
+        q->e.seq = q->e.seq + 1u;
+        qdec_confirm(q, now_ns);
+        q->e.seq = q->e.seq + 1u;
+    }
+    qdec_snapshot(q, &s);
+    if (!q->cfg.vel_cycle) {
+        s.cyc_count = s.raw;
+        s.cyc_t = s.t_last;
+        s.ncyc = s.nedge;
+    }
+    qdec_update(q, &s, s.nedge != q->last_nedge, s.ncyc != q->last_ncyc, now_ns);
+    q->last_nedge = s.nedge;
+    q->last_ncyc = s.ncyc;
+}
+
+void qdec_sample_counter(qdec_t *q, uint32_t raw, uint32_t now_ns)
+{
+    qdec_snap_t s;
+    int64_t delta = qdec_sext(raw - q->last_raw, q->bits);
+
+    qdec_snapshot(q, &s);
+    s.raw = raw;
+    s.t_last = now_ns;
+    s.cyc_count = raw;
+    s.cyc_t = now_ns;
+    s.dir = (int8_t)((delta > 0) - (delta < 0));
+    qdec_update(q, &s, delta != 0, delta != 0, now_ns);
+}
+
+/* ---- configuration and scaling ------------------------------------------------------ */
+
+void qdec_config_default(qdec_config_t *cfg)
+{
+    cfg->input = QDEC_INPUT_EDGES;
+    cfg->mode = QDEC_X4;
+    cfg->counter_bits = 32;
+    cfg->max_delta = 0;
+    cfg->illegal_limit = 0;
+    cfg->illegal_window_ns = 0;
+    cfg->glitch_ns = 0;
+    cfg->zero_timeout_ns = 0;
+    cfg->vel_window_ns = 0;
+    cfg->vel_cycle = false;
+    cfg->index_qual = QDEC_INDEX_UNGATED;
+    cfg->nm_per_count_num = 1;
+    cfg->nm_per_count_den = 1;
+    cfg->offset_nm = 0;
+    cfg->comp = NULL;
+}
+
+bool qdec_init(qdec_t *q, const qdec_config_t *cfg, uint32_t initial, uint32_t now_ns)
+{
+    uint8_t bits = (cfg->input == QDEC_INPUT_COUNTER) ? cfg->counter_bits : 32u;
+    const int8_t *table;
+    unsigned i;
+
+    if (cfg->input != QDEC_INPUT_EDGES && cfg->input != QDEC_INPUT_COUNTER) {
+        return false;
+    }
+    switch (cfg->mode) {
+    case QDEC_X4:
+        table = qdec_table_x4;
+        break;
+    case QDEC_X2:
+        table = qdec_table_x2;
+        break;
+    case QDEC_X1:
+        table = qdec_table_x1;
+        break;
+    default:
+        return false;
+    }
+    if (bits < 8u || bits > 32u || cfg->illegal_limit > QDEC_ILLEGAL_MAX ||
+        (cfg->index_qual > 3u && cfg->index_qual != QDEC_INDEX_UNGATED) ||
+        cfg->nm_per_count_num == 0 || cfg->nm_per_count_den <= 0 ||
+        (cfg->glitch_ns != 0u && cfg->input != QDEC_INPUT_EDGES) || cfg->glitch_ns > 0x7FFFFFFFu ||
+        cfg->max_delta > QDEC_MAX_DELTA(bits)) {
+        return false;
+    }
+
+    *q = (qdec_t){0};
+    q->cfg = *cfg;
+    if (q->cfg.zero_timeout_ns == 0u) {
+        q->cfg.zero_timeout_ns = QDEC_ZERO_TIMEOUT_DEFAULT_NS;
+    }
+    if (q->cfg.zero_timeout_ns > (uint64_t)INT64_MAX) {
+        q->cfg.zero_timeout_ns = (uint64_t)INT64_MAX;
+    }
+    if (q->cfg.vel_window_ns > (uint64_t)INT64_MAX) {
+        q->cfg.vel_window_ns = (uint64_t)INT64_MAX;
+    }
+    q->table = table;
+    q->cyc_mask = (cfg->mode == QDEC_X4) ? 3u : (cfg->mode == QDEC_X2) ? 1u : 0u;
+    q->bits = bits;
+    q->max_delta = cfg->max_delta ? cfg->max_delta : QDEC_MAX_DELTA(bits - 1u);
+    q->now_raw = now_ns;
+    q->now = 0;
+    q->t_edge = 0;
+    q->ring_n = 0; /* the first counted edge gives no estimate yet */
+    q->ring_head = 0;
+    for (i = 0; i < QDEC_ILLEGAL_MAX; i++) {
+        q->ill_t[i] = 0;
+    }
+    if (cfg->input == QDEC_INPUT_COUNTER) {
+        q->last_raw = initial;
+    } else {
+        q->e.ab = (uint8_t)(initial & 3u);
+        q->e.z = (uint8_t)((initial >> 2) & 1u);
+        q->e.gated = (uint8_t)(q->e.z && (cfg->index_qual == QDEC_INDEX_UNGATED ||
+                                          q->e.ab == cfg->index_qual));
+        q->e.t_last = now_ns;
+    }
+    q->out.pos_nm_raw = qdec_counts_to_nm(q, 0);
+    q->out.pos_nm = comp_correct(cfg->comp, q->out.pos_nm_raw, COMP_DIR_NONE);
+    return true;
+}
+
+void qdec_clear_faults(qdec_t *q)
+{
+    q->out.faults = 0;
+    q->ill_n = 0;
+}
+
+void qdec_set_offset_nm(qdec_t *q, pos_nm_t offset_nm)
+{
+    q->cfg.offset_nm = offset_nm;
+}
+
+void qdec_set_comp(qdec_t *q, const comp_table_t *comp)
+{
+    q->cfg.comp = comp;
+}
+
+pos_nm_t qdec_counts_to_nm(const qdec_t *q, int64_t counts)
+{
+    int64_t num = q->cfg.nm_per_count_num;
+    int64_t den = q->cfg.nm_per_count_den;
+    int64_t whole = counts / den;
+    int64_t rem = counts % den;
+    int64_t nm;
+
+    if (whole != 0 && qdec_uabs(whole) > (uint64_t)INT64_MAX / qdec_uabs(num)) {
+        return ((whole < 0) != (num < 0)) ? INT64_MIN : INT64_MAX;
+    }
+    nm = fx_sat_add64(whole * num, fx_div_round64(rem * num, den));
+    return fx_sat_add64(nm, q->cfg.offset_nm);
+}
