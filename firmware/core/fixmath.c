@@ -4,8 +4,11 @@
  * Right shifts of negative values are arithmetic (GCC and Clang define this;
  * every target of the project uses one of them). Left shifts of values that
  * may be negative are written as multiplications to stay defined in C99.
+ * Magnitudes are handled as uint64_t so that INT64_MIN needs no special case.
  */
 #include "fixmath.h"
+
+/* ---- saturation ----------------------------------------------------------- */
 
 int32_t fx_sat32(int64_t v)
 {
@@ -49,10 +52,52 @@ int64_t fx_sat_add64(int64_t a, int64_t b)
     return a + b;
 }
 
+int64_t fx_sat_sub64(int64_t a, int64_t b)
+{
+    if (b < 0 && a > INT64_MAX + b) {
+        return INT64_MAX;
+    }
+    if (b > 0 && a < INT64_MIN + b) {
+        return INT64_MIN;
+    }
+    return a - b;
+}
+
+int64_t fx_sat_neg64(int64_t a)
+{
+    return (a == INT64_MIN) ? INT64_MAX : -a;
+}
+
+int64_t fx_sat_abs64(int64_t a)
+{
+    return (a < 0) ? fx_sat_neg64(a) : a;
+}
+
+int32_t fx_clamp32(int32_t v, int32_t lo, int32_t hi)
+{
+    if (v < lo) {
+        v = lo;
+    }
+    return (v > hi) ? hi : v;
+}
+
+int64_t fx_clamp64(int64_t v, int64_t lo, int64_t hi)
+{
+    if (v < lo) {
+        v = lo;
+    }
+    return (v > hi) ? hi : v;
+}
+
+/* ---- shifts and multiplications -------------------------------------------- */
+
 int64_t fx_round_shift64(int64_t v, unsigned s)
 {
     if (s == 0) {
         return v;
+    }
+    if (s >= 64) {
+        return 0; /* |v / 2^s| <= 1/2, and -1/2 rounds up to 0 */
     }
     /* floor(v / 2^s) plus the first dropped bit: round half up, no overflow */
     return (v >> s) + ((v >> (s - 1)) & 1);
@@ -68,13 +113,19 @@ int32_t fx_sat_mul32(int32_t a, int32_t b, unsigned s)
     return fx_sat32(fx_mul32_shift(a, b, s));
 }
 
-/* ---- 128-bit helpers (two's complement, hi:lo) ---------------------------- */
+/* ---- 128-bit helpers (two's complement, hi:lo) ------------------------------ */
 
 typedef struct {
     uint64_t hi;
     uint64_t lo;
 } fx_u128_t;
 
+static uint64_t fx_uabs64(int64_t v)
+{
+    return (v < 0) ? (uint64_t)0 - (uint64_t)v : (uint64_t)v;
+}
+
+/* full 64 x 64 -> 128 product from four 32 x 32 -> 64 products */
 static fx_u128_t fx_umul64(uint64_t a, uint64_t b)
 {
     uint64_t a_lo = a & 0xFFFFFFFFu, a_hi = a >> 32;
@@ -91,97 +142,279 @@ static fx_u128_t fx_umul64(uint64_t a, uint64_t b)
     return r;
 }
 
-static fx_u128_t fx_neg128(fx_u128_t v)
+/* 64 x 32 -> 96 product (b < 2^32) from two 32 x 32 -> 64 products */
+static fx_u128_t fx_umul64x32(uint64_t a, uint32_t b)
 {
+    uint64_t lo = (a & 0xFFFFFFFFu) * b;
+    uint64_t hi = (a >> 32) * b;
     fx_u128_t r;
 
-    r.lo = ~v.lo + 1u;
-    r.hi = ~v.hi + (r.lo == 0 ? 1u : 0u);
+    r.lo = lo + (hi << 32);
+    r.hi = (hi >> 32) + (r.lo < lo ? 1u : 0u);
     return r;
 }
 
-static uint64_t fx_uabs64(int64_t v)
+static fx_u128_t fx_add128(fx_u128_t a, fx_u128_t b)
 {
-    return (v < 0) ? (uint64_t)0 - (uint64_t)v : (uint64_t)v;
+    fx_u128_t r;
+
+    r.lo = a.lo + b.lo;
+    r.hi = a.hi + b.hi + (r.lo < a.lo ? 1u : 0u);
+    return r;
 }
 
-/* round(v / 2^s) of a signed 128-bit value, saturated to int64. */
-static int64_t fx_round_shift128_sat(fx_u128_t v, unsigned s)
+static bool fx_le128(fx_u128_t a, fx_u128_t b)
 {
-    int64_t hi;
-    uint64_t lo;
+    return (a.hi < b.hi) || (a.hi == b.hi && a.lo <= b.lo);
+}
 
-    if (s > 0) {
-        /* add half an LSB, carrying into hi */
-        fx_u128_t half = {0u, 0u};
-        if (s - 1 < 64) {
-            half.lo = (uint64_t)1 << (s - 1);
-        } else {
-            half.hi = (uint64_t)1 << (s - 1 - 64);
+/* v * 2^s for any s; false when the result needs more than 128 bits */
+static bool fx_shl128(uint64_t v, unsigned s, fx_u128_t *r)
+{
+    r->hi = 0;
+    r->lo = 0;
+    if (v == 0) {
+        return true;
+    }
+    if (s >= 128) {
+        return false;
+    }
+    if (s >= 64) {
+        if (s > 64 && (v >> (128 - s)) != 0) {
+            return false;
         }
-        lo = v.lo + half.lo;
-        v.hi = v.hi + half.hi + (lo < v.lo ? 1u : 0u);
-        v.lo = lo;
-    }
-    hi = (int64_t)v.hi;
-    if (s == 0) {
-        lo = v.lo;
-    } else if (s < 64) {
-        lo = (v.lo >> s) | (v.hi << (64 - s));
-        hi = hi >> s;
+        r->hi = v << (s - 64);
+    } else if (s > 0) {
+        r->lo = v << s;
+        r->hi = v >> (64 - s);
     } else {
-        lo = (uint64_t)(hi >> (s - 64));
-        hi = hi >> 63;
+        r->lo = v;
     }
-    /* fits in int64 when hi is the sign extension of lo */
-    if (hi != (((int64_t)lo < 0) ? -1 : 0)) {
-        return (hi < 0) ? INT64_MIN : INT64_MAX;
+    return true;
+}
+
+/* An int64 of magnitude m and sign neg, saturated; ok == false means the
+ * magnitude exceeded 64 bits. */
+static int64_t fx_signed_sat(bool ok, uint64_t m, bool neg)
+{
+    if (neg) {
+        if (!ok || m > (uint64_t)INT64_MAX + 1u) {
+            return INT64_MIN;
+        }
+        return (int64_t)((uint64_t)0 - m);
     }
-    return (int64_t)lo;
+    if (!ok || m > (uint64_t)INT64_MAX) {
+        return INT64_MAX;
+    }
+    return (int64_t)m;
+}
+
+/* round(v / 2^s) by the shift rule (ties toward +inf) for v = +m or -m
+ * (neg), saturated to int64: ties of the magnitude go up for a positive v and
+ * down for a negative one. m <= 2^126 (a product of two int64 magnitudes). */
+static int64_t fx_round_shift128_sat(fx_u128_t m, bool neg, unsigned s)
+{
+    uint64_t q, half_bit, below;
+    bool ok = true;
+
+    if (s == 0) {
+        return fx_signed_sat(m.hi == 0, m.lo, neg);
+    }
+    if (s >= 129) {
+        return 0; /* magnitudes here are at most 2^126 */
+    }
+    /* q = floor(m / 2^s); half_bit = bit s-1 of m; below = bits under it */
+    if (s < 64) {
+        q = (m.lo >> s) | (m.hi << (64 - s));
+        ok = (m.hi >> s) == 0;
+        half_bit = (m.lo >> (s - 1)) & 1u;
+        below = m.lo & (((uint64_t)1 << (s - 1)) - 1u);
+    } else if (s == 64) {
+        q = m.hi;
+        half_bit = m.lo >> 63;
+        below = m.lo & (((uint64_t)1 << 63) - 1u);
+    } else {
+        q = (s < 128) ? m.hi >> (s - 64) : 0;
+        half_bit = (m.hi >> (s - 65)) & 1u;
+        below = (m.hi & (((uint64_t)1 << (s - 65)) - 1u)) | m.lo;
+    }
+    /* round half up on the signed value */
+    if (half_bit && (!neg || below != 0)) {
+        if (q == UINT64_MAX) {
+            ok = false;
+        }
+        q++;
+    }
+    return fx_signed_sat(ok, q, neg);
 }
 
 int64_t fx_mul64_shift(int64_t a, int64_t b, unsigned s)
 {
     fx_u128_t p = fx_umul64(fx_uabs64(a), fx_uabs64(b));
 
-    if ((a < 0) != (b < 0)) {
-        p = fx_neg128(p);
-    }
-    return fx_round_shift128_sat(p, s);
+    return fx_round_shift128_sat(p, (a < 0) != (b < 0), s);
 }
 
 int64_t fx_mul64x32_shift(int64_t a, int32_t b, unsigned s)
 {
-    return fx_mul64_shift(a, (int64_t)b, s);
+    fx_u128_t p = fx_umul64x32(fx_uabs64(a), (uint32_t)fx_uabs64(b));
+
+    return fx_round_shift128_sat(p, (a < 0) != (b < 0), s);
+}
+
+pos_nm_t fx_pos_scale_q16(pos_nm_t p, q16_16_t r)
+{
+    return fx_mul64x32_shift(p, r, 16);
+}
+
+pos_nm_t fx_pos_scale_q30(pos_nm_t p, q1_30_t r)
+{
+    return fx_mul64x32_shift(p, r, 30);
+}
+
+/* ---- conversions -------------------------------------------------------------- */
+
+q16_16_t fx_q16_from_int(int32_t n)
+{
+    return fx_sat32((int64_t)n * 65536);
+}
+
+int32_t fx_q16_to_int(q16_16_t v)
+{
+    return (int32_t)fx_round_shift64(v, 16);
+}
+
+q1_30_t fx_q30_from_q16(q16_16_t v)
+{
+    return fx_sat32((int64_t)v * 16384);
+}
+
+q16_16_t fx_q16_from_q30(q1_30_t v)
+{
+    return (q16_16_t)fx_round_shift64(v, 14);
+}
+
+q32_32_t fx_q32_from_int(int64_t n)
+{
+    if (n > INT32_MAX) {
+        return INT64_MAX;
+    }
+    if (n < INT32_MIN) {
+        return INT64_MIN;
+    }
+    return n * FX_ONE_Q32;
+}
+
+int64_t fx_q32_to_int(q32_32_t v)
+{
+    return fx_round_shift64(v, 32);
+}
+
+q32_32_t fx_q32_from_q16(q16_16_t v)
+{
+    return (q32_32_t)v * 65536;
+}
+
+q16_16_t fx_q16_from_q32(q32_32_t v)
+{
+    return fx_sat32(fx_round_shift64(v, 16));
+}
+
+q32_32_t fx_q32_from_q30(q1_30_t v)
+{
+    return (q32_32_t)v * 4;
+}
+
+q1_30_t fx_q30_from_q32(q32_32_t v)
+{
+    return fx_sat32(fx_round_shift64(v, 2));
 }
 
 /* ---- division ---------------------------------------------------------------- */
 
-int64_t fx_div_round64(int64_t num, int64_t den)
+/* floor(n / d) and n mod d for 0 < d <= 2^63 and n.hi < d (the quotient fits
+ * in 64 bits). One compiler 64/64 division when n.hi == 0, shift-subtract
+ * else; r < d <= 2^63 keeps r << 1 within 64 bits. */
+static uint64_t fx_udiv128(fx_u128_t n, uint64_t d, uint64_t *rem)
 {
-    uint64_t un, ud, q, r;
-    bool neg;
+    uint64_t r = n.hi, q = 0;
+    int i;
+
+    if (r == 0) {
+        *rem = n.lo % d;
+        return n.lo / d;
+    }
+    for (i = 63; i >= 0; i--) {
+        r = (r << 1) | ((n.lo >> i) & 1u);
+        q <<= 1;
+        if (r >= d) {
+            r -= d;
+            q |= 1u;
+        }
+    }
+    *rem = r;
+    return q;
+}
+
+/* round(n / d) of magnitudes, ties away from zero, then signed and saturated */
+static int64_t fx_div128_sat(fx_u128_t n, uint64_t d, bool neg)
+{
+    uint64_t q, r;
+
+    if (n.hi >= d) {
+        return neg ? INT64_MIN : INT64_MAX; /* quotient >= 2^64 */
+    }
+    q = fx_udiv128(n, d, &r);
+    if (r >= d - r) {
+        if (q == UINT64_MAX) {
+            return neg ? INT64_MIN : INT64_MAX;
+        }
+        q++;
+    }
+    return fx_signed_sat(true, q, neg);
+}
+
+/* saturated value for a zero divisor: toward the sign of the numerator */
+static int64_t fx_div_zero(bool zero_num, bool neg)
+{
+    if (zero_num) {
+        return 0;
+    }
+    return neg ? INT64_MIN : INT64_MAX;
+}
+
+int64_t fx_div_shift64(int64_t num, int64_t den, unsigned s)
+{
+    fx_u128_t n;
+    bool neg = (num < 0) != (den < 0);
 
     if (den == 0) {
-        return (num > 0) ? INT64_MAX : (num < 0) ? INT64_MIN : 0;
+        return fx_div_zero(num == 0, num < 0);
     }
-    un = fx_uabs64(num);
-    ud = fx_uabs64(den);
-    neg = (num < 0) != (den < 0);
-    q = un / ud;
-    r = un % ud;
-    if (r >= ud - r) {
-        q++; /* ties away from zero */
+    if (!fx_shl128(fx_uabs64(num), s, &n)) {
+        return neg ? INT64_MIN : INT64_MAX; /* |num| * 2^s >= 2^128 */
     }
-    if (neg) {
-        return (q > (uint64_t)INT64_MAX + 1u) ? INT64_MIN : (int64_t)((uint64_t)0 - q);
-    }
-    return (q > (uint64_t)INT64_MAX) ? INT64_MAX : (int64_t)q;
+    return fx_div128_sat(n, fx_uabs64(den), neg);
+}
+
+int64_t fx_div_round64(int64_t num, int64_t den)
+{
+    return fx_div_shift64(num, den, 0);
 }
 
 int32_t fx_div_sat32(int64_t num, int32_t den, unsigned s)
 {
-    return fx_sat32(fx_div_round64(num * ((int64_t)1 << s), den));
+    return fx_sat32(fx_div_shift64(num, den, s));
+}
+
+int64_t fx_muldiv64(int64_t a, int64_t b, int64_t c)
+{
+    bool neg = ((a < 0) != (b < 0)) != (c < 0);
+
+    if (c == 0) {
+        return fx_div_zero(a == 0 || b == 0, (a < 0) != (b < 0));
+    }
+    return fx_div128_sat(fx_umul64(fx_uabs64(a), fx_uabs64(b)), fx_uabs64(c), neg);
 }
 
 q16_16_t fx_recip_q16(q16_16_t x)
@@ -191,13 +424,47 @@ q16_16_t fx_recip_q16(q16_16_t x)
 
 /* ---- roots ------------------------------------------------------------------ */
 
+/* number of leading zero bits of v != 0 (portable, six steps) */
+static unsigned fx_clz64(uint64_t v)
+{
+    unsigned n = 0;
+
+    if (v < ((uint64_t)1 << 32)) {
+        n += 32;
+        v <<= 32;
+    }
+    if (v < ((uint64_t)1 << 48)) {
+        n += 16;
+        v <<= 16;
+    }
+    if (v < ((uint64_t)1 << 56)) {
+        n += 8;
+        v <<= 8;
+    }
+    if (v < ((uint64_t)1 << 60)) {
+        n += 4;
+        v <<= 4;
+    }
+    if (v < ((uint64_t)1 << 62)) {
+        n += 2;
+        v <<= 2;
+    }
+    if (v < ((uint64_t)1 << 63)) {
+        n += 1;
+    }
+    return n;
+}
+
+/* Digit-by-digit square root: one result bit per step, no division. */
 uint32_t fx_isqrt32(uint32_t v)
 {
-    uint32_t r = 0, bit = (uint32_t)1 << 30;
+    uint32_t r = 0, bit;
 
-    while (bit > v) {
-        bit >>= 2;
+    if (v == 0) {
+        return 0;
     }
+    /* highest power of four <= v */
+    bit = (uint32_t)1 << ((63u - fx_clz64(v)) & ~1u);
     while (bit != 0) {
         if (v >= r + bit) {
             v -= r + bit;
@@ -212,14 +479,12 @@ uint32_t fx_isqrt32(uint32_t v)
 
 uint32_t fx_isqrt64(uint64_t v)
 {
-    uint64_t r = 0, bit = (uint64_t)1 << 62;
+    uint64_t r = 0, bit;
 
     if (v <= UINT32_MAX) {
         return fx_isqrt32((uint32_t)v);
     }
-    while (bit > v) {
-        bit >>= 2;
-    }
+    bit = (uint64_t)1 << ((63u - fx_clz64(v)) & ~1u);
     while (bit != 0) {
         if (v >= r + bit) {
             v -= r + bit;
@@ -232,6 +497,28 @@ uint32_t fx_isqrt64(uint64_t v)
     return (uint32_t)r;
 }
 
+/* floor(sqrt(n)) of a 128-bit value (< 2^128, so the root is < 2^64): the top
+ * 32 bits of the root from fx_isqrt64 of the high word, then the low 32 bits
+ * one at a time by squaring the candidate (no division). */
+static uint64_t fx_isqrt128(fx_u128_t n)
+{
+    uint64_t r;
+    int b;
+
+    if (n.hi == 0) {
+        return fx_isqrt64(n.lo);
+    }
+    r = (uint64_t)fx_isqrt64(n.hi) << 32;
+    for (b = 31; b >= 0; b--) {
+        uint64_t c = r | ((uint64_t)1 << b);
+        if (fx_le128(fx_umul64(c, c), n)) {
+            r = c;
+        }
+    }
+    return r;
+}
+
+/* Binary digit-by-digit cube root, three input bits per result bit. */
 uint32_t fx_icbrt64(uint64_t v)
 {
     uint64_t y = 0;
@@ -249,68 +536,113 @@ uint32_t fx_icbrt64(uint64_t v)
     return (uint32_t)y;
 }
 
-/* ---- trigonometry ----------------------------------------------------------- */
+/* ---- trigonometry ------------------------------------------------------------- */
 
-/* Taylor coefficients in q1_30; truncation below 2e-10 on [0, pi/4]. */
-#define FX_PI_2_Q30 1686629713 /* (pi/2) * 2^30: binary-angle quadrant to rad */
+/*
+ * The angle is folded into [0, 45] degrees; there sin and cos are Taylor
+ * series evaluated in unsigned Q0.32 (x < pi/4 < 1), every product rounded,
+ * every bracket of the Horner form positive. Truncation after x^11 (sin) and
+ * x^12 (cos) is below 1.2e-10 on [0, pi/4], an eighth of a q1_30 LSB.
+ */
+#define FX_2PI_Q29 3373259426u /* 2 pi * 2^29: quadrant fraction (2^30) to rad Q0.32 */
 
-static int32_t fx_mul_q30(int32_t a, int32_t b)
+/* 1/n! in Q0.32, rounded */
+#define FX_INV_FACT2  2147483648u
+#define FX_INV_FACT3  715827883u
+#define FX_INV_FACT4  178956971u
+#define FX_INV_FACT5  35791394u
+#define FX_INV_FACT6  5965232u
+#define FX_INV_FACT7  852176u
+#define FX_INV_FACT8  106522u
+#define FX_INV_FACT9  11836u
+#define FX_INV_FACT10 1184u
+#define FX_INV_FACT11 108u
+#define FX_INV_FACT12 9u
+
+/* round(a * b / 2^32): one 32 x 32 -> 64 multiply */
+static uint32_t fx_mulhi32(uint32_t a, uint32_t b)
 {
-    return (int32_t)fx_mul32_shift(a, b, 30);
+    return (uint32_t)(((uint64_t)a * b + 0x80000000u) >> 32);
 }
 
-/* x in rad, q1_30, 0 <= x <= pi/4 */
-static q1_30_t fx_sin_poly(int32_t x)
+/* sin(x) in q1_30 for x in Q0.32, 0 <= x <= pi/4, z = x^2 */
+static q1_30_t fx_sin_poly(uint32_t x, uint32_t z)
 {
-    int32_t x2 = fx_mul_q30(x, x);
-    int32_t acc = -27;                      /* -1/11! */
-    acc = 2959 + fx_mul_q30(x2, acc);       /*  1/9!  */
-    acc = -213044 + fx_mul_q30(x2, acc);    /* -1/7!  */
-    acc = 8947849 + fx_mul_q30(x2, acc);    /*  1/5!  */
-    acc = -178956971 + fx_mul_q30(x2, acc); /* -1/3!  */
-    acc = FX_ONE_Q30 + fx_mul_q30(x2, acc);
-    return fx_mul_q30(x, acc);
+    uint32_t t = FX_INV_FACT11;
+
+    t = FX_INV_FACT9 - fx_mulhi32(z, t);
+    t = FX_INV_FACT7 - fx_mulhi32(z, t);
+    t = FX_INV_FACT5 - fx_mulhi32(z, t);
+    t = FX_INV_FACT3 - fx_mulhi32(z, t);
+    t = x - fx_mulhi32(fx_mulhi32(z, x), t); /* x - x^3 (1/3! - ...) */
+    return (q1_30_t)((t + 2u) >> 2);
 }
 
-static q1_30_t fx_cos_poly(int32_t x)
+/* cos(x) in q1_30 for x in Q0.32, 0 <= x <= pi/4, z = x^2 */
+static q1_30_t fx_cos_poly(uint32_t z)
 {
-    int32_t x2 = fx_mul_q30(x, x);
-    int32_t acc = -296;                     /* -1/10! */
-    acc = 26631 + fx_mul_q30(x2, acc);      /*  1/8!  */
-    acc = -1491308 + fx_mul_q30(x2, acc);   /* -1/6!  */
-    acc = 44739243 + fx_mul_q30(x2, acc);   /*  1/4!  */
-    acc = -536870912 + fx_mul_q30(x2, acc); /* -1/2!  */
-    return FX_ONE_Q30 + fx_mul_q30(x2, acc);
+    uint32_t t = FX_INV_FACT12;
+
+    t = FX_INV_FACT10 - fx_mulhi32(z, t);
+    t = FX_INV_FACT8 - fx_mulhi32(z, t);
+    t = FX_INV_FACT6 - fx_mulhi32(z, t);
+    t = FX_INV_FACT4 - fx_mulhi32(z, t);
+    t = FX_INV_FACT2 - fx_mulhi32(z, t);
+    t = fx_mulhi32(z, t); /* 1 - cos(x) in Q0.32 */
+    /* round((2^32 - t) / 4), ties up */
+    return (q1_30_t)(((uint32_t)1 << 30) - ((t + 1u) >> 2));
 }
 
-/* sin and cos of an angle in the first quadrant, t in [0, 2^30) */
-static void fx_sincos_q1(uint32_t t, q1_30_t *s, q1_30_t *c)
+/* x = t * (pi/2) / 2^30 rad in Q0.32, for t in [0, 2^29] */
+static uint32_t fx_quad_to_rad(uint32_t t)
 {
+    return (uint32_t)(((uint64_t)t * FX_2PI_Q29 + ((uint32_t)1 << 28)) >> 29);
+}
+
+/* sin of t / 2^30 quarter turns, t in [0, 2^30]. cos is sin(2^30 - t), which
+ * makes the two exactly symmetric about 45 degrees. */
+static q1_30_t fx_sin_quad(uint32_t t)
+{
+    uint32_t x;
+
     if (t <= ((uint32_t)1 << 29)) {
-        int32_t x = (int32_t)fx_round_shift64((int64_t)t * FX_PI_2_Q30, 30);
-        *s = fx_sin_poly(x);
-        *c = fx_cos_poly(x);
+        x = fx_quad_to_rad(t);
+        return fx_sin_poly(x, fx_mulhi32(x, x));
+    }
+    x = fx_quad_to_rad(((uint32_t)1 << 30) - t);
+    return fx_cos_poly(fx_mulhi32(x, x));
+}
+
+/* *s = fx_sin_quad(t), *c = fx_sin_quad(2^30 - t), sharing x and x^2 */
+static void fx_sincos_quad(uint32_t t, q1_30_t *s, q1_30_t *c)
+{
+    uint32_t u = (t <= ((uint32_t)1 << 29)) ? t : ((uint32_t)1 << 30) - t;
+    uint32_t x = fx_quad_to_rad(u), z = fx_mulhi32(x, x);
+    q1_30_t sn = fx_sin_poly(x, z);
+    q1_30_t cs = (u == ((uint32_t)1 << 29)) ? sn : fx_cos_poly(z);
+
+    if (u == t) {
+        *s = sn;
+        *c = cs;
     } else {
-        int32_t x = (int32_t)fx_round_shift64((int64_t)(((uint32_t)1 << 30) - t) * FX_PI_2_Q30, 30);
-        *s = fx_cos_poly(x);
-        *c = fx_sin_poly(x);
+        *s = cs;
+        *c = sn;
     }
 }
 
 q1_30_t fx_sin(fx_angle_t a)
 {
-    q1_30_t s, c;
+    uint32_t t = a & 0x3FFFFFFFu;
 
-    fx_sincos_q1(a & 0x3FFFFFFFu, &s, &c);
     switch (a >> 30) {
     case 0:
-        return s;
+        return fx_sin_quad(t);
     case 1:
-        return c;
+        return fx_sin_quad(((uint32_t)1 << 30) - t);
     case 2:
-        return -s;
+        return -fx_sin_quad(t);
     default:
-        return -c;
+        return -fx_sin_quad(((uint32_t)1 << 30) - t);
     }
 }
 
@@ -319,93 +651,155 @@ q1_30_t fx_cos(fx_angle_t a)
     return fx_sin(a + FX_ANGLE_90);
 }
 
-/* atan(2^-i) as binary angle (2^32 per turn) */
-static const uint32_t fx_cordic_atan[32] = {
-    536870912u, 316933406u, 167458907u, 85004756u, 42667331u, 21354465u, 10679838u, 5340245u,
-    2670163u,   1335087u,   667544u,    333772u,   166886u,   83443u,    41722u,    20861u,
-    10430u,     5215u,      2608u,      1304u,     652u,      326u,      163u,      81u,
-    41u,        20u,        10u,        5u,        3u,        1u,        1u,        0u};
-
-fx_angle_t fx_atan2(int64_t y, int64_t x)
+void fx_sincos(fx_angle_t a, q1_30_t *s, q1_30_t *c)
 {
-    uint32_t angle = 0;
-    uint64_t m;
+    q1_30_t sq, cq; /* sin and cos of the angle within its quadrant */
+
+    fx_sincos_quad(a & 0x3FFFFFFFu, &sq, &cq);
+    switch (a >> 30) {
+    case 0:
+        *s = sq;
+        *c = cq;
+        break;
+    case 1:
+        *s = cq;
+        *c = -sq;
+        break;
+    case 2:
+        *s = -sq;
+        *c = -cq;
+        break;
+    default:
+        *s = -cq;
+        *c = sq;
+        break;
+    }
+}
+
+/* atan(2^-i) in units of 2^-56 turn (binary angle with 24 extra bits),
+ * i = 1..33, rounded from a 70-digit evaluation. */
+#define FX_ATAN_FRAC  24
+#define FX_ATAN_STEPS 33
+static const int64_t fx_cordic_atan[FX_ATAN_STEPS + 1] = {
+    0, /* i = 0 is not used: the input is already within 45 degrees */
+    5317260203651848,
+    2809494260081567,
+    1426143154396570,
+    715839029270683,
+    358268477703266,
+    179177955010598,
+    89594445026371,
+    44797906047171,
+    22399038468267,
+    11199529914810,
+    5599766292493,
+    2799883313132,
+    1399941677427,
+    699970841321,
+    349985420986,
+    174992710534,
+    87496355272,
+    43748177637,
+    21874088818,
+    10937044409,
+    5468522205,
+    2734261102,
+    1367130551,
+    683565276,
+    341782638,
+    170891319,
+    85445659,
+    42722830,
+    21361415,
+    10680707,
+    5340354,
+    2670177,
+    1335088};
+
+/* atan(v / u) as a binary angle, 0 < v < u: CORDIC vectoring with the
+ * vector scaled to [2^60, 2^61) (growth 1.17 and sqrt(2) stay below 2^63).
+ * After step i the residual angle is below atan(2^-i); 33 steps leave
+ * 0.08 LSB, the final rounding 0.5 LSB. */
+static uint32_t fx_atan_octant(uint64_t u, uint64_t v)
+{
+    unsigned lz = fx_clz64(u);
+    int64_t x, y, z = 0;
     int i;
 
-    if (x == 0 && y == 0) {
-        return 0;
+    if (lz > 3) {
+        u <<= lz - 3;
+        v <<= lz - 3;
+    } else {
+        u >>= 3 - lz;
+        v >>= 3 - lz;
     }
-    /* scale so that max(|x|,|y|) lies in [2^58, 2^59): headroom for CORDIC
-     * growth (x1.65) and the additions, full precision for small inputs */
-    m = fx_uabs64(x) > fx_uabs64(y) ? fx_uabs64(x) : fx_uabs64(y);
-    while (m >= ((uint64_t)1 << 59)) {
-        x >>= 1;
-        y >>= 1;
-        m >>= 1;
-    }
-    while (m < ((uint64_t)1 << 58)) {
-        x *= 2;
-        y *= 2;
-        m <<= 1;
-    }
-    if (x < 0) {
-        angle = FX_ANGLE_180;
-        x = -x;
-        y = -y;
-    }
-    for (i = 0; i < 32; i++) {
+    x = (int64_t)u;
+    y = (int64_t)v;
+    for (i = 1; i <= FX_ATAN_STEPS && y != 0; i++) {
         int64_t xs = x >> i, ys = y >> i;
         if (y > 0) {
             x += ys;
             y -= xs;
-            angle += fx_cordic_atan[i];
+            z += fx_cordic_atan[i];
         } else {
             x -= ys;
             y += xs;
-            angle -= fx_cordic_atan[i];
+            z -= fx_cordic_atan[i];
         }
     }
-    return angle;
+    return (uint32_t)((z + ((int64_t)1 << (FX_ATAN_FRAC - 1))) >> FX_ATAN_FRAC);
 }
 
-static uint64_t fx_sq(uint64_t v)
+fx_angle_t fx_atan2(int64_t y, int64_t x)
 {
-    return v * v;
+    uint64_t ax = fx_uabs64(x), ay = fx_uabs64(y);
+    fx_angle_t a; /* angle of (|x|, |y|), in [0, 90] degrees */
+
+    if (ay == 0) {
+        a = 0; /* also (0, 0) */
+    } else if (ax == 0) {
+        a = FX_ANGLE_90;
+    } else if (ax == ay) {
+        a = FX_ANGLE_45;
+    } else if (ay < ax) {
+        a = fx_atan_octant(ax, ay);
+    } else {
+        a = FX_ANGLE_90 - fx_atan_octant(ay, ax);
+    }
+    if (x < 0) {
+        a = FX_ANGLE_180 - a;
+    }
+    if (y < 0) {
+        a = (fx_angle_t)0 - a;
+    }
+    return a;
+}
+
+/* ---- vector length -------------------------------------------------------------- */
+
+static int64_t fx_sat_u64(uint64_t v)
+{
+    return (v > (uint64_t)INT64_MAX) ? INT64_MAX : (int64_t)v;
 }
 
 int64_t fx_hypot2(int64_t x, int64_t y)
 {
     uint64_t ax = fx_uabs64(x), ay = fx_uabs64(y);
-    unsigned k = 0;
-    uint64_t r;
 
-    while ((ax | ay) >= ((uint64_t)1 << 31)) {
-        ax >>= 1;
-        ay >>= 1;
-        k++;
+    if ((ax | ay) < ((uint64_t)1 << 31)) {
+        return (int64_t)fx_isqrt64(ax * ax + ay * ay);
     }
-    r = (uint64_t)fx_isqrt64(fx_sq(ax) + fx_sq(ay));
-    if (k > 0 && r > ((uint64_t)INT64_MAX >> k)) {
-        return INT64_MAX;
-    }
-    return (int64_t)(r << k);
+    return fx_sat_u64(fx_isqrt128(fx_add128(fx_umul64(ax, ax), fx_umul64(ay, ay))));
 }
 
 int64_t fx_hypot3(int64_t x, int64_t y, int64_t z)
 {
     uint64_t ax = fx_uabs64(x), ay = fx_uabs64(y), az = fx_uabs64(z);
-    unsigned k = 0;
-    uint64_t r;
+    fx_u128_t n;
 
-    while ((ax | ay | az) >= ((uint64_t)1 << 31)) {
-        ax >>= 1;
-        ay >>= 1;
-        az >>= 1;
-        k++;
+    if ((ax | ay | az) < ((uint64_t)1 << 31)) {
+        return (int64_t)fx_isqrt64(ax * ax + ay * ay + az * az);
     }
-    r = (uint64_t)fx_isqrt64(fx_sq(ax) + fx_sq(ay) + fx_sq(az));
-    if (k > 0 && r > ((uint64_t)INT64_MAX >> k)) {
-        return INT64_MAX;
-    }
-    return (int64_t)(r << k);
+    n = fx_add128(fx_umul64(ax, ax), fx_umul64(ay, ay));
+    return fx_sat_u64(fx_isqrt128(fx_add128(n, fx_umul64(az, az))));
 }

@@ -1,8 +1,29 @@
-/* Fixed-point math: exactness of roots, bounds of trig, saturation. */
+/*
+ * Fixed-point math: every function against an exact reference.
+ *
+ * References are 128-bit integer arithmetic (GCC/Clang __int128, host only)
+ * for the integer functions and double precision for sin/cos/atan2.
+ * Domains: exhaustive where small (isqrt32 on [0, 2^20], every perfect-square
+ * and cube boundary, sin/cos on a dense grid and around every octant
+ * boundary, atan2 on [-64, 64]^2), randomized with a fixed-seed xorshift
+ * generator over the full domains (random bit lengths, so small and huge
+ * values are both frequent), and the extremes of every type and every
+ * saturation boundary. Set FIXMATH_REPORT=1 to print the measured error
+ * maxima (the figures quoted in fixmath.h).
+ */
 #include "fixmath.h"
 #include "unity.h"
 
+#include <inttypes.h>
 #include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+__extension__ typedef __int128 i128;
+__extension__ typedef unsigned __int128 u128;
+
+#define TWO32 4294967296.0
+#define TWO30 1073741824.0
 
 void setUp(void)
 {
@@ -12,36 +33,1197 @@ void tearDown(void)
 {
 }
 
-static void test_isqrt32_exhaustive_small(void)
+/* ---- helpers ------------------------------------------------------------ */
+
+static uint64_t rng_state;
+
+static uint64_t rng(void)
 {
-    uint32_t v;
-    for (v = 0; v < 1000000u; v++) {
-        uint32_t r = fx_isqrt32(v);
-        TEST_ASSERT_TRUE((uint64_t)r * r <= v);
-        TEST_ASSERT_TRUE((uint64_t)(r + 1) * (r + 1) > v);
-    }
-    TEST_ASSERT_EQUAL_UINT32(65535u, fx_isqrt32(UINT32_MAX));
+    /* xorshift64* */
+    rng_state ^= rng_state >> 12;
+    rng_state ^= rng_state << 25;
+    rng_state ^= rng_state >> 27;
+    return rng_state * 0x2545F4914F6CDD1DULL;
 }
 
-static void test_sin_error_bound(void)
+static void rng_seed(uint64_t s)
 {
-    double worst = 0.0;
-    uint32_t i;
-    for (i = 0; i < 200000u; i++) {
-        fx_angle_t a = i * 21475u + (i >> 3);
-        double ref = sin((double)a / 4294967296.0 * 2.0 * M_PI);
-        double err = fabs((double)fx_sin(a) / 1073741824.0 - ref);
-        if (err > worst) {
-            worst = err;
+    rng_state = s ? s : 1;
+}
+
+/* uniform bit length in 0..64, uniform bits below it */
+static uint64_t rnd_u64(void)
+{
+    unsigned len = (unsigned)(rng() % 65);
+    uint64_t v = rng();
+    if (len < 64) {
+        v &= ((uint64_t)1 << len) - 1;
+        v |= (len > 0) ? (uint64_t)1 << (len - 1) : 0;
+    }
+    return v;
+}
+
+/* random bit length, random sign; 1 in 64 draws is an extreme value */
+static int64_t rnd_i64(void)
+{
+    static const int64_t ext[] = {INT64_MIN, INT64_MIN + 1, INT64_MAX, INT64_MAX - 1, 0, 1, -1};
+    uint64_t m;
+    if (rng() % 64 == 0) {
+        return ext[rng() % (sizeof ext / sizeof ext[0])];
+    }
+    m = rnd_u64() >> 1;
+    return (rng() & 1) ? -(int64_t)m - (int64_t)(rng() & 1) : (int64_t)m;
+}
+
+static int32_t rnd_i32(void)
+{
+    static const int32_t ext[] = {INT32_MIN, INT32_MIN + 1, INT32_MAX, INT32_MAX - 1, 0, 1, -1};
+    uint64_t m;
+    if (rng() % 64 == 0) {
+        return ext[rng() % (sizeof ext / sizeof ext[0])];
+    }
+    m = rnd_u64() >> 33;
+    return (rng() & 1) ? -(int32_t)m - (int32_t)(rng() & 1) : (int32_t)m;
+}
+
+static int report_on;
+
+static void report(const char *name, double v, const char *unit)
+{
+    if (report_on) {
+        printf("%s: %.4f %s\n", name, v, unit);
+    }
+}
+
+static char msg[200];
+
+#define EXPECT_I64(exp, got, ...)                                                                  \
+    do {                                                                                           \
+        int64_t e_ = (exp), g_ = (got);                                                            \
+        if (e_ != g_) {                                                                            \
+            snprintf(msg, sizeof msg, __VA_ARGS__);                                                \
+            TEST_ASSERT_EQUAL_INT64_MESSAGE(e_, g_, msg);                                          \
+        }                                                                                          \
+    } while (0)
+
+static int64_t sat64(i128 v)
+{
+    if (v > INT64_MAX) {
+        return INT64_MAX;
+    }
+    if (v < INT64_MIN) {
+        return INT64_MIN;
+    }
+    return (int64_t)v;
+}
+
+static int32_t sat32(i128 v)
+{
+    if (v > INT32_MAX) {
+        return INT32_MAX;
+    }
+    if (v < INT32_MIN) {
+        return INT32_MIN;
+    }
+    return (int32_t)v;
+}
+
+/* round(v / 2^s), ties toward +inf: floor(v / 2^s + 1/2); |v| <= 2^126 */
+static i128 ref_shift(i128 v, unsigned s)
+{
+    if (s == 0) {
+        return v;
+    }
+    if (s >= 128) {
+        return 0;
+    }
+    return (v >> s) + ((v >> (s - 1)) & 1);
+}
+
+/* round(n / d), ties away from zero, of magnitudes; d != 0 */
+static u128 ref_udiv_round(u128 n, u128 d)
+{
+    u128 q = n / d, r = n % d;
+    return (r >= d - r) ? q + 1 : q;
+}
+
+/* round(n / d) ties away from zero, saturated; n = +-nm, d = +-dm */
+static int64_t ref_div_sat(u128 nm, bool nneg, u128 dm, bool dneg)
+{
+    u128 q;
+    if (dm == 0) {
+        return nm == 0 ? 0 : nneg ? INT64_MIN : INT64_MAX;
+    }
+    q = ref_udiv_round(nm, dm);
+    if (nneg != dneg) {
+        return (q > ((u128)1 << 63)) ? INT64_MIN : (int64_t)(0 - (i128)q);
+    }
+    return (q > (u128)INT64_MAX) ? INT64_MAX : (int64_t)q;
+}
+
+static u128 uabs(i128 v)
+{
+    return (u128)(v < 0 ? -v : v);
+}
+
+static unsigned bitlen(u128 v)
+{
+    unsigned n = 0;
+    while (v != 0) {
+        v >>= 1;
+        n++;
+    }
+    return n;
+}
+
+static u128 ref_isqrt128(u128 n)
+{
+    u128 r = (u128)sqrtl((long double)n);
+    while (r * r > n) {
+        r--;
+    }
+    while ((r + 1) * (r + 1) <= n) {
+        r++;
+    }
+    return r;
+}
+
+/* signed binary-angle error of got against the real angle ref (in turns*2^32) */
+static double angle_err(fx_angle_t got, double ref)
+{
+    double d = (double)got - ref;
+    while (d > TWO32 / 2) {
+        d -= TWO32;
+    }
+    while (d < -TWO32 / 2) {
+        d += TWO32;
+    }
+    return d;
+}
+
+static double ref_atan2_turns(int64_t y, int64_t x)
+{
+    return atan2((double)y, (double)x) / (2.0 * M_PI) * TWO32;
+}
+
+/* ---- saturation and clamping ------------------------------------------ */
+
+static const int32_t edge32[] = {
+    INT32_MIN, INT32_MIN + 1, INT32_MIN / 2, -65536,        -2,       -1, 0, 1, 2,
+    65536,     1073741824,    INT32_MAX / 2, INT32_MAX - 1, INT32_MAX};
+#define N_EDGE32 (sizeof edge32 / sizeof edge32[0])
+
+static const int64_t edge64[] = {INT64_MIN,
+                                 INT64_MIN + 1,
+                                 INT64_MIN / 2,
+                                 (int64_t)INT32_MIN - 1,
+                                 INT32_MIN,
+                                 -4294967296LL,
+                                 -2,
+                                 -1,
+                                 0,
+                                 1,
+                                 2,
+                                 INT32_MAX,
+                                 (int64_t)INT32_MAX + 1,
+                                 4294967296LL,
+                                 INT64_MAX / 2,
+                                 INT64_MAX - 1,
+                                 INT64_MAX};
+#define N_EDGE64 (sizeof edge64 / sizeof edge64[0])
+
+static void test_sat32_boundaries(void)
+{
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat32(INT32_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat32((int64_t)INT32_MAX + 1));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat32(INT64_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat32(INT32_MIN));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat32((int64_t)INT32_MIN - 1));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat32(INT64_MIN));
+    TEST_ASSERT_EQUAL_INT32(0, fx_sat32(0));
+    TEST_ASSERT_EQUAL_INT32(-1, fx_sat32(-1));
+}
+
+static void test_sat_arith32_edges_and_random(void)
+{
+    unsigned i, j;
+    for (i = 0; i < N_EDGE32; i++) {
+        int32_t a = edge32[i];
+        EXPECT_I64(sat32(-(i128)a), fx_sat_neg32(a), "neg %d", a);
+        EXPECT_I64(sat32(a < 0 ? -(i128)a : a), fx_sat_abs32(a), "abs %d", a);
+        for (j = 0; j < N_EDGE32; j++) {
+            int32_t b = edge32[j];
+            EXPECT_I64(sat32((i128)a + b), fx_sat_add32(a, b), "add %d %d", a, b);
+            EXPECT_I64(sat32((i128)a - b), fx_sat_sub32(a, b), "sub %d %d", a, b);
         }
     }
-    TEST_ASSERT_TRUE(worst <= 4e-9);
+    /* exact boundaries */
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_add32(INT32_MAX - 1, 1));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_add32(INT32_MAX, 1));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat_add32(INT32_MIN + 1, -1));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat_add32(INT32_MIN, -1));
+    TEST_ASSERT_EQUAL_INT32(-1, fx_sat_add32(INT32_MAX, INT32_MIN));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_sub32(0, INT32_MIN));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_sub32(-1, INT32_MIN));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat_sub32(-2, INT32_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat_sub32(-1, INT32_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN + 1, fx_sat_sub32(0, INT32_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_neg32(INT32_MIN));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_abs32(INT32_MIN));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_abs32(INT32_MIN + 1));
+    rng_seed(32);
+    for (i = 0; i < 100000; i++) {
+        int32_t a = rnd_i32(), b = rnd_i32();
+        EXPECT_I64(sat32((i128)a + b), fx_sat_add32(a, b), "add %d %d", a, b);
+        EXPECT_I64(sat32((i128)a - b), fx_sat_sub32(a, b), "sub %d %d", a, b);
+    }
+}
+
+static void test_sat_arith64_edges_and_random(void)
+{
+    unsigned i, j;
+    for (i = 0; i < N_EDGE64; i++) {
+        int64_t a = edge64[i];
+        EXPECT_I64(sat64(-(i128)a), fx_sat_neg64(a), "neg %" PRId64, a);
+        EXPECT_I64(sat64(a < 0 ? -(i128)a : a), fx_sat_abs64(a), "abs %" PRId64, a);
+        for (j = 0; j < N_EDGE64; j++) {
+            int64_t b = edge64[j];
+            EXPECT_I64(sat64((i128)a + b), fx_sat_add64(a, b), "add %" PRId64 " %" PRId64, a, b);
+            EXPECT_I64(sat64((i128)a - b), fx_sat_sub64(a, b), "sub %" PRId64 " %" PRId64, a, b);
+        }
+    }
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_sat_add64(INT64_MAX - 1, 1));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_sat_add64(INT64_MAX, 1));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_sat_add64(INT64_MIN, -1));
+    TEST_ASSERT_EQUAL_INT64(-1, fx_sat_add64(INT64_MAX, INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_sat_sub64(-1, INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_sat_sub64(0, INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_sat_sub64(-2, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_sat_sub64(-1, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN + 1, fx_sat_sub64(0, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_sat_neg64(INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_sat_abs64(INT64_MIN));
+    rng_seed(64);
+    for (i = 0; i < 100000; i++) {
+        int64_t a = rnd_i64(), b = rnd_i64();
+        EXPECT_I64(sat64((i128)a + b), fx_sat_add64(a, b), "add %" PRId64 " %" PRId64, a, b);
+        EXPECT_I64(sat64((i128)a - b), fx_sat_sub64(a, b), "sub %" PRId64 " %" PRId64, a, b);
+    }
+}
+
+static void test_clamp(void)
+{
+    TEST_ASSERT_EQUAL_INT32(5, fx_clamp32(5, 0, 10));
+    TEST_ASSERT_EQUAL_INT32(0, fx_clamp32(-5, 0, 10));
+    TEST_ASSERT_EQUAL_INT32(10, fx_clamp32(15, 0, 10));
+    TEST_ASSERT_EQUAL_INT32(0, fx_clamp32(0, 0, 10));
+    TEST_ASSERT_EQUAL_INT32(10, fx_clamp32(10, 0, 10));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_clamp32(INT32_MIN, INT32_MIN, INT32_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_clamp32(INT32_MAX, INT32_MIN, INT32_MAX));
+    TEST_ASSERT_EQUAL_INT32(-3, fx_clamp32(INT32_MIN, -3, -3));
+    TEST_ASSERT_EQUAL_INT32(-3, fx_clamp32(INT32_MAX, -3, -3));
+    /* inverted limits: the upper one wins */
+    TEST_ASSERT_EQUAL_INT32(0, fx_clamp32(5, 10, 0));
+    TEST_ASSERT_EQUAL_INT32(0, fx_clamp32(-5, 10, 0));
+    TEST_ASSERT_EQUAL_INT64(7, fx_clamp64(7, -10, 10));
+    TEST_ASSERT_EQUAL_INT64(-10, fx_clamp64(INT64_MIN, -10, 10));
+    TEST_ASSERT_EQUAL_INT64(10, fx_clamp64(INT64_MAX, -10, 10));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_clamp64(INT64_MIN, INT64_MIN, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_clamp64(INT64_MAX, INT64_MIN, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(0, fx_clamp64(5, 10, 0));
+}
+
+/* ---- shifts and multiplications ----------------------------------------- */
+
+static void test_round_shift64_ties_toward_plus_inf(void)
+{
+    unsigned s;
+    TEST_ASSERT_EQUAL_INT64(2, fx_round_shift64(3, 1));   /*  1.5  ->  2 */
+    TEST_ASSERT_EQUAL_INT64(-1, fx_round_shift64(-3, 1)); /* -1.5  -> -1 */
+    TEST_ASSERT_EQUAL_INT64(1, fx_round_shift64(1, 1));   /*  0.5  ->  1 */
+    TEST_ASSERT_EQUAL_INT64(0, fx_round_shift64(-1, 1));  /* -0.5  ->  0 */
+    TEST_ASSERT_EQUAL_INT64(-1, fx_round_shift64(-5, 2)); /* -1.25 -> -1 */
+    TEST_ASSERT_EQUAL_INT64(-2, fx_round_shift64(-7, 2)); /* -1.75 -> -2 */
+    for (s = 1; s < 63; s++) {
+        int64_t half = (int64_t)1 << (s - 1);
+        EXPECT_I64(1, fx_round_shift64(half, s), "+half s=%u", s);
+        EXPECT_I64(0, fx_round_shift64(-half, s), "-half s=%u", s);
+        EXPECT_I64(0, fx_round_shift64(half - 1, s), "below half s=%u", s);
+        EXPECT_I64(-1, fx_round_shift64(-half - 1, s), "below -half s=%u", s);
+        EXPECT_I64(2, fx_round_shift64(3 * half, s), "1.5 s=%u", s);
+        EXPECT_I64(-1, fx_round_shift64(-3 * half, s), "-1.5 s=%u", s);
+    }
+}
+
+static void test_round_shift64_extremes_and_random(void)
+{
+    unsigned s, i, k;
+    for (s = 0; s < 70; s++) {
+        for (k = 0; k < N_EDGE64; k++) {
+            int64_t v = edge64[k];
+            EXPECT_I64((int64_t)ref_shift(v, s), fx_round_shift64(v, s), "v=%" PRId64 " s=%u", v,
+                       s);
+        }
+    }
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_round_shift64(INT64_MAX, 0));
+    TEST_ASSERT_EQUAL_INT64((int64_t)1 << 62, fx_round_shift64(INT64_MAX, 1));
+    TEST_ASSERT_EQUAL_INT64(1, fx_round_shift64(INT64_MAX, 63));
+    TEST_ASSERT_EQUAL_INT64(-1, fx_round_shift64(INT64_MIN, 63));
+    TEST_ASSERT_EQUAL_INT64(0, fx_round_shift64(INT64_MIN, 64));
+    TEST_ASSERT_EQUAL_INT64(0, fx_round_shift64(INT64_MAX, 64));
+    TEST_ASSERT_EQUAL_INT64(0, fx_round_shift64(INT64_MIN, 1000));
+    rng_seed(1);
+    for (i = 0; i < 100000; i++) {
+        int64_t v = rnd_i64();
+        s = (unsigned)(rng() % 66);
+        EXPECT_I64((int64_t)ref_shift(v, s), fx_round_shift64(v, s), "v=%" PRId64 " s=%u", v, s);
+    }
+}
+
+static void test_mul32_shift_and_sat_mul32(void)
+{
+    unsigned i, j, s;
+    /* extremes: the product itself never overflows */
+    TEST_ASSERT_EQUAL_INT64((int64_t)1 << 62, fx_mul32_shift(INT32_MIN, INT32_MIN, 0));
+    TEST_ASSERT_EQUAL_INT64(-((int64_t)1 << 31) * INT32_MAX,
+                            fx_mul32_shift(INT32_MIN, INT32_MAX, 0));
+    TEST_ASSERT_EQUAL_INT64(1, fx_mul32_shift(INT32_MIN, INT32_MIN, 62));
+    TEST_ASSERT_EQUAL_INT64(1, fx_mul32_shift(INT32_MIN, INT32_MIN, 63)); /* 0.5 -> 1 */
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul32_shift(INT32_MIN, INT32_MIN, 64));
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul32_shift(INT32_MIN, INT32_MAX, 64));
+    /* q16 * q16: 1.5 * -2.5 = -3.75 exactly; 3 LSB * 0.5 = 1.5 LSB -> 2 */
+    TEST_ASSERT_EQUAL_INT32(-245760, fx_sat_mul32(98304, -163840, 16));
+    TEST_ASSERT_EQUAL_INT32(2, fx_sat_mul32(3, 32768, 16));
+    TEST_ASSERT_EQUAL_INT32(-1, fx_sat_mul32(-3, 32768, 16));
+    /* saturation boundary: 65535 * 65537 = 2^32 - 1 */
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_mul32(65535, 32769, 0));
+    TEST_ASSERT_EQUAL_INT32(2147385345, fx_sat_mul32(65535, 32767, 0));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_mul32(65535, 65537, 1));   /* 2^31 - 0.5 -> 2^31 */
+    TEST_ASSERT_EQUAL_INT32(-INT32_MAX, fx_sat_mul32(-65535, 65537, 1)); /* tie up */
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_mul32(INT32_MAX, 1, 0));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat_mul32(INT32_MIN, 1, 0));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_mul32(INT32_MIN, -1, 0));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_mul32(INT32_MIN, INT32_MIN, 31));
+    TEST_ASSERT_EQUAL_INT32(1 << 30, fx_sat_mul32(INT32_MIN, INT32_MIN, 32));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat_mul32(INT32_MIN, 65536, 16));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_sat_mul32(INT32_MIN, -65536, 16));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat_mul32(65536, -32768 * 65536, 16));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_sat_mul32(65536 * 2, -32768 * 65536, 16));
+    for (i = 0; i < N_EDGE32; i++) {
+        for (j = 0; j < N_EDGE32; j++) {
+            for (s = 0; s < 66; s += 5) {
+                int32_t a = edge32[i], b = edge32[j];
+                i128 r = ref_shift((i128)a * b, s);
+                EXPECT_I64((int64_t)r, fx_mul32_shift(a, b, s), "%d*%d>>%u", a, b, s);
+                EXPECT_I64(sat32(r), fx_sat_mul32(a, b, s), "sat %d*%d>>%u", a, b, s);
+            }
+        }
+    }
+    rng_seed(2);
+    for (i = 0; i < 200000; i++) {
+        int32_t a = rnd_i32(), b = rnd_i32();
+        i128 r;
+        s = (unsigned)(rng() % 64);
+        r = ref_shift((i128)a * b, s);
+        EXPECT_I64((int64_t)r, fx_mul32_shift(a, b, s), "%d*%d>>%u", a, b, s);
+        EXPECT_I64(sat32(r), fx_sat_mul32(a, b, s), "sat %d*%d>>%u", a, b, s);
+    }
+}
+
+static void test_mul64_shift_extremes(void)
+{
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_mul64_shift(INT64_MIN, INT64_MIN, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_mul64_shift(INT64_MIN, INT64_MIN, 63));
+    TEST_ASSERT_EQUAL_INT64((int64_t)1 << 62, fx_mul64_shift(INT64_MIN, INT64_MIN, 64));
+    TEST_ASSERT_EQUAL_INT64(1, fx_mul64_shift(INT64_MIN, INT64_MIN, 126));
+    TEST_ASSERT_EQUAL_INT64(1, fx_mul64_shift(INT64_MIN, INT64_MIN, 127)); /* 0.5 -> 1 */
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul64_shift(INT64_MIN, INT64_MIN, 128));
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul64_shift(INT64_MIN, INT64_MAX, 127)); /* -0.49.. */
+    TEST_ASSERT_EQUAL_INT64(-1, fx_mul64_shift(INT64_MIN, INT64_MAX, 126));
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul64_shift(INT64_MIN, INT64_MIN, 4000));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_mul64_shift(INT64_MIN, 1, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_mul64_shift(INT64_MIN, -1, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_mul64_shift(INT64_MIN, 2, 1));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_mul64_shift(INT64_MAX, 1, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_mul64_shift(INT64_MAX, 2, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_mul64_shift(INT64_MAX, -2, 0));
+    /* boundary: (2^63 - 1/2) rounds up and saturates; -(2^63 - 1/2) rounds to -(2^63-1) */
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_mul64_shift(INT64_MAX, 2, 1));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN + 1, fx_mul64_shift(-INT64_MAX, 2, 1));
+    TEST_ASSERT_EQUAL_INT64((int64_t)3 << 61, fx_mul64_shift((int64_t)1 << 62, 3, 1));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_mul64_shift((int64_t)1 << 62, -4, 1));
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul64_shift(0, INT64_MIN, 0));
+    /* ties of negative products go toward +inf */
+    TEST_ASSERT_EQUAL_INT64(-1, fx_mul64_shift(-3, 1, 1));
+    TEST_ASSERT_EQUAL_INT64(2, fx_mul64_shift(3, 1, 1));
+    TEST_ASSERT_EQUAL_INT64(-1, fx_mul64_shift(-3, (int64_t)1 << 40, 41));
+    TEST_ASSERT_EQUAL_INT64(-1, fx_mul64x32_shift(-3, 1, 1));
+    TEST_ASSERT_EQUAL_INT64(-1, fx_mul64x32_shift(-((int64_t)3 << 40), 1 << 20, 61));
+    TEST_ASSERT_EQUAL_INT64(2, fx_mul64x32_shift((int64_t)3 << 40, 1 << 20, 61));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_mul64x32_shift(INT64_MIN, INT32_MIN, 31));
+    TEST_ASSERT_EQUAL_INT64((int64_t)1 << 62, fx_mul64x32_shift(INT64_MIN, INT32_MIN, 32));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_mul64x32_shift(INT64_MIN, 1, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_mul64x32_shift(INT64_MIN, -1, 0));
+    TEST_ASSERT_EQUAL_INT64(1, fx_mul64x32_shift(INT64_MIN, INT32_MIN, 94)); /* 2^94 / 2^94 */
+    TEST_ASSERT_EQUAL_INT64(1, fx_mul64x32_shift(INT64_MIN, INT32_MIN, 95)); /* 0.5 -> 1 */
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul64x32_shift(INT64_MIN, INT32_MIN, 96));
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul64x32_shift(INT64_MIN, INT32_MAX, 95));
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul64x32_shift(INT64_MAX, INT32_MAX, 200));
+}
+
+static void test_mul64_shift_random(void)
+{
+    unsigned i, j, s;
+    for (i = 0; i < N_EDGE64; i++) {
+        for (j = 0; j < N_EDGE64; j++) {
+            for (s = 0; s < 132; s += 3) {
+                int64_t a = edge64[i], b = edge64[j];
+                EXPECT_I64(sat64(ref_shift((i128)a * b, s)), fx_mul64_shift(a, b, s),
+                           "%" PRId64 "*%" PRId64 ">>%u", a, b, s);
+            }
+        }
+    }
+    rng_seed(3);
+    for (i = 0; i < 200000; i++) {
+        int64_t a = rnd_i64(), b = rnd_i64();
+        int32_t c = rnd_i32();
+        s = (unsigned)(rng() % 130);
+        EXPECT_I64(sat64(ref_shift((i128)a * b, s)), fx_mul64_shift(a, b, s),
+                   "%" PRId64 "*%" PRId64 ">>%u", a, b, s);
+        EXPECT_I64(sat64(ref_shift((i128)a * c, s)), fx_mul64x32_shift(a, c, s),
+                   "%" PRId64 "*%d>>%u", a, c, s);
+        if (s < 64) {
+            /* sign symmetry away from ties: -(a*b) rounds like a*b unless it
+             * is exactly half-way */
+            i128 p = (i128)a * b;
+            bool tie = s > 0 && (uabs(p) & (((u128)1 << s) - 1)) == ((u128)1 << (s - 1));
+            if (!tie && a != INT64_MIN) {
+                int64_t pos = fx_mul64_shift(a, b, s), neg = fx_mul64_shift(-a, b, s);
+                TEST_ASSERT_TRUE(pos == INT64_MIN || neg == INT64_MIN || neg == -pos);
+            }
+        }
+    }
+}
+
+static void test_pos_scale(void)
+{
+    unsigned i;
+    /* 1 m scaled by 1.5 (q16) and by -0.25 (q30) */
+    TEST_ASSERT_EQUAL_INT64(1500000000LL, fx_pos_scale_q16(1000000000LL, 3 << 15));
+    TEST_ASSERT_EQUAL_INT64(-250000000LL, fx_pos_scale_q30(1000000000LL, -(1 << 28)));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_pos_scale_q16(INT64_MAX, 2 << 16));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_pos_scale_q16(INT64_MAX, -(2 << 16)));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_pos_scale_q30(INT64_MIN, INT32_MIN)); /* * -2 */
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_pos_scale_q30(INT64_MIN, FX_ONE_Q30));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_pos_scale_q30(INT64_MAX, FX_ONE_Q30));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_pos_scale_q16(INT64_MIN, -FX_ONE_Q16));
+    TEST_ASSERT_EQUAL_INT64(1, fx_pos_scale_q16(1, 32768));   /* 0.5 -> 1 */
+    TEST_ASSERT_EQUAL_INT64(0, fx_pos_scale_q16(-1, 32768));  /* -0.5 -> 0 */
+    TEST_ASSERT_EQUAL_INT64(-1, fx_pos_scale_q16(-1, 32769)); /* -0.50002 -> -1 */
+    rng_seed(4);
+    for (i = 0; i < 100000; i++) {
+        int64_t p = rnd_i64();
+        int32_t r = rnd_i32();
+        EXPECT_I64(sat64(ref_shift((i128)p * r, 16)), fx_pos_scale_q16(p, r), "%" PRId64 "*%d", p,
+                   r);
+        EXPECT_I64(sat64(ref_shift((i128)p * r, 30)), fx_pos_scale_q30(p, r), "%" PRId64 "*%d", p,
+                   r);
+    }
+}
+
+/* ---- conversions ---------------------------------------------------------- */
+
+static void test_conversions(void)
+{
+    unsigned i;
+    TEST_ASSERT_EQUAL_INT32(3 * 65536, fx_q16_from_int(3));
+    TEST_ASSERT_EQUAL_INT32(-32768 * 65536, fx_q16_from_int(-32768));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_q16_from_int(-32769));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_q16_from_int(32768));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_q16_from_int(INT32_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_q16_from_int(INT32_MIN));
+    TEST_ASSERT_EQUAL_INT32(FX_INT_TO_Q16(-7), fx_q16_from_int(-7));
+    TEST_ASSERT_EQUAL_INT32(2, fx_q16_to_int(98304));   /*  1.5 ->  2 */
+    TEST_ASSERT_EQUAL_INT32(-1, fx_q16_to_int(-98304)); /* -1.5 -> -1 */
+    TEST_ASSERT_EQUAL_INT32(-2, fx_q16_to_int(-98305));
+    TEST_ASSERT_EQUAL_INT32(32768, fx_q16_to_int(INT32_MAX));
+    TEST_ASSERT_EQUAL_INT32(-32768, fx_q16_to_int(INT32_MIN));
+    TEST_ASSERT_EQUAL_INT32(FX_ONE_Q30, fx_q30_from_q16(FX_ONE_Q16));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_q30_from_q16(-2 * FX_ONE_Q16));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_q30_from_q16(2 * FX_ONE_Q16));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX - 16383, fx_q30_from_q16(2 * FX_ONE_Q16 - 1));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_q30_from_q16(INT32_MIN));
+    TEST_ASSERT_EQUAL_INT32(FX_ONE_Q16, fx_q16_from_q30(FX_ONE_Q30));
+    TEST_ASSERT_EQUAL_INT32(1, fx_q16_from_q30(8192));  /*  0.5 LSB ->  1 */
+    TEST_ASSERT_EQUAL_INT32(0, fx_q16_from_q30(-8192)); /* -0.5 LSB ->  0 */
+    TEST_ASSERT_EQUAL_INT32(2 * FX_ONE_Q16, fx_q16_from_q30(INT32_MAX));
+    TEST_ASSERT_EQUAL_INT32(-2 * FX_ONE_Q16, fx_q16_from_q30(INT32_MIN));
+    TEST_ASSERT_EQUAL_INT64(-5 * FX_ONE_Q32, fx_q32_from_int(-5));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_q32_from_int(INT32_MIN));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX - 0xFFFFFFFFLL, fx_q32_from_int(INT32_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_q32_from_int((int64_t)INT32_MAX + 1));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_q32_from_int((int64_t)INT32_MIN - 1));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_q32_from_int(INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_q32_from_int(INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(3, fx_q32_to_int(5 * (FX_ONE_Q32 / 2)));     /* 2.5 -> 3 */
+    TEST_ASSERT_EQUAL_INT64(-2, fx_q32_to_int(-5 * (FX_ONE_Q32 / 2)));   /* -2.5 -> -2 */
+    TEST_ASSERT_EQUAL_INT64((int64_t)1 << 31, fx_q32_to_int(INT64_MAX)); /* 2^31 - tiny */
+    TEST_ASSERT_EQUAL_INT64(INT32_MIN, fx_q32_to_int(INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64((int64_t)INT32_MIN * FX_ONE_Q16, fx_q32_from_q16(INT32_MIN));
+    TEST_ASSERT_EQUAL_INT64((int64_t)INT32_MAX * 4, fx_q32_from_q30(INT32_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_q16_from_q32(INT64_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_q16_from_q32(INT64_MIN));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_q16_from_q32((int64_t)INT32_MIN * 65536 - 32768));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_q16_from_q32((int64_t)INT32_MIN * 65536 - 32769));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_q16_from_q32((int64_t)INT32_MAX * 65536 + 32767));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_q16_from_q32((int64_t)INT32_MAX * 65536 + 32768));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_q30_from_q32(INT64_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_q30_from_q32(INT64_MIN));
+    TEST_ASSERT_EQUAL_INT32(1, fx_q30_from_q32(2));   /*  0.5 ->  1 */
+    TEST_ASSERT_EQUAL_INT32(0, fx_q30_from_q32(-2));  /* -0.5 ->  0 */
+    TEST_ASSERT_EQUAL_INT32(-1, fx_q30_from_q32(-3)); /* -0.75 -> -1 */
+    rng_seed(5);
+    for (i = 0; i < 100000; i++) {
+        int32_t a = rnd_i32();
+        int64_t b = rnd_i64();
+        EXPECT_I64(sat32((i128)a * 65536), fx_q16_from_int(a), "q16_from_int %d", a);
+        EXPECT_I64((int64_t)ref_shift(a, 16), fx_q16_to_int(a), "q16_to_int %d", a);
+        EXPECT_I64(sat32((i128)a * 16384), fx_q30_from_q16(a), "q30_from_q16 %d", a);
+        EXPECT_I64((int64_t)ref_shift(a, 14), fx_q16_from_q30(a), "q16_from_q30 %d", a);
+        EXPECT_I64((int64_t)a * 65536, fx_q32_from_q16(a), "q32_from_q16 %d", a);
+        EXPECT_I64((int64_t)a * 4, fx_q32_from_q30(a), "q32_from_q30 %d", a);
+        EXPECT_I64(sat64((i128)b * ((i128)1 << 32)), fx_q32_from_int(b), "%" PRId64, b);
+        EXPECT_I64((int64_t)ref_shift(b, 32), fx_q32_to_int(b), "%" PRId64, b);
+        EXPECT_I64(sat32(ref_shift(b, 16)), fx_q16_from_q32(b), "%" PRId64, b);
+        EXPECT_I64(sat32(ref_shift(b, 2)), fx_q30_from_q32(b), "%" PRId64, b);
+        /* round trips through a wider format are exact */
+        EXPECT_I64(a, fx_q16_from_q32(fx_q32_from_q16(a)), "q16 rt %d", a);
+        EXPECT_I64(a, fx_q30_from_q32(fx_q32_from_q30(a)), "q30 rt %d", a);
+    }
+}
+
+/* ---- division --------------------------------------------------------------- */
+
+static void test_div_round64(void)
+{
+    unsigned i, j;
+    TEST_ASSERT_EQUAL_INT64(4, fx_div_round64(7, 2));   /*  3.5 ->  4 */
+    TEST_ASSERT_EQUAL_INT64(-4, fx_div_round64(-7, 2)); /* -3.5 -> -4 */
+    TEST_ASSERT_EQUAL_INT64(-4, fx_div_round64(7, -2)); /* -3.5 -> -4 */
+    TEST_ASSERT_EQUAL_INT64(4, fx_div_round64(-7, -2)); /*  3.5 ->  4 */
+    TEST_ASSERT_EQUAL_INT64(2, fx_div_round64(5, 3));   /*  1.67 -> 2 */
+    TEST_ASSERT_EQUAL_INT64(-1, fx_div_round64(-4, 3)); /* -1.33 -> -1 */
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_div_round64(1, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_div_round64(-1, 0));
+    TEST_ASSERT_EQUAL_INT64(0, fx_div_round64(0, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_div_round64(INT64_MIN, -1));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_div_round64(INT64_MIN, 1));
+    TEST_ASSERT_EQUAL_INT64(1, fx_div_round64(INT64_MIN, INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(-1, fx_div_round64(INT64_MAX, INT64_MIN));    /* -0.99.. */
+    TEST_ASSERT_EQUAL_INT64(-1, fx_div_round64(INT64_MIN, INT64_MAX));    /* -1.00.. */
+    TEST_ASSERT_EQUAL_INT64(1, fx_div_round64(INT64_MIN / 2, INT64_MIN)); /* 0.5 -> 1 */
+    TEST_ASSERT_EQUAL_INT64(0, fx_div_round64(INT64_MIN / 2 + 1, INT64_MIN));
+    for (i = 0; i < N_EDGE64; i++) {
+        for (j = 0; j < N_EDGE64; j++) {
+            int64_t n = edge64[i], d = edge64[j];
+            EXPECT_I64(ref_div_sat(uabs(n), n < 0, uabs(d), d < 0), fx_div_round64(n, d),
+                       "%" PRId64 "/%" PRId64, n, d);
+        }
+    }
+    rng_seed(6);
+    for (i = 0; i < 100000; i++) {
+        int64_t n = rnd_i64(), d = rnd_i64();
+        int64_t q = fx_div_round64(n, d);
+        EXPECT_I64(ref_div_sat(uabs(n), n < 0, uabs(d), d < 0), q, "%" PRId64 "/%" PRId64, n, d);
+        /* sign symmetry: ties away from zero */
+        if (n != INT64_MIN && d != 0 && q != INT64_MIN) {
+            EXPECT_I64(-q, fx_div_round64(-n, d), "sym %" PRId64 "/%" PRId64, n, d);
+        }
+    }
+}
+
+static void test_div_shift64_and_sat32(void)
+{
+    unsigned i, s;
+    /* the quotient is exact even when num * 2^s overflows 64 bits: a q1_30
+     * unit-vector component dx / len of a 2^62 nm move */
+    TEST_ASSERT_EQUAL_INT64(FX_ONE_Q30 / 2, fx_div_shift64((int64_t)1 << 61, (int64_t)1 << 62, 30));
+    TEST_ASSERT_EQUAL_INT64(-759250125,
+                            fx_div_shift64(-3260954456333195553LL, 4611686018427387904LL, 30));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_div_sat32(INT64_MIN / 2, INT32_MIN, 30));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_div_sat32(-((int64_t)1 << 31) * INT32_MAX, INT32_MAX, 0));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_div_sat32(-(int64_t)INT32_MAX, INT32_MAX, 31));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_div_sat32(INT32_MAX, INT32_MAX, 31));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_div_sat32(INT64_MAX, INT32_MAX, 0));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_div_sat32(INT64_MIN, INT32_MAX, 0));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_div_sat32(INT64_MIN, INT32_MIN, 0));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_div_sat32(1, 0, 16));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_div_sat32(-1, 0, 16));
+    TEST_ASSERT_EQUAL_INT32(0, fx_div_sat32(0, 0, 16));
+    TEST_ASSERT_EQUAL_INT32(0, fx_div_sat32(0, 5, 200));
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_div_sat32(1, INT32_MIN, 200));
+    TEST_ASSERT_EQUAL_INT32(3, fx_div_sat32(5, 2, 0));   /*  2.5 ->  3 */
+    TEST_ASSERT_EQUAL_INT32(-3, fx_div_sat32(-5, 2, 0)); /* -2.5 -> -3 */
+    TEST_ASSERT_EQUAL_INT32(98304, fx_div_sat32(3, 2, 16));
+    TEST_ASSERT_EQUAL_INT64(-1, fx_div_shift64(1, INT64_MIN, 63));
+    TEST_ASSERT_EQUAL_INT64(-2, fx_div_shift64(1, INT64_MIN, 64));
+    TEST_ASSERT_EQUAL_INT64(-128, fx_div_shift64(1, INT64_MIN, 70));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_div_shift64(1, INT64_MIN, 126));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_div_shift64(1, INT64_MIN, 127));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_div_shift64(1, INT64_MIN, 128));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_div_shift64(-1, INT64_MIN, 126));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_div_shift64(INT64_MIN, INT64_MIN, 63));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_div_shift64(INT64_MAX, INT64_MAX, 63));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_div_shift64(INT64_MAX, -INT64_MAX, 63));
+    TEST_ASSERT_EQUAL_INT64((int64_t)1 << 62, fx_div_shift64(INT64_MAX, INT64_MAX, 62));
+    TEST_ASSERT_EQUAL_INT64(0, fx_div_shift64(0, 0, 3));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_div_shift64(5, 0, 3));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_div_shift64(-5, 0, 3));
+    rng_seed(7);
+    for (i = 0; i < 100000; i++) {
+        int64_t n = rnd_i64(), d = rnd_i64();
+        int32_t d32 = rnd_i32();
+        int64_t ref;
+        s = (unsigned)(rng() % 65);
+        ref = ref_div_sat(uabs(n) << s, n < 0, uabs(d), d < 0);
+        EXPECT_I64(ref, fx_div_shift64(n, d, s), "%" PRId64 "<<%u/%" PRId64, n, s, d);
+        /* large shifts: |num| * 2^s may exceed 128 bits (then it saturates) */
+        s = 60 + (unsigned)(rng() % 72);
+        if (n == 0) {
+            ref = 0;
+        } else if (128 - bitlen(uabs(n)) <= s) {
+            ref = (n < 0) != (d < 0) ? INT64_MIN : INT64_MAX;
+        } else {
+            ref = ref_div_sat(uabs(n) << s, n < 0, uabs(d), d < 0);
+        }
+        if (d == 0) {
+            ref = n == 0 ? 0 : n < 0 ? INT64_MIN : INT64_MAX;
+        }
+        EXPECT_I64(ref, fx_div_shift64(n, d, s), "%" PRId64 "<<%u/%" PRId64, n, s, d);
+        s = s % 40;
+        ref = ref_div_sat(uabs(n) << s, n < 0, uabs(d32), d32 < 0);
+        EXPECT_I64(sat32(ref), fx_div_sat32(n, d32, s), "%" PRId64 "<<%u/%d", n, s, d32);
+    }
+}
+
+static void test_muldiv64(void)
+{
+    unsigned i;
+    /* a * b = 3e27 overflows 64 bits, the quotient does not */
+    TEST_ASSERT_EQUAL_INT64(3000000000000000000LL / 7,
+                            fx_muldiv64(3000000000000000000LL, 1000000000LL, 7000000000LL));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_muldiv64(INT64_MAX, INT64_MAX, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_muldiv64(INT64_MIN, INT64_MIN, INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_muldiv64(INT64_MIN, INT64_MAX, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_muldiv64(INT64_MIN, INT64_MIN, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_muldiv64(INT64_MIN, 1, -1));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_muldiv64(3, 4, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_muldiv64(-3, 4, 0));
+    TEST_ASSERT_EQUAL_INT64(0, fx_muldiv64(0, 4, 0));
+    TEST_ASSERT_EQUAL_INT64(0, fx_muldiv64(INT64_MIN, 0, 0));
+    TEST_ASSERT_EQUAL_INT64(2, fx_muldiv64(3, 1, 2));   /*  1.5 ->  2 */
+    TEST_ASSERT_EQUAL_INT64(-2, fx_muldiv64(-3, 1, 2)); /* -1.5 -> -2 */
+    TEST_ASSERT_EQUAL_INT64(-2, fx_muldiv64(3, -1, 2));
+    TEST_ASSERT_EQUAL_INT64(2, fx_muldiv64(3, -1, -2));
+    rng_seed(8);
+    for (i = 0; i < 100000; i++) {
+        int64_t a = rnd_i64(), b = rnd_i64(), c = rnd_i64();
+        i128 p = (i128)a * b;
+        EXPECT_I64(ref_div_sat(uabs(p), p < 0, uabs(c), c < 0), fx_muldiv64(a, b, c),
+                   "%" PRId64 "*%" PRId64 "/%" PRId64, a, b, c);
+    }
+}
+
+static void test_recip_q16(void)
+{
+    int32_t x;
+    unsigned i;
+    TEST_ASSERT_EQUAL_INT32(FX_ONE_Q16, fx_recip_q16(FX_ONE_Q16));
+    TEST_ASSERT_EQUAL_INT32(-FX_ONE_Q16 / 4, fx_recip_q16(-4 * FX_ONE_Q16));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_recip_q16(0));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_recip_q16(1));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, fx_recip_q16(2));  /* 2^31 */
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_recip_q16(-2)); /* -2^31 exactly */
+    TEST_ASSERT_EQUAL_INT32(INT32_MIN, fx_recip_q16(-1));
+    TEST_ASSERT_EQUAL_INT32(1431655765, fx_recip_q16(3));
+    TEST_ASSERT_EQUAL_INT32(-2, fx_recip_q16(INT32_MIN));
+    TEST_ASSERT_EQUAL_INT32(2, fx_recip_q16(INT32_MAX));
+    /* every small value and its reciprocal, exact to the rounding rule */
+    for (x = -(1 << 18); x <= (1 << 18); x++) {
+        EXPECT_I64(sat32(ref_div_sat((u128)1 << 32, false, uabs(x), x < 0)), fx_recip_q16(x),
+                   "recip %d", x);
+    }
+    rng_seed(9);
+    for (i = 0; i < 100000; i++) {
+        x = rnd_i32();
+        EXPECT_I64(sat32(ref_div_sat((u128)1 << 32, false, uabs(x), x < 0)), fx_recip_q16(x),
+                   "recip %d", x);
+    }
+}
+
+/* ---- roots ------------------------------------------------------------------- */
+
+static void check_isqrt64(uint64_t v)
+{
+    u128 r = fx_isqrt64(v);
+    if (!(r * r <= v && (r + 1) * (r + 1) > v)) {
+        snprintf(msg, sizeof msg, "isqrt64(%" PRIu64 ") = %" PRIu64, v, (uint64_t)r);
+        TEST_FAIL_MESSAGE(msg);
+    }
+}
+
+static void test_isqrt32_exhaustive_and_boundaries(void)
+{
+    uint32_t v, r;
+    for (v = 0; v <= (1u << 20); v++) {
+        r = fx_isqrt32(v);
+        if (!((uint64_t)r * r <= v && (uint64_t)(r + 1) * (r + 1) > v)) {
+            snprintf(msg, sizeof msg, "isqrt32(%u) = %u", v, r);
+            TEST_FAIL_MESSAGE(msg);
+        }
+    }
+    /* every perfect square: r*r - 1, r*r, r*r + 1 */
+    for (r = 1; r <= 65535; r++) {
+        uint32_t sq = r * r;
+        EXPECT_I64(r - 1, fx_isqrt32(sq - 1), "isqrt32(%u^2-1)", r);
+        EXPECT_I64(r, fx_isqrt32(sq), "isqrt32(%u^2)", r);
+        EXPECT_I64(r, fx_isqrt32(sq + 1), "isqrt32(%u^2+1)", r);
+    }
+    TEST_ASSERT_EQUAL_UINT32(65535u, fx_isqrt32(UINT32_MAX));
+    TEST_ASSERT_EQUAL_UINT32(0, fx_isqrt32(0));
+    TEST_ASSERT_EQUAL_UINT32(1, fx_isqrt32(1));
+    TEST_ASSERT_EQUAL_UINT32(1, fx_isqrt32(3));
+    TEST_ASSERT_EQUAL_UINT32(2, fx_isqrt32(4));
+}
+
+static void test_isqrt64_boundaries_and_random(void)
+{
+    uint64_t r;
+    unsigned i;
+    /* the 64-bit path agrees with the 32-bit one on the 32-bit range */
+    for (r = 0; r < (1u << 16); r++) {
+        uint32_t v = (uint32_t)(r * 65537u);
+        EXPECT_I64(fx_isqrt32(v), fx_isqrt64(v), "isqrt64(%u)", v);
+    }
+    /* square boundaries: small roots, roots around 2^32 and 2^16, random roots */
+    for (r = 1; r < (1u << 17); r++) {
+        EXPECT_I64((int64_t)r - 1, fx_isqrt64(r * r - 1), "isqrt64(%" PRIu64 "^2-1)", r);
+        EXPECT_I64((int64_t)r, fx_isqrt64(r * r), "isqrt64(%" PRIu64 "^2)", r);
+    }
+    for (r = 0xFFFFFFFFu; r > 0xFFFFFFFFu - (1u << 17); r--) {
+        EXPECT_I64((int64_t)r - 1, fx_isqrt64(r * r - 1), "isqrt64(%" PRIu64 "^2-1)", r);
+        EXPECT_I64((int64_t)r, fx_isqrt64(r * r), "isqrt64(%" PRIu64 "^2)", r);
+        EXPECT_I64((int64_t)r, fx_isqrt64(r * r + 1), "isqrt64(%" PRIu64 "^2+1)", r);
+    }
+    TEST_ASSERT_EQUAL_UINT32(0xFFFFFFFFu, fx_isqrt64(UINT64_MAX));
+    TEST_ASSERT_EQUAL_UINT32(0xFFFFFFFEu, fx_isqrt64(0xFFFFFFFE00000000ULL));
+    TEST_ASSERT_EQUAL_UINT32(65536u, fx_isqrt64(4294967296ULL));
+    TEST_ASSERT_EQUAL_UINT32(65535u, fx_isqrt64(4294967295ULL));
+    rng_seed(10);
+    for (i = 0; i < 100000; i++) {
+        uint64_t v = rnd_u64();
+        r = rng() >> 32 | 1;
+        check_isqrt64(v);
+        EXPECT_I64((int64_t)r, fx_isqrt64(r * r), "isqrt64(%" PRIu64 "^2)", r);
+        EXPECT_I64((int64_t)r - 1, fx_isqrt64(r * r - 1), "isqrt64(%" PRIu64 "^2-1)", r);
+    }
+    for (i = 0; i < 64; i++) {
+        check_isqrt64((uint64_t)1 << i);
+        check_isqrt64(((uint64_t)1 << i) - 1);
+        check_isqrt64(((uint64_t)1 << i) + 1);
+    }
+}
+
+static void check_icbrt(uint64_t v)
+{
+    u128 r = fx_icbrt64(v);
+    if (!(r * r * r <= v && (r + 1) * (r + 1) * (r + 1) > v)) {
+        snprintf(msg, sizeof msg, "icbrt64(%" PRIu64 ") = %" PRIu64, v, (uint64_t)r);
+        TEST_FAIL_MESSAGE(msg);
+    }
+}
+
+static void test_icbrt64_every_cube_boundary(void)
+{
+    uint64_t r, v;
+    unsigned i;
+    for (v = 0; v < (1u << 16); v++) {
+        check_icbrt(v);
+    }
+    /* every cube below 2^64: floor(cbrt(2^64 - 1)) = 2642245 */
+    for (r = 1; r <= 2642245u; r++) {
+        uint64_t c = r * r * r;
+        if (fx_icbrt64(c) != r || fx_icbrt64(c - 1) != r - 1) {
+            snprintf(msg, sizeof msg, "icbrt64 at %" PRIu64 "^3", r);
+            TEST_FAIL_MESSAGE(msg);
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT32(2642245u, fx_icbrt64(UINT64_MAX));
+    TEST_ASSERT_EQUAL_UINT32(2642245u, fx_icbrt64(18446724184312856125ULL));
+    TEST_ASSERT_EQUAL_UINT32(2642244u, fx_icbrt64(18446724184312856124ULL));
+    TEST_ASSERT_EQUAL_UINT32(0, fx_icbrt64(0));
+    TEST_ASSERT_EQUAL_UINT32(1, fx_icbrt64(7));
+    TEST_ASSERT_EQUAL_UINT32(2, fx_icbrt64(8));
+    rng_seed(11);
+    for (i = 0; i < 100000; i++) {
+        check_icbrt(rnd_u64());
+    }
+    for (i = 0; i < 64; i++) {
+        check_icbrt((uint64_t)1 << i);
+        check_icbrt(((uint64_t)1 << i) - 1);
+    }
+}
+
+/* ---- trigonometry -------------------------------------------------------------- */
+
+#define SIN_BOUND_LSB  1.0
+#define ATAN_BOUND_LSB 0.6
+
+static double sin_err_max, cos_err_max;
+
+static void check_sincos(fx_angle_t a)
+{
+    double turn = (double)a / TWO32 * 2.0 * M_PI;
+    q1_30_t s = fx_sin(a), c = fx_cos(a), s2, c2;
+    double es = fabs((double)s - sin(turn) * TWO30);
+    double ec = fabs((double)c - cos(turn) * TWO30);
+    if (es > sin_err_max) {
+        sin_err_max = es;
+    }
+    if (ec > cos_err_max) {
+        cos_err_max = ec;
+    }
+    if (es > SIN_BOUND_LSB || ec > SIN_BOUND_LSB) {
+        snprintf(msg, sizeof msg, "angle 0x%08x: sin err %.3f cos err %.3f LSB", a, es, ec);
+        TEST_FAIL_MESSAGE(msg);
+    }
+    fx_sincos(a, &s2, &c2);
+    if (s2 != s || c2 != c) {
+        snprintf(msg, sizeof msg, "fx_sincos(0x%08x) differs from fx_sin/fx_cos", a);
+        TEST_FAIL_MESSAGE(msg);
+    }
+}
+
+static void test_sin_cos_exact_points(void)
+{
+    unsigned k;
+    TEST_ASSERT_EQUAL_INT32(0, fx_sin(0));
+    TEST_ASSERT_EQUAL_INT32(FX_ONE_Q30, fx_sin(FX_ANGLE_90));
+    TEST_ASSERT_EQUAL_INT32(0, fx_sin(FX_ANGLE_180));
+    TEST_ASSERT_EQUAL_INT32(-FX_ONE_Q30, fx_sin(FX_ANGLE_270));
+    TEST_ASSERT_EQUAL_INT32(FX_ONE_Q30, fx_cos(0));
+    TEST_ASSERT_EQUAL_INT32(0, fx_cos(FX_ANGLE_90));
+    TEST_ASSERT_EQUAL_INT32(-FX_ONE_Q30, fx_cos(FX_ANGLE_180));
+    TEST_ASSERT_EQUAL_INT32(0, fx_cos(FX_ANGLE_270));
+    /* sin 45 = cos 45 = round(2^30 / sqrt 2) = 759250125 (within 1 LSB) */
+    for (k = 0; k < 8; k++) {
+        fx_angle_t a = FX_ANGLE_45 + k * FX_ANGLE_90;
+        q1_30_t s = fx_sin(a), c = fx_cos(a);
+        TEST_ASSERT_INT32_WITHIN(1, 759250125, s < 0 ? -s : s);
+        TEST_ASSERT_EQUAL_INT32(s < 0 ? -s : s, c < 0 ? -c : c);
+    }
+    /* sin 30 = 1/2, cos 60 = 1/2 (binary angle of 30 degrees is not exact:
+     * 2^32 / 12 = 357913941.33) */
+    TEST_ASSERT_INT32_WITHIN(1, 1 << 29, fx_sin(357913941u));
+    TEST_ASSERT_INT32_WITHIN(1, 1 << 29, fx_cos(715827883u));
+    /* smallest angle: sin(2 pi / 2^32) * 2^30 = 1.57 -> 2 (or 1) */
+    TEST_ASSERT_INT32_WITHIN(1, 2, fx_sin(1));
+    TEST_ASSERT_INT32_WITHIN(1, -2, fx_sin(0xFFFFFFFFu));
+    TEST_ASSERT_EQUAL_INT32(FX_ONE_Q30, fx_cos(1));
+}
+
+static void test_sin_cos_dense_grid_and_octants(void)
+{
+    uint32_t k;
+    int32_t d;
+    sin_err_max = cos_err_max = 0.0;
+    /* 2^20 points over the whole turn, with an odd offset so the low bits vary */
+    for (k = 0; k < (1u << 20); k++) {
+        check_sincos(k * 4096u + (k * 2654435761u >> 20));
+    }
+    /* every angle within 2^13 LSB of each octant boundary (the fold points) */
+    for (k = 0; k < 8; k++) {
+        for (d = -(1 << 13); d <= (1 << 13); d++) {
+            check_sincos(k * FX_ANGLE_45 + (uint32_t)d);
+        }
+    }
+    rng_seed(12);
+    for (k = 0; k < 200000; k++) {
+        check_sincos((fx_angle_t)rng());
+    }
+    /* the worst angle of an exhaustive offline sweep of [0, 90] degrees (all
+     * others are exact reflections): 0.960 LSB, and its reflections */
+    for (k = 0; k < 4; k++) {
+        check_sincos(0x200d5eedu + k * FX_ANGLE_90);
+        check_sincos(k * FX_ANGLE_90 - 0x200d5eedu);
+    }
+    report("fixmath_sin_max_error", sin_err_max, "lsb_q30");
+    report("fixmath_cos_max_error", cos_err_max, "lsb_q30");
+    TEST_ASSERT_TRUE(sin_err_max <= SIN_BOUND_LSB);
+    TEST_ASSERT_TRUE(cos_err_max <= SIN_BOUND_LSB);
+}
+
+static void test_sin_cos_symmetry_and_range(void)
+{
+    uint32_t k;
+    rng_seed(13);
+    for (k = 0; k < 300000; k++) {
+        fx_angle_t a = (k < 100000) ? k : (fx_angle_t)rng();
+        q1_30_t s = fx_sin(a), c = fx_cos(a);
+        if (s != -fx_sin((fx_angle_t)0 - a) || c != fx_cos((fx_angle_t)0 - a) ||
+            s != -fx_sin(a + FX_ANGLE_180) || c != -fx_cos(a + FX_ANGLE_180) ||
+            c != fx_sin(FX_ANGLE_90 - a) || s != fx_cos(FX_ANGLE_90 - a) || s > FX_ONE_Q30 ||
+            s < -FX_ONE_Q30) {
+            snprintf(msg, sizeof msg, "symmetry broken at 0x%08x", a);
+            TEST_FAIL_MESSAGE(msg);
+        }
+    }
+}
+
+static void test_sin_monotonic_first_quadrant(void)
+{
+    /* sin never decreases on [0, 90] degrees (no 1-LSB dips at the fold) */
+    uint32_t a;
+    q1_30_t prev = fx_sin(0);
+    for (a = 1; a <= FX_ANGLE_90;
+         a += (a > FX_ANGLE_45 - 100000 && a < FX_ANGLE_45 + 100000) ? 1 : 997) {
+        q1_30_t s = fx_sin(a);
+        if (s < prev) {
+            snprintf(msg, sizeof msg, "sin decreases at 0x%08x", a);
+            TEST_FAIL_MESSAGE(msg);
+        }
+        prev = s;
+    }
+}
+
+static double atan_err_max;
+
+static void check_atan2(int64_t y, int64_t x)
+{
+    double e = fabs(angle_err(fx_atan2(y, x), ref_atan2_turns(y, x)));
+    if (e > atan_err_max) {
+        atan_err_max = e;
+    }
+    if (e > ATAN_BOUND_LSB) {
+        snprintf(msg, sizeof msg, "atan2(%" PRId64 ", %" PRId64 ") = %u: err %.3f LSB", y, x,
+                 fx_atan2(y, x), e);
+        TEST_FAIL_MESSAGE(msg);
+    }
+}
+
+static void test_atan2_axes_and_diagonals(void)
+{
+    static const int64_t mags[] = {1, 2, 3, 1000, (int64_t)1 << 40, INT64_MAX - 1, INT64_MAX};
+    unsigned i;
+    TEST_ASSERT_EQUAL_UINT32(0, fx_atan2(0, 0));
+    for (i = 0; i < sizeof mags / sizeof mags[0]; i++) {
+        int64_t m = mags[i];
+        TEST_ASSERT_EQUAL_UINT32(0, fx_atan2(0, m));
+        TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_90, fx_atan2(m, 0));
+        TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_180, fx_atan2(0, -m));
+        TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_270, fx_atan2(-m, 0));
+        TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_45, fx_atan2(m, m));
+        TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_90 + FX_ANGLE_45, fx_atan2(m, -m));
+        TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_180 + FX_ANGLE_45, fx_atan2(-m, -m));
+        TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_270 + FX_ANGLE_45, fx_atan2(-m, m));
+    }
+    TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_180, fx_atan2(0, INT64_MIN));
+    TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_270, fx_atan2(INT64_MIN, 0));
+    TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_180 + FX_ANGLE_45, fx_atan2(INT64_MIN, INT64_MIN));
+    TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_90 + FX_ANGLE_45, fx_atan2(INT64_MAX, -INT64_MAX));
+    /* one quadrant at a time, 30 and 60 degrees: (sqrt 3, 1) */
+    TEST_ASSERT_UINT32_WITHIN(1, 357913941u, fx_atan2(1000000000, 1732050808));
+    TEST_ASSERT_UINT32_WITHIN(1, 4294967296u - 357913941u, fx_atan2(-1000000000, 1732050808));
+    TEST_ASSERT_UINT32_WITHIN(1, 2147483648u - 357913941u, fx_atan2(1000000000, -1732050808));
+    TEST_ASSERT_UINT32_WITHIN(1, 2147483648u + 357913941u, fx_atan2(-1000000000, -1732050808));
+}
+
+static void test_atan2_exhaustive_small_and_extremes(void)
+{
+    int64_t x, y;
+    unsigned i, j;
+    atan_err_max = 0.0;
+    for (y = -64; y <= 64; y++) {
+        for (x = -64; x <= 64; x++) {
+            check_atan2(y, x);
+        }
+    }
+    for (i = 0; i < N_EDGE64; i++) {
+        for (j = 0; j < N_EDGE64; j++) {
+            check_atan2(edge64[i], edge64[j]);
+        }
+    }
+    /* tiny against huge, and nearly equal huge components */
+    check_atan2(1, INT64_MAX);
+    check_atan2(1, INT64_MIN);
+    check_atan2(-1, INT64_MIN);
+    check_atan2(INT64_MAX, 1);
+    check_atan2(INT64_MAX, INT64_MAX - 1);
+    check_atan2(INT64_MIN + 1, INT64_MIN);
+    check_atan2((int64_t)1 << 40, ((int64_t)1 << 40) + 1);
+    TEST_ASSERT_EQUAL_UINT32(0, fx_atan2(1, INT64_MAX));
+    TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_180, fx_atan2(1, INT64_MIN)); /* 180 - 7e-11 LSB */
+    TEST_ASSERT_EQUAL_UINT32(FX_ANGLE_180, fx_atan2(-1, INT64_MIN));
+    /* one LSB of angle is 1.46e-9 rad: y/x = 1e-9 is 0.68 LSB -> 1 */
+    TEST_ASSERT_EQUAL_UINT32(1, fx_atan2(1000, 1000000000000LL));
+    TEST_ASSERT_EQUAL_UINT32(0xFFFFFFFFu, fx_atan2(-1000, 1000000000000LL));
+}
+
+static void test_atan2_random_full_domain(void)
+{
+    unsigned i;
+    rng_seed(14);
+    for (i = 0; i < 200000; i++) {
+        int64_t y = rnd_i64(), x = rnd_i64();
+        fx_angle_t a = fx_atan2(y, x);
+        check_atan2(y, x);
+        /* exact symmetries */
+        if (y != INT64_MIN && x != INT64_MIN && (x | y) != 0) {
+            if (fx_atan2(-y, x) != (fx_angle_t)0 - a || fx_atan2(y, -x) != FX_ANGLE_180 - a) {
+                snprintf(msg, sizeof msg, "atan2 symmetry at (%" PRId64 ", %" PRId64 ")", y, x);
+                TEST_FAIL_MESSAGE(msg);
+            }
+            if (x >= 0 && y >= 0 && fx_atan2(x, y) != FX_ANGLE_90 - a) {
+                snprintf(msg, sizeof msg, "atan2 swap at (%" PRId64 ", %" PRId64 ")", y, x);
+                TEST_FAIL_MESSAGE(msg);
+            }
+        }
+    }
+    /* near-axis, near-diagonal and scaled copies: same angle at every scale */
+    for (i = 0; i < 20000; i++) {
+        int64_t x = (int64_t)(rng() >> 2), y = x + (int64_t)(rng() % 1000) - 500;
+        int64_t small = (int64_t)(rng() >> 34) + 1;
+        check_atan2(y, x);
+        check_atan2(small, x);
+        check_atan2(y / 4096, x / 4096);
+        TEST_ASSERT_EQUAL_UINT32(fx_atan2(small, small * 3), fx_atan2(small * 1024, small * 3072));
+    }
+    report("fixmath_atan2_max_error", atan_err_max, "lsb_angle");
+    TEST_ASSERT_TRUE(atan_err_max <= ATAN_BOUND_LSB);
+}
+
+static void test_atan2_of_sincos_round_trip(void)
+{
+    unsigned i;
+    double worst = 0.0;
+    rng_seed(15);
+    for (i = 0; i < 100000; i++) {
+        fx_angle_t a = (fx_angle_t)rng();
+        double e = fabs(angle_err(fx_atan2(fx_sin(a), fx_cos(a)), (double)a));
+        if (e > worst) {
+            worst = e;
+        }
+    }
+    report("fixmath_atan2_sincos_roundtrip_max_error", worst, "lsb_angle");
+    /* sin/cos errors of 1 LSB q30 move the angle by up to 0.9 LSB */
+    TEST_ASSERT_TRUE(worst <= 2.0);
+}
+
+/* ---- vector length --------------------------------------------------------------- */
+
+static void test_hypot_exact_small_and_extremes(void)
+{
+    int64_t x, y;
+    for (y = -70; y <= 70; y++) {
+        for (x = -70; x <= 70; x++) {
+            int64_t z = (x * 7 + y) % 50;
+            EXPECT_I64((int64_t)ref_isqrt128((u128)(x * x + y * y)), fx_hypot2(x, y),
+                       "hypot2(%" PRId64 ", %" PRId64 ")", x, y);
+            EXPECT_I64((int64_t)ref_isqrt128((u128)(x * x + y * y + z * z)), fx_hypot3(x, y, z),
+                       "hypot3(%" PRId64 ", %" PRId64 ", %" PRId64 ")", x, y, z);
+        }
+    }
+    TEST_ASSERT_EQUAL_INT64(5, fx_hypot2(3, 4));
+    TEST_ASSERT_EQUAL_INT64(5, fx_hypot2(-3, -4));
+    TEST_ASSERT_EQUAL_INT64(13, fx_hypot3(3, 4, 12));
+    TEST_ASSERT_EQUAL_INT64(0, fx_hypot2(0, 0));
+    TEST_ASSERT_EQUAL_INT64(0, fx_hypot3(0, 0, 0));
+    /* one component: exactly |x|, at every scale */
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_hypot2(INT64_MAX, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_hypot2(0, -INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX - 1, fx_hypot3(0, INT64_MAX - 1, 0));
+    TEST_ASSERT_EQUAL_INT64((int64_t)1 << 31, fx_hypot2((int64_t)1 << 31, 0));
+    TEST_ASSERT_EQUAL_INT64(((int64_t)1 << 31) - 1, fx_hypot2(((int64_t)1 << 31) - 1, 0));
+    TEST_ASSERT_EQUAL_INT64(123456789012345LL, fx_hypot3(0, 0, -123456789012345LL));
+    /* saturation */
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_hypot2(INT64_MIN, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_hypot2(INT64_MIN, INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_hypot3(INT64_MIN, INT64_MIN, INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_hypot2(INT64_MAX, 1)); /* exact, not saturated */
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX - 1, fx_hypot2(INT64_MAX - 1, 1 << 30)); /* + 1/16 */
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_hypot2(INT64_MAX, 1 << 30));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_hypot2(INT64_MAX, (int64_t)1 << 32)); /* sat */
+    /* a Pythagorean triple scaled to the top of the range: 3-4-5 times 2^60 */
+    TEST_ASSERT_EQUAL_INT64((int64_t)5 << 60, fx_hypot2((int64_t)3 << 60, -((int64_t)4 << 60)));
+    TEST_ASSERT_EQUAL_INT64((int64_t)13 << 59,
+                            fx_hypot3((int64_t)3 << 59, (int64_t)4 << 59, (int64_t)12 << 59));
+    /* just under and over a triple: floor is exact */
+    TEST_ASSERT_EQUAL_INT64(((int64_t)5 << 60) - 1,
+                            fx_hypot2((int64_t)3 << 60, ((int64_t)4 << 60) - 1));
+}
+
+static void test_hypot_random_full_domain(void)
+{
+    unsigned i;
+    rng_seed(16);
+    for (i = 0; i < 100000; i++) {
+        int64_t x = rnd_i64(), y = rnd_i64(), z = rnd_i64();
+        u128 n2 = uabs(x) * uabs(x) + uabs(y) * uabs(y);
+        u128 n3 = n2 + uabs(z) * uabs(z);
+        int64_t ref2 = sat64((i128)ref_isqrt128(n2)), ref3 = sat64((i128)ref_isqrt128(n3));
+        int64_t h2 = fx_hypot2(x, y);
+        EXPECT_I64(ref2, h2, "hypot2(%" PRId64 ", %" PRId64 ")", x, y);
+        EXPECT_I64(ref3, fx_hypot3(x, y, z), "hypot3(%" PRId64 ", %" PRId64 ", %" PRId64 ")", x, y,
+                   z);
+        /* symmetric in sign and order */
+        if (x != INT64_MIN && y != INT64_MIN) {
+            EXPECT_I64(h2, fx_hypot2(-y, x), "hypot2 sym (%" PRId64 ", %" PRId64 ")", x, y);
+        }
+    }
+    /* both sides of the 2^31 fast-path boundary */
+    for (i = 0; i < 20000; i++) {
+        int64_t x = ((int64_t)1 << 31) - 1000 + (int64_t)(rng() % 2000);
+        int64_t y = (int64_t)(rng() >> 33) - ((int64_t)1 << 30);
+        int64_t z = (int64_t)(rng() % 4096) - 2048;
+        u128 n3 = uabs(x) * uabs(x) + uabs(y) * uabs(y) + uabs(z) * uabs(z);
+        EXPECT_I64((int64_t)ref_isqrt128(uabs(x) * uabs(x) + uabs(y) * uabs(y)), fx_hypot2(x, y),
+                   "hypot2(%" PRId64 ", %" PRId64 ")", x, y);
+        EXPECT_I64((int64_t)ref_isqrt128(n3), fx_hypot3(y, z, x),
+                   "hypot3(%" PRId64 ", %" PRId64 ", %" PRId64 ")", y, z, x);
+    }
 }
 
 int main(void)
 {
+    report_on = getenv("FIXMATH_REPORT") != NULL;
     UNITY_BEGIN();
-    RUN_TEST(test_isqrt32_exhaustive_small);
-    RUN_TEST(test_sin_error_bound);
+    RUN_TEST(test_sat32_boundaries);
+    RUN_TEST(test_sat_arith32_edges_and_random);
+    RUN_TEST(test_sat_arith64_edges_and_random);
+    RUN_TEST(test_clamp);
+    RUN_TEST(test_round_shift64_ties_toward_plus_inf);
+    RUN_TEST(test_round_shift64_extremes_and_random);
+    RUN_TEST(test_mul32_shift_and_sat_mul32);
+    RUN_TEST(test_mul64_shift_extremes);
+    RUN_TEST(test_mul64_shift_random);
+    RUN_TEST(test_pos_scale);
+    RUN_TEST(test_conversions);
+    RUN_TEST(test_div_round64);
+    RUN_TEST(test_div_shift64_and_sat32);
+    RUN_TEST(test_muldiv64);
+    RUN_TEST(test_recip_q16);
+    RUN_TEST(test_isqrt32_exhaustive_and_boundaries);
+    RUN_TEST(test_isqrt64_boundaries_and_random);
+    RUN_TEST(test_icbrt64_every_cube_boundary);
+    RUN_TEST(test_sin_cos_exact_points);
+    RUN_TEST(test_sin_cos_dense_grid_and_octants);
+    RUN_TEST(test_sin_cos_symmetry_and_range);
+    RUN_TEST(test_sin_monotonic_first_quadrant);
+    RUN_TEST(test_atan2_axes_and_diagonals);
+    RUN_TEST(test_atan2_exhaustive_small_and_extremes);
+    RUN_TEST(test_atan2_random_full_domain);
+    RUN_TEST(test_atan2_of_sincos_round_trip);
+    RUN_TEST(test_hypot_exact_small_and_extremes);
+    RUN_TEST(test_hypot_random_full_domain);
     return UNITY_END();
 }

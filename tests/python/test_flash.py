@@ -1,0 +1,415 @@
+"""contour flash and the image format, against the simulated drive's real
+bootloader (firmware/core/boot + the simulated flash, in process through
+libcontour.so), with fault injection at every block boundary and at random
+flash bytes: the drive always comes back in its bootloader or in a valid
+(old or new) application, and a second flash always succeeds."""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import random
+import shutil
+import struct
+import subprocess
+
+import can
+import pytest
+from contour import image as img
+from contour import native
+from contour import protocol_gen as pg
+from contour.cli import main as cli_main
+from contour.commands import flash as fl
+from contour.errors import UserError
+from contour.link import codec
+
+SIM_LOAD = 0x08010000 + img.HDR_AREA
+SIM_BOARD = img.BOARDS["sim"]
+
+
+def make_image(n: int, version: str, seed: int, **kw) -> img.Image:
+    rnd = random.Random(seed)
+    payload = bytes(rnd.getrandbits(8) for _ in range(n))
+    args = dict(board_id=SIM_BOARD, fw_version=img.parse_version(version), load_addr=SIM_LOAD)
+    args.update(kw)
+    return img.build(payload, **args)
+
+
+OLD = make_image(9000, "1.0.0", 1)
+NEW = make_image(16001, "2.0.1", 2)
+
+
+class Killed(Exception):
+    """The host process dies."""
+
+
+@pytest.fixture
+def drive(tmp_path):
+    try:
+        assert native.load().boot_sim_init
+    except (UserError, AttributeError):
+        pytest.skip("build/host/libcontour.so without the simulated bootloader: run make")
+    d = fl.SimDriveLink(str(tmp_path / "flash.bin"))
+    d.sent = []
+    inner = d.exchange
+
+    def recording(msg, timeout):
+        d.sent.append(msg[0])
+        return inner(msg, timeout)
+
+    d.exchange = recording
+    return d
+
+
+def client(link) -> fl.BootClient:
+    return fl.BootClient(link, timeout=0.0, retries=4, sleep=lambda s: None)
+
+
+def do_flash(link, image, **kw):
+    kw.setdefault("confirm_wait", 1.0)
+    kw.setdefault("enter_wait", 0.2)
+    return fl.flash(client(link), image, log=lambda s: None, **kw)
+
+
+def state(drive) -> tuple[str, int]:
+    """(mode, running version) after a reset of the drive."""
+    drive.before = drive.after = None
+    drive.reset()
+    if drive.mode() == "app":
+        return "app", drive.lib.boot_sim_app_version()
+    return "bootloader", 0
+
+
+def assert_recoverable(drive, allowed_versions):
+    mode, version = state(drive)
+    if mode == "app":
+        assert version in allowed_versions
+    r = do_flash(drive, NEW)
+    assert r["version"] == "2.0.1"
+    assert state(drive) == ("app", NEW.header.fw_version)
+    return mode
+
+
+# ---- image format --------------------------------------------------------------
+
+
+def test_image_roundtrip_and_hex_holds_a_validated_slot():
+    data = NEW.to_bytes()
+    back = img.parse(data)
+    assert back.header.length == 16001
+    assert back.header.payload_crc == img.crc32(NEW.payload)
+    mem = img.from_hex(img.to_hex(NEW.flash_records()))
+    slot = SIM_LOAD - img.HDR_AREA
+    assert bytes(mem[slot + i] for i in range(64)) == data[:64]
+    marker = bytes(mem[slot + 64 + i] for i in range(8))
+    assert marker == struct.pack("<II", img.MARK_VALID, NEW.header.header_crc)
+    assert bytes(mem[SIM_LOAD + i] for i in range(16001)) == NEW.payload
+    assert slot + 65 + 8 not in mem  # the rest of the header area stays erased
+
+
+@pytest.mark.parametrize(
+    "mutate, message",
+    [
+        (lambda b: b[:-1], "truncated image"),
+        (lambda b: b[:40], "truncated image"),
+        (lambda b: b + b"\0", "after the"),
+        (lambda b: b[:100] + bytes([b[100] ^ 1]) + b[101:], "payload CRC mismatch"),
+        (lambda b: b[:12] + bytes([b[12] ^ 1]) + b[13:], "header CRC mismatch"),
+        (lambda b: b"XTFW" + b[4:], "not a contour firmware image"),
+    ],
+)
+def test_corrupted_image_files_are_refused(mutate, message):
+    with pytest.raises(img.ImageError, match=message):
+        img.parse(mutate(NEW.to_bytes()))
+
+
+@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="no cross compiler")
+def test_elf_input_matches_objcopy_with_data_at_its_load_address(tmp_path):
+    (tmp_path / "app.ld").write_text(
+        "MEMORY { FLASH (rx) : ORIGIN = 0x08010200, LENGTH = 200K\n"
+        "         RAM (rwx) : ORIGIN = 0x20000000, LENGTH = 64K }\n"
+        "SECTIONS { .text : { KEEP(*(.vectors)) *(.text*) *(.rodata*) } > FLASH\n"
+        "  .data : { *(.data*) } > RAM AT > FLASH  .bss : { *(.bss*) } > RAM }\n"
+    )
+    (tmp_path / "app.c").write_text(
+        "int x = 5; int y;\n"
+        'const unsigned v[2] __attribute__((section(".vectors"))) = {0x20001000u, 0x08010301u};\n'
+        "int main(void) { return x + y; }\n"
+    )
+    elf = tmp_path / "app.elf"
+    cc = ["arm-none-eabi-gcc", "-mcpu=cortex-m4", "-mthumb", "-nostdlib", "-O1"]
+    subprocess.run(
+        [*cc, "-T", str(tmp_path / "app.ld"), "-o", str(elf), str(tmp_path / "app.c")], check=True
+    )
+    ref = tmp_path / "ref.bin"
+    subprocess.run(
+        ["arm-none-eabi-objcopy", "--gap-fill", "0xff", "-O", "binary", str(elf), str(ref)],
+        check=True,
+    )
+    assert img.main(["build", str(elf), "--board", "sim", "--version", "3.4.5"]) == 0
+    out = img.load(tmp_path / "app.img")
+    assert out.header.load_addr == SIM_LOAD
+    assert out.payload == ref.read_bytes()
+    assert out.payload[:8] == struct.pack("<II", 0x20001000, 0x08010301)
+    assert (tmp_path / "app.bin").read_bytes() == out.payload
+    assert (tmp_path / "app.hex").read_text().endswith(":00000001FF\n")
+    assert (
+        img.main(["build", str(elf), "--board", "1", "--version", "1.0.0", "--load-addr", "0x0"])
+        == 2
+    )
+
+
+def test_raw_binary_needs_load_address(tmp_path, capsys):
+    (tmp_path / "a.bin").write_bytes(b"abc")
+    assert img.main(["build", str(tmp_path / "a.bin"), "--board", "1", "--version", "1.0.0"]) == 2
+    assert "needs --load-addr" in capsys.readouterr().err
+
+
+# ---- flashing ----------------------------------------------------------------------
+
+
+def test_flash_reboots_into_new_version_and_verify_only(drive):
+    r = do_flash(drive, OLD)
+    assert r["version"] == "1.0.0"
+    assert state(drive) == ("app", OLD.header.fw_version)
+    # the application is running: flash asks it to reset into the bootloader
+    r = do_flash(drive, NEW)
+    assert pg.MSG_BY_NAME["boot_enter"].id in drive.sent
+    assert state(drive) == ("app", NEW.header.fw_version)
+    do_flash(drive, NEW, verify_only=True)
+    with pytest.raises(UserError, match="does not hold this image"):
+        do_flash(drive, OLD, verify_only=True)
+
+
+def test_flash_file_survives_a_simulator_restart(drive, tmp_path):
+    do_flash(drive, NEW)
+    again = fl.SimDriveLink(str(tmp_path / "flash.bin"))  # new process, same flash file
+    assert again.mode() == "app"
+    assert again.lib.boot_sim_app_version() == NEW.header.fw_version
+
+
+@pytest.mark.parametrize(
+    "kw, message",
+    [
+        ({"board_id": 7}, "image is for board 7, the drive is board 1"),
+        ({"load_addr": SIM_LOAD + 0x1000}, "linked for load address 0x08011200"),
+    ],
+)
+def test_wrong_target_refused_before_anything_is_erased(drive, kw, message):
+    do_flash(drive, OLD)
+    bad = make_image(2000, "9.9.9", 5, **kw)
+    drive.sent.clear()
+    with pytest.raises(img.ImageError, match=message):
+        do_flash(drive, bad)
+    assert pg.MSG_BY_NAME["boot_erase"].id not in drive.sent
+    assert state(drive) == ("app", OLD.header.fw_version)
+
+
+def test_oversize_refused_before_anything_is_erased(drive):
+    do_flash(drive, OLD)
+    big = make_image(256 * 1024 - 32 * 1024 - img.HDR_AREA + 1, "9.9.9", 6)
+    drive.sent.clear()
+    with pytest.raises(img.ImageError, match="slot holds 228864"):
+        do_flash(drive, big)
+    assert pg.MSG_BY_NAME["boot_erase"].id not in drive.sent
+    # the drive itself refuses it too, with a specific status and nothing erased
+    c = client(drive)
+    with pytest.raises(fl.Refused, match="bad length"):
+        c.request("boot_erase", {"header": list(big.header.encode())})
+    assert state(drive) == ("app", OLD.header.fw_version)
+
+
+def test_cli_refuses_corrupt_file_with_one_line(tmp_path, capsys):
+    p = tmp_path / "x.img"
+    data = bytearray(NEW.to_bytes())
+    data[200] ^= 0x40
+    p.write_bytes(bytes(data))
+    assert cli_main(["flash", str(p), "--port", "/nonexistent"]) == 2
+    err = capsys.readouterr().err
+    assert "payload CRC mismatch" in err and "Traceback" not in err
+
+
+# ---- fault injection -------------------------------------------------------------
+
+
+def session_length(drive) -> int:
+    """Messages of one flash of NEW into a drive in its bootloader."""
+    drive.reset()
+    n0 = drive.count
+    do_flash(drive, NEW)
+    return drive.count - n0
+
+
+def test_host_killed_at_every_message_of_the_session(drive):
+    do_flash(drive, OLD)
+    total = session_length(drive)
+    outcomes = {"bootloader": 0, "app": 0}
+    for k in range(1, total + 1):
+        do_flash(drive, OLD)
+        base = drive.count
+
+        def before(n, msg, k=k, base=base):
+            if n - base == k:
+                raise Killed()
+
+        drive.before = before
+        with pytest.raises(Killed):
+            do_flash(drive, NEW)
+        outcomes[assert_recoverable(drive, {OLD.header.fw_version, NEW.header.fw_version})] += 1
+    print(f"host killed at {total} points: {outcomes}, {total} second flashes ok")
+    assert sum(outcomes.values()) == total
+    assert outcomes["bootloader"] > 60  # every block boundary after the erase
+
+
+def test_link_drops_are_retried_and_long_outage_recovers(drive):
+    do_flash(drive, OLD)
+    total = session_length(drive)
+    recovered_in_place = 0
+    for k in range(2, total, 7):
+        drive.reset()
+        base = drive.count
+        # lose request k and the reply to k+1: the client retries with back-off
+        drive.before = lambda n, m, k=k, b=base: "drop" if n - b == k else None
+        drive.after = lambda n, r, k=k, b=base: "drop" if n - b == k + 2 else None
+        do_flash(drive, NEW)
+        recovered_in_place += 1
+    for k in range(2, total, 11):
+        do_flash(drive, OLD)
+        base = drive.count
+        drive.before = lambda n, m, k=k, b=base: "drop" if n - b >= k else None
+        with pytest.raises(fl.LinkLost):
+            do_flash(drive, NEW)
+        assert_recoverable(drive, {OLD.header.fw_version, NEW.header.fw_version})
+    outages = len(range(2, total, 11))
+    print(
+        f"link drops: {recovered_in_place} flashes recovered by retries, {outages} outages "
+        "recovered by a second flash"
+    )
+    assert recovered_in_place > 5
+
+
+def test_drive_reset_mid_transfer_restarts_the_session(drive):
+    do_flash(drive, OLD)
+    total = session_length(drive)
+    resets = restarted = 0
+    for k in range(3, total - 3, 5):
+        drive.reset()
+        base = drive.count
+        drive.before = lambda n, m, k=k, b=base: "reset" if n - b == k else None
+        c = client(drive)
+        fl.flash(c, NEW, log=lambda s: None, confirm_wait=1.0)
+        assert state(drive) == ("app", NEW.header.fw_version)
+        assert c.stats.sessions >= 1
+        resets += 1
+        restarted += c.stats.sessions > 1
+    print(f"drive reset at {resets} messages: {restarted} sessions restarted, all flashed")
+
+
+def test_power_cut_at_random_flash_bytes(drive):
+    rnd = random.Random(9)
+    total_bytes = 16001 + 512 + 16 * 1024 + 2048  # erase + program, roughly
+    points = 0
+    modes = {"bootloader": 0, "app": 0}
+    erase_id = pg.MSG_BY_NAME["boot_erase"].id
+    for _ in range(60):
+        do_flash(drive, OLD)
+        cut = rnd.randrange(total_bytes)
+
+        def arm(n, msg, cut=cut):
+            if msg[0] == erase_id:  # in the bootloader now; the next reset restores power
+                drive.power_cut_after(cut)
+
+        drive.before = arm
+        with contextlib.suppress(UserError):
+            do_flash(drive, NEW)
+        modes[assert_recoverable(drive, {OLD.header.fw_version, NEW.header.fw_version})] += 1
+        points += 1
+    print(f"power cut at {points} random flash bytes: {modes}, {points} second flashes ok")
+    assert modes["bootloader"] > 0
+
+
+def test_bit_flips_in_transit_are_caught_by_frame_crc(drive):
+    """Every request goes through the drive's own serial frame decoder
+    (proto_frame.c); a flipped bit fails the frame CRC, the frame is dropped,
+    and the host's retry delivers it."""
+    lib = drive.lib
+    lib.proto_frame_rx_byte.argtypes = [
+        ctypes.c_void_p,
+        ctypes.c_uint8,
+        ctypes.POINTER(ctypes.POINTER(ctypes.c_uint8)),
+        ctypes.POINTER(ctypes.c_size_t),
+    ]
+    lib.proto_frame_rx_byte.restype = ctypes.c_bool
+    rx = ctypes.create_string_buffer(1024)
+    lib.proto_frame_rx_init(rx)
+    rnd = random.Random(3)
+    flips = {"sent": 0, "dropped": 0}
+    inner = fl.SimDriveLink.exchange
+
+    def framed(msg, timeout):
+        wire = bytearray(codec.frame(msg))
+        if rnd.random() < 0.1:
+            bit = rnd.randrange(8 * (len(wire) - 1))
+            wire[bit // 8] ^= 1 << (bit % 8)
+            flips["sent"] += 1
+        out = ctypes.POINTER(ctypes.c_uint8)()
+        ln = ctypes.c_size_t()
+        got = None
+        for b in bytes(wire):
+            if lib.proto_frame_rx_byte(rx, b, ctypes.byref(out), ctypes.byref(ln)):
+                got = ctypes.string_at(out, ln.value)
+        if got is None:
+            flips["dropped"] += 1
+            return None
+        assert got == msg  # a frame that passed the CRC is the message sent
+        return inner(drive, got, timeout)
+
+    drive.exchange = framed
+    do_flash(drive, NEW)
+    assert state(drive) == ("app", NEW.header.fw_version)
+    assert flips["sent"] > 5
+    assert flips["dropped"] >= flips["sent"] - 1  # a flip in a delimiter may split, not pass
+
+
+def test_corruption_past_the_frame_layer_is_caught_by_the_image_crc(drive):
+    do_flash(drive, OLD)
+    w = pg.MSG_BY_NAME["boot_write"].id
+    hits = []
+
+    def corrupt(n, msg):
+        if msg[0] == w and not hits:
+            hits.append(n)
+            return "corrupt"
+        return None
+
+    inner = drive.exchange
+
+    def exchange(msg, timeout):
+        if corrupt(drive.count + 1, msg) == "corrupt":
+            msg = msg[:-1] + bytes([msg[-1] ^ 0x10])
+        return inner(msg, timeout)
+
+    drive.exchange = exchange
+    c = client(drive)
+    fl.flash(c, NEW, log=lambda s: None, confirm_wait=1.0)
+    assert c.stats.sessions == 2  # read-back CRC mismatch: erased and written again
+    assert state(drive) == ("app", NEW.header.fw_version)
+
+
+def test_transmit_buffer_full_is_waited_out(drive):
+    inner = drive.exchange
+    calls = {"n": 0}
+
+    def flaky(msg, timeout):
+        calls["n"] += 1
+        if calls["n"] % 5 == 0:
+            raise can.CanOperationError("Transmit buffer full")
+        return inner(msg, timeout)
+
+    drive.exchange = flaky
+    c = client(drive)
+    fl.flash(c, NEW, log=lambda s: None, confirm_wait=1.0)
+    assert c.stats.tx_full_waits > 10
+    assert c.stats.retries == 0
+    assert fl.tx_buffer_full(OSError(105, "No buffer space available"))
+    assert not fl.tx_buffer_full(can.CanOperationError("bus off"))
