@@ -1,0 +1,510 @@
+/*
+ * cec.c - contour error estimates and the contour error controller;
+ * specification in cec.h.
+ */
+#include "cec.h"
+
+#include <stddef.h>
+
+/* Maclaurin coefficients of sec(g) - 1 divided by g^2, q1_30:
+ * 1/2, 5/24, 61/720, 277/8064, 50521/3628800 (g <= 0.5: error < 2e-6 r). */
+#define SEC_C0 536870912
+#define SEC_C1 223696213
+#define SEC_C2 90969793
+#define SEC_C3 36883245
+#define SEC_C4 14948884
+
+#define GAMMA_MAX_Q30 ((int64_t)1 << 29) /* 0.5 rad */
+#define PLUNGE_LEN2   ((int64_t)1 << 40) /* |t x e_w|^2 below (2^-10)^2 in q60 */
+#define UNIT_TOL2     ((int64_t)1 << 33) /* |len^2 - 1| tolerated without normalising */
+#define OFFPLANE_Q30  1024               /* |t_w| above 2^-20: second channel on */
+
+/* Inline forms of the fixmath helpers for the tick path (same results). */
+static inline int64_t rsh(int64_t v, unsigned s)
+{
+    return (v >> s) + ((v >> (s - 1)) & 1); /* round half up, s >= 1 */
+}
+
+static inline int32_t sat32(int64_t v)
+{
+    return (v > INT32_MAX) ? INT32_MAX : (v < INT32_MIN) ? INT32_MIN : (int32_t)v;
+}
+
+static int64_t mul_q30(int64_t a, q1_30_t n)
+{
+    return fx_mul64x32_shift(a, n, 30);
+}
+
+static int32_t q30_mul32(int32_t a, int32_t b)
+{
+    return (int32_t)rsh((int64_t)a * b, 30);
+}
+
+static int32_t diff_sat32(int64_t a, int64_t b)
+{
+    if (b < 0 && a > INT64_MAX + b) {
+        return INT32_MAX;
+    }
+    if (b > 0 && a < INT64_MIN + b) {
+        return INT32_MIN;
+    }
+    return sat32(a - b);
+}
+
+static int64_t abs64(int64_t v)
+{
+    return (v < 0) ? -v : v;
+}
+
+/* ---- estimators ------------------------------------------------------------ */
+
+bool cec_normals(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3])
+{
+    int64_t c[3], len2;
+    int k;
+
+    if (t[0] == 0 && t[1] == 0 && t[2] == 0) {
+        return false;
+    }
+    /* c = t x e_w */
+    if (w == 0) {
+        c[0] = 0;
+        c[1] = t[2];
+        c[2] = -(int64_t)t[1];
+    } else if (w == 1) {
+        c[0] = -(int64_t)t[2];
+        c[1] = 0;
+        c[2] = t[0];
+    } else {
+        c[0] = t[1];
+        c[1] = -(int64_t)t[0];
+        c[2] = 0;
+    }
+    len2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+    if (len2 < PLUNGE_LEN2) {
+        /* travel along the plane normal: n1 = e_u made orthogonal to t */
+        unsigned u = (w + 1u) % 3u;
+        for (k = 0; k < 3; k++) {
+            c[k] = -(int64_t)q30_mul32(t[u], t[k]);
+        }
+        c[u] += FX_ONE_Q30;
+        len2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+    }
+    if (abs64(len2 - ((int64_t)1 << 60)) > UNIT_TOL2) {
+        int32_t len;
+        if (len2 == 0) {
+            return false;
+        }
+        /* scale short vectors up first so that the root keeps 30 bits */
+        while (abs64(c[0]) < ((int64_t)1 << 29) && abs64(c[1]) < ((int64_t)1 << 29) &&
+               abs64(c[2]) < ((int64_t)1 << 29)) {
+            c[0] *= 2;
+            c[1] *= 2;
+            c[2] *= 2;
+        }
+        len2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+        len = (int32_t)fx_isqrt64((uint64_t)len2);
+        for (k = 0; k < 3; k++) {
+            n1[k] = fx_div_sat32(c[k], len, 30);
+        }
+    } else {
+        for (k = 0; k < 3; k++) {
+            n1[k] = (q1_30_t)c[k];
+        }
+    }
+    /* n2 = n1 x t */
+    n2[0] = (q1_30_t)rsh((int64_t)n1[1] * t[2] - (int64_t)n1[2] * t[1], 30);
+    n2[1] = (q1_30_t)rsh((int64_t)n1[2] * t[0] - (int64_t)n1[0] * t[2], 30);
+    n2[2] = (q1_30_t)rsh((int64_t)n1[0] * t[1] - (int64_t)n1[1] * t[0], 30);
+    return true;
+}
+
+int32_t cec_dot(const int32_t e[3], const q1_30_t n[3])
+{
+    int64_t s = (int64_t)e[0] * n[0] + (int64_t)e[1] * n[1] + (int64_t)e[2] * n[2];
+    return sat32(rsh(s, 30));
+}
+
+int32_t cec_est_koren(int32_t ex, int32_t ey, int64_t rx, int64_t ry)
+{
+    int64_t num, den;
+    while (abs64(rx) >= ((int64_t)1 << 30) || abs64(ry) >= ((int64_t)1 << 30)) {
+        rx /= 2;
+        ry /= 2;
+    }
+    den = fx_hypot2(rx, ry);
+    if (den == 0) {
+        return 0;
+    }
+    num = ry * ex - rx * ey;
+    return sat32(fx_div_round64(num, den));
+}
+
+static int32_t curv_corr(int32_t e_abs, pos_nm_t r, pid_coef_t inv_r)
+{
+    int64_t x, x2, h, xh, e_eff = e_abs;
+    if (e_abs <= 0 || r <= 0) {
+        return 0;
+    }
+    x = pid_coef_apply(inv_r, e_abs); /* e / r, q1_30 */
+    if (x > GAMMA_MAX_Q30) {
+        x = GAMMA_MAX_Q30;
+        e_eff = (r / 2 < e_abs) ? r / 2 : e_abs;
+    }
+    x2 = rsh(x * x, 30);
+    h = SEC_C4;
+    h = SEC_C3 + rsh(x2 * h, 30);
+    h = SEC_C2 + rsh(x2 * h, 30);
+    h = SEC_C1 + rsh(x2 * h, 30);
+    h = SEC_C0 + rsh(x2 * h, 30);
+    xh = rsh(x * h, 30); /* r (sec g - 1) / e, q1_30 */
+    return (int32_t)rsh(e_eff * xh, 30);
+}
+
+int32_t cec_curv_correction(int32_t e_abs, pos_nm_t radius)
+{
+    pid_coef_t inv;
+    if (radius <= 0 || e_abs <= 0 || !pid_coef_make(&inv, FX_ONE_Q30, 1, (uint64_t)radius)) {
+        return 0;
+    }
+    return curv_corr(e_abs, radius, inv);
+}
+
+int32_t cec_exact_arc(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius, int s)
+{
+    int64_t rho = fx_hypot2(pu - cu, pv - cv);
+    int64_t d = rho - radius;
+    return sat32((s < 0) ? -d : d);
+}
+
+int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30_t n[3])
+{
+    int32_t d32[3];
+    int64_t d[3], sum = 0;
+    bool small = true;
+    int k;
+    for (k = 0; k < 3; k++) {
+        d[k] = start[k] - p[k];
+        d32[k] = sat32(d[k]);
+        small = small && (d32[k] == d[k]);
+    }
+    if (small) {
+        return cec_dot(d32, n);
+    }
+    for (k = 0; k < 3; k++) {
+        sum = fx_sat_add64(sum, mul_q30(d[k], n[k]));
+    }
+    return sat32(sum);
+}
+
+/* ---- controller -------------------------------------------------------------- */
+
+const char *cec_mode_name(cec_mode_t mode)
+{
+    switch (mode) {
+    case CEC_MODE_OFF:
+        return "off";
+    case CEC_MODE_TANGENT:
+        return "tangent";
+    case CEC_MODE_CURVATURE:
+        return "curvature";
+    case CEC_MODE_EXACT:
+        return "exact";
+    case CEC_MODE_KOREN:
+        return "koren";
+    case CEC_MODE_COUNT:
+        break;
+    }
+    return "?";
+}
+
+cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err)
+{
+    pid_params_t pp;
+    pid_loop_t tmp[2];
+    pid_err_t err;
+    int k;
+
+    if (c == NULL || p == NULL) {
+        return CEC_ERR_NULL;
+    }
+    if ((unsigned)p->mode >= (unsigned)CEC_MODE_COUNT) {
+        return CEC_ERR_MODE;
+    }
+    pp = p->pid;
+    pp.kvff = 0;
+    pp.kaff = 0;
+    pp.d_on_measurement = false;
+    for (k = 0; k < 2; k++) {
+        tmp[k] = c->ch[k];
+        err = pid_config(&tmp[k], &pp);
+        if (err != PID_OK) {
+            if (pid_err != NULL) {
+                *pid_err = err;
+            }
+            return CEC_ERR_PID;
+        }
+        if (!tmp[k].enabled) {
+            pid_enable(&tmp[k], 0);
+            pid_reset(&tmp[k], false);
+        }
+    }
+    c->ch[0] = tmp[0];
+    c->ch[1] = tmp[1];
+    if (c->p.mode != p->mode) {
+        c->reseg = true;
+    }
+    c->p = *p;
+    return CEC_OK;
+}
+
+cec_err_t cec_set_mode(cec_t *c, cec_mode_t mode)
+{
+    if ((unsigned)mode >= (unsigned)CEC_MODE_COUNT) {
+        return CEC_ERR_MODE;
+    }
+    if (c->p.mode != mode) {
+        c->p.mode = mode;
+        c->reseg = true;
+    }
+    return CEC_OK;
+}
+
+/* The channels' integral as a vector in axis space, U. */
+static void integral_vector(const cec_t *c, int64_t iv[3])
+{
+    int k;
+    for (k = 0; k < 3; k++) {
+        iv[k] = mul_q30(c->ch[0].integ, c->n[0][k]);
+        if (c->ch2_on) {
+            iv[k] += mul_q30(c->ch[1].integ, c->n[1][k]);
+        }
+    }
+}
+
+static void hand_over(cec_t *c, const int64_t rem[3])
+{
+    int k;
+    if (!c->p.handover) {
+        return;
+    }
+    for (k = 0; k < 3 && k < CORE_AXES; k++) {
+        c->handover_u[k] += rem[k];
+    }
+}
+
+static void deactivate(cec_t *c)
+{
+    if (c->active) {
+        int64_t iv[3];
+        integral_vector(c, iv);
+        hand_over(c, iv);
+    }
+    pid_reset(&c->ch[0], false);
+    pid_reset(&c->ch[1], false);
+    c->ch[0].out = 0;
+    c->ch[1].out = 0;
+    c->ch[0].out_mv = 0;
+    c->ch[1].out_mv = 0;
+    c->active = false;
+    c->ch2_on = false;
+    c->ec_nm[0] = 0;
+    c->ec_nm[1] = 0;
+}
+
+/* Plane normal axis of the geometry; false when an ARC has no valid plane. */
+static bool geom_plane(const motion_geom_t *g, unsigned *w)
+{
+    unsigned u = g->plane_u, v = g->plane_v;
+    bool ok = u < 3 && v < 3 && u != v;
+    if (g->kind == MOTION_GEOM_ARC) {
+        if (!ok || u >= CORE_AXES || v >= CORE_AXES || g->radius <= 0) {
+            return false;
+        }
+    }
+    *w = ok ? 3u - u - v : 2u;
+    return true;
+}
+
+static bool segment_changed(const cec_t *c, const motion_geom_t *g, unsigned w)
+{
+    int k;
+    if (!c->active || c->reseg || c->kind != g->kind || c->w != w) {
+        return true;
+    }
+    if (g->kind == MOTION_GEOM_LINE) {
+        for (k = 0; k < 3 && k < CORE_AXES; k++) {
+            if (c->key_t[k] != g->tangent[k] || c->key_p[k] != g->start[k]) {
+                return true;
+            }
+        }
+        return false;
+    }
+    return c->key_p[0] != g->centre_u || c->key_p[1] != g->centre_v || c->key_r != g->radius ||
+           c->key_sense != g->sense;
+}
+
+static void new_segment(cec_t *c, const motion_ref_t *ref, unsigned w, const q1_30_t n1[3],
+                        const q1_30_t n2[3], bool ch2)
+{
+    const motion_geom_t *g = &ref->geom;
+    int64_t i1 = 0, i2 = 0;
+    int k;
+
+    if (c->active) {
+        int64_t iv[3], rem[3];
+        integral_vector(c, iv);
+        for (k = 0; k < 3; k++) {
+            i1 += mul_q30(iv[k], n1[k]);
+            if (ch2) {
+                i2 += mul_q30(iv[k], n2[k]);
+            }
+        }
+        for (k = 0; k < 3; k++) {
+            rem[k] = iv[k] - mul_q30(i1, n1[k]) - mul_q30(i2, n2[k]);
+        }
+        hand_over(c, rem);
+    }
+    pid_reset(&c->ch[0], false);
+    pid_reset(&c->ch[1], false);
+    pid_add_integrator(&c->ch[0], i1);
+    pid_add_integrator(&c->ch[1], i2);
+
+    c->kind = g->kind;
+    c->w = w;
+    c->reseg = false;
+    c->s = 0;
+    for (k = 0; k < 3; k++) {
+        c->key_t[k] = (k < CORE_AXES) ? g->tangent[k] : 0;
+        c->key_p[k] = (k < CORE_AXES) ? g->start[k] : 0;
+    }
+    c->key_r = 0;
+    c->key_sense = 0;
+    if (g->kind == MOTION_GEOM_ARC) {
+        unsigned u = g->plane_u, v = g->plane_v;
+        int64_t du = g->centre_u - ref->pos[u], dv = g->centre_v - ref->pos[v], dot;
+        c->key_p[0] = g->centre_u;
+        c->key_p[1] = g->centre_v;
+        c->key_p[2] = 0;
+        c->key_r = g->radius;
+        c->key_sense = g->sense;
+        while (abs64(du) >= ((int64_t)1 << 31) || abs64(dv) >= ((int64_t)1 << 31)) {
+            du /= 2;
+            dv /= 2;
+        }
+        dot = du * n1[u] + dv * n1[v];
+        c->s = (int8_t)((dot > 0) ? 1 : (dot < 0) ? -1 : ((g->sense > 0) ? -1 : 1));
+        if (!pid_coef_make(&c->inv_r, FX_ONE_Q30, 1, (uint64_t)g->radius)) {
+            c->inv_r.m = 0;
+            c->inv_r.sh = 0;
+        }
+    }
+}
+
+void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
+{
+    const motion_geom_t *g;
+    q1_30_t t[3], n1[3], n2[3];
+    int32_t e[3], ec1, ec2 = 0;
+    unsigned w = 2;
+    bool ch2;
+    int k;
+
+    for (k = 0; k < CORE_AXES; k++) {
+        c->out_u[k] = 0;
+        c->handover_u[k] = 0;
+    }
+    c->saturated = false;
+    if (c->p.mode == CEC_MODE_OFF || ref == NULL || !ref->active ||
+        ref->geom.kind == MOTION_GEOM_NONE) {
+        deactivate(c);
+        return;
+    }
+    g = &ref->geom;
+    for (k = 0; k < 3; k++) {
+        t[k] = (k < CORE_AXES) ? g->tangent[k] : 0;
+    }
+    if ((g->kind != MOTION_GEOM_LINE && g->kind != MOTION_GEOM_ARC) || !geom_plane(g, &w) ||
+        !cec_normals(t, w, n1, n2)) {
+        c->bad_geom++;
+        deactivate(c);
+        return;
+    }
+    ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
+    if (segment_changed(c, g, w)) {
+        new_segment(c, ref, w, n1, n2, ch2);
+    } else if (c->ch2_on && !ch2) {
+        /* (a LINE's tangent is part of its key: only reached on an ARC) */
+        pid_reset(&c->ch[1], false);
+    }
+    c->active = true;
+    c->ch2_on = ch2;
+    for (k = 0; k < 3; k++) {
+        e[k] = (k < CORE_AXES) ? diff_sat32(ref->pos[k], meas[k]) : 0;
+        c->n[0][k] = n1[k];
+        c->n[1][k] = n2[k];
+    }
+
+    switch (c->p.mode) {
+    case CEC_MODE_EXACT:
+        if (g->kind == MOTION_GEOM_ARC) {
+            ec1 = cec_exact_arc(meas[g->plane_u], meas[g->plane_v], g->centre_u, g->centre_v,
+                                g->radius, c->s);
+        } else {
+            pos_nm_t p3[3], s3[3];
+            for (k = 0; k < 3; k++) {
+                p3[k] = (k < CORE_AXES) ? meas[k] : 0;
+                s3[k] = (k < CORE_AXES) ? g->start[k] : 0;
+            }
+            ec1 = cec_exact_line(p3, s3, n1);
+            if (ch2) {
+                ec2 = cec_exact_line(p3, s3, n2);
+            }
+        }
+        break;
+    case CEC_MODE_CURVATURE:
+        ec1 = cec_dot(e, n1);
+        if (g->kind == MOTION_GEOM_ARC) {
+            int64_t eabs = c->p.lag_from_tangent ? abs64(cec_dot(e, t))
+                                                 : fx_hypot2(e[g->plane_u], e[g->plane_v]);
+            int32_t corr = curv_corr(sat32(eabs), g->radius, c->inv_r);
+            ec1 = fx_sat_add32(ec1, (c->s > 0) ? corr : -corr);
+        }
+        break;
+    case CEC_MODE_KOREN:
+        if (g->kind == MOTION_GEOM_LINE) {
+            unsigned u = (w + 1u) % 3u, v = (w + 2u) % 3u;
+            int64_t ru = (u < CORE_AXES) ? ref->pos[u] - g->start[u] : 0;
+            int64_t rv = (v < CORE_AXES) ? ref->pos[v] - g->start[v] : 0;
+            ec1 = cec_est_koren(e[u], e[v], ru, rv);
+        } else {
+            ec1 = cec_dot(e, n1);
+        }
+        break;
+    default: /* TANGENT */
+        ec1 = cec_dot(e, n1);
+        break;
+    }
+    if (ch2 && !(c->p.mode == CEC_MODE_EXACT && g->kind == MOTION_GEOM_LINE)) {
+        ec2 = cec_dot(e, n2);
+    }
+    c->ec_nm[0] = ec1;
+    c->ec_nm[1] = ec2;
+
+    pid_step(&c->ch[0], 0, -(pos_nm_t)ec1, 0, 0, 0);
+    if (ch2) {
+        pid_step(&c->ch[1], 0, -(pos_nm_t)ec2, 0, 0, 0);
+    } else {
+        c->ch[1].out = 0;
+        c->ch[1].saturated = false;
+    }
+    c->saturated = c->ch[0].saturated || c->ch[1].saturated;
+    {
+        int32_t u1 = (int32_t)rsh(c->ch[0].out, 22); /* mV q10 */
+        int32_t u2 = (int32_t)rsh(c->ch[1].out, 22);
+        for (k = 0; k < 3 && k < CORE_AXES; k++) {
+            int64_t a = (int64_t)u1 * n1[k] + (ch2 ? (int64_t)u2 * n2[k] : 0);
+            c->out_u[k] = rsh(a, 8); /* q10 * q30 = q40 -> U (q32) */
+        }
+    }
+}

@@ -1,0 +1,163 @@
+/*
+ * cec.h - cross-coupled contour error controller (Lacerda 1998, after
+ * Koren 1980 and Kulkarni & Srinivasan 1989).
+ *
+ * Specification
+ * -------------
+ * Notation (docs/servo.md has the figures): axial error E = R - P (reference
+ * minus measured, nm, int32 per axis, saturated), unit tangent t of the path
+ * at the reference point (motion_ref_t.geom.tangent, q1_30), active plane
+ * (u, v) with normal axis w (G17: 0,1 -> w = 2; G18: 2,0 -> w = 1; G19:
+ * 1,2 -> w = 0; lines without a valid plane use G17).
+ *
+ *   n1 = normalise(t x e_w)   first normal: the right-hand normal of the path
+ *                             in the active plane, (sin a, -cos a) in the
+ *                             thesis's 2-D notation when t = (cos a, sin a).
+ *                             If t is within 2^-10 of +-e_w (plunge), n1 is
+ *                             e_u made orthogonal to t.
+ *   n2 = n1 x t               second normal (= e_w for an in-plane tangent).
+ *
+ * Contour error estimates of the first channel, EC1 (nm, int32; positive
+ * when the machine is on the -n1 side of the path, i.e. along E):
+ *   TANGENT    EC1 = E . n1                           (Kulkarni & Srinivasan)
+ *   KOREN      LINE: EC1 = E . n_k with n_k the right-hand normal of R - start
+ *              in the plane = (Ry Ex - Rx Ey) / |R| about the segment start;
+ *              ARC: as TANGENT.                       (Koren, straight line)
+ *   CURVATURE  ARC: EC1 = E . n1 + s * r * (sec g - 1), g = |E_uv| / r, with
+ *              s = +1 when the centre lies on the +n1 side of the reference
+ *              point (clockwise travel) and -1 otherwise (counter-clockwise),
+ *              taken from the centre's position, so both directions of travel
+ *              are right. g is limited to 0.5 rad. LINE: as TANGENT.
+              With lag_from_tangent, g = |E . t| / r: a radial deviation d
+              then no longer adds its own ~ d^2 / (2 r) to the estimate (the
+              thesis's form does), and the pure-lag error drops from
+              ~5|E|^4/(24 r^3) to ~|E|^4/(12 r^3).
+ *   EXACT      LINE: EC1 = (start - P) . n1 (distance of P from the line).
+ *              ARC:  EC1 = s * (|P_uv - C| - r)  (radial deviation).
+ * Errors against the exact value on a circle, pure lag |E| (tests assert):
+ *   tangent = -s |E|^2 / (2 r) exactly, curvature within |E|^4 / (4 r^3)
+   (+ quantisation, 3 nm); with a radial deviation d as well: thesis form
+   within d^2 / (2 r) + |E|^4 / (4 r^3), lag_from_tangent within
+   |d| g^2 + |E|^4 / (4 r^3).
+ * The second channel (only when the segment leaves the plane: |t_w| > 2^-20,
+ * a three-axis line or helix) uses EC2 = E . n2 (EXACT on a LINE:
+ * (start - P) . n2), so the controlled error is the whole part of E
+ * orthogonal to t. Axes beyond the third are not part of the contour.
+ *
+ * Controller: each channel runs a pid_loop_t (pid.h) with the CEC gains on
+ * its EC (reference 0, D on the error, no feed-forward), and its clamped
+ * output u_k (U = mV * 2^-32) is distributed along its normal:
+ *   out_u[axis] = u1 * n1[axis] + u2 * n2[axis]
+ * (Ux += u sin a, Uy -= u cos a in the thesis's 2-D notation). The servo adds
+ * out_u to the axis loops before their output clamp. The CEC's own clamps are
+ * those of its pid_params_t (i_max_mv, out_max_mv); `saturated` is set when
+ * either channel's output was clamped this tick.
+ *
+ * Activity: the CEC runs when mode != OFF, ref->active and the geometry is a
+ * valid LINE or ARC; otherwise (rest, no path, bad geometry: counted in
+ * bad_geom) its output is zero. On every change of segment (kind, plane,
+ * LINE start or tangent, ARC centre, radius or sense) and of mode, the
+ * channels' integral, as a vector I = I1 n1 + I2 n2, is projected onto the new
+ * normals (tangent-continuous joins keep it whole) and the derivative restarts
+ * without a kick. With handover = true, what does not project (the component
+ * along the new tangent, or all of it when the CEC stops) is put in
+ * handover_u[axis] for the servo to add to the axis integrators, so the sum
+ * of the commands does not step; with handover = false it is dropped.
+ * Within an ARC the integrals turn with the normal (scalar integrators).
+ *
+ * Units and Q formats: positions nm (pos_nm_t), errors int32 nm, unit vectors
+ * q1_30, outputs U (int64, mV * 2^-32). Internally u_k is taken at 2^-10 mV
+ * resolution for the distribution.
+ *
+ * Contexts: cec_step: tick. cec_config, cec_set_mode: main or tick, applied
+ * by the servo between ticks. The estimator functions are pure.
+ */
+#ifndef CEC_H
+#define CEC_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "core_config.h"
+#include "fixmath.h"
+#include "motion_ref.h"
+#include "pid.h"
+
+typedef enum {
+    CEC_MODE_OFF = 0,
+    CEC_MODE_TANGENT = 1,
+    CEC_MODE_CURVATURE = 2,
+    CEC_MODE_EXACT = 3,
+    CEC_MODE_KOREN = 4,
+    CEC_MODE_COUNT
+} cec_mode_t;
+
+typedef enum {
+    CEC_OK = 0,
+    CEC_ERR_NULL,
+    CEC_ERR_MODE, /* mode outside cec_mode_t           */
+    CEC_ERR_PID   /* the gains were refused: see pid_err */
+} cec_err_t;
+
+typedef struct {
+    cec_mode_t mode;
+    pid_params_t pid;      /* CEC gains (SI, q32_32: Kp V/m, Ki V/(m*s), Kd V*s/m),
+                            * clamps, deadband, D filter; kvff/kaff/d_on_measurement
+                            * are ignored (no feed-forward; D on the error). */
+    bool handover;         /* hand the integral to the axis loops (bumpless)    */
+    bool lag_from_tangent; /* CURVATURE: g = |E . t| / r (the lag only) instead
+                            * of the thesis's |E_uv| / r; see below        */
+} cec_params_t;
+
+typedef struct {
+    cec_params_t p;
+    pid_loop_t ch[2];
+    /* tick outputs */
+    bool active;
+    bool saturated;
+    int32_t ec_nm[2];              /* EC1, EC2 this tick (0 when inactive)   */
+    int64_t out_u[CORE_AXES];      /* command added to each axis, U          */
+    int64_t handover_u[CORE_AXES]; /* to add to the axis integrators, U      */
+    q1_30_t n[2][3];               /* the normals used this tick             */
+    uint32_t bad_geom;             /* ticks refused for invalid geometry     */
+    /* segment tracking (tick) */
+    bool ch2_on;
+    bool reseg;
+    motion_geom_kind_t kind;
+    unsigned w;
+    q1_30_t key_t[3];
+    pos_nm_t key_p[3];
+    pos_nm_t key_r;
+    int8_t key_sense;
+    pid_coef_t inv_r; /* 2^30 / radius */
+    int8_t s;         /* side of the centre: +1 on +n1 */
+} cec_t;
+
+/* Validate and apply (nothing changes on error; *pid_err gets the detail
+ * when CEC_ERR_PID, may be NULL). A zeroed cec_t is an inactive CEC. */
+cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err);
+/* Select the estimate for the next job; bumpless (see Activity). */
+cec_err_t cec_set_mode(cec_t *c, cec_mode_t mode);
+const char *cec_mode_name(cec_mode_t mode);
+
+/* One tick: fills active, ec_nm, out_u, handover_u, saturated.
+ * meas: measured positions, nm. */
+void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES]);
+
+/* ---- estimators (pure; three-component vectors, axis order x, y, z) ---- */
+
+/* n1, n2 from a unit tangent t (q1_30) and the plane's normal axis w (0..2).
+ * False when t is the zero vector. */
+bool cec_normals(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3]);
+/* round(e . n), nm. */
+int32_t cec_dot(const int32_t e[3], const q1_30_t n[3]);
+/* Koren's estimate in a plane: (ry*ex - rx*ey) / |r|, r = R - start. */
+int32_t cec_est_koren(int32_t ex, int32_t ey, int64_t rx, int64_t ry);
+/* r * (sec g - 1) with g = min(e_abs / r, 0.5 rad), nm, rounded; 0 if r <= 0. */
+int32_t cec_curv_correction(int32_t e_abs, pos_nm_t radius);
+/* s * (|P - C| - r) in the plane, nm (|P - C| to the nearest nm below). */
+int32_t cec_exact_arc(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius, int s);
+/* (start - p) . n, nm. */
+int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30_t n[3]);
+
+#endif /* CEC_H */

@@ -1,0 +1,108 @@
+/*
+ * interp.h - interpolator: turns frozen planner segments into the per-tick
+ * reference (motion_ref_t) of every axis.
+ *
+ * Specification
+ * -------------
+ * The main context pops blocks from the planner (plan_pop) and appends them
+ * with interp_load() (or interp_refill(), which does both while there is
+ * room); the tick context calls interp_tick() once per control tick. The two
+ * share a single-producer single-consumer FIFO of INTERP_FIFO segments:
+ * main writes a slot then advances `wr`; tick reads a slot then advances
+ * `rd`. Each index is written by one context only.
+ *
+ * Time. Each tick advances the time of the current block by tick_ns (an
+ * integer number of ns). When it reaches the block's duration the excess is
+ * carried into the next block, so the block boundaries fall exactly where
+ * the planner put them on a continuous time line: a block is current for
+ * ceil or floor of (its duration / tick) ticks, and n consecutive blocks
+ * take their summed duration to within one tick. If the FIFO is empty when
+ * a block ends, the reference stays at its end point (the planner plans the
+ * last queued block to stop there); a block that arrives while idle starts
+ * at the next tick. Ending a block with a non-zero exit speed on an empty
+ * FIFO is an underrun (counted in `underruns`).
+ *
+ * Reference. Path distance s(t) is the planner's profile evaluated in closed
+ * form (scurve.h, sc_eval_phase) at the block time, times the factor
+ * len / s_end that absorbs the sub-nanometre rounding of the phase times.
+ * Axis i: pos_i = start_i + round(s * delta_i / len) with the exact ratio
+ * in q2_62, so the last tick of a block lands exactly on its integer end
+ * point and nothing drifts over any number of blocks. Velocity and
+ * acceleration feed-forward: v * u_i and a * u_i (nm/s, nm/s^2). Geometry:
+ * MOTION_GEOM_LINE through the block start with the block's unit tangent
+ * (q1_30); MOTION_GEOM_NONE while idle or dwelling. The planner has no arc
+ * blocks, so MOTION_GEOM_ARC is never produced.
+ *
+ * Limits: inside a block the reference follows the profile, whose speed,
+ * acceleration and jerk never exceed the block's (projected) limits; the
+ * generated positions are those of the continuous profile rounded to 1 nm
+ * (model error < 0.01 nm), so finite differences of the references exceed
+ * the limits only by the rounding (|d^k p| <= lim * h^k + 2^(k-1) nm). At
+ * junctions the axis velocity steps by v * (u2 - u1) as the cornering rule
+ * allowed (a sharp corner at non-zero speed).
+ *
+ * Units: positions nm, velocities nm/s, accelerations nm/s^2, times ns and
+ * ticks.
+ */
+#ifndef INTERP_H
+#define INTERP_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "core_config.h"
+#include "motion_ref.h"
+#include "planner.h"
+
+#ifndef INTERP_FIFO
+#define INTERP_FIFO 8 /* a power of two */
+#endif
+
+typedef struct {
+    /* shared FIFO (main writes slots and wr; tick writes rd) */
+    plan_seg_t fifo[INTERP_FIFO];
+    volatile uint16_t wr;
+    volatile uint16_t rd;
+    /* tick state */
+    int64_t tick_ns;
+    bool busy;               /* a segment is current                   */
+    int64_t t_ns;            /* time into the current segment, ns      */
+    int phase;               /* current phase of the segment           */
+    int64_t phase_t0;        /* start time of that phase, ns           */
+    int64_t corr_q32;        /* (len * 2^16 - s_end) / s_end, q32      */
+    pos_nm_t pos[CORE_AXES]; /* last reference position                */
+    uint64_t ticks;          /* ticks since init                       */
+    uint64_t busy_ticks;     /* ticks with a segment current           */
+    uint32_t blocks_done;    /* segments completed                     */
+    uint32_t underruns;      /* segments that ended moving, FIFO empty */
+    uint32_t tag;            /* tag of the current (or last) segment   */
+} interp_t;
+
+/* Initialise idle at `start` with a tick period of tick_ns (> 0). Main. */
+void interp_init(interp_t *ip, int64_t tick_ns, const pos_nm_t start[CORE_AXES]);
+
+/* Free FIFO slots. Main. */
+uint16_t interp_room(const interp_t *ip);
+
+/* Append a frozen segment; false if the FIFO is full. Main. */
+bool interp_load(interp_t *ip, const plan_seg_t *seg);
+
+/* Pop ONE planner block into the FIFO if there is room; returns 1 if it did.
+ * The main loop pushes every block it has (until the planner is full)
+ * before each call, so that each block is frozen with the same look-ahead
+ * as plan_estimate() gives it:
+ *     while (interp_room(ip)) { push_all_available(); if (!interp_refill(ip, p)) break; }
+ * Main. */
+unsigned interp_refill(interp_t *ip, plan_t *p);
+
+/* Advance one tick and write the reference for the new time. Tick. */
+void interp_tick(interp_t *ip, motion_ref_t *ref);
+
+/* True when no segment is current or queued. Any (snapshot). */
+bool interp_idle(const interp_t *ip);
+
+/* Drop everything (after a stop or a fault) and hold `pos`. Main, with the
+ * tick stopped. */
+void interp_reset(interp_t *ip, const pos_nm_t pos[CORE_AXES]);
+
+#endif /* INTERP_H */

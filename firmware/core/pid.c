@@ -1,0 +1,362 @@
+/*
+ * pid.c - fixed-point PID loop with feed-forward; specification in pid.h.
+ */
+#include "pid.h"
+
+#include <stddef.h>
+
+#define U_PER_MV ((int64_t)1 << 32)
+
+static int64_t clamp64(int64_t v, int64_t lim)
+{
+    if (v > lim) {
+        return lim;
+    }
+    if (v < -lim) {
+        return -lim;
+    }
+    return v;
+}
+
+/* Inline forms of the fixmath helpers for the tick path (same results). */
+static inline int64_t rsh(int64_t v, unsigned s)
+{
+    return (v >> s) + ((v >> (s - 1)) & 1); /* round half up, s >= 1 */
+}
+
+static inline int32_t sat32(int64_t v)
+{
+    return (v > INT32_MAX) ? INT32_MAX : (v < INT32_MIN) ? INT32_MIN : (int32_t)v;
+}
+
+/* round(a * b / 2^30) for |a| < 2^61 and 0 <= b <= 2^30, without a 128-bit
+ * product: a = ah * 2^32 + al with al unsigned. */
+static inline int64_t mul_q30_pos(int64_t a, q1_30_t b)
+{
+    int64_t ah = a >> 32; /* |ah| < 2^29 */
+    uint64_t al = (uint64_t)a & 0xFFFFFFFFu;
+    uint64_t lo = al * (uint64_t)b; /* < 2^62 */
+    return ah * b * 4 + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
+}
+
+/* sat32(a - b) without overflowing the int64 subtraction. */
+static int32_t diff_sat32(int64_t a, int64_t b)
+{
+    if (b < 0 && a > INT64_MAX + b) {
+        return INT32_MAX;
+    }
+    if (b > 0 && a < INT64_MIN + b) {
+        return INT32_MIN;
+    }
+    return sat32(a - b);
+}
+
+bool pid_coef_make(pid_coef_t *c, int64_t num, uint32_t mul, uint64_t den)
+{
+    uint64_t a = (num < 0) ? (uint64_t)0 - (uint64_t)num : (uint64_t)num;
+    uint64_t lo, hi, r = 0;
+    uint32_t w[3], mant = 0;
+    int i, lead = 0, nbits = 0, sh;
+    unsigned rnd = 0;
+
+    c->m = 0;
+    c->sh = 0;
+    if (den == 0 || den >= ((uint64_t)1 << 62)) {
+        return false;
+    }
+    /* 96-bit product a * mul in three words, w[2] most significant */
+    lo = (a & 0xFFFFFFFFu) * mul;
+    hi = (a >> 32) * mul + (lo >> 32);
+    w[0] = (uint32_t)lo;
+    w[1] = (uint32_t)hi;
+    w[2] = (uint32_t)(hi >> 32);
+    /* Bit-serial long division of the product by den, into 64 fraction bits;
+     * keep the first 31 significant quotient bits and one rounding bit. */
+    for (i = 95; i >= -64; i--) {
+        unsigned b = (i >= 0) ? (w[i >> 5] >> (i & 31)) & 1u : 0u;
+        unsigned q = 0;
+        r = (r << 1) | b;
+        if (r >= den) {
+            r -= den;
+            q = 1;
+        }
+        if (nbits == 0 && q == 0) {
+            continue;
+        }
+        if (nbits == 0) {
+            lead = i;
+        }
+        if (nbits < 31) {
+            mant = (mant << 1) | q;
+            nbits++;
+        } else {
+            rnd = q;
+            break;
+        }
+    }
+    if (nbits == 0) {
+        return true; /* zero */
+    }
+    sh = (nbits - 1) - lead; /* value = mant * 2^-sh */
+    mant += rnd;
+    if (mant >= ((uint32_t)1 << 31)) {
+        mant >>= 1;
+        sh--;
+    }
+    if (sh > 62) {
+        unsigned d = (unsigned)(sh - 62);
+        mant = (d >= 32) ? 0u : (uint32_t)fx_round_shift64((int64_t)mant, d);
+        sh = 62;
+    }
+    if (sh < -31) {
+        return false;
+    }
+    c->m = (num < 0) ? -(int32_t)mant : (int32_t)mant;
+    c->sh = (mant == 0) ? 0 : sh;
+    return true;
+}
+
+static inline int64_t coef_apply(pid_coef_t c, int32_t x)
+{
+    int64_t p = (int64_t)x * c.m;
+    if (c.sh > 0) {
+        return clamp64(rsh(p, (unsigned)c.sh), PID_TERM_LIM);
+    }
+    if (c.sh < 0) {
+        int64_t lim = PID_TERM_LIM >> (unsigned)(-c.sh);
+        if (p > lim) {
+            return PID_TERM_LIM;
+        }
+        if (p < -lim) {
+            return -PID_TERM_LIM;
+        }
+        return p * ((int64_t)1 << (unsigned)(-c.sh));
+    }
+    return clamp64(p, PID_TERM_LIM);
+}
+
+int64_t pid_coef_apply(pid_coef_t c, int32_t x)
+{
+    return coef_apply(c, x);
+}
+
+static bool gain_ok(q32_32_t g)
+{
+    return g >= 0 && g < PID_GAIN_MAX;
+}
+
+pid_err_t pid_config(pid_loop_t *pid, const pid_params_t *p)
+{
+    pid_coef_t cp, ci, cd, cv, ca;
+    uint64_t f;
+    int64_t kt;
+
+    if (pid == NULL || p == NULL) {
+        return PID_ERR_NULL;
+    }
+    if (p->tick_hz < PID_TICK_HZ_MIN || p->tick_hz > PID_TICK_HZ_MAX) {
+        return PID_ERR_TICK_HZ;
+    }
+    if (!gain_ok(p->kp) || !gain_ok(p->ki) || !gain_ok(p->kd) || !gain_ok(p->kvff) ||
+        !gain_ok(p->kaff) || !gain_ok(p->kt)) {
+        return PID_ERR_GAIN;
+    }
+    if (p->out_max_mv < 1 || p->out_max_mv > PID_MV_MAX) {
+        return PID_ERR_OUT_MAX;
+    }
+    if (p->i_max_mv < 0 || p->i_max_mv > PID_MV_MAX) {
+        return PID_ERR_I_MAX;
+    }
+    if (p->deadband_nm < 0 || p->deadband_nm > ((int32_t)1 << 30)) {
+        return PID_ERR_DEADBAND;
+    }
+    if (p->d_tau_us > PID_DFILT_US_MAX) {
+        return PID_ERR_D_FILTER;
+    }
+    f = p->tick_hz;
+    if (!pid_coef_make(&cp, p->kp, 1, 1000000u) || !pid_coef_make(&ci, p->ki, 1, 1000000u * f) ||
+        !pid_coef_make(&cd, p->kd, (uint32_t)f, 1000000u) ||
+        !pid_coef_make(&cv, p->kvff, 4, 1000000u) || !pid_coef_make(&ca, p->kaff, 1024, 1000000u)) {
+        return PID_ERR_GAIN;
+    }
+    /* everything validated: apply */
+    pid->p = *p;
+    pid->cp = cp;
+    pid->ci = ci;
+    pid->cd = cd;
+    pid->cv = cv;
+    pid->ca = ca;
+    kt = fx_div_round64(p->kt, (int64_t)(4 * f)); /* Kt / f in q1_30 */
+    pid->kt_q30 = (kt > FX_ONE_Q30) ? FX_ONE_Q30 : (q1_30_t)kt;
+    pid->alpha_q30 = (q1_30_t)fx_div_round64((int64_t)FX_ONE_Q30 * 1000000,
+                                             1000000 + (int64_t)p->d_tau_us * (int64_t)f);
+    pid->i_lim = (int64_t)p->i_max_mv * U_PER_MV;
+    pid->out_lim = (int64_t)p->out_max_mv * U_PER_MV;
+    pid->deadband = p->deadband_nm;
+    if (pid->enabled && pid->primed) {
+        /* bumpless gain change: the next step continues from the last output */
+        pid->hold_mv = pid->out_mv;
+        pid->bumpless = true;
+    }
+    pid->integ = clamp64(pid->integ, pid->i_lim);
+    return PID_OK;
+}
+
+const char *pid_strerror(pid_err_t err)
+{
+    switch (err) {
+    case PID_OK:
+        return "ok";
+    case PID_ERR_NULL:
+        return "missing loop or parameters";
+    case PID_ERR_TICK_HZ:
+        return "tick_hz out of range 100..100000";
+    case PID_ERR_GAIN:
+        return "gain negative or >= 2^30 (q32_32 SI units)";
+    case PID_ERR_OUT_MAX:
+        return "out_max_mv out of range 1..1000000";
+    case PID_ERR_I_MAX:
+        return "i_max_mv out of range 0..1000000";
+    case PID_ERR_DEADBAND:
+        return "deadband_nm out of range 0..2^30";
+    case PID_ERR_D_FILTER:
+        return "d_tau_us above 10 s";
+    }
+    return "unknown pid error";
+}
+
+void pid_enable(pid_loop_t *pid, int32_t u_hold_mv)
+{
+    int64_t lim = (pid->out_lim > 0) ? pid->out_lim : 0;
+    pid->hold_mv = (int32_t)(clamp64((int64_t)u_hold_mv * U_PER_MV, lim) / U_PER_MV);
+    pid->bumpless = true;
+    pid->enabled = true;
+    pid->sat_ticks = 0;
+    pid->sat_total = 0;
+}
+
+void pid_disable(pid_loop_t *pid)
+{
+    pid->enabled = false;
+    pid->bumpless = false;
+    pid->integ = 0;
+    pid->dterm = 0;
+    pid->out = 0;
+    pid->out_mv = 0;
+    pid->saturated = false;
+    pid->sat_ticks = 0;
+}
+
+void pid_reset(pid_loop_t *pid, bool bumpless)
+{
+    if (bumpless) {
+        pid->hold_mv = pid->out_mv;
+        pid->bumpless = pid->enabled;
+        return;
+    }
+    pid->integ = 0;
+    pid->dterm = 0;
+    pid->primed = false;
+    pid->bumpless = false;
+    pid->sat_ticks = 0;
+}
+
+void pid_rebase(pid_loop_t *pid, pos_nm_t offset_nm)
+{
+    pid->meas_prev += offset_nm;
+}
+
+void pid_add_integrator(pid_loop_t *pid, int64_t delta_u)
+{
+    pid->integ = clamp64(pid->integ + clamp64(delta_u, PID_TERM_LIM), pid->i_lim);
+}
+
+static int32_t deadband(int32_t e, int32_t db)
+{
+    if (e > db) {
+        return e - db;
+    }
+    if (e < -db) {
+        return e + db;
+    }
+    return 0;
+}
+
+int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int64_t acc,
+                 int64_t extra)
+{
+    int32_t e = diff_sat32(ref, meas);
+    int32_t edb;
+    int64_t pterm, raw, u;
+
+    pid->err_nm = e;
+    if (!pid->primed) {
+        pid->meas_prev = meas;
+        pid->err_prev = e;
+        pid->dterm = 0;
+        pid->primed = true;
+    }
+    if (!pid->enabled) {
+        pid->meas_prev = meas;
+        pid->err_prev = e;
+        pid->out = 0;
+        pid->out_mv = 0;
+        pid->saturated = false;
+        pid->sat_ticks = 0;
+        return 0;
+    }
+    edb = deadband(e, pid->deadband);
+    pterm = coef_apply(pid->cp, edb);
+
+    /* derivative, filtered in output units */
+    if (pid->cd.m != 0) {
+        int32_t de = pid->p.d_on_measurement ? diff_sat32(pid->meas_prev, meas)
+                                             : diff_sat32(e, pid->err_prev);
+        int64_t draw = coef_apply(pid->cd, de);
+        if (pid->alpha_q30 >= FX_ONE_Q30) {
+            pid->dterm = draw;
+        } else {
+            pid->dterm += mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
+        }
+    } else {
+        pid->dterm = 0;
+    }
+    pid->meas_prev = meas;
+    pid->err_prev = e;
+
+    /* feed-forward from the interpolator's velocity and acceleration */
+    pid->ff = 0;
+    if (pid->cv.m != 0) {
+        pid->ff += coef_apply(pid->cv, sat32(rsh(vel, 2)));
+    }
+    if (pid->ca.m != 0) {
+        pid->ff += coef_apply(pid->ca, sat32(rsh(acc, 10)));
+    }
+    pid->extra = clamp64(extra, PID_TERM_LIM);
+
+    if (pid->bumpless) {
+        /* continue from hold_mv: the integrator takes the difference */
+        int64_t hold = (int64_t)pid->hold_mv * U_PER_MV;
+        pid->integ = clamp64(hold - (pterm + pid->dterm + pid->ff + pid->extra), pid->i_lim);
+        pid->bumpless = false;
+    } else {
+        pid->integ = clamp64(pid->integ + coef_apply(pid->ci, edb), pid->i_lim);
+    }
+    raw = pterm + pid->integ + pid->dterm + pid->ff + pid->extra;
+    u = clamp64(raw, pid->out_lim);
+    if (u != raw) {
+        pid->saturated = true;
+        pid->sat_ticks++;
+        pid->sat_total++;
+        if (pid->kt_q30 != 0) {
+            pid->integ += mul_q30_pos(clamp64(u - raw, (int64_t)1 << 61), pid->kt_q30);
+        }
+    } else {
+        pid->saturated = false;
+        pid->sat_ticks = 0;
+    }
+    pid->integ = clamp64(pid->integ, pid->i_lim);
+    pid->out = u;
+    pid->out_mv = (int32_t)rsh(u, 32);
+    return pid->out_mv;
+}

@@ -1,0 +1,180 @@
+/*
+ * pid.h - fixed-point PID loop with feed-forward, one per axis (and the
+ * scalar loop of the contour error controller, cec.h).
+ *
+ * Specification
+ * -------------
+ * Control law, evaluated once per control tick (f = tick_hz, dt = 1/f):
+ *
+ *   e      = sat32(ref - meas)                       error, nm
+ *   e_db   = e - sign(e)*deadband, 0 inside the band  (continuous deadband:
+ *                                                     no output step at its edge)
+ *   P      = Kp * e_db
+ *   I     += Ki * dt * e_db                           then back-calculation and clamp
+ *   D_raw  = Kd * (e - e_prev) / dt                   (d_on_measurement = false)
+ *          = -Kd * (meas - meas_prev) / dt            (d_on_measurement = true)
+ *   D     += alpha * (D_raw - D),  alpha = dt / (tau + dt)   first-order filter
+ *                                                     (backward Euler; tau = 0: none)
+ *   FF     = Kvff * vel + Kaff * acc                  feed-forward from the interpolator
+ *   u_raw  = P + I + D + FF + extra                   extra: added by the caller (CEC)
+ *   u      = clamp(u_raw, +-out_max)                  saturated = (u != u_raw)
+ *   I     += Kt * dt * (u - u_raw)                    back-calculation anti-windup
+ *   I      = clamp(I, +-i_max)
+ *   output = round(u) in millivolts
+ *
+ * User parameters (pid_params_t) are rate-independent SI values in q32_32
+ * (the real value times 2^32, exactly what `round(x * 2**32)` gives on the
+ * host): Kp in V/m, Ki in V/(m*s), Kd in V*s/m, Kvff in V/(m/s),
+ * Kaff in V/(m/s^2), Kt (back-calculation tracking rate) in 1/s. The thesis's
+ * axis gains Kp 1.5e3, Ki 8e3, Kd 5 are therefore 1.5e3 * 2^32 etc. Any gain in
+ * [0, 2^30) of these units is accepted (resolution 2^-32 = 2.3e-10).
+ *
+ * pid_config() is the conversion helper: it validates the parameters and turns
+ * them into per-tick coefficients for the given tick rate, each a pseudo-float
+ * pid_coef_t (31-bit mantissa m and a shift sh, value m * 2^-sh), so every
+ * gain keeps 30 significant bits at any tick rate from 100 Hz to 100 kHz.
+ * Internal unit of every term: "U" = millivolt * 2^-32 (int64). Terms are
+ * clamped to +-2^28 mV before summing, so sums never overflow.
+ *
+ *   coefficient  input                              unit of the coefficient
+ *   cp           e_db, int32 nm                     U per nm          = Kp * 1e-6 * 2^32
+ *   ci           e_db, int32 nm, per tick           U per nm per tick = Ki * 1e-6 / f * 2^32
+ *   cd           delta e, int32 nm per tick         U per nm/tick     = Kd * 1e-6 * f * 2^32
+ *   cv           vel >> 2, int32 (4 nm/s units)     U per 4 nm/s      = Kvff * 4e-6 * 2^32
+ *   ca           acc >> 10, int32 (1024 nm/s^2)     U per 1024 nm/s^2 = Kaff * 1.024e-3 * 2^32
+ *   kt_q30       (u - u_raw) in U                   ratio per tick    = Kt / f, q1_30, <= 1
+ *   alpha_q30    D filter                           ratio per tick    = 1 / (1 + tau * f), q1_30
+ *
+ * Ranges: vel is saturated to +-2^33 nm/s (8.5 m/s), acc to +-2^41 nm/s^2
+ * (2.2e3 m/s^2), e to int32 (+-2.1 m), the D input to +-2^31 nm per tick.
+ * Resolution of the integrator: 2^-32 mV. out_max_mv and i_max_mv are at most
+ * PID_MV_MAX; the amplifier range of this product is +-160000 mV.
+ *
+ * Bumpless operation and resets:
+ *   pid_enable(u_hold)   the first step after it outputs u_hold (the integrator
+ *                        absorbs the difference, within its clamp) and has no
+ *                        derivative kick. Disabled loops output 0 but keep
+ *                        tracking their inputs, so enabling never kicks.
+ *   pid_reset(bumpless)  bumpless: as pid_enable(last output); otherwise the
+ *                        integrator and D filter are cleared (no D kick either).
+ *   pid_config()         on a running loop: the integrator is re-computed so
+ *                        that the output with the new gains and the last inputs
+ *                        is unchanged (bumpless gain change).
+ *   pid_rebase(offset)   the measured position frame moved by offset nm (index,
+ *                        homing; the caller moves the reference by the same
+ *                        offset in the same tick): the stored measurement is
+ *                        moved so the derivative sees no step. Feed-forward is
+ *                        taken from the interpolator's vel/acc, never from
+ *                        differencing positions, so a reset cannot spike it.
+ *   pid_add_integrator() bumpless hand-over of a correction into the integrator
+ *                        (used when the contour error controller switches off).
+ *
+ * Contexts: pid_step, pid_rebase, pid_add_integrator: tick. pid_config,
+ * pid_enable, pid_disable, pid_reset: main or tick, never concurrently with
+ * pid_step on the same loop (the servo applies them inside its tick).
+ * All fields of pid_loop_t are written only by these functions; the status
+ * fields (err_nm, out_mv, saturated, sat_ticks, sat_total) may be read anywhere.
+ */
+#ifndef PID_H
+#define PID_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "fixmath.h"
+
+#define PID_MV_MAX       1000000 /* largest out_max_mv / i_max_mv accepted (1 kV) */
+#define PID_TICK_HZ_MIN  100
+#define PID_TICK_HZ_MAX  100000
+#define PID_GAIN_MAX     ((q32_32_t)1 << 62) /* 2^30 in any gain unit, exclusive */
+#define PID_DFILT_US_MAX 10000000u           /* D filter time constant limit: 10 s */
+#define PID_TERM_LIM     ((int64_t)1 << 60)  /* 2^28 mV in U: clamp of each term  */
+
+/* Pseudo-float coefficient: value = m * 2^-sh (sh may be negative). */
+typedef struct {
+    int32_t m;
+    int32_t sh;
+} pid_coef_t;
+
+typedef struct {
+    q32_32_t kp;           /* V/m,          >= 0                                  */
+    q32_32_t ki;           /* V/(m*s),      >= 0                                  */
+    q32_32_t kd;           /* V*s/m,        >= 0                                  */
+    q32_32_t kvff;         /* V/(m/s),      >= 0 velocity feed-forward            */
+    q32_32_t kaff;         /* V/(m/s^2),    >= 0 acceleration feed-forward        */
+    q32_32_t kt;           /* 1/s,          >= 0 back-calculation rate; 0: clamp only */
+    uint32_t d_tau_us;     /* D filter time constant, us; 0: unfiltered           */
+    int32_t deadband_nm;   /* 0..2^30                                           */
+    int32_t i_max_mv;      /* integrator clamp, mV, 0..PID_MV_MAX                 */
+    int32_t out_max_mv;    /* output clamp, mV, 1..PID_MV_MAX (160000 = amplifier) */
+    uint32_t tick_hz;      /* control tick rate, PID_TICK_HZ_MIN..MAX             */
+    bool d_on_measurement; /* D on -meas (no kick on reference steps) or on e  */
+} pid_params_t;
+
+typedef enum {
+    PID_OK = 0,
+    PID_ERR_NULL,
+    PID_ERR_TICK_HZ,  /* tick_hz outside PID_TICK_HZ_MIN..MAX              */
+    PID_ERR_GAIN,     /* a gain is negative or >= PID_GAIN_MAX             */
+    PID_ERR_OUT_MAX,  /* out_max_mv outside 1..PID_MV_MAX                  */
+    PID_ERR_I_MAX,    /* i_max_mv outside 0..PID_MV_MAX                    */
+    PID_ERR_DEADBAND, /* deadband_nm outside 0..2^30                       */
+    PID_ERR_D_FILTER  /* d_tau_us > PID_DFILT_US_MAX                       */
+} pid_err_t;
+
+typedef struct {
+    /* configuration (pid_config) */
+    pid_params_t p;
+    pid_coef_t cp, ci, cd, cv, ca;
+    q1_30_t kt_q30;
+    q1_30_t alpha_q30;
+    int64_t i_lim;   /* U */
+    int64_t out_lim; /* U */
+    int32_t deadband;
+    /* state (tick) */
+    int64_t integ; /* U */
+    int64_t dterm; /* U, filtered derivative term */
+    int64_t ff;    /* U, last feed-forward */
+    int64_t extra; /* U, last extra input */
+    int64_t out;   /* U, last clamped output */
+    pos_nm_t meas_prev;
+    int32_t err_prev;
+    int32_t hold_mv; /* output to continue from on the next step (bumpless) */
+    bool enabled;
+    bool primed;   /* meas_prev/err_prev valid: no D kick             */
+    bool bumpless; /* next enabled step re-computes the integrator     */
+    /* status (read anywhere) */
+    int32_t err_nm;     /* last error before the deadband                  */
+    int32_t out_mv;     /* last output, mV                                 */
+    bool saturated;     /* last output was clamped                         */
+    uint32_t sat_ticks; /* consecutive saturated ticks                   */
+    uint32_t sat_total; /* saturated ticks since configuration           */
+} pid_loop_t;
+
+/* Coefficient value = num * mul / den (real division), normalised to a 31-bit
+ * mantissa. den > 0 and < 2^62. False when |value| >= 2^31 * 2^31 (too large);
+ * values below 2^-62 become 0. Configuration context (it loops ~160 times). */
+bool pid_coef_make(pid_coef_t *c, int64_t num, uint32_t mul, uint64_t den);
+/* round(x * value), clamped to +-PID_TERM_LIM. */
+int64_t pid_coef_apply(pid_coef_t c, int32_t x);
+
+/* Validate p (see pid_err_t); on success apply it (bumpless when enabled).
+ * On failure nothing changes. A loop must be configured before use; a zeroed
+ * pid_loop_t is a disabled loop that outputs 0. */
+pid_err_t pid_config(pid_loop_t *pid, const pid_params_t *p);
+const char *pid_strerror(pid_err_t err);
+
+void pid_enable(pid_loop_t *pid, int32_t u_hold_mv);
+void pid_disable(pid_loop_t *pid);
+void pid_reset(pid_loop_t *pid, bool bumpless);
+void pid_rebase(pid_loop_t *pid, pos_nm_t offset_nm);
+/* Add delta (U) to the integrator, clamped to i_max. */
+void pid_add_integrator(pid_loop_t *pid, int64_t delta_u);
+
+/* One tick. ref, meas: nm; vel: nm/s; acc: nm/s^2; extra: U (mV * 2^32),
+ * added before the output clamp. Returns the output in mV (0 when disabled).
+ * The clamped output in U is in pid->out. */
+int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int64_t acc,
+                 int64_t extra);
+
+#endif /* PID_H */

@@ -1,0 +1,482 @@
+/*
+ * planner.c - look-ahead planner; see planner.h for the rules.
+ */
+#include "planner.h"
+
+#define NS_PER_S ((int64_t)1000000000)
+
+static int64_t pl_min(int64_t a, int64_t b)
+{
+    return a < b ? a : b;
+}
+
+static int64_t pl_abs(int64_t a)
+{
+    return a < 0 ? -a : a;
+}
+
+static plan_block_t *pl_at(const plan_t *p, uint16_t i)
+{
+    uint32_t idx = (uint32_t)p->tail + i;
+    if (idx >= p->depth) {
+        idx -= p->depth;
+    }
+    return &p->ring[idx];
+}
+
+plan_result_t plan_check_profile(const plan_profile_t *prof)
+{
+    int i;
+
+    if (prof == NULL) {
+        return PLAN_E_ARG;
+    }
+    for (i = 0; i < CORE_AXES; i++) {
+        if (prof->v_max[i] < 1000 || prof->v_max[i] > SC_V_LIMIT) {
+            return PLAN_E_PROFILE;
+        }
+        if (prof->a_max[i] < SC_A_MIN || prof->a_max[i] > SC_A_LIMIT) {
+            return PLAN_E_PROFILE;
+        }
+        if (prof->j_max[i] < SC_J_MIN || prof->j_max[i] > SC_J_LIMIT) {
+            return PLAN_E_PROFILE;
+        }
+        /* a/j <= SC_TJ_MAX_NS (only the S-curve uses jerk) */
+        if (prof->shape == SC_SHAPE_SCURVE &&
+            sc_muldiv(prof->a_max[i], NS_PER_S, prof->j_max[i]) > SC_TJ_MAX_NS) {
+            return PLAN_E_PROFILE;
+        }
+        if (prof->corner_dv[i] < 0 || prof->corner_dv[i] > SC_V_LIMIT) {
+            return PLAN_E_PROFILE;
+        }
+        if (prof->corner_acc[i] < 0 || prof->corner_acc[i] > SC_A_LIMIT) {
+            return PLAN_E_PROFILE;
+        }
+    }
+    if (prof->junction_dev_nm < 0 || prof->junction_dev_nm > ((int64_t)1 << 40)) {
+        return PLAN_E_PROFILE;
+    }
+    if (prof->min_block_ns < 0 || prof->min_block_ns > 10 * NS_PER_S) {
+        return PLAN_E_PROFILE;
+    }
+    if (prof->mbt_window < 1 || prof->mbt_window > PLAN_WINDOW_MAX) {
+        return PLAN_E_PROFILE;
+    }
+    if (prof->corner > PLAN_CORNER_STOP || prof->shape > SC_SHAPE_TRAPEZOID) {
+        return PLAN_E_PROFILE;
+    }
+    return PLAN_OK;
+}
+
+void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES])
+{
+    int i;
+
+    p->tail = 0;
+    p->count = 0;
+    p->planned = 0;
+    for (i = 0; i < CORE_AXES; i++) {
+        p->pos[i] = pos[i];
+        p->last_ratio_q62[i] = 0;
+    }
+    p->last_len = 0;
+    p->last_vmax = 0;
+    p->last_stop = true;
+    p->next_entry = 0;
+    for (i = 0; i < PLAN_WINDOW_MAX; i++) {
+        p->win_len[i] = 0;
+    }
+    p->win_pos = 0;
+    p->win_n = 0;
+    p->win_sum = 0;
+}
+
+plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
+                        const plan_profile_t *prof, const pos_nm_t start[CORE_AXES])
+{
+    plan_result_t rc;
+
+    if (p == NULL || storage == NULL || depth == 0 || start == NULL) {
+        return PLAN_E_ARG;
+    }
+    rc = plan_check_profile(prof);
+    if (rc != PLAN_OK) {
+        return rc;
+    }
+    p->prof = *prof;
+    p->ring = storage;
+    p->depth = depth;
+    plan_reset(p, start);
+    return PLAN_OK;
+}
+
+uint16_t plan_count(const plan_t *p)
+{
+    return p->count;
+}
+
+uint16_t plan_free_slots(const plan_t *p)
+{
+    return (uint16_t)(p->depth - p->count);
+}
+
+const plan_block_t *plan_peek(const plan_t *p, uint16_t i)
+{
+    return (i < p->count) ? pl_at(p, i) : NULL;
+}
+
+/* floor(sqrt(sum delta_i^2)), scaled so that the squares cannot overflow */
+static int64_t pl_length(const int64_t *d)
+{
+    uint64_t a[CORE_AXES], m = 0, sum = 0;
+    unsigned k = 0;
+    int i;
+
+    for (i = 0; i < CORE_AXES; i++) {
+        a[i] = (uint64_t)pl_abs(d[i]);
+        m |= a[i];
+    }
+    while (m >= ((uint64_t)1 << 29)) {
+        m >>= 1;
+        k++;
+    }
+    for (i = 0; i < CORE_AXES; i++) {
+        uint64_t s = a[i] >> k;
+        sum += s * s;
+    }
+    return (int64_t)((uint64_t)fx_isqrt64(sum) << k);
+}
+
+/* q1_30 component of a q2_62 ratio */
+static int64_t pl_q30(int64_t r)
+{
+    return r / ((int64_t)1 << 32);
+}
+
+/* Junction speed limit between the last queued move and a new one (nm/s,
+ * INT64_MAX when the rule sets no limit). */
+static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2)
+{
+    const plan_profile_t *pr = &p->prof;
+    const int64_t *u1 = p->last_ratio_q62;
+    int64_t du[CORE_AXES], v = INT64_MAX;
+    bool straight = true;
+    int i;
+
+    for (i = 0; i < CORE_AXES; i++) {
+        if (((u1[i] > 0 && u2[i] < 0) || (u1[i] < 0 && u2[i] > 0)) &&
+            pl_abs(pl_q30(u1[i])) >= PLAN_REVERSAL_MIN_Q30 &&
+            pl_abs(pl_q30(u2[i])) >= PLAN_REVERSAL_MIN_Q30) {
+            return 0; /* axis reversal: stop */
+        }
+        du[i] = pl_abs(pl_q30(u2[i]) - pl_q30(u1[i]));
+        if (du[i] != 0) {
+            straight = false;
+        }
+    }
+    if (pr->corner == PLAN_CORNER_STOP) {
+        return 0;
+    }
+    if (straight) {
+        return INT64_MAX;
+    }
+    switch (pr->corner) {
+    case PLAN_CORNER_VSTEP:
+        for (i = 0; i < CORE_AXES; i++) {
+            if (du[i] != 0) {
+                v = pl_min(v, sc_muldiv(pr->corner_dv[i], (int64_t)1 << 30, du[i]));
+            }
+        }
+        break;
+    case PLAN_CORNER_SMOOTH: {
+        int64_t l = (p->last_len + len2) / 2;
+        for (i = 0; i < CORE_AXES; i++) {
+            if (du[i] != 0) {
+                int64_t m = sc_muldiv(pr->corner_acc[i], (int64_t)1 << 30, du[i]);
+                int64_t v2 = sc_muldiv(m, l, 1);
+                if (v2 < INT64_MAX) {
+                    v = pl_min(v, (int64_t)fx_isqrt64((uint64_t)v2));
+                }
+            }
+        }
+        break;
+    }
+    default: { /* junction deviation */
+        int64_t dot = 0, e2 = 0, e, s, aj = INT64_MAX, c1, t, v2;
+        for (i = 0; i < CORE_AXES; i++) {
+            int64_t d = pl_q30(u2[i]) - pl_q30(u1[i]);
+            dot += pl_q30(u1[i]) * pl_q30(u2[i]);
+            e2 += d * d;
+        }
+        /* 1 - cos(theta) = 1 + u1.u2, q30; sin(theta/2) = sqrt of half of it */
+        c1 = ((int64_t)1 << 30) + dot / ((int64_t)1 << 30);
+        if (c1 < 2) {
+            return 0; /* 180 degrees: reversal */
+        }
+        s = (int64_t)fx_isqrt64((uint64_t)(c1 / 2) << 30);
+        if (s >= ((int64_t)1 << 30) - 1) {
+            return INT64_MAX; /* collinear within resolution */
+        }
+        e = (int64_t)fx_isqrt64((uint64_t)e2); /* |u2 - u1|, q30 */
+        for (i = 0; i < CORE_AXES; i++) {
+            int64_t d = pl_abs(pl_q30(u2[i]) - pl_q30(u1[i]));
+            if (d != 0) {
+                aj = pl_min(aj, sc_muldiv(pr->a_max[i], e, d));
+            }
+        }
+        t = sc_muldiv(aj, s, ((int64_t)1 << 30) - s);
+        v2 = sc_muldiv(t, pr->junction_dev_nm, 1);
+        if (v2 < INT64_MAX) {
+            v = (int64_t)fx_isqrt64((uint64_t)v2);
+        }
+        break;
+    }
+    }
+    return v;
+}
+
+/* Reverse and forward passes over the blocks whose entry can still change:
+ * indices planned .. count-1 (index 0, the oldest, is fixed). */
+static void pl_replan(plan_t *p)
+{
+    uint16_t i, first;
+    int64_t exit = 0;
+
+    if (p->planned < 1) {
+        p->planned = 1;
+    }
+    if (p->count < 2) {
+        p->planned = p->count;
+        return;
+    }
+    first = p->planned;
+    /* reverse: newest back to the first changeable block */
+    for (i = p->count; i-- > first;) {
+        plan_block_t *b = pl_at(p, i);
+        int64_t e = pl_min(b->v_junction, sc_reach(exit, b->len, &b->lim));
+        if (e == b->v_entry && i + 1 < p->count) {
+            break; /* unchanged: nothing before it changes */
+        }
+        b->v_entry = e;
+        exit = e;
+    }
+    /* forward: from the last final block; a block whose entry is at its
+     * junction limit, or limited by accelerating from its predecessor, is
+     * final and so is everything before it */
+    for (i = (uint16_t)(first - 1); i + 1 < p->count; i++) {
+        plan_block_t *b = pl_at(p, i);
+        plan_block_t *n = pl_at(p, (uint16_t)(i + 1));
+        if (b->v_entry < n->v_entry) {
+            int64_t r = sc_reach(b->v_entry, b->len, &b->lim);
+            if (r < n->v_entry) {
+                n->v_entry = r;
+                p->planned = (uint16_t)(i + 2);
+            }
+        }
+        if (n->v_entry == n->v_junction) {
+            p->planned = (uint16_t)(i + 2);
+        }
+    }
+}
+
+plan_result_t plan_push(plan_t *p, const plan_move_t *m)
+{
+    plan_block_t *b;
+    int64_t d[CORE_AXES], ratio[CORE_AXES], len = 0, vmax, amax, jmax, vj;
+    uint8_t flags = 0;
+    int i;
+
+    if (p == NULL || m == NULL) {
+        return PLAN_E_ARG;
+    }
+    if (m->dwell_ns < 0) {
+        return PLAN_E_ARG;
+    }
+    if (m->dwell_ns == 0) {
+        if (m->feed < 1000 || m->feed > SC_V_LIMIT) {
+            return PLAN_E_FEED;
+        }
+        for (i = 0; i < CORE_AXES; i++) {
+            const int64_t lim = (int64_t)1 << 61;
+            if (m->target[i] > lim || m->target[i] < -lim) {
+                return PLAN_E_RANGE;
+            }
+            d[i] = m->target[i] - p->pos[i];
+            if (d[i] > SC_LEN_MAX || d[i] < -SC_LEN_MAX) {
+                return PLAN_E_RANGE;
+            }
+        }
+        len = pl_length(d);
+        if (len == 0) {
+            return PLAN_SKIPPED;
+        }
+        if (len > SC_LEN_MAX) {
+            return PLAN_E_RANGE;
+        }
+    } else if (m->dwell_ns > 1000000 * NS_PER_S) {
+        return PLAN_E_ARG;
+    }
+    if (p->count >= p->depth) {
+        return PLAN_E_FULL;
+    }
+
+    b = pl_at(p, p->count);
+    b->tag = m->tag;
+    if (m->dwell_ns > 0) {
+        for (i = 0; i < CORE_AXES; i++) {
+            b->start[i] = p->pos[i];
+            b->end[i] = p->pos[i];
+            b->ratio_q62[i] = 0;
+        }
+        b->len = 0;
+        b->dwell_ns = m->dwell_ns;
+        b->lim.v_max = 0;
+        b->lim.a_max = p->prof.a_max[0];
+        b->lim.j_max = p->prof.j_max[0];
+        b->lim.shape = p->prof.shape;
+        b->v_junction = 0;
+        b->v_entry = 0;
+        b->flags = PLAN_BF_DWELL | PLAN_BF_EXACT_STOP;
+        p->last_stop = true;
+        p->count++;
+        pl_replan(p);
+        return PLAN_OK;
+    }
+
+    /* block limits: axis limits projected on the direction */
+    vmax = m->feed;
+    amax = SC_A_LIMIT;
+    jmax = SC_J_LIMIT;
+    for (i = 0; i < CORE_AXES; i++) {
+        int64_t ad = pl_abs(d[i]);
+        ratio[i] = (d[i] < 0 ? -1 : 1) * sc_muldiv(ad, (int64_t)1 << 62, len);
+        if (ad != 0) {
+            vmax = pl_min(vmax, sc_muldiv(p->prof.v_max[i], len, ad));
+            amax = pl_min(amax, sc_muldiv(p->prof.a_max[i], len, ad));
+            jmax = pl_min(jmax, sc_muldiv(p->prof.j_max[i], len, ad));
+        }
+    }
+    /* minimum block time: throughput window over this block and the W-1
+     * before it */
+    if (p->prof.min_block_ns > 0) {
+        uint16_t w = p->prof.mbt_window;
+        int64_t cap;
+        if (p->win_n == w) {
+            p->win_sum -= p->win_len[p->win_pos];
+        } else {
+            p->win_n++;
+        }
+        p->win_len[p->win_pos] = len;
+        p->win_sum += len;
+        p->win_pos = (uint16_t)((p->win_pos + 1u) % w);
+        cap = sc_muldiv(p->win_sum, NS_PER_S, (int64_t)p->win_n * p->prof.min_block_ns);
+        if (cap < 1) {
+            cap = 1;
+        }
+        if (cap < vmax) {
+            vmax = cap;
+            flags |= PLAN_BF_MBT;
+        }
+    }
+    if (m->flags & PLAN_MOVE_EXACT_STOP) {
+        flags |= PLAN_BF_EXACT_STOP;
+    }
+
+    /* junction with the previous move */
+    if (p->last_stop || p->last_len == 0) {
+        vj = 0;
+    } else {
+        vj = pl_min(pl_min(vmax, p->last_vmax), pl_corner(p, ratio, len));
+    }
+
+    for (i = 0; i < CORE_AXES; i++) {
+        b->start[i] = p->pos[i];
+        b->end[i] = m->target[i];
+        b->ratio_q62[i] = ratio[i];
+        p->pos[i] = m->target[i];
+        p->last_ratio_q62[i] = ratio[i];
+    }
+    b->len = len;
+    b->dwell_ns = 0;
+    b->lim.v_max = vmax;
+    b->lim.a_max = amax;
+    b->lim.j_max = jmax;
+    b->lim.shape = p->prof.shape;
+    b->v_junction = vj;
+    b->v_entry = (p->count == 0) ? pl_min(p->next_entry, vj) : 0;
+    b->flags = flags;
+    p->last_len = len;
+    p->last_vmax = vmax;
+    p->last_stop = (flags & PLAN_BF_EXACT_STOP) != 0;
+    p->count++;
+    pl_replan(p);
+    return PLAN_OK;
+}
+
+plan_result_t plan_pop(plan_t *p, plan_seg_t *out)
+{
+    plan_block_t *b;
+    int64_t exit;
+    int i;
+
+    if (p == NULL || out == NULL) {
+        return PLAN_E_ARG;
+    }
+    if (p->count == 0) {
+        return PLAN_E_EMPTY;
+    }
+    b = pl_at(p, 0);
+    exit = (p->count > 1) ? pl_at(p, 1)->v_entry : 0;
+    for (i = 0; i < CORE_AXES; i++) {
+        out->start[i] = b->start[i];
+        out->end[i] = b->end[i];
+        out->ratio_q62[i] = b->ratio_q62[i];
+    }
+    out->len = b->len;
+    out->dwell_ns = b->dwell_ns;
+    out->tag = b->tag;
+    out->flags = b->flags;
+    if (b->dwell_ns > 0) {
+        int ph;
+        for (ph = 0; ph < SC_PHASES; ph++) {
+            out->prof.t_ns[ph] = 0;
+        }
+        out->prof.v0 = out->prof.vp = out->prof.v1 = 0;
+        out->prof.len = 0;
+        out->prof.total_ns = 0;
+        out->prof.s_end_q16 = 0;
+        out->total_ns = b->dwell_ns;
+    } else {
+        sc_plan(&out->prof, b->len, b->v_entry, exit, &b->lim);
+        out->total_ns = out->prof.total_ns;
+    }
+    p->tail = (uint16_t)((p->tail + 1u) % p->depth);
+    p->count--;
+    if (p->planned > 0) {
+        p->planned--;
+    }
+    if (p->planned == 0 && p->count > 0) {
+        p->planned = 1; /* the new oldest block's entry is fixed */
+    }
+    p->next_entry = 0;
+    return PLAN_OK;
+}
+
+int64_t plan_queued_ns(const plan_t *p)
+{
+    int64_t sum = 0;
+    uint16_t i;
+
+    for (i = 0; i < p->count; i++) {
+        const plan_block_t *b = pl_at(p, i);
+        if (b->dwell_ns > 0) {
+            sum += b->dwell_ns;
+        } else {
+            sc_profile_t pr;
+            int64_t exit = (i + 1 < p->count) ? pl_at(p, (uint16_t)(i + 1))->v_entry : 0;
+            sc_plan(&pr, b->len, b->v_entry, exit, &b->lim);
+            sum += pr.total_ns;
+        }
+    }
+    return sum;
+}

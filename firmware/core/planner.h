@@ -1,0 +1,212 @@
+/*
+ * planner.h - look-ahead planner: a ring of straight blocks, junction speeds,
+ * per-block S-curve or trapezoidal profiles and their exact durations.
+ *
+ * Specification
+ * -------------
+ * Blocks are straight moves to an absolute end point (nm) at a programmed
+ * path feed (nm/s), or dwells. Arcs are segmented by the host or by the drive
+ * (drive.c, within DRIVE_ARC_CHORD_NM) before they reach the planner: the
+ * planner has no arc blocks. The ring memory is supplied by the caller
+ * (plan_init), so the depth is fixed at start-up (PLAN_DEPTH_DEFAULT = 64 on
+ * the drive; the host estimator may pass more) and nothing is allocated.
+ *
+ * Block limits. For a block with unit direction u (u_i = delta_i / len):
+ *   v_max = min(feed, min_i v_i / |u_i|, throughput cap)
+ *   a_max = min_i a_i / |u_i|,   j_max = min_i j_i / |u_i|
+ * so every axis stays within its own limits inside the block.
+ *
+ * Junction speed (entry speed limit of a block), profile.corner:
+ *   PLAN_CORNER_JD (default)   junction deviation: with cos(t) = -u1.u2 and
+ *       s = sin(t/2) = sqrt((1 - cos t)/2), v^2 = a_j * dev * s / (1 - s),
+ *       a_j = min_i a_i / |e_i|, e = (u2 - u1)/|u2 - u1|, dev =
+ *       profile.junction_dev_nm. Collinear: no limit; 180 degrees: stop.
+ *   PLAN_CORNER_VSTEP          per-axis velocity step: v = min_i dv_i / |du_i|
+ *       with du = u2 - u1 and dv_i = profile.corner_dv[i] (nm/s).
+ *   PLAN_CORNER_SMOOTH         smoothed corner (imitates e.g. an iTNC530):
+ *       v = min_i sqrt(a_c_i * l / |du_i|), l = (len1 + len2) / 2,
+ *       a_c_i = profile.corner_acc[i] (nm/s^2).
+ *   PLAN_CORNER_STOP           every junction is an exact stop.
+ * In every rule: an axis whose direction component changes sign (both
+ * at least PLAN_REVERSAL_MIN_Q30 = 1/16 in magnitude: a smaller sign change,
+ * e.g. an arc's chords crossing a quadrant, is an ordinary corner for the
+ * rule) reverses, and a reversal is a stop (junction speed 0); the
+ * junction is also limited by both blocks' v_max. PLAN_MOVE_EXACT_STOP on a
+ * block (G61 modal or G60/G9 per block) makes its exit speed 0; G64
+ * (continuous path) is the absence of the flag.
+ *
+ * Minimum block time (throughput limit), profile.min_block_ns = T > 0 and
+ * profile.mbt_window = W (1..PLAN_WINDOW_MAX): block k never runs faster than
+ *   c_k = (len_{k-W+1} + ... + len_k) / (n_k * T),  n_k = blocks in that
+ * window (fewer than W at the start of a job). A run of equal blocks thus
+ * takes exactly T per block, any periodic pattern whose period divides W
+ * takes T per block on average, and a single short block between long ones
+ * is not slowed (its window is dominated by the long ones). W = 1 is the
+ * per-block cap ("mrt" model: every block takes at least T). The window
+ * uses only the block and its predecessors, so the cap is fixed when the
+ * block is queued and never depends on how full the queue is.
+ *
+ * Look-ahead. Every block stores its planned entry speed; a block's exit
+ * speed is the next block's entry speed, and the newest block ends at rest.
+ * plan_push() runs a reverse pass (from the newest block back: entry =
+ * min(junction limit, sc_reach(exit, len))) and a forward pass (entry of
+ * k+1 = min(itself, sc_reach(entry_k, len_k))) over the blocks after the
+ * `planned` mark only: a block is marked planned when its entry can no longer
+ * rise (it reached its junction limit, or it is limited by the maximum
+ * acceleration from a planned predecessor), exactly as a new block can only
+ * raise speeds. The oldest block's entry speed is fixed (it is the exit of
+ * the block that was popped before it, or 0).
+ *
+ * plan_pop() freezes the oldest block: its exit speed (the next block's
+ * entry, or 0 if it is the only one) becomes final, its profile is computed
+ * (sc_plan) and handed out with its geometry; the interpolator executes it
+ * unchanged. Estimates therefore equal execution exactly when the queue is
+ * refilled before each pop (the drive's main loop pushes before it pops;
+ * plan_estimate() in estimator.h does the same).
+ *
+ * Units: positions nm (pos_nm_t), lengths nm, speeds nm/s, acc nm/s^2,
+ * jerk nm/s^3, times ns, direction ratios q2_62 (delta_i / len * 2^62).
+ *
+ * Contexts: a plan_t is used from one context (main on the drive); the
+ * interpolator receives popped segments through its own FIFO (interp.h).
+ */
+#ifndef PLANNER_H
+#define PLANNER_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "core_config.h"
+#include "fixmath.h"
+#include "scurve.h"
+
+#define PLAN_DEPTH_DEFAULT 64
+#define PLAN_WINDOW_MAX    64
+/* Smallest direction component (q1_30) on both sides of a sign change that
+ * counts as an axis reversal (a stop): 1/16. */
+#define PLAN_REVERSAL_MIN_Q30 ((int64_t)1 << 26)
+
+typedef enum {
+    PLAN_OK = 0,
+    PLAN_SKIPPED = 1,    /* zero-length move: nothing queued (not an error) */
+    PLAN_E_FULL = -1,    /* ring full: pop first                            */
+    PLAN_E_EMPTY = -2,   /* nothing to pop                                  */
+    PLAN_E_FEED = -3,    /* feed <= 0 or above SC_V_LIMIT                   */
+    PLAN_E_RANGE = -4,   /* block too long (> SC_LEN_MAX) or target absurd  */
+    PLAN_E_PROFILE = -5, /* invalid profile value (plan_init)               */
+    PLAN_E_ARG = -6      /* NULL pointer, depth 0, bad dwell                */
+} plan_result_t;
+
+typedef enum {
+    PLAN_CORNER_JD = 0,     /* junction deviation (the drive's default) */
+    PLAN_CORNER_VSTEP = 1,  /* per-axis velocity step                   */
+    PLAN_CORNER_SMOOTH = 2, /* smoothed corner, per-axis corner acc.    */
+    PLAN_CORNER_STOP = 3    /* exact stop at every junction             */
+} plan_corner_t;
+
+typedef struct {
+    int64_t v_max[CORE_AXES];      /* nm/s, 1 .. SC_V_LIMIT                 */
+    int64_t a_max[CORE_AXES];      /* nm/s^2, SC_A_MIN .. SC_A_LIMIT        */
+    int64_t j_max[CORE_AXES];      /* nm/s^3, SC_J_MIN .. SC_J_LIMIT        */
+    int64_t corner_dv[CORE_AXES];  /* VSTEP: allowed velocity step, nm/s    */
+    int64_t corner_acc[CORE_AXES]; /* SMOOTH: corner acceleration, nm/s^2   */
+    int64_t junction_dev_nm;       /* JD: junction deviation, nm (>= 0)     */
+    int64_t min_block_ns;          /* throughput limit T, ns (0: off)       */
+    uint16_t mbt_window;           /* W, blocks, 1..PLAN_WINDOW_MAX         */
+    uint8_t corner;                /* plan_corner_t                         */
+    uint8_t shape;                 /* sc_shape_t                            */
+} plan_profile_t;
+
+#define PLAN_MOVE_EXACT_STOP 0x01u /* stop at the end of this block (G61/G60/G9) */
+
+typedef struct {
+    pos_nm_t target[CORE_AXES]; /* absolute end point, nm (ignored for a dwell) */
+    int64_t feed;               /* programmed path feed, nm/s (moves)           */
+    int64_t dwell_ns;           /* > 0: a dwell (G4) of this time; no motion    */
+    uint32_t tag;               /* caller's id (e.g. line number), echoed       */
+    uint8_t flags;              /* PLAN_MOVE_*                                  */
+} plan_move_t;
+
+/* Block flags (plan_block_t.flags, plan_seg_t.flags). */
+#define PLAN_BF_EXACT_STOP 0x01u /* exit speed forced to 0                     */
+#define PLAN_BF_DWELL      0x02u /* dwell block                                */
+#define PLAN_BF_MBT        0x04u /* v_max set by the minimum block time        */
+#define PLAN_BF_PLANNED    0x08u /* entry final (look-ahead bookkeeping)       */
+
+/* One ring entry (opaque to users; sized for the caller's storage array). */
+typedef struct {
+    pos_nm_t start[CORE_AXES];
+    pos_nm_t end[CORE_AXES];
+    int64_t ratio_q62[CORE_AXES]; /* delta_i / len * 2^62                    */
+    int64_t len;                  /* nm (0 for a dwell)                      */
+    int64_t dwell_ns;
+    sc_limits_t lim;    /* block limits (v_max includes the cap)   */
+    int64_t v_junction; /* entry speed limit, nm/s                 */
+    int64_t v_entry;    /* planned entry speed, nm/s               */
+    uint32_t tag;
+    uint8_t flags;
+} plan_block_t;
+
+/* A popped, frozen block: what the interpolator executes. */
+typedef struct {
+    pos_nm_t start[CORE_AXES];
+    pos_nm_t end[CORE_AXES];
+    int64_t ratio_q62[CORE_AXES];
+    int64_t len;       /* nm                                  */
+    int64_t dwell_ns;  /* dwell time (profile empty), ns      */
+    int64_t total_ns;  /* duration of the block, ns           */
+    sc_profile_t prof; /* velocity profile (moves)            */
+    uint32_t tag;
+    uint8_t flags; /* PLAN_BF_*                           */
+} plan_seg_t;
+
+typedef struct {
+    plan_profile_t prof;
+    plan_block_t *ring;
+    uint16_t depth;
+    uint16_t tail;                     /* oldest block                              */
+    uint16_t count;                    /* blocks queued                             */
+    uint16_t planned;                  /* blocks from the tail whose entry is final */
+    pos_nm_t pos[CORE_AXES];           /* end point of the last queued block */
+    int64_t last_ratio_q62[CORE_AXES]; /* direction of the last move   */
+    int64_t last_len;                  /* length of the last move (0: none)  */
+    int64_t last_vmax;                 /* v_max of the last move            */
+    bool last_stop;                    /* last block ends in an exact stop  */
+    int64_t next_entry;                /* fixed entry speed for a new tail  */
+    /* throughput window: lengths of the last W moves */
+    int64_t win_len[PLAN_WINDOW_MAX];
+    uint16_t win_pos, win_n;
+    int64_t win_sum;
+} plan_t;
+
+/* Validate the profile and initialise an empty planner at `start` (nm).
+ * storage must hold `depth` blocks (1..65535). Main. */
+plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
+                        const plan_profile_t *prof, const pos_nm_t start[CORE_AXES]);
+
+/* Check a profile without initialising anything. */
+plan_result_t plan_check_profile(const plan_profile_t *prof);
+
+/* Queue a move or dwell and re-plan. PLAN_SKIPPED for a zero-length move
+ * (the position is unchanged; nothing queued). On any error nothing changes.
+ * Main. */
+plan_result_t plan_push(plan_t *p, const plan_move_t *m);
+
+/* Freeze and remove the oldest block into *out. Main. */
+plan_result_t plan_pop(plan_t *p, plan_seg_t *out);
+
+/* Forget every queued block (after a stop); the position becomes `pos`. */
+void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES]);
+
+uint16_t plan_count(const plan_t *p);
+uint16_t plan_free_slots(const plan_t *p);
+
+/* Planned time of all queued blocks under the current plan, ns (the host
+ * streams by time with it). O(count) closed-form profiles. Main. */
+int64_t plan_queued_ns(const plan_t *p);
+
+/* Read access for tests and the estimator: i-th queued block from the oldest. */
+const plan_block_t *plan_peek(const plan_t *p, uint16_t i);
+
+#endif /* PLANNER_H */

@@ -1,0 +1,541 @@
+/*
+ * scurve.c - closed-form single-block profiles; see scurve.h.
+ *
+ * Wide arithmetic: products of two 63-bit values are formed in 128 bits
+ * (compiler __int128 where the target has it, a portable two-word version
+ * otherwise; both give identical results, test_scurve checks the portable
+ * one against the native one).
+ */
+#include "scurve.h"
+
+#include "fixmath.h"
+
+#define NS ((uint64_t)1000000000u)
+/* 2^72 / 1e9 rounded: ns -> seconds * 2^40 with one multiply (>> 32) */
+#define SC_NS_TO_Q40 ((int64_t)4722366482870)
+
+typedef struct {
+    uint64_t hi;
+    uint64_t lo;
+} sc_u128_t;
+
+#if defined(__SIZEOF_INT128__) && !defined(SC_PORTABLE_ONLY)
+__extension__ typedef unsigned __int128 sc_native_u128;
+#define SC_HAVE_NATIVE 1
+#endif
+
+static sc_u128_t sc_mul_portable(uint64_t a, uint64_t b)
+{
+    uint64_t a_lo = a & 0xFFFFFFFFu, a_hi = a >> 32;
+    uint64_t b_lo = b & 0xFFFFFFFFu, b_hi = b >> 32;
+    uint64_t ll = a_lo * b_lo, lh = a_lo * b_hi, hl = a_hi * b_lo, hh = a_hi * b_hi;
+    uint64_t mid = (ll >> 32) + (lh & 0xFFFFFFFFu) + (hl & 0xFFFFFFFFu);
+    sc_u128_t r;
+
+    r.lo = (mid << 32) | (ll & 0xFFFFFFFFu);
+    r.hi = hh + (lh >> 32) + (hl >> 32) + (mid >> 32);
+    return r;
+}
+
+/* floor(n / d) and the remainder; *ovf when the quotient needs > 64 bits */
+static uint64_t sc_div_portable(sc_u128_t n, uint64_t d, uint64_t *rem, bool *ovf)
+{
+    uint64_t q = 0, hi = n.hi, lo = n.lo;
+    int i;
+
+    *ovf = false;
+    if (hi >= d) {
+        *ovf = true;
+        *rem = 0;
+        return UINT64_MAX;
+    }
+    for (i = 63; i >= 0; i--) {
+        uint64_t carry = hi >> 63;
+        hi = (hi << 1) | (lo >> 63);
+        lo <<= 1;
+        if (carry != 0u || hi >= d) {
+            hi -= d;
+            q |= (uint64_t)1 << i;
+        }
+    }
+    *rem = hi;
+    return q;
+}
+
+static sc_u128_t sc_mul(uint64_t a, uint64_t b)
+{
+#ifdef SC_HAVE_NATIVE
+    sc_native_u128 p = (sc_native_u128)a * b;
+    sc_u128_t r;
+    r.hi = (uint64_t)(p >> 64);
+    r.lo = (uint64_t)p;
+    return r;
+#else
+    return sc_mul_portable(a, b);
+#endif
+}
+
+static uint64_t sc_div(sc_u128_t n, uint64_t d, uint64_t *rem, bool *ovf)
+{
+#ifdef SC_HAVE_NATIVE
+    sc_native_u128 nn = ((sc_native_u128)n.hi << 64) | n.lo;
+    *ovf = n.hi >= d;
+    if (*ovf) {
+        *rem = 0;
+        return UINT64_MAX;
+    }
+    *rem = (uint64_t)(nn % d);
+    return (uint64_t)(nn / d);
+#else
+    return sc_div_portable(n, d, rem, ovf);
+#endif
+}
+
+static sc_u128_t sc_add128(sc_u128_t a, sc_u128_t b)
+{
+    sc_u128_t r;
+    r.lo = a.lo + b.lo;
+    r.hi = a.hi + b.hi + (r.lo < a.lo ? 1u : 0u);
+    return r;
+}
+
+static int sc_cmp128(sc_u128_t a, sc_u128_t b)
+{
+    if (a.hi != b.hi) {
+        return a.hi < b.hi ? -1 : 1;
+    }
+    if (a.lo != b.lo) {
+        return a.lo < b.lo ? -1 : 1;
+    }
+    return 0;
+}
+
+/* floor(sqrt(x)) of a 128-bit value (result < 2^64) */
+static uint64_t sc_isqrt128(sc_u128_t x)
+{
+    uint64_t r, rem;
+    unsigned k = 0;
+    bool ovf;
+    sc_u128_t t = x;
+
+    if (x.hi == 0) {
+        return fx_isqrt64(x.lo);
+    }
+    /* scaled estimate from below, one Newton step (from above), then fix */
+    while (t.hi != 0) {
+        t.lo = (t.lo >> 2) | (t.hi << 62);
+        t.hi >>= 2;
+        k++;
+    }
+    r = ((uint64_t)fx_isqrt64(t.lo) + 1u) << k;
+    r = (r >> 1) + (sc_div(x, r, &rem, &ovf) >> 1) + 1u;
+    while (sc_cmp128(sc_mul(r, r), x) > 0) {
+        r--;
+    }
+    while (r != UINT64_MAX && sc_cmp128(sc_mul(r + 1u, r + 1u), x) <= 0) {
+        r++;
+    }
+    return r;
+}
+
+static uint64_t sc_isqrt128_ceil(sc_u128_t x)
+{
+    uint64_t r = sc_isqrt128(x);
+    return (sc_cmp128(sc_mul(r, r), x) < 0) ? r + 1u : r;
+}
+
+static int64_t sc_sat(uint64_t q, bool ovf)
+{
+    return (ovf || q > (uint64_t)INT64_MAX) ? INT64_MAX : (int64_t)q;
+}
+
+int64_t sc_muldiv(int64_t a, int64_t b, int64_t c)
+{
+    uint64_t rem;
+    bool ovf;
+    uint64_t q;
+
+    if (a <= 0 || b <= 0) {
+        return 0;
+    }
+    if (c <= 0) {
+        return INT64_MAX;
+    }
+    q = sc_div(sc_mul((uint64_t)a, (uint64_t)b), (uint64_t)c, &rem, &ovf);
+    return sc_sat(q, ovf);
+}
+
+int64_t sc_muldiv_ceil(int64_t a, int64_t b, int64_t c)
+{
+    uint64_t rem;
+    bool ovf;
+    uint64_t q;
+
+    if (a <= 0 || b <= 0) {
+        return 0;
+    }
+    if (c <= 0) {
+        return INT64_MAX;
+    }
+    q = sc_div(sc_mul((uint64_t)a, (uint64_t)b), (uint64_t)c, &rem, &ovf);
+    if (!ovf && rem != 0u) {
+        q++;
+        ovf = (q == 0u);
+    }
+    return sc_sat(q, ovf);
+}
+
+int64_t sc_muldiv_portable(int64_t a, int64_t b, int64_t c)
+{
+    uint64_t rem;
+    bool ovf;
+    uint64_t q;
+
+    if (a <= 0 || b <= 0) {
+        return 0;
+    }
+    if (c <= 0) {
+        return INT64_MAX;
+    }
+    q = sc_div_portable(sc_mul_portable((uint64_t)a, (uint64_t)b), (uint64_t)c, &rem, &ovf);
+    return sc_sat(q, ovf);
+}
+
+uint64_t sc_isqrt_wide(uint64_t hi, uint64_t lo)
+{
+    sc_u128_t x;
+    x.hi = hi;
+    x.lo = lo;
+    return sc_isqrt128(x);
+}
+
+static int64_t sc_min(int64_t a, int64_t b)
+{
+    return a < b ? a : b;
+}
+
+static int64_t sc_max(int64_t a, int64_t b)
+{
+    return a > b ? a : b;
+}
+
+static int64_t sc_sat_add(int64_t a, int64_t b)
+{
+    return fx_sat_add64(a, b);
+}
+
+/* ceil(sqrt(v)) for 0 <= v < 2^63 */
+static int64_t sc_sqrt_ceil(int64_t v)
+{
+    uint64_t r;
+    if (v <= 0) {
+        return 0;
+    }
+    r = fx_isqrt64((uint64_t)v);
+    return (int64_t)((r * r < (uint64_t)v) ? r + 1u : r);
+}
+
+/* ---- distance of a speed change --------------------------------------------- */
+
+int64_t sc_dist(int64_t va, int64_t vb, const sc_limits_t *lim)
+{
+    int64_t lo = sc_min(va, vb), hi = sc_max(va, vb), d = hi - lo;
+    int64_t a = lim->a_max, j = lim->j_max, q, w;
+
+    if (d <= 0) {
+        return 0;
+    }
+    if (lim->shape == SC_SHAPE_TRAPEZOID) {
+        return sc_muldiv_ceil(lo + hi, d, 2 * a);
+    }
+    q = sc_muldiv_ceil(a, a, j); /* A^2/J: speed change that reaches A */
+    if (d >= q) {
+        return sc_sat_add(sc_muldiv_ceil(lo + hi, d, 2 * a), sc_muldiv_ceil(lo + hi, a, 2 * j));
+    }
+    w = sc_sqrt_ceil(sc_muldiv_ceil(d, (int64_t)NS * (int64_t)NS, j)); /* sqrt(d/J), ns */
+    return sc_muldiv_ceil(lo + hi, w, (int64_t)NS);
+}
+
+/* J w^2 (nm/s * 2^16) for a half-segment time w (ns), floor or ceil */
+static int64_t sc_jw2(int64_t j, int64_t w, bool up)
+{
+    if (up) {
+        return sc_muldiv_ceil(sc_muldiv_ceil(j * 65536, w, (int64_t)NS), w, (int64_t)NS);
+    }
+    return sc_muldiv(sc_muldiv(j * 65536, w, (int64_t)NS), w, (int64_t)NS);
+}
+
+/* sc_reach with the distance in nm * 2^16 */
+static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim)
+{
+    int64_t vmax = lim->v_max, a = lim->a_max, j = lim->j_max, dv;
+
+    if (v < 0) {
+        v = 0;
+    }
+    if (dq <= 0 || v >= vmax) {
+        return v;
+    }
+    if (lim->shape == SC_SHAPE_TRAPEZOID) {
+        /* v^2 + 2 A d */
+        sc_u128_t x = sc_mul((uint64_t)(2 * a), (uint64_t)dq);
+        uint64_t r;
+        x.lo = (x.lo >> 16) | (x.hi << 48);
+        x.hi >>= 16;
+        r = sc_isqrt128(sc_add128(sc_mul((uint64_t)v, (uint64_t)v), x));
+        return (r >= (uint64_t)vmax) ? vmax : sc_max(v, (int64_t)r);
+    }
+    {
+        int64_t q = sc_muldiv(a, a, j); /* floor(A^2/J) */
+        int64_t dfull = (q < vmax) ? sc_dist(v, v + q, lim) : INT64_MAX;
+
+        if (dfull < INT64_MAX / 65536 && dq >= dfull * 65536) {
+            /* acceleration limit reached: stable root of the quadratic */
+            int64_t qc = sc_muldiv_ceil(a, a, j);
+            int64_t vaj = sc_muldiv_ceil(v * 65536, a, j); /* v A / J, nm * 2^16 */
+            int64_t num = dq - vaj, t1 = 2 * v - q, t2 = 2 * v - qc, t, den;
+            sc_u128_t y, ad = sc_mul((uint64_t)(8 * a), (uint64_t)dq);
+            sc_u128_t one = {0u, 1u};
+            ad.lo = (ad.lo >> 16) | (ad.hi << 48);
+            ad.hi >>= 16;
+            ad = sc_add128(ad, one); /* 8 A d, rounded up */
+            if (t1 < 0) {
+                t1 = -t1;
+            }
+            if (t2 < 0) {
+                t2 = -t2;
+            }
+            t = sc_max(t1, t2);
+            y = sc_add128(sc_mul((uint64_t)t, (uint64_t)t), ad);
+            den = (int64_t)sc_isqrt128_ceil(y) + 2 * v + qc;
+            dv = (num > 0) ? sc_muldiv(4 * a, num, den * 65536) : q;
+        } else {
+            /* reduced: J w^3 + 2 v w = d, w = sqrt(dv / J) in ns */
+            int64_t w = INT64_MAX, x;
+            int k;
+            if (v > 0) {
+                w = sc_muldiv_ceil(dq, (int64_t)NS, 2 * v * 65536);
+            }
+            x = sc_muldiv_ceil(dq, (int64_t)1000000000000000, j * 65536); /* (10 us)^3 */
+            if (x < INT64_MAX) {
+                w = sc_min(w, ((int64_t)fx_icbrt64((uint64_t)x) + 1) * 10000);
+            }
+            for (k = 0; k < 3; k++) { /* Newton from above: stays above the root */
+                /* f(w) = (2 v + J w^2) w - d and f'(w) = 2 v + 3 J w^2, * 2^16 */
+                int64_t f =
+                    sc_muldiv(sc_sat_add(2 * v * 65536, sc_jw2(j, w, false)), w, (int64_t)NS) - dq;
+                int64_t fp = sc_sat_add(2 * v * 65536, 3 * sc_jw2(j, w, true));
+                if (f <= 0) {
+                    break;
+                }
+                w -= sc_muldiv(f, (int64_t)NS, fp);
+            }
+            /* chord through the origin: a lower bound of the root */
+            w = sc_muldiv(dq, (int64_t)NS, sc_sat_add(2 * v * 65536, sc_jw2(j, w, true)));
+            dv = sc_min(sc_jw2(j, w, false) / 65536, q);
+        }
+    }
+    return sc_min(vmax, sc_max(v, sc_sat_add(v, dv)));
+}
+
+int64_t sc_reach(int64_t v, int64_t d, const sc_limits_t *lim)
+{
+    if (d > INT64_MAX / 65536) {
+        d = INT64_MAX / 65536;
+    }
+    return sc_reach_q16(v, d * 65536, lim);
+}
+
+/* ---- one block ------------------------------------------------------------------ */
+
+/* jerk and plateau times (ns) of a speed change dv >= 0 */
+static void sc_seg_times(int64_t dv, const sc_limits_t *lim, int64_t *tj, int64_t *ta)
+{
+    int64_t a = lim->a_max, j = lim->j_max;
+
+    *tj = 0;
+    *ta = 0;
+    if (dv <= 0) {
+        return;
+    }
+    if (lim->shape == SC_SHAPE_TRAPEZOID) {
+        *ta = sc_muldiv(dv, (int64_t)NS, a);
+        return;
+    }
+    if (dv >= sc_muldiv_ceil(a, a, j)) {
+        *tj = sc_muldiv(a, (int64_t)NS, j);
+        *ta = sc_max(0, sc_muldiv(dv, (int64_t)NS, a) - *tj);
+    } else {
+        *tj = (int64_t)fx_isqrt64((uint64_t)sc_muldiv(dv, (int64_t)NS * (int64_t)NS, j));
+    }
+}
+
+void sc_eval_phase(const sc_profile_t *p, int ph, int64_t t_ns, sc_state_t *out)
+{
+    const sc_state_t *s0 = &p->start[ph];
+    int64_t j = p->jerk[ph];
+    int64_t tq, in_s, in_v;
+
+    if (j == 0 && s0->a_q16 == 0) {
+        /* cruise: exact, any duration */
+        out->a_q16 = 0;
+        out->v_q16 = s0->v_q16;
+        if (s0->v_q16 >= 0) {
+            out->s_q16 = s0->s_q16 + sc_muldiv(s0->v_q16, t_ns, (int64_t)NS);
+        } else {
+            out->s_q16 = s0->s_q16 - sc_muldiv(-s0->v_q16, t_ns, (int64_t)NS);
+        }
+        return;
+    }
+    /* time in seconds * 2^40 (phases with acceleration last < 2^52 ns) */
+    tq = fx_mul64_shift(t_ns, SC_NS_TO_Q40, 32);
+    out->a_q16 = s0->a_q16 + fx_mul64_shift(j, tq, 24);
+    in_v = s0->a_q16 + fx_mul64_shift(j, tq, 25);
+    out->v_q16 = s0->v_q16 + fx_mul64_shift(in_v, tq, 40);
+    in_s = fx_round_shift64(s0->a_q16, 1) + fx_mul64_shift(p->j6_q16[ph], tq, 40);
+    in_s = s0->v_q16 + fx_mul64_shift(in_s, tq, 40);
+    out->s_q16 = s0->s_q16 + fx_mul64_shift(in_s, tq, 40);
+}
+
+/* start states of phases first..6 from the state at the start of `first`;
+ * `set_acc` gives each phase's acceleration in trapezoidal mode */
+static void sc_chain(sc_profile_t *p, int first, const int64_t *set_acc, bool trap)
+{
+    int ph;
+    for (ph = first; ph < SC_PHASES; ph++) {
+        sc_state_t e;
+        if (trap) {
+            p->start[ph].a_q16 = set_acc[ph];
+        }
+        if (ph == SC_PHASES - 1) {
+            break;
+        }
+        sc_eval_phase(p, ph, p->t_ns[ph], &e);
+        p->start[ph + 1] = e;
+    }
+}
+
+void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limits_t *lim)
+{
+    static const int64_t jsign[SC_PHASES] = {1, 0, -1, 0, -1, 0, 1};
+    bool trap = lim->shape == SC_SHAPE_TRAPEZOID;
+    int64_t a = lim->a_max, j = trap ? 0 : lim->j_max;
+    int64_t set_acc[SC_PHASES] = {0, 0, 0, 0, 0, 0, 0};
+    int64_t vc, vp, tj, ta, s_acc, s_dec, rest, len_q16;
+    sc_state_t e;
+    int ph;
+
+    v0 = sc_max(v0, 0);
+    v1 = sc_max(v1, 0);
+    len = sc_max(len, 0);
+    vc = sc_max(lim->v_max, sc_max(v0, v1));
+
+    /* peak speed */
+    if (sc_sat_add(sc_dist(v0, vc, lim), sc_dist(vc, v1, lim)) <= len) {
+        vp = vc;
+    } else if (trap) {
+        /* vp^2 = (2 A len + v0^2 + v1^2) / 2, exact */
+        sc_u128_t x = sc_add128(
+            sc_add128(sc_mul((uint64_t)(2 * a), (uint64_t)len), sc_mul((uint64_t)v0, (uint64_t)v0)),
+            sc_mul((uint64_t)v1, (uint64_t)v1));
+        x.lo = (x.lo >> 1) | (x.hi << 63);
+        x.hi >>= 1;
+        vp = sc_min(vc, sc_max((int64_t)sc_isqrt128(x), sc_max(v0, v1)));
+    } else {
+        int64_t vm = sc_max(v0, v1), rem = len - sc_dist(v0, v1, lim);
+        vp = (rem > 0) ? sc_reach_q16(vm, rem * 32768, lim) : vm; /* half of rem */
+        vp = sc_min(vc, vp);
+    }
+    if (vp < 1) {
+        vp = 1;
+    }
+
+    for (ph = 0; ph < SC_PHASES; ph++) {
+        p->t_ns[ph] = 0;
+        p->jerk[ph] = j * jsign[ph];
+        p->j6_q16[ph] = (p->jerk[ph] * 65536) / 6;
+        p->start[ph].s_q16 = 0;
+        p->start[ph].v_q16 = 0;
+        p->start[ph].a_q16 = 0;
+    }
+    if (trap) {
+        set_acc[1] = a * 65536;
+        set_acc[5] = -a * 65536;
+    }
+    sc_seg_times(vp - v0, lim, &tj, &ta);
+    p->t_ns[0] = tj;
+    p->t_ns[1] = ta;
+    p->t_ns[2] = tj;
+    sc_seg_times(vp - v1, lim, &tj, &ta);
+    p->t_ns[4] = tj;
+    p->t_ns[5] = ta;
+    p->t_ns[6] = tj;
+
+    /* realised accel distance and peak speed */
+    p->start[0].v_q16 = v0 * 65536;
+    sc_chain(p, 0, set_acc, trap);
+    s_acc = p->start[3].s_q16;
+    /* realised decel distance from the realised peak */
+    e = p->start[3];
+    p->start[4].s_q16 = 0;
+    p->start[4].v_q16 = e.v_q16;
+    p->start[4].a_q16 = 0;
+    sc_chain(p, 4, set_acc, trap);
+    {
+        sc_state_t end;
+        sc_eval_phase(p, 6, p->t_ns[6], &end);
+        s_dec = end.s_q16;
+    }
+    /* cruise covers the rest (rounded to the nearest ns) */
+    len_q16 = len * 65536;
+    rest = len_q16 - s_acc - s_dec;
+    p->t_ns[3] = 0;
+    if (rest > 0 && e.v_q16 > 0) {
+        p->t_ns[3] = sc_muldiv(2 * rest, (int64_t)NS, e.v_q16);
+        p->t_ns[3] = (p->t_ns[3] + 1) / 2;
+    }
+    /* final chain from the start */
+    sc_chain(p, 0, set_acc, trap);
+    sc_eval_phase(p, 6, p->t_ns[6], &e);
+    p->s_end_q16 = e.s_q16;
+    p->total_ns = 0;
+    for (ph = 0; ph < SC_PHASES; ph++) {
+        p->total_ns += p->t_ns[ph];
+    }
+    p->len = len;
+    p->v0 = v0;
+    p->v1 = v1;
+    p->vp = p->start[3].v_q16 >> 16;
+}
+
+void sc_eval(const sc_profile_t *p, int64_t t_ns, sc_state_t *out)
+{
+    int ph = 0;
+
+    if (t_ns < 0) {
+        t_ns = 0;
+    }
+    while (ph < SC_PHASES - 1 && t_ns > p->t_ns[ph]) {
+        t_ns -= p->t_ns[ph];
+        ph++;
+    }
+    if (t_ns > p->t_ns[ph]) {
+        t_ns = p->t_ns[ph];
+    }
+    sc_eval_phase(p, ph, t_ns, out);
+}
+
+int64_t sc_time_accel(const sc_profile_t *p)
+{
+    return p->t_ns[0] + p->t_ns[1] + p->t_ns[2];
+}
+
+int64_t sc_time_cruise(const sc_profile_t *p)
+{
+    return p->t_ns[3];
+}
+
+int64_t sc_time_decel(const sc_profile_t *p)
+{
+    return p->t_ns[4] + p->t_ns[5] + p->t_ns[6];
+}

@@ -1,0 +1,473 @@
+/*
+ * servo.c - the servo tick and its fault supervision; specification in
+ * servo.h.
+ */
+#include "servo.h"
+
+#include <stddef.h>
+
+#define SI(x) ((q32_32_t)(x) << 32) /* integer SI value to q32_32 */
+
+static int64_t abs64(int64_t v)
+{
+    return (v < 0) ? -v : v;
+}
+
+static int64_t clamp64(int64_t v, int64_t lim)
+{
+    return (v > lim) ? lim : (v < -lim) ? -lim : v;
+}
+
+static inline int32_t sat32(int64_t v)
+{
+    return (v > INT32_MAX) ? INT32_MAX : (v < INT32_MIN) ? INT32_MIN : (int32_t)v;
+}
+
+static int32_t diff_sat32(int64_t a, int64_t b)
+{
+    if (b < 0 && a > INT64_MAX + b) {
+        return INT32_MAX;
+    }
+    if (b > 0 && a < INT64_MIN + b) {
+        return INT32_MIN;
+    }
+    return sat32(a - b);
+}
+
+void servo_params_default(servo_params_t *p, uint32_t tick_hz)
+{
+    unsigned i;
+    pid_params_t a = {0};
+
+    a.kp = SI(1500);
+    a.ki = SI(8000);
+    a.kd = SI(5);
+    a.kt = SI(10);
+    a.d_tau_us = 100;
+    a.i_max_mv = 160000;
+    a.out_max_mv = 160000;
+    a.tick_hz = tick_hz;
+    a.d_on_measurement = true;
+
+    p->axes = CORE_AXES;
+    p->tick_hz = tick_hz;
+    for (i = 0; i < CORE_AXES; i++) {
+        p->axis[i] = a;
+        p->ferr_limit_nm[i] = 5000000;
+        p->stop_decel_nm_s2[i] = 1000000000;
+    }
+    p->cec.mode = CEC_MODE_OFF;
+    p->cec.handover = true;
+    p->cec.pid = a;
+    p->cec.pid.kp = SI(40000);
+    p->cec.pid.ki = SI(2000000);
+    p->cec.pid.kd = SI(100);
+    p->cec.pid.d_on_measurement = false;
+    p->sat_limit_ticks = tick_hz / 2;
+    p->on_following = SERVO_REACT_DISABLE;
+    p->on_saturation = SERVO_REACT_STOP;
+}
+
+const char *servo_strerror(servo_err_t err)
+{
+    switch (err) {
+    case SERVO_OK:
+        return "ok";
+    case SERVO_ERR_NULL:
+        return "missing servo or parameters";
+    case SERVO_ERR_AXES:
+        return "axes out of range 1..CORE_AXES";
+    case SERVO_ERR_TICK_HZ:
+        return "tick_hz out of range 100..100000";
+    case SERVO_ERR_AXIS_PID:
+        return "axis gains refused (see err_axis and pid_err)";
+    case SERVO_ERR_CEC_PID:
+        return "contour controller gains refused (see pid_err)";
+    case SERVO_ERR_CEC_MODE:
+        return "unknown contour controller mode";
+    case SERVO_ERR_LIMIT:
+        return "negative following error limit";
+    case SERVO_ERR_DECEL:
+        return "stop deceleration must be in 1..2^40 nm/s^2";
+    case SERVO_ERR_REACTION:
+        return "unknown fault reaction";
+    case SERVO_ERR_STATE:
+        return "not allowed in this state or with faults latched";
+    case SERVO_ERR_AXIS:
+        return "axis index out of range";
+    }
+    return "unknown servo error";
+}
+
+servo_err_t servo_config(servo_t *s, const servo_params_t *p)
+{
+    pid_loop_t loops[CORE_AXES];
+    cec_t cec;
+    pid_params_t pp;
+    cec_params_t cp;
+    pid_err_t perr = PID_OK;
+    cec_err_t cerr;
+    unsigned i;
+
+    if (s == NULL || p == NULL) {
+        return SERVO_ERR_NULL;
+    }
+    if (p->axes < 1 || p->axes > CORE_AXES) {
+        return SERVO_ERR_AXES;
+    }
+    if (p->tick_hz < PID_TICK_HZ_MIN || p->tick_hz > PID_TICK_HZ_MAX) {
+        return SERVO_ERR_TICK_HZ;
+    }
+    if ((p->on_following != SERVO_REACT_DISABLE && p->on_following != SERVO_REACT_STOP) ||
+        (p->on_saturation != SERVO_REACT_DISABLE && p->on_saturation != SERVO_REACT_STOP)) {
+        return SERVO_ERR_REACTION;
+    }
+    for (i = 0; i < p->axes; i++) {
+        if (p->ferr_limit_nm[i] < 0) {
+            return SERVO_ERR_LIMIT;
+        }
+        if (p->stop_decel_nm_s2[i] <= 0 || p->stop_decel_nm_s2[i] > ((int64_t)1 << 40)) {
+            return SERVO_ERR_DECEL;
+        }
+    }
+    for (i = 0; i < p->axes; i++) {
+        loops[i] = s->pid[i];
+        pp = p->axis[i];
+        pp.tick_hz = p->tick_hz;
+        perr = pid_config(&loops[i], &pp);
+        if (perr != PID_OK) {
+            s->err_axis = i;
+            s->pid_err = perr;
+            return SERVO_ERR_AXIS_PID;
+        }
+    }
+    cec = s->cec;
+    cp = p->cec;
+    cp.pid.tick_hz = p->tick_hz;
+    cerr = cec_config(&cec, &cp, &perr);
+    if (cerr == CEC_ERR_MODE) {
+        return SERVO_ERR_CEC_MODE;
+    }
+    if (cerr != CEC_OK) {
+        s->pid_err = perr;
+        return SERVO_ERR_CEC_PID;
+    }
+    /* all valid: apply */
+    for (i = 0; i < p->axes; i++) {
+        s->pid[i] = loops[i];
+    }
+    s->cec = cec;
+    s->p = *p;
+    return SERVO_OK;
+}
+
+servo_err_t servo_init(servo_t *s, const servo_params_t *p, const servo_io_t *io)
+{
+    static const servo_t zero;
+    servo_err_t err;
+    if (s == NULL || p == NULL) {
+        return SERVO_ERR_NULL;
+    }
+    *s = zero;
+    if (io != NULL) {
+        s->io = *io;
+    }
+    err = servo_config(s, p);
+    if (err != SERVO_OK) {
+        servo_io_t keep = s->io;
+        *s = zero;
+        s->io = keep;
+    }
+    return err;
+}
+
+static void set_line(servo_t *s, unsigned i, bool on)
+{
+    if (s->lines_on[i] != on || !on) {
+        s->lines_on[i] = on;
+        if (s->io.enable != NULL) {
+            s->io.enable(i, on);
+        }
+    }
+}
+
+static void axis_off(servo_t *s, unsigned i)
+{
+    s->off_mask |= 1u << i;
+    pid_disable(&s->pid[i]);
+    s->out_mv[i] = 0;
+    set_line(s, i, false);
+}
+
+static void disable_all(servo_t *s)
+{
+    unsigned i;
+    for (i = 0; i < s->p.axes; i++) {
+        axis_off(s, i);
+    }
+    s->state = SERVO_OFF;
+}
+
+static void start_stop(servo_t *s)
+{
+    uint64_t n = 0;
+    unsigned i;
+    for (i = 0; i < s->p.axes; i++) {
+        int64_t v = 0;
+        if (!(s->off_mask & (1u << i))) {
+            uint64_t f = s->p.tick_hz, a = (uint64_t)s->p.stop_decel_nm_s2[i];
+            uint64_t ni;
+            v = clamp64(s->ref_vel[i], SERVO_VEL_MAX);
+            ni = ((uint64_t)abs64(v) * f + a - 1u) / a;
+            n = (ni > n) ? ni : n;
+        }
+        s->stop_v0[i] = v;
+        s->stop_pos[i] = s->ref_pos[i];
+        s->stop_rem[i] = 0;
+    }
+    s->stop_n = (uint32_t)((n > SERVO_STOP_TICKS_MAX) ? SERVO_STOP_TICKS_MAX : n);
+    s->stop_k = 0;
+    s->state = (s->stop_n > 0) ? SERVO_STOPPING : SERVO_HOLD;
+}
+
+/* Advance the stop ramp one tick into rp/rv/ra. */
+static void stop_advance(servo_t *s, pos_nm_t *rp, int64_t *rv, int64_t *ra)
+{
+    int64_t n = s->stop_n, f = s->p.tick_hz, den = n * f;
+    int64_t left;
+    unsigned i;
+    s->stop_k++;
+    left = n - (int64_t)s->stop_k;
+    for (i = 0; i < s->p.axes; i++) {
+        int64_t v0 = s->stop_v0[i], dp;
+        s->stop_rem[i] += v0 * left;
+        dp = s->stop_rem[i] / den;
+        s->stop_rem[i] -= dp * den;
+        s->stop_pos[i] += dp;
+        rp[i] = s->stop_pos[i];
+        rv[i] = v0 * left / n;
+        ra[i] = (left > 0) ? -(v0 * f) / n : 0;
+    }
+    if (left <= 0) {
+        s->state = SERVO_HOLD;
+    }
+}
+
+static void react(servo_t *s, servo_reaction_t r)
+{
+    if (r == SERVO_REACT_DISABLE) {
+        disable_all(s);
+    } else if (s->state == SERVO_RUN) {
+        start_stop(s);
+    }
+}
+
+static void raise_fault(servo_t *s, uint32_t fault, unsigned axis, bool escalate)
+{
+    s->faults |= fault;
+    s->fault_axes |= 1u << axis;
+    switch (fault) {
+    case SERVO_FAULT_ENCODER:
+    case SERVO_FAULT_AMPLIFIER:
+        if (!(s->off_mask & (1u << axis))) {
+            axis_off(s, axis);
+        }
+        if (s->off_mask == (1u << s->p.axes) - 1u) {
+            s->state = SERVO_OFF;
+        } else {
+            react(s, SERVO_REACT_STOP);
+        }
+        break;
+    case SERVO_FAULT_FOLLOWING:
+        react(s, escalate ? SERVO_REACT_DISABLE : s->p.on_following);
+        break;
+    default:
+        react(s, escalate ? SERVO_REACT_DISABLE : s->p.on_saturation);
+        break;
+    }
+}
+
+servo_err_t servo_enable(servo_t *s, const servo_fb_t *fb)
+{
+    unsigned i;
+    if (s == NULL || fb == NULL) {
+        return SERVO_ERR_NULL;
+    }
+    if (s->state != SERVO_OFF || s->faults != 0) {
+        return SERVO_ERR_STATE;
+    }
+    s->off_mask = 0;
+    for (i = 0; i < s->p.axes; i++) {
+        s->stop_pos[i] = fb->pos[i];
+        s->ref_pos[i] = fb->pos[i];
+        s->ref_vel[i] = 0;
+        s->ref_acc[i] = 0;
+        pid_enable(&s->pid[i], 0);
+        set_line(s, i, true);
+    }
+    s->state = SERVO_HOLD;
+    return SERVO_OK;
+}
+
+servo_err_t servo_run(servo_t *s)
+{
+    if (s->state != SERVO_HOLD || s->faults != 0 || s->off_mask != 0) {
+        return SERVO_ERR_STATE;
+    }
+    s->state = SERVO_RUN;
+    return SERVO_OK;
+}
+
+void servo_stop(servo_t *s)
+{
+    if (s->state == SERVO_RUN) {
+        start_stop(s);
+    }
+}
+
+void servo_disable(servo_t *s)
+{
+    disable_all(s);
+}
+
+servo_err_t servo_clear_faults(servo_t *s)
+{
+    if (s->state == SERVO_STOPPING) {
+        return SERVO_ERR_STATE;
+    }
+    s->faults = 0;
+    s->fault_axes = 0;
+    return SERVO_OK;
+}
+
+servo_err_t servo_set_cec_mode(servo_t *s, cec_mode_t mode)
+{
+    if (cec_set_mode(&s->cec, mode) != CEC_OK) {
+        return SERVO_ERR_CEC_MODE;
+    }
+    s->p.cec.mode = mode;
+    return SERVO_OK;
+}
+
+servo_err_t servo_rebase(servo_t *s, unsigned axis, pos_nm_t offset_nm)
+{
+    if (axis >= s->p.axes) {
+        return SERVO_ERR_AXIS;
+    }
+    pid_rebase(&s->pid[axis], offset_nm);
+    s->ref_pos[axis] += offset_nm;
+    s->stop_pos[axis] += offset_nm;
+    return SERVO_OK;
+}
+
+pos_nm_t servo_hold_pos(const servo_t *s, unsigned axis)
+{
+    return (axis < CORE_AXES) ? s->stop_pos[axis] : 0;
+}
+
+void servo_fb_from_qdec(servo_fb_t *fb, const qdec_t *const enc[CORE_AXES], unsigned axes)
+{
+    unsigned i;
+    fb->enc_fault = 0;
+    for (i = 0; i < CORE_AXES; i++) {
+        const qdec_t *q = (i < axes) ? enc[i] : NULL;
+        fb->pos[i] = (q != NULL) ? q->out.pos_nm : 0;
+        if (q != NULL && q->out.faults != 0) {
+            fb->enc_fault |= 1u << i;
+        }
+    }
+}
+
+void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
+{
+    pos_nm_t rp[CORE_AXES];
+    int64_t rv[CORE_AXES], ra[CORE_AXES];
+    const unsigned n = s->p.axes;
+    const motion_ref_t *cref = NULL;
+    unsigned i;
+
+    s->ticks++;
+    /* 1. input faults */
+    for (i = 0; i < n; i++) {
+        if (fb->enc_fault & (1u << i)) {
+            raise_fault(s, SERVO_FAULT_ENCODER, i, false);
+        }
+        if (s->io.amp_fault != NULL && s->io.amp_fault(i)) {
+            raise_fault(s, SERVO_FAULT_AMPLIFIER, i, false);
+        }
+    }
+    /* 2. reference */
+    for (i = 0; i < n; i++) {
+        rp[i] = s->ref_pos[i];
+        rv[i] = 0;
+        ra[i] = 0;
+    }
+    switch (s->state) {
+    case SERVO_RUN:
+        if (ref != NULL) {
+            cref = ref;
+            for (i = 0; i < n; i++) {
+                rp[i] = ref->pos[i];
+                rv[i] = ref->vel[i];
+                ra[i] = ref->acc[i];
+            }
+        }
+        break;
+    case SERVO_STOPPING:
+        stop_advance(s, rp, rv, ra);
+        break;
+    case SERVO_HOLD:
+        for (i = 0; i < n; i++) {
+            rp[i] = s->stop_pos[i];
+        }
+        break;
+    default: /* OFF: the loops track the feedback */
+        for (i = 0; i < n; i++) {
+            rp[i] = fb->pos[i];
+        }
+        break;
+    }
+    for (i = 0; i < n; i++) {
+        s->ref_pos[i] = rp[i];
+        s->ref_vel[i] = rv[i];
+        s->ref_acc[i] = ra[i];
+    }
+    /* 3. following error */
+    for (i = 0; i < n; i++) {
+        int32_t lim = s->p.ferr_limit_nm[i];
+        int32_t fe = diff_sat32(rp[i], fb->pos[i]);
+        s->ferr_nm[i] = fe;
+        if (s->state != SERVO_OFF && !(s->off_mask & (1u << i)) && lim > 0 &&
+            (fe > lim || fe < -lim)) {
+            bool esc = s->state != SERVO_RUN && (fe / 2 > lim || fe / 2 < -lim);
+            raise_fault(s, SERVO_FAULT_FOLLOWING, i, esc);
+        }
+    }
+    /* 4. contour error controller (RUN only) */
+    cec_step(&s->cec, (s->state == SERVO_RUN) ? cref : NULL, fb->pos);
+    /* 5. axis loops */
+    for (i = 0; i < n; i++) {
+        int64_t extra = 0;
+        if (i < 3 && i < CORE_AXES) {
+            if (s->cec.handover_u[i] != 0) {
+                pid_add_integrator(&s->pid[i], s->cec.handover_u[i]);
+            }
+            extra = s->cec.out_u[i];
+        }
+        s->out_mv[i] = pid_step(&s->pid[i], rp[i], fb->pos[i], rv[i], ra[i], extra);
+        /* 6. saturation supervision */
+        if (s->p.sat_limit_ticks > 0 && s->pid[i].sat_ticks > s->p.sat_limit_ticks) {
+            bool esc = s->state != SERVO_RUN && s->pid[i].sat_ticks / 2 > s->p.sat_limit_ticks;
+            raise_fault(s, SERVO_FAULT_SATURATION, i, esc);
+        }
+    }
+    /* 7. outputs */
+    for (i = 0; i < n; i++) {
+        if (s->state == SERVO_OFF || (s->off_mask & (1u << i))) {
+            s->out_mv[i] = 0;
+        }
+        if (s->io.set_mv != NULL) {
+            s->io.set_mv(i, s->out_mv[i]);
+        }
+    }
+}

@@ -1,0 +1,386 @@
+"""The drive's look-ahead planner, host build, through ctypes.
+
+The job-time estimator and the simulator call the firmware's own planner
+(``firmware/core/planner.c`` + ``estimator.c`` in ``build/host/libcontour.so``):
+an estimate is the plan the drive's interpolator executes, block for block.
+
+Usage::
+
+    from contour.planner import Planner, PlannerProfile
+
+    prof = PlannerProfile(v_max_mm_s=(500, 500, 500), a_max_mm_s2=(2000,) * 3,
+                          j_max_mm_s3=(50000,) * 3, corner="smoothed-corner",
+                          corner_acc_mm_s2=(300, 150, 300), min_block_time_s=0.00045)
+    res = Planner(prof).estimate(points_mm, feed_mm_min=15000)
+    res.total_s, res.blocks["t_total_s"]
+
+Units at this interface: mm, mm/min (feed), mm/s, mm/s², mm/s³, s. The C side
+works in integer nm, nm/s, nm/s², nm/s³ and ns (docs/planner.md); positions
+are rounded to the nearest nm.
+
+Profile options (see docs/planner.md for the rules):
+
+- ``shape``: ``"s-curve"`` (jerk-limited, acceleration zero at block ends) or
+  ``"trapezoid"``.
+- ``corner``: ``"junction-deviation"`` (the drive's default, with
+  ``junction_deviation_mm``), ``"velocity-step"`` (per-axis ``corner_dv_mm_s``),
+  ``"smoothed-corner"`` (per-axis ``corner_acc_mm_s2``: v = min_i sqrt(a_i l /
+  |du_i|)) or ``"exact-stop"``. Every rule stops at an axis reversal.
+- ``min_block_time_s`` with ``block_time_rule``: ``"throughput"`` (a block runs
+  no faster than the mean length of its last ``mbt_window`` blocks per
+  min_block_time: runs of short blocks take min_block_time each, a single
+  short block between long ones is not slowed) or ``"cap"`` (window 1: every
+  block takes at least min_block_time).
+- ``depth``: look-ahead depth in blocks (the drive: 64).
+- ``tick_hz``: interpolator tick rate; ``executed_s`` is the total rounded up to
+  whole ticks, which is what the drive's interpolator takes.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from contour import native
+from contour.errors import UserError
+
+AXES = 3
+NM_PER_MM = 1_000_000
+NS_PER_S = 1_000_000_000
+
+SHAPES = {"s-curve": 0, "trapezoid": 1}
+CORNERS = {"junction-deviation": 0, "velocity-step": 1, "smoothed-corner": 2, "exact-stop": 3}
+BLOCK_TIME_RULES = ("throughput", "cap")
+
+# limits of the C side (scurve.h)
+V_LIMIT_NM_S = 4294967295
+A_RANGE_NM_S2 = (1000, 1_000_000_000_000)
+J_RANGE_NM_S3 = (1000, 100_000_000_000_000)
+WINDOW_MAX = 64
+
+# plan_result_t
+_ERRORS = {
+    -1: "planner ring full",
+    -2: "nothing to pop",
+    -3: "feed must be > 0 and at most 4294 mm/s",
+    -4: "block too long (over 1.1 km) or position out of range",
+    -5: "invalid profile value",
+    -6: "invalid argument",
+}
+
+# flags
+BF_EXACT_STOP = 0x01
+BF_DWELL = 0x02
+BF_MBT = 0x04
+EST_SKIPPED = 0x100
+MOVE_EXACT_STOP = 0x01
+
+
+class _Profile(ctypes.Structure):
+    _fields_ = [
+        ("v_max", ctypes.c_int64 * AXES),
+        ("a_max", ctypes.c_int64 * AXES),
+        ("j_max", ctypes.c_int64 * AXES),
+        ("corner_dv", ctypes.c_int64 * AXES),
+        ("corner_acc", ctypes.c_int64 * AXES),
+        ("junction_dev_nm", ctypes.c_int64),
+        ("min_block_ns", ctypes.c_int64),
+        ("mbt_window", ctypes.c_uint16),
+        ("corner", ctypes.c_uint8),
+        ("shape", ctypes.c_uint8),
+    ]
+
+
+MOVE_DTYPE = np.dtype(
+    [
+        ("target", "<i8", (AXES,)),
+        ("feed", "<i8"),
+        ("dwell_ns", "<i8"),
+        ("tag", "<u4"),
+        ("flags", "u1"),
+    ],
+    align=True,
+)
+
+EST_DTYPE = np.dtype(
+    [
+        ("len_nm", "<i8"),
+        ("v_entry", "<i8"),
+        ("v_peak", "<i8"),
+        ("v_exit", "<i8"),
+        ("v_max", "<i8"),
+        ("t_acc_ns", "<i8"),
+        ("t_cruise_ns", "<i8"),
+        ("t_dec_ns", "<i8"),
+        ("t_total_ns", "<i8"),
+        ("t_mbt_ns", "<i8"),
+        ("tag", "<u4"),
+        ("flags", "<u4"),
+    ],
+    align=True,
+)
+
+
+def _lib():
+    lib = native.load()
+    if not getattr(lib, "_contour_planner_ready", False):
+        lib.plan_estimate.restype = ctypes.c_int
+        lib.plan_estimate.argtypes = [
+            ctypes.POINTER(_Profile),
+            ctypes.POINTER(ctypes.c_int64),
+            ctypes.c_void_p,
+            ctypes.c_uint32,
+            ctypes.c_void_p,
+            ctypes.c_uint16,
+            ctypes.c_void_p,
+            ctypes.POINTER(ctypes.c_uint32),
+        ]
+        lib.plan_check_profile.restype = ctypes.c_int
+        lib.plan_check_profile.argtypes = [ctypes.POINTER(_Profile)]
+        for name in (
+            "plan_block_sizeof",
+            "plan_est_sizeof",
+            "plan_move_sizeof",
+            "plan_profile_sizeof",
+        ):
+            getattr(lib, name).restype = ctypes.c_size_t
+            getattr(lib, name).argtypes = []
+        if (
+            lib.plan_est_sizeof() != EST_DTYPE.itemsize
+            or lib.plan_move_sizeof() != MOVE_DTYPE.itemsize
+            or lib.plan_profile_sizeof() != ctypes.sizeof(_Profile)
+        ):
+            raise UserError(
+                f"{native.library_path()}: planner structures do not match this wrapper"
+            )
+        lib._contour_planner_ready = True
+    return lib
+
+
+def _triple(name: str, values, scale: float, low: float, high: float) -> list:
+    vals = list(values) if isinstance(values, (list, tuple, np.ndarray)) else [values] * AXES
+    if len(vals) != AXES:
+        raise UserError(f"{name}: give {AXES} values (X, Y, Z), got {len(vals)}")
+    out = []
+    for v in vals:
+        try:
+            f = float(v)
+        except (TypeError, ValueError) as exc:
+            raise UserError(f"{name}: not a number: {v!r}") from exc
+        if not math.isfinite(f):
+            raise UserError(f"{name}: must be finite, got {v!r}")
+        n = int(round(f * scale))
+        if n < low or n > high:
+            raise UserError(
+                f"{name}: {f:g} is outside the planner's range [{low / scale:g}, {high / scale:g}]"
+            )
+        out.append(n)
+    return out
+
+
+def _scalar(name: str, value, scale: float, low: float, high: float) -> int:
+    return _triple(name, [value] * AXES, scale, low, high)[0]
+
+
+@dataclass
+class PlannerProfile:
+    """Limits and rules of the planner, in mm and s (see module docstring)."""
+
+    v_max_mm_s: Sequence[float] = (500.0, 500.0, 500.0)
+    a_max_mm_s2: Sequence[float] = (2000.0, 2000.0, 2000.0)
+    j_max_mm_s3: Sequence[float] = (50000.0, 50000.0, 50000.0)
+    shape: str = "s-curve"
+    corner: str = "junction-deviation"
+    junction_deviation_mm: float = 0.01
+    corner_dv_mm_s: Sequence[float] = (5.0, 5.0, 5.0)
+    corner_acc_mm_s2: Sequence[float] = (1000.0, 1000.0, 1000.0)
+    min_block_time_s: float = 0.0
+    block_time_rule: str = "throughput"
+    mbt_window: int = 16
+    tick_hz: int = 10000
+    depth: int = 64
+
+    def to_c(self) -> _Profile:
+        p = _Profile()
+        if self.shape not in SHAPES:
+            raise UserError(f"shape must be one of {', '.join(SHAPES)}, got {self.shape!r}")
+        if self.corner not in CORNERS:
+            raise UserError(f"corner must be one of {', '.join(CORNERS)}, got {self.corner!r}")
+        if self.block_time_rule not in BLOCK_TIME_RULES:
+            raise UserError(
+                f"block_time_rule must be one of {', '.join(BLOCK_TIME_RULES)}, "
+                f"got {self.block_time_rule!r}"
+            )
+        p.v_max[:] = _triple("v_max_mm_s", self.v_max_mm_s, NM_PER_MM, 1, V_LIMIT_NM_S)
+        p.a_max[:] = _triple("a_max_mm_s2", self.a_max_mm_s2, NM_PER_MM, *A_RANGE_NM_S2)
+        p.j_max[:] = _triple("j_max_mm_s3", self.j_max_mm_s3, NM_PER_MM, *J_RANGE_NM_S3)
+        p.corner_dv[:] = _triple("corner_dv_mm_s", self.corner_dv_mm_s, NM_PER_MM, 0, V_LIMIT_NM_S)
+        p.corner_acc[:] = _triple(
+            "corner_acc_mm_s2", self.corner_acc_mm_s2, NM_PER_MM, 0, A_RANGE_NM_S2[1]
+        )
+        p.junction_dev_nm = _scalar(
+            "junction_deviation_mm", self.junction_deviation_mm, NM_PER_MM, 0, 1 << 40
+        )
+        p.min_block_ns = _scalar(
+            "min_block_time_s", self.min_block_time_s, NS_PER_S, 0, 10 * NS_PER_S
+        )
+        window = 1 if self.block_time_rule == "cap" else int(self.mbt_window)
+        if not 1 <= window <= WINDOW_MAX:
+            raise UserError(f"mbt_window must be 1..{WINDOW_MAX}, got {self.mbt_window!r}")
+        p.mbt_window = window
+        p.corner = CORNERS[self.corner]
+        p.shape = SHAPES[self.shape]
+        if not (isinstance(self.tick_hz, int) and 1 <= self.tick_hz <= 1_000_000):
+            raise UserError(f"tick_hz must be a whole number 1..1000000, got {self.tick_hz!r}")
+        if NS_PER_S % self.tick_hz:
+            raise UserError(f"tick_hz must divide 1e9 (a whole number of ns), got {self.tick_hz}")
+        if not (isinstance(self.depth, int) and 2 <= self.depth <= 65535):
+            raise UserError(f"depth must be a whole number 2..65535, got {self.depth!r}")
+        return p
+
+
+@dataclass
+class EstimateResult:
+    """Per-block results (numpy structured array ``blocks``) and totals."""
+
+    blocks: np.ndarray
+    total_s: float  # sum of the planned block times
+    ticks: int  # interpolator ticks the drive takes (rounded up)
+    executed_s: float  # ticks / tick_hz
+    t_acc_s: float = 0.0
+    t_cruise_s: float = 0.0
+    t_dec_s: float = 0.0
+    t_mbt_s: float = 0.0
+    raw: Optional[np.ndarray] = field(default=None, repr=False)
+
+
+BLOCK_FIELDS = (
+    "length_mm",
+    "v_entry_mm_s",
+    "v_peak_mm_s",
+    "v_exit_mm_s",
+    "v_max_mm_s",
+    "t_acc_s",
+    "t_cruise_s",
+    "t_dec_s",
+    "t_total_s",
+    "t_mbt_s",
+)
+
+
+class Planner:
+    """The drive's planner with one profile; ``estimate`` runs a whole program."""
+
+    def __init__(self, profile: PlannerProfile):
+        self.profile = profile
+        self._c = profile.to_c()
+        lib = _lib()
+        rc = lib.plan_check_profile(ctypes.byref(self._c))
+        if rc != 0:
+            raise UserError(f"planner profile rejected: {_ERRORS.get(rc, rc)}")
+        self._lib = lib
+
+    def estimate(
+        self,
+        points_mm,
+        feed_mm_min,
+        exact_stop=None,
+        dwell_s=None,
+        start_mm=(0.0, 0.0, 0.0),
+        tags=None,
+    ) -> EstimateResult:
+        """Plan a program of absolute end points.
+
+        points_mm: (n, 3) absolute end points in mm (a dwell row is ignored).
+        feed_mm_min: scalar or n feeds (mm/min). exact_stop: n booleans (stop
+        at the end of the block). dwell_s: n dwell times (> 0 marks a G4 row).
+        """
+        pts = np.asarray(points_mm, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != AXES:
+            raise UserError(f"points_mm must be an (n, {AXES}) array, got shape {pts.shape}")
+        n = pts.shape[0]
+        if not np.all(np.isfinite(pts)):
+            raise UserError("points_mm contains a non-finite value")
+        if np.any(np.abs(pts) > 1e9):
+            raise UserError("points_mm: position out of range (over 1000 km)")
+        feed = np.broadcast_to(np.asarray(feed_mm_min, dtype=float), (n,))
+        moves = np.zeros(n, dtype=MOVE_DTYPE)
+        moves["target"] = np.rint(pts * NM_PER_MM).astype(np.int64)
+        dw = np.zeros(n) if dwell_s is None else np.broadcast_to(np.asarray(dwell_s, float), (n,))
+        if not np.all(np.isfinite(dw)) or np.any(dw < 0) or np.any(dw > 1e6):
+            raise UserError("dwell_s must be finite, >= 0 and at most 1e6 s")
+        moves["dwell_ns"] = np.rint(dw * NS_PER_S).astype(np.int64)
+        is_move = moves["dwell_ns"] == 0
+        bad = is_move & ~(np.isfinite(feed) & (feed > 0))
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            raise UserError(f"block {i}: feed must be a positive number, got {feed[i]!r}")
+        fnm = np.where(is_move, np.rint(np.nan_to_num(feed) * NM_PER_MM / 60.0), 0)
+        moves["feed"] = np.minimum(fnm, V_LIMIT_NM_S).astype(np.int64)
+        moves["feed"][is_move & (moves["feed"] < 1)] = 1
+        if exact_stop is not None:
+            es = np.broadcast_to(np.asarray(exact_stop, dtype=bool), (n,))
+            moves["flags"] = np.where(es, MOVE_EXACT_STOP, 0)
+        moves["tag"] = np.arange(n, dtype=np.uint32) if tags is None else np.asarray(tags)
+        start = (ctypes.c_int64 * AXES)(*[int(round(float(v) * NM_PER_MM)) for v in start_mm])
+        out = np.zeros(n, dtype=EST_DTYPE)
+        depth = self.profile.depth
+        storage = ctypes.create_string_buffer(depth * self._lib.plan_block_sizeof() + 64)
+        base = (ctypes.addressof(storage) + 63) & ~63
+        bad_idx = ctypes.c_uint32(0)
+        rc = self._lib.plan_estimate(
+            ctypes.byref(self._c),
+            start,
+            moves.ctypes.data,
+            n,
+            base,
+            depth,
+            out.ctypes.data,
+            ctypes.byref(bad_idx),
+        )
+        if rc < 0:
+            raise UserError(f"block {bad_idx.value}: {_ERRORS.get(rc, f'planner error {rc}')}")
+        return self._result(out)
+
+    def _result(self, out: np.ndarray) -> EstimateResult:
+        blocks = np.zeros(
+            out.shape[0],
+            dtype=[(f, "f8") for f in BLOCK_FIELDS] + [("skipped", "?"), ("mbt_limited", "?")],
+        )
+        blocks["length_mm"] = out["len_nm"] / NM_PER_MM
+        for src, dst in (
+            ("v_entry", "v_entry_mm_s"),
+            ("v_peak", "v_peak_mm_s"),
+            ("v_exit", "v_exit_mm_s"),
+            ("v_max", "v_max_mm_s"),
+        ):
+            blocks[dst] = out[src] / NM_PER_MM
+        for src, dst in (
+            ("t_acc_ns", "t_acc_s"),
+            ("t_cruise_ns", "t_cruise_s"),
+            ("t_dec_ns", "t_dec_s"),
+            ("t_total_ns", "t_total_s"),
+            ("t_mbt_ns", "t_mbt_s"),
+        ):
+            blocks[dst] = out[src] / NS_PER_S
+        blocks["skipped"] = (out["flags"] & EST_SKIPPED) != 0
+        blocks["mbt_limited"] = (out["flags"] & BF_MBT) != 0
+        total_ns = int(out["t_total_ns"].sum())
+        tick_ns = NS_PER_S // self.profile.tick_hz
+        ticks = -(-total_ns // tick_ns)
+        return EstimateResult(
+            blocks=blocks,
+            total_s=total_ns / NS_PER_S,
+            ticks=ticks,
+            executed_s=ticks * tick_ns / NS_PER_S,
+            t_acc_s=int(out["t_acc_ns"].sum()) / NS_PER_S,
+            t_cruise_s=int(out["t_cruise_ns"].sum()) / NS_PER_S,
+            t_dec_s=int(out["t_dec_ns"].sum()) / NS_PER_S,
+            t_mbt_s=int(out["t_mbt_ns"].sum()) / NS_PER_S,
+            raw=out,
+        )

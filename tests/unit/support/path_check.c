@@ -1,0 +1,224 @@
+/*
+ * path_check.c - see path_check.h. Test support code (host only).
+ */
+#include "path_check.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "estimator.h"
+#include "interp.h"
+
+plan_profile_t pc_profile(uint8_t shape)
+{
+    plan_profile_t p;
+    int i;
+
+    memset(&p, 0, sizeof(p));
+    for (i = 0; i < CORE_AXES; i++) {
+        p.v_max[i] = 500000000;
+        p.a_max[i] = 2000000000;
+        p.j_max[i] = 50000000000;
+        p.corner_dv[i] = 5000000;
+        p.corner_acc[i] = 300000000;
+    }
+    p.v_max[1] = 300000000;
+    p.a_max[1] = 1000000000;
+    p.j_max[1] = 20000000000;
+    p.junction_dev_nm = 10000;
+    p.min_block_ns = 500000;
+    p.mbt_window = 4;
+    p.corner = PLAN_CORNER_JD;
+    p.shape = shape;
+    return p;
+}
+
+static uint64_t pc_rs;
+
+static uint64_t pc_rnd(void)
+{
+    pc_rs ^= pc_rs << 13;
+    pc_rs ^= pc_rs >> 7;
+    pc_rs ^= pc_rs << 17;
+    return pc_rs;
+}
+
+static double pc_uni(void)
+{
+    return (double)(pc_rnd() >> 11) / 9007199254740992.0;
+}
+
+static void pc_moves(plan_move_t *m, uint32_t n)
+{
+    double dir[3] = {1, 0, 0}, pos[3] = {0, 0, 0};
+    uint32_t k;
+    int i;
+
+    for (k = 0; k < n; k++) {
+        double len = exp(log(0.02) + pc_uni() * (log(3.0) - log(0.02))); /* mm */
+        double r = pc_uni(), nrm = 0;
+        if (r < 0.05) { /* sharp turn or reversal */
+            for (i = 0; i < 3; i++) {
+                dir[i] = pc_uni() * 2 - 1;
+            }
+        } else { /* gentle wander */
+            for (i = 0; i < 3; i++) {
+                dir[i] += (pc_uni() * 2 - 1) * 0.3;
+            }
+        }
+        for (i = 0; i < 3; i++) {
+            nrm += dir[i] * dir[i];
+        }
+        nrm = sqrt(nrm) + 1e-12;
+        memset(&m[k], 0, sizeof(m[k]));
+        for (i = 0; i < 3; i++) {
+            dir[i] /= nrm;
+            pos[i] += dir[i] * len;
+            m[k].target[i] = (int64_t)llround(pos[i] * 1e6);
+        }
+        m[k].feed = (int64_t)((10 + pc_uni() * 290) * 1e6);
+        m[k].flags = (pc_rnd() % 50 == 0) ? PLAN_MOVE_EXACT_STOP : 0;
+        m[k].tag = k;
+    }
+}
+
+static int64_t pc_abs(int64_t v)
+{
+    return v < 0 ? -v : v;
+}
+
+void pc_run(uint32_t n, int64_t tick_ns, uint32_t seed, uint8_t shape, pc_result_t *r)
+{
+    static plan_block_t store[PLAN_DEPTH_DEFAULT], store2[PLAN_DEPTH_DEFAULT];
+    static interp_t ip;
+    plan_profile_t prof = pc_profile(shape);
+    plan_move_t *mv = malloc(sizeof(*mv) * n);
+    plan_est_t *est = malloc(sizeof(*est) * n);
+    int64_t *cum = malloc(sizeof(*cum) * n);
+    const pos_nm_t origin[CORE_AXES] = {0, 0, 0};
+    pos_nm_t p1[CORE_AXES], p2[CORE_AXES];
+    int64_t acc1[CORE_AXES];
+    uint32_t next = 0, bad = 0, done_prev = 0, id1 = 0, id2 = 0, k;
+    double h = (double)tick_ns * 1e-9;
+    plan_t p;
+    motion_ref_t ref;
+    int i;
+
+    memset(r, 0, sizeof(*r));
+    if (mv == NULL || est == NULL || cum == NULL) {
+        r->limit_violations = 1u << 30;
+        goto out;
+    }
+    pc_rs = 0x9E3779B97F4A7C15ull ^ ((uint64_t)seed * 0xD1B54A32D192ED03ull);
+    pc_moves(mv, n);
+    if (plan_estimate(&prof, origin, mv, n, store2, PLAN_DEPTH_DEFAULT, est, &bad) != PLAN_OK) {
+        r->limit_violations = 1u << 30;
+        goto out;
+    }
+    for (k = 0; k < n; k++) {
+        r->est_total_ns += est[k].t_total_ns;
+        cum[k] = r->est_total_ns;
+    }
+    plan_init(&p, store, PLAN_DEPTH_DEFAULT, &prof, origin);
+    interp_init(&ip, tick_ns, origin);
+    for (i = 0; i < CORE_AXES; i++) {
+        p1[i] = p2[i] = 0;
+        acc1[i] = 0;
+    }
+    for (;;) {
+        uint32_t id;
+        while (interp_room(&ip) > 0) {
+            while (next < n && plan_free_slots(&p) > 0) {
+                (void)plan_push(&p, &mv[next]);
+                next++;
+            }
+            if (!interp_refill(&ip, &p)) {
+                break;
+            }
+        }
+        if (next == n && plan_count(&p) == 0 && interp_idle(&ip)) {
+            break;
+        }
+        interp_tick(&ip, &ref);
+        r->ticks++;
+        /* block ends this tick: (ticks - 1) h < cumulative estimate <= ticks h */
+        for (k = done_prev; k < ip.blocks_done && k < n; k++) {
+            int64_t now = (int64_t)r->ticks * tick_ns;
+            int64_t err = now - cum[k];
+            if (err < 0 || err >= tick_ns) {
+                r->time_violations++;
+            }
+            if (pc_abs(err) > r->max_block_err_ns) {
+                r->max_block_err_ns = pc_abs(err);
+            }
+        }
+        done_prev = ip.blocks_done;
+        id = ip.busy ? ip.blocks_done : 0xFFFFFFFFu;
+        for (i = 0; i < CORE_AXES; i++) {
+            double vr = (double)pc_abs(ref.pos[i] - p1[i]) - 1.0;
+            vr /= (double)prof.v_max[i] * h;
+            if (vr > r->max_v_ratio) {
+                r->max_v_ratio = vr;
+            }
+            if (vr > 1.0 || pc_abs(ref.vel[i]) > prof.v_max[i] + 1 ||
+                pc_abs(ref.acc[i]) > prof.a_max[i] + 1) {
+                r->limit_violations++;
+            }
+            if (id != 0xFFFFFFFFu && id == id1 && id1 == id2 && r->ticks > 2) {
+                double ar = (double)pc_abs(ref.pos[i] - 2 * p1[i] + p2[i]) - 2.0;
+                ar /= (double)prof.a_max[i] * h * h;
+                if (ar > r->max_a_ratio) {
+                    r->max_a_ratio = ar;
+                }
+                if (ar > 1.0) {
+                    r->limit_violations++;
+                }
+            }
+            if (shape == SC_SHAPE_SCURVE && id != 0xFFFFFFFFu && id == id1) {
+                double jr = (double)pc_abs(ref.acc[i] - acc1[i]) - 1.0;
+                jr /= (double)prof.j_max[i] * h;
+                if (jr > r->max_j_ratio) {
+                    r->max_j_ratio = jr;
+                }
+                if (jr > 1.0) {
+                    r->limit_violations++;
+                }
+            }
+            p2[i] = p1[i];
+            p1[i] = ref.pos[i];
+            acc1[i] = ref.acc[i];
+        }
+        id2 = id1;
+        id1 = id;
+    }
+    r->blocks = ip.blocks_done;
+    r->underruns = ip.underruns;
+    r->final_exact = true;
+    for (i = 0; i < CORE_AXES; i++) {
+        if (ip.pos[i] != mv[n - 1].target[i]) {
+            r->final_exact = false;
+        }
+    }
+    r->total_ticks_ok = r->ticks == (uint64_t)((r->est_total_ns + tick_ns - 1) / tick_ns);
+out:
+    free(mv);
+    free(est);
+    free(cum);
+}
+
+void pc_print(const char *prefix, const pc_result_t *r)
+{
+    printf("%s_blocks: %u blocks\n", prefix, r->blocks);
+    printf("%s_ticks: %llu ticks\n", prefix, (unsigned long long)r->ticks);
+    printf("%s_estimated_time: %.6f s\n", prefix, (double)r->est_total_ns * 1e-9);
+    printf("%s_max_block_end_error: %lld ns\n", prefix, (long long)r->max_block_err_ns);
+    printf("%s_time_violations: %u ticks\n", prefix, r->time_violations);
+    printf("%s_limit_violations: %u ticks\n", prefix, r->limit_violations);
+    printf("%s_max_speed_ratio: %.4f of limit\n", prefix, r->max_v_ratio);
+    printf("%s_max_acc_ratio: %.4f of limit\n", prefix, r->max_a_ratio);
+    printf("%s_max_jerk_ratio: %.4f of limit\n", prefix, r->max_j_ratio);
+    printf("%s_final_position_exact: %d bool\n", prefix, r->final_exact ? 1 : 0);
+    printf("%s_total_ticks_match: %d bool\n", prefix, r->total_ticks_ok ? 1 : 0);
+}

@@ -1,0 +1,38 @@
+/*
+ * path_check.h - random-path check of planner + interpolator, shared by
+ * tests/unit/test_interp.c (sanitized, coarse tick) and bench/bench_planner.c
+ * (unsanitized, 10 kHz). See test_interp.c for what is checked.
+ */
+#ifndef PATH_CHECK_H
+#define PATH_CHECK_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "planner.h"
+
+typedef struct {
+    uint32_t blocks;           /* blocks completed by the interpolator       */
+    uint32_t limit_violations; /* ticks where a differenced limit was broken */
+    uint32_t time_violations;  /* block ends off the estimate by >= 1 tick   */
+    uint32_t underruns;
+    bool final_exact;         /* last reference == last target, every axis  */
+    bool total_ticks_ok;      /* ticks == ceil(sum of estimates / tick)     */
+    int64_t max_block_err_ns; /* max |block end - cumulative estimate|      */
+    uint64_t ticks;
+    int64_t est_total_ns; /* sum of the estimated block times           */
+    double max_v_ratio;   /* max |dp| / (v_i h) over axes and ticks     */
+    double max_a_ratio;   /* max |d2p| / (a_i h^2) inside blocks        */
+    double max_j_ratio;   /* max |d acc_ff| / (j_i h) inside blocks     */
+} pc_result_t;
+
+/* The test machine: X, Z 500 mm/s, 2 m/s^2, 50 m/s^3; Y 300 mm/s, 1 m/s^2,
+ * 20 m/s^3; junction deviation 0.01 mm; minimum block time 0.5 ms (W = 4). */
+plan_profile_t pc_profile(uint8_t shape);
+
+/* Run n random blocks at tick_ns with the given seed and shape. */
+void pc_run(uint32_t n, int64_t tick_ns, uint32_t seed, uint8_t shape, pc_result_t *r);
+
+void pc_print(const char *prefix, const pc_result_t *r);
+
+#endif /* PATH_CHECK_H */

@@ -1,0 +1,567 @@
+/* Contour error controller: normals, estimator accuracy against exact
+ * geometry on circles (all planes, both directions, a grid of radii and lag
+ * errors) and on three-axis lines, Koren's estimate, output distribution,
+ * segment changes and hand-over, validation. */
+#include "cec.h"
+#include "unity.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+void setUp(void)
+{
+}
+
+void tearDown(void)
+{
+}
+
+#define Q30(x) ((q1_30_t)lround((x)*1073741824.0))
+#define Q32(x) ((q32_32_t)llround((double)(x)*4294967296.0))
+#define UMV(u) ((double)(u) / 4294967296.0) /* U -> mV */
+#define PLANES 3
+
+static const unsigned plane_uv[PLANES][2] = {{0, 1}, {2, 0}, {1, 2}}; /* G17 G18 G19 */
+
+static void config(cec_t *c, cec_mode_t mode, double kp, double ki)
+{
+    cec_params_t p;
+    memset(c, 0, sizeof *c);
+    memset(&p, 0, sizeof p);
+    p.mode = mode;
+    p.handover = true;
+    p.pid.kp = Q32(kp);
+    p.pid.ki = Q32(ki);
+    p.pid.out_max_mv = 160000;
+    p.pid.i_max_mv = 160000;
+    p.pid.tick_hz = 10000;
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(c, &p, NULL));
+}
+
+/* An arc reference at angle th (rad) in plane pl, sense dir, and the machine
+ * lagging by angle gam at radius r + d. Positions rounded to nm. */
+typedef struct {
+    motion_ref_t ref;
+    pos_nm_t meas[CORE_AXES];
+    double c[2], r;
+} arc_case_t;
+
+static void arc_case(arc_case_t *a, unsigned pl, double r, double th, int dir, double gam, double d)
+{
+    unsigned u = plane_uv[pl][0], v = plane_uv[pl][1], w = 3 - u - v;
+    double ph = th - dir * gam;
+    memset(a, 0, sizeof *a);
+    a->c[0] = 12345678.0;
+    a->c[1] = -45678901.0;
+    a->r = r;
+    a->ref.active = true;
+    a->ref.geom.kind = MOTION_GEOM_ARC;
+    a->ref.geom.plane_u = (uint8_t)u;
+    a->ref.geom.plane_v = (uint8_t)v;
+    a->ref.geom.centre_u = (pos_nm_t)a->c[0];
+    a->ref.geom.centre_v = (pos_nm_t)a->c[1];
+    a->ref.geom.radius = (pos_nm_t)r;
+    a->ref.geom.sense = (int8_t)dir;
+    a->ref.geom.tangent[u] = Q30(-dir * sin(th));
+    a->ref.geom.tangent[v] = Q30(dir * cos(th));
+    a->ref.pos[u] = llround(a->c[0] + r * cos(th));
+    a->ref.pos[v] = llround(a->c[1] + r * sin(th));
+    a->ref.pos[w] = 777000;
+    a->meas[u] = llround(a->c[0] + (r + d) * cos(ph));
+    a->meas[v] = llround(a->c[1] + (r + d) * sin(ph));
+    a->meas[w] = 777000;
+}
+
+/* Exact contour error (convention of cec.h: s * (|P - C| - r), s = -sense),
+ * and |E| in the plane, from the integer positions. */
+static double arc_exact(const arc_case_t *a, unsigned pl, int dir, double *eabs)
+{
+    unsigned u = plane_uv[pl][0], v = plane_uv[pl][1];
+    double rho = hypot((double)a->meas[u] - a->c[0], (double)a->meas[v] - a->c[1]);
+    *eabs = hypot((double)(a->ref.pos[u] - a->meas[u]), (double)(a->ref.pos[v] - a->meas[v]));
+    return -dir * (rho - a->r);
+}
+
+static int32_t estimate(cec_t *c, const arc_case_t *a)
+{
+    cec_step(c, &a->ref, a->meas);
+    TEST_ASSERT_TRUE(c->active);
+    return c->ec_nm[0];
+}
+
+static void test_normals(void)
+{
+    q1_30_t t[3], n1[3], n2[3];
+    int i, k;
+    for (i = 0; i < 360; i += 7) {
+        double a = i * M_PI / 180.0;
+        unsigned pl;
+        for (pl = 0; pl < PLANES; pl++) {
+            unsigned u = plane_uv[pl][0], v = plane_uv[pl][1], w = 3 - u - v;
+            memset(t, 0, sizeof t);
+            t[u] = Q30(cos(a));
+            t[v] = Q30(sin(a));
+            TEST_ASSERT_TRUE(cec_normals(t, w, n1, n2));
+            /* the thesis's (sin a, -cos a) in the plane's own coordinates */
+            TEST_ASSERT_INT32_WITHIN(4, Q30(sin(a)), n1[u]);
+            TEST_ASSERT_INT32_WITHIN(4, Q30(-cos(a)), n1[v]);
+            TEST_ASSERT_INT32_WITHIN(0, 0, n1[w]);
+            TEST_ASSERT_INT32_WITHIN(4, FX_ONE_Q30, n2[w]);
+        }
+    }
+    srand(3);
+    for (i = 0; i < 2000; i++) {
+        double x[3], len = 0, d11 = 0, d22 = 0, d12 = 0, dt1 = 0, dt2 = 0;
+        for (k = 0; k < 3; k++) {
+            x[k] = (double)rand() / RAND_MAX - 0.5;
+            if (i % 10 == 0 && k < 2) {
+                x[k] *= 1e-5; /* near plunges along z */
+            }
+            len += x[k] * x[k];
+        }
+        len = sqrt(len);
+        for (k = 0; k < 3; k++) {
+            t[k] = Q30(x[k] / len);
+        }
+        TEST_ASSERT_TRUE(cec_normals(t, 2, n1, n2));
+        for (k = 0; k < 3; k++) {
+            d11 += (double)n1[k] * n1[k];
+            d22 += (double)n2[k] * n2[k];
+            d12 += (double)n1[k] * n2[k];
+            dt1 += (double)t[k] * n1[k];
+            dt2 += (double)t[k] * n2[k];
+        }
+        TEST_ASSERT_DOUBLE_WITHIN(1e-8, 1.0, d11 / 1152921504606846976.0);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-8, 1.0, d22 / 1152921504606846976.0);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-8, 0.0, d12 / 1152921504606846976.0);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-8, 0.0, dt1 / 1152921504606846976.0);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-8, 0.0, dt2 / 1152921504606846976.0);
+    }
+    memset(t, 0, sizeof t);
+    TEST_ASSERT_FALSE(cec_normals(t, 2, n1, n2));
+}
+
+static void test_curvature_correction_vs_double(void)
+{
+    static const double radii[] = {1e5, 1e6, 1e7, 5e7, 1e9, 1e11};
+    unsigned i;
+    int j;
+    for (i = 0; i < sizeof radii / sizeof radii[0]; i++) {
+        for (j = 0; j <= 60; j++) {
+            double r = radii[i], e = r * 0.5 * j / 60.0;
+            double want;
+            if (e >= 2147483647.0) {
+                continue;
+            }
+            want = r * (1.0 / cos(e / r) - 1.0);
+            TEST_ASSERT_DOUBLE_WITHIN(1.0 + 2e-6 * r * pow(e / r / 0.5, 12), want,
+                                      cec_curv_correction((int32_t)e, (pos_nm_t)r));
+        }
+    }
+    /* beyond 0.5 rad the angle is limited */
+    TEST_ASSERT_INT32_WITHIN(3, (int32_t)lround(1e6 * (1.0 / cos(0.5) - 1.0)),
+                             cec_curv_correction(2000000, 1000000));
+    TEST_ASSERT_EQUAL_INT32(0, cec_curv_correction(1000, 0));
+    TEST_ASSERT_EQUAL_INT32(0, cec_curv_correction(0, 1000));
+}
+
+/* Pure lag on circles: tangent error = -s|E|^2/(2r), curvature error within
+ * |E|^4/(4 r^3), exact within 1 nm; every plane, both directions. */
+static void test_circle_pure_lag_grid(void)
+{
+    static const double radii[] = {5e5, 5e6, 1e7, 2e7, 5e7, 2e8, 1e9};
+    static const double lags[] = {1e2, 1e3, 1e4, 5e4, 1e5, 5e5, 1e6, 2e6};
+    cec_t ct, cc, ce, cl;
+    unsigned ir, il, pl;
+    config(&ct, CEC_MODE_TANGENT, 0, 0);
+    config(&cc, CEC_MODE_CURVATURE, 0, 0);
+    config(&ce, CEC_MODE_EXACT, 0, 0);
+    config(&cl, CEC_MODE_CURVATURE, 0, 0);
+    cl.p.lag_from_tangent = true;
+    for (ir = 0; ir < sizeof radii / sizeof radii[0]; ir++) {
+        double worst_t = 0, worst_c = 0, worst_b = 0;
+        for (il = 0; il < sizeof lags / sizeof lags[0]; il++) {
+            double r = radii[ir], chord = lags[il];
+            double gam = 2.0 * asin(chord / (2.0 * r));
+            int th;
+            if (chord > 0.3 * r) {
+                continue;
+            }
+            for (pl = 0; pl < PLANES; pl++) {
+                int dir;
+                for (dir = -1; dir <= 1; dir += 2) {
+                    for (th = 0; th < 360; th += 41) {
+                        arc_case_t a;
+                        double eabs, exact, bound, tan_err;
+                        arc_case(&a, pl, r, th * M_PI / 180.0, dir, gam, 0.0);
+                        exact = arc_exact(&a, pl, dir, &eabs);
+                        bound = pow(eabs, 4) / (4 * pow(r, 3));
+                        tan_err = estimate(&ct, &a) - exact;
+                        /* s = -dir: -s|E|^2/(2r) = dir |E|^2 / (2r) */
+                        TEST_ASSERT_DOUBLE_WITHIN(3.0, dir * eabs * eabs / (2 * r), tan_err);
+                        TEST_ASSERT_DOUBLE_WITHIN(bound + 3.0, exact, estimate(&cc, &a));
+                        TEST_ASSERT_DOUBLE_WITHIN(bound + 3.0, exact, estimate(&cl, &a));
+                        TEST_ASSERT_DOUBLE_WITHIN(1.0, exact, estimate(&ce, &a));
+                        worst_t = fmax(worst_t, fabs(tan_err));
+                        worst_c = fmax(worst_c, fabs(estimate(&cc, &a) - exact));
+                        worst_b = fmax(worst_b, bound);
+                    }
+                }
+            }
+        }
+        printf("cec pure lag r=%.0f um: max |tangent err| %.1f nm, max |curvature err| %.1f nm "
+               "(|E|^4/4r^3 up to %.1f nm)\n",
+               radii[ir] / 1e3, worst_t, worst_c, worst_b);
+    }
+}
+
+/* Lag plus a radial deviation d. */
+static void test_circle_lag_and_radial_deviation(void)
+{
+    static const double radii[] = {5e6, 1e7, 2e7, 5e7};
+    static const double lags[] = {1e3, 1e4, 1e5, 5e5};
+    static const double devs[] = {-1e5, -1e4, -1e3, 1e3, 1e4, 1e5};
+    cec_t ct, cc, ce, cl;
+    unsigned ir, il, id, pl;
+    config(&ct, CEC_MODE_TANGENT, 0, 0);
+    config(&cc, CEC_MODE_CURVATURE, 0, 0);
+    config(&ce, CEC_MODE_EXACT, 0, 0);
+    config(&cl, CEC_MODE_CURVATURE, 0, 0);
+    cl.p.lag_from_tangent = true;
+    for (ir = 0; ir < 4; ir++) {
+        for (il = 0; il < 4; il++) {
+            for (id = 0; id < 6; id++) {
+                for (pl = 0; pl < PLANES; pl++) {
+                    int dir;
+                    for (dir = -1; dir <= 1; dir += 2) {
+                        double r = radii[ir], d = devs[id], gam = lags[il] / r;
+                        arc_case_t a;
+                        double eabs, exact, e4;
+                        arc_case(&a, pl, r, 1.234 + pl, dir, gam, d);
+                        exact = arc_exact(&a, pl, dir, &eabs);
+                        e4 = pow(eabs, 4) / (4 * pow(r, 3));
+                        TEST_ASSERT_DOUBLE_WITHIN(1.0, exact, estimate(&ce, &a));
+                        TEST_ASSERT_DOUBLE_WITHIN(d * d / (2 * r) * 1.05 + e4 + 3.0, exact,
+                                                  estimate(&cc, &a));
+                        TEST_ASSERT_DOUBLE_WITHIN(fabs(d) * gam * gam + e4 + 3.0, exact,
+                                                  estimate(&cl, &a));
+                        /* the tangent estimate keeps its -s|E|^2/(2r)-order bias */
+                        TEST_ASSERT_DOUBLE_WITHIN(eabs * eabs / (2 * r) * 1.05 + 3.0, exact,
+                                                  estimate(&ct, &a));
+                    }
+                }
+            }
+        }
+    }
+}
+
+/* Three-axis lines: (EC1 n1 + EC2 n2) is the part of E orthogonal to t. */
+static void test_three_axis_lines(void)
+{
+    cec_t ct, ce;
+    int i, k;
+    srand(11);
+    config(&ct, CEC_MODE_TANGENT, 0, 0);
+    config(&ce, CEC_MODE_EXACT, 0, 0);
+    for (i = 0; i < 3000; i++) {
+        motion_ref_t ref;
+        pos_nm_t meas[CORE_AXES];
+        double t[3], len = 0, e[3], et = 0, lam = rand() % 500000000;
+        memset(&ref, 0, sizeof ref);
+        for (k = 0; k < 3; k++) {
+            t[k] = (double)rand() / RAND_MAX - 0.5;
+            if (i % 3 == 0 && k == 2) {
+                t[k] = 0; /* in-plane line: no second channel */
+            }
+            len += t[k] * t[k];
+        }
+        len = sqrt(len);
+        ref.active = true;
+        ref.geom.kind = MOTION_GEOM_LINE;
+        for (k = 0; k < 3; k++) {
+            t[k] /= len;
+            ref.geom.tangent[k] = Q30(t[k]);
+            ref.geom.start[k] = (rand() % 1000000000) - 500000000;
+            ref.pos[k] = ref.geom.start[k] + llround(lam * t[k]);
+            e[k] = (rand() % 2000001) - 1000000;
+            meas[k] = ref.pos[k] - (pos_nm_t)e[k];
+        }
+        for (k = 0; k < 3; k++) {
+            et += e[k] * t[k];
+        }
+        cec_step(&ct, &ref, meas);
+        cec_step(&ce, &ref, meas);
+        TEST_ASSERT_EQUAL(i % 3 != 0, ct.ch2_on);
+        for (k = 0; k < 3; k++) {
+            /* in-plane lines: the z error is the z loop's, not the CEC's */
+            double perp = (ct.ch2_on || k < 2) ? e[k] - et * t[k] : 0.0;
+            double got_t = (double)ct.ec_nm[0] * ct.n[0][k] / 1073741824.0 +
+                           (double)ct.ec_nm[1] * ct.n[1][k] / 1073741824.0;
+            double got_e = (double)ce.ec_nm[0] * ce.n[0][k] / 1073741824.0 +
+                           (double)ce.ec_nm[1] * ce.n[1][k] / 1073741824.0;
+            /* 1 nm per channel plus the line's own rounding to nm */
+            TEST_ASSERT_DOUBLE_WITHIN(3.0, perp, got_t);
+            TEST_ASSERT_DOUBLE_WITHIN(3.0, perp, got_e);
+        }
+    }
+}
+
+static void test_koren(void)
+{
+    cec_t ck, ct;
+    int i;
+    /* the formula */
+    TEST_ASSERT_EQUAL_INT32(-5, cec_est_koren(0, 5, 10, 0)); /* along +x, error +y */
+    TEST_ASSERT_EQUAL_INT32(5, cec_est_koren(5, 0, 0, 10));
+    TEST_ASSERT_EQUAL_INT32(0, cec_est_koren(5, 5, 0, 0));
+    TEST_ASSERT_EQUAL_INT32(-707, cec_est_koren(0, 1000, 1LL << 40, 1LL << 40));
+    /* on a line far from its start it equals the tangent estimate */
+    config(&ck, CEC_MODE_KOREN, 0, 0);
+    config(&ct, CEC_MODE_TANGENT, 0, 0);
+    for (i = 1; i < 200; i++) {
+        motion_ref_t ref;
+        pos_nm_t meas[CORE_AXES] = {0};
+        double a = i * 0.031;
+        memset(&ref, 0, sizeof ref);
+        ref.active = true;
+        ref.geom.kind = MOTION_GEOM_LINE;
+        ref.geom.tangent[0] = Q30(cos(a));
+        ref.geom.tangent[1] = Q30(sin(a));
+        ref.geom.start[0] = 1000;
+        ref.geom.start[1] = -2000;
+        ref.pos[0] = 1000 + llround(1e7 * i * cos(a));
+        ref.pos[1] = -2000 + llround(1e7 * i * sin(a));
+        meas[0] = ref.pos[0] - 3000 * (i % 7);
+        meas[1] = ref.pos[1] + 5000 * (i % 5);
+        cec_step(&ck, &ref, meas);
+        cec_step(&ct, &ref, meas);
+        TEST_ASSERT_INT32_WITHIN(1, ct.ec_nm[0], ck.ec_nm[0]);
+    }
+}
+
+/* Ux += u sin a, Uy -= u cos a with u = Kp * EC (P-only CEC). */
+static void test_output_distribution(void)
+{
+    cec_t c;
+    int i;
+    config(&c, CEC_MODE_TANGENT, 4e4, 0);
+    for (i = 0; i < 360; i += 13) {
+        motion_ref_t ref;
+        pos_nm_t meas[CORE_AXES] = {0};
+        double a = i * M_PI / 180.0, u;
+        memset(&ref, 0, sizeof ref);
+        ref.active = true;
+        ref.geom.kind = MOTION_GEOM_LINE;
+        ref.geom.tangent[0] = Q30(cos(a));
+        ref.geom.tangent[1] = Q30(sin(a));
+        meas[0] = -7000; /* E = (7000, -3000) */
+        meas[1] = 3000;
+        cec_step(&c, &ref, meas);
+        u = 4e4 * 1e-6 * (7000 * sin(a) + 3000 * cos(a)); /* mV */
+        TEST_ASSERT_INT32_WITHIN(1, lround(7000 * sin(a) + 3000 * cos(a)), c.ec_nm[0]);
+        TEST_ASSERT_DOUBLE_WITHIN(0.05, u * sin(a), UMV(c.out_u[0]));
+        TEST_ASSERT_DOUBLE_WITHIN(0.05, -u * cos(a), UMV(c.out_u[1]));
+        TEST_ASSERT_DOUBLE_WITHIN(1e-3, 0.0, UMV(c.out_u[2]));
+    }
+}
+
+/* In every plane, direction and mode, the correction pushes the machine
+ * towards the path: a machine outside the circle is pushed inward. */
+static void test_correction_points_to_the_path(void)
+{
+    cec_mode_t modes[] = {CEC_MODE_TANGENT, CEC_MODE_CURVATURE, CEC_MODE_EXACT, CEC_MODE_KOREN};
+    unsigned m, pl;
+    for (m = 0; m < 4; m++) {
+        for (pl = 0; pl < PLANES; pl++) {
+            unsigned u = plane_uv[pl][0], v = plane_uv[pl][1];
+            int dir, th, sgn;
+            for (dir = -1; dir <= 1; dir += 2) {
+                for (th = 5; th < 360; th += 50) {
+                    for (sgn = -1; sgn <= 1; sgn += 2) {
+                        cec_t c;
+                        arc_case_t a;
+                        double radial;
+                        config(&c, modes[m], 4e4, 0);
+                        arc_case(&a, pl, 2e7, th * M_PI / 180.0, dir, 1e-4, sgn * 5e4);
+                        cec_step(&c, &a.ref, a.meas);
+                        radial = UMV(c.out_u[u]) * ((double)a.meas[u] - a.c[0]) +
+                                 UMV(c.out_u[v]) * ((double)a.meas[v] - a.c[1]);
+                        TEST_ASSERT_TRUE(sgn * radial < 0);
+                        TEST_ASSERT_EQUAL_INT64(0, c.out_u[3 - u - v]);
+                    }
+                }
+            }
+        }
+    }
+}
+
+static void line_ref(motion_ref_t *ref, double a)
+{
+    memset(ref, 0, sizeof *ref);
+    ref->active = true;
+    ref->geom.kind = MOTION_GEOM_LINE;
+    ref->geom.tangent[0] = Q30(cos(a));
+    ref->geom.tangent[1] = Q30(sin(a));
+}
+
+/* Segment changes: a 90 degree corner hands the whole integral over (it lies
+ * along the new tangent); a tangent-continuous join keeps it. */
+static void test_segment_change_and_handover(void)
+{
+    cec_t c;
+    motion_ref_t ref;
+    pos_nm_t meas[CORE_AXES] = {0, 0, 0};
+    int64_t i1, hsum[CORE_AXES] = {0};
+    int k, j;
+    config(&c, CEC_MODE_TANGENT, 0, 2e6);
+    line_ref(&ref, 0.0); /* along +x: n1 = (0, -1, 0) */
+    meas[1] = 10000;     /* E = (0, -10 um): EC = +10 um */
+    for (k = 0; k < 100; k++) {
+        cec_step(&c, &ref, meas);
+    }
+    i1 = c.ch[0].integ;
+    TEST_ASSERT_TRUE(i1 > 0);
+    /* 2e6 V/(m s) * 1e-5 m * 0.01 s = 0.2 V */
+    TEST_ASSERT_DOUBLE_WITHIN(0.5, 200.0, UMV(i1));
+    /* corner to +y: old integral vector (0, -I, 0) is along -t_new */
+    line_ref(&ref, M_PI / 2);
+    ref.geom.start[1] = 1; /* a new segment */
+    meas[1] = 0;
+    cec_step(&c, &ref, meas);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3, 0.0, UMV(c.ch[0].integ));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3, 0.0, UMV(c.handover_u[0]));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3, -UMV(i1), UMV(c.handover_u[1]));
+
+    /* LINE along +x tangent into an ARC (CW, centre below): integral kept */
+    config(&c, CEC_MODE_TANGENT, 0, 2e6);
+    line_ref(&ref, 0.0);
+    meas[0] = 0;
+    meas[1] = 10000;
+    for (k = 0; k < 100; k++) {
+        cec_step(&c, &ref, meas);
+    }
+    i1 = c.ch[0].integ;
+    ref.geom.kind = MOTION_GEOM_ARC;
+    ref.geom.plane_u = 0;
+    ref.geom.plane_v = 1;
+    ref.geom.centre_u = 0;
+    ref.geom.centre_v = -10000000;
+    ref.geom.radius = 10000000;
+    ref.geom.sense = -1;
+    cec_step(&c, &ref, meas);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3, UMV(i1), UMV(c.ch[0].integ) - 2e6 * 1e-6 * 1e4 / 1e4);
+    for (k = 0; k < CORE_AXES; k++) {
+        TEST_ASSERT_DOUBLE_WITHIN(1e-3, 0.0, UMV(c.handover_u[k]));
+    }
+    TEST_ASSERT_EQUAL_INT8(1, c.s); /* CW: centre on +n1 */
+
+    /* stop (geometry NONE): the whole integral vector is handed over */
+    i1 = c.ch[0].integ;
+    ref.geom.kind = MOTION_GEOM_NONE;
+    cec_step(&c, &ref, meas);
+    TEST_ASSERT_FALSE(c.active);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3, 0.0, UMV(c.handover_u[0]));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3, -UMV(i1), UMV(c.handover_u[1]));
+    for (k = 0; k < CORE_AXES; k++) {
+        TEST_ASSERT_EQUAL_INT64(0, c.out_u[k]);
+    }
+    TEST_ASSERT_EQUAL_INT64(0, c.ch[0].integ);
+
+    /* handover off: dropped */
+    config(&c, CEC_MODE_TANGENT, 0, 2e6);
+    c.p.handover = false;
+    line_ref(&ref, 0.0);
+    for (k = 0; k < 10; k++) {
+        cec_step(&c, &ref, meas);
+    }
+    ref.active = false;
+    cec_step(&c, &ref, meas);
+    for (j = 0; j < CORE_AXES; j++) {
+        hsum[j] += c.handover_u[j];
+        TEST_ASSERT_EQUAL_INT64(0, hsum[j]);
+    }
+}
+
+/* Mode change is bumpless too; OFF gives nothing; bad geometry is refused. */
+static void test_modes_and_bad_geometry(void)
+{
+    cec_t c;
+    arc_case_t a;
+    pid_err_t perr = PID_OK;
+    cec_params_t p;
+    config(&c, CEC_MODE_OFF, 4e4, 2e6);
+    arc_case(&a, 0, 2e7, 0.5, 1, 1e-3, 1e4);
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_FALSE(c.active);
+    TEST_ASSERT_EQUAL_INT64(0, c.out_u[0]);
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&c, CEC_MODE_EXACT));
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_TRUE(c.active);
+    TEST_ASSERT_TRUE(c.out_u[0] != 0);
+    TEST_ASSERT_EQUAL_INT(CEC_ERR_MODE, cec_set_mode(&c, CEC_MODE_COUNT));
+    TEST_ASSERT_EQUAL_STRING("curvature", cec_mode_name(CEC_MODE_CURVATURE));
+
+    a.ref.geom.radius = 0;
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_FALSE(c.active);
+    TEST_ASSERT_EQUAL_UINT32(1, c.bad_geom);
+    a.ref.geom.radius = 20000000;
+    a.ref.geom.plane_v = 0; /* u == v */
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_EQUAL_UINT32(2, c.bad_geom);
+    a.ref.geom.plane_v = 1;
+    a.ref.geom.tangent[0] = a.ref.geom.tangent[1] = 0;
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_EQUAL_UINT32(3, c.bad_geom);
+    a.ref.geom.kind = (motion_geom_kind_t)7;
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_EQUAL_UINT32(4, c.bad_geom);
+
+    /* configuration errors leave the controller unchanged */
+    p = c.p;
+    p.mode = CEC_MODE_COUNT;
+    TEST_ASSERT_EQUAL_INT(CEC_ERR_MODE, cec_config(&c, &p, &perr));
+    p = c.p;
+    p.pid.ki = -1;
+    TEST_ASSERT_EQUAL_INT(CEC_ERR_PID, cec_config(&c, &p, &perr));
+    TEST_ASSERT_EQUAL_INT(PID_ERR_GAIN, perr);
+    TEST_ASSERT_EQUAL_INT(CEC_MODE_EXACT, c.p.mode);
+    TEST_ASSERT_EQUAL_INT(CEC_ERR_NULL, cec_config(&c, NULL, NULL));
+}
+
+static void test_saturation_flag(void)
+{
+    cec_t c;
+    cec_params_t p;
+    arc_case_t a;
+    config(&c, CEC_MODE_EXACT, 4e4, 0);
+    p = c.p;
+    p.pid.out_max_mv = 1000;
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&c, &p, NULL));
+    arc_case(&a, 0, 2e7, 0.5, 1, 0, 1e5); /* 100 um outside: 4 V wanted */
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_TRUE(c.saturated);
+    TEST_ASSERT_DOUBLE_WITHIN(0.01, 1000.0, fabs(UMV(c.ch[0].out)));
+    arc_case(&a, 0, 2e7, 0.5, 1, 0, 1e3); /* 1 um: 40 mV */
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_FALSE(c.saturated);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_normals);
+    RUN_TEST(test_curvature_correction_vs_double);
+    RUN_TEST(test_circle_pure_lag_grid);
+    RUN_TEST(test_circle_lag_and_radial_deviation);
+    RUN_TEST(test_three_axis_lines);
+    RUN_TEST(test_koren);
+    RUN_TEST(test_output_distribution);
+    RUN_TEST(test_correction_points_to_the_path);
+    RUN_TEST(test_segment_change_and_handover);
+    RUN_TEST(test_modes_and_bad_geometry);
+    RUN_TEST(test_saturation_flag);
+    return UNITY_END();
+}

@@ -1,0 +1,155 @@
+/*
+ * Interpolator: per-tick references from the planner's frozen segments.
+ *
+ * The random path test runs 100 000 random blocks (lengths 0.02-3 mm, random
+ * directions, feeds 10-300 mm/s, some exact stops, S-curve and trapezoid
+ * halves) through the planner and the interpolator exactly as the drive's
+ * main loop does (push until full before each pop), and checks on every tick:
+ *   - per-axis speed by differencing positions: |dp| <= v_i h + 1 nm;
+ *   - per-axis acceleration by second differences inside a block:
+ *     |d2p| <= a_i h^2 + 2 nm (rounding of the positions to 1 nm);
+ *   - per-axis jerk from the acceleration feed-forward (closed form, not
+ *     rounded to nm): |d acc| <= j_i h + 1 nm/s^2 inside S-curve blocks;
+ *   - feed-forward speed and acceleration within the axis limits;
+ *   - every block ends within one tick of the sum of the estimated block
+ *     times (plan_estimate() on the same moves, the job-time estimator's
+ *     entry point): |end tick * h - cumulative estimate| < h;
+ *   - the final position is the last target, exactly; no underrun.
+ * Under ASan the unit test uses a 1 ms tick (1.6 million ticks); the same
+ * check at 10 kHz (16 million ticks) runs unsanitized in bench-planner.sh
+ * (`interp_random_path_*` figures).
+ */
+#include "estimator.h"
+#include "interp.h"
+#include "planner.h"
+#include "unity.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "path_check.h"
+
+void setUp(void)
+{
+}
+
+void tearDown(void)
+{
+}
+
+static void test_single_block_lands_exactly(void)
+{
+    static plan_block_t store[8];
+    plan_profile_t prof = pc_profile(SC_SHAPE_SCURVE);
+    plan_t p;
+    interp_t ip;
+    motion_ref_t ref;
+    plan_move_t m;
+    plan_seg_t seg;
+    const pos_nm_t o[CORE_AXES] = {1, 2, 3};
+    uint64_t n = 0;
+    int64_t total;
+
+    memset(&m, 0, sizeof(m));
+    m.target[0] = 12345679;
+    m.target[1] = -7654321;
+    m.target[2] = 3;
+    m.feed = 50000000;
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&p, store, 8, &prof, o));
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&p, &m));
+    total = plan_queued_ns(&p);
+    interp_init(&ip, 100000, o);
+    TEST_ASSERT_EQUAL_UINT(1, interp_refill(&ip, &p));
+    seg = ip.fifo[0];
+    TEST_ASSERT_EQUAL_INT64(total, seg.total_ns);
+    do {
+        interp_tick(&ip, &ref);
+        n++;
+        TEST_ASSERT_TRUE(n < 10000000);
+    } while (!interp_idle(&ip));
+    TEST_ASSERT_EQUAL_UINT64((uint64_t)((total + 99999) / 100000), n);
+    TEST_ASSERT_EQUAL_INT64(12345679, ref.pos[0]);
+    TEST_ASSERT_EQUAL_INT64(-7654321, ref.pos[1]);
+    TEST_ASSERT_EQUAL_INT64(3, ref.pos[2]);
+    TEST_ASSERT_EQUAL_INT64(0, ref.vel[0]);
+    /* idle afterwards: holds, inactive */
+    interp_tick(&ip, &ref);
+    TEST_ASSERT_FALSE(ref.active);
+    TEST_ASSERT_EQUAL_INT64(12345679, ref.pos[0]);
+    TEST_ASSERT_EQUAL_INT(MOTION_GEOM_NONE, ref.geom.kind);
+}
+
+static void test_geometry_and_feed_forward(void)
+{
+    static plan_block_t store[8];
+    plan_profile_t prof = pc_profile(SC_SHAPE_TRAPEZOID);
+    plan_t p;
+    interp_t ip;
+    motion_ref_t ref;
+    plan_move_t m;
+    const pos_nm_t o[CORE_AXES] = {0, 0, 0};
+    int k;
+
+    memset(&m, 0, sizeof(m));
+    m.target[0] = 30000000; /* 3-4-5 triangle: tangent (0.6, 0.8) */
+    m.target[1] = 40000000;
+    m.feed = 50000000;
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&p, store, 8, &prof, o));
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&p, &m));
+    interp_init(&ip, 100000, o);
+    interp_refill(&ip, &p);
+    for (k = 0; k < 3000; k++) {
+        interp_tick(&ip, &ref);
+    }
+    TEST_ASSERT_EQUAL_INT(MOTION_GEOM_LINE, ref.geom.kind);
+    TEST_ASSERT_INT_WITHIN(2, (int32_t)(0.6 * (1 << 30)), ref.geom.tangent[0]);
+    TEST_ASSERT_INT_WITHIN(2, (int32_t)(0.8 * (1 << 30)), ref.geom.tangent[1]);
+    TEST_ASSERT_EQUAL_INT64(0, ref.geom.start[0]);
+    /* cruising at 50 mm/s: feed-forward 30 and 40 mm/s, no acceleration */
+    TEST_ASSERT_INT64_WITHIN(2, 30000000, ref.vel[0]);
+    TEST_ASSERT_INT64_WITHIN(2, 40000000, ref.vel[1]);
+    TEST_ASSERT_EQUAL_INT64(0, ref.acc[0]);
+    TEST_ASSERT_TRUE(ref.active);
+}
+
+static void test_random_path_100k(void)
+{
+    pc_result_t r;
+    pc_run(100000, 1000000, 12345u, SC_SHAPE_SCURVE, &r); /* 1 ms tick under ASan */
+    if (getenv("INTERP_REPORT")) {
+        pc_print("interp_scurve_1khz", &r);
+    }
+    TEST_ASSERT_EQUAL_UINT32(100000, r.blocks);
+    TEST_ASSERT_EQUAL_UINT32(0, r.limit_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.time_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.underruns);
+    TEST_ASSERT_TRUE(r.final_exact);
+    TEST_ASSERT_TRUE(r.total_ticks_ok);
+    TEST_ASSERT_TRUE(r.max_block_err_ns < 1000000);
+}
+
+static void test_random_path_trapezoid(void)
+{
+    pc_result_t r;
+    pc_run(20000, 250000, 777u, SC_SHAPE_TRAPEZOID, &r);
+    if (getenv("INTERP_REPORT")) {
+        pc_print("interp_trapezoid_4khz", &r);
+    }
+    TEST_ASSERT_EQUAL_UINT32(20000, r.blocks);
+    TEST_ASSERT_EQUAL_UINT32(0, r.limit_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.time_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.underruns);
+    TEST_ASSERT_TRUE(r.final_exact);
+    TEST_ASSERT_TRUE(r.total_ticks_ok);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_single_block_lands_exactly);
+    RUN_TEST(test_geometry_and_feed_forward);
+    RUN_TEST(test_random_path_100k);
+    RUN_TEST(test_random_path_trapezoid);
+    return UNITY_END();
+}

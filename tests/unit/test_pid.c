@@ -1,0 +1,498 @@
+/* PID: gain conversion, step, ramp, D filter, feed-forward, saturation and
+ * anti-windup, deadband, bumpless enable/reset/gain change, position reset,
+ * parameter validation and extremes. */
+#include "pid.h"
+#include "unity.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void setUp(void)
+{
+}
+
+void tearDown(void)
+{
+}
+
+#define Q32(x) ((q32_32_t)llround((double)(x)*4294967296.0))
+
+static double coef_value(pid_coef_t c)
+{
+    return (double)c.m * ldexp(1.0, -c.sh);
+}
+
+static pid_params_t params(double kp, double ki, double kd, uint32_t hz)
+{
+    pid_params_t p;
+    memset(&p, 0, sizeof p);
+    p.kp = Q32(kp);
+    p.ki = Q32(ki);
+    p.kd = Q32(kd);
+    p.out_max_mv = 160000;
+    p.i_max_mv = 160000;
+    p.tick_hz = hz;
+    return p;
+}
+
+static void start(pid_loop_t *pid, const pid_params_t *p)
+{
+    memset(pid, 0, sizeof *pid);
+    TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(pid, p));
+    pid_enable(pid, 0);
+    pid_reset(pid, false); /* hard start: the first step is the plain law */
+}
+
+static void test_coef_make_matches_double(void)
+{
+    unsigned i;
+    srand(7);
+    for (i = 0; i < 20000; i++) {
+        int64_t num = ((int64_t)rand() << 31 | rand()) >> (rand() % 60);
+        uint32_t mul = (uint32_t)rand() >> (rand() % 31);
+        uint64_t den = (((uint64_t)rand() << 31 | (uint64_t)rand()) >> (rand() % 60)) | 1u;
+        double want;
+        pid_coef_t c;
+        if (rand() & 1) {
+            num = -num;
+        }
+        want = (double)num * (double)mul / (double)den;
+        if (!pid_coef_make(&c, num, mul, den)) {
+            TEST_ASSERT_TRUE(fabs(want) >= ldexp(1.0, 61));
+            continue;
+        }
+        if (fabs(want) < ldexp(1.0, -32)) {
+            TEST_ASSERT_TRUE(fabs(coef_value(c) - want) <= ldexp(1.0, -62));
+            continue;
+        }
+        /* 31 significant bits, rounded: relative error <= 2^-30 */
+        TEST_ASSERT_TRUE(fabs(coef_value(c) - want) <= fabs(want) * ldexp(1.0, -30));
+    }
+}
+
+static void test_coef_make_edges(void)
+{
+    pid_coef_t c;
+    TEST_ASSERT_TRUE(pid_coef_make(&c, 0, 5, 3));
+    TEST_ASSERT_EQUAL_INT32(0, c.m);
+    TEST_ASSERT_TRUE(pid_coef_make(&c, INT64_MIN, 1, (uint64_t)1 << 32)); /* -2^31 */
+    TEST_ASSERT_EQUAL_INT64(-((int64_t)1 << 31) * 5, pid_coef_apply(c, 5));
+    TEST_ASSERT_FALSE(pid_coef_make(&c, INT64_MIN, 0xFFFFFFFFu, 1)); /* 2^95: too large */
+    TEST_ASSERT_FALSE(pid_coef_make(&c, 1, 1, 0));
+    TEST_ASSERT_FALSE(pid_coef_make(&c, 1, 1, (uint64_t)1 << 62));
+    TEST_ASSERT_TRUE(pid_coef_make(&c, 3, 1, 1));
+    TEST_ASSERT_EQUAL_INT64(-3000, pid_coef_apply(c, -1000));
+    TEST_ASSERT_TRUE(pid_coef_make(&c, 1, 1, 3)); /* 1/3 */
+    TEST_ASSERT_EQUAL_INT64(333, pid_coef_apply(c, 1000));
+    TEST_ASSERT_EQUAL_INT64(-333, pid_coef_apply(c, -1000));
+    /* left shifts saturate at the term limit */
+    TEST_ASSERT_TRUE(pid_coef_make(&c, INT64_MAX / 4, 1, 1));
+    TEST_ASSERT_TRUE(c.sh < 0);
+    TEST_ASSERT_EQUAL_INT64(PID_TERM_LIM, pid_coef_apply(c, INT32_MAX));
+    TEST_ASSERT_EQUAL_INT64(-PID_TERM_LIM, pid_coef_apply(c, INT32_MIN));
+}
+
+/* The thesis's gains (and the CEC's) at 333 Hz .. 20 kHz keep 30 bits. */
+static void test_config_resolution_over_tick_rates(void)
+{
+    static const uint32_t rates[] = {333, 1000, 10000, 20000};
+    static const double gains[][3] = {{1.5e3, 8e3, 5}, {4e4, 2e6, 100}, {1, 1, 1e-4}};
+    unsigned r, g;
+    for (r = 0; r < 4; r++) {
+        for (g = 0; g < 3; g++) {
+            double f = rates[r], u = ldexp(1.0, 32);
+            pid_params_t p = params(gains[g][0], gains[g][1], gains[g][2], rates[r]);
+            pid_loop_t pid;
+            /* the gains as the q32_32 input holds them (2^-32 resolution) */
+            double kp = (double)p.kp / u, ki = (double)p.ki / u, kd = (double)p.kd / u;
+            p.kvff = Q32(25.0);
+            p.kaff = Q32(0.05);
+            start(&pid, &p);
+            TEST_ASSERT_DOUBLE_WITHIN(kp * 1e-6 * u * 1e-8, kp * 1e-6 * u, coef_value(pid.cp));
+            TEST_ASSERT_DOUBLE_WITHIN(ki * 1e-6 / f * u * 1e-8, ki * 1e-6 / f * u,
+                                      coef_value(pid.ci));
+            TEST_ASSERT_DOUBLE_WITHIN(kd * 1e-6 * f * u * 1e-8, kd * 1e-6 * f * u,
+                                      coef_value(pid.cd));
+            TEST_ASSERT_DOUBLE_WITHIN(25.0 * 4e-6 * u * 1e-8, 25.0 * 4e-6 * u, coef_value(pid.cv));
+            TEST_ASSERT_DOUBLE_WITHIN(0.05 * 1.024e-3 * u * 1e-8, 0.05 * 1.024e-3 * u,
+                                      coef_value(pid.ca));
+        }
+    }
+}
+
+static void test_proportional_step(void)
+{
+    pid_params_t p = params(1.5e3, 0, 0, 10000);
+    pid_loop_t pid;
+    start(&pid, &p);
+    /* 1 mm * 1500 V/m = 1.5 V */
+    TEST_ASSERT_EQUAL_INT32(1500, pid_step(&pid, 1000000, 0, 0, 0, 0));
+    TEST_ASSERT_EQUAL_INT32(1500, pid_step(&pid, 1000000, 0, 0, 0, 0)); /* no integral */
+    TEST_ASSERT_EQUAL_INT32(-1500, pid_step(&pid, 0, 1000000, 0, 0, 0));
+    TEST_ASSERT_EQUAL_INT32(-1000000, pid.err_nm);
+    TEST_ASSERT_FALSE(pid.saturated);
+    /* 1 nm gives 0.0015 mV: carried in the output's fraction */
+    pid_step(&pid, 1, 0, 0, 0, 0);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 0.0015, (double)pid.out / 4294967296.0);
+}
+
+/* Integral of a constant error: Ki * e * t, at three tick rates. */
+static void test_integral_ramp(void)
+{
+    static const uint32_t rates[] = {333, 10000, 20000};
+    unsigned r;
+    for (r = 0; r < 3; r++) {
+        pid_params_t p = params(0, 8e3, 0, rates[r]);
+        pid_loop_t pid;
+        unsigned k, n = rates[r] / 4; /* 0.25 s */
+        int32_t out = 0;
+        start(&pid, &p);
+        pid_step(&pid, 0, 0, 0, 0, 0); /* bumpless start at 0 */
+        for (k = 0; k < n; k++) {
+            out = pid_step(&pid, 10000, 0, 0, 0, 0); /* 10 um */
+        }
+        /* 8e3 V/(m s) * 1e-5 m * n / f s = 20 mV at 0.25 s */
+        TEST_ASSERT_INT32_WITHIN(1, (int32_t)lround(8e3 * 1e-5 * n / rates[r] * 1e3), out);
+    }
+}
+
+/* D on the error, unfiltered: Kd * de/dt exactly; filtered: first order. */
+static void test_derivative_and_filter(void)
+{
+    pid_params_t p = params(0, 0, 5, 10000);
+    pid_loop_t pid;
+    double d = 0, alpha;
+    unsigned k;
+    start(&pid, &p);
+    pid_step(&pid, 0, 0, 0, 0, 0);
+    /* ramp 100 nm per tick = 1 mm/s: 5 V*s/m * 1e-3 m/s = 5 mV */
+    TEST_ASSERT_EQUAL_INT32(5, pid_step(&pid, 100, 0, 0, 0, 0));
+    TEST_ASSERT_EQUAL_INT32(5, pid_step(&pid, 200, 0, 0, 0, 0));
+    TEST_ASSERT_EQUAL_INT32(0, pid_step(&pid, 200, 0, 0, 0, 0));
+
+    p.d_tau_us = 1000; /* 1 ms at 10 kHz: alpha = 1/11 */
+    start(&pid, &p);
+    pid_step(&pid, 0, 0, 0, 0, 0);
+    alpha = 1.0 / 11.0;
+    for (k = 1; k <= 50; k++) {
+        pid_step(&pid, (pos_nm_t)k * 1000, 0, 0, 0, 0); /* 10 mm/s: 50 mV */
+        d += alpha * (50.0 - d);
+        TEST_ASSERT_DOUBLE_WITHIN(1e-3, d, (double)pid.dterm / 4294967296.0);
+    }
+}
+
+/* D on the measurement ignores reference steps; D on the error kicks. */
+static void test_derivative_on_measurement_has_no_setpoint_kick(void)
+{
+    pid_params_t p = params(0, 0, 5, 10000);
+    pid_loop_t pid;
+    p.d_on_measurement = true;
+    start(&pid, &p);
+    pid_step(&pid, 0, 0, 0, 0, 0);
+    TEST_ASSERT_EQUAL_INT32(0, pid_step(&pid, 1000000, 0, 0, 0, 0));
+    TEST_ASSERT_EQUAL_INT32(-50, pid_step(&pid, 1000000, 1000, 0, 0, 0)); /* moving +10 mm/s */
+    p.d_on_measurement = false;
+    start(&pid, &p);
+    pid_step(&pid, 0, 0, 0, 0, 0);
+    TEST_ASSERT_EQUAL_INT32(50000, pid_step(&pid, 1000000, 0, 0, 0, 0));
+}
+
+static void test_feed_forward(void)
+{
+    pid_params_t p = params(0, 0, 0, 10000);
+    pid_loop_t pid;
+    p.kvff = Q32(20.0); /* V per m/s */
+    p.kaff = Q32(0.5);  /* V per m/s^2 */
+    start(&pid, &p);
+    pid_step(&pid, 0, 0, 0, 0, 0);
+    TEST_ASSERT_EQUAL_INT32(2000, pid_step(&pid, 0, 0, 100000000, 0, 0));   /* 0.1 m/s */
+    TEST_ASSERT_EQUAL_INT32(-500, pid_step(&pid, 0, 0, 0, -1000000000, 0)); /* -1 m/s^2 */
+    TEST_ASSERT_EQUAL_INT32(2500, pid_step(&pid, 0, 0, 100000000, 1000000000, 0));
+    /* 5 m/s and 100 m/s^2 (beyond int32 nm units) still scale linearly */
+    TEST_ASSERT_EQUAL_INT32(100000, pid_step(&pid, 0, 0, 5000000000LL, 0, 0));
+    TEST_ASSERT_EQUAL_INT32(50000, pid_step(&pid, 0, 0, 0, 100000000000LL, 0));
+    /* extra input (U) adds before the clamp */
+    TEST_ASSERT_EQUAL_INT32(7, pid_step(&pid, 0, 0, 0, 0, (int64_t)7 << 32));
+}
+
+static void test_saturation_flag_and_counters(void)
+{
+    pid_params_t p = params(1.5e3, 0, 0, 10000);
+    pid_loop_t pid;
+    unsigned k;
+    p.out_max_mv = 10000;
+    start(&pid, &p);
+    for (k = 0; k < 5; k++) {
+        TEST_ASSERT_EQUAL_INT32(10000, pid_step(&pid, 100000000, 0, 0, 0, 0)); /* 150 V wanted */
+        TEST_ASSERT_TRUE(pid.saturated);
+        TEST_ASSERT_EQUAL_UINT32(k + 1, pid.sat_ticks);
+    }
+    TEST_ASSERT_EQUAL_INT32(-10000, pid_step(&pid, -100000000, 0, 0, 0, 0));
+    TEST_ASSERT_EQUAL_UINT32(6, pid.sat_ticks);
+    TEST_ASSERT_EQUAL_INT32(1500, pid_step(&pid, 1000000, 0, 0, 0, 0));
+    TEST_ASSERT_FALSE(pid.saturated);
+    TEST_ASSERT_EQUAL_UINT32(0, pid.sat_ticks);
+    TEST_ASSERT_EQUAL_UINT32(6, pid.sat_total);
+}
+
+/* Saturate for 2.5 s with a constant error, then reverse the error: with
+ * back-calculation the integrator stays near the clamp boundary and the
+ * output leaves saturation quickly; without it the integrator winds up to its
+ * clamp and the output stays saturated much longer. */
+static unsigned windup_recovery_ticks(q32_32_t kt, int64_t *integ_after)
+{
+    pid_params_t p = params(1.5e3, 8e3, 0, 10000);
+    pid_loop_t pid;
+    unsigned k;
+    p.out_max_mv = 20000;
+    p.i_max_mv = 160000;
+    p.kt = kt;
+    start(&pid, &p);
+    for (k = 0; k < 25000; k++) {
+        pid_step(&pid, 10000000, 0, 0, 0, 0); /* 10 mm: P alone 15 V, I grows */
+    }
+    *integ_after = pid.integ;
+    for (k = 0; k < 100000; k++) {
+        pid_step(&pid, -1000000, 0, 0, 0, 0); /* -1 mm */
+        if (!pid.saturated) {
+            return k;
+        }
+    }
+    return k;
+}
+
+static void test_anti_windup_back_calculation(void)
+{
+    int64_t i_bc, i_clamp;
+    unsigned t_bc = windup_recovery_ticks(Q32(200.0), &i_bc);
+    unsigned t_clamp = windup_recovery_ticks(0, &i_clamp);
+    /* clamp only: the integrator reaches its clamp (160 V) */
+    TEST_ASSERT_EQUAL_INT64((int64_t)160000 << 32, i_clamp);
+    /* back-calculation: equilibrium Ki*e = Kt*(raw - u): I = u - P + Ki e / Kt
+     * = 20 - 15 + 8e3 * 0.01 / 200 = 5.4 V */
+    TEST_ASSERT_DOUBLE_WITHIN(0.05, 5.4, (double)i_bc / 4294967296.0 / 1000.0);
+    TEST_ASSERT_TRUE(t_bc < 5);
+    TEST_ASSERT_TRUE(t_clamp > 1000);
+}
+
+static void test_integrator_clamp(void)
+{
+    pid_params_t p = params(0, 8e6, 0, 1000);
+    pid_loop_t pid;
+    unsigned k;
+    p.i_max_mv = 3000;
+    start(&pid, &p);
+    for (k = 0; k < 1000; k++) {
+        pid_step(&pid, 1000000, 0, 0, 0, 0);
+    }
+    TEST_ASSERT_EQUAL_INT32(3000, pid.out_mv);
+    TEST_ASSERT_FALSE(pid.saturated);
+    for (k = 0; k < 1000; k++) {
+        pid_step(&pid, -1000000, 0, 0, 0, 0);
+    }
+    TEST_ASSERT_EQUAL_INT32(-3000, pid.out_mv);
+}
+
+static void test_deadband_is_continuous(void)
+{
+    pid_params_t p = params(1e6, 1e6, 0, 10000); /* 1 mV/nm */
+    pid_loop_t pid;
+    unsigned k;
+    p.deadband_nm = 100;
+    start(&pid, &p);
+    pid_step(&pid, 0, 0, 0, 0, 0);
+    for (k = 0; k < 100; k++) {
+        TEST_ASSERT_EQUAL_INT32(0, pid_step(&pid, 100, 0, 0, 0, 0));
+        TEST_ASSERT_EQUAL_INT32(0, pid_step(&pid, 0, 100, 0, 0, 0));
+    }
+    /* just outside: e - db */
+    p.ki = 0;
+    start(&pid, &p);
+    pid_step(&pid, 0, 0, 0, 0, 0);
+    TEST_ASSERT_EQUAL_INT32(1, pid_step(&pid, 101, 0, 0, 0, 0));
+    TEST_ASSERT_EQUAL_INT32(-900, pid_step(&pid, 0, 1000, 0, 0, 0));
+}
+
+static void test_bumpless_enable(void)
+{
+    pid_params_t p = params(1.5e3, 8e3, 5, 10000);
+    pid_loop_t pid;
+    int32_t a, b;
+    memset(&pid, 0, sizeof pid);
+    TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&pid, &p));
+    /* disabled: output 0 while tracking a moving axis */
+    TEST_ASSERT_EQUAL_INT32(0, pid_step(&pid, 5000, 0, 0, 0, 0));
+    TEST_ASSERT_EQUAL_INT32(0, pid_step(&pid, 5000, 200, 0, 0, 0));
+    pid_enable(&pid, 1234);
+    a = pid_step(&pid, 5000, 200, 0, 0, 0);
+    TEST_ASSERT_EQUAL_INT32(1234, a);
+    b = pid_step(&pid, 5000, 200, 0, 0, 0);
+    /* continues smoothly: only the integral of one tick and D of no motion */
+    TEST_ASSERT_INT32_WITHIN(3, 1234, b);
+}
+
+static void test_bumpless_gain_change(void)
+{
+    pid_params_t p = params(1.5e3, 8e3, 5, 10000);
+    pid_loop_t pid;
+    int32_t before, after;
+    unsigned k;
+    start(&pid, &p);
+    for (k = 0; k < 100; k++) {
+        before = pid_step(&pid, 2000000, (pos_nm_t)k * 10, 0, 0, 0);
+    }
+    p.kp = Q32(3e3);
+    TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&pid, &p));
+    after = pid_step(&pid, 2000000, 1000, 0, 0, 0);
+    TEST_ASSERT_EQUAL_INT32(before, after);
+    /* and then the new gain acts: a 1 mm error change moves the output by 3 V */
+    before = pid_step(&pid, 2000000, 1000, 0, 0, 0);
+    after = pid_step(&pid, 3000000, 1000, 0, 0, 0);
+    TEST_ASSERT_INT32_WITHIN(60, 3000 + 50000, after - before); /* P + D kick (on error) */
+}
+
+static void test_reset(void)
+{
+    pid_params_t p = params(1.5e3, 8e3, 5, 10000);
+    pid_loop_t pid;
+    unsigned k;
+    int32_t last = 0;
+    start(&pid, &p);
+    for (k = 0; k < 1000; k++) {
+        last = pid_step(&pid, 1000000, 0, 0, 0, 0);
+    }
+    TEST_ASSERT_TRUE(pid.integ > 0);
+    /* bumpless reset: the output continues */
+    pid_reset(&pid, true);
+    TEST_ASSERT_EQUAL_INT32(last, pid_step(&pid, 1000000, 0, 0, 0, 0));
+    /* hard reset: integral and D cleared, no derivative kick on the first step */
+    pid_reset(&pid, false);
+    TEST_ASSERT_EQUAL_INT64(0, pid.integ);
+    TEST_ASSERT_INT32_WITHIN(1, 1500 + 1, pid_step(&pid, 1000000, 0, 0, 0, 0));
+    TEST_ASSERT_EQUAL_INT64(0, pid.dterm);
+}
+
+/* A homing/index reset moves measurement and reference by 1 m while the axis
+ * moves at 0.1 m/s with feed-forward: the output must not jump. */
+static void test_position_reset_no_spike(void)
+{
+    pid_params_t p = params(1.5e3, 8e3, 5, 10000);
+    pid_loop_t pid, bad;
+    pos_nm_t off = 0, pos = 0;
+    int32_t prev = 0, out, bad_out;
+    unsigned k;
+    p.d_on_measurement = true;
+    p.kvff = Q32(25.0);
+    p.kaff = Q32(0.02);
+    start(&pid, &p);
+    start(&bad, &p);
+    for (k = 0; k < 2000; k++) {
+        pos += 10000; /* 0.1 m/s at 10 kHz */
+        if (k == 1000) {
+            off = 1000000000;
+            pid_rebase(&pid, off);
+        }
+        out = pid_step(&pid, pos + 5000 + off, pos + off, 100000000, 0, 0);
+        bad_out = pid_step(&bad, pos + 5000 + off, pos + off, 100000000, 0, 0);
+        if (k > 10) {
+            TEST_ASSERT_INT32_WITHIN(2, prev, out);
+        }
+        if (k == 1000) {
+            /* the same loop without the rebase sees a 1 m step in 0.1 ms */
+            TEST_ASSERT_TRUE(abs(bad_out - out) > 100000);
+        }
+        prev = out;
+    }
+}
+
+static void test_config_validation_all_or_nothing(void)
+{
+    pid_params_t good = params(1.5e3, 8e3, 5, 10000), p;
+    pid_loop_t pid;
+    pid_loop_t copy;
+    start(&pid, &good);
+    pid_step(&pid, 1000, 0, 0, 0, 0);
+    copy = pid;
+
+    p = good;
+    p.tick_hz = 99;
+    TEST_ASSERT_EQUAL_INT(PID_ERR_TICK_HZ, pid_config(&pid, &p));
+    p.tick_hz = 100001;
+    TEST_ASSERT_EQUAL_INT(PID_ERR_TICK_HZ, pid_config(&pid, &p));
+    p = good;
+    p.kd = -1;
+    TEST_ASSERT_EQUAL_INT(PID_ERR_GAIN, pid_config(&pid, &p));
+    p = good;
+    p.kvff = PID_GAIN_MAX;
+    TEST_ASSERT_EQUAL_INT(PID_ERR_GAIN, pid_config(&pid, &p));
+    p = good;
+    p.out_max_mv = 0;
+    TEST_ASSERT_EQUAL_INT(PID_ERR_OUT_MAX, pid_config(&pid, &p));
+    p.out_max_mv = PID_MV_MAX + 1;
+    TEST_ASSERT_EQUAL_INT(PID_ERR_OUT_MAX, pid_config(&pid, &p));
+    p = good;
+    p.i_max_mv = -1;
+    TEST_ASSERT_EQUAL_INT(PID_ERR_I_MAX, pid_config(&pid, &p));
+    p = good;
+    p.deadband_nm = -5;
+    TEST_ASSERT_EQUAL_INT(PID_ERR_DEADBAND, pid_config(&pid, &p));
+    p = good;
+    p.d_tau_us = PID_DFILT_US_MAX + 1;
+    TEST_ASSERT_EQUAL_INT(PID_ERR_D_FILTER, pid_config(&pid, &p));
+    TEST_ASSERT_EQUAL_INT(PID_ERR_NULL, pid_config(&pid, NULL));
+    TEST_ASSERT_EQUAL_MEMORY(&copy, &pid, sizeof pid);
+    TEST_ASSERT_EQUAL_STRING("d_tau_us above 10 s", pid_strerror(PID_ERR_D_FILTER));
+}
+
+/* Largest gains at the fastest tick with extreme inputs: no overflow (UBSan
+ * runs these tests), outputs clamped. */
+static void test_extremes(void)
+{
+    pid_params_t p = params(1.0737e9, 1.0737e9, 1.0737e9, PID_TICK_HZ_MAX);
+    pid_loop_t pid;
+    p.kvff = PID_GAIN_MAX - 1;
+    p.kaff = PID_GAIN_MAX - 1;
+    p.kt = PID_GAIN_MAX - 1;
+    p.out_max_mv = PID_MV_MAX;
+    p.i_max_mv = PID_MV_MAX;
+    start(&pid, &p);
+    TEST_ASSERT_EQUAL_INT32(PID_MV_MAX,
+                            pid_step(&pid, INT64_MAX, INT64_MIN, INT64_MAX, INT64_MAX, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT32(INT32_MAX, pid.err_nm);
+    TEST_ASSERT_EQUAL_INT32(-PID_MV_MAX,
+                            pid_step(&pid, INT64_MIN, INT64_MAX, INT64_MIN, INT64_MIN, INT64_MIN));
+    TEST_ASSERT_EQUAL_INT32(PID_MV_MAX,
+                            pid_step(&pid, INT64_MAX, INT64_MIN, INT64_MAX, INT64_MAX, INT64_MAX));
+    TEST_ASSERT_TRUE(pid.saturated);
+    /* smallest tick rate with tiny gains: nothing rounds to a wrong sign */
+    p = params(1e-3, 1e-3, 1e-3, PID_TICK_HZ_MIN);
+    start(&pid, &p);
+    pid_step(&pid, 0, 0, 0, 0, 0);
+    TEST_ASSERT_TRUE(pid_step(&pid, 1000000000, 0, 0, 0, 0) >= 0);
+    TEST_ASSERT_TRUE(pid.out > 0);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_coef_make_matches_double);
+    RUN_TEST(test_coef_make_edges);
+    RUN_TEST(test_config_resolution_over_tick_rates);
+    RUN_TEST(test_proportional_step);
+    RUN_TEST(test_integral_ramp);
+    RUN_TEST(test_derivative_and_filter);
+    RUN_TEST(test_derivative_on_measurement_has_no_setpoint_kick);
+    RUN_TEST(test_feed_forward);
+    RUN_TEST(test_saturation_flag_and_counters);
+    RUN_TEST(test_anti_windup_back_calculation);
+    RUN_TEST(test_integrator_clamp);
+    RUN_TEST(test_deadband_is_continuous);
+    RUN_TEST(test_bumpless_enable);
+    RUN_TEST(test_bumpless_gain_change);
+    RUN_TEST(test_reset);
+    RUN_TEST(test_position_reset_no_spike);
+    RUN_TEST(test_config_validation_all_or_nothing);
+    RUN_TEST(test_extremes);
+    return UNITY_END();
+}

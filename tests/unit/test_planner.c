@@ -1,0 +1,440 @@
+/*
+ * Planner: CuraEngine-style cases with times checked against closed forms,
+ * the cornering rules against their formulas, the minimum block time as a
+ * throughput limit, and the incremental look-ahead against a from-scratch
+ * re-plan of the same queue after every push (the passes only revisit
+ * blocks whose plan can change, yet must give the same speeds).
+ */
+#include "estimator.h"
+#include "planner.h"
+#include "unity.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#define MM  1000000LL /* nm */
+#define MMS 1000000LL /* nm/s per mm/s */
+
+static plan_block_t store[256];
+static plan_t pl;
+
+void setUp(void)
+{
+}
+
+void tearDown(void)
+{
+}
+
+static plan_profile_t base_profile(uint8_t shape, uint8_t corner)
+{
+    plan_profile_t p;
+    int i;
+    memset(&p, 0, sizeof(p));
+    for (i = 0; i < CORE_AXES; i++) {
+        p.v_max[i] = 500 * MMS;
+        p.a_max[i] = 2000 * MMS;
+        p.j_max[i] = 50000 * MMS;
+        p.corner_dv[i] = 5 * MMS;
+        p.corner_acc[i] = 300 * MMS;
+    }
+    p.junction_dev_nm = 10000; /* 0.01 mm */
+    p.min_block_ns = 0;
+    p.mbt_window = 1;
+    p.corner = corner;
+    p.shape = shape;
+    return p;
+}
+
+static const pos_nm_t origin[CORE_AXES] = {0, 0, 0};
+
+static plan_move_t mv(int64_t x, int64_t y, int64_t z, int64_t feed_mm_s)
+{
+    plan_move_t m;
+    memset(&m, 0, sizeof(m));
+    m.target[0] = x;
+    m.target[1] = y;
+    m.target[2] = z;
+    m.feed = feed_mm_s * MMS;
+    return m;
+}
+
+/* run moves through plan_estimate (depth 64) */
+static int64_t run(const plan_profile_t *prof, const plan_move_t *m, uint32_t n, plan_est_t *out)
+{
+    uint32_t bad = 0, i;
+    int64_t sum = 0;
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_estimate(prof, origin, m, n, store, 64, out, &bad));
+    for (i = 0; i < n; i++) {
+        sum += out[i].t_total_ns;
+    }
+    return sum;
+}
+
+/* ---- single moves ----------------------------------------------------------- */
+
+static void test_single_move_rest_to_rest(void)
+{
+    plan_profile_t t = base_profile(SC_SHAPE_TRAPEZOID, PLAN_CORNER_JD);
+    plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    plan_move_t m = mv(100 * MM, 0, 0, 100);
+    plan_est_t o[4];
+
+    /* trapezoidal: L/v + v/A = 1 + 0.05 s */
+    TEST_ASSERT_INT64_WITHIN(5, 1050000000, run(&t, &m, 1, o));
+    TEST_ASSERT_EQUAL_INT64(100 * MMS, o[0].v_peak);
+    TEST_ASSERT_INT64_WITHIN(2, 50000000, o[0].t_acc_ns);
+    TEST_ASSERT_INT64_WITHIN(2, 50000000, o[0].t_dec_ns);
+    /* S-curve: L/v + v/A + A/J = 1 + 0.05 + 0.04 s */
+    TEST_ASSERT_INT64_WITHIN(5, 1090000000, run(&s, &m, 1, o));
+    TEST_ASSERT_INT64_WITHIN(2, 90000000, o[0].t_acc_ns);
+    /* triangular (trapezoid never reaching feed): 1 mm at 2 m/s^2, 2 sqrt(L/A) */
+    m = mv(1 * MM, 0, 0, 100);
+    TEST_ASSERT_INT64_WITHIN(5, 44721360, run(&t, &m, 1, o));
+    TEST_ASSERT_INT64_WITHIN(3, 44721359, o[0].v_peak);
+    TEST_ASSERT_TRUE(o[0].t_cruise_ns <= 5);
+}
+
+static void test_short_move_never_reaches_feed(void)
+{
+    plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    plan_move_t m = mv(0, 50000, 0, 100); /* 0.05 mm at F6000 */
+    plan_est_t o[1];
+    double J = 50.0, L = 50e-6; /* reduced 4-phase: L = 2 J tj^3 */
+    double tj = cbrt(L / (2 * J));
+    int64_t t = run(&s, &m, 1, o);
+    TEST_ASSERT_TRUE(o[0].v_peak < 100 * MMS);
+    /* peak from a closed-form lower bound: within 0.2 % of the optimum 4 tj */
+    TEST_ASSERT_TRUE((double)t >= 4 * tj * 1e9 - 5);
+    TEST_ASSERT_TRUE((double)t <= 4 * tj * 1e9 * 1.002);
+}
+
+/* ---- junctions ------------------------------------------------------------------ */
+
+static void test_collinear_junction_keeps_speed(void)
+{
+    plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    plan_move_t m[2] = {mv(50 * MM, 0, 0, 100), mv(100 * MM, 0, 0, 100)};
+    plan_move_t one = mv(100 * MM, 0, 0, 100);
+    plan_est_t o[2];
+    int64_t t2 = run(&s, m, 2, o), t1;
+    TEST_ASSERT_EQUAL_INT64(100 * MMS, o[0].v_exit);
+    TEST_ASSERT_EQUAL_INT64(100 * MMS, o[1].v_entry);
+    t1 = run(&s, &one, 1, o);
+    TEST_ASSERT_INT64_WITHIN(10, t1, t2);
+}
+
+static double corner_speed(uint8_t corner, int64_t dx2, int64_t dy2, int64_t len1, int64_t *entry)
+{
+    plan_profile_t s = base_profile(SC_SHAPE_SCURVE, corner);
+    plan_move_t m[2] = {mv(len1, 0, 0, 400), mv(len1 + dx2, dy2, 0, 400)};
+    plan_est_t o[2];
+    run(&s, m, 2, o);
+    *entry = o[1].v_entry;
+    return (double)o[1].v_entry;
+}
+
+static void test_90_degree_junction_rules(void)
+{
+    int64_t e;
+    /* junction deviation: v^2 = a_j dev s / (1 - s), s = sin 45, a_j = 2000 sqrt 2 */
+    double s = sqrt(0.5), aj = 2000e6 * sqrt(2.0);
+    double ref = sqrt(aj * 10000.0 * s / (1 - s));
+    corner_speed(PLAN_CORNER_JD, 0, 100 * MM, 100 * MM, &e);
+    TEST_ASSERT_TRUE(fabs((double)e - ref) <= 1e-4 * ref + 2);
+    /* velocity step: v = dv / |du| = 5 mm/s / 1 */
+    corner_speed(PLAN_CORNER_VSTEP, 0, 100 * MM, 100 * MM, &e);
+    TEST_ASSERT_INT64_WITHIN(2, 5 * MMS, e);
+    /* smoothed corner: v = sqrt(a_c l / |du|), l = 100 mm, |du| = 1 */
+    ref = sqrt(300e6 * 100e6 / 1.0);
+    corner_speed(PLAN_CORNER_SMOOTH, 0, 100 * MM, 100 * MM, &e);
+    TEST_ASSERT_TRUE(fabs((double)e - ref) <= 1e-6 * ref + 2);
+    /* smoothed corner on short blocks: l = 0.1 mm, 10 degree turn */
+    {
+        double ang = 10.0 * M_PI / 180.0, du = 1 - cos(ang);
+        int64_t l = 100000, dx = (int64_t)llround(100000 * cos(ang)),
+                dy = (int64_t)llround(100000 * sin(ang));
+        double dux = fabs((double)dx / hypot((double)dx, (double)dy) - 1.0);
+        double duy = fabs((double)dy / hypot((double)dx, (double)dy));
+        double vx = sqrt(300e6 * 1e5 / dux), vy = sqrt(300e6 * 1e5 / duy);
+        (void)du;
+        ref = fmin(vx, vy);
+        corner_speed(PLAN_CORNER_SMOOTH, dx, dy, l, &e);
+        /* the entry can also be limited by stopping at the end of block 2 */
+        TEST_ASSERT_TRUE((double)e <= ref * (1 + 1e-5) + 2);
+    }
+    /* exact-stop rule */
+    corner_speed(PLAN_CORNER_STOP, 0, 100 * MM, 100 * MM, &e);
+    TEST_ASSERT_EQUAL_INT64(0, e);
+}
+
+static void test_reversal_stops(void)
+{
+    int rules[3] = {PLAN_CORNER_JD, PLAN_CORNER_VSTEP, PLAN_CORNER_SMOOTH}, i;
+    for (i = 0; i < 3; i++) {
+        plan_profile_t s = base_profile(SC_SHAPE_SCURVE, (uint8_t)rules[i]);
+        /* X reverses while Y keeps going: a stop on the reversing axis */
+        plan_move_t m[2] = {mv(10 * MM, 10 * MM, 0, 100), mv(9 * MM, 20 * MM, 0, 100)};
+        plan_est_t o[2];
+        run(&s, m, 2, o);
+        TEST_ASSERT_EQUAL_INT64(0, o[0].v_exit);
+        TEST_ASSERT_EQUAL_INT64(0, o[1].v_entry);
+    }
+}
+
+static void test_exact_stop_vs_continuous(void)
+{
+    plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    plan_move_t m[3] = {mv(10 * MM, 0, 0, 100), mv(20 * MM, 1 * MM, 0, 100),
+                        mv(30 * MM, 1 * MM, 0, 100)};
+    plan_est_t o[3];
+    int64_t cont = run(&s, m, 3, o), stop;
+    TEST_ASSERT_TRUE(o[0].v_exit > 0);
+    m[0].flags = PLAN_MOVE_EXACT_STOP;
+    m[1].flags = PLAN_MOVE_EXACT_STOP;
+    stop = run(&s, m, 3, o);
+    TEST_ASSERT_EQUAL_INT64(0, o[0].v_exit);
+    TEST_ASSERT_EQUAL_INT64(0, o[1].v_exit);
+    TEST_ASSERT_EQUAL_INT64(0, o[2].v_entry);
+    TEST_ASSERT_TRUE(stop > cont + 50000000); /* each stop costs > 25 ms here */
+}
+
+/* ---- minimum block time ----------------------------------------------------------- */
+
+static plan_move_t moves[4096];
+static plan_est_t outs[4096];
+
+/* Trapezoidal mode: in S-curve mode the acceleration is zero at every block
+ * boundary, so 0.01 mm blocks cannot reach 22 mm/s within a 64-block
+ * look-ahead (see test_scurve_micro_blocks_are_slow below). */
+static void test_tiny_blocks_at_min_block_time(void)
+{
+    plan_profile_t s = base_profile(SC_SHAPE_TRAPEZOID, PLAN_CORNER_JD);
+    int i;
+    s.min_block_ns = 450000; /* 0.45 ms */
+    s.mbt_window = 8;
+    /* 2000 collinear 0.01 mm blocks at F15000 (0.04 ms each kinematically) */
+    for (i = 0; i < 2000; i++) {
+        moves[i] = mv((i + 1) * 10000, 0, 0, 250);
+    }
+    run(&s, moves, 2000, outs);
+    /* steady state: every block exactly the minimum time */
+    for (i = 100; i < 1900; i++) {
+        TEST_ASSERT_INT64_WITHIN(2, 450000, outs[i].t_total_ns);
+        TEST_ASSERT_TRUE(outs[i].flags & PLAN_BF_MBT);
+        TEST_ASSERT_EQUAL_INT64(outs[i].t_total_ns, outs[i].t_mbt_ns);
+    }
+    /* any run of n >= 8 consecutive blocks takes at least n * 0.45 ms */
+    {
+        int64_t run8 = 0;
+        for (i = 0; i < 2000; i++) {
+            run8 += outs[i].t_total_ns - (i >= 8 ? outs[i - 8].t_total_ns : 0);
+            if (i >= 7) {
+                TEST_ASSERT_TRUE(run8 >= 8 * 450000 - 16);
+            }
+        }
+    }
+}
+
+/* Documented limitation of the per-block S-curve (acceleration zero at each
+ * block end): the same micro-blocks settle far below the throughput speed. */
+static void test_scurve_micro_blocks_are_slow(void)
+{
+    plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    int i;
+    s.min_block_ns = 450000;
+    s.mbt_window = 8;
+    for (i = 0; i < 1000; i++) {
+        moves[i] = mv((i + 1) * 10000, 0, 0, 250);
+    }
+    run(&s, moves, 1000, outs);
+    TEST_ASSERT_TRUE(outs[500].v_peak < 22222222 / 2);
+    TEST_ASSERT_TRUE(outs[500].t_total_ns > 2 * 450000);
+}
+
+static void test_short_block_between_long_ones_not_slowed(void)
+{
+    plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    plan_est_t o[3];
+    plan_move_t m[3] = {mv(10 * MM, 0, 0, 100), mv(10 * MM + 20000, 0, 0, 100),
+                        mv(20 * MM, 0, 0, 100)};
+    s.min_block_ns = 450000;
+    s.mbt_window = 8; /* throughput */
+    run(&s, m, 3, o);
+    TEST_ASSERT_EQUAL_INT64(100 * MMS, o[1].v_peak); /* 0.02 mm in 0.2 ms */
+    TEST_ASSERT_INT64_WITHIN(2, 200000, o[1].t_total_ns);
+    TEST_ASSERT_FALSE(o[1].flags & PLAN_BF_MBT);
+    s.mbt_window = 1; /* per-block cap: the short block takes 0.45 ms */
+    run(&s, m, 3, o);
+    TEST_ASSERT_TRUE(o[1].flags & PLAN_BF_MBT);
+    TEST_ASSERT_TRUE(o[1].t_total_ns >= 450000 - 2);
+}
+
+/* ---- look-ahead: incremental passes == from-scratch plan ------------------------- */
+
+static uint64_t rs = 0x2545F4914F6CDD1Dull;
+static uint64_t rnd(void)
+{
+    rs ^= rs << 13;
+    rs ^= rs >> 7;
+    rs ^= rs << 17;
+    return rs;
+}
+
+static void check_against_scratch(const plan_t *p)
+{
+    int64_t ent[256];
+    int n = plan_count(p), i;
+    /* reverse from rest at the end, forward from the fixed oldest entry */
+    int64_t exit = 0;
+    for (i = n - 1; i >= 1; i--) {
+        const plan_block_t *b = plan_peek(p, (uint16_t)i);
+        int64_t e = sc_reach(exit, b->len, &b->lim);
+        ent[i] = e < b->v_junction ? e : b->v_junction;
+        exit = ent[i];
+    }
+    ent[0] = plan_peek(p, 0)->v_entry;
+    for (i = 0; i + 1 < n; i++) {
+        const plan_block_t *b = plan_peek(p, (uint16_t)i);
+        if (ent[i] < ent[i + 1]) {
+            int64_t r = sc_reach(ent[i], b->len, &b->lim);
+            if (r < ent[i + 1]) {
+                ent[i + 1] = r;
+            }
+        }
+    }
+    for (i = 0; i < n; i++) {
+        TEST_ASSERT_EQUAL_INT64(ent[i], plan_peek(p, (uint16_t)i)->v_entry);
+    }
+}
+
+static void test_incremental_equals_scratch(void)
+{
+    int corner;
+    for (corner = 0; corner < 3; corner++) {
+        plan_profile_t s = base_profile((uint8_t)(corner == 1), (uint8_t)corner);
+        plan_seg_t seg;
+        pos_nm_t pos[3] = {0, 0, 0};
+        int k, pushed = 0;
+        int64_t last_exit = 0;
+        s.min_block_ns = corner == 2 ? 450000 : 0;
+        s.mbt_window = 4;
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 64, &s, origin));
+        for (k = 0; k < 3000; k++) {
+            plan_move_t m;
+            int ax;
+            /* mostly small steps in a wandering direction, sometimes long */
+            int64_t scale = (rnd() % 10 == 0) ? 20 * MM : (int64_t)(rnd() % 500000) + 1000;
+            for (ax = 0; ax < 3; ax++) {
+                pos[ax] += (int64_t)(rnd() % 2001) * scale / 1000 - scale;
+            }
+            m = mv(pos[0], pos[1], pos[2], 20 + (int64_t)(rnd() % 300));
+            m.flags = (rnd() % 50 == 0) ? PLAN_MOVE_EXACT_STOP : 0;
+            if (plan_free_slots(&pl) == 0) {
+                TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&pl, &seg));
+                TEST_ASSERT_EQUAL_INT64(last_exit, seg.prof.v0);
+                last_exit = seg.prof.v1;
+                TEST_ASSERT_TRUE(seg.prof.vp <= seg.prof.len * 0 + 500 * MMS * 2);
+            }
+            if (plan_push(&pl, &m) == PLAN_OK) {
+                pushed++;
+            }
+            check_against_scratch(&pl);
+        }
+        TEST_ASSERT_TRUE(pushed > 2900);
+    }
+}
+
+/* ---- queue accounting and errors -------------------------------------------------- */
+
+static void test_queue_time_slots_and_errors(void)
+{
+    plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    plan_profile_t bad;
+    plan_move_t m;
+    plan_seg_t seg;
+    int64_t q, sum = 0;
+    int i;
+
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 4, &s, origin));
+    TEST_ASSERT_EQUAL_UINT16(4, plan_free_slots(&pl));
+    for (i = 0; i < 4; i++) {
+        m = mv((i + 1) * 10 * MM, (i % 2) * MM, 0, 100);
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pl, &m));
+    }
+    TEST_ASSERT_EQUAL_UINT16(0, plan_free_slots(&pl));
+    m.target[2] = MM;
+    TEST_ASSERT_EQUAL_INT(PLAN_E_FULL, plan_push(&pl, &m));
+    m.target[2] = 0;
+    q = plan_queued_ns(&pl);
+    while (plan_pop(&pl, &seg) == PLAN_OK) {
+        sum += seg.total_ns;
+    }
+    TEST_ASSERT_EQUAL_INT64(sum, q); /* queued time == executed plan (nothing changed) */
+    TEST_ASSERT_EQUAL_INT(PLAN_E_EMPTY, plan_pop(&pl, &seg));
+    /* zero-length move: skipped, nothing queued */
+    TEST_ASSERT_EQUAL_INT(PLAN_SKIPPED, plan_push(&pl, &m));
+    TEST_ASSERT_EQUAL_UINT16(0, plan_count(&pl));
+    /* bad feed, range, dwell */
+    m = mv(0, 0, 0, 100);
+    m.feed = 0;
+    TEST_ASSERT_EQUAL_INT(PLAN_E_FEED, plan_push(&pl, &m));
+    m = mv((int64_t)1 << 50, 0, 0, 100);
+    TEST_ASSERT_EQUAL_INT(PLAN_E_RANGE, plan_push(&pl, &m));
+    m.dwell_ns = -1;
+    TEST_ASSERT_EQUAL_INT(PLAN_E_ARG, plan_push(&pl, &m));
+    TEST_ASSERT_EQUAL_UINT16(0, plan_count(&pl));
+    /* dwell: a stop and its time */
+    m = mv(0, 0, 0, 0);
+    m.dwell_ns = 250000000;
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pl, &m));
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&pl, &seg));
+    TEST_ASSERT_EQUAL_INT64(250000000, seg.total_ns);
+    /* profiles */
+    bad = s;
+    bad.a_max[1] = 0;
+    TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&bad));
+    bad = s;
+    bad.j_max[0] = 100 * MMS; /* a/j = 20 s > 3 s */
+    TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&bad));
+    bad.shape = SC_SHAPE_TRAPEZOID; /* jerk unused: fine */
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_check_profile(&bad));
+    bad = s;
+    bad.mbt_window = 0;
+    TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&bad));
+    bad = s;
+    bad.corner = 9;
+    TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_init(&pl, store, 4, &bad, origin));
+    TEST_ASSERT_EQUAL_INT(PLAN_E_ARG, plan_init(&pl, store, 0, &s, origin));
+}
+
+/* the axis limits are projected: a diagonal block is limited by each axis */
+static void test_axis_limits_projected(void)
+{
+    plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    plan_est_t o[1];
+    plan_move_t m = mv(300 * MM, 400 * MM, 0, 2000);
+    s.v_max[1] = 100 * MMS; /* Y: 100 mm/s, u_y = 0.8: path 125 mm/s */
+    run(&s, &m, 1, o);
+    TEST_ASSERT_INT64_WITHIN(1, 125 * MMS, o[0].v_max);
+    TEST_ASSERT_INT64_WITHIN(1, 125 * MMS, o[0].v_peak);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_single_move_rest_to_rest);
+    RUN_TEST(test_short_move_never_reaches_feed);
+    RUN_TEST(test_collinear_junction_keeps_speed);
+    RUN_TEST(test_90_degree_junction_rules);
+    RUN_TEST(test_reversal_stops);
+    RUN_TEST(test_exact_stop_vs_continuous);
+    RUN_TEST(test_tiny_blocks_at_min_block_time);
+    RUN_TEST(test_scurve_micro_blocks_are_slow);
+    RUN_TEST(test_short_block_between_long_ones_not_slowed);
+    RUN_TEST(test_incremental_equals_scratch);
+    RUN_TEST(test_queue_time_slots_and_errors);
+    RUN_TEST(test_axis_limits_projected);
+    return UNITY_END();
+}
