@@ -36,7 +36,7 @@ M4_CFLAGS  := $(WARN) -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -O2 -ffreestandin
               -ffunction-sections -fdata-sections $(INC)
 
 .SECONDARY:
-.PHONY: all deps venv host test unit m4-check pytest run bench lint fuzz firmware clean distclean
+.PHONY: all deps venv host test unit m4-check pytest run bench lint fuzz firmware clean distclean proto
 
 all: deps venv host
 
@@ -59,6 +59,16 @@ $(STAMP)/venv: host_tools/pyproject.toml | $(STAMP)/apt
 	test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install -q -e 'host_tools[dev]'
 	@touch $@
+
+# ---- protocol: generated from protocol/contour.toml (see protocol/README.md) ----
+PROTO_GEN := firmware/core/proto_msgs.h firmware/core/proto_msgs.c \
+             host_tools/contour/protocol_gen.py protocol/contour.dbc
+
+proto: $(PROTO_GEN)
+
+$(PROTO_GEN) &: protocol/contour.toml protocol/gen.py
+	python3 protocol/gen.py
+	@touch $(PROTO_GEN)
 
 # ---- host build: the core and the simulator as one shared library ---------
 host: $(BUILD)/host/libcontour.so
@@ -95,6 +105,11 @@ pytest: venv host
 	$(PY) -m pytest -q tests/python
 
 test: deps unit m4-check pytest
+
+# ---- fuzzing: libFuzzer harnesses (clang) of the frame decoder and dispatcher ----
+FUZZ_RUNS ?= 1000000
+fuzz: deps
+	./tests/fuzz/run.sh $(FUZZ_RUNS)
 
 # ---- demo, benchmarks, lint ------------------------------------------------
 run: all

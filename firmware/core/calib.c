@@ -1,0 +1,877 @@
+/*
+ * calib.c - calibration mode and compensation tables of the drive (see
+ * calib.h).
+ */
+#include "calib.h"
+
+#include "comp_store.h"
+#include "crc.h"
+#include "proto_msgs.h"
+
+typedef enum {
+    PH_PRE = 0, /* start the move to the approach point        */
+    PH_PRE_WAIT,
+    PH_MOVE, /* start the move to the target                */
+    PH_MOVE_WAIT,
+    PH_DWELL,
+    PH_ROOM,
+    PH_SAMPLE
+} phase_t;
+
+static struct {
+    /* run (main) */
+    calib_state_t state;
+    uint8_t axis;
+    uint8_t flags;
+    uint16_t points;
+    uint8_t cycles;
+    uint16_t samples;
+    uint16_t sample_ticks;
+    uint16_t dwell_ms;
+    uint32_t overrun;
+    uint32_t feed;
+    pos_nm_t target[CALIB_POINTS_MAX];
+    uint8_t loaded[(CALIB_POINTS_MAX + 7) / 8];
+    uint16_t nloaded;
+    uint32_t leg;        /* run: leg index; repeat: unused          */
+    bool repeat;         /* measuring a single leg (calib_point)    */
+    uint16_t leg_point;  /* point, direction and cycle of the leg   */
+    int8_t leg_dir;
+    uint8_t leg_cycle;
+    bool leg_pre;        /* the leg starts with an approach move     */
+    phase_t phase;
+    uint32_t done_mark;  /* blocks_done to reach                     */
+    uint64_t dwell_end;  /* tick at which the dwell ends             */
+    uint16_t legs_done;
+    uint8_t reason;
+    int32_t detail;
+    /* sample ring: oldest written by main, next by the tick */
+    calib_sample_t ring[CALIB_RING];
+    volatile uint32_t seq_next;
+    uint32_t seq_oldest;
+    /* tick-side sampling order (armed by main) */
+    volatile bool s_active;
+    uint16_t s_left;
+    uint16_t s_phase;
+    pos_nm_t s_target;
+    /* compensation */
+    comp_table_t tab[CORE_AXES][2];
+    uint8_t act[CORE_AXES]; /* index of the active buffer, 0xFF: none */
+    uint8_t slot[CORE_AXES];
+    comp_ramp_t ramp[CORE_AXES];
+    uint8_t stage[COMP_RECORD_MAX];
+    int16_t stage_axis;
+    /* protocol */
+    calib_handler_fn next;
+    bool cache_valid;
+    uint8_t cache_id, cache_seq;
+    uint32_t cache_crc;
+    uint16_t cache_req_len;
+    uint16_t cache_len;
+    uint8_t cache[PROTO_MSG_MAX];
+} cb;
+
+/* ---- helpers ---------------------------------------------------------------- */
+
+static int32_t sat_diff(pos_nm_t a, pos_nm_t b)
+{
+    return fx_sat32(fx_sat_sub64(a, b));
+}
+
+static uint32_t ring_used(void)
+{
+    return cb.seq_next - cb.seq_oldest;
+}
+
+static unsigned axes(void)
+{
+    const drive_config_t *c = drive_config();
+    return c != NULL ? c->axes : 0u;
+}
+
+static uint32_t tick_hz(void)
+{
+    const drive_config_t *c = drive_config();
+    return c != NULL && c->tick_hz > 0u ? c->tick_hz : CORE_TICK_HZ_DEFAULT;
+}
+
+/* ---- compensation ---------------------------------------------------------------- */
+
+static void comp_install(unsigned axis, const comp_table_t *t, unsigned slot)
+{
+    uint8_t next = cb.act[axis] == 0u ? 1u : 0u;
+    comp_table_t *dst = &cb.tab[axis][next];
+    *dst = *t;
+    dst->dir_src = &cb.ramp[axis];
+    comp_ramp_set_time(&cb.ramp[axis], t->ramp_us, tick_hz());
+    drive_set_comp(axis, t->n > 0u ? dst : NULL);
+    cb.act[axis] = t->n > 0u ? next : 0xFFu;
+    cb.slot[axis] = (uint8_t)slot;
+}
+
+const comp_table_t *calib_comp_active(unsigned axis)
+{
+    if (axis >= CORE_AXES || cb.act[axis] > 1u) {
+        return NULL;
+    }
+    return &cb.tab[axis][cb.act[axis]];
+}
+
+/* ---- init, tick ---------------------------------------------------------------------- */
+
+void calib_init(void)
+{
+    static comp_table_t t;
+    unsigned i, slot;
+    calib_handler_fn next = cb.next;
+
+    cb.state = CALIB_IDLE;
+    cb.s_active = false;
+    cb.seq_next = 0u;
+    cb.seq_oldest = 0u;
+    cb.points = 0u;
+    cb.nloaded = 0u;
+    cb.legs_done = 0u;
+    cb.reason = 0u;
+    cb.detail = 0;
+    cb.stage_axis = -1;
+    cb.cache_valid = false;
+    cb.next = next;
+    for (i = 0; i < CORE_AXES; i++) {
+        cb.act[i] = 0xFFu;
+        cb.slot[i] = 0xFFu;
+        comp_ramp_init(&cb.ramp[i], 0u, tick_hz());
+        if (i < axes() && comp_store_load(i, &t, &slot) == COMP_STORE_OK) {
+            comp_install(i, &t, slot);
+        }
+    }
+}
+
+void calib_tick(const drive_status_t *st)
+{
+    unsigned i;
+    if (st == NULL) {
+        return;
+    }
+    for (i = 0; i < CORE_AXES; i++) {
+        comp_ramp_step(&cb.ramp[i], st->vel_ref[i]);
+    }
+    if (!cb.s_active) {
+        return;
+    }
+    if (++cb.s_phase < cb.sample_ticks) {
+        return;
+    }
+    cb.s_phase = 0u;
+    {
+        uint32_t seq = cb.seq_next;
+        calib_sample_t *s = &cb.ring[seq % CALIB_RING];
+        uint8_t a = cb.axis;
+        s->seq = seq;
+        s->point = cb.leg_point;
+        s->cycle = cb.leg_cycle;
+        s->flags = (uint8_t)((cb.leg_dir < 0 ? CALIB_SAMPLE_NEG : 0u) |
+                             ((cb.flags & CALIB_FLAG_HOST_REFERENCE) ? CALIB_SAMPLE_NO_REF : 0u) |
+                             (st->faults != 0u ? CALIB_SAMPLE_FAULT : 0u));
+        s->enc = sat_diff(st->pos_raw[a], cb.s_target);
+        s->comp = sat_diff(st->pos[a], cb.s_target);
+        s->ref = (cb.flags & CALIB_FLAG_HOST_REFERENCE) ? 0 : sat_diff(st->refscale[a], cb.s_target);
+        cb.seq_next = seq + 1u;
+    }
+    if (--cb.s_left == 0u) {
+        cb.s_active = false;
+    }
+}
+
+/* ---- run state machine (main) ------------------------------------------------------------ */
+
+static void fail(uint8_t reason, int32_t detail)
+{
+    cb.s_active = false;
+    cb.state = CALIB_ERROR;
+    cb.reason = reason;
+    cb.detail = detail;
+}
+
+/* Leg k of the run: point, direction, cycle and whether it starts with an
+ * approach move (the first leg of each pass). */
+static void leg_of(uint32_t k)
+{
+    uint32_t per = 2u * cb.points;
+    uint32_t j = k % per;
+    cb.leg_cycle = (uint8_t)(k / per);
+    if (j < cb.points) {
+        cb.leg_point = (uint16_t)j;
+        cb.leg_dir = 1;
+        cb.leg_pre = j == 0u;
+    } else {
+        cb.leg_point = (uint16_t)(per - 1u - j);
+        cb.leg_dir = -1;
+        cb.leg_pre = j == cb.points;
+    }
+    cb.phase = cb.leg_pre ? PH_PRE : PH_MOVE;
+}
+
+/* Queue one exact-stop move of the calibrated axis to pos. */
+static bool start_move(pos_nm_t pos)
+{
+    drive_status_t st;
+    drive_block_t b;
+    drive_result_t r;
+    unsigned i;
+
+    drive_snapshot(&st);
+    for (i = 0; i < CORE_AXES; i++) {
+        b.target[i] = st.ref[i];
+    }
+    b.kind = DRIVE_BLOCK_LINE;
+    b.tag = 0xCA1B0000u | (cb.leg & 0xFFFFu);
+    b.target[cb.axis] = pos;
+    b.feed_nm_s = cb.feed;
+    b.exact_stop = true;
+    b.plane = DRIVE_PLANE_XY;
+    b.centre_u = 0;
+    b.centre_v = 0;
+    b.sense = 1;
+    b.dwell_ms = 0u;
+    r = drive_queue_block(&b);
+    if (r == DRIVE_E_FULL) {
+        return false; /* try again at the next poll */
+    }
+    if (r != DRIVE_OK) {
+        fail(PROTO_CALIB_STATUS_MOTION, (int32_t)r);
+        return false;
+    }
+    cb.done_mark = st.blocks_done + 1u;
+    return true;
+}
+
+static bool move_done(const drive_status_t *st)
+{
+    return (int32_t)(st->blocks_done - cb.done_mark) >= 0 && st->state == DRIVE_IDLE;
+}
+
+static void leg_finished(void)
+{
+    cb.legs_done++;
+    if (cb.repeat) {
+        cb.repeat = false;
+        cb.state = CALIB_DONE;
+        return;
+    }
+    cb.leg++;
+    if (cb.leg >= 2u * (uint32_t)cb.points * cb.cycles) {
+        cb.state = CALIB_DONE;
+        return;
+    }
+    leg_of(cb.leg);
+}
+
+void calib_poll(void)
+{
+    drive_status_t st;
+    pos_nm_t t;
+
+    if (cb.state != CALIB_RUNNING) {
+        return;
+    }
+    drive_snapshot(&st);
+    if (st.state == DRIVE_FAULT) {
+        drive_stop();
+        fail(PROTO_CALIB_STATUS_DRIVE_FAULT, (int32_t)st.faults);
+        return;
+    }
+    if (st.state == DRIVE_DISABLED) {
+        fail(PROTO_CALIB_STATUS_DRIVE_DISABLED, 0);
+        return;
+    }
+    t = cb.target[cb.leg_point];
+    switch (cb.phase) {
+    case PH_PRE:
+        if (start_move(t - (pos_nm_t)cb.leg_dir * (pos_nm_t)cb.overrun)) {
+            cb.phase = PH_PRE_WAIT;
+        }
+        break;
+    case PH_PRE_WAIT:
+        if (move_done(&st)) {
+            cb.phase = PH_MOVE;
+        }
+        break;
+    case PH_MOVE:
+        if (start_move(t)) {
+            cb.phase = PH_MOVE_WAIT;
+        }
+        break;
+    case PH_MOVE_WAIT:
+        if (move_done(&st)) {
+            cb.dwell_end = st.tick + (uint64_t)cb.dwell_ms * tick_hz() / 1000u;
+            cb.phase = PH_DWELL;
+        }
+        break;
+    case PH_DWELL:
+        if (st.tick >= cb.dwell_end) {
+            cb.phase = PH_ROOM;
+        }
+        break;
+    case PH_ROOM:
+        if (CALIB_RING - ring_used() >= cb.samples) {
+            cb.s_target = t;
+            cb.s_left = cb.samples;
+            cb.s_phase = 0u;
+            cb.phase = PH_SAMPLE;
+            cb.s_active = true; /* hand over to the tick (last store) */
+        }
+        break;
+    case PH_SAMPLE:
+        if (!cb.s_active) {
+            leg_finished();
+        }
+        break;
+    default:
+        break;
+    }
+}
+
+/* ---- read-outs ------------------------------------------------------------------------------ */
+
+calib_state_t calib_state(void)
+{
+    return cb.state;
+}
+
+uint32_t calib_seq_next(void)
+{
+    return cb.seq_next;
+}
+
+bool calib_sample(uint32_t seq, calib_sample_t *out)
+{
+    if (out == NULL || (uint32_t)(seq - cb.seq_oldest) >= ring_used()) {
+        return false;
+    }
+    *out = cb.ring[seq % CALIB_RING];
+    return true;
+}
+
+static void put16(uint8_t *p, uint16_t v)
+{
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
+}
+
+static void put32(uint8_t *p, uint32_t v)
+{
+    put16(p, (uint16_t)v);
+    put16(p + 2, (uint16_t)(v >> 16));
+}
+
+static uint32_t get32(const uint8_t *p)
+{
+    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
+}
+
+void calib_sample_encode(const calib_sample_t *s, uint8_t *b)
+{
+    put32(b, s->seq);
+    put16(b + 4, s->point);
+    b[6] = s->cycle;
+    b[7] = s->flags;
+    put32(b + 8, (uint32_t)s->enc);
+    put32(b + 12, (uint32_t)s->comp);
+    put32(b + 16, (uint32_t)s->ref);
+}
+
+/* ---- protocol ---------------------------------------------------------------------------------- */
+
+static size_t reply_error(uint8_t *out, uint8_t req, uint8_t seq, uint8_t code, uint16_t arg,
+                          int64_t lo)
+{
+    proto_error_t e;
+    e.req = req;
+    e.code = code;
+    e.arg = arg;
+    e.lo = lo;
+    e.hi = 0;
+    out[0] = (uint8_t)PROTO_MSG_ERROR;
+    out[1] = seq;
+    return PROTO_MSG_HDR + proto_error_encode(&e, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+}
+
+static size_t refuse(uint8_t *out, const uint8_t *msg, uint8_t status, int64_t detail)
+{
+    return reply_error(out, msg[0], msg[1], (uint8_t)PROTO_ERROR_CODE_CALIB, status, detail);
+}
+
+static size_t reply_state(uint8_t *out, uint8_t seq)
+{
+    proto_calib_state_t s;
+    s.state = (uint8_t)cb.state;
+    s.axis = cb.axis;
+    s.reason = cb.reason;
+    s.flags = cb.flags;
+    s.points = cb.points;
+    s.targets_loaded = cb.nloaded;
+    s.point = cb.leg_point;
+    s.dir = cb.leg_dir;
+    s.cycle = cb.leg_cycle;
+    s.legs_done = cb.legs_done;
+    s.legs_total = (uint16_t)(2u * (uint32_t)cb.points * cb.cycles);
+    s.seq_next = cb.seq_next;
+    s.seq_oldest = cb.seq_oldest;
+    s.detail = cb.detail;
+    out[0] = (uint8_t)PROTO_MSG_CALIB_STATE;
+    out[1] = seq;
+    return PROTO_MSG_HDR + proto_calib_state_encode(&s, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+}
+
+static size_t reply_comp_info(uint8_t *out, uint8_t seq, unsigned axis)
+{
+    proto_comp_info_t m;
+    const comp_table_t *t = calib_comp_active(axis);
+    static comp_table_t cur;
+    unsigned slot = 0xFFu;
+    m.axis = (uint8_t)axis;
+    m.active = t != NULL ? 1u : 0u;
+    m.slot = cb.slot[axis];
+    m.n = 0u;
+    m.version = 0u;
+    m.data_crc = 0u;
+    m.ramp_us = 0u;
+    if (t != NULL) {
+        m.n = t->n;
+        m.version = t->version;
+        m.data_crc = t->data_crc;
+        m.ramp_us = t->ramp_us;
+    } else if (comp_store_load(axis, &cur, &slot) == COMP_STORE_OK) {
+        m.version = cur.version; /* an empty table is current */
+        m.data_crc = cur.data_crc;
+        m.slot = (uint8_t)slot;
+    }
+    out[0] = (uint8_t)PROTO_MSG_COMP_INFO;
+    out[1] = seq;
+    return PROTO_MSG_HDR + proto_comp_info_encode(&m, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+}
+
+static bool run_busy(void)
+{
+    return cb.state == CALIB_RUNNING;
+}
+
+static size_t h_setup(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    proto_calib_setup_t m;
+    const drive_config_t *c = drive_config();
+    unsigned i;
+    if (!proto_calib_setup_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_CALIB_SETUP_LEN) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
+                           PROTO_CALIB_SETUP_LEN);
+    }
+    if (run_busy()) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BUSY, 0);
+    }
+    if (c == NULL || m.axis >= c->axes) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
+    }
+    if ((m.flags & ~CALIB_FLAG_HOST_REFERENCE) != 0u) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_SETUP, 1);
+    }
+    if (!(m.flags & CALIB_FLAG_HOST_REFERENCE) && !drive_has_refscale(m.axis)) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_NO_REFERENCE, m.axis);
+    }
+    if (m.points < 1u || m.points > CALIB_POINTS_MAX) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_SETUP, 2);
+    }
+    if (m.cycles < 1u || m.cycles > CALIB_CYCLES_MAX) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_SETUP, 3);
+    }
+    if (m.samples < 1u || m.samples > CALIB_RING) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_SETUP, 5);
+    }
+    if (m.sample_ticks < 1u) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_SETUP, 6);
+    }
+    if (m.dwell_ms > CALIB_DWELL_MAX_MS) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_SETUP, 7);
+    }
+    if (m.overrun > CALIB_OVERRUN_MAX) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_SETUP, 8);
+    }
+    if (m.feed < 1u) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_SETUP, 9);
+    }
+    cb.state = CALIB_SETUP;
+    cb.axis = m.axis;
+    cb.flags = m.flags;
+    cb.points = m.points;
+    cb.cycles = m.cycles;
+    cb.samples = m.samples;
+    cb.sample_ticks = m.sample_ticks;
+    cb.dwell_ms = m.dwell_ms;
+    cb.overrun = m.overrun;
+    cb.feed = m.feed;
+    cb.nloaded = 0u;
+    for (i = 0; i < sizeof cb.loaded; i++) {
+        cb.loaded[i] = 0u;
+    }
+    cb.leg = 0u;
+    cb.repeat = false;
+    cb.leg_point = 0u;
+    cb.leg_dir = 0;
+    cb.leg_cycle = 0u;
+    cb.legs_done = 0u;
+    cb.reason = 0u;
+    cb.detail = 0;
+    cb.s_active = false;
+    cb.seq_next = 0u;
+    cb.seq_oldest = 0u;
+    return reply_state(out, msg[1]);
+}
+
+static size_t h_targets(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    static proto_calib_targets_t m;
+    size_t i, n;
+    if (!proto_calib_targets_decode(msg + PROTO_MSG_HDR, plen, &m) || m.data_len % 8u != 0u) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
+                           PROTO_CALIB_TARGETS_LEN);
+    }
+    if (cb.state != CALIB_SETUP) {
+        return refuse(out, msg, run_busy() ? PROTO_CALIB_STATUS_BUSY : PROTO_CALIB_STATUS_NOT_READY,
+                      0);
+    }
+    n = m.data_len / 8u;
+    if ((size_t)m.first + n > cb.points) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_TARGETS, (int64_t)m.first + (int64_t)n);
+    }
+    for (i = 0; i < n; i++) {
+        pos_nm_t p = (pos_nm_t)((uint64_t)get32(m.data + 8u * i) |
+                                ((uint64_t)get32(m.data + 8u * i + 4u) << 32));
+        if (p > CALIB_POS_LIMIT_NM || p < -CALIB_POS_LIMIT_NM) {
+            return refuse(out, msg, PROTO_CALIB_STATUS_TARGETS, (int64_t)(m.first + i));
+        }
+    }
+    for (i = 0; i < n; i++) {
+        size_t k = m.first + i;
+        cb.target[k] = (pos_nm_t)((uint64_t)get32(m.data + 8u * i) |
+                                  ((uint64_t)get32(m.data + 8u * i + 4u) << 32));
+        if (!(cb.loaded[k / 8u] & (1u << (k % 8u)))) {
+            cb.loaded[k / 8u] = (uint8_t)(cb.loaded[k / 8u] | (1u << (k % 8u)));
+            cb.nloaded++;
+        }
+    }
+    return reply_state(out, msg[1]);
+}
+
+static size_t h_start(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    drive_status_t st;
+    uint16_t i;
+    if (plen != 0u) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen, 0);
+    }
+    if (cb.state != CALIB_SETUP) {
+        return refuse(out, msg, run_busy() ? PROTO_CALIB_STATUS_BUSY : PROTO_CALIB_STATUS_NOT_READY,
+                      0);
+    }
+    if (cb.nloaded != cb.points) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_TARGETS, cb.nloaded);
+    }
+    for (i = 0; i < cb.points; i++) {
+        pos_nm_t t = cb.target[i];
+        if ((i > 0u && t <= cb.target[i - 1u]) || t - (pos_nm_t)cb.overrun < -CALIB_POS_LIMIT_NM ||
+            t + (pos_nm_t)cb.overrun > CALIB_POS_LIMIT_NM) {
+            return refuse(out, msg, PROTO_CALIB_STATUS_TARGETS, i);
+        }
+    }
+    drive_snapshot(&st);
+    if (st.state != DRIVE_IDLE) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_DRIVE_DISABLED, st.state);
+    }
+    cb.leg = 0u;
+    cb.repeat = false;
+    leg_of(0u);
+    cb.state = CALIB_RUNNING;
+    return reply_state(out, msg[1]);
+}
+
+static size_t h_point(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    proto_calib_point_t m;
+    drive_status_t st;
+    if (!proto_calib_point_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_CALIB_POINT_LEN) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
+                           PROTO_CALIB_POINT_LEN);
+    }
+    if (cb.state != CALIB_DONE) {
+        return refuse(out, msg, run_busy() ? PROTO_CALIB_STATUS_BUSY : PROTO_CALIB_STATUS_NOT_READY,
+                      0);
+    }
+    if (m.point >= cb.points || (m.dir != 1 && m.dir != -1) || m.cycle >= cb.cycles) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_NOT_READY, m.point);
+    }
+    drive_snapshot(&st);
+    if (st.state != DRIVE_IDLE) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_DRIVE_DISABLED, st.state);
+    }
+    cb.repeat = true;
+    cb.leg_point = m.point;
+    cb.leg_dir = m.dir;
+    cb.leg_cycle = m.cycle;
+    cb.leg_pre = true;
+    cb.phase = PH_PRE;
+    cb.state = CALIB_RUNNING;
+    return reply_state(out, msg[1]);
+}
+
+static size_t h_abort(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    if (plen != 0u) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen, 0);
+    }
+    if (run_busy()) {
+        drive_stop();
+        fail(PROTO_CALIB_STATUS_ABORTED, 0);
+    }
+    return reply_state(out, msg[1]);
+}
+
+static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    proto_calib_read_t m;
+    static proto_calib_samples_t r;
+    uint32_t avail, n, i;
+    if (!proto_calib_read_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_CALIB_READ_LEN) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
+                           PROTO_CALIB_READ_LEN);
+    }
+    if (m.max < 1u || m.max > CALIB_READ_MAX) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_OUT_OF_RANGE, 1u, 1);
+    }
+    /* from_seq must lie in [oldest, next] */
+    if ((uint32_t)(m.from_seq - cb.seq_oldest) > ring_used()) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_SEQ, cb.seq_oldest);
+    }
+    cb.seq_oldest = m.from_seq; /* release everything before */
+    avail = cb.seq_next - m.from_seq;
+    n = avail < m.max ? avail : m.max;
+    for (i = 0; i < n; i++) {
+        calib_sample_encode(&cb.ring[(m.from_seq + i) % CALIB_RING], r.data + CALIB_SAMPLE_BYTES * i);
+    }
+    r.from_seq = m.from_seq;
+    r.count = (uint8_t)n;
+    r.seq_next = cb.seq_next;
+    r.data_len = (uint16_t)(CALIB_SAMPLE_BYTES * n);
+    r.crc = crc32_update(CRC32_INIT, r.data, r.data_len);
+    out[0] = (uint8_t)PROTO_MSG_CALIB_SAMPLES;
+    out[1] = msg[1];
+    return PROTO_MSG_HDR + proto_calib_samples_encode(&r, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+}
+
+static size_t h_comp_write(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    static proto_comp_write_t m;
+    proto_comp_written_t w;
+    size_t i;
+    if (!proto_comp_write_decode(msg + PROTO_MSG_HDR, plen, &m)) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
+                           PROTO_COMP_WRITE_LEN);
+    }
+    if (m.axis >= axes()) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
+    }
+    if ((size_t)m.offset + m.data_len > COMP_RECORD_MAX) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_RANGE, m.offset);
+    }
+    if (m.offset == 0u || cb.stage_axis != (int16_t)m.axis) {
+        /* a new record: start from an erased buffer */
+        for (i = 0; i < COMP_RECORD_MAX; i++) {
+            cb.stage[i] = 0xFFu;
+        }
+        cb.stage_axis = (int16_t)m.axis;
+    }
+    for (i = 0; i < m.data_len; i++) {
+        cb.stage[m.offset + i] = m.data[i];
+    }
+    w.axis = m.axis;
+    w.offset = m.offset;
+    w.len = m.data_len;
+    out[0] = (uint8_t)PROTO_MSG_COMP_WRITTEN;
+    out[1] = msg[1];
+    return PROTO_MSG_HDR + proto_comp_written_encode(&w, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+}
+
+static size_t h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    static comp_table_t t;
+    proto_comp_commit_t m;
+    comp_result_t cr;
+    comp_store_result_t sr;
+    unsigned slot;
+    uint32_t crc;
+    if (!proto_comp_commit_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_COMMIT_LEN) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
+                           PROTO_COMP_COMMIT_LEN);
+    }
+    if (m.axis >= axes()) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
+    }
+    if (cb.stage_axis != (int16_t)m.axis || m.length < COMP_RECORD_HDR ||
+        m.length > COMP_RECORD_MAX) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_RANGE, m.length);
+    }
+    crc = crc32_update(CRC32_INIT, cb.stage, m.length);
+    if (crc != m.crc) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_CRC, crc);
+    }
+    cr = comp_record_decode(cb.stage, m.length, &t);
+    if (cr == COMP_OK && t.axis != m.axis) {
+        cr = COMP_E_AXIS;
+    }
+    if (cr != COMP_OK) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_RECORD, cr);
+    }
+    sr = comp_store_write(m.axis, &t, NULL, NULL);
+    if (sr != COMP_STORE_OK) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
+    }
+    /* activate what the flash holds, not what the link delivered */
+    sr = comp_store_load(m.axis, &t, &slot);
+    if (sr != COMP_STORE_OK) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
+    }
+    comp_install(m.axis, &t, slot);
+    cb.stage_axis = -1;
+    return reply_comp_info(out, msg[1], m.axis);
+}
+
+static size_t h_comp_clear(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    static comp_table_t t;
+    proto_comp_clear_t m;
+    comp_store_result_t sr;
+    unsigned slot;
+    if (!proto_comp_clear_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_CLEAR_LEN) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
+                           PROTO_COMP_CLEAR_LEN);
+    }
+    if (m.axis >= axes()) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
+    }
+    sr = comp_store_clear(m.axis, NULL);
+    if (sr == COMP_STORE_OK) {
+        sr = comp_store_load(m.axis, &t, &slot);
+    }
+    if (sr != COMP_STORE_OK) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
+    }
+    comp_install(m.axis, &t, slot);
+    return reply_comp_info(out, msg[1], m.axis);
+}
+
+static size_t h_comp_get(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    proto_comp_get_t m;
+    if (!proto_comp_get_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_GET_LEN) {
+        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
+                           PROTO_COMP_GET_LEN);
+    }
+    if (m.axis >= axes()) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
+    }
+    return reply_comp_info(out, msg[1], m.axis);
+}
+
+static bool mutating(uint8_t id)
+{
+    return id == PROTO_MSG_CALIB_SETUP || id == PROTO_MSG_CALIB_TARGETS ||
+           id == PROTO_MSG_CALIB_START || id == PROTO_MSG_CALIB_POINT ||
+           id == PROTO_MSG_CALIB_ABORT || id == PROTO_MSG_COMP_WRITE ||
+           id == PROTO_MSG_COMP_COMMIT || id == PROTO_MSG_COMP_CLEAR;
+}
+
+void calib_set_next_handler(calib_handler_fn fn)
+{
+    cb.next = fn;
+}
+
+size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out, size_t cap)
+{
+    size_t plen, n;
+    uint8_t id;
+    uint32_t crc = 0u;
+    bool cacheable;
+
+    if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX) {
+        return 0;
+    }
+    id = msg[0];
+    if (id < 0xA0u || id > 0xBFu) {
+        if (cb.next != NULL) {
+            return cb.next(msg, len, now_us, out, cap);
+        }
+        return reply_error(out, id, msg[1], PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
+    }
+    plen = len - PROTO_MSG_HDR;
+    cacheable = mutating(id);
+    if (cacheable) {
+        crc = crc32_update(CRC32_INIT, msg + PROTO_MSG_HDR, plen);
+        if (cb.cache_valid && cb.cache_id == id && cb.cache_seq == msg[1] &&
+            cb.cache_req_len == plen && cb.cache_crc == crc) {
+            for (n = 0; n < cb.cache_len; n++) {
+                out[n] = cb.cache[n];
+            }
+            return cb.cache_len;
+        }
+    }
+    switch (id) {
+    case PROTO_MSG_CALIB_SETUP:
+        n = h_setup(msg, plen, out);
+        break;
+    case PROTO_MSG_CALIB_TARGETS:
+        n = h_targets(msg, plen, out);
+        break;
+    case PROTO_MSG_CALIB_START:
+        n = h_start(msg, plen, out);
+        break;
+    case PROTO_MSG_CALIB_STATUS:
+        n = plen == 0u ? reply_state(out, msg[1])
+                       : reply_error(out, id, msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen, 0);
+        break;
+    case PROTO_MSG_CALIB_READ:
+        n = h_read(msg, plen, out);
+        break;
+    case PROTO_MSG_CALIB_POINT:
+        n = h_point(msg, plen, out);
+        break;
+    case PROTO_MSG_CALIB_ABORT:
+        n = h_abort(msg, plen, out);
+        break;
+    case PROTO_MSG_COMP_WRITE:
+        n = h_comp_write(msg, plen, out);
+        break;
+    case PROTO_MSG_COMP_COMMIT:
+        n = h_comp_commit(msg, plen, out);
+        break;
+    case PROTO_MSG_COMP_GET:
+        n = h_comp_get(msg, plen, out);
+        break;
+    case PROTO_MSG_COMP_CLEAR:
+        n = h_comp_clear(msg, plen, out);
+        break;
+    default:
+        n = reply_error(out, id, msg[1], PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
+        break;
+    }
+    if (cacheable && n <= sizeof cb.cache) {
+        for (plen = 0; plen < n; plen++) {
+            cb.cache[plen] = out[plen];
+        }
+        cb.cache_len = (uint16_t)n;
+        cb.cache_id = id;
+        cb.cache_seq = msg[1];
+        cb.cache_req_len = (uint16_t)(len - PROTO_MSG_HDR);
+        cb.cache_crc = crc;
+        cb.cache_valid = true;
+    }
+    return n;
+}

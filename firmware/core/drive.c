@@ -1,0 +1,988 @@
+/*
+ * drive.c - the drive application (specification in drive.h).
+ *
+ * Ownership of the state:
+ *   main  host-block FIFO (hq_*), planner, arc segmentation, seg[] entries of
+ *         segments not yet handed to the interpolator, the interpolator's
+ *         producer side, requests (req_*).
+ *   tick  decoders, servo loops, motion reference, state, status snapshot,
+ *         interpolator consumer side.
+ * Main requests changes through the volatile req_* flags that the tick
+ * applies; the tick never waits for main.
+ */
+#include "drive.h"
+
+#include "calib.h"
+#include "hal.h"
+#include "interp.h"
+#include "motion_ref.h"
+#include "qdec.h"
+
+#define SEG_RING 128u        /* > planner depth + interpolator FIFO + 1 */
+#define ANGLE_K  683565276ll /* 2^32 / (2 pi): binary angle per radian */
+#define Q30      ((int64_t)1 << 30)
+
+typedef struct {
+    uint32_t host_tag;
+    bool last; /* last segment of its host block */
+    bool arc;
+    uint8_t u, v;
+    int8_t sense;
+    pos_nm_t cu, cv;
+    pos_nm_t r_a, r_b; /* radius at the chord's ends   */
+    fx_angle_t th_a;   /* angle of the chord's start   */
+    int64_t dth;       /* signed sweep of the chord    */
+    pos_nm_t au, av;   /* chord start in the plane     */
+    pos_nm_t bu, bv;   /* chord end in the plane       */
+    q1_30_t k_arc;     /* arc length / chord length    */
+} seg_info_t;
+
+typedef struct {
+    drive_block_t b;
+    /* arc generation state */
+    uint32_t n_seg;
+    uint32_t done_seg;
+    pos_nm_t start[CORE_AXES];
+    fx_angle_t th_s;
+    int64_t sweep;
+    pos_nm_t r_s, r_e;
+    uint8_t u, v, w;
+} host_block_t;
+
+static plan_block_t plan_store[PLAN_DEPTH_DEFAULT];
+
+static struct {
+    bool ready;
+    drive_config_t cfg;
+    /* main */
+    plan_t plan;
+    host_block_t hq[DRIVE_QUEUE_DEPTH];
+    volatile uint16_t hq_head, hq_count;
+    pos_nm_t q_end[CORE_AXES]; /* end point of the last accepted block */
+    uint32_t seq_next;         /* internal tag of the next planner block */
+    seg_info_t seg[SEG_RING];
+    uint32_t blocks_done_main;
+    /* shared */
+    interp_t ip;
+    volatile bool req_enable, req_disable, req_stop, req_estop, req_reset, req_gains;
+    volatile uint32_t req_fault;
+    volatile bool halted; /* tick: controlled stop reached rest      */
+    drive_cec_mode_t cec_mode;
+    servo_params_t pend;
+    bool req_cec;
+    cec_mode_t pend_mode;
+    /* tick */
+    qdec_t enc[CORE_AXES];
+    qdec_t refs[CORE_AXES];
+    bool ref_on[CORE_AXES];
+    servo_t servo;
+    motion_ref_t ref;
+    drive_state_t state;
+    uint32_t faults;
+    int64_t stop_k; /* q30 time scale while stopping */
+    int64_t stop_dk;
+    uint32_t seen_done; /* interpolator segments accounted */
+    uint32_t seq_done;  /* internal tag of the next segment to complete */
+    uint32_t blocks_done;
+    uint32_t cur_tag;
+    uint64_t tick;
+    /* published snapshot */
+    volatile uint32_t st_seq;
+    drive_status_t st;
+} drv;
+
+/* ---- helpers ------------------------------------------------------------- */
+
+static int64_t abs64(int64_t v)
+{
+    return v < 0 ? -v : v;
+}
+
+/* round(num / den * 2^30) for 0 <= num, 0 < den; saturates at 2^30. */
+static int64_t ratio_q30(int64_t num, int64_t den)
+{
+    if (den <= 0 || num <= 0) {
+        return 0;
+    }
+    if (num >= den) {
+        return Q30;
+    }
+    while (den >= ((int64_t)1 << 32)) {
+        num >>= 1;
+        den >>= 1;
+    }
+    if (den == 0) {
+        return 0;
+    }
+    return fx_div_round64(num << 30, den);
+}
+
+static void plane_axes(drive_plane_t p, uint8_t *u, uint8_t *v, uint8_t *w)
+{
+    switch (p) {
+    case DRIVE_PLANE_ZX:
+        *u = 2;
+        *v = 0;
+        *w = 1;
+        break;
+    case DRIVE_PLANE_YZ:
+        *u = 1;
+        *v = 2;
+        *w = 0;
+        break;
+    default:
+        *u = 0;
+        *v = 1;
+        *w = 2;
+        break;
+    }
+}
+
+static void publish(void)
+{
+    drive_status_t *s = &drv.st;
+    unsigned i;
+    drv.st_seq++;
+    s->state = drv.state;
+    s->faults = drv.faults;
+    s->tick = drv.tick;
+    for (i = 0; i < CORE_AXES; i++) {
+        bool on = i < drv.cfg.axes;
+        s->pos[i] = on ? drv.enc[i].out.pos_nm : 0;
+        s->ref[i] = on ? drv.ref.pos[i] : 0;
+        s->vel_ref[i] = on ? drv.ref.vel[i] : 0;
+        s->motor_mv[i] = on ? drv.servo.out_mv[i] : 0;
+        s->refscale[i] = drv.ref_on[i] ? drv.refs[i].out.pos_nm : 0;
+        s->encoder_illegal[i] = on ? drv.enc[i].out.illegal : 0;
+        s->pos_raw[i] = on ? drv.enc[i].out.pos_nm_raw : 0;
+    }
+    s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
+    s->blocks_done = drv.blocks_done + drv.blocks_done_main;
+    s->tag = drv.cur_tag;
+    drv.st_seq++;
+}
+
+/* ---- configuration --------------------------------------------------------- */
+
+void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes)
+{
+    drive_config_t zero = {0};
+    unsigned i;
+    *cfg = zero;
+    cfg->tick_hz = tick_hz;
+    cfg->axes = axes;
+    for (i = 0; i < CORE_AXES; i++) {
+        cfg->nm_per_count_num[i] = 1;
+        cfg->nm_per_count_den[i] = 1;
+        cfg->ref_nm_per_count_den[i] = 1;
+        cfg->plan.v_max[i] = 1000000000;      /* 1 m/s      */
+        cfg->plan.a_max[i] = 10000000000;     /* 10 m/s^2   */
+        cfg->plan.j_max[i] = 1000000000000;   /* 1000 m/s^3 */
+        cfg->plan.corner_dv[i] = 10000000;    /* 10 mm/s    */
+        cfg->plan.corner_acc[i] = 1000000000; /* 1 m/s^2    */
+    }
+    cfg->plan.junction_dev_nm = 10000;
+    cfg->plan.mbt_window = 1;
+    cfg->plan.corner = PLAN_CORNER_JD;
+    cfg->plan.shape = SC_SHAPE_SCURVE;
+    servo_params_default(&cfg->servo, tick_hz);
+    cfg->servo.axes = axes;
+    cfg->stop_decel_nm_s2 = 1000000000;   /* 1 m/s^2 */
+    cfg->friction_ff_band_nm_s = 1000000; /* 1 mm/s */
+    cfg->arc_chord_nm = DRIVE_ARC_CHORD_NM;
+}
+
+static const servo_io_t drive_io = {hal_motor_set_mv, hal_motor_enable, hal_amp_fault};
+
+drive_result_t drive_init(const drive_config_t *cfg)
+{
+    unsigned i;
+    drive_status_t zero_st = {0};
+    motion_ref_t zero_ref = {0};
+    pos_nm_t origin[CORE_AXES] = {0};
+    uint32_t now_ns;
+
+    if (cfg == NULL || cfg->axes < 1 || cfg->axes > CORE_AXES || cfg->tick_hz < PID_TICK_HZ_MIN ||
+        cfg->tick_hz > PID_TICK_HZ_MAX || cfg->stop_decel_nm_s2 <= 0 || cfg->arc_chord_nm < 0 ||
+        plan_check_profile(&cfg->plan) != PLAN_OK) {
+        return DRIVE_E_INVALID;
+    }
+    drv.ready = false;
+    drv.cfg = *cfg;
+    if (drv.cfg.arc_chord_nm == 0) {
+        drv.cfg.arc_chord_nm = DRIVE_ARC_CHORD_NM;
+    }
+    now_ns = hal_time_us() * 1000u;
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.ref_on[i] = false;
+        if (i >= cfg->axes) {
+            continue;
+        }
+        {
+            qdec_config_t qc;
+            qdec_config_default(&qc);
+            qc.nm_per_count_num = cfg->nm_per_count_num[i];
+            qc.nm_per_count_den = cfg->nm_per_count_den[i];
+            qc.illegal_limit = 1;
+            qc.illegal_window_ns = 1000000000ull;
+            if (!qdec_init(&drv.enc[i], &qc, cfg->enc_initial_lines[i], now_ns)) {
+                return DRIVE_E_INVALID;
+            }
+        }
+        if (cfg->ref_nm_per_count_num[i] != 0) {
+            qdec_config_t qc;
+            uint32_t raw;
+            if (hal_encoder_counter(cfg->axes + i, &raw)) {
+                qdec_config_default(&qc);
+                qc.input = QDEC_INPUT_COUNTER;
+                qc.counter_bits = 32;
+                qc.nm_per_count_num = cfg->ref_nm_per_count_num[i];
+                qc.nm_per_count_den = cfg->ref_nm_per_count_den[i];
+                if (!qdec_init(&drv.refs[i], &qc, raw, now_ns)) {
+                    return DRIVE_E_INVALID;
+                }
+                /* absolute: the counter's value is the scale's position */
+                qdec_set_offset_nm(&drv.refs[i],
+                                   qdec_counts_to_nm(&drv.refs[i], (int64_t)(int32_t)raw));
+                drv.ref_on[i] = true;
+            }
+        }
+    }
+    drv.cfg.servo.axes = cfg->axes;
+    drv.cfg.servo.tick_hz = cfg->tick_hz;
+    drv.cfg.servo.cec.mode = CEC_MODE_OFF;
+    if (servo_init(&drv.servo, &drv.cfg.servo, &drive_io) != SERVO_OK) {
+        return DRIVE_E_INVALID;
+    }
+    if (plan_init(&drv.plan, plan_store, PLAN_DEPTH_DEFAULT, &cfg->plan, origin) != PLAN_OK) {
+        return DRIVE_E_INVALID;
+    }
+    interp_init(&drv.ip, (int64_t)(1000000000u / cfg->tick_hz), origin);
+    drv.ref = zero_ref;
+    drv.hq_head = 0;
+    drv.hq_count = 0;
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.q_end[i] = 0;
+    }
+    drv.seq_next = 0;
+    drv.seq_done = 0;
+    drv.seen_done = 0;
+    drv.blocks_done = 0;
+    drv.cur_tag = 0;
+    drv.req_enable = drv.req_disable = drv.req_stop = false;
+    drv.req_estop = drv.req_reset = drv.req_gains = drv.req_cec = false;
+    drv.req_fault = 0;
+    drv.halted = false;
+    drv.state = DRIVE_DISABLED;
+    drv.faults = 0;
+    drv.cec_mode = DRIVE_CEC_OFF;
+    drv.tick = 0;
+    drv.st = zero_st;
+    drv.st_seq = 0;
+    for (i = 0; i < cfg->axes; i++) {
+        hal_motor_enable(i, false);
+        hal_motor_set_mv(i, 0);
+    }
+    drv.ready = true;
+    publish();
+    calib_init();
+    return DRIVE_OK;
+}
+
+const drive_config_t *drive_config(void)
+{
+    return &drv.cfg;
+}
+
+/* ---- tick ------------------------------------------------------------------ */
+
+/* Replace the interpolator's chord reference by the exact arc. */
+static void arc_overlay(motion_ref_t *r, const seg_info_t *g)
+{
+    uint8_t u = g->u, v = g->v;
+    int64_t du = g->bu - g->au, dv = g->bv - g->av;
+    int64_t pu = r->pos[u] - g->au, pv = r->pos[v] - g->av;
+    int64_t num = fx_sat_add64(fx_mul64_shift(pu, du, 0), fx_mul64_shift(pv, dv, 0));
+    int64_t den = fx_sat_add64(fx_mul64_shift(du, du, 0), fx_mul64_shift(dv, dv, 0));
+    int64_t f = ratio_q30(num, den);
+    fx_angle_t th = g->th_a + (fx_angle_t)(uint64_t)fx_round_shift64(g->dth * f, 30);
+    int64_t rad = g->r_a + fx_round_shift64((g->r_b - g->r_a) * f, 30);
+    q1_30_t s, c, m, tu, tv;
+    int64_t v_uv, a_t, a_c, dot;
+
+    fx_sincos(th, &s, &c);
+    r->pos[u] = g->cu + fx_mul64x32_shift(rad, c, 30);
+    r->pos[v] = g->cv + fx_mul64x32_shift(rad, s, 30);
+    /* unit tangent in the plane, scaled by the chord tangent's in-plane part */
+    m = (q1_30_t)fx_hypot2(r->geom.tangent[u], r->geom.tangent[v]);
+    tu = (q1_30_t)(g->sense > 0 ? -s : s);
+    tv = (q1_30_t)(g->sense > 0 ? c : -c);
+    /* path speed and tangential acceleration in the plane (arc / chord) */
+    v_uv = fx_mul64x32_shift(fx_hypot2(r->vel[u], r->vel[v]), g->k_arc, 30);
+    dot = fx_sat_add64(fx_mul64x32_shift(r->acc[u], r->geom.tangent[u], 30),
+                       fx_mul64x32_shift(r->acc[v], r->geom.tangent[v], 30));
+    a_t = fx_mul64x32_shift(fx_hypot2(r->acc[u], r->acc[v]), g->k_arc, 30);
+    if (dot < 0) {
+        a_t = -a_t;
+    }
+    if (rad > 0) {
+        if (v_uv < ((int64_t)1 << 31)) {
+            a_c = fx_div_round64(v_uv * v_uv, rad);
+        } else {
+            a_c = fx_div_round64(fx_mul64_shift(v_uv, v_uv, 16), rad) << 16;
+        }
+    } else {
+        a_c = 0;
+    }
+    r->vel[u] = fx_mul64x32_shift(v_uv, tu, 30);
+    r->vel[v] = fx_mul64x32_shift(v_uv, tv, 30);
+    r->acc[u] = fx_mul64x32_shift(a_t, tu, 30) - fx_mul64x32_shift(a_c, c, 30);
+    r->acc[v] = fx_mul64x32_shift(a_t, tv, 30) - fx_mul64x32_shift(a_c, s, 30);
+    r->geom.tangent[u] = (q1_30_t)fx_mul64x32_shift(tu, m, 30);
+    r->geom.tangent[v] = (q1_30_t)fx_mul64x32_shift(tv, m, 30);
+    r->geom.kind = MOTION_GEOM_ARC;
+    r->geom.plane_u = u;
+    r->geom.plane_v = v;
+    r->geom.centre_u = g->cu;
+    r->geom.centre_v = g->cv;
+    r->geom.radius = rad;
+    r->geom.sense = g->sense;
+}
+
+/* Account completed interpolator segments (host blocks done, current tag). */
+static void track_segments(void)
+{
+    uint32_t done = drv.ip.blocks_done;
+    while (drv.seen_done != done) {
+        const seg_info_t *g = &drv.seg[drv.seq_done % SEG_RING];
+        if (g->last) {
+            drv.blocks_done++;
+        }
+        drv.seq_done++;
+        drv.seen_done++;
+    }
+    if (drv.ip.busy) {
+        drv.cur_tag = drv.seg[drv.ip.tag % SEG_RING].host_tag;
+    }
+}
+
+static void reference_step(void)
+{
+    unsigned i;
+    if (drv.state == DRIVE_STOPPING) {
+        drv.stop_k -= drv.stop_dk;
+        if (drv.stop_k <= 0) {
+            drv.stop_k = 0;
+            drv.halted = true;
+        }
+        drv.ip.tick_ns =
+            fx_round_shift64((int64_t)(1000000000u / drv.cfg.tick_hz) * drv.stop_k, 30);
+    }
+    if (drv.halted) {
+        for (i = 0; i < CORE_AXES; i++) {
+            drv.ref.vel[i] = 0;
+            drv.ref.acc[i] = 0;
+        }
+        drv.ref.active = false;
+        drv.ref.geom.kind = MOTION_GEOM_NONE;
+        return;
+    }
+    interp_tick(&drv.ip, &drv.ref);
+    track_segments();
+    if (drv.ref.active && drv.ip.busy) {
+        const seg_info_t *g = &drv.seg[drv.ip.tag % SEG_RING];
+        if (g->arc) {
+            arc_overlay(&drv.ref, g);
+        }
+    }
+    if (drv.state == DRIVE_STOPPING) {
+        for (i = 0; i < CORE_AXES; i++) {
+            drv.ref.vel[i] = fx_round_shift64(drv.ref.vel[i] * (drv.stop_k >> 10), 20);
+            drv.ref.acc[i] = 0;
+        }
+    }
+}
+
+/* Friction feed-forward as an extra reference acceleration (see drive.h). */
+static void friction_ff(void)
+{
+    unsigned i;
+    for (i = 0; i < drv.cfg.axes; i++) {
+        int64_t f = drv.cfg.friction_ff_mv[i], v = drv.ref.vel[i], band;
+        int64_t kaff = drv.servo.p.axis[i].kaff >> 16, u;
+        if (f == 0 || kaff <= 0 || v == 0) {
+            continue;
+        }
+        band = drv.cfg.friction_ff_band_nm_s > 0 ? drv.cfg.friction_ff_band_nm_s : 1;
+        if (v >= band) {
+            u = f;
+        } else if (v <= -band) {
+            u = -f;
+        } else {
+            u = fx_div_round64(f * v, band);
+        }
+        /* mV -> nm/s^2: u * 1e-3 V / (kaff V/(m/s^2)) * 1e9 = u * 1e6 / kaff */
+        drv.ref.acc[i] = fx_sat_add64(drv.ref.acc[i], fx_div_round64(u * 1000000 * 65536, kaff));
+    }
+}
+
+static void apply_requests(const servo_fb_t *fb)
+{
+    unsigned i;
+    if (drv.req_gains) {
+        drv.pend.axes = drv.cfg.axes;
+        drv.pend.tick_hz = drv.cfg.tick_hz;
+        drv.pend.cec.mode = drv.servo.p.cec.mode;
+        if (servo_config(&drv.servo, &drv.pend) == SERVO_OK) {
+            drv.cfg.servo = drv.pend;
+        }
+        drv.req_gains = false;
+    }
+    if (drv.req_cec) {
+        servo_set_cec_mode(&drv.servo, drv.pend_mode);
+        drv.req_cec = false;
+    }
+    if (drv.req_estop) {
+        drv.req_estop = false;
+        drv.faults |= DRIVE_FAULT_ESTOP;
+        servo_disable(&drv.servo);
+    }
+    if (drv.req_fault != 0) {
+        drv.faults |= drv.req_fault;
+        drv.req_fault = 0;
+        servo_stop(&drv.servo);
+    }
+    if (drv.req_reset) {
+        if (drv.servo.state != SERVO_STOPPING) {
+            drv.req_reset = false;
+            for (i = 0; i < drv.cfg.axes; i++) {
+                qdec_clear_faults(&drv.enc[i]);
+            }
+            servo_clear_faults(&drv.servo);
+            servo_disable(&drv.servo);
+            drv.faults = 0;
+            drv.state = DRIVE_DISABLED;
+        }
+    }
+    if (drv.req_disable) {
+        drv.req_disable = false;
+        drv.req_enable = false;
+        servo_disable(&drv.servo);
+        if (drv.state != DRIVE_FAULT) {
+            drv.state = DRIVE_DISABLED;
+        }
+    }
+    if (drv.req_enable) {
+        drv.req_enable = false;
+        if (drv.state == DRIVE_IDLE && servo_enable(&drv.servo, fb) == SERVO_OK) {
+            servo_run(&drv.servo);
+        }
+    }
+    if (drv.req_stop) {
+        drv.req_stop = false;
+        if (drv.state == DRIVE_RUNNING || drv.state == DRIVE_IDLE) {
+            int64_t v0 = fx_hypot3(drv.ref.vel[0], CORE_AXES > 1 ? drv.ref.vel[1] : 0,
+                                   CORE_AXES > 2 ? drv.ref.vel[2] : 0);
+            drv.state = DRIVE_STOPPING;
+            drv.stop_k = Q30;
+            drv.stop_dk = v0 == 0 ? Q30
+                                  : ratio_q30(drv.cfg.stop_decel_nm_s2,
+                                              fx_mul64_shift((int64_t)drv.cfg.tick_hz, v0, 0));
+            if (drv.stop_dk < 1) {
+                drv.stop_dk = 1;
+            }
+        }
+    }
+}
+
+void drive_tick(void)
+{
+    unsigned i;
+    uint32_t now_ns;
+    servo_fb_t fb;
+    const qdec_t *encs[CORE_AXES] = {0};
+    bool moving_ok;
+
+    if (!drv.ready) {
+        return;
+    }
+    now_ns = hal_time_us() * 1000u;
+    for (i = 0; i < drv.cfg.axes; i++) {
+        qdec_sample(&drv.enc[i], now_ns);
+        encs[i] = &drv.enc[i];
+        if (drv.ref_on[i]) {
+            uint32_t raw;
+            if (hal_encoder_counter(drv.cfg.axes + i, &raw)) {
+                qdec_sample_counter(&drv.refs[i], raw, now_ns);
+            }
+        }
+    }
+    servo_fb_from_qdec(&fb, encs, drv.cfg.axes);
+    apply_requests(&fb);
+    moving_ok =
+        drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING || drv.state == DRIVE_STOPPING;
+    if (moving_ok && drv.servo.state == SERVO_RUN) {
+        reference_step();
+        friction_ff();
+        servo_tick(&drv.servo, &drv.ref, &fb);
+    } else {
+        servo_tick(&drv.servo, NULL, &fb);
+        for (i = 0; i < CORE_AXES; i++) {
+            drv.ref.pos[i] = drv.servo.ref_pos[i];
+            drv.ref.vel[i] = 0;
+            drv.ref.acc[i] = 0;
+        }
+        drv.ref.active = false;
+        drv.ref.geom.kind = MOTION_GEOM_NONE;
+    }
+    drv.faults |= drv.servo.faults;
+    if (drv.faults != 0) {
+        drv.state = DRIVE_FAULT;
+    } else if (drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING) {
+        bool busy = !interp_idle(&drv.ip) || plan_count(&drv.plan) > 0 || drv.hq_count > 0;
+        drv.state = busy ? DRIVE_RUNNING : DRIVE_IDLE;
+    }
+    drv.tick++;
+    publish();
+    calib_tick(&drv.st);
+}
+
+/* ---- main -------------------------------------------------------------------- */
+
+static void flush_all(const pos_nm_t pos[CORE_AXES])
+{
+    unsigned i;
+    drv.hq_count = 0;
+    drv.hq_head = 0;
+    plan_reset(&drv.plan, pos);
+    interp_reset(&drv.ip, pos);
+    drv.ip.tick_ns = (int64_t)(1000000000u / drv.cfg.tick_hz);
+    drv.seen_done = drv.ip.blocks_done;
+    drv.seq_done = drv.seq_next;
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.q_end[i] = pos[i];
+    }
+}
+
+/* Chord angle for an arc of radius r at the programmed feed. */
+static int64_t arc_seg_angle(int64_t r, int64_t feed)
+{
+    int64_t a_tol, a_tick, x, dist;
+    int64_t tol = drv.cfg.arc_chord_nm;
+    if (r <= tol) {
+        return DRIVE_ARC_SEG_MAX_ANGLE;
+    }
+    /* sagitta r (1 - cos(a/2)) ~ r a^2 / 8 = tol: a = sqrt(8 tol / r) rad */
+    x = fx_div_round64((8 * tol) << 40, r);
+    a_tol = (int64_t)fx_isqrt64((uint64_t)x) * 651899 / 1000; /* * 2^32/(2 pi) / 2^20 */
+    dist = feed * DRIVE_ARC_SEG_TICKS / (int64_t)drv.cfg.tick_hz;
+    a_tick = fx_mul64_shift(dist, ANGLE_K, 0) / r;
+    if (a_tick > a_tol) {
+        a_tol = a_tick;
+    }
+    if (a_tol > (int64_t)DRIVE_ARC_SEG_MAX_ANGLE) {
+        a_tol = DRIVE_ARC_SEG_MAX_ANGLE;
+    }
+    return a_tol < 1 ? 1 : a_tol;
+}
+
+/* Point of the arc at segment k of n. */
+static void arc_point(const host_block_t *h, uint32_t k, pos_nm_t out[CORE_AXES], fx_angle_t *th,
+                      pos_nm_t *rad)
+{
+    unsigned i;
+    int64_t n = h->n_seg;
+    q1_30_t s, c;
+    for (i = 0; i < CORE_AXES; i++) {
+        out[i] = h->start[i] + (h->b.target[i] - h->start[i]) * (int64_t)k / n;
+    }
+    *th = h->th_s + (fx_angle_t)(uint64_t)(h->sweep * (int64_t)k / n);
+    *rad = h->r_s + (h->r_e - h->r_s) * (int64_t)k / n;
+    if (k == h->n_seg) {
+        for (i = 0; i < CORE_AXES; i++) {
+            out[i] = h->b.target[i];
+        }
+        return;
+    }
+    fx_sincos(*th, &s, &c);
+    out[h->u] = h->b.centre_u + fx_mul64x32_shift(*rad, c, 30);
+    out[h->v] = h->b.centre_v + fx_mul64x32_shift(*rad, s, 30);
+}
+
+/* Push the next planner block of the oldest host block. False when the
+ * planner is full. */
+static bool feed_one(void)
+{
+    host_block_t *h = &drv.hq[drv.hq_head];
+    plan_move_t m = {0};
+    seg_info_t g = {0};
+    plan_result_t r;
+    unsigned i;
+    bool last = true;
+
+    if (plan_free_slots(&drv.plan) == 0) {
+        return false;
+    }
+    m.tag = drv.seq_next;
+    m.feed = h->b.feed_nm_s;
+    g.host_tag = h->b.tag;
+    if (h->b.kind == DRIVE_BLOCK_DWELL) {
+        m.dwell_ns = (int64_t)h->b.dwell_ms * 1000000;
+    } else if (h->b.kind == DRIVE_BLOCK_LINE) {
+        for (i = 0; i < CORE_AXES; i++) {
+            m.target[i] = h->b.target[i];
+        }
+        m.flags = h->b.exact_stop ? PLAN_MOVE_EXACT_STOP : 0;
+    } else {
+        pos_nm_t a[CORE_AXES], b[CORE_AXES];
+        fx_angle_t tha, thb;
+        pos_nm_t ra, rb;
+        int64_t chord, arclen;
+        arc_point(h, h->done_seg, a, &tha, &ra);
+        arc_point(h, h->done_seg + 1, b, &thb, &rb);
+        for (i = 0; i < CORE_AXES; i++) {
+            m.target[i] = b[i];
+        }
+        last = h->done_seg + 1 == h->n_seg;
+        m.flags = (last && h->b.exact_stop) ? PLAN_MOVE_EXACT_STOP : 0;
+        g.arc = true;
+        g.u = h->u;
+        g.v = h->v;
+        g.sense = h->b.sense;
+        g.cu = h->b.centre_u;
+        g.cv = h->b.centre_v;
+        g.r_a = ra;
+        g.r_b = rb;
+        g.th_a = tha;
+        g.dth = h->sweep / (int64_t)h->n_seg;
+        g.au = a[h->u];
+        g.av = a[h->v];
+        g.bu = b[h->u];
+        g.bv = b[h->v];
+        chord = fx_hypot2(b[h->u] - a[h->u], b[h->v] - a[h->v]);
+        /* arc length = r * |dth| * 2 pi / 2^32 = r * (|dth| * pi/2 * 2^30) >> 30 */
+        arclen = fx_mul64_shift((ra + rb) / 2, fx_round_shift64(abs64(g.dth) * 1686629713, 30), 30);
+        g.k_arc = chord > 0 ? (q1_30_t)fx_div_round64(fx_mul64_shift(arclen, Q30, 0), chord)
+                            : (q1_30_t)Q30;
+    }
+    r = plan_push(&drv.plan, &m);
+    if (r == PLAN_E_FULL) {
+        return false;
+    }
+    if (r == PLAN_OK) {
+        g.last = last;
+        drv.seg[drv.seq_next % SEG_RING] = g;
+        drv.seq_next++;
+    } else if (last && h->b.kind != DRIVE_BLOCK_ARC) {
+        /* skipped (zero length) or refused: the block counts as done */
+        drv.blocks_done_main++;
+    }
+    if (h->b.kind == DRIVE_BLOCK_ARC) {
+        h->done_seg++;
+    }
+    if (last) {
+        drv.hq_head = (uint16_t)((drv.hq_head + 1u) % DRIVE_QUEUE_DEPTH);
+        drv.hq_count--;
+    }
+    return true;
+}
+
+void drive_poll(void)
+{
+    if (!drv.ready) {
+        return;
+    }
+    calib_poll();
+    if (drv.state == DRIVE_DISABLED || drv.state == DRIVE_FAULT) {
+        if (drv.hq_count > 0 || plan_count(&drv.plan) > 0 || !interp_idle(&drv.ip)) {
+            flush_all(drv.ref.pos);
+        }
+        return;
+    }
+    if (drv.state == DRIVE_STOPPING) {
+        if (drv.halted) {
+            flush_all(drv.ref.pos);
+            drv.halted = false;
+            drv.state = DRIVE_IDLE;
+        }
+        return;
+    }
+    while (drv.hq_count > 0 && feed_one()) {
+    }
+    /* Pop (freeze) blocks for the interpolator only while the planner is
+     * full or no more input is waiting: a block frozen with few successors
+     * would be planned to slow down for the end of the queue. */
+    while (interp_room(&drv.ip) > 0 && plan_count(&drv.plan) > 0 &&
+           (plan_free_slots(&drv.plan) == 0 || drv.hq_count == 0)) {
+        plan_seg_t seg;
+        if (plan_pop(&drv.plan, &seg) != PLAN_OK || !interp_load(&drv.ip, &seg)) {
+            break;
+        }
+    }
+}
+
+static drive_result_t accept_check(void)
+{
+    if (!drv.ready) {
+        return DRIVE_E_DISABLED;
+    }
+    if (drv.state == DRIVE_FAULT) {
+        return DRIVE_E_FAULTED;
+    }
+    if (drv.state == DRIVE_DISABLED || drv.req_disable) {
+        return DRIVE_E_DISABLED;
+    }
+    if (drv.state == DRIVE_STOPPING) {
+        return DRIVE_E_BUSY;
+    }
+    return DRIVE_OK;
+}
+
+drive_result_t drive_queue_block(const drive_block_t *b)
+{
+    host_block_t h;
+    host_block_t zero = {0};
+    drive_result_t r;
+    unsigned i;
+    if (b == NULL) {
+        return DRIVE_E_INVALID;
+    }
+    r = accept_check();
+    if (r != DRIVE_OK) {
+        return r;
+    }
+    h = zero;
+    h.b = *b;
+    for (i = drv.cfg.axes; i < CORE_AXES; i++) {
+        h.b.target[i] = drv.q_end[i];
+    }
+    switch (b->kind) {
+    case DRIVE_BLOCK_DWELL:
+        if (b->dwell_ms == 0 || b->dwell_ms > 86400000u) {
+            return DRIVE_E_INVALID;
+        }
+        break;
+    case DRIVE_BLOCK_LINE:
+        if (b->feed_nm_s <= 0 || b->feed_nm_s > SC_V_LIMIT) {
+            return DRIVE_E_INVALID;
+        }
+        for (i = 0; i < CORE_AXES; i++) {
+            if (abs64(h.b.target[i] - drv.q_end[i]) >= SC_LEN_MAX) {
+                return DRIVE_E_INVALID;
+            }
+        }
+        break;
+    case DRIVE_BLOCK_ARC: {
+        int64_t su, sv, eu, ev;
+        if (b->feed_nm_s <= 0 || b->feed_nm_s > SC_V_LIMIT || (b->sense != 1 && b->sense != -1) ||
+            (unsigned)b->plane > DRIVE_PLANE_YZ) {
+            return DRIVE_E_INVALID;
+        }
+        plane_axes(b->plane, &h.u, &h.v, &h.w);
+        if (h.u >= drv.cfg.axes || h.v >= drv.cfg.axes) {
+            return DRIVE_E_INVALID;
+        }
+        for (i = 0; i < CORE_AXES; i++) {
+            h.start[i] = drv.q_end[i];
+        }
+        su = h.start[h.u] - b->centre_u;
+        sv = h.start[h.v] - b->centre_v;
+        eu = h.b.target[h.u] - b->centre_u;
+        ev = h.b.target[h.v] - b->centre_v;
+        if (abs64(su) >= SC_LEN_MAX || abs64(sv) >= SC_LEN_MAX || abs64(eu) >= SC_LEN_MAX ||
+            abs64(ev) >= SC_LEN_MAX) {
+            return DRIVE_E_INVALID;
+        }
+        h.r_s = fx_hypot2(su, sv);
+        h.r_e = fx_hypot2(eu, ev);
+        if (h.r_s <= 0 || h.r_e <= 0 || abs64(h.r_s - h.r_e) > DRIVE_ARC_RADIUS_TOL_NM) {
+            return DRIVE_E_INVALID;
+        }
+        h.th_s = fx_atan2(sv, su);
+        {
+            fx_angle_t the = fx_atan2(ev, eu);
+            uint32_t d = b->sense > 0 ? (uint32_t)(the - h.th_s) : (uint32_t)(h.th_s - the);
+            int64_t sw = d == 0 ? ((int64_t)1 << 32) : (int64_t)d;
+            int64_t seg;
+            h.sweep = b->sense > 0 ? sw : -sw;
+            seg = arc_seg_angle((h.r_s + h.r_e) / 2, b->feed_nm_s);
+            h.n_seg = (uint32_t)((sw + seg - 1) / seg);
+            if (h.n_seg < 1) {
+                h.n_seg = 1;
+            }
+        }
+        h.done_seg = 0;
+        break;
+    }
+    default:
+        return DRIVE_E_INVALID;
+    }
+    if (drv.hq_count >= DRIVE_QUEUE_DEPTH) {
+        return DRIVE_E_FULL;
+    }
+    drv.hq[(drv.hq_head + drv.hq_count) % DRIVE_QUEUE_DEPTH] = h;
+    drv.hq_count++;
+    if (b->kind != DRIVE_BLOCK_DWELL) {
+        for (i = 0; i < CORE_AXES; i++) {
+            drv.q_end[i] = h.b.target[i];
+        }
+    }
+    if (drv.state == DRIVE_IDLE) {
+        drv.state = DRIVE_RUNNING;
+    }
+    return DRIVE_OK;
+}
+
+drive_result_t drive_enable(bool on)
+{
+    unsigned i;
+    if (!drv.ready) {
+        return DRIVE_E_DISABLED;
+    }
+    if (drv.state == DRIVE_FAULT) {
+        return DRIVE_E_FAULTED;
+    }
+    if (!on) {
+        drv.req_disable = true;
+        return DRIVE_OK;
+    }
+    if (drv.state == DRIVE_DISABLED) {
+        pos_nm_t pos[CORE_AXES] = {0};
+        for (i = 0; i < drv.cfg.axes; i++) {
+            pos[i] = drv.enc[i].out.pos_nm;
+        }
+        flush_all(pos);
+        for (i = 0; i < CORE_AXES; i++) {
+            drv.ref.pos[i] = pos[i];
+        }
+        drv.req_disable = false;
+        drv.req_enable = true;
+        drv.state = DRIVE_IDLE;
+    }
+    return DRIVE_OK;
+}
+
+void drive_stop(void)
+{
+    drv.req_stop = true;
+}
+
+void drive_estop(void)
+{
+    drv.req_estop = true;
+}
+
+void drive_raise_fault(uint32_t fault_bits)
+{
+    drv.req_fault |= fault_bits;
+}
+
+drive_result_t drive_fault_reset(void)
+{
+    unsigned i;
+    if (!drv.ready) {
+        return DRIVE_E_DISABLED;
+    }
+    if (drv.state != DRIVE_FAULT) {
+        return DRIVE_OK;
+    }
+    for (i = 0; i < drv.cfg.axes; i++) {
+        if (hal_amp_fault(i)) {
+            return DRIVE_E_CAUSE;
+        }
+    }
+    drv.req_reset = true;
+    return DRIVE_OK;
+}
+
+void drive_snapshot(drive_status_t *out)
+{
+    uint32_t s;
+    if (out == NULL) {
+        return;
+    }
+    do {
+        s = drv.st_seq;
+        *out = drv.st;
+    } while ((s & 1u) != 0 || s != drv.st_seq);
+}
+
+void drive_status(drive_status_t *out)
+{
+    if (out == NULL) {
+        return;
+    }
+    drive_snapshot(out);
+    out->queue_free = (uint32_t)(DRIVE_QUEUE_DEPTH - drv.hq_count);
+    out->queued_time_ns = plan_queued_ns(&drv.plan);
+}
+
+void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns)
+{
+    if (drv.ready && ch < drv.cfg.axes) {
+        qdec_edge(&drv.enc[ch], lines, t_ns);
+    }
+}
+
+int64_t drive_encoder_count(unsigned ch)
+{
+    if (!drv.ready || ch >= drv.cfg.axes) {
+        return 0;
+    }
+    return drv.enc[ch].out.pos;
+}
+
+static bool moving(void)
+{
+    return drv.state == DRIVE_RUNNING || drv.state == DRIVE_STOPPING;
+}
+
+drive_result_t drive_set_cec_mode(drive_cec_mode_t mode)
+{
+    static const cec_mode_t map[] = {CEC_MODE_OFF, CEC_MODE_TANGENT, CEC_MODE_CURVATURE,
+                                     CEC_MODE_EXACT};
+    if ((unsigned)mode > (unsigned)DRIVE_CEC_EXACT) {
+        return DRIVE_E_INVALID;
+    }
+    if (moving()) {
+        return DRIVE_E_BUSY;
+    }
+    drv.pend_mode = map[mode];
+    drv.cec_mode = mode;
+    drv.req_cec = true;
+    return DRIVE_OK;
+}
+
+drive_result_t drive_set_servo_params(const servo_params_t *p)
+{
+    static servo_t probe;
+    servo_params_t q;
+    if (p == NULL || !drv.ready) {
+        return DRIVE_E_INVALID;
+    }
+    q = *p;
+    q.axes = drv.cfg.axes;
+    q.tick_hz = drv.cfg.tick_hz;
+    q.cec.mode = CEC_MODE_OFF;
+    if (servo_init(&probe, &q, NULL) != SERVO_OK) {
+        return DRIVE_E_INVALID;
+    }
+    if (moving()) {
+        return DRIVE_E_BUSY;
+    }
+    drv.pend = q;
+    drv.req_gains = true;
+    return DRIVE_OK;
+}
+
+void drive_set_comp(unsigned axis, const comp_table_t *table)
+{
+    if (drv.ready && axis < drv.cfg.axes) {
+        qdec_set_comp(&drv.enc[axis], table);
+    }
+}
+
+bool drive_has_refscale(unsigned axis)
+{
+    return drv.ready && axis < drv.cfg.axes && drv.ref_on[axis];
+}

@@ -1,0 +1,260 @@
+/*
+ * drive.h - the drive application: owns and wires the planner, the
+ * interpolator, the encoder decoders and the servo loops of one drive.
+ *
+ * Specification
+ * -------------
+ * One drive per firmware image: the state is a single static instance inside
+ * drive.c (no heap). A port calls drive_init() once at start-up, then
+ * drive_tick() from its control-tick interrupt (or the simulator's step) and
+ * drive_poll() from its background loop. The protocol dispatcher (main
+ * context) calls the command functions below; they never block.
+ *
+ * Contexts
+ *   drive_tick()                          tick only.
+ *   drive_poll(), drive_queue_block(),
+ *   drive_enable(), drive_stop(),
+ *   drive_fault_reset(), drive_set_*()    main only.
+ *   drive_estop(), drive_status()         any context (estop only sets a
+ *                                         flag acted on by the next tick;
+ *                                         status copies a snapshot the tick
+ *                                         publishes under a sequence count).
+ *   drive_encoder_edge()                  edge interrupt / simulator, between
+ *                                         ticks (never concurrently with tick
+ *                                         on the simulator; on hardware the
+ *                                         decoder's own rules apply).
+ *
+ * Units (docs/conventions.md): positions nm (pos_nm_t), velocities nm/s,
+ * times ns or ticks, motor command mV at the amplifier input.
+ *
+ * Motion: blocks are absolute end points with a programmed feed, queued in
+ * a host-block FIFO of DRIVE_QUEUE_DEPTH entries (queue_free in the status)
+ * that drive_poll() feeds into the planner (planner.h, straight blocks only):
+ *   LINE   one planner block.
+ *   DWELL  one planner dwell.
+ *   ARC    in a plane (G17/G18/G19) about an absolute centre, sense +1 (G3,
+ *          counter-clockwise seen from the plane normal) or -1 (G2); start and
+ *          end radius may differ by up to DRIVE_ARC_RADIUS_TOL_NM (the radius
+ *          then varies linearly with the swept angle); start == end is a full
+ *          circle; the third axis moves linearly (helix). It is cut into
+ *          chords of equal angle, the angle being the larger of the chord
+ *          tolerance (cfg.arc_chord_nm) and DRIVE_ARC_SEG_TICKS ticks of
+ *          travel at the programmed feed, and at most DRIVE_ARC_SEG_MAX_ANGLE.
+ *          The planner times the chords; in the tick the drive maps the
+ *          interpolator's position on a chord to the same fraction of the
+ *          chord's angle on the true arc, so the reference position, the
+ *          tangent, the velocity feed-forward (path speed scaled by arc /
+ *          chord length) and the acceleration feed-forward (tangential plus
+ *          centripetal v^2 / r) are those of the exact arc, and the
+ *          motion_ref_t geometry is MOTION_GEOM_ARC (centre, current radius,
+ *          sense) for the contour-error controller.
+ * A block is accepted only when the drive is enabled and not faulted; it is
+ * validated before anything is queued (all or nothing).
+ *
+ * Controlled stop: the interpolator's time step is scaled down linearly so
+ * that the path speed falls at cfg.stop_decel_nm_s2 (the axes stay on the
+ * path); at rest the queues are flushed and the reference holds.
+ *
+ * State machine
+ *   DISABLED --enable--> IDLE <--> RUNNING (blocks queued / executing)
+ *   RUNNING --stop--> STOPPING --(axes at rest)--> IDLE (queue flushed)
+ *   any --estop / fault--> FAULT (outputs zero and disabled, queue flushed)
+ *   FAULT --fault_reset (cause gone)--> DISABLED
+ *   IDLE/RUNNING --disable--> DISABLED (outputs zero, queue flushed)
+ */
+#ifndef DRIVE_H
+#define DRIVE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "comp.h"
+#include "core_config.h"
+#include "fixmath.h"
+#include "planner.h"
+#include "servo.h"
+
+/* Default chord tolerance for arcs segmented by the drive, nm. */
+#ifndef DRIVE_ARC_CHORD_NM
+#define DRIVE_ARC_CHORD_NM 100
+#endif
+/* Arc chords last at least this many ticks at the programmed feed. */
+#define DRIVE_ARC_SEG_TICKS 32
+/* Largest angle of one arc chord (binary angle: 2^32 per turn; pi/32): the
+ * direction components of chords meeting at a quadrant point stay below the
+ * planner's reversal threshold (sin(pi/64) < PLAN_REVERSAL_MIN_Q30 = 1/16). */
+#define DRIVE_ARC_SEG_MAX_ANGLE ((uint32_t)1 << 26)
+/* Largest difference of start and end radius of an arc, nm. */
+#define DRIVE_ARC_RADIUS_TOL_NM 5000
+/* Host blocks queued ahead of the planner. */
+#define DRIVE_QUEUE_DEPTH 16
+
+typedef enum {
+    DRIVE_OK = 0,
+    DRIVE_E_FULL,     /* planner ring full: retry after blocks complete */
+    DRIVE_E_INVALID,  /* malformed block or parameter (nothing changed)  */
+    DRIVE_E_DISABLED, /* the drive is not enabled                        */
+    DRIVE_E_FAULTED,  /* a fault is latched: fault_reset first           */
+    DRIVE_E_BUSY,     /* not allowed while moving (parameter changes)    */
+    DRIVE_E_CAUSE     /* fault_reset refused: the cause is still present */
+} drive_result_t;
+
+typedef enum {
+    DRIVE_DISABLED = 0,
+    DRIVE_IDLE,
+    DRIVE_RUNNING,
+    DRIVE_STOPPING,
+    DRIVE_FAULT
+} drive_state_t;
+
+/* Fault bits (latched until drive_fault_reset); the first four are the
+ * servo's (servo.h SERVO_FAULT_*, same values), with its reactions:
+ * following error, encoder and amplifier faults disable, saturation makes a
+ * controlled stop. ESTOP disables at once. */
+#define DRIVE_FAULT_FOLLOWING  (1u << 0) /* following error over its limit   */
+#define DRIVE_FAULT_ENCODER    (1u << 1) /* decoder reported illegal edges    */
+#define DRIVE_FAULT_SATURATION (1u << 2) /* output saturated too long         */
+#define DRIVE_FAULT_AMPLIFIER  (1u << 3) /* amplifier fault input             */
+#define DRIVE_FAULT_ESTOP      (1u << 4) /* emergency stop requested          */
+#define DRIVE_FAULT_COMM       (1u << 5) /* host link watchdog (protocol)     */
+
+typedef enum {
+    DRIVE_BLOCK_LINE = 1,
+    DRIVE_BLOCK_ARC = 2,
+    DRIVE_BLOCK_DWELL = 3
+} drive_block_kind_t;
+
+typedef enum {
+    DRIVE_PLANE_XY = 0, /* G17: u = X, v = Y */
+    DRIVE_PLANE_ZX = 1, /* G18: u = Z, v = X */
+    DRIVE_PLANE_YZ = 2  /* G19: u = Y, v = Z */
+} drive_plane_t;
+
+typedef struct {
+    drive_block_kind_t kind;
+    uint32_t tag;                /* host's id, echoed in the status         */
+    pos_nm_t target[CORE_AXES];  /* LINE/ARC: absolute end point, nm        */
+    int64_t feed_nm_s;           /* LINE/ARC: programmed feed, nm/s, > 0    */
+    bool exact_stop;             /* stop at the end of this block (G61/G9)  */
+    drive_plane_t plane;         /* ARC only                                */
+    pos_nm_t centre_u, centre_v; /* ARC: absolute centre in the plane, nm   */
+    int8_t sense;                /* ARC: +1 counter-clockwise, -1 clockwise */
+    uint32_t dwell_ms;           /* DWELL only                              */
+} drive_block_t;
+
+/* Contour-error controller selection (per job). */
+typedef enum {
+    DRIVE_CEC_OFF = 0,
+    DRIVE_CEC_TANGENT,
+    DRIVE_CEC_CURVATURE,
+    DRIVE_CEC_EXACT
+} drive_cec_mode_t;
+
+typedef struct {
+    drive_state_t state;
+    uint32_t faults;            /* DRIVE_FAULT_* bits latched             */
+    uint64_t tick;              /* ticks since init                       */
+    pos_nm_t pos[CORE_AXES];    /* measured position, nm                  */
+    pos_nm_t ref[CORE_AXES];    /* reference position, nm                 */
+    int64_t vel_ref[CORE_AXES]; /* reference velocity, nm/s               */
+    int32_t motor_mv[CORE_AXES];
+    int64_t contour_error_nm;            /* CEC's estimate (0 when the CEC is off) */
+    uint32_t queue_free;                 /* free planner slots                     */
+    int64_t queued_time_ns;              /* planned time still queued              */
+    uint32_t blocks_done;                /* blocks completed since init            */
+    uint32_t tag;                        /* tag of the block executing (or last)   */
+    pos_nm_t refscale[CORE_AXES];        /* reference-scale positions, nm */
+    uint32_t encoder_illegal[CORE_AXES]; /* illegal transitions seen      */
+    pos_nm_t pos_raw[CORE_AXES];         /* measured position before the
+                                          * compensation table, nm       */
+} drive_status_t;
+
+typedef struct {
+    uint32_t tick_hz; /* control tick rate, Hz (PID_TICK_HZ_MIN..MAX)       */
+    unsigned axes;    /* axes in use, 1..CORE_AXES                         */
+    /* Encoder scale per axis: nanometres per count num / den (e.g. 5 mm
+     * per 4000 counts: 1250 / 1); the sign gives the counting direction. */
+    int32_t nm_per_count_num[CORE_AXES];
+    int32_t nm_per_count_den[CORE_AXES];
+    uint32_t enc_initial_lines[CORE_AXES]; /* A/B/Z levels at drive_init      */
+    /* Reference-scale inputs (hal_encoder_counter channels axes + i, 32-bit
+     * counters): nm per count num / den; num == 0: no reference scale. */
+    int32_t ref_nm_per_count_num[CORE_AXES];
+    int32_t ref_nm_per_count_den[CORE_AXES];
+    plan_profile_t plan;  /* planner limits and cornering rule          */
+    servo_params_t servo; /* axis loops, CEC gains, fault limits and
+                           * reactions (servo.h); axes and tick_hz are
+                           * overwritten from the fields above; the CEC
+                           * mode is chosen per job (drive_set_cec_mode) */
+    /* Coulomb friction feed-forward per axis: F * clamp(v_ref / band, -1, 1)
+     * mV added to the command (0: off). The servo has no friction term: it
+     * is applied through the acceleration feed-forward channel as an extra
+     * reference acceleration F / Kaff (so it needs Kaff > 0; off otherwise). */
+    int32_t friction_ff_mv[CORE_AXES];
+    int64_t friction_ff_band_nm_s; /* velocity of full friction feed-forward */
+    int64_t stop_decel_nm_s2;      /* drive_stop: path deceleration, > 0          */
+    int64_t arc_chord_nm;          /* arc segmentation tolerance, 0: default      */
+} drive_config_t;
+
+/* Fill cfg with working defaults for `axes` axes at tick_hz: 1 nm per
+ * count, no reference scale, servo_params_default(), planner 1 m/s,
+ * 10 m/s^2, 1000 m/s^3 per axis, junction deviation 10 um, stop 1 m/s^2. */
+void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes);
+
+/* Initialise everything (planner, interpolator, decoders, servo) with the
+ * given configuration; the drive starts DISABLED with all commands zero.
+ * Returns DRIVE_E_INVALID (and stays uninitialised) on bad values. Main. */
+drive_result_t drive_init(const drive_config_t *cfg);
+
+/* One control tick: decode, interpolate, servo, motor commands. Tick. */
+void drive_tick(void);
+
+/* Background work: re-planning, state housekeeping. Main. */
+void drive_poll(void);
+
+drive_result_t drive_queue_block(const drive_block_t *b);
+drive_result_t drive_enable(bool on);
+/* Controlled stop: decelerate on the path, flush the queue, stay enabled. */
+void drive_stop(void);
+/* Emergency stop: outputs to zero and disabled at the next tick, FAULT. */
+void drive_estop(void);
+/* Latch a fault from outside the drive (e.g. DRIVE_FAULT_COMM). Any. */
+void drive_raise_fault(uint32_t fault_bits);
+drive_result_t drive_fault_reset(void);
+void drive_status(drive_status_t *out);
+/* The tick's published snapshot only: queue_free and queued_time_ns are left
+ * 0 (drive_status computes the planned time, O(queued blocks)). Any. */
+void drive_snapshot(drive_status_t *out);
+
+/* Deliver one encoder edge to channel ch (axes 0..axes-1, then the
+ * reference-scale inputs): the new line levels (QDEC_LINE_A/B/Z bits) and
+ * the edge time in ns of the tick clock (uint32, wrapping; see qdec.h).
+ * Channels out of range are ignored. */
+void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns);
+
+/* Decoded position of channel ch in counts (0 for a channel not in use). */
+int64_t drive_encoder_count(unsigned ch);
+
+/* Calibration (calib.h). drive_tick ends with calib_tick(published status),
+ * drive_poll starts with calib_poll(), drive_init ends with calib_init().
+ * The reference-scale decoders read the absolute counter value at init
+ * (position = counter * scale), like the encoder counts from 0 = position 0.
+ *
+ * Install (or remove, NULL) the compensation table of an axis's encoder
+ * decoder (qdec_set_comp: one pointer store). Main. */
+void drive_set_comp(unsigned axis, const comp_table_t *table);
+/* True when the axis has a reference-scale input in use. Any. */
+bool drive_has_refscale(unsigned axis);
+
+/* Select the contour-error controller (refused while moving). Main. */
+drive_result_t drive_set_cec_mode(drive_cec_mode_t mode);
+
+/* Replace the servo parameters (gains, limits; validated with
+ * servo_config; refused while moving; applied by the next tick; the CEC mode
+ * in p is ignored: drive_set_cec_mode). Main. */
+drive_result_t drive_set_servo_params(const servo_params_t *p);
+
+/* The configuration in use (read-only). Any. */
+const drive_config_t *drive_config(void);
+
+#endif /* DRIVE_H */

@@ -1,0 +1,243 @@
+/*
+ * bench_mps2.c - instruction counts of the real cross-compiled control code
+ * on the Cortex-M4 instruction set, run under `qemu-system-arm -icount`
+ * (bench/bench-firmware.sh; method in docs/ports.md).
+ *
+ * With -icount the virtual clock advances by a fixed time per executed
+ * instruction, so the 25 MHz dual timer read before and after a call
+ * measures the instructions in between. The ratio is calibrated in the
+ * image itself on a run of CAL_NOPS nops, the cost of the two timer reads is
+ * measured and subtracted. SysTick is stopped (manual clock): no interrupt
+ * falls inside a measurement.
+ *
+ * Workloads (three axes, the QEMU machine of app_mps2.c, default servo and
+ * planner parameters, CEC off):
+ *   control tick  drive_tick() while the drive runs a helix (full circle of
+ *                 radius 5 mm in XY at 20 mm/s, Z rising 2 mm), the axes
+ *                 simulated between ticks (not measured); mean and maximum
+ *                 over the RUNNING ticks.
+ *   planner block plan_push() + plan_pop() per block with the look-ahead
+ *                 ring full (64 blocks): 1000 chords of 0.2 mm around a
+ *                 circle with a 3-axis component, feed 50 mm/s.
+ * Prints `name: value unit` lines on UART0, then exits QEMU (semihosting).
+ */
+#include "drive.h"
+#include "hal.h"
+#include "mps2.h"
+#include "planner.h"
+#include "plant_mps2.h"
+#include "port.h"
+
+#define AXES      3u
+#define CAL_NOPS  4096u
+#define MAX_TICKS 40000u
+
+static void put(const char *s)
+{
+    size_t n = 0;
+
+    while (s[n] != '\0') {
+        n++;
+    }
+    while (n > 0u) {
+        size_t w = hal_uart_write((const uint8_t *)s, n);
+        s += w;
+        n -= w;
+    }
+}
+
+static void put_u32(uint32_t v)
+{
+    char buf[11];
+    int i = 10;
+
+    buf[i] = '\0';
+    do {
+        buf[--i] = (char)('0' + v % 10u);
+        v /= 10u;
+    } while (v != 0u);
+    put(&buf[i]);
+}
+
+static void line(const char *name, uint32_t v, const char *unit)
+{
+    put(name);
+    put(": ");
+    put_u32(v);
+    put(" ");
+    put(unit);
+    put("\n");
+}
+
+static void semihost_exit(void)
+{
+    register uint32_t r0 __asm__("r0") = 0x18u;    /* SYS_EXIT */
+    register uint32_t r1 __asm__("r1") = 0x20026u; /* ADP_Stopped_ApplicationExit */
+
+    __asm__ volatile("bkpt 0xab" : : "r"(r0), "r"(r1) : "memory");
+}
+
+#define NOP16   "nop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\t" \
+                "nop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\t"
+#define NOP256  NOP16 NOP16 NOP16 NOP16 NOP16 NOP16 NOP16 NOP16 \
+                NOP16 NOP16 NOP16 NOP16 NOP16 NOP16 NOP16 NOP16
+
+static uint32_t counts_empty;  /* two timer reads back to back */
+static uint32_t counts_per_cal; /* CAL_NOPS nops, minus counts_empty */
+
+static void calibrate(void)
+{
+    uint32_t c0, c1, best = 0xFFFFFFFFu;
+    unsigned i;
+
+    for (i = 0; i < 8u; i++) {
+        c0 = mps2_counter();
+        c1 = mps2_counter();
+        if (c0 - c1 < best) {
+            best = c0 - c1;
+        }
+    }
+    counts_empty = best;
+    c0 = mps2_counter();
+    __asm__ volatile(NOP256 NOP256 NOP256 NOP256 NOP256 NOP256 NOP256 NOP256
+                     NOP256 NOP256 NOP256 NOP256 NOP256 NOP256 NOP256 NOP256 ::: "memory");
+    c1 = mps2_counter();
+    counts_per_cal = c0 - c1 - counts_empty;
+}
+
+/* instructions for a sum of `calls` measurements of `counts` (rounded) */
+static uint32_t instr(uint64_t counts, uint32_t calls)
+{
+    uint64_t net = counts - (uint64_t)counts_empty * calls;
+
+    if (counts < (uint64_t)counts_empty * calls || calls == 0u || counts_per_cal == 0u) {
+        return 0u;
+    }
+    return (uint32_t)((net * CAL_NOPS + (uint64_t)counts_per_cal * calls / 2u) /
+                      ((uint64_t)counts_per_cal * calls));
+}
+
+static void bench_tick(void)
+{
+    drive_config_t cfg;
+    drive_block_t b = {0};
+    drive_status_t st;
+    uint64_t sum = 0;
+    uint32_t n = 0, worst = 0, k;
+
+    plant_drive_config(&cfg, MPS2_TICK_HZ, AXES);
+    if (!plant_init(MPS2_TICK_HZ, AXES, &cfg) || drive_init(&cfg) != DRIVE_OK ||
+        drive_enable(true) != DRIVE_OK) {
+        put("bench: drive refused its configuration\n");
+        return;
+    }
+    for (k = 0; k < 10u; k++) { /* enable takes effect in the tick */
+        mps2_clock_advance();
+        drive_tick();
+        plant_step(mps2_ticks());
+        drive_poll();
+    }
+    b.kind = DRIVE_BLOCK_ARC;
+    b.tag = 1;
+    b.target[0] = 0;
+    b.target[1] = 0;
+    b.target[2] = 2000000;
+    b.feed_nm_s = 20000000;
+    b.plane = DRIVE_PLANE_XY;
+    b.centre_u = 5000000;
+    b.centre_v = 0;
+    b.sense = 1;
+    if (drive_queue_block(&b) != DRIVE_OK) {
+        put("bench: arc refused\n");
+        return;
+    }
+    for (k = 0; k < MAX_TICKS; k++) {
+        uint32_t c0, c1;
+
+        mps2_clock_advance();
+        c0 = mps2_counter();
+        drive_tick();
+        c1 = mps2_counter();
+        plant_step(mps2_ticks());
+        drive_poll();
+        drive_snapshot(&st);
+        if (st.state == DRIVE_RUNNING) {
+            sum += c0 - c1;
+            n++;
+            if (c0 - c1 > worst) {
+                worst = c0 - c1;
+            }
+        } else if (n > 0u) {
+            break;
+        }
+    }
+    drive_status(&st);
+    if (st.faults != 0u || n == 0u) {
+        put("bench: the helix did not run (faults ");
+        put_u32(st.faults);
+        put(")\n");
+        return;
+    }
+    line("control_tick_instructions_m4", instr(sum, n), "instr");
+    line("control_tick_instructions_m4_max", instr(worst, 1u), "instr");
+    line("control_tick_count_m4", n, "ticks");
+}
+
+static plan_block_t ring[PLAN_DEPTH_DEFAULT];
+
+static void bench_planner(void)
+{
+    drive_config_t cfg;
+    plan_t p;
+    plan_seg_t seg;
+    pos_nm_t origin[CORE_AXES] = {0};
+    uint64_t sum = 0;
+    uint32_t n = 0, k;
+    /* 0.2 mm chords around a 32 mm circle: cos/sin by rotation (integer) */
+    int64_t x = 5000000, y = 0;
+
+    plant_drive_config(&cfg, MPS2_TICK_HZ, AXES);
+    if (plan_init(&p, ring, PLAN_DEPTH_DEFAULT, &cfg.plan, origin) != PLAN_OK) {
+        put("bench: plan_init refused\n");
+        return;
+    }
+    for (k = 0; k < 1000u + PLAN_DEPTH_DEFAULT; k++) {
+        plan_move_t m = {0};
+        uint32_t c0, c1;
+        int64_t nx = x - y / 25, ny = y + x / 25; /* ~2.3 degrees per chord */
+
+        x = nx;
+        y = ny;
+        m.target[0] = x;
+        m.target[1] = y;
+        m.target[2] = (int64_t)k * 1000;
+        m.feed = 50000000;
+        m.tag = k;
+        c0 = mps2_counter();
+        if (plan_free_slots(&p) == 0u) {
+            (void)plan_pop(&p, &seg);
+        }
+        (void)plan_push(&p, &m);
+        c1 = mps2_counter();
+        if (k >= PLAN_DEPTH_DEFAULT) { /* steady state: one pop + one push */
+            sum += c0 - c1;
+            n++;
+        }
+    }
+    line("planner_block_instructions_m4", instr(sum, n), "instr");
+}
+
+int main(void)
+{
+    mps2_board_init(MPS2_TICK_HZ, NULL);
+    mps2_clock_manual();
+    mps2_counter_start();
+    calibrate();
+    bench_planner();
+    bench_tick();
+    while (!port_uart_tx_idle()) {
+    }
+    semihost_exit();
+    for (;;) {
+    }
+}

@@ -1,0 +1,317 @@
+/*
+ * hal_mps2.c - HAL of the QEMU mps2-an386 board: time base (SysTick), UART0
+ * (interrupt-driven byte rings), flash (the code-region RAM with NOR rules),
+ * watchdog, reset. Motors and encoders are the simulated axes (plant_mps2.c);
+ * the board has no CAN controller.
+ *
+ * Contexts: the SysTick interrupt runs the tick hook (control tick); the
+ * UART interrupts fill / empty the rings; everything else is main context.
+ * Rings are single-producer / single-consumer with volatile indices.
+ */
+#include <stddef.h>
+
+#include "hal.h"
+#include "mps2.h"
+#include "port.h"
+
+#define RX_RING 1024u /* power of two */
+#define TX_RING 2048u
+
+static struct {
+    uint8_t rx[RX_RING];
+    volatile uint32_t rx_head, rx_tail; /* head: ISR writes, tail: main */
+    uint8_t tx[TX_RING];
+    volatile uint32_t tx_head, tx_tail; /* head: main, tail: ISR */
+    volatile bool tx_busy;              /* a byte is in the transmitter */
+    uint32_t rx_dropped;
+} uart;
+
+static struct {
+    uint32_t load;      /* SysTick reload */
+    uint32_t period_us; /* tick period */
+    volatile uint32_t ticks;
+    volatile uint32_t overruns;
+    bool manual; /* benchmark: no SysTick, mps2_clock_advance() moves time */
+    void (*hook)(void);
+} tb;
+
+/* ---- time base --------------------------------------------------------------- */
+
+void mps2_systick_handler(void);
+void mps2_systick_handler(void)
+{
+    tb.ticks++;
+    if (tb.hook != NULL) {
+        tb.hook();
+        if (CM4_SCB_ICSR & CM4_ICSR_PENDSTSET) {
+            tb.overruns++;
+        }
+    }
+}
+
+void mps2_set_tick_hook(void (*hook)(void))
+{
+    tb.hook = hook;
+}
+
+uint32_t mps2_tick_overruns(void)
+{
+    return tb.overruns;
+}
+
+void mps2_counter_start(void)
+{
+    MPS2_TIMER1_CTRL = 0u;
+    MPS2_TIMER1_LOAD = 0xFFFFFFFFu;
+    MPS2_TIMER1_CTRL = MPS2_TIMER_CTRL_EN | MPS2_TIMER_CTRL_32BIT; /* free-running, no prescale */
+}
+
+uint32_t mps2_ticks(void)
+{
+    return tb.ticks;
+}
+
+void mps2_clock_manual(void)
+{
+    CM4_SYST_CSR = 0u;
+    CM4_SCB_ICSR = CM4_ICSR_PENDSTCLR;
+    tb.manual = true;
+}
+
+void mps2_clock_advance(void)
+{
+    tb.ticks++;
+}
+
+uint32_t hal_time_us(void)
+{
+    uint32_t t1, t2, val, sub;
+
+    if (tb.manual) {
+        return tb.ticks * tb.period_us;
+    }
+    do {
+        t1 = tb.ticks;
+        val = CM4_SYST_CVR;
+        t2 = tb.ticks;
+        /* a wrap not yet counted (interrupt pending or masked): take the
+         * start of the period */
+        if (CM4_SCB_ICSR & CM4_ICSR_PENDSTSET) {
+            val = tb.load;
+        }
+    } while (t1 != t2);
+    sub = (tb.load - val) / (MPS2_SYSCLK_HZ / 1000000u);
+    if (sub >= tb.period_us) {
+        sub = tb.period_us - 1u;
+    }
+    return t1 * tb.period_us + sub;
+}
+
+/* ---- UART0 --------------------------------------------------------------------- */
+
+void mps2_uart0_rx_handler(void);
+void mps2_uart0_rx_handler(void)
+{
+    MPS2_UART_INT(MPS2_UART0) = MPS2_UART_INT_RX;
+    while (MPS2_UART_STATE(MPS2_UART0) & MPS2_UART_STATE_RXFULL) {
+        uint8_t c = (uint8_t)MPS2_UART_DATA(MPS2_UART0);
+        uint32_t h = uart.rx_head;
+
+        if (h - uart.rx_tail < RX_RING) {
+            uart.rx[h % RX_RING] = c;
+            uart.rx_head = h + 1u;
+        } else {
+            uart.rx_dropped++;
+        }
+    }
+}
+
+/* Start the next byte if there is one; called with the TX interrupt masked
+ * (from its handler or with interrupts off). */
+static void tx_next(void)
+{
+    uint32_t t = uart.tx_tail;
+
+    if (t != uart.tx_head && !(MPS2_UART_STATE(MPS2_UART0) & MPS2_UART_STATE_TXFULL)) {
+        uart.tx_busy = true;
+        MPS2_UART_DATA(MPS2_UART0) = uart.tx[t % TX_RING];
+        uart.tx_tail = t + 1u;
+    } else if (t == uart.tx_head) {
+        uart.tx_busy = false;
+    }
+}
+
+void mps2_uart0_tx_handler(void);
+void mps2_uart0_tx_handler(void)
+{
+    MPS2_UART_INT(MPS2_UART0) = MPS2_UART_INT_TX;
+    tx_next();
+}
+
+size_t hal_uart_write(const uint8_t *data, size_t len)
+{
+    size_t n = 0;
+    uint32_t pm;
+
+    if (data == NULL) {
+        return 0;
+    }
+    while (n < len && uart.tx_head - uart.tx_tail < TX_RING) {
+        uart.tx[uart.tx_head % TX_RING] = data[n++];
+        uart.tx_head++;
+    }
+    pm = cm4_irq_save();
+    if (!uart.tx_busy) {
+        tx_next();
+    }
+    cm4_irq_restore(pm);
+    return n;
+}
+
+size_t hal_uart_read(uint8_t *data, size_t cap)
+{
+    size_t n = 0;
+
+    if (data == NULL) {
+        return 0;
+    }
+    while (n < cap && uart.rx_tail != uart.rx_head) {
+        data[n++] = uart.rx[uart.rx_tail % RX_RING];
+        uart.rx_tail++;
+    }
+    return n;
+}
+
+bool port_uart_tx_idle(void)
+{
+    return uart.tx_tail == uart.tx_head && !uart.tx_busy &&
+           !(MPS2_UART_STATE(MPS2_UART0) & MPS2_UART_STATE_TXFULL);
+}
+
+/* ---- CAN: none on this board ---------------------------------------------------- */
+
+bool hal_can_send(uint32_t id, const uint8_t *data, uint8_t len)
+{
+    (void)id;
+    (void)data;
+    (void)len;
+    return false;
+}
+
+bool hal_can_receive(uint32_t *id, uint8_t *data, uint8_t *len)
+{
+    (void)id;
+    (void)data;
+    (void)len;
+    return false;
+}
+
+/* ---- flash: RAM with NOR rules ----------------------------------------------------- */
+
+static const hal_flash_layout_t flash_layout = {MPS2_FLASH_BASE, MPS2_FLASH_SIZE, MPS2_FLASH_PAGE,
+                                                MPS2_FLASH_WRITE};
+
+const hal_flash_layout_t *hal_flash_layout(void)
+{
+    return &flash_layout;
+}
+
+static bool in_flash(uint32_t addr, size_t len)
+{
+    return addr >= MPS2_FLASH_BASE && len <= MPS2_FLASH_SIZE &&
+           addr - MPS2_FLASH_BASE <= MPS2_FLASH_SIZE - len;
+}
+
+bool hal_flash_erase_page(uint32_t addr)
+{
+    volatile uint32_t *p;
+    uint32_t i;
+
+    if (!in_flash(addr, 1u)) {
+        return false;
+    }
+    addr -= (addr - MPS2_FLASH_BASE) % MPS2_FLASH_PAGE;
+    p = (volatile uint32_t *)(uintptr_t)addr;
+    for (i = 0; i < MPS2_FLASH_PAGE / 4u; i++) {
+        p[i] = 0xFFFFFFFFu;
+    }
+    return true;
+}
+
+bool hal_flash_write(uint32_t addr, const uint8_t *data, size_t len)
+{
+    volatile uint8_t *p = (volatile uint8_t *)(uintptr_t)addr;
+    size_t i;
+
+    if (data == NULL || !in_flash(addr, len) || addr % MPS2_FLASH_WRITE != 0u ||
+        len % MPS2_FLASH_WRITE != 0u) {
+        return false;
+    }
+    for (i = 0; i < len; i++) {
+        if (p[i] != 0xFFu) {
+            return false; /* only erased bytes may be programmed */
+        }
+    }
+    for (i = 0; i < len; i++) {
+        p[i] = data[i];
+    }
+    return true;
+}
+
+bool hal_flash_read(uint32_t addr, uint8_t *data, size_t len)
+{
+    const volatile uint8_t *p = (const volatile uint8_t *)(uintptr_t)addr;
+    size_t i;
+
+    if (data == NULL || !in_flash(addr, len)) {
+        return false;
+    }
+    for (i = 0; i < len; i++) {
+        data[i] = p[i];
+    }
+    return true;
+}
+
+/* ---- system -------------------------------------------------------------------------- */
+
+void hal_watchdog_kick(void)
+{
+    MPS2_WDOG_INTCLR = 1u;
+}
+
+void hal_system_reset(void)
+{
+    cm4_system_reset();
+}
+
+void mps2_board_init(uint32_t tick_hz, void (*hook)(void))
+{
+    uart.rx_head = uart.rx_tail = 0;
+    uart.tx_head = uart.tx_tail = 0;
+    uart.tx_busy = false;
+    MPS2_UART_CTRL(MPS2_UART0) = 0u;
+    MPS2_UART_BAUDDIV(MPS2_UART0) = MPS2_SYSCLK_HZ / 115200u;
+    MPS2_UART_INT(MPS2_UART0) = MPS2_UART_INT_TX | MPS2_UART_INT_RX;
+    MPS2_UART_CTRL(MPS2_UART0) = MPS2_UART_CTRL_TXEN | MPS2_UART_CTRL_RXEN |
+                                 MPS2_UART_CTRL_TXINT | MPS2_UART_CTRL_RXINT;
+    cm4_nvic_enable(MPS2_IRQ_UART0_RX, 0x40u);
+    cm4_nvic_enable(MPS2_IRQ_UART0_TX, 0x40u);
+
+    /* watchdog: 4 s at 25 MHz (interrupt, then reset on the second expiry) */
+    MPS2_WDOG_LOCK = MPS2_WDOG_UNLOCK;
+    MPS2_WDOG_LOAD = 4u * MPS2_SYSCLK_HZ / 2u;
+    MPS2_WDOG_CTRL = 3u; /* INTEN | RESEN */
+    MPS2_WDOG_LOCK = 0u;
+
+    tb.period_us = 1000000u / tick_hz;
+    tb.load = MPS2_SYSCLK_HZ / tick_hz - 1u;
+    tb.ticks = 0;
+    tb.overruns = 0;
+    tb.manual = false;
+    tb.hook = hook;
+    CM4_SCB_SHPR3 = (CM4_SCB_SHPR3 & 0x00FFFFFFu) | (0x80u << 24); /* SysTick below the UART */
+    CM4_SYST_RVR = tb.load;
+    CM4_SYST_CVR = 0u;
+    CM4_SYST_CSR = CM4_SYST_CSR_ENABLE | CM4_SYST_CSR_TICKINT | CM4_SYST_CSR_CLKSOURCE;
+    cm4_irq_enable();
+}

@@ -1,0 +1,41 @@
+/*
+ * plant_mps2.h - the simulated axes of the QEMU board: the simulator's axis
+ * model (hil_sim/axis_model.h, the thesis's X/Y axes, 5 mm lead, 4000
+ * counts per motor revolution, 1 nm reference scale) with x4 quadrature
+ * edges as hil_sim/qgen.h makes them, compiled into the image as the
+ * board's "hardware". They implement the motor and encoder part of hal.h:
+ *   hal_motor_set_mv / hal_motor_enable   the amplifier input (0 when disabled)
+ *   hal_amp_fault                         never
+ *   hal_encoder_counter(ch)               reference scales on channels
+ *                                         axes..2*axes-1 (32-bit counts);
+ *                                         axis encoders are edge mode (false)
+ *
+ * plant_init  prepares the models for `axes` axes at tick_hz (substeps of at
+ *             most 100 us) and fills the encoder part of the drive's
+ *             configuration (scales, initial line levels). Main context,
+ *             before drive_init.
+ * plant_step  advances the models over one tick period with the motor
+ *             commands just computed, delivering every encoder count change
+ *             as a quadrature edge (drive_encoder_edge) time-stamped on the
+ *             drive's ns clock (tick k at k * period). Tick context, right
+ *             after drive_tick.
+ */
+#ifndef PLANT_MPS2_H
+#define PLANT_MPS2_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "drive.h"
+
+/* The QEMU machine's drive configuration: drive_config_default for `axes`
+ * at tick_hz with the amplifier input limited to +-10 V (as the
+ * simulator's machine). Encoder fields are filled by plant_init. */
+void plant_drive_config(drive_config_t *cfg, uint32_t tick_hz, unsigned axes);
+
+bool plant_init(uint32_t tick_hz, unsigned axes, drive_config_t *cfg);
+void plant_step(uint32_t tick);
+/* True table position of an axis in nm (for diagnostics). */
+int64_t plant_table_nm(unsigned axis);
+
+#endif /* PLANT_MPS2_H */

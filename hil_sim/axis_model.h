@@ -1,0 +1,152 @@
+/*
+ * axis_model.h - physical model of one machine axis for the HIL simulator.
+ *
+ * Specification
+ * -------------
+ * The fifth-order two-inertia model of ../shared/models/lacerda1998.md: a DC
+ * motor under armature-voltage control drives a ball screw; the motor+screw
+ * inertia I1 is coupled to the table inertia I2 (reflected to the screw) by a
+ * stiffness K and a damping B. State z = [th1, w1, th2, w2, ia] (rad, rad/s,
+ * rad, rad/s, A):
+ *
+ *   dth1/dt = w1
+ *   dw1/dt  = (-K(th1-th2) - B(w1-w2) + kt ia - T1) / I1
+ *   dth2/dt = w2
+ *   dw2/dt  = ( K(th1-th2) + B(w1-w2) - T2) / I2
+ *   dia/dt  = (sat(kx u, Vmax) - Ra ia - kb w1) / La
+ *
+ * u is the amplifier command (V at the amplifier input), T1 the torque on the
+ * motor side (load torque + motor-side Coulomb friction), T2 the torque on the
+ * table side (table Coulomb friction, force times l). The table position is
+ * x = l th2 (+ pitch error), the motor encoder sees l th1.
+ *
+ * Integration: exact zero-order-hold discretisation. At init, for a substep h
+ * the augmented matrix M = [[A, B], [0, 0]] (5 states + 3 inputs) is
+ * exponentiated in double precision (scaling and squaring of a Taylor series),
+ * giving Phi = e^{Ah} and Gamma = int_0^h e^{As} ds B. Each substep is then
+ * z <- Phi z + Gamma [u, T1, T2]. The inputs are constant over a substep: the
+ * command is constant over the control tick anyway (and the +-Vmax clamp acts
+ * on it exactly), so with no nonlinear option configured the result is exact
+ * for any substep length. Friction and backlash are evaluated once per
+ * substep (choose a short substep when they are on):
+ *
+ *  - Coulomb friction (motor side, N m; table side, N at the table): a
+ *    stick-slip law. The friction torque is the torque that would stop the
+ *    body within one substep, clamped to +-Fc ("friction as a constraint"):
+ *    it holds a body at rest while the net driving torque is below Fc and
+ *    opposes motion with Fc otherwise. Deterministic, no chattering.
+ *  - Backlash between screw and table (total lost motion b, metres at the
+ *    table): the coupling K, B acts on th1-th2 minus the half gap b/(2l) in
+ *    contact and is absent inside the gap. Two discretisations (engaged and
+ *    free) are prepared; the contact offset enters as an extra torque pair.
+ *  - Pitch error map: the true table position is l th2 + e(x, dir), e linear
+ *    in x between map points (held beyond the ends), with one error column for
+ *    motion in +x and one for -x; dir is the sign of the last table motion
+ *    larger than the hysteresis band `pitch_dir_band` (m).
+ *  - Load torque: constant T1 (N m).
+ *  - Encoder: counts per motor revolution (4x the line count for quadrature)
+ *    and optional Gaussian reading noise (counts rms) from a seeded
+ *    deterministic generator; the reading is offset by enc_offset_counts
+ *    (default 0.5: the decoder's count n covers n - 1/2 .. n + 1/2, centred
+ *    on the machine position it reports, instead of a half-count bias);
+ *    the reference scale reads the true table position at its own
+ *    resolution, rounded to the nearest count.
+ *
+ * All functions are plain C99 with doubles (hil_sim/ may use floating point);
+ * an axis_t is self-contained (no globals, no heap) and fully deterministic.
+ */
+#ifndef AXIS_MODEL_H
+#define AXIS_MODEL_H
+
+#include <complex.h>
+#include <stdbool.h>
+#include <stdint.h>
+
+#define AXIS_NSTATE      5
+#define AXIS_NINPUT      3
+#define AXIS_PITCH_MAX   64
+#define AXIS_SUBSTEP_MAX 1000
+
+typedef struct {
+    /* plant, SI units (names as in the model spec) */
+    double B, l, K, kb, kt, La, I1, I2, Ra, kx, vmax;
+    /* options: all zero = off */
+    double load_torque;                   /* N m on the motor side                       */
+    double coulomb_motor;                 /* N m, motor + screw bearings                 */
+    double coulomb_table;                 /* N at the table (guides)                     */
+    double backlash;                      /* m, total lost motion at the table           */
+    unsigned pitch_n;                     /* points in the pitch error map (0 = off)     */
+    double pitch_pos[AXIS_PITCH_MAX];     /* m, strictly increasing      */
+    double pitch_err_fwd[AXIS_PITCH_MAX]; /* m, error moving toward +x   */
+    double pitch_err_rev[AXIS_PITCH_MAX]; /* m, error moving toward -x   */
+    double pitch_dir_band;                /* m, direction hysteresis     */
+    /* sensors */
+    double enc_counts_per_rev; /* quadrature counts per motor revolution  */
+    double enc_offset_counts;  /* reading at th1 = 0, counts (0.5: count 0
+                                * spans -1/2..+1/2 count, so the decoded
+                                * position has no mean bias)              */
+    double enc_noise_counts;   /* rms reading noise, counts (0 = off)     */
+    double ref_resolution;     /* m per reference-scale count             */
+    double ref_noise;          /* m rms reference reading noise (0 = off),
+                                * own seeded generator (axis_ref_reading) */
+    uint64_t seed;             /* noise generator seed                    */
+} axis_params_t;
+
+typedef struct {
+    axis_params_t p;
+    double h; /* substep, s */
+    double phi[AXIS_NSTATE][AXIS_NSTATE];
+    double gam[AXIS_NSTATE][AXIS_NINPUT];
+    double phi_free[AXIS_NSTATE][AXIS_NSTATE]; /* backlash gap open */
+    double gam_free[AXIS_NSTATE][AXIS_NINPUT];
+    double z[AXIS_NSTATE];
+    double v_applied;  /* motor voltage of the last substep, V    */
+    int pitch_dir;     /* +1 / -1: direction for the pitch map      */
+    double pitch_turn; /* table position where dir last changed     */
+    uint64_t rng;
+    uint64_t ref_rng; /* reference-scale noise generator */
+} axis_t;
+
+/* Parameters of the thesis's X (y_axis false) or Y axis, options off, encoder
+ * 1000 lines x4 (offset 0.5 count), reference scale 1 nm. */
+void axis_params_lacerda(axis_params_t *p, bool y_axis);
+
+/* Continuous-time matrices of the linear part (gap closed). B columns are
+ * [u, T1, T2]. */
+void axis_model_matrices(const axis_params_t *p, double a[AXIS_NSTATE][AXIS_NSTATE],
+                         double b[AXIS_NSTATE][AXIS_NINPUT]);
+
+/* Eigenvalues of A (rad/s), sorted by increasing real part then imaginary. */
+void axis_model_eigenvalues(const axis_params_t *p, double complex ev[AXIS_NSTATE]);
+
+/* e^{M t} of an n x n row-major matrix (n <= 16) in double precision. */
+void axis_expm(unsigned n, const double *m, double t, double *out);
+
+/* Prepare the discretisation for substep h (s) and zero the state.
+ * Returns false on invalid parameters (non-positive masses, h <= 0, ...). */
+bool axis_init(axis_t *ax, const axis_params_t *p, double h);
+
+/* Advance one substep with amplifier command u (V). */
+void axis_substep(axis_t *ax, double u);
+
+/* Motor encoder position in counts (continuous, no noise) and the reading
+ * the encoder reports (noise added, still continuous: the caller quantises). */
+double axis_encoder_counts(const axis_t *ax);
+double axis_encoder_reading(axis_t *ax);
+
+/* True table position, m (l th2 + pitch error). */
+double axis_table_pos(const axis_t *ax);
+
+/* Reference scale count: true table position / resolution, rounded to the
+ * nearest count (no mean bias). */
+int64_t axis_ref_count(const axis_t *ax);
+
+/* What the reference scale reports: the count of the true table position
+ * plus the reading noise (ref_noise, Gaussian, independent per call). The
+ * same as axis_ref_count when ref_noise is 0. */
+int64_t axis_ref_reading(axis_t *ax);
+
+/* Place both inertias at table position x (m), at rest, current zero. */
+void axis_set_position(axis_t *ax, double x);
+
+#endif /* AXIS_MODEL_H */

@@ -1,0 +1,671 @@
+/*
+ * sim.c - the simulator loop (see sim.h).
+ */
+#include "sim.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "drive.h"
+#include "hal_sim.h"
+#include "qgen.h"
+
+#define PI_D 3.14159265358979323846
+
+static struct {
+    int setup;   /* sim_setup called */
+    int started; /* sim_start succeeded */
+    unsigned axes;
+    uint32_t tick_hz;
+    uint64_t period_ns;
+    double substep_max;
+    unsigned nsub;
+    uint64_t sub_ns[AXIS_SUBSTEP_MAX + 1]; /* start offset of each substep */
+    axis_params_t par[SIM_AXES];
+    axis_t ax[SIM_AXES];
+    qgen_t gen[SIM_AXES];     /* quadrature generator per motor encoder */
+    int64_t count0[SIM_AXES]; /* generator count when the decoder started */
+    drive_config_t dcfg;      /* the drive's configuration (gains, limits) */
+    int cec_mode;             /* drive_cec_mode_t applied at start        */
+    uint64_t t_ns;
+    uint64_t ticks;
+    uint64_t edges;
+    uint64_t mismatches;
+} S;
+
+int sim_setup(double tick_hz, unsigned axes)
+{
+    unsigned i;
+    if (!(tick_hz >= 100.0 && tick_hz <= 100000.0) || axes < 1 || axes > SIM_AXES) {
+        return SIM_E_ARG;
+    }
+    memset(&S, 0, sizeof S);
+    S.axes = axes;
+    S.tick_hz = (uint32_t)floor(tick_hz + 0.5);
+    S.period_ns = (uint64_t)floor(1e9 / (double)S.tick_hz + 0.5);
+    for (i = 0; i < SIM_AXES; i++) {
+        axis_params_lacerda(&S.par[i], i == 1);
+        S.par[i].l = 0.005 / (2.0 * PI_D); /* 5.00 mm lead exactly */
+        S.par[i].seed = 0x5EEDu + i;
+    }
+    drive_config_default(&S.dcfg, S.tick_hz, axes);
+    /* this amplifier: +-10 V input for +-160 V (vmax / kx) */
+    for (i = 0; i < CORE_AXES; i++) {
+        S.dcfg.servo.axis[i].out_max_mv = 10000;
+        S.dcfg.servo.axis[i].i_max_mv = 10000;
+    }
+    S.dcfg.servo.cec.pid.out_max_mv = 10000;
+    S.dcfg.servo.cec.pid.i_max_mv = 10000;
+    S.setup = 1;
+    return 0;
+}
+
+typedef struct {
+    const char *name;
+    size_t off;
+} field_t;
+
+#define F(x)                                                                                       \
+    {                                                                                              \
+#x, offsetof(axis_params_t, x)                                                             \
+    }
+static const field_t fields[] = {
+    F(B),
+    F(l),
+    F(K),
+    F(kb),
+    F(kt),
+    F(La),
+    F(I1),
+    F(I2),
+    F(Ra),
+    F(kx),
+    F(vmax),
+    F(load_torque),
+    F(coulomb_motor),
+    F(coulomb_table),
+    F(backlash),
+    F(pitch_dir_band),
+    F(enc_counts_per_rev),
+    F(enc_noise_counts),
+    F(enc_offset_counts),
+    F(ref_resolution),
+    F(ref_noise),
+};
+#undef F
+
+static double *field_ptr(axis_params_t *p, const char *name)
+{
+    size_t i;
+    for (i = 0; i < sizeof fields / sizeof fields[0]; i++) {
+        if (strcmp(fields[i].name, name) == 0) {
+            return (double *)(void *)((char *)p + fields[i].off);
+        }
+    }
+    return NULL;
+}
+
+int sim_axis_set(unsigned axis, const char *name, double value)
+{
+    double *f;
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (axis >= SIM_AXES || name == NULL || !isfinite(value)) {
+        return SIM_E_ARG;
+    }
+    S.started = 0;
+    if (strcmp(name, "lead") == 0) {
+        if (!(value > 0.0)) {
+            return SIM_E_ARG;
+        }
+        S.par[axis].l = value / (2.0 * PI_D);
+        return 0;
+    }
+    if (strcmp(name, "seed") == 0) {
+        if (value < 0.0) {
+            return SIM_E_ARG;
+        }
+        S.par[axis].seed = (uint64_t)value;
+        return 0;
+    }
+    f = field_ptr(&S.par[axis], name);
+    if (f == NULL) {
+        return SIM_E_ARG;
+    }
+    *f = value;
+    return 0;
+}
+
+int sim_axis_get(unsigned axis, const char *name, double *value)
+{
+    double *f;
+    if (axis >= SIM_AXES || name == NULL || value == NULL) {
+        return SIM_E_ARG;
+    }
+    if (strcmp(name, "lead") == 0) {
+        *value = S.par[axis].l * 2.0 * PI_D;
+        return 0;
+    }
+    f = field_ptr(&S.par[axis], name);
+    if (f == NULL) {
+        return SIM_E_ARG;
+    }
+    *value = *f;
+    return 0;
+}
+
+int sim_axis_pitch(unsigned axis, unsigned n, const double *pos, const double *err_fwd,
+                   const double *err_rev)
+{
+    unsigned i;
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (axis >= SIM_AXES || n > AXIS_PITCH_MAX || (n > 0 && (!pos || !err_fwd || !err_rev))) {
+        return SIM_E_ARG;
+    }
+    for (i = 0; i < n; i++) {
+        if (!isfinite(pos[i]) || !isfinite(err_fwd[i]) || !isfinite(err_rev[i]) ||
+            (i > 0 && !(pos[i] > pos[i - 1]))) {
+            return SIM_E_ARG;
+        }
+    }
+    S.started = 0;
+    S.par[axis].pitch_n = n;
+    for (i = 0; i < n; i++) {
+        S.par[axis].pitch_pos[i] = pos[i];
+        S.par[axis].pitch_err_fwd[i] = err_fwd[i];
+        S.par[axis].pitch_err_rev[i] = err_rev[i];
+    }
+    return 0;
+}
+
+int sim_set_substep(double max_s)
+{
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (!(max_s >= 0.0) || (max_s > 0.0 && max_s < 1e-7)) {
+        return SIM_E_ARG;
+    }
+    S.substep_max = max_s;
+    S.started = 0;
+    return 0;
+}
+
+static int64_t gcd64(int64_t a, int64_t b)
+{
+    while (b != 0) {
+        int64_t t = a % b;
+        a = b;
+        b = t;
+    }
+    return a < 0 ? -a : a;
+}
+
+/* nm per encoder count as a rational number num / den = lead (nm) / counts
+ * per revolution, with the lead rounded to 1e-3 nm, reduced; false if it
+ * does not fit the decoder's int32 scale. */
+static int encoder_scale(double lead_m, double counts, int32_t *num, int32_t *den)
+{
+    int64_t n = (int64_t)floor(lead_m * 1e12 + 0.5);
+    int64_t d = (int64_t)floor(counts + 0.5) * 1000;
+    int64_t g = gcd64(n, d);
+    if (n <= 0 || d <= 0) {
+        return 0;
+    }
+    n /= g;
+    d /= g;
+    while (n > INT32_MAX || d > INT32_MAX) {
+        n = (n + 1) / 2;
+        d = (d + 1) / 2;
+    }
+    *num = (int32_t)n;
+    *den = (int32_t)(d > 0 ? d : 1);
+    return 1;
+}
+
+static q32_32_t si_q32(double v)
+{
+    return (q32_32_t)floor(v * 4294967296.0 + 0.5);
+}
+
+static int in_range(double v, double lo, double hi)
+{
+    return isfinite(v) && v >= lo && v <= hi;
+}
+
+int sim_gain_set(int loop, const char *name, double v)
+{
+    pid_params_t *p;
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (name == NULL || loop < -1 || loop >= (int)CORE_AXES) {
+        return SIM_E_ARG;
+    }
+    p = loop < 0 ? &S.dcfg.servo.cec.pid : &S.dcfg.servo.axis[loop];
+    S.started = 0;
+    if (strcmp(name, "kp") == 0 || strcmp(name, "ki") == 0 || strcmp(name, "kd") == 0 ||
+        strcmp(name, "kvff") == 0 || strcmp(name, "kaff") == 0 || strcmp(name, "kt") == 0) {
+        q32_32_t q;
+        if (!in_range(v, 0.0, 1e9)) {
+            return SIM_E_ARG;
+        }
+        q = si_q32(v);
+        switch (name[1]) {
+        case 'p':
+            p->kp = q;
+            break;
+        case 'i':
+            p->ki = q;
+            break;
+        case 'd':
+            p->kd = q;
+            break;
+        case 't':
+            p->kt = q;
+            break;
+        default:
+            if (name[1] == 'v') {
+                p->kvff = q;
+            } else {
+                p->kaff = q;
+            }
+            break;
+        }
+    } else if (strcmp(name, "d_tau") == 0 && in_range(v, 0.0, 10.0)) {
+        p->d_tau_us = (uint32_t)floor(v * 1e6 + 0.5);
+    } else if (strcmp(name, "deadband") == 0 && in_range(v, 0.0, 1.0)) {
+        p->deadband_nm = (int32_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "i_max") == 0 && in_range(v, 0.0, 1000.0)) {
+        p->i_max_mv = (int32_t)floor(v * 1e3 + 0.5);
+    } else if (strcmp(name, "out_max") == 0 && in_range(v, 0.001, 1000.0)) {
+        p->out_max_mv = (int32_t)floor(v * 1e3 + 0.5);
+    } else if (strcmp(name, "d_on_measurement") == 0) {
+        p->d_on_measurement = v != 0.0;
+    } else {
+        return SIM_E_ARG;
+    }
+    return 0;
+}
+
+int sim_servo_set(unsigned axis, const char *name, double v)
+{
+    servo_params_t *p = &S.dcfg.servo;
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (name == NULL || axis >= CORE_AXES) {
+        return SIM_E_ARG;
+    }
+    S.started = 0;
+    if (strcmp(name, "ferr_limit") == 0 && in_range(v, 0.0, 2.0)) {
+        p->ferr_limit_nm[axis] = (int32_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "stop_decel") == 0 && in_range(v, 1e-6, 1000.0)) {
+        p->stop_decel_nm_s2[axis] = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "sat_limit") == 0 && in_range(v, 0.0, 100.0)) {
+        p->sat_limit_ticks = (uint32_t)floor(v * (double)S.tick_hz + 0.5);
+    } else if (strcmp(name, "on_following") == 0 && (v == 0.0 || v == 1.0)) {
+        p->on_following = v != 0.0 ? SERVO_REACT_STOP : SERVO_REACT_DISABLE;
+    } else if (strcmp(name, "on_saturation") == 0 && (v == 0.0 || v == 1.0)) {
+        p->on_saturation = v != 0.0 ? SERVO_REACT_STOP : SERVO_REACT_DISABLE;
+    } else if (strcmp(name, "friction_ff") == 0 && in_range(v, -100.0, 100.0)) {
+        S.dcfg.friction_ff_mv[axis] = (int32_t)floor(v * 1e3 + 0.5);
+    } else if (strcmp(name, "friction_ff_band") == 0 && in_range(v, 1e-9, 1.0)) {
+        S.dcfg.friction_ff_band_nm_s = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "handover") == 0) {
+        p->cec.handover = v != 0.0;
+    } else {
+        return SIM_E_ARG;
+    }
+    return 0;
+}
+
+int sim_plan_set(unsigned axis, const char *name, double v)
+{
+    plan_profile_t *p = &S.dcfg.plan;
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (name == NULL || axis >= CORE_AXES) {
+        return SIM_E_ARG;
+    }
+    S.started = 0;
+    if (strcmp(name, "v_max") == 0 && in_range(v, 1e-9, 4.29)) {
+        p->v_max[axis] = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "a_max") == 0 && in_range(v, 1e-6, 1000.0)) {
+        p->a_max[axis] = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "j_max") == 0 && in_range(v, 1e-6, 1e5)) {
+        p->j_max[axis] = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "corner_dv") == 0 && in_range(v, 0.0, 4.29)) {
+        p->corner_dv[axis] = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "corner_acc") == 0 && in_range(v, 0.0, 1000.0)) {
+        p->corner_acc[axis] = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "junction_dev") == 0 && in_range(v, 0.0, 1.0)) {
+        p->junction_dev_nm = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "corner") == 0 && in_range(v, 0.0, 3.0)) {
+        p->corner = (uint8_t)v;
+    } else if (strcmp(name, "shape") == 0 && in_range(v, 0.0, 1.0)) {
+        p->shape = (uint8_t)v;
+    } else if (strcmp(name, "min_block") == 0 && in_range(v, 0.0, 10.0)) {
+        p->min_block_ns = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "mbt_window") == 0 && in_range(v, 1.0, PLAN_WINDOW_MAX)) {
+        p->mbt_window = (uint16_t)v;
+    } else if (strcmp(name, "stop_decel") == 0 && in_range(v, 1e-6, 1000.0)) {
+        S.dcfg.stop_decel_nm_s2 = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "arc_chord") == 0 && in_range(v, 1e-9, 1.0)) {
+        S.dcfg.arc_chord_nm = (int64_t)floor(v * 1e9 + 0.5);
+    } else {
+        return SIM_E_ARG;
+    }
+    return 0;
+}
+
+int sim_cec_mode(int mode)
+{
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (mode < (int)DRIVE_CEC_OFF || mode > (int)DRIVE_CEC_EXACT) {
+        return SIM_E_ARG;
+    }
+    S.cec_mode = mode;
+    if (S.started && drive_set_cec_mode((drive_cec_mode_t)mode) != DRIVE_OK) {
+        return SIM_E_DRIVE;
+    }
+    return 0;
+}
+
+int sim_enable(int on)
+{
+    if (!S.started) {
+        return SIM_E_STATE;
+    }
+    return (int)drive_enable(on != 0);
+}
+
+static void emit_edge(void *ctx, uint32_t lines, uint32_t t_ns)
+{
+    drive_encoder_edge((unsigned)(uintptr_t)ctx, lines, t_ns);
+}
+
+static qgen_pos_t to_qgen(double counts)
+{
+    return (qgen_pos_t)floor(counts * (double)QGEN_ONE);
+}
+
+int sim_start(void)
+{
+    drive_config_t cfg;
+    unsigned i, nonlinear = 0;
+    double period, hmax;
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    S.started = 0;
+    period = (double)S.period_ns * 1e-9;
+    for (i = 0; i < S.axes; i++) {
+        if (S.par[i].coulomb_motor > 0.0 || S.par[i].coulomb_table > 0.0 ||
+            S.par[i].backlash > 0.0) {
+            nonlinear = 1;
+        }
+    }
+    hmax = S.substep_max > 0.0 ? S.substep_max : (nonlinear ? 10e-6 : 100e-6);
+    S.nsub = (unsigned)ceil(period / hmax - 1e-9);
+    if (S.nsub < 1) {
+        S.nsub = 1;
+    }
+    if (S.nsub >= AXIS_SUBSTEP_MAX) {
+        return SIM_E_ARG;
+    }
+    for (i = 0; i <= S.nsub; i++) {
+        S.sub_ns[i] = S.period_ns * i / S.nsub;
+    }
+    hal_sim_reset();
+    hal_sim_set_time_ns(0);
+    S.t_ns = 0;
+    S.ticks = 0;
+    S.edges = 0;
+    S.mismatches = 0;
+    cfg = S.dcfg;
+    cfg.tick_hz = S.tick_hz;
+    cfg.axes = S.axes;
+    for (i = 0; i < S.axes; i++) {
+        if (!axis_init(&S.ax[i], &S.par[i], period / (double)S.nsub)) {
+            return SIM_E_MODEL;
+        }
+        axis_set_position(&S.ax[i], 0.0);
+        /* the decoder's zero is the true position 0, not a noisy reading */
+        qgen_init(&S.gen[i], to_qgen(axis_encoder_counts(&S.ax[i])), 0, emit_edge,
+                  (void *)(uintptr_t)i);
+        S.count0[i] = S.gen[i].count;
+        cfg.enc_initial_lines[i] = qgen_lines(&S.gen[i]);
+        hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)axis_ref_count(&S.ax[i]), true);
+        if (!encoder_scale(S.par[i].l * 2.0 * PI_D, S.par[i].enc_counts_per_rev,
+                           &cfg.nm_per_count_num[i], &cfg.nm_per_count_den[i]) ||
+            !encoder_scale(S.par[i].ref_resolution, 1.0, &cfg.ref_nm_per_count_num[i],
+                           &cfg.ref_nm_per_count_den[i])) {
+            return SIM_E_MODEL;
+        }
+    }
+    if (drive_init(&cfg) != DRIVE_OK) {
+        return SIM_E_DRIVE;
+    }
+    if (drive_set_cec_mode((drive_cec_mode_t)S.cec_mode) != DRIVE_OK) {
+        return SIM_E_DRIVE;
+    }
+    /* the drive started at time 0; the first tick comes one period later */
+    S.t_ns = S.period_ns;
+    S.started = 1;
+    return 0;
+}
+
+static void write_row(double *row)
+{
+    drive_status_t st;
+    unsigned i;
+    drive_snapshot(&st);
+    memset(row, 0, sizeof(double) * SIM_TRACE_COLS);
+    row[0] = (double)S.t_ns * 1e-9;
+    row[1] = (double)st.state;
+    row[2] = (double)st.faults;
+    row[3] = (double)st.contour_error_nm * 1e-9;
+    for (i = 0; i < S.axes; i++) {
+        row[4 + 4 * i] = (double)st.ref[i] * 1e-9;
+        row[5 + 4 * i] = axis_table_pos(&S.ax[i]);
+        row[6 + 4 * i] = (double)st.pos[i] * 1e-9;
+        row[7 + 4 * i] = (double)hal_sim_motor_mv(i) * 1e-3;
+    }
+}
+
+long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every)
+{
+    uint64_t k;
+    size_t rows = 0;
+    unsigned i, s;
+    if (!S.started) {
+        return SIM_E_STATE;
+    }
+    if (every == 0) {
+        every = 1;
+    }
+    for (k = 0; k < ticks; k++) {
+        hal_sim_set_time_ns(S.t_ns);
+        for (i = 0; i < S.axes; i++) {
+            int64_t rc = axis_ref_reading(&S.ax[i]);
+            hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
+        }
+        drive_tick();
+        for (i = 0; i < S.axes; i++) {
+            if (drive_encoder_count(i) + S.count0[i] != S.gen[i].count) {
+                S.mismatches++;
+                break;
+            }
+        }
+        if (trace != NULL && rows < rows_cap && S.ticks % every == 0) {
+            write_row(trace + rows * SIM_TRACE_COLS);
+            rows++;
+        }
+        drive_poll();
+        for (i = 0; i < S.axes; i++) {
+            double u = (double)hal_sim_motor_mv(i) * 1e-3;
+            for (s = 0; s < S.nsub; s++) {
+                axis_substep(&S.ax[i], u);
+                S.edges += qgen_move_to(&S.gen[i], to_qgen(axis_encoder_reading(&S.ax[i])),
+                                        S.t_ns + S.sub_ns[s + 1]);
+            }
+        }
+        S.t_ns += S.period_ns;
+        S.ticks++;
+    }
+    return (long)rows;
+}
+
+unsigned sim_trace_cols(void)
+{
+    return SIM_TRACE_COLS;
+}
+
+uint32_t sim_tick_hz(void)
+{
+    return S.tick_hz;
+}
+
+uint64_t sim_ticks(void)
+{
+    return S.ticks;
+}
+
+double sim_time_s(void)
+{
+    return (double)S.t_ns * 1e-9;
+}
+
+uint64_t sim_edges(void)
+{
+    return S.edges;
+}
+
+uint64_t sim_edge_mismatches(void)
+{
+    return S.mismatches;
+}
+
+unsigned sim_substeps(void)
+{
+    return S.nsub;
+}
+
+int sim_axis_state(unsigned axis, double *z5)
+{
+    if (!S.started || axis >= S.axes || z5 == NULL) {
+        return SIM_E_ARG;
+    }
+    memcpy(z5, S.ax[axis].z, sizeof(double) * AXIS_NSTATE);
+    return 0;
+}
+
+double sim_table_pos(unsigned axis)
+{
+    if (!S.started || axis >= S.axes) {
+        return 0.0;
+    }
+    return axis_table_pos(&S.ax[axis]);
+}
+
+int sim_drive_status(sim_status_t *out)
+{
+    drive_status_t st;
+    if (out == NULL) {
+        return SIM_E_ARG;
+    }
+    if (!S.started) {
+        return SIM_E_STATE;
+    }
+    drive_status(&st);
+    out->state = (int)st.state;
+    out->faults = st.faults;
+    out->queue_free = st.queue_free;
+    out->blocks_done = st.blocks_done;
+    out->tag = st.tag;
+    out->tick = st.tick;
+    out->queued_time_ns = st.queued_time_ns;
+    return 0;
+}
+
+int sim_queue_line(const int64_t *target_nm, int64_t feed_nm_s, uint32_t tag, int exact_stop,
+                   int *result)
+{
+    drive_block_t b;
+    drive_result_t r;
+    unsigned i;
+    if (!S.started) {
+        return SIM_E_STATE;
+    }
+    if (target_nm == NULL) {
+        return SIM_E_ARG;
+    }
+    memset(&b, 0, sizeof b);
+    b.kind = DRIVE_BLOCK_LINE;
+    b.tag = tag;
+    for (i = 0; i < CORE_AXES; i++) {
+        b.target[i] = target_nm[i];
+    }
+    b.feed_nm_s = feed_nm_s;
+    b.exact_stop = exact_stop != 0;
+    r = drive_queue_block(&b);
+    if (result != NULL) {
+        *result = (int)r;
+    }
+    return r == DRIVE_OK ? 0 : (r == DRIVE_E_FULL ? SIM_E_FULL : SIM_E_DRIVE);
+}
+
+int sim_queue_dwell(uint32_t ms, uint32_t tag, int *result)
+{
+    drive_block_t b;
+    drive_result_t r;
+    if (!S.started) {
+        return SIM_E_STATE;
+    }
+    memset(&b, 0, sizeof b);
+    b.kind = DRIVE_BLOCK_DWELL;
+    b.tag = tag;
+    b.dwell_ms = ms;
+    r = drive_queue_block(&b);
+    if (result != NULL) {
+        *result = (int)r;
+    }
+    return r == DRIVE_OK ? 0 : (r == DRIVE_E_FULL ? SIM_E_FULL : SIM_E_DRIVE);
+}
+
+int sim_queue_arc(const int64_t *target_nm, int64_t feed_nm_s, int plane, int64_t centre_u,
+                  int64_t centre_v, int sense, uint32_t tag, int *result)
+{
+    drive_block_t b;
+    drive_result_t r;
+    unsigned i;
+    if (!S.started) {
+        return SIM_E_STATE;
+    }
+    if (target_nm == NULL || plane < 0 || plane > 2 || (sense != 1 && sense != -1)) {
+        return SIM_E_ARG;
+    }
+    memset(&b, 0, sizeof b);
+    b.kind = DRIVE_BLOCK_ARC;
+    b.tag = tag;
+    for (i = 0; i < CORE_AXES; i++) {
+        b.target[i] = target_nm[i];
+    }
+    b.feed_nm_s = feed_nm_s;
+    b.plane = (drive_plane_t)plane;
+    b.centre_u = centre_u;
+    b.centre_v = centre_v;
+    b.sense = (int8_t)sense;
+    r = drive_queue_block(&b);
+    if (result != NULL) {
+        *result = (int)r;
+    }
+    return r == DRIVE_OK ? 0 : (r == DRIVE_E_FULL ? SIM_E_FULL : SIM_E_DRIVE);
+}

@@ -1,0 +1,140 @@
+/*
+ * sim.h - the hardware-in-the-loop simulator: the unchanged firmware (the
+ * drive application, firmware/core/drive.h, through the sim HAL port) closed
+ * in a loop with the axis models of axis_model.h.
+ *
+ * Specification
+ * -------------
+ * One simulator per process (like the drive it runs: static state, no heap).
+ * Configure, start, then step any number of control ticks:
+ *
+ *   sim_setup(tick_hz, axes)        defaults: the thesis's X axis on axis 0,
+ *                                   Y on axis 1, X parameters on Z; all options
+ *                                   off; substep <= 100 us (10 us when friction
+ *                                   or backlash is configured).
+ *   sim_axis_set(axis, name, val)   any axis_params_t field by name (SI), plus
+ *                                   "lead" (m per motor revolution: sets l).
+ *   sim_axis_pitch(axis, n, ...)    the pitch error map.
+ *   sim_set_substep(max_s)          substep length bound (0: the default).
+ *   sim_start()                     discretise (matrix exponentials), reset
+ *                                   the HAL, drive_init(), axes at position 0
+ *                                   and at rest.
+ *   sim_run(ticks, trace, ...)      the loop below, optionally writing a
+ *                                   trace row every `every` ticks.
+ *
+ * One tick k at time t_k = (k + 1) * period (period = round(1e9 / tick_hz) ns;
+ * drive_init ran at time 0):
+ *   1. the HAL clock reads t_k; reference-scale counters are published on
+ *      channels axes..2*axes-1 (hal_encoder_counter, 32-bit wrapping);
+ *   2. drive_tick() runs (decode, interpolate, servo, hal_motor_set_mv);
+ *   3. every axis's decoded count is compared with the count the model
+ *      emitted (sim_edge_mismatches() counts ticks where any differ);
+ *   4. the trace row is written (state at t_k, command just computed);
+ *   5. drive_poll() runs (background work between ticks);
+ *   6. each axis model advances over [t_k, t_k+1) in substeps with the motor
+ *      command held (ZOH); after each substep the encoder reading (counts,
+ *      with noise when configured) is quantised (floor) and every count
+ *      change is delivered to the firmware as a quadrature edge through
+ *      drive_encoder_edge(), time-stamped by linear interpolation of the
+ *      reading within the substep (ns clock, wrapping uint32).
+ * The motor command is read as millivolts at the amplifier input
+ * (hal_sim_motor_mv: 0 when the amplifier is disabled); the model applies
+ * the amplifier gain kx and the +-vmax limit.
+ *
+ * Deterministic: the same configuration and command sequence give
+ * bit-identical traces (no clocks, no threads, seeded noise).
+ *
+ * Trace row (doubles, SIM_TRACE_COLS per row):
+ *   [0] t (s)  [1] drive state  [2] fault bits  [3] CEC estimate (m)
+ *   then per axis i (4 columns from 4 + 4 i): reference (m), true table
+ *   position (m), position the drive measured (m), command (V at the
+ *   amplifier input).
+ *
+ * All functions return 0 on success and a negative SIM_E_* code otherwise
+ * (sim_run returns rows written or a negative code).
+ */
+#ifndef SIM_H
+#define SIM_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "axis_model.h"
+#include "core_config.h"
+#include "fixmath.h"
+
+#define SIM_AXES       CORE_AXES
+#define SIM_TRACE_COLS (4 + 4 * SIM_AXES)
+
+#define SIM_E_ARG   (-1) /* bad argument / unknown name        */
+#define SIM_E_STATE (-2) /* not set up / not started            */
+#define SIM_E_MODEL (-3) /* axis parameters refused             */
+#define SIM_E_DRIVE (-4) /* drive_init or a drive call refused  */
+#define SIM_E_FULL  (-5) /* planner full                        */
+
+int sim_setup(double tick_hz, unsigned axes);
+int sim_axis_set(unsigned axis, const char *name, double value);
+int sim_axis_get(unsigned axis, const char *name, double *value);
+int sim_axis_pitch(unsigned axis, unsigned n, const double *pos, const double *err_fwd,
+                   const double *err_rev);
+int sim_set_substep(double max_s);
+
+/* The drive's configuration before sim_start (SI units, converted here):
+ *   sim_gain_set(loop, name, v)  loop 0..axes-1: that axis's PID, -1: the
+ *       CEC's PID. kp (V/m), ki (V/(m s)), kd (V s/m), kvff (V/(m/s)),
+ *       kaff (V/(m/s^2)), kt (1/s), d_tau (s), deadband (m), i_max (V),
+ *       out_max (V), d_on_measurement (0/1). Volts at the amplifier input.
+ *   sim_servo_set(axis, name, v)  ferr_limit (m, 0 off), stop_decel (m/s^2),
+ *       sat_limit (s, 0 off; axis ignored), on_following / on_saturation
+ *       (0 disable, 1 stop; axis ignored), handover (0/1; axis ignored),
+ *       friction_ff (V at the amplifier input), friction_ff_band (m/s; axis
+ *       ignored).
+ *   sim_plan_set(axis, name, v)   v_max (m/s), a_max (m/s^2), j_max (m/s^3),
+ *       corner_dv (m/s), corner_acc (m/s^2); axis ignored: junction_dev (m),
+ *       corner (plan_corner_t), shape (sc_shape_t), min_block (s),
+ *       mbt_window (blocks), stop_decel (m/s^2, drive_stop), arc_chord (m).
+ *   sim_cec_mode(mode)            drive_cec_mode_t applied at start (and at
+ *       once when started and idle). */
+int sim_gain_set(int loop, const char *name, double value);
+int sim_servo_set(unsigned axis, const char *name, double value);
+int sim_plan_set(unsigned axis, const char *name, double value);
+int sim_cec_mode(int mode);
+
+int sim_start(void);
+/* drive_enable(on) of the running drive; returns the drive_result_t. */
+int sim_enable(int on);
+long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every);
+
+/* Read-outs. */
+unsigned sim_trace_cols(void);
+uint32_t sim_tick_hz(void);
+uint64_t sim_ticks(void);
+double sim_time_s(void);
+uint64_t sim_edges(void);
+uint64_t sim_edge_mismatches(void);
+unsigned sim_substeps(void);
+/* Model state of one axis: z[0..4] (th1, w1, th2, w2, ia). */
+int sim_axis_state(unsigned axis, double *z5);
+double sim_table_pos(unsigned axis);
+
+/* The drive's status in a fixed layout for the host (ctypes). */
+typedef struct {
+    int state; /* drive_state_t */
+    uint32_t faults;
+    uint32_t queue_free;
+    uint32_t blocks_done;
+    uint32_t tag;
+    uint64_t tick;
+    int64_t queued_time_ns;
+} sim_status_t;
+int sim_drive_status(sim_status_t *out);
+
+/* Convenience wrappers of drive_queue_block for the host (nm, nm/s). They
+ * return 0 or a negative SIM_E_* code; *result gets the drive_result_t. */
+int sim_queue_line(const int64_t *target_nm, int64_t feed_nm_s, uint32_t tag, int exact_stop,
+                   int *result);
+int sim_queue_dwell(uint32_t ms, uint32_t tag, int *result);
+int sim_queue_arc(const int64_t *target_nm, int64_t feed_nm_s, int plane, int64_t centre_u,
+                  int64_t centre_v, int sense, uint32_t tag, int *result);
+
+#endif /* SIM_H */

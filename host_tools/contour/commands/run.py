@@ -1,0 +1,94 @@
+"""`contour run FILE.nc`: stream a G-code job to the drive.
+
+Progress bar over the job's estimated time (the drive's own planner, host
+build), live feed and ETA; flow control by the planned time queued in the
+drive. Ctrl-C brings the axes to a controlled stop before exiting.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from contour.errors import UserError
+from contour.link.client import add_link_arguments, connect_from_args
+from contour.link.stream import Streamer, blocks_from_gcode
+
+
+def run(args) -> int:
+    if not 0.05 <= args.queue_s <= 60:
+        raise UserError("--queue-s must be 0.05..60 s")
+    with connect_from_args(args) as client:
+        st = client.status()
+        start = [p / 1e6 for p in st["pos"][:3]]
+        blocks = blocks_from_gcode(args.file, start_mm=start, chord_mm=args.chord_mm)
+        if not blocks:
+            raise UserError(f"{args.file}: no motion blocks")
+        total = sum(b.est_s for b in blocks)
+        bar = None
+        if not args.json and not args.quiet:
+            from tqdm import tqdm
+
+            bar = tqdm(
+                total=round(total, 2),
+                unit="s",
+                desc="job",
+                file=sys.stderr,
+                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s est {postfix}",
+            )
+
+        def progress(p) -> None:
+            if bar is None:
+                return
+            bar.n = round(p.est_done_s, 2)
+            bar.set_postfix_str(
+                f"feed {p.feed_mm_min:7.0f} mm/min  ETA {p.eta_s:6.1f} s  "
+                f"blocks {p.done}/{p.total}",
+                refresh=False,
+            )
+            bar.refresh()
+
+        streamer = Streamer(client, blocks, queue_s=args.queue_s, on_progress=progress)
+        try:
+            result = streamer.run()
+        except KeyboardInterrupt:
+            if bar is not None:
+                bar.close()
+            st = client.status()
+            print(
+                f"contour run: stopped by Ctrl-C at {[p / 1e6 for p in st['pos'][:3]]} mm",
+                file=sys.stderr,
+            )
+            return 130
+        finally:
+            if bar is not None:
+                bar.close()
+    result["position_mm"] = [p / 1e6 for p in result.pop("position_nm")]
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        print(
+            f"job done: {result['blocks']} blocks in {result['elapsed_s']:.2f} s "
+            f"(estimated {result['estimated_s']:.2f} s), end position "
+            + ", ".join(f"{v:.4f}" for v in result["position_mm"])
+            + " mm"
+        )
+    return 0
+
+
+def register(sub) -> None:
+    p = sub.add_parser("run", help="stream a G-code job to the drive")
+    p.add_argument("file", help="G-code file (.nc)")
+    add_link_arguments(p)
+    p.add_argument(
+        "--queue-s",
+        type=float,
+        default=1.0,
+        help="planned time to keep queued in the drive, s (default 1)",
+    )
+    p.add_argument(
+        "--chord-mm", type=float, default=0.001, help="arc chord tolerance, mm (default 0.001)"
+    )
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)

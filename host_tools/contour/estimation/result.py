@@ -1,0 +1,181 @@
+"""Inputs and outputs shared by the estimation models.
+
+:class:`Moves` is what every model reads: the program's straight segments
+with their lengths, feeds (rapids at the profile's rapid feed) and stops.
+:class:`Estimate` is what every model returns: a time per segment and,
+where the model knows it, the split into acceleration, cruise and
+deceleration and the speeds at the block ends.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from contour.errors import UserError
+from contour.gcode import Segments
+
+
+@dataclass
+class Moves:
+    """Segments prepared for a model.
+
+    ``delta`` (n, 3) mm; ``length`` mm (a segment that moves only rotary
+    axes gets the length of its rotary move in degrees, as RS-274 does for
+    its feed); ``feed`` mm/min (G0 at the profile's rapid feed); ``rapid``,
+    ``exact_stop`` (the segment ends in a stop), ``dwell_s`` (after the
+    segment), ``line`` (source line), ``block`` (program row).
+    """
+
+    delta: np.ndarray
+    length: np.ndarray
+    feed: np.ndarray
+    rapid: np.ndarray
+    exact_stop: np.ndarray
+    dwell_s: np.ndarray
+    line: np.ndarray
+    block: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.length.shape[0])
+
+    @classmethod
+    def from_segments(cls, seg: Segments, rapid_feed_mm_min: float) -> Moves:
+        # Rounded to the drive's nanometre: positions accumulated in floating
+        # point must not make 0.2 mm steps 0.2000000000001 mm long.
+        delta = np.round(seg.end - seg.start, 6)
+        length = np.sqrt(np.einsum("ij,ij->i", delta, delta))
+        rot = np.sqrt(np.einsum("ij,ij->i", seg.rotary, seg.rotary))
+        length = np.where(length > 1e-12, length, rot)
+        feed = np.where(seg.rapid, rapid_feed_mm_min, seg.feed)
+        if np.any(~(feed > 0)):
+            bad = int(np.nonzero(~(feed > 0))[0][0])
+            raise UserError(f"line {int(seg.line[bad])}: feed move without a valid feed")
+        return cls(
+            delta=delta,
+            length=length,
+            feed=feed,
+            rapid=seg.rapid.copy(),
+            exact_stop=seg.exact_stop.copy(),
+            dwell_s=seg.dwell_s.copy(),
+            line=seg.line.copy(),
+            block=seg.block.copy(),
+        )
+
+    @classmethod
+    def from_arrays(cls, delta, feed_mm_min) -> Moves:
+        """Feed moves from an (n, 3) array of displacements (for tests and fits)."""
+        delta = np.asarray(delta, dtype=float).reshape(-1, 3)
+        n = delta.shape[0]
+        return cls(
+            delta=delta,
+            length=np.sqrt(np.einsum("ij,ij->i", delta, delta)),
+            feed=np.broadcast_to(np.asarray(feed_mm_min, dtype=float), (n,)).copy(),
+            rapid=np.zeros(n, dtype=bool),
+            exact_stop=np.zeros(n, dtype=bool),
+            dwell_s=np.zeros(n),
+            line=np.arange(1, n + 1),
+            block=np.arange(n),
+        )
+
+
+@dataclass
+class Estimate:
+    """Per-segment times of one model on one program.
+
+    ``time_s`` includes the dwell after the segment. ``min_time_s`` is the
+    part of each segment's time spent at (or caused by) the minimum block
+    time. ``accel_s``/``cruise_s``/``decel_s`` and the speeds (mm/min) are
+    None for models that do not plan a speed profile.
+    """
+
+    model: str
+    moves: Moves
+    time_s: np.ndarray
+    min_time_s: np.ndarray
+    accel_s: Optional[np.ndarray] = None
+    cruise_s: Optional[np.ndarray] = None
+    decel_s: Optional[np.ndarray] = None
+    entry_mm_min: Optional[np.ndarray] = None
+    peak_mm_min: Optional[np.ndarray] = None
+    exit_mm_min: Optional[np.ndarray] = None
+    options: dict = field(default_factory=dict)
+
+    @property
+    def total_s(self) -> float:
+        return float(self.time_s.sum())
+
+    def summary(self) -> dict:
+        m = self.moves
+        dwell = float(m.dwell_s.sum())
+        total = self.total_s
+        motion_t = self.time_s - m.dwell_s
+        cutting = (m.length > 0) & ~m.rapid
+        length = float(m.length[cutting].sum())
+        mt = float(motion_t[cutting].sum())
+        with np.errstate(divide="ignore", invalid="ignore"):
+            feeds = 60.0 * m.length[cutting] / motion_t[cutting]
+        feeds = feeds[np.isfinite(feeds)]
+
+        def opt_sum(a):
+            return None if a is None else float(a.sum())
+
+        return {
+            "model": self.model,
+            "total_s": total,
+            "motion_s": total - dwell,
+            "dwell_s": dwell,
+            "accel_s": opt_sum(self.accel_s),
+            "cruise_s": opt_sum(self.cruise_s),
+            "decel_s": opt_sum(self.decel_s),
+            "min_block_time_s": float(self.min_time_s.sum()),
+            "blocks": int(np.unique(m.block).size) if len(m) else 0,
+            "segments": len(m),
+            "length_mm": float(m.length.sum()),
+            "feed_length_mm": length,
+            "rapid_s": float(motion_t[m.rapid].sum()),
+            "mean_feed_mm_min": 60.0 * length / mt if mt > 0 else 0.0,
+            "min_feed_mm_min": float(feeds.min()) if feeds.size else 0.0,
+            "options": dict(self.options),
+        }
+
+    def write_csv(self, path) -> None:
+        m = self.moves
+        cols = [
+            ("segment", np.arange(len(m))),
+            ("line", m.line),
+            ("kind", np.where(m.rapid, "rapid", "feed")),
+            ("length_mm", m.length),
+            ("feed_mm_min", m.feed),
+            ("time_s", self.time_s),
+            ("min_block_time_s", self.min_time_s),
+            ("accel_s", self.accel_s),
+            ("cruise_s", self.cruise_s),
+            ("decel_s", self.decel_s),
+            ("entry_mm_min", self.entry_mm_min),
+            ("peak_mm_min", self.peak_mm_min),
+            ("exit_mm_min", self.exit_mm_min),
+            ("dwell_s", m.dwell_s),
+        ]
+        cols = [(name, a) for name, a in cols if a is not None]
+        try:
+            with open(path, "w", newline="", encoding="utf-8") as fh:
+                w = csv.writer(fh)
+                w.writerow([name for name, _ in cols])
+                for i in range(len(m)):
+                    w.writerow([_cell(a[i]) for _, a in cols])
+        except OSError as exc:
+            raise UserError(f"cannot write {path}: {exc.strerror}") from exc
+
+
+def _cell(v) -> str:
+    if isinstance(v, (str, np.str_)):
+        return str(v)
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    f = float(v)
+    return "" if math.isnan(f) else f"{f:.9g}"

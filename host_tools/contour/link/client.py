@@ -1,0 +1,266 @@
+"""One client interface for the drive on either transport.
+
+:class:`Client` sends requests and waits for their replies (matched by the
+sequence number), retries a request whose reply was lost with the *same*
+sequence number (the drive answers a repeated request from its replay cache
+and does not execute it twice), turns ``error`` replies into
+:class:`DriveError` with a specific message, and queues unsolicited messages
+(status, telemetry, heartbeat) for :meth:`Client.unsolicited`.
+"""
+
+from __future__ import annotations
+
+import queue
+import random
+import threading
+import time
+from typing import Any, Optional
+
+from contour import protocol_gen as pg
+from contour.errors import UserError
+from contour.link import codec
+from contour.link.transport import LinkError, open_transport
+
+AXIS_NAMES = "xyza"
+
+_REPLY_NAMES = {m.reply for m in pg.MESSAGES if m.reply} | {"ack", "error"}
+
+
+class DriveError(UserError):
+    """The drive refused a request (an ``error`` reply)."""
+
+    def __init__(self, request: str, fields: dict, text: str) -> None:
+        super().__init__(text)
+        self.request = request
+        self.code = pg.ErrorCode(fields["code"]) if fields["code"] in set(pg.ErrorCode) else None
+        self.fields = fields
+
+
+def _param_label(pid: int) -> str:
+    for p in pg.PARAMS:
+        n = pg.MAX_AXES if p.per_axis else 1
+        if p.id <= pid < p.id + n:
+            return f"{p.name}.{AXIS_NAMES[pid - p.id]}" if p.per_axis else p.name
+    return f"0x{pid:04X}"
+
+
+def describe_error(request: str, f: dict) -> str:
+    try:
+        code = pg.ErrorCode(f["code"])
+        cname = code.name.lower()
+    except ValueError:
+        code, cname = None, f"code {f['code']}"
+    arg = f["arg"]
+    what = {
+        pg.ErrorCode.UNKNOWN_MESSAGE: "message not handled by this drive firmware",
+        pg.ErrorCode.BAD_LENGTH: f"payload of {arg} bytes, expected {f['lo']}..{f['hi']}",
+        pg.ErrorCode.UNKNOWN_PARAM: f"no parameter with id 0x{arg:04X}",
+        pg.ErrorCode.READ_ONLY: f"parameter {_param_label(arg)} is read-only",
+        pg.ErrorCode.QUEUE_FULL: "planner queue full",
+        pg.ErrorCode.BAD_STATE: f"not allowed in drive state {arg}",
+        pg.ErrorCode.BAD_AXIS: f"axis {arg} does not exist on this drive",
+        pg.ErrorCode.BAD_VALUE: f"invalid value in field {arg}",
+        pg.ErrorCode.NOT_SUPPORTED: "not supported by this drive",
+        pg.ErrorCode.INTERNAL: "drive application refused it",
+        pg.ErrorCode.DISABLED: "the drive is not enabled",
+        pg.ErrorCode.FAULTED: f"a fault is latched (bits 0x{arg:X}): reset it first",
+        pg.ErrorCode.BUSY: "not allowed while moving",
+        pg.ErrorCode.CAUSE_PRESENT: "the fault's cause is still present",
+    }.get(code, cname)
+    if code == pg.ErrorCode.OUT_OF_RANGE:
+        target = _param_label(arg) if request in ("param_set", "param_get") else f"field {arg}"
+        what = f"{target} out of range [{f['lo']}, {f['hi']}]"
+    return f"drive refused {request}: {what} ({cname})"
+
+
+def parse_param(name: str) -> tuple[pg.Param, int]:
+    """``name`` or ``name.AXIS`` (x/y/z/a or 0..3) -> (param, id)."""
+    base, _, axis = name.partition(".")
+    p = pg.PARAM_BY_NAME.get(base)
+    if p is None:
+        known = ", ".join(x.name + (".AXIS" if x.per_axis else "") for x in pg.PARAMS)
+        raise UserError(f"unknown parameter {name!r}; known: {known}")
+    if p.per_axis:
+        if not axis:
+            raise UserError(f"parameter {base} is per axis: use {base}.x (x, y, z, a or 0..3)")
+        a = AXIS_NAMES.find(axis.lower()) if not axis.isdigit() else int(axis)
+        if not 0 <= a < pg.MAX_AXES:
+            raise UserError(f"{name!r}: axis must be x, y, z, a or 0..3")
+        return p, p.id + a
+    if axis:
+        raise UserError(f"parameter {base} is not per axis")
+    return p, p.id
+
+
+def parse_value(p: pg.Param, text: str) -> int:
+    t = text.strip().lower().replace("_", "")
+    if p.type == "bool" and t in ("true", "on", "yes", "false", "off", "no"):
+        return int(t in ("true", "on", "yes"))
+    try:
+        v = int(t, 0)
+    except ValueError:
+        raise UserError(f"{p.name}: {text!r} is not an integer") from None
+    if not p.min <= v <= p.max:
+        raise UserError(f"{p.name}: {v} out of range [{p.min}, {p.max}] {p.unit}".rstrip())
+    return v
+
+
+class Client:
+    def __init__(self, transport, timeout: float = 0.5, retries: int = 3) -> None:
+        self.t = transport
+        self.timeout = timeout
+        self.retries = retries
+        self._seq = random.randrange(256)
+        self._lock = threading.Lock()
+        self._pending: dict[int, tuple[threading.Event, list]] = {}
+        self._unsol: queue.Queue = queue.Queue(maxsize=200000)
+        self.unsolicited_dropped = 0
+        self.bad_messages = 0
+        self.retried = 0
+        self._synced = False
+        self.t.start(self._on_message)
+
+    # ---- plumbing -------------------------------------------------------------
+
+    def _on_message(self, data: bytes, ts: float) -> None:
+        try:
+            m = codec.decode(data)
+        except codec.ProtocolError:
+            self.bad_messages += 1
+            return
+        if m.name in _REPLY_NAMES:
+            with self._lock:
+                slot = self._pending.get(m.seq)
+            if slot is not None:
+                slot[1].append(m)
+                slot[0].set()
+            return
+        try:
+            self._unsol.put_nowait((ts, m))
+        except queue.Full:
+            self.unsolicited_dropped += 1
+
+    def request(
+        self, name: str, timeout: Optional[float] = None, retries: Optional[int] = None, **fields
+    ) -> codec.Decoded:
+        msg = pg.MSG_BY_NAME.get(name)
+        if msg is None or msg.dir != "h2d":
+            raise UserError(f"{name!r} is not a request")
+        if not self._synced:
+            # The drive answers a request equal to its last one (id and seq)
+            # from its replay cache. A new session could by chance repeat the
+            # previous session's last pair: open with a harmless request so
+            # that no command of this session can be mistaken for a replay.
+            self._synced = True
+            if name not in ("identify", "status_get"):
+                self.request("status_get", timeout=timeout, retries=retries)
+        with self._lock:
+            self._seq = (self._seq + 1) & 0xFF
+            seq = self._seq
+            ev: threading.Event = threading.Event()
+            box: list = []
+            self._pending[seq] = (ev, box)
+        data = codec.encode(name, seq, **fields)
+        tries = 1 + (self.retries if retries is None else retries)
+        wait = self.timeout if timeout is None else timeout
+        try:
+            for attempt in range(tries):
+                if attempt:
+                    self.retried += 1
+                self.t.send(data)
+                if ev.wait(wait):
+                    break
+            else:
+                raise LinkError(
+                    f"no reply from the drive to {name} after {tries} tries "
+                    f"({wait:g} s each): is it connected and powered?"
+                )
+        finally:
+            with self._lock:
+                self._pending.pop(seq, None)
+        reply = box[0]
+        if reply.name == "error":
+            raise DriveError(name, reply.fields, describe_error(name, reply.fields))
+        if msg.reply and reply.name != msg.reply:
+            raise codec.ProtocolError(f"{name}: drive answered {reply.name}, expected {msg.reply}")
+        return reply
+
+    def unsolicited(self, timeout: float = 0.0):
+        """Next (timestamp, Decoded) status/telemetry message, or None."""
+        try:
+            return self._unsol.get(timeout=timeout) if timeout > 0 else self._unsol.get_nowait()
+        except queue.Empty:
+            return None
+
+    def drain_unsolicited(self) -> None:
+        while self.unsolicited() is not None:
+            pass
+
+    def close(self) -> None:
+        self.t.close()
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    # ---- conveniences -----------------------------------------------------------
+
+    def identify(self) -> dict:
+        return self.request("identify").fields
+
+    def status(self) -> dict:
+        return self.request("status_get").fields
+
+    def get_param(self, name: str) -> int:
+        _, pid = parse_param(name)
+        return self.request("param_get", param=pid).fields["value"]
+
+    def set_param(self, name: str, value: int) -> int:
+        _, pid = parse_param(name)
+        return self.request("param_set", param=pid, value=int(value)).fields["value"]
+
+    def enable(self, on: bool = True, axes: Optional[int] = None) -> None:
+        if axes is None:
+            axes = self.identify()["axes"]
+        self.request("enable", axis_mask=(1 << axes) - 1, on=int(on))
+
+
+def connect(
+    port: Optional[str] = None,
+    can: Optional[str] = None,
+    node: int = 1,
+    timeout: float = 0.5,
+    retries: int = 3,
+    **kw: Any,
+) -> Client:
+    return Client(open_transport(port=port, can=can, node=node, **kw), timeout, retries)
+
+
+def add_link_arguments(parser) -> None:
+    """--port / --can / --node / --timeout on a sub-command."""
+    g = parser.add_argument_group("drive link")
+    g.add_argument("--port", metavar="PATH", help="serial device or pyserial URL")
+    g.add_argument(
+        "--can",
+        metavar="IFACE:CHANNEL[@BITRATE]",
+        help="python-can interface and channel, e.g. slcan:/dev/pts/3@500000, socketcan:can0",
+    )
+    g.add_argument("--node", type=int, default=1, help="CAN node id of the drive (default 1)")
+    g.add_argument(
+        "--timeout", type=float, default=0.5, help="reply timeout per try, s (default 0.5)"
+    )
+
+
+def connect_from_args(args, **kw: Any) -> Client:
+    return connect(port=args.port, can=args.can, node=args.node, timeout=args.timeout, **kw)
+
+
+def wait_until(pred, timeout: float, poll: float = 0.01) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(poll)
+    return pred()

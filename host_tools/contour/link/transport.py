@@ -1,0 +1,235 @@
+"""Transports of the host link: a serial port (pyserial) or a CAN bus
+(python-can, ISO-TP through the `can-isotp` package).
+
+Both deliver whole messages (``msg_id | seq | payload``) to one callback,
+``on_message(data: bytes, timestamp: float)``, from their reader thread; raw
+cyclic CAN frames arrive there as messages too (id from the CAN function,
+seq 0), so the client above does not know which transport it runs on.
+
+Selection strings (see :func:`open_transport`):
+
+- ``--port PATH`` : a device or any pyserial URL (``/dev/ttyUSB0``,
+  ``/dev/pts/3``, ``socket://host:port``, ``loop://``);
+- ``--can INTERFACE:CHANNEL[@BITRATE]`` with ``--node N``: a python-can
+  interface name and channel (``slcan:/dev/pts/4@500000``, ``socketcan:can0``,
+  ``virtual:bus0``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from typing import Callable, Optional
+
+from contour import protocol_gen as pg
+from contour.errors import UserError
+from contour.link import codec
+
+OnMessage = Callable[[bytes, float], None]
+
+
+class LinkError(UserError):
+    """The link cannot be opened or failed."""
+
+
+class SerialTransport:
+    kind = "serial"
+
+    def __init__(self, url: str, baudrate: int = 115200) -> None:
+        import serial
+
+        self.url = url
+        try:
+            self.ser = serial.serial_for_url(url, baudrate=baudrate, timeout=0.005)
+        except (serial.SerialException, ValueError, OSError) as exc:
+            raise LinkError(f"cannot open serial port {url}: {exc}") from None
+        self.decoder = codec.FrameDecoder()
+        self._on: Optional[OnMessage] = None
+        self._run = False
+        self._thread: Optional[threading.Thread] = None
+        self._wlock = threading.Lock()
+        self.tx_frames = 0
+
+    def start(self, on_message: OnMessage) -> None:
+        self._on = on_message
+        self._run = True
+        self._thread = threading.Thread(target=self._reader, name="contour-serial", daemon=True)
+        self._thread.start()
+
+    def _reader(self) -> None:
+        import serial
+
+        while self._run:
+            try:
+                data = self.ser.read(max(1, self.ser.in_waiting))
+            except (serial.SerialException, OSError, TypeError):
+                if self._run:
+                    time.sleep(0.01)
+                continue
+            if not data:
+                continue
+            now = time.time()
+            for m in self.decoder.feed(data):
+                if self._on is not None:
+                    self._on(m, now)
+
+    def send(self, message: bytes) -> None:
+        import serial
+
+        with self._wlock:
+            try:
+                self.ser.write(codec.frame(message))
+            except (serial.SerialException, OSError) as exc:
+                raise LinkError(f"serial write to {self.url} failed: {exc}") from None
+            self.tx_frames += 1
+
+    def rx_errors(self) -> int:
+        return sum(self.decoder.errors.values())
+
+    def close(self) -> None:
+        self._run = False
+        if self._thread is not None:
+            self._thread.join(timeout=1.0)
+        with contextlib.suppress(Exception):  # closing a dead port
+            self.ser.close()
+
+
+def parse_can_spec(spec: str) -> tuple[str, str, Optional[int]]:
+    """``INTERFACE:CHANNEL[@BITRATE]`` -> (interface, channel, bitrate)."""
+    if ":" not in spec:
+        raise LinkError(
+            f"--can {spec!r}: expected INTERFACE:CHANNEL[@BITRATE], e.g. slcan:/dev/pts/3@500000"
+        )
+    iface, rest = spec.split(":", 1)
+    bitrate = None
+    if "@" in rest:
+        rest, b = rest.rsplit("@", 1)
+        try:
+            bitrate = int(b)
+        except ValueError:
+            raise LinkError(f"--can {spec!r}: bitrate {b!r} is not an integer") from None
+        if bitrate <= 0:
+            raise LinkError(f"--can {spec!r}: bitrate must be positive")
+    if not iface or not rest:
+        raise LinkError(f"--can {spec!r}: interface and channel must not be empty")
+    return iface, rest, bitrate
+
+
+def open_can_bus(spec: str):
+    """A python-can bus from ``INTERFACE:CHANNEL[@BITRATE]``."""
+    import can
+
+    iface, channel, bitrate = parse_can_spec(spec)
+    kwargs: dict = {}
+    if bitrate is not None:
+        kwargs["bitrate"] = bitrate
+    if iface == "slcan":
+        kwargs["sleep_after_open"] = 0.05  # a pseudo-terminal needs no settling
+    try:
+        return can.Bus(interface=iface, channel=channel, **kwargs)
+    except (can.CanError, ValueError, OSError, ImportError, NotImplementedError) as exc:
+        raise LinkError(f"cannot open CAN bus {spec}: {exc}") from None
+
+
+class CanTransport:
+    """Requests and replies over ISO-TP (can-isotp), cyclic frames raw."""
+
+    kind = "can"
+
+    def __init__(self, spec: str, node: int, log_file: Optional[str] = None) -> None:
+        import can
+        import isotp
+
+        if not 1 <= node <= pg.CAN_NODE_MAX:
+            raise LinkError(f"--node {node}: must be 1..{pg.CAN_NODE_MAX}")
+        self.spec = spec
+        self.node = node
+        self.bus = open_can_bus(spec)
+        self._on: Optional[OnMessage] = None
+        self.notifier = can.Notifier(self.bus, [], timeout=0.01)
+        self.logger = None
+        if log_file:
+            self.logger = can.Logger(log_file)
+            self.notifier.add_listener(self.logger)
+        address = isotp.Address(
+            isotp.AddressingMode.Normal_11bits,
+            txid=pg.can_id(pg.CAN_FUNC["request"], node),
+            rxid=pg.can_id(pg.CAN_FUNC["response"], node),
+        )
+        self.stack = isotp.NotifierBasedCanStack(
+            self.bus,
+            self.notifier,
+            address=address,
+            params={
+                "stmin": 0,
+                "blocksize": 0,
+                "tx_padding": None,
+                "rx_flowcontrol_timeout": 1000,
+                "rx_consecutive_frame_timeout": 1000,
+                "blocking_send": False,
+                "max_frame_size": pg.MSG_HDR + pg.MAX_PAYLOAD,
+            },
+            error_handler=self._isotp_error,
+        )
+        self.isotp_errors = 0
+        self.rx_frames = 0
+        self._run = False
+        self._thread: Optional[threading.Thread] = None
+        self._cyclic_ids = {
+            pg.can_id(func, node): func for func in codec.CYCLIC_BY_FUNC if func is not None
+        }
+
+    def _isotp_error(self, error: Exception) -> None:
+        self.isotp_errors += 1
+
+    def start(self, on_message: OnMessage) -> None:
+        self._on = on_message
+        self.notifier.add_listener(self._on_frame)
+        self.stack.start()
+        self._run = True
+        self._thread = threading.Thread(target=self._reader, name="contour-isotp", daemon=True)
+        self._thread.start()
+
+    def _on_frame(self, frame) -> None:
+        func = self._cyclic_ids.get(frame.arbitration_id)
+        if func is None or frame.is_extended_id or self._on is None:
+            return
+        self.rx_frames += 1
+        msg = codec.CYCLIC_BY_FUNC[func]
+        self._on(bytes([msg.id, 0]) + bytes(frame.data), frame.timestamp or time.time())
+
+    def _reader(self) -> None:
+        while self._run:
+            data = self.stack.recv(block=True, timeout=0.05)
+            if data and self._on is not None:
+                self._on(bytes(data), time.time())
+
+    def send(self, message: bytes) -> None:
+        try:
+            self.stack.send(message)
+        except Exception as exc:  # noqa: BLE001 - isotp raises several kinds
+            raise LinkError(f"CAN send failed: {exc}") from None
+
+    def rx_errors(self) -> int:
+        return self.isotp_errors
+
+    def close(self) -> None:
+        self._run = False
+        if self._thread is not None:
+            self._thread.join(timeout=1.0)
+        with contextlib.suppress(Exception):
+            self.stack.stop()
+        with contextlib.suppress(Exception):
+            self.notifier.stop(timeout=0.5)
+        if self.logger is not None:
+            self.logger.stop()
+        self.bus.shutdown()
+
+
+def open_transport(port: Optional[str] = None, can: Optional[str] = None, node: int = 1, **kw):
+    if bool(port) == bool(can):
+        raise LinkError("choose the drive with exactly one of --port PATH or --can IFACE:CHANNEL")
+    if port:
+        return SerialTransport(port, **{k: v for k, v in kw.items() if k == "baudrate"})
+    return CanTransport(can, node, log_file=kw.get("log_file"))

@@ -1,0 +1,171 @@
+"""`contour sim run FILE.nc`: a G-code job through the drive's planner and
+loops on the simulated machine.
+
+The file is read by :mod:`contour.gcode`; lines, rapids (at the planner's
+v_max), arcs (the drive's own arc blocks) and dwells are queued as the drive
+accepts them. Reported: executed time (first tick with motion to the last
+tick before idle), following error (|reference - table| per axis), contour
+error = the distance of the true table position from the reference path
+(the polyline of the reference positions of all ticks, searched in a window
+around the current tick, extended along its first and last tangent so that an
+overshoot at the end of the job counts as following error only), and faults.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from contour import gcode
+from contour.errors import UserError
+from contour.sim import core, machine
+
+RAPID_M_S = 0.5
+
+
+def _blocks(prog, m) -> list:
+    """(kind, target_nm, feed_nm_s, extra) tuples for the drive."""
+    out = []
+    rapid = min(RAPID_M_S, m.planner["v_max"])
+    prev = np.array(prog.start[:3], dtype=float)
+    for i in range(len(prog)):
+        kind = int(prog.kind[i])
+        end = np.array(prog.end[i, :3], dtype=float)
+        tgt = tuple(int(round(v * 1e6)) for v in end)
+        if kind == gcode.DWELL:
+            out.append(("dwell", None, 0, int(round(prog.dwell_s[i] * 1000))))
+            continue
+        feed_mm_min = float(prog.feed[i]) if kind != gcode.RAPID else rapid * 60000
+        if not math.isfinite(feed_mm_min) or feed_mm_min <= 0:
+            raise UserError(f"{prog.path}:{int(prog.line[i])}: no feed for this move")
+        feed = int(round(min(feed_mm_min / 60000.0, m.planner["v_max"]) * 1e9))
+        stop = bool(prog.exact_stop[i])
+        if kind in (gcode.ARC_CW, gcode.ARC_CCW):
+            plane = int(prog.plane[i])
+            u, v = {0: (0, 1), 1: (2, 0), 2: (1, 2)}[plane]
+            c = prog.centre[i]
+            sense = 1 if kind == gcode.ARC_CCW else -1
+            cu, cv = int(round(c[u] * 1e6)), int(round(c[v] * 1e6))
+            for _ in range(int(prog.turns[i])):
+                start = tuple(int(round(x * 1e6)) for x in prev)
+                out.append(("arc", start, feed, (plane, cu, cv, sense, False)))
+            out.append(("arc", tgt, feed, (plane, cu, cv, sense, stop)))
+        else:
+            out.append(("line", tgt, feed, stop))
+        prev = end
+    return out
+
+
+def _queue(b, tag: int) -> int:
+    kind, tgt, feed, extra = b
+    if kind == "dwell":
+        return core.queue_dwell(max(1, extra), tag)
+    if kind == "line":
+        return core.queue_line(tgt, feed, tag, extra)
+    plane, cu, cv, sense, _stop = extra
+    return core.queue_arc(tgt, feed, plane, cu, cv, sense, tag)
+
+
+def contour_errors(ref: np.ndarray, act: np.ndarray, window: int) -> np.ndarray:
+    """Distance of each act point from the polyline ref[i - window .. i + window]."""
+    n = ref.shape[0]
+    out = np.empty(n)
+    a = ref[:-1]
+    d = ref[1:] - ref[:-1]
+    dd = np.maximum((d * d).sum(axis=1), 1e-30)
+    for i in range(n):
+        lo, hi = max(0, i - window), min(n - 1, i + window)
+        if hi <= lo:
+            out[i] = float(np.linalg.norm(act[i] - ref[i]))
+            continue
+        aa, dv, d2 = a[lo:hi], d[lo:hi], dd[lo:hi]
+        t = ((act[i] - aa) * dv).sum(axis=1) / d2
+        t_lo = np.zeros_like(t)
+        t_hi = np.ones_like(t)
+        if lo == 0:
+            t_lo[0] = -np.inf  # the path continues along its start tangent
+        if hi == n - 1:
+            t_hi[-1] = np.inf  # ... and its end tangent (overshoot is not contour error)
+        t = np.clip(t, t_lo, t_hi)
+        q = aa + dv * t[:, None]
+        out[i] = float(np.sqrt(((act[i] - q) ** 2).sum(axis=1).min()))
+    return out
+
+
+def run_job(
+    path: str,
+    controller: str = "cec-exact",
+    feedforward: str = "none",
+    machine_file: str | None = None,
+    tick_hz: float | None = None,
+    default_feed: float | None = None,
+    max_s: float = 600.0,
+) -> dict:
+    m = machine.load(machine_file)
+    prog = gcode.read(path, default_feed=default_feed)
+    blocks = _blocks(prog, m)
+    if not blocks:
+        raise UserError(f"{path}: no motion blocks")
+    machine.apply(m, tick_hz=tick_hz, feedforward=feedforward, controller=controller)
+    so = core.lib()
+    hz = so.sim_tick_hz()
+    if so.sim_enable(1) != 0:
+        raise UserError("simulator: the drive refused to enable")
+    core.run(2, trace=False)
+    rows = []
+    pending = list(blocks)
+    tag = 1
+    ticks = 0
+    while True:
+        while pending:
+            res = _queue(pending[0], tag)
+            if res == 1:
+                break
+            if res != 0:
+                raise UserError(
+                    f"{path}: block {tag} refused by the drive: {core.DRIVE_RESULT.get(res, res)}"
+                )
+            pending.pop(0)
+            tag += 1
+        chunk = core.run(max(1, hz // 20), every=1)
+        rows.append(chunk)
+        ticks += chunk.shape[0]
+        st = core.status()
+        if st.faults or (not pending and st.state == 1):
+            break
+        if ticks > max_s * hz:
+            raise UserError(f"{path}: the job did not finish within {max_s:g} s of machine time")
+    full = np.vstack(rows)
+    n_ax = m.axes
+    ref = np.column_stack([full[:, 4 + 4 * i] for i in range(n_ax)])
+    act = np.column_stack([full[:, 5 + 4 * i] for i in range(n_ax)])
+    moving = np.nonzero(np.any(np.abs(np.diff(ref, axis=0)) > 0, axis=1))[0]
+    if moving.size:
+        t0, t1 = full[moving[0], 0], full[moving[-1] + 1, 0]
+    else:
+        t0 = t1 = 0.0
+    ferr = np.abs(ref - act).max(axis=1)
+    speed = np.linalg.norm(np.diff(ref, axis=0), axis=1).max() * hz if ref.shape[0] > 1 else 0
+    lag_ticks = int(ferr.max() / max(speed, 1e-9) * hz) if speed > 0 else 10
+    window = int(min(4000, max(200, 4 * lag_ticks)))
+    sel = slice(moving[0], moving[-1] + 2) if moving.size else slice(0, 0)
+    ec = contour_errors(ref[sel], act[sel], window) if moving.size else np.zeros(1)
+    st = core.status()
+    return {
+        "file": str(path),
+        "blocks": len(blocks),
+        "executed_s": float(t1 - t0),
+        "max_contour_error_um": float(ec.max() * 1e6),
+        "rms_contour_error_um": float(np.sqrt((ec**2).mean()) * 1e6),
+        "max_following_error_um": float(ferr.max() * 1e6),
+        "faults": core.fault_names(st.faults),
+        "edge_mismatch_ticks": int(so.sim_edge_mismatches()),
+        "tick_hz": float(hz),
+        "controller": controller,
+        "feedforward": feedforward,
+        "machine": m.name,
+        "skipped": [
+            f"{s.kind} (first at line {s.first_line}, {s.count}x)" for s in prog.skipped_list()
+        ],
+    }

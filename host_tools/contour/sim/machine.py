@@ -1,0 +1,336 @@
+"""Machine descriptions (TOML) for the simulator, and applying one to it.
+
+A machine file selects the axis model and its parameters, the control tick,
+the planner limits, the gain sets and the feed-forward. Layout (every key is
+optional except where noted; units SI unless the name says otherwise)::
+
+    name = "default"
+    tick_hz = 10000                 # control tick, Hz (the thesis ran 333 Hz = 3 ms)
+    axes = 3                        # 1..3
+
+    [axis.all]                      # applied to every axis, then [axis.x] etc.
+    model = "lacerda1998"           # the only model so far (5th-order two-inertia)
+    lead_mm = 5.0                   # screw lead: l = lead / (2 pi)
+    B = 2.1e-6  K = 110.0  kb = 0.21  kt = 0.2  La = 6.7e-3  I1 = 2.7e-5
+    I2 = 8.3e-6  Ra = 9.0  kx = 16.0  vmax = 160.0
+    encoder_lines = 1000            # quadrature counting: 4 counts per line
+    encoder_noise_counts = 0.0      # rms reading noise, counts (0: off)
+    ref_resolution_nm = 1.0         # reference scale (true table position)
+    ref_noise_nm = 0.0              # rms reading noise of the reference scale, nm
+    load_torque = 0.0               # N m, motor side
+    coulomb_motor = 0.0             # N m (0: off)
+    coulomb_table = 0.0             # N (0: off)
+    backlash_um = 0.0               # total lost motion, um (0: off)
+    pitch_map = [[pos_mm, err_fwd_um, err_rev_um], ...]   # (absent: off)
+    pitch_dir_band_um = 1.0
+    seed = 1                        # noise generator
+
+    [planner]                       # per-axis limits (same for every axis)
+    v_max = 1.0   a_max = 20.0   j_max = 2000.0   junction_dev = 1e-5
+    arc_chord = 1e-7
+
+    [servo]
+    ferr_limit_mm = 50.0            # following-error fault limit (0: off)
+    sat_limit_s = 0.5               # output saturated this long: fault (0: off)
+    stop_decel = 1.0                # controlled stop, m/s^2
+
+    [gains.axis]                    # axis PIDs (every axis) ...
+    kp = 1500.0  ki = 8000.0  kd = 5.0  d_tau = 1e-4  d_on_measurement = false
+    [gains.axis_y]                  # ... per-axis overrides (axis_x, axis_y, axis_z)
+    [gains.cec]                     # the contour-error controller's PID
+    kp = 0.0  ki = 0.0  kd = 0.0  d_tau = 0.0
+
+    [feedforward]                   # used by --feedforward velocity|full
+    # model values when absent: kvff = kb / (kx l), kaff = Ra (I1 + I2) / (kt kx l)
+    scale = 1.0                     # all feed-forward gains times this
+    scale_x = 1.0                   # per-axis factor on top (scale_y, scale_z)
+    friction = 0.0                  # fraction of the Coulomb friction fed forward
+
+Gains are in volts at the amplifier input per metre (the thesis's units).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from contour.errors import UserError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+REPO = Path(__file__).resolve().parents[3]
+MACHINES = REPO / "hil_sim" / "machines"
+AXES = "xyz"
+
+LACERDA = {
+    "B": 2.10e-6,
+    "K": 1.10e2,
+    "kb": 2.10e-1,
+    "kt": 2.00e-1,
+    "La": 6.70e-3,
+    "I1": 2.70e-5,
+    "Ra": 9.00,
+    "kx": 16.0,
+    "vmax": 160.0,
+}
+I2 = {"x": 8.30e-6, "y": 3.50e-6, "z": 8.30e-6}
+
+AXIS_KEYS = {
+    "model",
+    "lead_mm",
+    *LACERDA,
+    "I2",
+    "encoder_lines",
+    "encoder_noise_counts",
+    "ref_resolution_nm",
+    "ref_noise_nm",
+    "load_torque",
+    "coulomb_motor",
+    "coulomb_table",
+    "backlash_um",
+    "pitch_map",
+    "pitch_dir_band_um",
+    "seed",
+}
+GAIN_KEYS = {"kp", "ki", "kd", "d_tau", "d_on_measurement", "kt", "i_max", "out_max"}
+PLAN_KEYS = {"v_max", "a_max", "j_max", "junction_dev", "arc_chord"}
+FF_KEYS = {"kvff", "kaff", "scale", "scale_x", "scale_y", "scale_z", "friction"}
+SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel"}
+TOP_KEYS = {
+    "name",
+    "description",
+    "tick_hz",
+    "axes",
+    "axis",
+    "planner",
+    "servo",
+    "gains",
+    "feedforward",
+}
+
+
+@dataclass
+class Machine:
+    name: str
+    path: str
+    tick_hz: float = 10000.0
+    axes: int = 3
+    axis: dict = field(default_factory=dict)  # "x" -> params
+    planner: dict = field(default_factory=dict)
+    servo: dict = field(default_factory=dict)
+    gains: dict = field(default_factory=dict)  # "x"/"y"/"z"/"cec" -> gains
+    feedforward: dict = field(default_factory=dict)
+    description: str = ""
+
+    def l(self, ax: str) -> float:  # noqa: E743 - the model's name for it
+        return self.axis[ax]["lead_mm"] * 1e-3 / (2 * math.pi)
+
+    def ff_gains(self, ax: str, mode: str) -> tuple[float, float]:
+        """(kvff, kaff) of axis `ax` for --feedforward none|velocity|full."""
+        if mode == "none":
+            return 0.0, 0.0
+        p = self.axis[ax]
+        ff = self.feedforward
+        scale = ff.get("scale", 1.0) * ff.get(f"scale_{ax}", 1.0)
+        kv = ff.get("kvff", p["kb"] / (p["kx"] * self.l(ax))) * scale
+        ka = ff.get("kaff", p["Ra"] * (p["I1"] + p["I2"]) / (p["kt"] * p["kx"] * self.l(ax)))
+        return kv, (ka * scale if mode == "full" else 0.0)
+
+    def friction_ff_volts(self, ax: str) -> float:
+        """Friction feed-forward at the amplifier input, V (with
+        --feedforward full; the drive applies it through the acceleration
+        feed-forward channel)."""
+        p = self.axis[ax]
+        torque = p.get("coulomb_motor", 0.0) + p.get("coulomb_table", 0.0) * self.l(ax)
+        return self.feedforward.get("friction", 0.0) * torque * p["Ra"] / (p["kt"] * p["kx"])
+
+
+def _check_keys(d: dict, allowed: set, where: str, path: str) -> None:
+    unknown = sorted(set(d) - allowed)
+    if unknown:
+        raise UserError(f"{path}: unknown key(s) in {where}: {', '.join(unknown)}")
+
+
+def _num(v, key: str, path: str, lo: float = -math.inf, hi: float = math.inf) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise UserError(f"{path}: {key} must be a number, got {v!r}")
+    if not lo <= v <= hi:
+        raise UserError(f"{path}: {key} = {v} is outside {lo:g}..{hi:g}")
+    return float(v)
+
+
+def resolve(name_or_path: str | None) -> Path:
+    """A machine file by path, or by name in hil_sim/machines/."""
+    if name_or_path is None:
+        return MACHINES / "default.toml"
+    p = Path(name_or_path)
+    if p.exists():
+        return p
+    q = MACHINES / f"{name_or_path}.toml"
+    if q.exists():
+        return q
+    raise UserError(f"machine file {name_or_path} not found (nor {q})")
+
+
+def load(name_or_path: str | None = None) -> Machine:
+    path = resolve(name_or_path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise UserError(f"cannot read {path}: {exc.strerror}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise UserError(f"{path}: invalid TOML: {exc}") from exc
+    return from_dict(data, str(path))
+
+
+def from_dict(data: dict, path: str = "<machine>") -> Machine:
+    _check_keys(data, TOP_KEYS, "the top level", path)
+    m = Machine(name=str(data.get("name", Path(path).stem)), path=path)
+    m.description = str(data.get("description", ""))
+    m.tick_hz = _num(data.get("tick_hz", 10000), "tick_hz", path, 100, 100000)
+    m.axes = int(_num(data.get("axes", 3), "axes", path, 1, 3))
+    axis = data.get("axis", {})
+    if not isinstance(axis, dict):
+        raise UserError(f"{path}: [axis] must be a table")
+    _check_keys(axis, {"all", *AXES}, "[axis]", path)
+    for ax in AXES[: m.axes]:
+        p = dict(LACERDA)
+        p.update({"I2": I2[ax], "lead_mm": 5.0, "encoder_lines": 1000, "model": "lacerda1998"})
+        for src in (axis.get("all", {}), axis.get(ax, {})):
+            _check_keys(src, AXIS_KEYS, f"[axis.{ax}]", path)
+            p.update(src)
+        if p["model"] != "lacerda1998":
+            raise UserError(f"{path}: unknown axis model {p['model']!r} (known: lacerda1998)")
+        for k, v in p.items():
+            if k not in ("model", "pitch_map"):
+                p[k] = _num(v, f"axis.{ax}.{k}", path)
+        for k in ("lead_mm", "I1", "I2", "La", "Ra", "kt", "kb", "kx", "vmax", "encoder_lines"):
+            if p[k] <= 0:
+                raise UserError(f"{path}: axis.{ax}.{k} must be positive, got {p[k]}")
+        if "pitch_map" in p:
+            pm = p["pitch_map"]
+            if not isinstance(pm, list) or not all(isinstance(r, list) and len(r) == 3 for r in pm):
+                raise UserError(
+                    f"{path}: axis.{ax}.pitch_map must be a list of [pos_mm, fwd_um, rev_um]"
+                )
+            pos = [_num(r[0], "pitch_map position", path) for r in pm]
+            if any(b <= a for a, b in zip(pos, pos[1:])):
+                raise UserError(f"{path}: axis.{ax}.pitch_map positions must increase")
+            if len(pm) > 64:
+                raise UserError(f"{path}: axis.{ax}.pitch_map has more than 64 points")
+        m.axis[ax] = p
+    planner = data.get("planner", {})
+    _check_keys(planner, PLAN_KEYS, "[planner]", path)
+    m.planner = {"v_max": 1.0, "a_max": 20.0, "j_max": 2000.0, "junction_dev": 1e-5}
+    m.planner.update({k: _num(v, f"planner.{k}", path, 0) for k, v in planner.items()})
+    servo = data.get("servo", {})
+    _check_keys(servo, SERVO_KEYS, "[servo]", path)
+    m.servo = {"ferr_limit_mm": 50.0, "sat_limit_s": 0.5, "stop_decel": 1.0}
+    m.servo.update({k: _num(v, f"servo.{k}", path, 0) for k, v in servo.items()})
+    gains = data.get("gains", {})
+    _check_keys(gains, {"axis", "axis_x", "axis_y", "axis_z", "cec"}, "[gains]", path)
+    base = {"kp": 1500.0, "ki": 8000.0, "kd": 5.0, "d_tau": 1e-4, "d_on_measurement": False}
+    base.update(gains.get("axis", {}))
+    for ax in AXES[: m.axes]:
+        g = dict(base)
+        g.update(gains.get(f"axis_{ax}", {}))
+        _check_keys(g, GAIN_KEYS, f"[gains.axis_{ax}]", path)
+        m.gains[ax] = {
+            k: (bool(v) if k == "d_on_measurement" else _num(v, f"gains.{ax}.{k}", path, 0))
+            for k, v in g.items()
+        }
+    cec = {"kp": 0.0, "ki": 0.0, "kd": 0.0, "d_tau": 0.0}
+    cec.update(gains.get("cec", {}))
+    _check_keys(cec, GAIN_KEYS, "[gains.cec]", path)
+    m.gains["cec"] = {
+        k: (bool(v) if k == "d_on_measurement" else _num(v, f"gains.cec.{k}", path, 0))
+        for k, v in cec.items()
+    }
+    ff = data.get("feedforward", {})
+    _check_keys(ff, FF_KEYS, "[feedforward]", path)
+    m.feedforward = {k: _num(v, f"feedforward.{k}", path, 0) for k, v in ff.items()}
+    return m
+
+
+def apply(
+    m: Machine,
+    tick_hz: float | None = None,
+    feedforward: str = "none",
+    controller: str = "pid",
+) -> None:
+    """Set up the simulator with machine `m` (sim_setup ... sim_start)."""
+    from contour.sim import core
+
+    so = core.lib()
+    hz = float(tick_hz if tick_hz is not None else m.tick_hz)
+    if not 100 <= hz <= 100000:
+        raise UserError(f"tick rate {hz:g} Hz is outside 100..100000")
+    core.check(so.sim_setup(hz, m.axes), "setup")
+
+    def axset(i: int, key: str, v: float) -> None:
+        core.check(so.sim_axis_set(i, key.encode(), float(v)), f"axis {AXES[i]} {key}")
+
+    for i, ax in enumerate(AXES[: m.axes]):
+        p = m.axis[ax]
+        for k in LACERDA:
+            axset(i, k, p[k])
+        axset(i, "I2", p["I2"])
+        axset(i, "lead", p["lead_mm"] * 1e-3)
+        axset(i, "enc_counts_per_rev", 4 * p["encoder_lines"])
+        axset(i, "enc_noise_counts", p.get("encoder_noise_counts", 0.0))
+        axset(i, "ref_resolution", p.get("ref_resolution_nm", 1.0) * 1e-9)
+        axset(i, "ref_noise", p.get("ref_noise_nm", 0.0) * 1e-9)
+        axset(i, "load_torque", p.get("load_torque", 0.0))
+        axset(i, "coulomb_motor", p.get("coulomb_motor", 0.0))
+        axset(i, "coulomb_table", p.get("coulomb_table", 0.0))
+        axset(i, "backlash", p.get("backlash_um", 0.0) * 1e-6)
+        axset(i, "pitch_dir_band", p.get("pitch_dir_band_um", 1.0) * 1e-6)
+        axset(i, "seed", p.get("seed", 1 + i))
+        pm = p.get("pitch_map")
+        if pm:
+            import numpy as np
+
+            arr = np.array(pm, dtype=float)
+            pos = np.ascontiguousarray(arr[:, 0] * 1e-3)
+            fwd = np.ascontiguousarray(arr[:, 1] * 1e-6)
+            rev = np.ascontiguousarray(arr[:, 2] * 1e-6)
+            core.check(
+                so.sim_axis_pitch(i, len(pos), pos.ctypes.data, fwd.ctypes.data, rev.ctypes.data),
+                f"axis {ax} pitch map",
+            )
+        for k in ("v_max", "a_max", "j_max"):
+            core.check(so.sim_plan_set(i, k.encode(), m.planner[k]), f"planner {k}")
+        core.check(
+            so.sim_servo_set(i, b"ferr_limit", m.servo["ferr_limit_mm"] * 1e-3), "ferr_limit"
+        )
+        core.check(so.sim_servo_set(i, b"stop_decel", m.servo["stop_decel"]), "stop_decel")
+        fv = m.friction_ff_volts(ax) if feedforward == "full" else 0.0
+        core.check(so.sim_servo_set(i, b"friction_ff", fv), "friction_ff")
+        g = m.gains[ax]
+        kv, ka = m.ff_gains(ax, feedforward)
+        _gains(so, i, {**g, "kvff": kv, "kaff": ka}, f"axis {ax}")
+    for k in ("junction_dev", "arc_chord"):
+        if k in m.planner:
+            core.check(so.sim_plan_set(0, k.encode(), m.planner[k]), f"planner {k}")
+    core.check(so.sim_servo_set(0, b"sat_limit", m.servo["sat_limit_s"]), "sat_limit")
+    core.check(so.sim_plan_set(0, b"stop_decel", m.servo["stop_decel"]), "stop_decel")
+    _gains(so, -1, m.gains["cec"], "cec")
+    mode = {"pid": "off", "cec-tangent": "tangent", "cec-curvature": "curvature"}.get(
+        controller, controller.replace("cec-", "")
+    )
+    if mode not in core.CEC_MODES:
+        raise UserError(f"unknown controller {controller!r}")
+    core.check(so.sim_cec_mode(core.CEC_MODES[mode]), "controller")
+    core.check(so.sim_start(), "start")
+
+
+def _gains(so, loop: int, g: dict, what: str) -> None:
+    from contour.sim import core
+
+    for k, v in g.items():
+        core.check(so.sim_gain_set(loop, k.encode(), float(v)), f"{what} gain {k}")

@@ -1,0 +1,307 @@
+"""End to end: the host tool against the simulated drive (`sim serve`) over
+the serial pseudo-terminal and over SLCAN (python-can's own slcan interface,
+ISO-TP from can-isotp): identify, parameters, a short job to its end
+position, telemetry without gaps, link loss -> controlled stop, Ctrl-C,
+garbage and replayed frames, and a passive CAN scan.
+
+One simulated drive serves the whole module (started once, stopped at the
+end); every test opens and closes its own connection (a pty has one reader).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import time
+
+import pytest
+from contour import cli
+from contour import protocol_gen as pg
+from contour.link import DriveError, codec, connect
+from contour.simserve import spawn
+
+TRANSPORTS = ["serial", "slcan"]
+
+
+@pytest.fixture(scope="module")
+def server():
+    with spawn() as s:
+        yield s
+
+
+def link_args(server, transport: str) -> list[str]:
+    if transport == "serial":
+        return ["--port", server.serial]
+    return ["--can", f"slcan:{server.slcan}@500000", "--node", "1"]
+
+
+def client_for(server, transport: str, **kw):
+    if transport == "serial":
+        return connect(port=server.serial, **kw)
+    return connect(can=f"slcan:{server.slcan}@500000", node=1, **kw)
+
+
+def fresh(c) -> None:
+    """Drive back to a known state: link defaults, no fault, enabled, at rest."""
+    c.set_param("telem_period_ms", 0)
+    c.set_param("comm_timeout_ms", 1000)
+    st = c.status()
+    if st["state"] in (pg.State.RUNNING, pg.State.STOPPING):
+        c.request("stop")
+    for _ in range(200):
+        st = c.status()
+        if st["state"] not in (pg.State.RUNNING, pg.State.STOPPING):
+            break
+        time.sleep(0.02)
+    if st["state"] in (pg.State.FAULT, pg.State.ESTOP):
+        c.request("fault_reset")
+    c.enable(True)
+
+
+def wait_state(c, states, timeout=5.0) -> dict:
+    end = time.monotonic() + timeout
+    st = c.status()
+    while time.monotonic() < end and st["state"] not in states:
+        time.sleep(0.02)
+        st = c.status()
+    return st
+
+
+def run_cli(argv, capsys) -> tuple[int, str, str]:
+    rc = cli.main(argv)
+    out = capsys.readouterr()
+    return rc, out.out, out.err
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_identify(server, transport, capsys):
+    rc, out, _ = run_cli(["info", "--json", *link_args(server, transport)], capsys)
+    assert rc == 0
+    info = json.loads(out)
+    assert info["protocol_version"] == pg.PROTOCOL_VERSION
+    assert info["axes"] == 3 and info["node_id"] == 1 and info["tick_hz"] == 10000
+    assert "simulated" in info["capabilities"] and "can" in info["capabilities"]
+    assert info["planner_slots"] >= 2
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_parameters_typed_and_range_checked(server, transport, capsys):
+    args = link_args(server, transport)
+    rc, out, _ = run_cli(["set", "comm_timeout_ms", "750", *args], capsys)
+    assert rc == 0 and "750" in out
+    rc, out, _ = run_cli(["get", "comm_timeout_ms", *args], capsys)
+    assert rc == 0 and out.strip() == "comm_timeout_ms = 750 ms"
+    rc, _, err = run_cli(["set", "comm_timeout_ms", "nonsense", *args], capsys)
+    assert rc == 2 and "not an integer" in err
+    with client_for(server, transport) as c:
+        pid = pg.PARAM_BY_NAME["comm_timeout_ms"].id
+        # the drive checks too (bypassing the host's own check)
+        with pytest.raises(DriveError, match=r"out of range \[0, 60000\]") as e:
+            c.request("param_set", param=pid, value=70000)
+        assert e.value.code == pg.ErrorCode.OUT_OF_RANGE
+        assert c.get_param("comm_timeout_ms") == 750  # nothing half applied
+        with pytest.raises(DriveError, match="read-only"):
+            c.request("param_set", param=pg.PARAM_BY_NAME["position"].id, value=1)
+        with pytest.raises(DriveError) as e:
+            c.request("param_get", param=0x7777)
+        assert e.value.code == pg.ErrorCode.UNKNOWN_PARAM
+        with pytest.raises(DriveError) as e:
+            c.get_param("position.a")  # axis 3 on a 3-axis drive
+        assert e.value.code == pg.ErrorCode.BAD_AXIS
+        with pytest.raises(DriveError) as e:
+            c.request("enable", axis_mask=0x10, on=1)
+        assert e.value.code == pg.ErrorCode.BAD_AXIS
+        c.set_param("comm_timeout_ms", 1000)
+
+
+JOB = """(short job)
+G21 G90
+G1 X2 Y1 F1500
+G1 X3 Y-0.5
+G2 X2 Y-1.5 I-1 J0
+G1 X0.5 Y0.25 Z0.1
+"""
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_short_job_ends_at_the_programmed_point(server, transport, tmp_path, capsys):
+    with client_for(server, transport) as c:
+        fresh(c)
+        st = c.status()
+    start = [p / 1e6 for p in st["pos"][:3]]
+    job = tmp_path / "job.nc"
+    job.write_text(JOB)
+    rc, out, err = run_cli(
+        ["run", str(job), "--json", "--quiet", *link_args(server, transport)], capsys
+    )
+    assert rc == 0, err
+    res = json.loads(out)
+    assert res["blocks"] > 4  # the arc is split into segments
+    target = (0.5, 0.25, 0.1)
+    with client_for(server, transport) as c:
+        end = time.monotonic() + 3
+        while True:
+            pos = [p / 1e6 for p in c.status()["pos"][:3]]
+            err_mm = max(abs(a - b) for a, b in zip(pos, target))
+            if err_mm < 0.002 or time.monotonic() > end:
+                break
+            time.sleep(0.05)
+    assert err_mm < 0.002, f"end position {pos} mm, expected {target} (start {start})"
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_telemetry_has_no_gaps(server, transport, tmp_path, capsys):
+    out = tmp_path / "telemetry.csv"
+    rc, _, err = run_cli(
+        [
+            "monitor",
+            "--out",
+            str(out),
+            "--period-ms",
+            "10",
+            "--duration",
+            "1.5",
+            *link_args(server, transport),
+        ],
+        capsys,
+    )
+    assert rc == 0, err
+    assert " 0 missing" in err
+    with open(out) as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) >= 60
+    seqs = [int(r["seq"]) for r in rows]
+    assert all((b - a) & 0xFFFF == 1 for a, b in zip(seqs, seqs[1:]))
+    assert all(r["pos2_nm"] != "" and r["ferr0_nm"] != "" for r in rows[:-1])
+
+
+def test_monitor_writes_a_can_log_the_dbc_decodes(server, tmp_path, capsys):
+    import can
+    import cantools
+
+    out = tmp_path / "telemetry.asc"
+    rc, _, err = run_cli(
+        [
+            "monitor",
+            "--out",
+            str(out),
+            "--period-ms",
+            "20",
+            "--duration",
+            "0.6",
+            *link_args(server, "slcan"),
+        ],
+        capsys,
+    )
+    assert rc == 0, err
+    db = cantools.database.load_file(
+        os.path.join(os.path.dirname(__file__), "../../protocol/contour.dbc")
+    )
+    frames = list(can.ASCReader(str(out)))
+    assert len(frames) >= 20 * 9
+    status = [
+        db.decode_message(f.arbitration_id, f.data)
+        for f in frames
+        if f.arbitration_id == pg.can_id(pg.CAN_FUNC["status"], 1)
+    ]
+    seqs = [s["seq"] for s in status]
+    assert len(seqs) >= 20 and all((b - a) & 0xFFFF == 1 for a, b in zip(seqs, seqs[1:]))
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_link_loss_brings_a_controlled_stop(server, transport):
+    with client_for(server, transport) as c:
+        fresh(c)
+        c.set_param("comm_timeout_ms", 200)
+        st = c.status()
+        x0 = st["pos"][0]
+        target = [x0 + 40_000_000, st["pos"][1], st["pos"][2], 0]
+        c.request("queue_block", block_seq=77, kind=0, flags=0, feed=10_000_000, target=target)
+        assert wait_state(c, (pg.State.RUNNING,), 1.0)["state"] == pg.State.RUNNING
+        time.sleep(0.3)
+        # the host falls silent now
+    time.sleep(1.5)
+    with client_for(server, transport) as c:
+        st = c.status()
+        assert st["state"] == pg.State.FAULT, st
+        assert st["faults"] == 1 << pg.Fault.COMM_TIMEOUT  # a stop, not an estop
+        pos1 = st["pos"][0]
+        assert x0 + 1_000_000 < pos1 < target[0] - 5_000_000  # stopped on the way
+        time.sleep(0.2)
+        assert abs(c.status()["pos"][0] - pos1) < 2000  # at rest
+        c.request("fault_reset")
+        assert c.status()["faults"] == 0
+        c.set_param("comm_timeout_ms", 1000)
+
+
+def test_ctrl_c_during_a_job_stops_in_a_controlled_way(server, tmp_path):
+    from contour.link.stream import Streamer, blocks_from_gcode
+
+    job = tmp_path / "long.nc"
+    with client_for(server, "serial") as c:
+        fresh(c)
+        x0 = c.status()["pos"][0] / 1e6
+        job.write_text(f"G21 G90\nG1 X{x0 + 30:.4f} F1200\n")
+        blocks = blocks_from_gcode(str(job), start_mm=[x0, 0, 0])
+        calls = []
+
+        def interrupt(p):
+            calls.append(p)
+            if p.elapsed_s > 0.3:
+                raise KeyboardInterrupt
+
+        with pytest.raises(KeyboardInterrupt):
+            Streamer(c, blocks, on_progress=interrupt).run()
+        st = c.status()
+        assert st["state"] == pg.State.READY  # stopped, still enabled, no fault
+        assert st["faults"] == 0
+        assert x0 + 0.1 < st["pos"][0] / 1e6 < x0 + 29
+
+
+def test_garbage_and_replayed_frames_over_serial(server):
+    import serial
+
+    with client_for(server, "serial") as c:
+        before = c.status()
+    port = serial.serial_for_url(server.serial, timeout=0.5)
+    try:
+        dec = codec.FrameDecoder()
+        port.write(b"\x11\x22\x00\x7f\xff\x00garbage")  # noise, an empty and a bad frame
+        bad = bytearray(codec.frame(codec.encode("identify", 1)))
+        bad[4] ^= 0x01
+        port.write(bytes(bad))
+        frame = codec.frame(codec.encode("param_set", 42, param=1, value=600))
+        port.write(frame)
+        port.write(frame)  # replayed: answered from the cache, not executed again
+        port.write(codec.frame(codec.encode("status_get", 43)))
+        port.write(codec.frame(bytes([0xEE, 44])))  # unknown id
+        port.write(codec.frame(codec.encode("param_get", 45) + b"\x00"))  # bad length
+        replies = []
+        end = time.monotonic() + 3
+        while len(replies) < 5 and time.monotonic() < end:
+            replies += [codec.decode(m) for m in dec.feed(port.read(256))]
+    finally:
+        port.close()
+    assert [r.seq for r in replies] == [42, 42, 43, 44, 45]
+    assert replies[0] == replies[1]
+    st = replies[2].fields
+    assert st["replayed"] == before["replayed"] + 1
+    assert st["rx_errors"] >= before["rx_errors"] + 2
+    assert replies[3].name == "error" and replies[3].fields["code"] == pg.ErrorCode.UNKNOWN_MESSAGE
+    assert replies[4].fields["code"] == pg.ErrorCode.BAD_LENGTH
+    with client_for(server, "serial") as c:
+        assert c.get_param("comm_timeout_ms") == 600
+        c.set_param("comm_timeout_ms", 1000)
+
+
+def test_scan_lists_the_drive_without_talking(server, capsys):
+    rc, out, err = run_cli(
+        ["scan", "--can", f"slcan:{server.slcan}@500000", "--time", "2.5", "--json"], capsys
+    )
+    assert rc == 0, err
+    found = json.loads(out)
+    assert [d["node"] for d in found] == [1]
+    assert found[0]["protocol_version"] == pg.PROTOCOL_VERSION
+    rc, _, err = run_cli(["scan", "--port", server.serial], capsys)
+    assert rc == 2 and "CAN bus" in err

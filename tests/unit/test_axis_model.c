@@ -1,0 +1,229 @@
+/* Axis model: eigenvalues against the spec, exactness of the ZOH
+ * discretisation, voltage limit, friction, backlash, pitch map, determinism. */
+#include "axis_model.h"
+#include "unity.h"
+
+#include <math.h>
+
+void setUp(void)
+{
+}
+
+void tearDown(void)
+{
+}
+
+static void test_x_axis_eigenvalues_match_spec(void)
+{
+    axis_params_t p;
+    double complex ev[AXIS_NSTATE];
+    axis_params_lacerda(&p, false);
+    axis_model_eigenvalues(&p, ev);
+    /* sorted by real part: -1190, -149, -2.11 -/+ 4170j, 0 */
+    TEST_ASSERT_DOUBLE_WITHIN(5.0, -1190.0, creal(ev[0]));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 0.0, cimag(ev[0]));
+    TEST_ASSERT_DOUBLE_WITHIN(0.5, -149.0, creal(ev[1]));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 0.0, cimag(ev[1]));
+    TEST_ASSERT_DOUBLE_WITHIN(0.01, -2.11, creal(ev[2]));
+    TEST_ASSERT_DOUBLE_WITHIN(0.01, -2.11, creal(ev[3]));
+    TEST_ASSERT_DOUBLE_WITHIN(5.0, -4170.0, cimag(ev[2]));
+    TEST_ASSERT_DOUBLE_WITHIN(5.0, 4170.0, cimag(ev[3]));
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 0.0, cabs(ev[4]));
+}
+
+static void test_y_axis_has_stiffer_table_mode(void)
+{
+    axis_params_t p;
+    double complex ev[AXIS_NSTATE];
+    axis_params_lacerda(&p, true);
+    axis_model_eigenvalues(&p, ev);
+    /* lighter table: sqrt(K (1/I1 + 1/I2)) = 5958 rad/s, plus the motor circuit */
+    TEST_ASSERT_DOUBLE_WITHIN(10.0, 5960.0, cimag(ev[3]));
+}
+
+static void test_expm_of_rotation_generator(void)
+{
+    /* e^{[[0,w],[-w,0]] t} = [[cos, sin], [-sin, cos]] */
+    const double m[4] = {0.0, 4170.0, -4170.0, 0.0};
+    double e[4];
+    axis_expm(2, m, 1e-3, e);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, cos(4.17), e[0]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, sin(4.17), e[1]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, -sin(4.17), e[2]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, cos(4.17), e[3]);
+}
+
+/* One step of h*n equals n steps of h (exact discretisation). */
+static void test_one_long_step_equals_many_short_steps(void)
+{
+    axis_params_t p;
+    axis_t a, b;
+    unsigned i, k;
+    axis_params_lacerda(&p, false);
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 3e-3));
+    TEST_ASSERT_TRUE(axis_init(&b, &p, 1e-4));
+    for (k = 0; k < 20; k++) {
+        double u = 2.0 * sin(0.7 * k);
+        axis_substep(&a, u);
+        for (i = 0; i < 30; i++) {
+            axis_substep(&b, u);
+        }
+        for (i = 0; i < AXIS_NSTATE; i++) {
+            double scale = fabs(a.z[i]) + 1e-6;
+            TEST_ASSERT_DOUBLE_WITHIN(1e-8 * scale, a.z[i], b.z[i]);
+        }
+    }
+}
+
+/* Constant command: speed settles at kx u / kb, current at zero (no load). */
+static void test_steady_speed_from_back_emf(void)
+{
+    axis_params_t p;
+    axis_t a;
+    unsigned k;
+    axis_params_lacerda(&p, false);
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-4));
+    for (k = 0; k < 60000; k++) {
+        axis_substep(&a, 1.0);
+    }
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 16.0 / 0.21, a.z[1]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 16.0 / 0.21, a.z[3]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 0.0, a.z[4]);
+}
+
+static void test_voltage_limit_clamps_command(void)
+{
+    axis_params_t p;
+    axis_t a, b;
+    unsigned k;
+    axis_params_lacerda(&p, false);
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-4));
+    TEST_ASSERT_TRUE(axis_init(&b, &p, 1e-4));
+    for (k = 0; k < 100; k++) {
+        axis_substep(&a, -50.0);
+        axis_substep(&b, -10.0);
+    }
+    TEST_ASSERT_EQUAL_DOUBLE(b.z[1], a.z[1]);
+    TEST_ASSERT_EQUAL_DOUBLE(-160.0, a.v_applied);
+}
+
+/* Coulomb friction holds the axis below breakaway and opposes motion above. */
+static void test_coulomb_friction_sticks_and_slips(void)
+{
+    axis_params_t p;
+    axis_t a;
+    unsigned k;
+    axis_params_lacerda(&p, false);
+    p.coulomb_motor = 0.05; /* N m: breakaway current 0.25 A, 2.25 V */
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-5));
+    for (k = 0; k < 200000; k++) {
+        axis_substep(&a, 2.0 / 16.0);
+    }
+    /* at rest within 1 nm of travel after 2 s */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9 / p.l, 0.0, a.z[0]);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-6, 0.0, a.z[1]);
+    for (k = 0; k < 100000; k++) {
+        axis_substep(&a, 4.0 / 16.0);
+    }
+    /* slipping: steady speed where kt ia = Fc, (4 - Ra ia) / kb */
+    TEST_ASSERT_DOUBLE_WITHIN(1e-2, (4.0 - 9.0 * 0.25) / 0.21, a.z[1]);
+}
+
+/* Reversing the motor moves the table only after the gap is taken up. */
+static void test_backlash_lost_motion(void)
+{
+    axis_params_t p;
+    axis_t a;
+    double x_motor0, x_table0, x_motor1, x_table1;
+    unsigned k;
+    axis_params_lacerda(&p, false);
+    p.backlash = 10e-6;
+    p.coulomb_table = 20.0; /* the table stays where the screw leaves it */
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-5));
+    for (k = 0; k < 20000; k++) {
+        axis_substep(&a, k < 10000 ? 0.2 : 0.0);
+    }
+    x_motor0 = p.l * a.z[0];
+    x_table0 = axis_table_pos(&a);
+    TEST_ASSERT_TRUE(x_table0 > 1e-4);
+    /* back off by less than the gap: the table does not move */
+    for (k = 0; k < 2000; k++) {
+        axis_substep(&a, k < 100 ? -0.1 : 0.0);
+    }
+    x_motor1 = p.l * a.z[0];
+    x_table1 = axis_table_pos(&a);
+    TEST_ASSERT_TRUE(x_motor0 - x_motor1 > 1e-6);
+    TEST_ASSERT_TRUE(x_motor0 - x_motor1 < 9e-6);
+    TEST_ASSERT_DOUBLE_WITHIN(5e-8, x_table0, x_table1);
+}
+
+static void test_pitch_map_per_direction(void)
+{
+    axis_params_t p;
+    axis_t a;
+    axis_params_lacerda(&p, false);
+    p.pitch_n = 2;
+    p.pitch_pos[0] = 0.0;
+    p.pitch_pos[1] = 0.1;
+    p.pitch_err_fwd[0] = 0.0;
+    p.pitch_err_fwd[1] = 20e-6;
+    p.pitch_err_rev[0] = 4e-6;
+    p.pitch_err_rev[1] = 24e-6;
+    p.pitch_dir_band = 1e-6;
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-4));
+    axis_set_position(&a, 0.05);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-12, 0.05 + 10e-6, axis_table_pos(&a));
+    a.z[2] -= 2e-6 / p.l; /* move 2 um toward -x: beyond the band */
+    axis_substep(&a, 0.0);
+    TEST_ASSERT_EQUAL_INT(-1, a.pitch_dir);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-9, p.l * a.z[2] + 14e-6, axis_table_pos(&a));
+    TEST_ASSERT_EQUAL_INT64((int64_t)floor(axis_table_pos(&a) / 1e-9 + 0.5), axis_ref_count(&a));
+}
+
+static void test_noise_is_deterministic_per_seed(void)
+{
+    axis_params_t p;
+    axis_t a, b;
+    unsigned k;
+    int differ = 0;
+    axis_params_lacerda(&p, false);
+    p.enc_noise_counts = 0.3;
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-4));
+    TEST_ASSERT_TRUE(axis_init(&b, &p, 1e-4));
+    for (k = 0; k < 100; k++) {
+        double ra = axis_encoder_reading(&a);
+        TEST_ASSERT_EQUAL_DOUBLE(ra, axis_encoder_reading(&b));
+        differ += ra != 0.0;
+    }
+    TEST_ASSERT_TRUE(differ > 90);
+}
+
+static void test_invalid_parameters_refused(void)
+{
+    axis_params_t p;
+    axis_t a;
+    axis_params_lacerda(&p, false);
+    p.I2 = 0.0;
+    TEST_ASSERT_FALSE(axis_init(&a, &p, 1e-4));
+    axis_params_lacerda(&p, false);
+    TEST_ASSERT_FALSE(axis_init(&a, &p, 0.0));
+    p.pitch_n = 2; /* positions not increasing */
+    TEST_ASSERT_FALSE(axis_init(&a, &p, 1e-4));
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_x_axis_eigenvalues_match_spec);
+    RUN_TEST(test_y_axis_has_stiffer_table_mode);
+    RUN_TEST(test_expm_of_rotation_generator);
+    RUN_TEST(test_one_long_step_equals_many_short_steps);
+    RUN_TEST(test_steady_speed_from_back_emf);
+    RUN_TEST(test_voltage_limit_clamps_command);
+    RUN_TEST(test_coulomb_friction_sticks_and_slips);
+    RUN_TEST(test_backlash_lost_motion);
+    RUN_TEST(test_pitch_map_per_direction);
+    RUN_TEST(test_noise_is_deterministic_per_seed);
+    RUN_TEST(test_invalid_parameters_refused);
+    return UNITY_END();
+}

@@ -1,0 +1,350 @@
+/* Dispatcher against the real drive inside the simulator: identify, typed
+ * parameters with range checks (nothing half applied), every refusal code,
+ * the replay cache, queued motion with flow control, cyclic telemetry with
+ * consecutive sequence numbers, and the communication watchdog's
+ * controlled stop. */
+#include <string.h>
+
+#include "drive.h"
+#include "proto_dispatch.h"
+#include "sim.h"
+#include "unity.h"
+
+static proto_dispatch_t d;
+static uint8_t out[PROTO_MSG_MAX];
+static uint32_t now_us;
+static uint8_t next_seq;
+
+static void start(void)
+{
+    proto_identity_t id = {0x000100u, 0xABCDu, 7u, 10000u, 1u, 0u, 5u, 3u};
+
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 3));
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    now_us = 0;
+    TEST_ASSERT_TRUE(proto_dispatch_init(&d, &id, now_us));
+}
+
+void setUp(void)
+{
+    start();
+}
+
+void tearDown(void)
+{
+}
+
+/* Advance the simulator (and the dispatcher's clock) by ms milliseconds. */
+static void run_ms(unsigned ms)
+{
+    TEST_ASSERT_TRUE(sim_run((uint64_t)ms * 10u, NULL, 0, 0) >= 0);
+    now_us += ms * 1000u;
+}
+
+static size_t request(uint8_t id, const uint8_t *payload, size_t n)
+{
+    uint8_t m[PROTO_MSG_MAX];
+
+    m[0] = id;
+    m[1] = ++next_seq;
+    if (n > 0) {
+        memcpy(m + 2, payload, n);
+    }
+    return proto_dispatch_handle(&d, m, n + 2, now_us, out, sizeof out);
+}
+
+static proto_error_t expect_error(size_t len, uint8_t code)
+{
+    proto_error_t e;
+
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_ERROR, out[0]);
+    TEST_ASSERT_TRUE(proto_error_decode(out + 2, len - 2, &e));
+    TEST_ASSERT_EQUAL_UINT8(code, e.code);
+    return e;
+}
+
+static size_t set_param(uint16_t pid, int64_t v)
+{
+    proto_param_set_t s = {pid, v};
+    uint8_t p[16];
+
+    return request(PROTO_MSG_PARAM_SET, p, proto_param_set_encode(&s, p, sizeof p));
+}
+
+static int64_t get_param(uint16_t pid)
+{
+    proto_param_get_t g = {pid};
+    proto_param_value_t v;
+    uint8_t p[4];
+    size_t n = request(PROTO_MSG_PARAM_GET, p, proto_param_get_encode(&g, p, sizeof p));
+
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, out[0]);
+    TEST_ASSERT_TRUE(proto_param_value_decode(out + 2, n - 2, &v));
+    return v.value;
+}
+
+static proto_drive_state_t state(void)
+{
+    proto_drive_state_t s;
+    size_t n = request(PROTO_MSG_STATUS_GET, NULL, 0);
+
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_DRIVE_STATE, out[0]);
+    TEST_ASSERT_TRUE(proto_drive_state_decode(out + 2, n - 2, &s));
+    return s;
+}
+
+static size_t queue_line(uint32_t seq, int64_t x, uint32_t feed)
+{
+    proto_queue_block_t q = {seq, PROTO_BLOCK_KIND_LINE, 0, feed, {x, 0, 0, 0}};
+    uint8_t p[64];
+
+    return request(PROTO_MSG_QUEUE_BLOCK, p, proto_queue_block_encode(&q, p, sizeof p));
+}
+
+static void enable(void)
+{
+    const uint8_t p[2] = {0x07, 1};
+
+    TEST_ASSERT_TRUE(request(PROTO_MSG_ENABLE, p, 2) > 0);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_ACK, out[0]);
+    run_ms(1); /* the tick applies it and publishes the status */
+}
+
+static void test_identify_reports_the_identity(void)
+{
+    proto_identify_reply_t r;
+    size_t n = request(PROTO_MSG_IDENTIFY, NULL, 0);
+
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_IDENTIFY_REPLY, out[0]);
+    TEST_ASSERT_EQUAL_UINT8(next_seq, out[1]);
+    TEST_ASSERT_TRUE(proto_identify_reply_decode(out + 2, n - 2, &r));
+    TEST_ASSERT_EQUAL_UINT16(PROTO_VERSION, r.protocol_version);
+    TEST_ASSERT_EQUAL_UINT8(5, r.node_id);
+    TEST_ASSERT_EQUAL_UINT8(3, r.axes);
+    TEST_ASSERT_EQUAL_HEX32(0xABCDu, r.build_id);
+    TEST_ASSERT_TRUE(r.planner_slots >= 2); /* read from the drive */
+}
+
+static void test_parameters_are_range_checked_and_never_half_applied(void)
+{
+    proto_error_t e;
+
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_COMM_TIMEOUT_MS, 250), out[0]));
+    TEST_ASSERT_EQUAL_INT64(250, get_param(PROTO_PARAM_COMM_TIMEOUT_MS));
+    e = expect_error(set_param(PROTO_PARAM_COMM_TIMEOUT_MS, 60001), PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_INT64(0, e.lo);
+    TEST_ASSERT_EQUAL_INT64(60000, e.hi);
+    TEST_ASSERT_EQUAL_UINT16(PROTO_PARAM_COMM_TIMEOUT_MS, e.arg);
+    expect_error(set_param(PROTO_PARAM_COMM_TIMEOUT_MS, -1), PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_INT64(250, get_param(PROTO_PARAM_COMM_TIMEOUT_MS));
+    expect_error(set_param(PROTO_PARAM_NODE_ID, 3), PROTO_ERROR_CODE_READ_ONLY);
+    expect_error(set_param(0x7777, 3), PROTO_ERROR_CODE_UNKNOWN_PARAM);
+    expect_error(set_param(PROTO_PARAM_CEC_MODE, 4), PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_INT64(0, get_param(PROTO_PARAM_CEC_MODE));
+    TEST_ASSERT_EQUAL_INT64(3, get_param(PROTO_PARAM_AXES));
+    {
+        proto_param_get_t g = {PROTO_PARAM_POSITION + 3}; /* axis 3 of 3 */
+        uint8_t p[4];
+
+        expect_error(request(PROTO_MSG_PARAM_GET, p, proto_param_get_encode(&g, p, 4)),
+                     PROTO_ERROR_CODE_BAD_AXIS);
+    }
+}
+
+static void test_unknown_short_and_wrong_length_messages(void)
+{
+    const uint8_t junk[3] = {1, 2, 3};
+    uint8_t m[2] = {PROTO_MSG_IDENTIFY, 0};
+    proto_error_t e;
+
+    expect_error(request(0xEE, NULL, 0), PROTO_ERROR_CODE_UNKNOWN_MESSAGE);
+    expect_error(request(PROTO_MSG_IDENTIFY_REPLY, NULL, 0), PROTO_ERROR_CODE_UNKNOWN_MESSAGE);
+    e = expect_error(request(PROTO_MSG_PARAM_GET, junk, 3), PROTO_ERROR_CODE_BAD_LENGTH);
+    TEST_ASSERT_EQUAL_INT64(2, e.lo);
+    TEST_ASSERT_EQUAL_INT64(2, e.hi);
+    TEST_ASSERT_EQUAL_size_t(0, proto_dispatch_handle(&d, m, 1, now_us, out, sizeof out));
+    TEST_ASSERT_EQUAL_UINT32(1, d.stats.ignored);
+    TEST_ASSERT_EQUAL_UINT32(2, d.stats.unknown);
+    TEST_ASSERT_EQUAL_UINT32(1, d.stats.bad_length);
+}
+
+static void test_replayed_request_is_answered_not_executed(void)
+{
+    uint8_t m[64];
+    uint8_t first[PROTO_MSG_MAX];
+    proto_queue_block_t q = {9, PROTO_BLOCK_KIND_LINE, 0, 5000000, {1000000, 0, 0, 0}};
+    size_t n, r1, r2;
+    proto_drive_state_t s;
+
+    enable();
+    m[0] = PROTO_MSG_QUEUE_BLOCK;
+    m[1] = 200;
+    n = 2 + proto_queue_block_encode(&q, m + 2, sizeof m - 2);
+    r1 = proto_dispatch_handle(&d, m, n, now_us, first, sizeof first);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, first[0]);
+    r2 = proto_dispatch_handle(&d, m, n, now_us, out, sizeof out);
+    TEST_ASSERT_EQUAL_size_t(r1, r2);
+    TEST_ASSERT_EQUAL_MEMORY(first, out, r1);
+    TEST_ASSERT_EQUAL_UINT32(1, d.stats.replayed);
+    s = state();
+    TEST_ASSERT_EQUAL_UINT16(d.ident.planner_slots - 1u, s.free_slots);
+    /* exactly one block went into the planner */
+    run_ms(2000);
+    s = state();
+    TEST_ASSERT_EQUAL_UINT32(1, s.blocks_done);
+    TEST_ASSERT_EQUAL_UINT32(9, s.last_block_seq);
+}
+
+static void test_blocks_are_checked_before_queueing(void)
+{
+    proto_queue_block_t q = {1, PROTO_BLOCK_KIND_LINE, 0, 0, {1000, 0, 0, 0}};
+    uint8_t p[64];
+    proto_error_t e;
+
+    expect_error(queue_line(1, 1000, 1000000), PROTO_ERROR_CODE_DISABLED);
+    enable();
+    e = expect_error(request(PROTO_MSG_QUEUE_BLOCK, p, proto_queue_block_encode(&q, p, 64)),
+                     PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_UINT16(3, e.arg); /* feed */
+    q.feed = 1000;
+    q.kind = 9;
+    expect_error(request(PROTO_MSG_QUEUE_BLOCK, p, proto_queue_block_encode(&q, p, 64)),
+                 PROTO_ERROR_CODE_BAD_VALUE);
+    q.kind = PROTO_BLOCK_KIND_LINE;
+    q.target[3] = 5; /* the fourth axis does not exist */
+    e = expect_error(request(PROTO_MSG_QUEUE_BLOCK, p, proto_queue_block_encode(&q, p, 64)),
+                     PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_UINT16(7, e.arg);
+    q.target[3] = 0;
+    q.target[1] = PROTO_POS_LIMIT_NM + 1;
+    expect_error(request(PROTO_MSG_QUEUE_BLOCK, p, proto_queue_block_encode(&q, p, 64)),
+                 PROTO_ERROR_CODE_OUT_OF_RANGE);
+    q.flags = 0x80;
+    expect_error(request(PROTO_MSG_QUEUE_BLOCK, p, proto_queue_block_encode(&q, p, 64)),
+                 PROTO_ERROR_CODE_BAD_VALUE);
+    TEST_ASSERT_EQUAL_UINT32(0, state().blocks_done);
+    TEST_ASSERT_EQUAL_UINT8(PROTO_STATE_READY, state().state);
+}
+
+static void test_queue_full_is_a_specific_refusal(void)
+{
+    uint32_t i;
+    size_t n = 0;
+
+    enable();
+    for (i = 0; i < 1000; i++) {
+        n = queue_line(i, (int64_t)(i + 1) * 1000000, 1000000);
+        if (out[0] != PROTO_MSG_QUEUE_REPLY) {
+            break;
+        }
+    }
+    TEST_ASSERT_TRUE(i > 1 && i < 1000);
+    expect_error(n, PROTO_ERROR_CODE_QUEUE_FULL);
+}
+
+static struct {
+    unsigned n;
+    uint8_t ids[64];
+    uint16_t seqs[64];
+} em;
+
+static bool capture(void *ctx, const uint8_t *msg, size_t len, uint8_t can_func)
+{
+    (void)ctx;
+    (void)can_func;
+    if (em.n < 64 && len >= 4) {
+        em.ids[em.n] = msg[0];
+        em.seqs[em.n] = (uint16_t)(msg[2] | (msg[3] << 8));
+        em.n++;
+    }
+    return true;
+}
+
+static void test_telemetry_cycles_share_one_consecutive_seq(void)
+{
+    unsigned i;
+
+    memset(&em, 0, sizeof em);
+    set_param(PROTO_PARAM_TELEM_PERIOD_MS, 10);
+    proto_dispatch_poll(&d, now_us, capture, NULL);
+    TEST_ASSERT_EQUAL_UINT(0, em.n);
+    run_ms(10);
+    proto_dispatch_poll(&d, now_us, capture, NULL);
+    run_ms(10);
+    proto_dispatch_poll(&d, now_us, capture, NULL);
+    TEST_ASSERT_EQUAL_UINT(2 * (3 + 2 * 3), em.n); /* status, progress, path, 3 pos, 3 ferr */
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_STATUS, em.ids[0]);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_STATUS, em.ids[9]);
+    for (i = 0; i < 9; i++) {
+        TEST_ASSERT_EQUAL_UINT16(em.seqs[0], em.seqs[i]);
+        TEST_ASSERT_EQUAL_UINT16(em.seqs[0] + 1u, em.seqs[9 + i]);
+    }
+    /* heartbeat only where the link asks for it */
+    d.heartbeat_on = true;
+    em.n = 0;
+    set_param(PROTO_PARAM_TELEM_PERIOD_MS, 0);
+    run_ms(1000);
+    proto_dispatch_poll(&d, now_us, capture, NULL);
+    TEST_ASSERT_EQUAL_UINT(1, em.n);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_HEARTBEAT, em.ids[0]);
+}
+
+static void test_watchdog_stops_in_a_controlled_way(void)
+{
+    proto_drive_state_t s;
+    unsigned ms;
+
+    memset(&em, 0, sizeof em);
+    set_param(PROTO_PARAM_COMM_TIMEOUT_MS, 100);
+    enable();
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, (queue_line(1, 50000000, 20000000), out[0]));
+    for (ms = 0; ms < 90; ms += 10) { /* host alive: keeps running */
+        run_ms(10);
+        (void)state();
+        proto_dispatch_poll(&d, now_us, capture, NULL);
+    }
+    TEST_ASSERT_EQUAL_UINT8(PROTO_STATE_RUNNING, state().state);
+    for (ms = 0; ms < 99; ms += 1) { /* silent, but not yet for 100 ms */
+        run_ms(1);
+        proto_dispatch_poll(&d, now_us, capture, NULL);
+    }
+    TEST_ASSERT_EQUAL_UINT32(0, d.stats.watchdog_stops);
+    for (ms = 0; ms < 3000; ms += 1) {
+        run_ms(1);
+        proto_dispatch_poll(&d, now_us, capture, NULL);
+    }
+    TEST_ASSERT_EQUAL_UINT32(1, d.stats.watchdog_stops);
+    s = state();
+    TEST_ASSERT_EQUAL_UINT8(PROTO_STATE_FAULT, s.state);
+    TEST_ASSERT_EQUAL_HEX16(1u << PROTO_FAULT_COMM_TIMEOUT, s.faults);
+    TEST_ASSERT_TRUE(s.pos[0] > 100000 && s.pos[0] < 45000000);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_ACK, (request(PROTO_MSG_FAULT_RESET, NULL, 0), out[0]));
+    run_ms(1);
+    TEST_ASSERT_EQUAL_HEX16(0, state().faults);
+}
+
+static void test_watchdog_leaves_an_idle_drive_alone(void)
+{
+    set_param(PROTO_PARAM_COMM_TIMEOUT_MS, 50);
+    enable();
+    run_ms(1000);
+    proto_dispatch_poll(&d, now_us, capture, NULL);
+    TEST_ASSERT_EQUAL_UINT32(0, d.stats.watchdog_stops);
+    TEST_ASSERT_EQUAL_UINT8(PROTO_STATE_READY, state().state);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_identify_reports_the_identity);
+    RUN_TEST(test_parameters_are_range_checked_and_never_half_applied);
+    RUN_TEST(test_unknown_short_and_wrong_length_messages);
+    RUN_TEST(test_replayed_request_is_answered_not_executed);
+    RUN_TEST(test_blocks_are_checked_before_queueing);
+    RUN_TEST(test_queue_full_is_a_specific_refusal);
+    RUN_TEST(test_telemetry_cycles_share_one_consecutive_seq);
+    RUN_TEST(test_watchdog_stops_in_a_controlled_way);
+    RUN_TEST(test_watchdog_leaves_an_idle_drive_alone);
+    return UNITY_END();
+}
