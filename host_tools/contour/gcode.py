@@ -114,12 +114,17 @@ _NOTES = {
     "TRAORI": "5-axis transform: X Y Z read as the tool-tip path",
     "TRAFOOF": "transform off",
     "CYCLE800": "swivel cycle (orientation), not timed",
-    "CYCLE832": "high-speed settings cycle: its smoothing is the profile's business",
+    "CYCLE832": "high-speed settings: read as continuous path (G64) until CYCLE832(); "
+    "its tolerance and compressor are the profile's business",
+    "TRAF00F": "unknown word (TRAFOOF, transform off, written with zeros?)",
     "FNORM": "feed normal (the default)",
     "M6": "tool change not timed",
     "M0": "program stop: the wait is not timed",
     "M1": "optional stop: the wait is not timed",
 }
+
+
+_M_NOTE = "machine function, not timed"
 
 
 class GcodeError(UserError):
@@ -201,6 +206,7 @@ class _Reader:
         self.absolute = True
         self.arc_absolute = False
         self.exact_stop_modal = False
+        self.before_cycle832 = None
         self.feed = math.nan  # mm/min
         self.pos = (
             [0.0] * 6 if start is None else [float(v) for v in start] + [0.0] * (6 - len(start))
@@ -320,13 +326,27 @@ class _Reader:
         j = m.end()
         n = len(text)
         if j < n and text[j] == "(":
-            j = self._balanced(text, j, lineno)
+            k = self._balanced(text, j, lineno)
+            if name == "CYCLE832":
+                self._cycle832(text[j + 1 : k - 1].strip())
+            j = k
         elif j < n and text[j] == "=":
             j = self._expression_end(text, j + 1, lineno)
             self.skip(name + "=", lineno)
             return j
         self.skip(name, lineno)
         return j
+
+    def _cycle832(self, args: str) -> None:
+        """Sinumerik high-speed cycle: with a tolerance it selects continuous
+        path (G642); empty, it deselects and the previous mode returns."""
+        if args.strip(", "):
+            if self.before_cycle832 is None:
+                self.before_cycle832 = self.exact_stop_modal
+            self.exact_stop_modal = False
+        elif self.before_cycle832 is not None:
+            self.exact_stop_modal = self.before_cycle832
+            self.before_cycle832 = None
 
     def _expression_end(self, text: str, j: int, lineno: int) -> int:
         n = len(text)
@@ -490,7 +510,7 @@ class _Reader:
                     self.arc_absolute = False
                 elif g in (60, 61):
                     self.exact_stop_modal = True
-                elif g == 64:
+                elif g in (64, 641, 642, 643, 644, 645):
                     self.exact_stop_modal = False
                 elif g == 9:
                     g9 = True
@@ -518,7 +538,7 @@ class _Reader:
                 if m == 2 or m == 30:
                     ended = True
                 else:
-                    self.skip("M" + _fmt_code(m), lineno)
+                    self.skip("M" + _fmt_code(m), lineno, _NOTES.get("M" + _fmt_code(m), _M_NOTE))
             elif letter in ("S", "T", "D", "H", "L", "Q"):
                 self.skip(letter, lineno)
             elif letter[0] == "=":
