@@ -36,7 +36,8 @@ M4_CFLAGS  := $(WARN) -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -O2 -ffreestandin
               -ffunction-sections -fdata-sections $(INC)
 
 .SECONDARY:
-.PHONY: all deps venv host test unit m4-check pytest run bench lint fuzz firmware clean distclean proto
+.PHONY: all deps venv host test unit m4-check pytest run bench lint fuzz firmware clean distclean proto \
+        test-socketcan
 
 all: deps venv host
 
@@ -104,7 +105,15 @@ m4-check: deps
 pytest: venv host
 	$(PY) -m pytest -q tests/python
 
-test: deps unit m4-check pytest
+test: deps unit m4-check pytest test-socketcan
+
+# ---- real targets: STM32F4 and QEMU mps2-an386 images (docs/ports.md) --------
+firmware: deps venv
+	./mk/firmware.sh
+
+# The Linux port's SocketCAN link inside a QEMU guest with vcan (about 30-60 s).
+test-socketcan: deps venv
+	./tests/ports/socketcan/run.sh
 
 # ---- fuzzing: libFuzzer harnesses (clang) of the frame decoder and dispatcher ----
 FUZZ_RUNS ?= 1000000

@@ -4,8 +4,7 @@
 #   flash_seconds_64k_inprocess  bootloader + host tool, no transport (ctypes)
 #   flash_seconds_64k_serial     over the serial pseudo-terminal of `contour sim serve`
 #   flash_seconds_64k_slcan      over SLCAN (python-can, ISO-TP) of `contour sim serve`
-# The transport figures need `contour sim serve` with the bootloader wired in
-# (docs/bootloader.md); without it they are reported as skipped on stderr.
+# (the best of two runs each; the pseudo-terminals have no baud-rate limit).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 py=.venv/bin/python
@@ -28,10 +27,11 @@ fl.flash(fl.BootClient(link), image, log=lambda s: None)
 print(f"flash_seconds_64k_inprocess: {time.perf_counter() - t0:.3f} s")
 PY
 
-if ! .venv/bin/contour sim serve --help > /dev/null 2>&1; then
-  echo "bench-flash: contour sim serve not available: serial/slcan figures skipped" >&2
-  exit 0
-fi
+# The simulated drive in real time (`contour sim serve --flash FILE`, the
+# bootloader on a flash file); a first, untimed flash puts an application on
+# it, then each timed run is a field update: `contour flash` as a user runs it
+# (process start, boot_enter, erase, 64 KiB, read-back CRC, finish, reboot,
+# version check).
 rm -f "$out/serve.flash"
 .venv/bin/contour sim serve --flash "$out/serve.flash" > "$out/serve.log" 2>&1 &
 pid=$!
@@ -46,14 +46,19 @@ if [ -z "$serial" ] || [ -z "$slcan" ]; then
   echo "bench-flash: contour sim serve printed no serial/slcan path" >&2
   exit 1
 fi
-$py - "$out/app64k.img" "$serial" "slcan:$slcan@1000000" <<'PY'
+$py - "$out/app64k.img" "$serial" "slcan:$slcan@500000" <<'PY'
 import subprocess, sys, time
 image, serial, can = sys.argv[1:4]
-for name, opt in (("serial", ["--port", serial]), ("slcan", ["--can", can])):
+
+def run(opt):
     t0 = time.perf_counter()
     r = subprocess.run([".venv/bin/contour", "flash", image, *opt, "--no-progress"],
-                       capture_output=True, text=True)
+                       capture_output=True, text=True, timeout=120)
     if r.returncode != 0:
-        sys.exit(f"bench-flash: flash over {name} failed: {r.stderr.strip()}")
-    print(f"flash_seconds_64k_{name}: {time.perf_counter() - t0:.2f} s")
+        sys.exit(f"bench-flash: flash over {opt[0]} failed: {r.stderr.strip()}")
+    return time.perf_counter() - t0
+
+run(["--port", serial])  # untimed: the drive now runs an application
+for name, opt in (("serial", ["--port", serial]), ("slcan", ["--can", can])):
+    print(f"flash_seconds_64k_{name}: {min(run(opt) for _ in range(2)):.2f} s")
 PY

@@ -480,7 +480,8 @@ static void write_row(double *row)
     }
 }
 
-long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every)
+static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
+                      unsigned min_free, uint64_t *ran)
 {
     uint64_t k;
     size_t rows = 0;
@@ -519,8 +520,30 @@ long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every)
         }
         S.t_ns += S.period_ns;
         S.ticks++;
+        if (min_free > 0 && drive_queue_free() >= min_free) {
+            k++;
+            break;
+        }
     }
+    *ran = k;
     return (long)rows;
+}
+
+long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every)
+{
+    uint64_t ran;
+    return run_ticks(ticks, trace, rows_cap, every, 0, &ran);
+}
+
+long sim_run_until_free(uint64_t ticks, unsigned min_free, double *trace, size_t rows_cap,
+                        unsigned every, uint64_t *ran)
+{
+    uint64_t n = 0;
+    long rows = run_ticks(ticks, trace, rows_cap, every, min_free, &n);
+    if (ran != NULL) {
+        *ran = n;
+    }
+    return rows;
 }
 
 unsigned sim_trace_cols(void)

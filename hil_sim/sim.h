@@ -25,7 +25,8 @@
  * One tick k at time t_k = (k + 1) * period (period = round(1e9 / tick_hz) ns;
  * drive_init ran at time 0):
  *   1. the HAL clock reads t_k; reference-scale counters are published on
- *      channels axes..2*axes-1 (hal_encoder_counter, 32-bit wrapping);
+ *      channels axes..2*axes-1 (hal_encoder_counter, 32-bit wrapping;
+ *      axis_ref_reading: with the model's reference noise, if any);
  *   2. drive_tick() runs (decode, interpolate, servo, hal_motor_set_mv);
  *   3. every axis's decoded count is compared with the count the model
  *      emitted (sim_edge_mismatches() counts ticks where any differ);
@@ -104,6 +105,13 @@ int sim_start(void);
 /* drive_enable(on) of the running drive; returns the drive_result_t. */
 int sim_enable(int on);
 long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every);
+/* sim_run that also stops after the first tick (and its drive_poll) that
+ * leaves at least min_free free slots in the drive's host-block queue
+ * (drive_queue_free; 0: never early), so a host can top the queue up in
+ * time and keep the planner's look-ahead full. *ran (may be NULL): ticks
+ * run. Returns rows written or a negative code. */
+long sim_run_until_free(uint64_t ticks, unsigned min_free, double *trace, size_t rows_cap,
+                        unsigned every, uint64_t *ran);
 
 /* Read-outs. */
 unsigned sim_trace_cols(void);

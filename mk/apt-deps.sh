@@ -4,7 +4,7 @@
 set -euo pipefail
 pkgs=(build-essential clang clang-format cppcheck valgrind
       gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi
-      qemu-system-arm python3-venv socat)
+      qemu-system-arm qemu-system-x86 python3-venv socat cpio)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

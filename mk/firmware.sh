@@ -7,7 +7,8 @@
 #   app.bin/.img/.hex    payload, flashable image (header), validated-slot HEX
 #   bench.elf            (mps2_an386) the -icount benchmark image
 # then prints the size report (arm-none-eabi-size). Boards: stm32f4,
-# mps2_an386 (default: both). Sources: docs/ports.md.
+# mps2_an386 (default: both), linux (build/fw/linux/contour-drive and
+# contour-drive-fake, host compiler). Sources: docs/ports.md.
 set -euo pipefail
 shopt -s inherit_errexit
 cd "$(dirname "$0")/.."
@@ -61,7 +62,6 @@ link() {
   local lib=$(dirname "$out")/libcore.a
   $CC "${LDFLAGS[@]}" -L"$(dirname "$ld")" -T"$ld" -Wl,-Map="${out%.elf}.map" -o "$out" "$@" \
     -Wl,--start-group "$lib" -lc -lm -lgcc -Wl,--end-group
-  arm-none-eabi-objcopy -O ihex "$out" "${out%.elf}.elf.hex"
 }
 
 libcore() {
@@ -107,11 +107,41 @@ build_stm32f4() {
   ./mk/make-image.sh "$d/app.elf" stm32f4 "$version" > /dev/null
 }
 
+# The Linux board: the drive as a process (host compiler), against the real
+# libgpiod v2 headers and library from Debian bookworm-backports (fetched into
+# .cache/gpiod), plus contour-drive-fake linked with the link-time fake of
+# tests/ports/gpiod_fake.c instead of libgpiod (for machines without GPIO).
+build_linux() {
+  local d=build/fw/linux p=firmware/ports/linux g=.cache/gpiod
+  if [ ! -f $g/usr/include/gpiod.h ]; then
+    ./mk/debian-fetch.sh bookworm-backports $g libgpiod-dev libgpiod3 > /dev/null
+  fi
+  local gl
+  gl=$(dirname "$(find $g -name 'libgpiod.so.3' | head -n 1)")
+  local hcc=${HOSTCC:-cc}
+  local v=(${version//./ })
+  local hflags=(-std=c99 -D_GNU_SOURCE -Wall -Wextra -Werror -pedantic -O2 -g
+                -Ifirmware/core -Ifirmware/hal -Ifirmware -Ifirmware/ports/common -I$p -I$g/usr/include
+                -DPORT_FW_VERSION="$(( ${v[0]} << 16 | ${v[1]} << 8 | ${v[2]} ))u")
+  local src=($core_src firmware/ports/common/port_app.c $p/hal_linux.c $p/main_linux.c)
+  mkdir -p "$d"
+  # up to date: both binaries newer than every source, header and this script
+  if [ -x "$d/contour-drive" ] && [ -x "$d/contour-drive-fake" ] &&
+     [ -z "$(find firmware/core firmware/hal firmware/ports/common $p tests/ports/gpiod_fake.c \
+               mk/firmware.sh host_tools/pyproject.toml -newer "$d/contour-drive-fake" \
+               \( -name '*.[ch]' -o -name '*.sh' -o -name '*.toml' \) | head -n 1)" ]; then
+    return 0
+  fi
+  $hcc "${hflags[@]}" -o "$d/contour-drive" "${src[@]}" -L"$gl" -Wl,-rpath,"$PWD/$gl" -lgpiod
+  $hcc "${hflags[@]}" -o "$d/contour-drive-fake" "${src[@]}" tests/ports/gpiod_fake.c
+}
+
 for b in "${boards[@]}"; do
   case $b in
     mps2_an386) build_mps2 ;;
     stm32f4) build_stm32f4 ;;
-    *) echo "firmware.sh: unknown board $b (stm32f4, mps2_an386)" >&2; exit 2 ;;
+    linux) build_linux; echo "firmware: linux (version $version): build/fw/linux/contour-drive{,-fake}"; continue ;;
+    *) echo "firmware.sh: unknown board $b (stm32f4, mps2_an386, linux)" >&2; exit 2 ;;
   esac
   echo "firmware: $b (version $version)"
   arm-none-eabi-size build/fw/$b/boot.elf build/fw/$b/app.elf | sed 's/^/  /'

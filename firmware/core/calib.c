@@ -33,15 +33,15 @@ static struct {
     pos_nm_t target[CALIB_POINTS_MAX];
     uint8_t loaded[(CALIB_POINTS_MAX + 7) / 8];
     uint16_t nloaded;
-    uint32_t leg;        /* run: leg index; repeat: unused          */
-    bool repeat;         /* measuring a single leg (calib_point)    */
-    uint16_t leg_point;  /* point, direction and cycle of the leg   */
+    uint32_t leg;       /* run: leg index; repeat: unused          */
+    bool repeat;        /* measuring a single leg (calib_point)    */
+    uint16_t leg_point; /* point, direction and cycle of the leg   */
     int8_t leg_dir;
     uint8_t leg_cycle;
-    bool leg_pre;        /* the leg starts with an approach move     */
+    bool leg_pre; /* the leg starts with an approach move     */
     phase_t phase;
-    uint32_t done_mark;  /* blocks_done to reach                     */
-    uint64_t dwell_end;  /* tick at which the dwell ends             */
+    uint32_t done_mark; /* blocks_done to reach                     */
+    uint64_t dwell_end; /* tick at which the dwell ends             */
     uint16_t legs_done;
     uint8_t reason;
     int32_t detail;
@@ -175,7 +175,8 @@ void calib_tick(const drive_status_t *st)
                              (st->faults != 0u ? CALIB_SAMPLE_FAULT : 0u));
         s->enc = sat_diff(st->pos_raw[a], cb.s_target);
         s->comp = sat_diff(st->pos[a], cb.s_target);
-        s->ref = (cb.flags & CALIB_FLAG_HOST_REFERENCE) ? 0 : sat_diff(st->refscale[a], cb.s_target);
+        s->ref =
+            (cb.flags & CALIB_FLAG_HOST_REFERENCE) ? 0 : sat_diff(st->refscale[a], cb.s_target);
         cb.seq_next = seq + 1u;
     }
     if (--cb.s_left == 0u) {
@@ -381,7 +382,8 @@ void calib_sample_encode(const calib_sample_t *s, uint8_t *b)
     put32(b + 16, (uint32_t)s->ref);
 }
 
-/* ---- protocol ---------------------------------------------------------------------------------- */
+/* ---- protocol ----------------------------------------------------------------------------------
+ */
 
 static size_t reply_error(uint8_t *out, uint8_t req, uint8_t seq, uint8_t code, uint16_t arg,
                           int64_t lo)
@@ -655,7 +657,8 @@ static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
     avail = cb.seq_next - m.from_seq;
     n = avail < m.max ? avail : m.max;
     for (i = 0; i < n; i++) {
-        calib_sample_encode(&cb.ring[(m.from_seq + i) % CALIB_RING], r.data + CALIB_SAMPLE_BYTES * i);
+        calib_sample_encode(&cb.ring[(m.from_seq + i) % CALIB_RING],
+                            r.data + CALIB_SAMPLE_BYTES * i);
     }
     r.from_seq = m.from_seq;
     r.count = (uint8_t)n;
@@ -834,8 +837,9 @@ size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *ou
         n = h_start(msg, plen, out);
         break;
     case PROTO_MSG_CALIB_STATUS:
-        n = plen == 0u ? reply_state(out, msg[1])
-                       : reply_error(out, id, msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen, 0);
+        n = plen == 0u
+                ? reply_state(out, msg[1])
+                : reply_error(out, id, msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen, 0);
         break;
     case PROTO_MSG_CALIB_READ:
         n = h_read(msg, plen, out);

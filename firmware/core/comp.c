@@ -100,7 +100,8 @@ comp_result_t comp_table_check(const comp_table_t *t)
             t->rev[i] > COMP_CORR_MAX_NM || t->rev[i] < -COMP_CORR_MAX_NM) {
             return COMP_E_RANGE;
         }
-        if (i > 0u && (t->pos[i] <= t->pos[i - 1u] || t->pos[i] - t->pos[i - 1u] > COMP_SPAN_MAX_NM)) {
+        if (i > 0u &&
+            (t->pos[i] <= t->pos[i - 1u] || t->pos[i] - t->pos[i - 1u] > COMP_SPAN_MAX_NM)) {
             return COMP_E_ORDER;
         }
     }

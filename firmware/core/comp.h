@@ -83,11 +83,11 @@
 typedef enum { COMP_DIR_NEG = -1, COMP_DIR_NONE = 0, COMP_DIR_POS = 1 } comp_dir_t;
 
 #define COMP_POINTS_MAX   126
-#define COMP_POS_LIMIT_NM ((pos_nm_t)1 << 50)  /* 1126 km                    */
-#define COMP_SPAN_MAX_NM  ((pos_nm_t)1 << 40)  /* 1.1 km between points      */
-#define COMP_CORR_MAX_NM  1000000              /* |correction| <= 1 mm       */
-#define COMP_RAMP_MAX_US  1000000u             /* reversal ramp <= 1 s       */
-#define COMP_W_ONE        ((int32_t)1 << 30)   /* q1_30 1.0 of the blend     */
+#define COMP_POS_LIMIT_NM ((pos_nm_t)1 << 50) /* 1126 km                    */
+#define COMP_SPAN_MAX_NM  ((pos_nm_t)1 << 40) /* 1.1 km between points      */
+#define COMP_CORR_MAX_NM  1000000             /* |correction| <= 1 mm       */
+#define COMP_RAMP_MAX_US  1000000u            /* reversal ramp <= 1 s       */
+#define COMP_W_ONE        ((int32_t)1 << 30)  /* q1_30 1.0 of the blend     */
 
 #define COMP_RECORD_MAGIC  0x504D4343u /* "CCMP" little-endian */
 #define COMP_RECORD_FORMAT 1u
@@ -97,13 +97,13 @@ typedef enum { COMP_DIR_NEG = -1, COMP_DIR_NONE = 0, COMP_DIR_POS = 1 } comp_dir
 
 typedef enum {
     COMP_OK = 0,
-    COMP_E_ARG,     /* NULL pointer or buffer too small                  */
-    COMP_E_COUNT,   /* n > COMP_POINTS_MAX or record length mismatch      */
-    COMP_E_ORDER,   /* positions not strictly increasing / span too long */
-    COMP_E_RANGE,   /* position, correction or ramp beyond its limit     */
-    COMP_E_MAGIC,   /* not a compensation record (magic, format)         */
-    COMP_E_CRC,     /* header or data CRC mismatch                       */
-    COMP_E_AXIS     /* record for another axis                           */
+    COMP_E_ARG,   /* NULL pointer or buffer too small                  */
+    COMP_E_COUNT, /* n > COMP_POINTS_MAX or record length mismatch      */
+    COMP_E_ORDER, /* positions not strictly increasing / span too long */
+    COMP_E_RANGE, /* position, correction or ramp beyond its limit     */
+    COMP_E_MAGIC, /* not a compensation record (magic, format)         */
+    COMP_E_CRC,   /* header or data CRC mismatch                       */
+    COMP_E_AXIS   /* record for another axis                           */
 } comp_result_t;
 
 /* Direction source: commanded direction and reversal ramp of one axis.

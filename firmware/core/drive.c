@@ -18,9 +18,12 @@
 #include "motion_ref.h"
 #include "qdec.h"
 
-#define SEG_RING 128u        /* > planner depth + interpolator FIFO + 1 */
-#define ANGLE_K  683565276ll /* 2^32 / (2 pi): binary angle per radian */
-#define Q30      ((int64_t)1 << 30)
+#define SEG_RING 128u /* > planner depth + interpolator FIFO + 1 */
+/* Keep at least this much planned time in the interpolator's FIFO beyond the
+ * current segment when no block is waiting and the planner is not full. */
+#define DRIVE_FEED_AHEAD_NS ((int64_t)5000000)
+#define ANGLE_K             683565276ll /* 2^32 / (2 pi): binary angle per radian */
+#define Q30                 ((int64_t)1 << 30)
 
 typedef struct {
     uint32_t host_tag;
@@ -60,6 +63,7 @@ static struct {
     volatile uint16_t hq_head, hq_count;
     pos_nm_t q_end[CORE_AXES]; /* end point of the last accepted block */
     uint32_t seq_next;         /* internal tag of the next planner block */
+    uint32_t queued_at;        /* tick_lo when the last block was accepted */
     seg_info_t seg[SEG_RING];
     uint32_t blocks_done_main;
     /* shared */
@@ -79,16 +83,23 @@ static struct {
     motion_ref_t ref;
     drive_state_t state;
     uint32_t faults;
-    int64_t stop_k; /* q30 time scale while stopping */
-    int64_t stop_dk;
-    uint32_t seen_done; /* interpolator segments accounted */
-    uint32_t seq_done;  /* internal tag of the next segment to complete */
+    int64_t stop_v;            /* stopping: path speed cap, nm/s               */
+    int64_t stop_dv;           /* stopping: cap decrease per tick, nm/s        */
+    int64_t v_plan;            /* interpolator's (unscaled) path speed, nm/s   */
+    int64_t a_plan;            /* ... and tangential acceleration, nm/s^2      */
+    int64_t v_act;             /* path speed of the reference last tick, nm/s  */
+    volatile uint32_t tick_lo; /* low word of tick (main reads it) */
+    uint32_t seen_done;        /* interpolator segments accounted */
+    uint32_t seq_done;         /* internal tag of the next segment to complete */
     uint32_t blocks_done;
     uint32_t cur_tag;
     uint64_t tick;
     /* published snapshot */
     volatile uint32_t st_seq;
     drive_status_t st;
+    uint16_t st_ip_rd; /* interpolator FIFO read index            */
+    int64_t st_ip_rem; /* time left in the current segment, ns,
+                        * -1: none current                        */
 } drv;
 
 /* ---- helpers ------------------------------------------------------------- */
@@ -159,6 +170,14 @@ static void publish(void)
     s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
     s->blocks_done = drv.blocks_done + drv.blocks_done_main;
     s->tag = drv.cur_tag;
+    drv.st_ip_rd = drv.ip.rd;
+    drv.st_ip_rem = -1;
+    if (drv.ip.busy) {
+        drv.st_ip_rem = drv.ip.fifo[drv.ip.rd & (INTERP_FIFO - 1)].total_ns - drv.ip.t_ns;
+        if (drv.st_ip_rem < 0) {
+            drv.st_ip_rem = 0;
+        }
+    }
     drv.st_seq++;
 }
 
@@ -190,6 +209,7 @@ void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes)
     cfg->stop_decel_nm_s2 = 1000000000;   /* 1 m/s^2 */
     cfg->friction_ff_band_nm_s = 1000000; /* 1 mm/s */
     cfg->arc_chord_nm = DRIVE_ARC_CHORD_NM;
+    cfg->start_delay_ms = DRIVE_START_DELAY_MS;
 }
 
 static const servo_io_t drive_io = {hal_motor_set_mv, hal_motor_enable, hal_amp_fault};
@@ -204,6 +224,7 @@ drive_result_t drive_init(const drive_config_t *cfg)
 
     if (cfg == NULL || cfg->axes < 1 || cfg->axes > CORE_AXES || cfg->tick_hz < PID_TICK_HZ_MIN ||
         cfg->tick_hz > PID_TICK_HZ_MAX || cfg->stop_decel_nm_s2 <= 0 || cfg->arc_chord_nm < 0 ||
+        cfg->start_delay_ms > DRIVE_START_DELAY_MS_MAX ||
         plan_check_profile(&cfg->plan) != PLAN_OK) {
         return DRIVE_E_INVALID;
     }
@@ -265,6 +286,9 @@ drive_result_t drive_init(const drive_config_t *cfg)
         drv.q_end[i] = 0;
     }
     drv.seq_next = 0;
+    drv.queued_at = 0;
+    drv.tick_lo = 0;
+    drv.stop_v = drv.stop_dv = drv.v_plan = drv.a_plan = drv.v_act = 0;
     drv.seq_done = 0;
     drv.seen_done = 0;
     drv.blocks_done = 0;
@@ -366,19 +390,47 @@ static void track_segments(void)
     }
 }
 
+/* Path speed of a velocity vector, nm/s. */
+static int64_t path_speed(const int64_t v[CORE_AXES])
+{
+    return fx_hypot3(v[0], CORE_AXES > 1 ? v[1] : 0, CORE_AXES > 2 ? v[2] : 0);
+}
+
+/* Controlled stop: the time scale k (q30) of this tick. The speed cap falls
+ * by stop_dv per tick and never exceeds the speed of the last tick (so the
+ * path never speeds up, also where the plan accelerates, and it follows the
+ * plan where that slows down faster, e.g. into an exact stop); k makes the
+ * predicted path speed k * (v + a k h) meet the cap (first order: k = cap /
+ * (v + a h)), never above 1. Rest (halted) when the cap reaches 0. */
+static int64_t stop_scale(void)
+{
+    int64_t cap = drv.stop_v - drv.stop_dv;
+    int64_t den;
+    if (drv.v_act < cap) {
+        cap = drv.v_act; /* the plan itself slowed down more */
+    }
+    drv.stop_v = cap < 0 ? 0 : cap;
+    if (drv.stop_v == 0 || interp_idle(&drv.ip)) {
+        drv.halted = true;
+        return 0;
+    }
+    den = drv.v_plan + drv.a_plan / (int64_t)drv.cfg.tick_hz;
+    if (den <= drv.stop_v) {
+        return Q30;
+    }
+    return ratio_q30(drv.stop_v, den);
+}
+
 static void reference_step(void)
 {
     unsigned i;
-    if (drv.state == DRIVE_STOPPING) {
-        drv.stop_k -= drv.stop_dk;
-        if (drv.stop_k <= 0) {
-            drv.stop_k = 0;
-            drv.halted = true;
-        }
-        drv.ip.tick_ns =
-            fx_round_shift64((int64_t)(1000000000u / drv.cfg.tick_hz) * drv.stop_k, 30);
+    int64_t k = Q30;
+    if (drv.state == DRIVE_STOPPING && !drv.halted) {
+        k = stop_scale();
+        drv.ip.tick_ns = fx_round_shift64((int64_t)(1000000000u / drv.cfg.tick_hz) * k, 30);
     }
     if (drv.halted) {
+        drv.v_act = 0;
         for (i = 0; i < CORE_AXES; i++) {
             drv.ref.vel[i] = 0;
             drv.ref.acc[i] = 0;
@@ -389,6 +441,13 @@ static void reference_step(void)
     }
     interp_tick(&drv.ip, &drv.ref);
     track_segments();
+    /* the plan's own path speed and tangential acceleration (chord) */
+    drv.v_plan = path_speed(drv.ref.vel);
+    drv.a_plan = 0;
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.a_plan = fx_sat_add64(drv.a_plan,
+                                  fx_mul64x32_shift(drv.ref.acc[i], drv.ref.geom.tangent[i], 30));
+    }
     if (drv.ref.active && drv.ip.busy) {
         const seg_info_t *g = &drv.seg[drv.ip.tag % SEG_RING];
         if (g->arc) {
@@ -396,11 +455,14 @@ static void reference_step(void)
         }
     }
     if (drv.state == DRIVE_STOPPING) {
+        /* time runs at k: velocity * k, acceleration * k^2 */
         for (i = 0; i < CORE_AXES; i++) {
-            drv.ref.vel[i] = fx_round_shift64(drv.ref.vel[i] * (drv.stop_k >> 10), 20);
-            drv.ref.acc[i] = 0;
+            drv.ref.vel[i] = fx_mul64x32_shift(drv.ref.vel[i], (int32_t)k, 30);
+            drv.ref.acc[i] = fx_mul64x32_shift(fx_mul64x32_shift(drv.ref.acc[i], (int32_t)k, 30),
+                                               (int32_t)k, 30);
         }
     }
+    drv.v_act = path_speed(drv.ref.vel);
 }
 
 /* Friction feed-forward as an extra reference acceleration (see drive.h). */
@@ -474,22 +536,22 @@ static void apply_requests(const servo_fb_t *fb)
     }
     if (drv.req_enable) {
         drv.req_enable = false;
-        if (drv.state == DRIVE_IDLE && servo_enable(&drv.servo, fb) == SERVO_OK) {
+        /* drive_enable set IDLE; a block queued before this tick has already
+         * made it RUNNING: the servo is switched on in either state */
+        if ((drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING) &&
+            drv.servo.state == SERVO_OFF && servo_enable(&drv.servo, fb) == SERVO_OK) {
             servo_run(&drv.servo);
         }
     }
     if (drv.req_stop) {
         drv.req_stop = false;
         if (drv.state == DRIVE_RUNNING || drv.state == DRIVE_IDLE) {
-            int64_t v0 = fx_hypot3(drv.ref.vel[0], CORE_AXES > 1 ? drv.ref.vel[1] : 0,
-                                   CORE_AXES > 2 ? drv.ref.vel[2] : 0);
             drv.state = DRIVE_STOPPING;
-            drv.stop_k = Q30;
-            drv.stop_dk = v0 == 0 ? Q30
-                                  : ratio_q30(drv.cfg.stop_decel_nm_s2,
-                                              fx_mul64_shift((int64_t)drv.cfg.tick_hz, v0, 0));
-            if (drv.stop_dk < 1) {
-                drv.stop_dk = 1;
+            drv.v_act = path_speed(drv.ref.vel);
+            drv.stop_v = drv.v_act;
+            drv.stop_dv = drv.cfg.stop_decel_nm_s2 / (int64_t)drv.cfg.tick_hz;
+            if (drv.stop_dv < 1) {
+                drv.stop_dv = 1;
             }
         }
     }
@@ -543,6 +605,7 @@ void drive_tick(void)
         drv.state = busy ? DRIVE_RUNNING : DRIVE_IDLE;
     }
     drv.tick++;
+    drv.tick_lo = (uint32_t)drv.tick;
     publish();
     calib_tick(&drv.st);
 }
@@ -559,23 +622,25 @@ static void flush_all(const pos_nm_t pos[CORE_AXES])
     drv.ip.tick_ns = (int64_t)(1000000000u / drv.cfg.tick_hz);
     drv.seen_done = drv.ip.blocks_done;
     drv.seq_done = drv.seq_next;
+    /* what the tick would publish for the empty interpolator */
+    drv.st_ip_rd = 0;
+    drv.st_ip_rem = -1;
     for (i = 0; i < CORE_AXES; i++) {
         drv.q_end[i] = pos[i];
     }
 }
 
 /* Chord angle for an arc of radius r at the programmed feed. */
-static int64_t arc_seg_angle(int64_t r, int64_t feed)
+static int64_t arc_seg_angle(int64_t r, int64_t feed, int64_t tol, uint32_t tick_hz)
 {
     int64_t a_tol, a_tick, x, dist;
-    int64_t tol = drv.cfg.arc_chord_nm;
     if (r <= tol) {
         return DRIVE_ARC_SEG_MAX_ANGLE;
     }
     /* sagitta r (1 - cos(a/2)) ~ r a^2 / 8 = tol: a = sqrt(8 tol / r) rad */
     x = fx_div_round64((8 * tol) << 40, r);
     a_tol = (int64_t)fx_isqrt64((uint64_t)x) * 651899 / 1000; /* * 2^32/(2 pi) / 2^20 */
-    dist = feed * DRIVE_ARC_SEG_TICKS / (int64_t)drv.cfg.tick_hz;
+    dist = feed * DRIVE_ARC_SEG_TICKS / (int64_t)tick_hz;
     a_tick = fx_mul64_shift(dist, ANGLE_K, 0) / r;
     if (a_tick > a_tol) {
         a_tol = a_tick;
@@ -687,6 +752,51 @@ static bool feed_one(void)
     return true;
 }
 
+/* True when the oldest planner block's exit speed is final (the next
+ * block's entry can no longer change, or it ends in a stop): freezing it now
+ * gives the plan it would get with any later look-ahead. */
+static bool oldest_final(void)
+{
+    const plan_block_t *b = plan_peek(&drv.plan, 0);
+    if (b == NULL) {
+        return false;
+    }
+    if (plan_count(&drv.plan) >= 2) {
+        return drv.plan.planned >= 2;
+    }
+    return (b->flags & (PLAN_BF_EXACT_STOP | PLAN_BF_DWELL)) != 0;
+}
+
+/* Planned time in the interpolator's FIFO after the oldest segment, ns
+ * (slots rd+1 .. wr-1: main wrote them; the tick only reads them). */
+static int64_t interp_ahead_ns(void)
+{
+    uint16_t rd = drv.ip.rd, wr = drv.ip.wr, i;
+    int64_t sum = 0;
+    if ((uint16_t)(wr - rd) > INTERP_FIFO) {
+        return 0;
+    }
+    for (i = (uint16_t)(rd + 1u); i != wr && rd != wr; i++) {
+        sum += drv.ip.fifo[i & (INTERP_FIFO - 1)].total_ns;
+    }
+    return sum;
+}
+
+/* No input is waiting and the planner is not full: freeze a block anyway
+ * only when the interpolator would otherwise run short (less than
+ * DRIVE_FEED_AHEAD_NS beyond its current segment), or, with nothing in the
+ * interpolator, when no block arrived for cfg.start_delay_ms (a job starts
+ * once its look-ahead has filled or the host has paused). */
+static bool interp_needs_block(void)
+{
+    uint32_t delay;
+    if (!interp_idle(&drv.ip)) {
+        return interp_ahead_ns() < DRIVE_FEED_AHEAD_NS;
+    }
+    delay = (uint32_t)(((uint64_t)drv.cfg.start_delay_ms * drv.cfg.tick_hz + 999u) / 1000u);
+    return (uint32_t)(drv.tick_lo - drv.queued_at) >= delay;
+}
+
 void drive_poll(void)
 {
     if (!drv.ready) {
@@ -707,18 +817,100 @@ void drive_poll(void)
         }
         return;
     }
-    while (drv.hq_count > 0 && feed_one()) {
-    }
-    /* Pop (freeze) blocks for the interpolator only while the planner is
-     * full or no more input is waiting: a block frozen with few successors
-     * would be planned to slow down for the end of the queue. */
-    while (interp_room(&drv.ip) > 0 && plan_count(&drv.plan) > 0 &&
-           (plan_free_slots(&drv.plan) == 0 || drv.hq_count == 0)) {
-        plan_seg_t seg;
-        if (plan_pop(&drv.plan, &seg) != PLAN_OK || !interp_load(&drv.ip, &seg)) {
+    /* Push every waiting block before each pop (interp_refill pops one), so
+     * that a block is frozen with the look-ahead plan_estimate() gives it;
+     * pop while the interpolator has room and the planner is full, or the
+     * oldest block's plan is final, or the interpolator runs short. */
+    for (;;) {
+        while (drv.hq_count > 0 && feed_one()) {
+        }
+        if (interp_room(&drv.ip) == 0 || plan_count(&drv.plan) == 0 ||
+            !(plan_free_slots(&drv.plan) == 0 || oldest_final() || interp_needs_block())) {
+            break;
+        }
+        if (interp_refill(&drv.ip, &drv.plan) == 0) {
             break;
         }
     }
+}
+
+/* Validate an arc (h->b, with the targets of unused axes already set) from
+ * start and set up its segmentation. False when invalid. */
+static bool arc_setup(host_block_t *h, const pos_nm_t start[CORE_AXES], unsigned axes,
+                      uint32_t tick_hz, int64_t chord_nm)
+{
+    const drive_block_t *b = &h->b;
+    int64_t su, sv, eu, ev, sw, seg;
+    fx_angle_t the;
+    uint32_t d;
+    unsigned i;
+    if (b->feed_nm_s <= 0 || b->feed_nm_s > SC_V_LIMIT || (b->sense != 1 && b->sense != -1) ||
+        (unsigned)b->plane > DRIVE_PLANE_YZ || tick_hz == 0 || chord_nm <= 0) {
+        return false;
+    }
+    plane_axes(b->plane, &h->u, &h->v, &h->w);
+    if (h->u >= axes || h->v >= axes) {
+        return false;
+    }
+    for (i = 0; i < CORE_AXES; i++) {
+        h->start[i] = start[i];
+    }
+    su = h->start[h->u] - b->centre_u;
+    sv = h->start[h->v] - b->centre_v;
+    eu = b->target[h->u] - b->centre_u;
+    ev = b->target[h->v] - b->centre_v;
+    if (abs64(su) >= SC_LEN_MAX || abs64(sv) >= SC_LEN_MAX || abs64(eu) >= SC_LEN_MAX ||
+        abs64(ev) >= SC_LEN_MAX) {
+        return false;
+    }
+    h->r_s = fx_hypot2(su, sv);
+    h->r_e = fx_hypot2(eu, ev);
+    if (h->r_s <= 0 || h->r_e <= 0 || abs64(h->r_s - h->r_e) > DRIVE_ARC_RADIUS_TOL_NM) {
+        return false;
+    }
+    h->th_s = fx_atan2(sv, su);
+    the = fx_atan2(ev, eu);
+    d = b->sense > 0 ? (uint32_t)(the - h->th_s) : (uint32_t)(h->th_s - the);
+    sw = d == 0 ? ((int64_t)1 << 32) : (int64_t)d;
+    h->sweep = b->sense > 0 ? sw : -sw;
+    seg = arc_seg_angle((h->r_s + h->r_e) / 2, b->feed_nm_s, chord_nm, tick_hz);
+    h->n_seg = (uint32_t)((sw + seg - 1) / seg);
+    if (h->n_seg < 1) {
+        h->n_seg = 1;
+    }
+    h->done_seg = 0;
+    return true;
+}
+
+uint32_t drive_arc_chords(const drive_block_t *b, const pos_nm_t start[CORE_AXES], unsigned axes,
+                          uint32_t tick_hz, int64_t chord_nm, pos_nm_t *out, uint32_t cap)
+{
+    static host_block_t h; /* static: no large stack frame */
+    host_block_t zero = {0};
+    uint32_t k;
+    unsigned i;
+    if (b == NULL || start == NULL || b->kind != DRIVE_BLOCK_ARC || axes < 1 || axes > CORE_AXES) {
+        return 0;
+    }
+    h = zero;
+    h.b = *b;
+    for (i = axes; i < CORE_AXES; i++) {
+        h.b.target[i] = start[i];
+    }
+    if (!arc_setup(&h, start, axes, tick_hz, chord_nm == 0 ? DRIVE_ARC_CHORD_NM : chord_nm)) {
+        return 0;
+    }
+    for (k = 1; k <= h.n_seg && k <= cap && out != NULL; k++) {
+        fx_angle_t th;
+        pos_nm_t rad;
+        arc_point(&h, k, &out[(k - 1) * CORE_AXES], &th, &rad);
+    }
+    return h.n_seg;
+}
+
+uint32_t drive_queue_free(void)
+{
+    return (uint32_t)(DRIVE_QUEUE_DEPTH - drv.hq_count);
 }
 
 static drive_result_t accept_check(void)
@@ -772,48 +964,11 @@ drive_result_t drive_queue_block(const drive_block_t *b)
             }
         }
         break;
-    case DRIVE_BLOCK_ARC: {
-        int64_t su, sv, eu, ev;
-        if (b->feed_nm_s <= 0 || b->feed_nm_s > SC_V_LIMIT || (b->sense != 1 && b->sense != -1) ||
-            (unsigned)b->plane > DRIVE_PLANE_YZ) {
+    case DRIVE_BLOCK_ARC:
+        if (!arc_setup(&h, drv.q_end, drv.cfg.axes, drv.cfg.tick_hz, drv.cfg.arc_chord_nm)) {
             return DRIVE_E_INVALID;
         }
-        plane_axes(b->plane, &h.u, &h.v, &h.w);
-        if (h.u >= drv.cfg.axes || h.v >= drv.cfg.axes) {
-            return DRIVE_E_INVALID;
-        }
-        for (i = 0; i < CORE_AXES; i++) {
-            h.start[i] = drv.q_end[i];
-        }
-        su = h.start[h.u] - b->centre_u;
-        sv = h.start[h.v] - b->centre_v;
-        eu = h.b.target[h.u] - b->centre_u;
-        ev = h.b.target[h.v] - b->centre_v;
-        if (abs64(su) >= SC_LEN_MAX || abs64(sv) >= SC_LEN_MAX || abs64(eu) >= SC_LEN_MAX ||
-            abs64(ev) >= SC_LEN_MAX) {
-            return DRIVE_E_INVALID;
-        }
-        h.r_s = fx_hypot2(su, sv);
-        h.r_e = fx_hypot2(eu, ev);
-        if (h.r_s <= 0 || h.r_e <= 0 || abs64(h.r_s - h.r_e) > DRIVE_ARC_RADIUS_TOL_NM) {
-            return DRIVE_E_INVALID;
-        }
-        h.th_s = fx_atan2(sv, su);
-        {
-            fx_angle_t the = fx_atan2(ev, eu);
-            uint32_t d = b->sense > 0 ? (uint32_t)(the - h.th_s) : (uint32_t)(h.th_s - the);
-            int64_t sw = d == 0 ? ((int64_t)1 << 32) : (int64_t)d;
-            int64_t seg;
-            h.sweep = b->sense > 0 ? sw : -sw;
-            seg = arc_seg_angle((h.r_s + h.r_e) / 2, b->feed_nm_s);
-            h.n_seg = (uint32_t)((sw + seg - 1) / seg);
-            if (h.n_seg < 1) {
-                h.n_seg = 1;
-            }
-        }
-        h.done_seg = 0;
         break;
-    }
     default:
         return DRIVE_E_INVALID;
     }
@@ -822,6 +977,7 @@ drive_result_t drive_queue_block(const drive_block_t *b)
     }
     drv.hq[(drv.hq_head + drv.hq_count) % DRIVE_QUEUE_DEPTH] = h;
     drv.hq_count++;
+    drv.queued_at = drv.tick_lo;
     if (b->kind != DRIVE_BLOCK_DWELL) {
         for (i = 0; i < CORE_AXES; i++) {
             drv.q_end[i] = h.b.target[i];
@@ -895,26 +1051,46 @@ drive_result_t drive_fault_reset(void)
     return DRIVE_OK;
 }
 
-void drive_snapshot(drive_status_t *out)
+static void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t *ip_rem)
 {
     uint32_t s;
-    if (out == NULL) {
-        return;
-    }
     do {
         s = drv.st_seq;
         *out = drv.st;
+        *ip_rd = drv.st_ip_rd;
+        *ip_rem = drv.st_ip_rem;
     } while ((s & 1u) != 0 || s != drv.st_seq);
+}
+
+void drive_snapshot(drive_status_t *out)
+{
+    uint16_t rd;
+    int64_t rem;
+    if (out == NULL) {
+        return;
+    }
+    snapshot(out, &rd, &rem);
 }
 
 void drive_status(drive_status_t *out)
 {
+    uint16_t rd, wr, i;
+    int64_t rem, sum;
     if (out == NULL) {
         return;
     }
-    drive_snapshot(out);
+    snapshot(out, &rd, &rem);
     out->queue_free = (uint32_t)(DRIVE_QUEUE_DEPTH - drv.hq_count);
-    out->queued_time_ns = plan_queued_ns(&drv.plan);
+    /* planner, then the interpolator's FIFO from the published read index
+     * (segments loaded since are counted; a current one by its remainder) */
+    sum = plan_queued_ns(&drv.plan);
+    wr = drv.ip.wr;
+    if ((uint16_t)(wr - rd) <= INTERP_FIFO) {
+        for (i = rd; i != wr; i++) {
+            sum += (i == rd && rem >= 0) ? rem : drv.ip.fifo[i & (INTERP_FIFO - 1)].total_ns;
+        }
+    }
+    out->queued_time_ns = sum;
 }
 
 void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns)
@@ -985,4 +1161,178 @@ void drive_set_comp(unsigned axis, const comp_table_t *table)
 bool drive_has_refscale(unsigned axis)
 {
     return drv.ready && axis < drv.cfg.axes && drv.ref_on[axis];
+}
+
+/* ---- parameters ------------------------------------------------------------- */
+
+static const struct {
+    int64_t lo, hi;
+    bool per_axis;
+} param_info[DRIVE_PARAM_COUNT] = {
+    [DRIVE_PARAM_V_MAX] = {1000, SC_V_LIMIT, true},
+    [DRIVE_PARAM_A_MAX] = {SC_A_MIN, SC_A_LIMIT, true},
+    [DRIVE_PARAM_J_MAX] = {SC_J_MIN, SC_J_LIMIT, true},
+    [DRIVE_PARAM_CORNER_DV] = {0, SC_V_LIMIT, true},
+    [DRIVE_PARAM_CORNER_ACC] = {0, SC_A_LIMIT, true},
+    [DRIVE_PARAM_JUNCTION_DEV] = {0, (int64_t)1 << 40, false},
+    [DRIVE_PARAM_CORNER] = {PLAN_CORNER_JD, PLAN_CORNER_STOP, false},
+    [DRIVE_PARAM_SHAPE] = {SC_SHAPE_SCURVE, SC_SHAPE_TRAPEZOID, false},
+    [DRIVE_PARAM_MIN_BLOCK_NS] = {0, 10 * SC_NS_PER_S, false},
+    [DRIVE_PARAM_MBT_WINDOW] = {1, PLAN_WINDOW_MAX, false},
+    [DRIVE_PARAM_STOP_DECEL] = {1000, SC_A_LIMIT, false},
+    [DRIVE_PARAM_ARC_CHORD] = {1, 1000000000, false},
+    [DRIVE_PARAM_START_DELAY_MS] = {0, DRIVE_START_DELAY_MS_MAX, false},
+};
+
+/* The field of a configuration a parameter lives in. */
+static int64_t *param_field(drive_config_t *c, drive_param_t id, unsigned axis)
+{
+    switch (id) {
+    case DRIVE_PARAM_V_MAX:
+        return &c->plan.v_max[axis];
+    case DRIVE_PARAM_A_MAX:
+        return &c->plan.a_max[axis];
+    case DRIVE_PARAM_J_MAX:
+        return &c->plan.j_max[axis];
+    case DRIVE_PARAM_CORNER_DV:
+        return &c->plan.corner_dv[axis];
+    case DRIVE_PARAM_CORNER_ACC:
+        return &c->plan.corner_acc[axis];
+    case DRIVE_PARAM_JUNCTION_DEV:
+        return &c->plan.junction_dev_nm;
+    case DRIVE_PARAM_MIN_BLOCK_NS:
+        return &c->plan.min_block_ns;
+    case DRIVE_PARAM_STOP_DECEL:
+        return &c->stop_decel_nm_s2;
+    case DRIVE_PARAM_ARC_CHORD:
+        return &c->arc_chord_nm;
+    default:
+        return NULL; /* narrower fields: see param_read / param_write */
+    }
+}
+
+static bool param_ok(drive_param_t id, unsigned axis)
+{
+    if (!drv.ready || (unsigned)id >= (unsigned)DRIVE_PARAM_COUNT) {
+        return false;
+    }
+    return param_info[id].per_axis ? axis < drv.cfg.axes : axis == 0;
+}
+
+static int64_t param_read(drive_config_t *c, drive_param_t id, unsigned axis)
+{
+    int64_t *f = param_field(c, id, axis);
+    if (f != NULL) {
+        return *f;
+    }
+    switch (id) {
+    case DRIVE_PARAM_CORNER:
+        return c->plan.corner;
+    case DRIVE_PARAM_SHAPE:
+        return c->plan.shape;
+    case DRIVE_PARAM_MBT_WINDOW:
+        return c->plan.mbt_window;
+    default:
+        return c->start_delay_ms;
+    }
+}
+
+static void param_write(drive_config_t *c, drive_param_t id, unsigned axis, int64_t v)
+{
+    int64_t *f = param_field(c, id, axis);
+    if (f != NULL) {
+        *f = v;
+        return;
+    }
+    switch (id) {
+    case DRIVE_PARAM_CORNER:
+        c->plan.corner = (uint8_t)v;
+        break;
+    case DRIVE_PARAM_SHAPE:
+        c->plan.shape = (uint8_t)v;
+        break;
+    case DRIVE_PARAM_MBT_WINDOW:
+        c->plan.mbt_window = (uint16_t)v;
+        break;
+    default:
+        c->start_delay_ms = (uint32_t)v;
+        break;
+    }
+}
+
+drive_result_t drive_param_get(drive_param_t id, unsigned axis, int64_t *value)
+{
+    if (value == NULL || !param_ok(id, axis)) {
+        return DRIVE_E_INVALID;
+    }
+    *value = param_read(&drv.cfg, id, axis);
+    return DRIVE_OK;
+}
+
+drive_result_t drive_param_range(drive_param_t id, unsigned axis, int64_t *lo, int64_t *hi)
+{
+    const plan_profile_t *p = &drv.cfg.plan;
+    if (lo == NULL || hi == NULL || !param_ok(id, axis)) {
+        return DRIVE_E_INVALID;
+    }
+    *lo = param_info[id].lo;
+    *hi = param_info[id].hi;
+    /* S-curve: a_max / j_max <= SC_TJ_MAX_NS (3 s) per axis */
+    if (p->shape == SC_SHAPE_SCURVE && id == DRIVE_PARAM_A_MAX &&
+        p->j_max[axis] <= SC_A_LIMIT / 3) {
+        *hi = p->j_max[axis] * (SC_TJ_MAX_NS / SC_NS_PER_S); /* j * 3 s */
+    }
+    if (p->shape == SC_SHAPE_SCURVE && id == DRIVE_PARAM_J_MAX) {
+        int64_t tj_s = SC_TJ_MAX_NS / SC_NS_PER_S; /* whole seconds (3) */
+        int64_t j = (p->a_max[axis] + tj_s - 1) / tj_s;
+        *lo = j > *lo ? j : *lo;
+    }
+    return DRIVE_OK;
+}
+
+/* Nothing queued, executing or stopping (parameters may change). */
+static bool planner_idle(void)
+{
+    return !moving() && !drv.req_stop && drv.hq_count == 0 && plan_count(&drv.plan) == 0 &&
+           interp_idle(&drv.ip);
+}
+
+static drive_result_t apply_config(const drive_config_t *c)
+{
+    if (plan_check_profile(&c->plan) != PLAN_OK) {
+        return DRIVE_E_INVALID;
+    }
+    if (!planner_idle()) {
+        return DRIVE_E_BUSY;
+    }
+    drv.cfg.plan = c->plan;
+    drv.cfg.stop_decel_nm_s2 = c->stop_decel_nm_s2;
+    drv.cfg.arc_chord_nm = c->arc_chord_nm;
+    drv.cfg.start_delay_ms = c->start_delay_ms;
+    drv.plan.prof = c->plan;
+    plan_reset(&drv.plan, drv.plan.pos);
+    return DRIVE_OK;
+}
+
+drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value)
+{
+    static drive_config_t cand; /* static: no large stack frame */
+    int64_t lo, hi;
+    if (drive_param_range(id, axis, &lo, &hi) != DRIVE_OK || value < lo || value > hi) {
+        return DRIVE_E_INVALID;
+    }
+    cand = drv.cfg;
+    param_write(&cand, id, axis, value);
+    return apply_config(&cand);
+}
+
+drive_result_t drive_set_plan_profile(const plan_profile_t *prof)
+{
+    static drive_config_t cand;
+    if (prof == NULL || !drv.ready) {
+        return DRIVE_E_INVALID;
+    }
+    cand = drv.cfg;
+    cand.plan = *prof;
+    return apply_config(&cand);
 }

@@ -15,10 +15,15 @@
  *   drive_poll(), drive_queue_block(),
  *   drive_enable(), drive_stop(),
  *   drive_fault_reset(), drive_set_*()    main only.
- *   drive_estop(), drive_status()         any context (estop only sets a
+ *   drive_estop(), drive_snapshot()       any context (estop only sets a
  *                                         flag acted on by the next tick;
- *                                         status copies a snapshot the tick
+ *                                         the snapshot is what the tick
  *                                         publishes under a sequence count).
+ *   drive_status()                        main (the snapshot plus queue_free
+ *                                         and queued_time_ns from main-owned
+ *                                         queues).
+ *   drive_param_*(), drive_queue_free()   main.
+ *   drive_arc_chords()                    any (pure).
  *   drive_encoder_edge()                  edge interrupt / simulator, between
  *                                         ticks (never concurrently with tick
  *                                         on the simulator; on hardware the
@@ -49,11 +54,33 @@
  *          motion_ref_t geometry is MOTION_GEOM_ARC (centre, current radius,
  *          sense) for the contour-error controller.
  * A block is accepted only when the drive is enabled and not faulted; it is
- * validated before anything is queued (all or nothing).
+ * validated before anything is queued (all or nothing). Blocks may be queued
+ * right after drive_enable(true), before the tick has applied it.
  *
- * Controlled stop: the interpolator's time step is scaled down linearly so
- * that the path speed falls at cfg.stop_decel_nm_s2 (the axes stay on the
- * path); at rest the queues are flushed and the reference holds.
+ * Feeding (drive_poll). Every waiting host block is pushed into the planner
+ * before each pop (interp_refill pops one block), so a block is frozen with
+ * the look-ahead plan_estimate() gives it. A block is popped into the
+ * interpolator's FIFO (while it has room) when the planner is full, or when
+ * the oldest block's plan is final (its exit speed can no longer change:
+ * the next block's entry is final, or it ends in an exact stop or is a
+ * dwell), or when no block is waiting and the interpolator would run short:
+ * less than DRIVE_FEED_AHEAD_NS (5 ms) queued beyond its current segment,
+ * or, with nothing in it (a job starting from rest), no block accepted for
+ * cfg.start_delay_ms. A host that keeps the queue topped up therefore gets
+ * exactly the estimator's plan (executed time = estimate within one tick per
+ * block), and runs of blocks shorter than a tick never starve the
+ * interpolator (up to INTERP_FIFO blocks per tick).
+ *
+ * Controlled stop (drive_stop, also the servo-independent part of the
+ * watchdog): the interpolator's time runs at a scale k <= 1 chosen each tick
+ * so that the path speed follows a cap that falls by cfg.stop_decel_nm_s2
+ * per second and never exceeds the previous tick's speed: the axes stay on
+ * the planned path, the speed never rises (also when the plan was
+ * accelerating), and falls no faster than stop_decel unless the plan itself
+ * slows down faster (it then follows the plan, e.g. into an exact stop).
+ * At rest (cap 0, or the end of the queued path) the queues are flushed,
+ * the reference holds and the drive is IDLE: the rest of the job is dropped
+ * and new blocks start from the stop point.
  *
  * State machine
  *   DISABLED --enable--> IDLE <--> RUNNING (blocks queued / executing)
@@ -88,6 +115,9 @@
 #define DRIVE_ARC_RADIUS_TOL_NM 5000
 /* Host blocks queued ahead of the planner. */
 #define DRIVE_QUEUE_DEPTH 16
+/* Default and largest start delay (drive_config_t.start_delay_ms), ms. */
+#define DRIVE_START_DELAY_MS     50u
+#define DRIVE_START_DELAY_MS_MAX 10000u
 
 typedef enum {
     DRIVE_OK = 0,
@@ -160,7 +190,10 @@ typedef struct {
     int32_t motor_mv[CORE_AXES];
     int64_t contour_error_nm;            /* CEC's estimate (0 when the CEC is off) */
     uint32_t queue_free;                 /* free planner slots                     */
-    int64_t queued_time_ns;              /* planned time still queued              */
+    int64_t queued_time_ns;              /* planned time still queued: planner plus
+                                          * the interpolator's remainder (blocks
+                                          * in the host FIFO not yet planned are
+                                          * not counted); drive_status only, main */
     uint32_t blocks_done;                /* blocks completed since init            */
     uint32_t tag;                        /* tag of the block executing (or last)   */
     pos_nm_t refscale[CORE_AXES];        /* reference-scale positions, nm */
@@ -194,6 +227,8 @@ typedef struct {
     int64_t friction_ff_band_nm_s; /* velocity of full friction feed-forward */
     int64_t stop_decel_nm_s2;      /* drive_stop: path deceleration, > 0          */
     int64_t arc_chord_nm;          /* arc segmentation tolerance, 0: default      */
+    uint32_t start_delay_ms;       /* start of motion from rest: see "Feeding",
+                                    * 0..DRIVE_START_DELAY_MS_MAX              */
 } drive_config_t;
 
 /* Fill cfg with working defaults for `axes` axes at tick_hz: 1 nm per
@@ -213,6 +248,18 @@ void drive_tick(void);
 void drive_poll(void);
 
 drive_result_t drive_queue_block(const drive_block_t *b);
+/* Free host-block slots (the status's queue_free, without the O(queued)
+ * planned time). Main. */
+uint32_t drive_queue_free(void);
+
+/* The chords an arc block is cut into (see Motion above), for a drive with
+ * `axes` axes at tick_hz and chord tolerance chord_nm (0: the default), the
+ * arc starting at `start`: writes the end points of chords 1..min(n, cap)
+ * to out[(k - 1) * CORE_AXES + axis] (the last is the target, exactly) and
+ * returns n, or 0 for an arc drive_queue_block would refuse. Pure (the
+ * host's estimator plans exactly the drive's chords). Any. */
+uint32_t drive_arc_chords(const drive_block_t *b, const pos_nm_t start[CORE_AXES], unsigned axes,
+                          uint32_t tick_hz, int64_t chord_nm, pos_nm_t *out, uint32_t cap);
 drive_result_t drive_enable(bool on);
 /* Controlled stop: decelerate on the path, flush the queue, stay enabled. */
 void drive_stop(void);
@@ -256,5 +303,43 @@ drive_result_t drive_set_servo_params(const servo_params_t *p);
 
 /* The configuration in use (read-only). Any. */
 const drive_config_t *drive_config(void);
+
+/* Parameters: the planner's limits and rules (plan_profile_t, planner.h),
+ * the controlled stop, arc segmentation and start delay, by id. Units are
+ * those of drive_config_t / plan_profile_t. Per-axis ids take an axis
+ * 0..axes-1, the others axis 0 (else DRIVE_E_INVALID).
+ *   get    any time (the value in use).
+ *   range  the values a set would accept now: the static range, narrowed by
+ *          the S-curve's a_max / j_max <= SC_TJ_MAX_NS rule of the axis.
+ *   set    only while the planner is idle: nothing queued or executing and
+ *          not stopping (DISABLED, FAULT, or IDLE with empty queues), else
+ *          DRIVE_E_BUSY; a value outside range, or a profile that
+ *          plan_check_profile refuses (e.g. a shape change that breaks the
+ *          a / j rule), gives DRIVE_E_INVALID. On any refusal nothing
+ *          changes; on success the new profile is in use for the next block
+ *          (the empty planner is re-initialised at its position).
+ * drive_set_plan_profile replaces the whole profile the same way (all or
+ * nothing). Main. */
+typedef enum {
+    DRIVE_PARAM_V_MAX = 0,      /* per axis, nm/s          1000 .. SC_V_LIMIT   */
+    DRIVE_PARAM_A_MAX,          /* per axis, nm/s^2   SC_A_MIN .. SC_A_LIMIT    */
+    DRIVE_PARAM_J_MAX,          /* per axis, nm/s^3   SC_J_MIN .. SC_J_LIMIT    */
+    DRIVE_PARAM_CORNER_DV,      /* per axis, nm/s             0 .. SC_V_LIMIT   */
+    DRIVE_PARAM_CORNER_ACC,     /* per axis, nm/s^2           0 .. SC_A_LIMIT   */
+    DRIVE_PARAM_JUNCTION_DEV,   /* nm                         0 .. 2^40         */
+    DRIVE_PARAM_CORNER,         /* plan_corner_t              0 .. 3            */
+    DRIVE_PARAM_SHAPE,          /* sc_shape_t                 0 .. 1            */
+    DRIVE_PARAM_MIN_BLOCK_NS,   /* ns                         0 .. 10 s         */
+    DRIVE_PARAM_MBT_WINDOW,     /* blocks                     1 .. PLAN_WINDOW_MAX */
+    DRIVE_PARAM_STOP_DECEL,     /* nm/s^2 (drive_stop)     1000 .. SC_A_LIMIT   */
+    DRIVE_PARAM_ARC_CHORD,      /* nm                         1 .. 1e9          */
+    DRIVE_PARAM_START_DELAY_MS, /* ms                         0 .. DRIVE_START_DELAY_MS_MAX */
+    DRIVE_PARAM_COUNT
+} drive_param_t;
+
+drive_result_t drive_param_get(drive_param_t id, unsigned axis, int64_t *value);
+drive_result_t drive_param_range(drive_param_t id, unsigned axis, int64_t *lo, int64_t *hi);
+drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value);
+drive_result_t drive_set_plan_profile(const plan_profile_t *prof);
 
 #endif /* DRIVE_H */

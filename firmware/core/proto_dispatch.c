@@ -126,6 +126,63 @@ static refusal_t map_drive_result(drive_result_t r, const drive_status_t *st)
 
 /* ---- parameters ------------------------------------------------------------ */
 
+/* Parameters owned by the drive's parameter API (drive.h drive_param_*). */
+static const struct {
+    uint16_t proto;
+    drive_param_t drv;
+} drive_params[] = {
+    {PROTO_PARAM_MAX_VELOCITY, DRIVE_PARAM_V_MAX},
+    {PROTO_PARAM_MAX_ACCELERATION, DRIVE_PARAM_A_MAX},
+    {PROTO_PARAM_MAX_JERK, DRIVE_PARAM_J_MAX},
+    {PROTO_PARAM_CORNER_VELOCITY_STEP, DRIVE_PARAM_CORNER_DV},
+    {PROTO_PARAM_CORNER_ACCELERATION, DRIVE_PARAM_CORNER_ACC},
+    {PROTO_PARAM_JUNCTION_DEVIATION, DRIVE_PARAM_JUNCTION_DEV},
+    {PROTO_PARAM_CORNER_RULE, DRIVE_PARAM_CORNER},
+    {PROTO_PARAM_VELOCITY_PROFILE, DRIVE_PARAM_SHAPE},
+    {PROTO_PARAM_MIN_BLOCK_TIME, DRIVE_PARAM_MIN_BLOCK_NS},
+    {PROTO_PARAM_MIN_BLOCK_WINDOW, DRIVE_PARAM_MBT_WINDOW},
+    {PROTO_PARAM_STOP_DECELERATION, DRIVE_PARAM_STOP_DECEL},
+    {PROTO_PARAM_ARC_CHORD_TOLERANCE, DRIVE_PARAM_ARC_CHORD},
+    {PROTO_PARAM_START_DELAY_MS, DRIVE_PARAM_START_DELAY_MS},
+};
+
+static bool drive_param_of(uint16_t base_id, drive_param_t *out)
+{
+    size_t i;
+
+    for (i = 0; i < sizeof drive_params / sizeof drive_params[0]; i++) {
+        if (drive_params[i].proto == base_id) {
+            *out = drive_params[i].drv;
+            return true;
+        }
+    }
+    return false;
+}
+
+/* Write a drive parameter: busy while moving; a value the drive refuses
+ * gets out_of_range with the range it accepts now (e.g. max_acceleration
+ * narrowed by max_jerk), or bad_value when the value is in that range but
+ * the whole profile is not (a profile change that breaks a / j). */
+static refusal_t drive_param_write(uint16_t id, drive_param_t dp, unsigned axis, int64_t value)
+{
+    int64_t lo = 0, hi = 0;
+    drive_status_t st;
+    drive_result_t r = drive_param_set(dp, axis, value);
+
+    if (r == DRIVE_OK) {
+        return OK_R;
+    }
+    if (r == DRIVE_E_INVALID && drive_param_range(dp, axis, &lo, &hi) == DRIVE_OK &&
+        (value < lo || value > hi)) {
+        return range_error(id, lo, hi);
+    }
+    if (r == DRIVE_E_INVALID) {
+        return refuse(PROTO_ERROR_CODE_BAD_VALUE, id);
+    }
+    drive_status(&st);
+    return map_drive_result(r, &st);
+}
+
 static refusal_t param_read(proto_dispatch_t *d, uint16_t id, int64_t *value)
 {
     unsigned axis = 0;
@@ -167,8 +224,14 @@ static refusal_t param_read(proto_dispatch_t *d, uint16_t id, int64_t *value)
     case PROTO_PARAM_FOLLOWING_ERROR:
         *value = axis < CORE_AXES ? fx_sat_add64(st.ref[axis], -st.pos[axis]) : 0;
         break;
-    default:
-        return refuse(PROTO_ERROR_CODE_NOT_SUPPORTED, id);
+    default: {
+        drive_param_t dp;
+
+        if (!drive_param_of(p->id, &dp) || drive_param_get(dp, axis, value) != DRIVE_OK) {
+            return refuse(PROTO_ERROR_CODE_NOT_SUPPORTED, id);
+        }
+        break;
+    }
     }
     return OK_R;
 }
@@ -214,8 +277,14 @@ static refusal_t param_write(proto_dispatch_t *d, uint16_t id, int64_t value)
         d->cec_mode = (uint8_t)value;
         break;
     }
-    default:
-        return refuse(PROTO_ERROR_CODE_NOT_SUPPORTED, id);
+    default: {
+        drive_param_t dp;
+
+        if (!drive_param_of(p->id, &dp)) {
+            return refuse(PROTO_ERROR_CODE_NOT_SUPPORTED, id);
+        }
+        return drive_param_write(id, dp, axis, value);
+    }
     }
     return OK_R;
 }

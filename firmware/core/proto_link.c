@@ -16,6 +16,7 @@ static struct {
     bool serial;
     bool can;
     proto_link_handler_fn ext;
+    bool ext_all; /* bootloader mode: every message to ext, no cyclic output */
     proto_dispatch_t disp;
     proto_frame_rx_t frx;
     proto_isotp_t tp;
@@ -48,6 +49,7 @@ bool proto_link_init(const proto_identity_t *ident, bool serial, bool can)
     lk.serial = serial;
     lk.can = can;
     lk.ext = NULL;
+    lk.ext_all = false;
     proto_frame_rx_init(&lk.frx);
     proto_isotp_init(&lk.tp, PROTO_CAN_ID(PROTO_CAN_FUNC_REQUEST, ident->node_id),
                      PROTO_CAN_ID(PROTO_CAN_FUNC_RESPONSE, ident->node_id));
@@ -65,6 +67,11 @@ bool proto_link_init(const proto_identity_t *ident, bool serial, bool can)
 void proto_link_set_ext_handler(proto_link_handler_fn fn)
 {
     lk.ext = fn;
+}
+
+void proto_link_set_ext_exclusive(bool on)
+{
+    lk.ext_all = on;
 }
 
 const proto_link_stats_t *proto_link_stats(void)
@@ -91,7 +98,7 @@ static size_t handle(const uint8_t *msg, size_t len, uint32_t now, uint8_t *out)
 {
     /* counters up to date for a status_get in the same batch of bytes */
     lk.disp.rx_errors = proto_frame_rx_errors(&lk.frx) + lk.tp.stats.rx_errors;
-    if (lk.ext != NULL && len >= 1u && msg[0] >= 0x80u) {
+    if (lk.ext != NULL && len >= 1u && (lk.ext_all || msg[0] >= 0x80u)) {
         lk.disp.last_rx_us = now; /* still a sign of life */
         return lk.ext(msg, len, now, out, PROTO_MSG_MAX);
     }
@@ -277,7 +284,9 @@ void proto_link_poll(void)
         can_receive(now);
     }
     lk.disp.rx_errors = proto_frame_rx_errors(&lk.frx) + lk.tp.stats.rx_errors;
-    proto_dispatch_poll(&lk.disp, now, emit, NULL);
+    if (!lk.ext_all) {
+        proto_dispatch_poll(&lk.disp, now, emit, NULL);
+    }
     if (lk.serial) {
         uart_drain();
     }

@@ -51,6 +51,11 @@ typedef struct {
 /* serial / can: which links to serve. False for an invalid identity. */
 bool proto_link_init(const proto_identity_t *ident, bool serial, bool can);
 void proto_link_set_ext_handler(proto_link_handler_fn fn);
+/* Bootloader mode of a port whose bootloader shares this link (the
+ * simulator): when on, EVERY message goes to the extension handler (none to
+ * the dispatcher) and no cyclic output, heartbeat or watchdog runs. Off after
+ * proto_link_init. */
+void proto_link_set_ext_exclusive(bool on);
 void proto_link_poll(void);
 
 const proto_link_stats_t *proto_link_stats(void);

@@ -17,6 +17,13 @@ thread runs a loop every ~1 ms of wall time:
 4. the link runs again and what the drive sent (``hal_sim_uart_drain``,
    ``hal_sim_can_drain``) goes to the ptys (CAN frames as SLCAN ``t`` lines).
 
+The bootloader runs first, as on a drive (docs/bootloader.md, "contour sim
+serve"): the flash is ``--flash FILE`` or a RAM flash holding an image of
+this version; while the drive is in its bootloader every message goes to it
+(``boot_sim_handle``) and the application does not tick; a reset
+(``boot_enter``, a REBOOT, the end of the connect window) restarts the link
+for the firmware the boot decision chose.
+
 Everything the drive does is the firmware core's code through the sim HAL;
 the protocol clock (watchdog, telemetry periods) is the simulated clock, which
 tracks the wall clock. The process prints ``serial: PATH`` and ``slcan: PATH``
@@ -45,6 +52,7 @@ from contour.errors import UserError
 
 BOARD_SIM = 1  # BOOT_BOARD_SIM in firmware/core/boot/boot.h
 MAX_BACKLOG = 256 * 1024
+FLASH_FILE_BYTES = 256 * 1024  # FLASH_SIM_DEFAULT_SIZE (firmware/ports/sim/hal_flash_sim.h)
 
 
 class Identity(ctypes.Structure):
@@ -76,6 +84,21 @@ def _bind(lib: ctypes.CDLL) -> None:
         "sim_run": (c.c_long, [c.c_uint64, c.c_void_p, c.c_size_t, c.c_uint]),
         "proto_link_init": (c.c_bool, [c.POINTER(Identity), c.c_bool, c.c_bool]),
         "proto_link_poll": (None, []),
+        "proto_link_set_ext_handler": (None, [c.c_void_p]),
+        "proto_link_set_ext_exclusive": (None, [c.c_bool]),
+        "calib_set_next_handler": (None, [c.c_void_p]),
+        "boot_sim_init": (c.c_bool, [c.c_char_p, c.c_uint8, c.c_uint32]),
+        "boot_sim_reset": (c.c_int, []),
+        "boot_sim_poll": (None, []),
+        "boot_sim_mode": (c.c_int, []),
+        "boot_sim_resets": (c.c_uint32, []),
+        "boot_sim_app_version": (c.c_uint32, []),
+        "boot_sim_app_build_id": (c.c_uint32, []),
+        "boot_sim_handle": (c.c_size_t, [c.c_char_p, c.c_size_t, c.c_char_p, c.c_size_t]),
+        "hal_sim_take_reset_request": (c.c_bool, []),
+        "hal_sim_time_ns": (c.c_uint64, []),
+        "hal_sim_set_time_ns": (None, [c.c_uint64]),
+        "sim_tick_hz": (c.c_uint32, []),
         "hal_sim_uart_inject": (c.c_size_t, [c.c_char_p, c.c_size_t]),
         "hal_sim_uart_drain": (c.c_size_t, [c.c_char_p, c.c_size_t]),
         "hal_sim_can_inject": (c.c_bool, [c.c_uint32, c.c_char_p, c.c_uint8]),
@@ -209,25 +232,58 @@ class Pty:
 class SimServer:
     """The simulated drive served on a serial pty and an SLCAN pty."""
 
-    def __init__(self, node: int = 1, tick_hz: int = 10000, axes: int = 3) -> None:
+    def __init__(
+        self,
+        node: int = 1,
+        tick_hz: Optional[int] = 10000,
+        axes: int = 3,
+        machine: Optional[str] = None,
+        feedforward: str = "none",
+        flash: Optional[str] = None,
+        boot_window_ms: Optional[int] = None,
+    ) -> None:
         from contour import native
 
         if not 1 <= node <= pg.CAN_NODE_MAX:
             raise UserError(f"--node {node}: must be 1..{pg.CAN_NODE_MAX}")
-        if not 1000 <= tick_hz <= 100000:
+        if tick_hz is not None and not 1000 <= tick_hz <= 100000:
             raise UserError(f"--tick-hz {tick_hz}: must be 1000..100000")
+        if boot_window_ms is None:  # a RAM flash starts its factory image at once
+            boot_window_ms = 200 if flash else 0
+        if not 0 <= boot_window_ms <= 60000:
+            raise UserError(f"--boot-window-ms {boot_window_ms}: must be 0..60000")
         lib = native.load()
         _bind(lib)
         self.lib = lib
+        # the bootloader runs first (flash attached before the application
+        # reads its stores from it); docs/bootloader.md "Simulated drive"
+        if flash and os.path.exists(flash) and os.path.getsize(flash) != FLASH_FILE_BYTES:
+            raise UserError(
+                f"--flash {flash}: {os.path.getsize(flash)} bytes; a simulated flash file is "
+                f"{FLASH_FILE_BYTES} bytes (give a new path to start with an erased one)"
+            )
+        if not lib.boot_sim_init(flash.encode() if flash else None, node, boot_window_ms * 1000):
+            raise UserError(f"--flash {flash}: cannot open or create it")
+        if not flash:
+            _install_factory_image(lib)
+        if machine is not None:  # a machine file (axes, tick, model options, gains)
+            from contour.sim import machine as mach
+
+            m = mach.load(machine)
+            mach.apply(m, tick_hz=tick_hz, feedforward=feedforward)
+            tick_hz = int(lib.sim_tick_hz())
+            axes = m.axes
+        else:
+            tick_hz = 10000 if tick_hz is None else tick_hz
+            if lib.sim_setup(float(tick_hz), axes) != 0 or lib.sim_start() != 0:
+                raise UserError(f"simulator refused tick {tick_hz} Hz with {axes} axes")
         self.tick_hz = tick_hz
-        if lib.sim_setup(float(tick_hz), axes) != 0 or lib.sim_start() != 0:
-            raise UserError(f"simulator refused tick {tick_hz} Hz with {axes} axes")
         try:
             build_id = zlib.crc32(native.library_path().read_bytes())
         except OSError:
             build_id = 0
         caps = 0
-        for cap in ("SERIAL", "CAN", "TELEMETRY", "JOG", "SIMULATED"):
+        for cap in ("SERIAL", "CAN", "TELEMETRY", "JOG", "CALIBRATION", "SIMULATED"):
             caps |= 1 << pg.Capability[cap]
         self.ident = Identity(
             fw_version=fw_version(),
@@ -239,8 +295,11 @@ class SimServer:
             node_id=node,
             axes=axes,
         )
-        if not lib.proto_link_init(ctypes.byref(self.ident), True, True):
-            raise UserError("proto_link_init refused the drive identity")
+        self.period_ns = round(1e9 / tick_hz)
+        self.app_running = False
+        self._boot_state: Optional[tuple[int, int]] = None
+        self._sim_fresh = True  # sim_start just ran: the first application start needs none
+        self._sync_boot()
         self.serial = Pty()
         self.slcan = Pty()
         self.parser = SlcanParser()
@@ -278,14 +337,50 @@ class SimServer:
         if out:
             self.slcan.write(out)
 
+    def _start_link(self, app: bool) -> None:
+        lib = self.lib
+        if app:
+            self.ident.fw_version = lib.boot_sim_app_version()
+            self.ident.build_id = lib.boot_sim_app_build_id()
+        if not lib.proto_link_init(ctypes.byref(self.ident), True, True):
+            raise UserError("proto_link_init refused the drive identity")
+        if app:
+            # calibration messages (0xA0..0xBF, firmware/core/calib.h); other
+            # ids >= 0x80 go on to the bootloader's application side
+            lib.proto_link_set_ext_handler(ctypes.cast(lib.calib_handle, ctypes.c_void_p))
+            lib.calib_set_next_handler(ctypes.cast(lib.boot_sim_app_handle, ctypes.c_void_p))
+        else:  # the bootloader answers everything, emits nothing
+            lib.proto_link_set_ext_handler(ctypes.cast(lib.boot_sim_link_handle, ctypes.c_void_p))
+            lib.proto_link_set_ext_exclusive(True)
+
+    def _sync_boot(self) -> None:
+        """After a reset or a jump: start the firmware the bootloader chose."""
+        state = (self.lib.boot_sim_resets(), self.lib.boot_sim_mode())
+        if state == self._boot_state:
+            return
+        self._boot_state = state
+        self.app_running = state[1] == 1  # BOOT_SIM_APP
+        if self.app_running:
+            if not self._sim_fresh and self.lib.sim_start() != 0:  # drive_init again
+                raise UserError("simulator refused to restart the application")
+            self._sim_fresh = False
+        self._start_link(self.app_running)
+
     def step(self, ticks: int) -> None:
         self._pump_in()
         self.lib.proto_link_poll()
         if ticks > 0:
-            self.lib.sim_run(ticks, None, 0, 0)
+            if self.app_running:
+                self.lib.sim_run(ticks, None, 0, 0)
+            else:  # in the bootloader only the clock runs
+                self.lib.hal_sim_set_time_ns(self.lib.hal_sim_time_ns() + ticks * self.period_ns)
             self.ticks += ticks
         self.lib.proto_link_poll()
         self._pump_out()
+        if self.lib.hal_sim_take_reset_request():  # the application reset the processor
+            self.lib.boot_sim_reset()
+        self.lib.boot_sim_poll()  # ends the connect window, performs a REBOOT
+        self._sync_boot()
 
     def run(self, period: float = 0.001) -> None:
         t0 = time.monotonic()
@@ -310,6 +405,36 @@ class SimServer:
     def close(self) -> None:
         self.serial.close()
         self.slcan.close()
+
+
+def _install_factory_image(lib: ctypes.CDLL) -> None:
+    """A RAM flash (no --flash) gets a valid image of this version, written
+    by the simulated drive's own bootloader, so the drive starts its
+    application as before the bootloader existed (and can be flashed)."""
+    from contour import image as img
+    from contour.link import codec
+
+    out = ctypes.create_string_buffer(256)
+
+    def req(seq: int, name: str, **fields) -> dict:
+        msg = codec.encode(name, seq, **fields)
+        n = lib.boot_sim_handle(msg, len(msg), out, 256)
+        d = codec.decode(out.raw[:n])
+        if d.name == "error":
+            raise UserError(f"factory image: {name} refused by the bootloader: {d.fields}")
+        return d.fields
+
+    info = req(1, "boot_connect")
+    image = img.build(
+        f"contour simulated drive {__version__}".encode().ljust(192, b"\0"),
+        board_id=info["board_id"],
+        fw_version=fw_version(),
+        load_addr=info["load_addr"],
+    )
+    req(2, "boot_erase", header=list(image.header.encode()))
+    req(3, "boot_write", addr=image.header.load_addr, data=image.payload)
+    req(4, "boot_finish")
+    lib.boot_sim_reset()
 
 
 class Spawned:
@@ -374,13 +499,48 @@ def spawn(extra_args=(), timeout: float = 20.0, env=None) -> Spawned:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--node", type=int, default=1, help="CAN node id (default 1)")
     parser.add_argument(
-        "--tick-hz", type=int, default=10000, help="control tick rate, Hz (default 10000)"
+        "--tick-hz",
+        type=int,
+        default=None,
+        help="control tick rate, Hz (default 10000, or the machine file's)",
     )
     parser.add_argument("--axes", type=int, default=3, choices=(1, 2, 3), help="axes (default 3)")
+    parser.add_argument(
+        "--flash",
+        metavar="FILE",
+        help="simulated flash file (created erased: the drive starts in its bootloader; "
+        "default: a RAM flash holding an image of this version)",
+    )
+    parser.add_argument(
+        "--boot-window-ms",
+        type=int,
+        default=None,
+        help="bootloader connect window before starting the application "
+        "(default 200 with --flash, else 0)",
+    )
+    parser.add_argument(
+        "--machine",
+        metavar="NAME|FILE.toml",
+        help="machine file (hil_sim/machines/NAME.toml): model options, axes, tick, gains",
+    )
+    parser.add_argument(
+        "--feedforward",
+        choices=("none", "velocity", "full"),
+        default="none",
+        help="feed-forward of the axis loops with --machine (default none)",
+    )
 
 
 def main(args: argparse.Namespace) -> int:
-    server = SimServer(node=args.node, tick_hz=args.tick_hz, axes=args.axes)
+    server = SimServer(
+        node=args.node,
+        tick_hz=args.tick_hz,
+        axes=args.axes,
+        machine=getattr(args, "machine", None),
+        feedforward=getattr(args, "feedforward", "none"),
+        flash=getattr(args, "flash", None),
+        boot_window_ms=getattr(args, "boot_window_ms", None),
+    )
 
     def _stop(signum, frame) -> None:  # noqa: ARG001
         server.stop()

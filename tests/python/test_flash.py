@@ -212,8 +212,10 @@ def test_oversize_refused_before_anything_is_erased(drive):
     with pytest.raises(img.ImageError, match="slot holds 228864"):
         do_flash(drive, big)
     assert pg.MSG_BY_NAME["boot_erase"].id not in drive.sent
+    assert drive.mode() == "app"  # the refusal rebooted it into its application
     # the drive itself refuses it too, with a specific status and nothing erased
     c = client(drive)
+    fl.enter_bootloader(c)
     with pytest.raises(fl.Refused, match="bad length"):
         c.request("boot_erase", {"header": list(big.header.encode())})
     assert state(drive) == ("app", OLD.header.fw_version)

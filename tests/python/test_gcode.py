@@ -5,7 +5,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from contour import gcode
 from contour.errors import UserError
 from contour.gcode import ARC_CCW, ARC_CW, DWELL, LINEAR, RAPID, GcodeError

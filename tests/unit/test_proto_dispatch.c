@@ -334,6 +334,92 @@ static void test_watchdog_leaves_an_idle_drive_alone(void)
     TEST_ASSERT_EQUAL_UINT8(PROTO_STATE_READY, state().state);
 }
 
+/* Enable and queue in one batch (no tick between them): the block runs. */
+static void test_enable_and_queue_in_one_batch_runs_the_block(void)
+{
+    const uint8_t on[2] = {0x07, 1};
+    proto_queue_reply_t q;
+    proto_drive_state_t s;
+    size_t n;
+
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_ACK, (request(PROTO_MSG_ENABLE, on, 2), out[0]));
+    n = queue_line(5, 2000000, 20000000);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, out[0]);
+    TEST_ASSERT_TRUE(proto_queue_reply_decode(out + 2, n - 2, &q));
+    TEST_ASSERT_EQUAL_UINT32(5, q.block_seq);
+    run_ms(2000);
+    s = state();
+    TEST_ASSERT_EQUAL_UINT8(PROTO_STATE_READY, s.state);
+    TEST_ASSERT_EQUAL_UINT32(1, s.blocks_done);
+    TEST_ASSERT_EQUAL_UINT32(5, s.last_block_seq);
+    TEST_ASSERT_INT64_WITHIN(5000, 2000000, s.pos[0]);
+}
+
+/* Flow control by time: the planned time queued is reported, and it falls
+ * as the job runs. */
+static void test_queued_time_is_reported(void)
+{
+    proto_queue_reply_t q;
+    proto_drive_state_t s1, s2;
+    size_t n;
+
+    enable();
+    queue_line(1, 1000000, 10000000); /* ~0.1 s */
+    n = queue_line(2, 3000000, 10000000);
+    TEST_ASSERT_TRUE(proto_queue_reply_decode(out + 2, n - 2, &q));
+    run_ms(1);
+    s1 = state();
+    TEST_ASSERT_TRUE(s1.queued_us > 250000 && s1.queued_us < 400000);
+    run_ms(100);
+    s2 = state();
+    TEST_ASSERT_UINT32_WITHIN(1000, s1.queued_us - 100000, s2.queued_us);
+    run_ms(1000);
+    TEST_ASSERT_EQUAL_UINT32(0, state().queued_us);
+}
+
+static proto_error_t set_param_error(uint16_t pid, int64_t v, uint8_t code)
+{
+    return expect_error(set_param(pid, v), code);
+}
+
+static void test_planner_parameters_over_the_link(void)
+{
+    proto_error_t e;
+
+    TEST_ASSERT_EQUAL_INT64(1000000000, get_param(PROTO_PARAM_MAX_VELOCITY + 1));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_MAX_VELOCITY + 1, 250000000), out[0]));
+    TEST_ASSERT_EQUAL_INT64(250000000, get_param(PROTO_PARAM_MAX_VELOCITY + 1));
+    TEST_ASSERT_EQUAL_INT64(250000000, drive_config()->plan.v_max[1]);
+    TEST_ASSERT_EQUAL_INT64(1000000000, get_param(PROTO_PARAM_MAX_VELOCITY + 0));
+    /* the table's range, then the drive's: jerk too small for the
+     * acceleration (a / j <= 3 s) */
+    e = set_param_error(PROTO_PARAM_MAX_VELOCITY, 999, PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_INT64(1000, e.lo);
+    e = set_param_error(PROTO_PARAM_MAX_JERK + 2, 1000000000, PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_UINT16(PROTO_PARAM_MAX_JERK + 2, e.arg);
+    TEST_ASSERT_EQUAL_INT64(3333333334, e.lo);
+    expect_error(set_param(PROTO_PARAM_MAX_VELOCITY + 3, 5000000), PROTO_ERROR_CODE_BAD_AXIS);
+    expect_error(set_param(PROTO_PARAM_CORNER_RULE, 4), PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, (set_param(PROTO_PARAM_CORNER_RULE, 2), out[0]));
+    TEST_ASSERT_EQUAL_INT64(2, get_param(PROTO_PARAM_CORNER_RULE));
+    /* trapezoid, a high acceleration, then back to the S-curve: bad_value */
+    set_param(PROTO_PARAM_VELOCITY_PROFILE, 1);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_MAX_ACCELERATION, 900000000000), out[0]));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_MAX_JERK, 100000000000), out[0]));
+    set_param_error(PROTO_PARAM_VELOCITY_PROFILE, 0, PROTO_ERROR_CODE_BAD_VALUE);
+    TEST_ASSERT_EQUAL_INT64(1, get_param(PROTO_PARAM_VELOCITY_PROFILE));
+    /* busy while a block is queued or executing; nothing changed */
+    enable();
+    queue_line(1, 5000000, 10000000);
+    set_param_error(PROTO_PARAM_MAX_VELOCITY, 5000000, PROTO_ERROR_CODE_BUSY);
+    set_param_error(PROTO_PARAM_STOP_DECELERATION, 5000000, PROTO_ERROR_CODE_BUSY);
+    TEST_ASSERT_EQUAL_INT64(1000000000, get_param(PROTO_PARAM_MAX_VELOCITY));
+    TEST_ASSERT_EQUAL_INT64(1000000000, get_param(PROTO_PARAM_STOP_DECELERATION));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -346,5 +432,8 @@ int main(void)
     RUN_TEST(test_telemetry_cycles_share_one_consecutive_seq);
     RUN_TEST(test_watchdog_stops_in_a_controlled_way);
     RUN_TEST(test_watchdog_leaves_an_idle_drive_alone);
+    RUN_TEST(test_enable_and_queue_in_one_batch_runs_the_block);
+    RUN_TEST(test_queued_time_is_reported);
+    RUN_TEST(test_planner_parameters_over_the_link);
     return UNITY_END();
 }

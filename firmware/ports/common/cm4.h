@@ -14,29 +14,29 @@
 #define CM4_REG(addr) (*(volatile uint32_t *)(uintptr_t)(addr))
 
 /* SysTick */
-#define CM4_SYST_CSR   CM4_REG(0xE000E010u)
-#define CM4_SYST_RVR   CM4_REG(0xE000E014u)
-#define CM4_SYST_CVR   CM4_REG(0xE000E018u)
+#define CM4_SYST_CSR           CM4_REG(0xE000E010u)
+#define CM4_SYST_RVR           CM4_REG(0xE000E014u)
+#define CM4_SYST_CVR           CM4_REG(0xE000E018u)
 #define CM4_SYST_CSR_ENABLE    (1u << 0)
 #define CM4_SYST_CSR_TICKINT   (1u << 1)
 #define CM4_SYST_CSR_CLKSOURCE (1u << 2) /* processor clock */
 #define CM4_SYST_CSR_COUNTFLAG (1u << 16)
 
 /* NVIC: enable / clear-enable / clear-pending banks, byte priorities */
-#define CM4_NVIC_ISER(n) CM4_REG(0xE000E100u + 4u * (n))
-#define CM4_NVIC_ICER(n) CM4_REG(0xE000E180u + 4u * (n))
-#define CM4_NVIC_ICPR(n) CM4_REG(0xE000E280u + 4u * (n))
+#define CM4_NVIC_ISER(n)  CM4_REG(0xE000E100u + 4u * (n))
+#define CM4_NVIC_ICER(n)  CM4_REG(0xE000E180u + 4u * (n))
+#define CM4_NVIC_ICPR(n)  CM4_REG(0xE000E280u + 4u * (n))
 #define CM4_NVIC_IPR(irq) (*(volatile uint8_t *)(uintptr_t)(0xE000E400u + (irq)))
 
 /* System control block */
-#define CM4_SCB_ICSR  CM4_REG(0xE000ED04u)
-#define CM4_SCB_VTOR  CM4_REG(0xE000ED08u)
-#define CM4_SCB_AIRCR CM4_REG(0xE000ED0Cu)
-#define CM4_SCB_SHPR3 CM4_REG(0xE000ED20u) /* SysTick / PendSV priorities */
-#define CM4_SCB_CPACR CM4_REG(0xE000ED88u)
-#define CM4_ICSR_PENDSTSET   (1u << 26)
-#define CM4_ICSR_PENDSTCLR   (1u << 25)
-#define CM4_AIRCR_SYSRESET   0x05FA0004u /* VECTKEY | SYSRESETREQ */
+#define CM4_SCB_ICSR       CM4_REG(0xE000ED04u)
+#define CM4_SCB_VTOR       CM4_REG(0xE000ED08u)
+#define CM4_SCB_AIRCR      CM4_REG(0xE000ED0Cu)
+#define CM4_SCB_SHPR3      CM4_REG(0xE000ED20u) /* SysTick / PendSV priorities */
+#define CM4_SCB_CPACR      CM4_REG(0xE000ED88u)
+#define CM4_ICSR_PENDSTSET (1u << 26)
+#define CM4_ICSR_PENDSTCLR (1u << 25)
+#define CM4_AIRCR_SYSRESET 0x05FA0004u /* VECTKEY | SYSRESETREQ */
 
 static inline void cm4_irq_disable(void)
 {

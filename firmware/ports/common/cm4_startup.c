@@ -21,9 +21,11 @@ void cm4_reset_handler(void)
     const uint32_t *src = &_sidata;
     uint32_t *dst;
 
+    /* cppcheck-suppress comparePointers ; linker symbols bound one region */
     for (dst = &_sdata; dst < &_edata;) {
         *dst++ = *src++;
     }
+    /* cppcheck-suppress comparePointers */
     for (dst = &_sbss; dst < &_ebss;) {
         *dst++ = 0u;
     }

@@ -7,8 +7,8 @@
  * Application (port_app_*, main context):
  *   port_app_init   identity for the protocol (fw_version and build id read
  *                   from this image's header in flash via boot_check_app;
- *                   0 when the image was not flashed through the bootloader,
- *                   e.g. loaded by a debugger), proto_link_init, and the
+ *                   c->fw_version when there is no image header, e.g. an
+ *                   image loaded by a debugger, or the Linux process), proto_link_init, and the
  *                   extension handler for the bootloader ids 0x80..0x8F:
  *                   boot_enter -> ack, request word set (boot_request_enter),
  *                   reset once the ack has left (port_uart_tx_idle, at most
@@ -48,14 +48,15 @@
 #define PORT_RESET_DELAY_US 50000u
 
 typedef struct {
-    uint32_t board_id;      /* BOOT_BOARD_* */
-    uint8_t node_id;        /* CAN node id, 1..PROTO_CAN_NODE_MAX */
-    uint8_t axes;           /* axes in use */
-    bool serial;            /* serve the UART link */
-    bool can;               /* serve the CAN link */
-    uint32_t tick_hz;       /* control tick rate */
-    uint32_t capabilities;  /* extra 1 << PROTO_CAPABILITY_* bits */
+    uint32_t board_id;         /* BOOT_BOARD_* */
+    uint8_t node_id;           /* CAN node id, 1..PROTO_CAN_NODE_MAX */
+    uint8_t axes;              /* axes in use */
+    bool serial;               /* serve the UART link */
+    bool can;                  /* serve the CAN link */
+    uint32_t tick_hz;          /* control tick rate */
+    uint32_t capabilities;     /* extra 1 << PROTO_CAPABILITY_* bits */
     const boot_config_t *boot; /* slot of this image (version, boot_enter); may be NULL */
+    uint32_t fw_version;       /* reported when `boot` holds no valid image header */
 } port_app_config_t;
 
 bool port_app_init(const port_app_config_t *c);

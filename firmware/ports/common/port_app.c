@@ -64,7 +64,7 @@ bool port_app_init(const port_app_config_t *c)
     }
     app.cfg = *c;
     app.reset_pending = false;
-    app.ident.fw_version = 0u;
+    app.ident.fw_version = c->fw_version;
     app.ident.build_id = 0u;
     if (c->boot != NULL && boot_check_app(c->boot, &h) == BOOT_REASON_APP_OK) {
         app.ident.fw_version = h.fw_version;

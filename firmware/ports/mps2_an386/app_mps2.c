@@ -1,7 +1,8 @@
 /*
  * app_mps2.c - the drive application on the QEMU mps2-an386 board: the
  * control tick (drive_tick, then the simulated axes) in the SysTick
- * interrupt at MPS2_TICK_HZ, the host link and background work in main.
+ * interrupt at MPS2_TICK_HZ, the host link and background work in main
+ * (once per interrupt: the main loop sleeps in WFI in between).
  * Machine configuration: drive_config_default for three axes, amplifier
  * input +-10 V (as the simulator's machine), encoder scales from the plant.
  */
@@ -41,6 +42,7 @@ int main(void)
     pc.can = false;
     pc.tick_hz = MPS2_TICK_HZ;
     pc.capabilities = 0u;
+    pc.fw_version = 0u; /* not flashed through the bootloader */
     pc.boot = &boot_cfg;
     if (!port_app_init(&pc)) {
         hal_system_reset();
@@ -48,5 +50,6 @@ int main(void)
     mps2_set_tick_hook(tick);
     for (;;) {
         port_app_poll();
+        cm4_wfi(); /* until the next tick or UART interrupt: QEMU idles the host CPU */
     }
 }

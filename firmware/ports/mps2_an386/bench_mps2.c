@@ -6,9 +6,9 @@
  * With -icount the virtual clock advances by a fixed time per executed
  * instruction, so the 25 MHz dual timer read before and after a call
  * measures the instructions in between. The ratio is calibrated in the
- * image itself on a run of CAL_NOPS nops, the cost of the two timer reads is
- * measured and subtracted. SysTick is stopped (manual clock): no interrupt
- * falls inside a measurement.
+ * image itself on a loop of known length (CAL_INSTR instructions), the
+ * cost of the two timer reads is measured and subtracted. SysTick is stopped (manual clock): no
+ * interrupt falls inside a measurement.
  *
  * Workloads (three axes, the QEMU machine of app_mps2.c, default servo and
  * planner parameters, CEC off):
@@ -29,7 +29,6 @@
 #include "port.h"
 
 #define AXES      3u
-#define CAL_NOPS  4096u
 #define MAX_TICKS 40000u
 
 static void put(const char *s)
@@ -77,13 +76,13 @@ static void semihost_exit(void)
     __asm__ volatile("bkpt 0xab" : : "r"(r0), "r"(r1) : "memory");
 }
 
-#define NOP16   "nop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\t" \
-                "nop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\t"
-#define NOP256  NOP16 NOP16 NOP16 NOP16 NOP16 NOP16 NOP16 NOP16 \
-                NOP16 NOP16 NOP16 NOP16 NOP16 NOP16 NOP16 NOP16
+static uint32_t counts_empty;   /* two timer reads back to back */
+static uint32_t counts_per_cal; /* CAL_INSTR instructions, minus counts_empty */
 
-static uint32_t counts_empty;  /* two timer reads back to back */
-static uint32_t counts_per_cal; /* CAL_NOPS nops, minus counts_empty */
+/* CAL_LOOPS iterations of 16 nops + subs + bne: exactly CAL_INSTR
+ * instructions between the two timer reads (plus the two that load r0). */
+#define CAL_LOOPS 50000u
+#define CAL_INSTR (18u * CAL_LOOPS + 2u)
 
 static void calibrate(void)
 {
@@ -99,8 +98,14 @@ static void calibrate(void)
     }
     counts_empty = best;
     c0 = mps2_counter();
-    __asm__ volatile(NOP256 NOP256 NOP256 NOP256 NOP256 NOP256 NOP256 NOP256
-                     NOP256 NOP256 NOP256 NOP256 NOP256 NOP256 NOP256 NOP256 ::: "memory");
+    __asm__ volatile("movw r0, #:lower16:50000\n\t"
+                     "movt r0, #:upper16:50000\n"
+                     "1:\n\t"
+                     "nop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\t"
+                     "nop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\tnop\n\t"
+                     "subs r0, r0, #1\n\t"
+                     "bne 1b" ::
+                         : "r0", "cc", "memory");
     c1 = mps2_counter();
     counts_per_cal = c0 - c1 - counts_empty;
 }
@@ -113,7 +118,7 @@ static uint32_t instr(uint64_t counts, uint32_t calls)
     if (counts < (uint64_t)counts_empty * calls || calls == 0u || counts_per_cal == 0u) {
         return 0u;
     }
-    return (uint32_t)((net * CAL_NOPS + (uint64_t)counts_per_cal * calls / 2u) /
+    return (uint32_t)((net * CAL_INSTR + (uint64_t)counts_per_cal * calls / 2u) /
                       ((uint64_t)counts_per_cal * calls));
 }
 

@@ -24,7 +24,8 @@ int main(void)
     cfg.request_word = &mps2_boot_request_word;
     cfg.jump = jump;
     cfg.reset = port_boot_reset;
-    if (cfg.slot_base + BOOT_IMAGE_HDR_AREA != MPS2_APP_LOAD || !port_boot_init(&cfg, true, false)) {
+    if (cfg.slot_base + BOOT_IMAGE_HDR_AREA != MPS2_APP_LOAD ||
+        !port_boot_init(&cfg, true, false)) {
         for (;;) {
             cm4_wfi(); /* misbuilt: nothing sensible to do */
         }

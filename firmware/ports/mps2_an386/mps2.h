@@ -30,12 +30,12 @@
 #define MPS2_SYSCLK_HZ 25000000u
 
 /* CMSDK APB UART */
-#define MPS2_UART0          0x40004000u
-#define MPS2_UART_DATA(b)   CM4_REG((b) + 0x00u)
-#define MPS2_UART_STATE(b)  CM4_REG((b) + 0x04u)
-#define MPS2_UART_CTRL(b)   CM4_REG((b) + 0x08u)
-#define MPS2_UART_INT(b)    CM4_REG((b) + 0x0Cu) /* status / write 1 to clear */
-#define MPS2_UART_BAUDDIV(b) CM4_REG((b) + 0x10u)
+#define MPS2_UART0             0x40004000u
+#define MPS2_UART_DATA(b)      CM4_REG((b) + 0x00u)
+#define MPS2_UART_STATE(b)     CM4_REG((b) + 0x04u)
+#define MPS2_UART_CTRL(b)      CM4_REG((b) + 0x08u)
+#define MPS2_UART_INT(b)       CM4_REG((b) + 0x0Cu) /* status / write 1 to clear */
+#define MPS2_UART_BAUDDIV(b)   CM4_REG((b) + 0x10u)
 #define MPS2_UART_STATE_TXFULL (1u << 0)
 #define MPS2_UART_STATE_RXFULL (1u << 1)
 #define MPS2_UART_CTRL_TXEN    (1u << 0)
@@ -49,18 +49,18 @@
 #define MPS2_IRQS              32u
 
 /* CMSDK APB dual timer, timer 1 (free-running 32-bit down counter) */
-#define MPS2_TIMER1_LOAD  CM4_REG(0x40002000u)
-#define MPS2_TIMER1_VALUE CM4_REG(0x40002004u)
-#define MPS2_TIMER1_CTRL  CM4_REG(0x40002008u)
-#define MPS2_TIMER_CTRL_EN     (1u << 7)
-#define MPS2_TIMER_CTRL_32BIT  (1u << 1)
+#define MPS2_TIMER1_LOAD      CM4_REG(0x40002000u)
+#define MPS2_TIMER1_VALUE     CM4_REG(0x40002004u)
+#define MPS2_TIMER1_CTRL      CM4_REG(0x40002008u)
+#define MPS2_TIMER_CTRL_EN    (1u << 7)
+#define MPS2_TIMER_CTRL_32BIT (1u << 1)
 
 /* CMSDK APB watchdog */
-#define MPS2_WDOG_LOAD    CM4_REG(0x40008000u)
-#define MPS2_WDOG_CTRL    CM4_REG(0x40008008u)
-#define MPS2_WDOG_INTCLR  CM4_REG(0x4000800Cu)
-#define MPS2_WDOG_LOCK    CM4_REG(0x40008C00u)
-#define MPS2_WDOG_UNLOCK  0x1ACCE551u
+#define MPS2_WDOG_LOAD   CM4_REG(0x40008000u)
+#define MPS2_WDOG_CTRL   CM4_REG(0x40008008u)
+#define MPS2_WDOG_INTCLR CM4_REG(0x4000800Cu)
+#define MPS2_WDOG_LOCK   CM4_REG(0x40008C00u)
+#define MPS2_WDOG_UNLOCK 0x1ACCE551u
 
 /* "Flash" (RAM of the code region, managed with NOR rules) */
 #define MPS2_FLASH_BASE  0x00010000u

@@ -17,7 +17,7 @@ static struct {
     unsigned nsub;
     uint32_t period_ns;
     axis_t ax[CORE_AXES];
-    int64_t count[CORE_AXES]; /* encoder count last delivered (floor of the reading) */
+    int64_t count[CORE_AXES];  /* encoder count last delivered (floor of the reading) */
     double reading[CORE_AXES]; /* reading at the end of the last substep, counts */
     int32_t mv[HAL_MAX_AXES];
     bool on[HAL_MAX_AXES];

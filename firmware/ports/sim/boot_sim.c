@@ -87,14 +87,15 @@ void boot_sim_poll(void)
     }
 }
 
-static size_t error_reply(uint8_t *out, uint8_t seq, uint8_t req, uint8_t code, uint16_t arg)
+static size_t error_reply(uint8_t *out, uint8_t seq, uint8_t req, uint8_t code, uint16_t arg,
+                          int32_t lo)
 {
     proto_error_t e;
 
     e.req = req;
     e.code = code;
     e.arg = arg;
-    e.lo = 1; /* application running */
+    e.lo = lo;
     e.hi = 0;
     out[0] = (uint8_t)PROTO_MSG_ERROR;
     out[1] = seq;
@@ -107,16 +108,19 @@ size_t boot_sim_app_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint
     proto_ack_t a;
 
     (void)now_us;
-    if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX ||
-        msg[0] < 0x80u || msg[0] > 0x8Fu) {
+    if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX) {
         return 0;
     }
+    if (msg[0] < 0x80u || msg[0] > 0x8Fu) {
+        return error_reply(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
+    }
     if (msg[0] != PROTO_MSG_BOOT_ENTER) {
+        /* lo = 1: application running */
         return error_reply(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_BOOT,
-                           (uint16_t)BOOT_ERR_STATE);
+                           (uint16_t)BOOT_ERR_STATE, 1);
     }
     if (len != PROTO_MSG_HDR + PROTO_BOOT_ENTER_LEN) {
-        return error_reply(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_BAD_LENGTH, 0u);
+        return error_reply(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_BAD_LENGTH, 0u, 1);
     }
     boot_request_enter(&cfg);
     reset_pending = true;
@@ -141,6 +145,13 @@ size_t boot_sim_handle(const uint8_t *msg, size_t len, uint8_t *out, size_t cap)
     return n;
 }
 
+size_t boot_sim_link_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out,
+                            size_t cap)
+{
+    (void)now_us;
+    return boot_sim_handle(msg, len, out, cap);
+}
+
 uint32_t boot_sim_app_version(void)
 {
     boot_image_header_t h;
@@ -149,6 +160,17 @@ uint32_t boot_sim_app_version(void)
         return 0u;
     }
     return h.fw_version;
+}
+
+uint32_t boot_sim_app_build_id(void)
+{
+    boot_image_header_t h;
+
+    if (!initialised || boot_check_app(&cfg, &h) != BOOT_REASON_APP_OK) {
+        return 0u;
+    }
+    return (uint32_t)h.build_id[0] | ((uint32_t)h.build_id[1] << 8) |
+           ((uint32_t)h.build_id[2] << 16) | ((uint32_t)h.build_id[3] << 24);
 }
 
 size_t boot_sim_drive_handle(const uint8_t *msg, size_t len, uint8_t *out, size_t cap)
@@ -178,7 +200,7 @@ size_t boot_sim_drive_handle(const uint8_t *msg, size_t len, uint8_t *out, size_
     }
     n = boot_sim_handle(msg, len, out, cap);
     if (n == 0u && mode == BOOT_SIM_APP) {
-        return error_reply(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u);
+        return error_reply(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
     }
     return n;
 }

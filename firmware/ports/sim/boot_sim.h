@@ -19,14 +19,21 @@
  *                      Application mode: ids 0x80..0x8F are the application's
  *                      bootloader messages (boot_sim_app_handle); others
  *                      return 0 (the application dispatcher's job).
+ *   boot_sim_link_handle  boot_sim_handle with proto_link's extension
+ *                      handler signature: the handler of the bootloader mode
+ *                      (proto_link_set_ext_exclusive(true): every message).
  *   boot_sim_app_handle  the application side, fits proto_link's extension
- *                      handler: boot_enter sets the request word (RAM that
- *                      survives a simulated reset, not a process restart) and
- *                      resets into the bootloader (hal_system_reset and
- *                      boot_sim_reset); other boot ids get error{boot,
- *                      bad_state} ("application running").
+ *                      handler (or calib_set_next_handler): boot_enter sets
+ *                      the request word (RAM that survives a simulated reset,
+ *                      not a process restart) and resets into the bootloader
+ *                      (hal_system_reset and boot_sim_reset); other boot ids
+ *                      0x80..0x8F get error{boot, bad_state, lo = 1}
+ *                      ("application running"); any other id error{
+ *                      unknown_message} (it is the last handler of a chain).
  *   boot_sim_app_version  fw_version of the valid image in flash (what the
  *                      simulated application reports in identify), 0 if none.
+ *   boot_sim_app_build_id  its build id's first 4 bytes, little-endian (the
+ *                      identify build_id), 0 if none.
  *
  * For in-process tests of the host tool, boot_sim_drive_handle answers as a
  * whole drive would: boot_sim_handle, plus `identify` in application mode
@@ -50,9 +57,12 @@ int boot_sim_mode(void);
 int boot_sim_reason(void);
 void boot_sim_poll(void);
 size_t boot_sim_handle(const uint8_t *msg, size_t len, uint8_t *out, size_t cap);
+size_t boot_sim_link_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out,
+                            size_t cap);
 size_t boot_sim_app_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out,
                            size_t cap);
 uint32_t boot_sim_app_version(void);
+uint32_t boot_sim_app_build_id(void);
 size_t boot_sim_drive_handle(const uint8_t *msg, size_t len, uint8_t *out, size_t cap);
 const boot_config_t *boot_sim_config(void);
 /* Simulated resets done so far (power-on excluded). */

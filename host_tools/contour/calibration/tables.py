@@ -41,8 +41,8 @@ import csv
 import math
 import struct
 import zlib
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 from contour.calibration.analysis import ErrorMap, analyse, from_summary
 from contour.errors import UserError
@@ -285,4 +285,3 @@ def decode_record(buf: bytes) -> dict:
         raise UserError("compensation record data CRC mismatch")
     pts = [struct.unpack_from("<qii", data, POINT_BYTES * i) for i in range(n)]
     return {"axis": axis, "version": version, "ramp_us": ramp, "data_crc": dcrc, "points": pts}
-

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import errno
 import sys
 import time
 from dataclasses import dataclass, field
@@ -29,6 +28,7 @@ from contour import image as img
 from contour import protocol_gen as pg
 from contour.errors import UserError
 from contour.link import codec
+from contour.link.transport import tx_buffer_full  # python-can's transmit buffer full
 
 # ---- link and client ------------------------------------------------------------
 
@@ -66,17 +66,6 @@ def _reason_name(arg: int) -> str:
         return pg.BootReason(arg).name.lower().replace("_", " ")
     except ValueError:
         return f"reason {arg}"
-
-
-def tx_buffer_full(exc: BaseException) -> bool:
-    """python-can's "transmit buffer full" (ENOBUFS from SocketCAN, or the
-    message text of adapters that report it): wait and resend."""
-    if getattr(exc, "error_code", None) == errno.ENOBUFS or getattr(exc, "errno", None) == (
-        errno.ENOBUFS
-    ):
-        return True
-    text = str(exc).lower()
-    return "buffer" in text and ("full" in text or "no buffer space" in text)
 
 
 @dataclass
@@ -269,9 +258,19 @@ def flash(
     """Flash (or verify) `image`; returns a summary dict."""
     hdr = image.header
     info = enter_bootloader(client, enter_wait)
-    img.check_target(
-        hdr, board_id=info["board_id"], load_addr=info["load_addr"], max_length=info["max_length"]
-    )
+    try:
+        img.check_target(
+            hdr,
+            board_id=info["board_id"],
+            load_addr=info["load_addr"],
+            max_length=info["max_length"],
+        )
+    except img.ImageError:
+        # nothing was erased; a drive with a valid application goes back to it
+        if info["app_state"] == pg.BootReason.APP_OK:
+            with contextlib.suppress(UserError):
+                client.request("boot_reboot", retries=1)
+        raise
     if verify_only:
         _, r = client.request("boot_crc", {"addr": hdr.load_addr, "len": hdr.length}, timeout=5.0)
         ok = (

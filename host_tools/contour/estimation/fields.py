@@ -11,7 +11,8 @@ from typing import Any
 class Field:
     """A setting: name (ending in its unit), default, meaning, how to measure.
 
-    Numbers must lie strictly between ``low`` and ``high``; ``choices``
+    Numbers must lie strictly between ``low`` and ``high`` (or be 0 when
+    ``zero_ok``); ``choices``
     lists the allowed strings of a choice; booleans are true/false.
     """
 
@@ -23,3 +24,4 @@ class Field:
     choices: tuple = ()
     low: float = 0.0
     high: float = math.inf
+    zero_ok: bool = False  # 0 is allowed (means "off")

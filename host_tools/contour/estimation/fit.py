@@ -178,7 +178,7 @@ def _lm(fun, x0, lo, hi, max_iter=40, log=None):
         lam = max(lam / 10, 1e-9)
         if log:
             log(f"  least squares: rms {math.sqrt(cost / r.size) * 100:.3f} %")
-        if rel < 1e-6:
+        if rel < 1e-4:
             break
     return x
 

@@ -92,7 +92,8 @@ MOTION_FIELDS = (
         0.001,
         "Minimum block time: the control's block processing time.",
         "Run a long staircase of tiny collinear blocks (0.001 mm at F15000, "
-        "exp1 of camargo2017): time / blocks.",
+        "exp1 of camargo2017): time / blocks. 0 turns it off.",
+        zero_ok=True,
     ),
     Field(
         "block_time_rule",
@@ -228,9 +229,10 @@ def _check_value(f: Field, value, where: str):
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise UserError(f"{where}: {f.name} must be a number ({f.unit}), got {value!r}")
     v = float(value)
-    if not (math.isfinite(v) and f.low < v < f.high):
+    if not (math.isfinite(v) and (f.low < v < f.high or (f.zero_ok and v == 0))):
         raise UserError(
-            f"{where}: {f.name} must be a positive finite number ({f.unit}), got {value!r}"
+            f"{where}: {f.name} must be a {'non-negative' if f.zero_ok else 'positive'} "
+            f"finite number ({f.unit}), got {value!r}"
         )
     if isinstance(f.default, int):
         if v != int(v):

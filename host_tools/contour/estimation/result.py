@@ -52,6 +52,8 @@ class Moves:
         rot = np.sqrt(np.einsum("ij,ij->i", seg.rotary, seg.rotary))
         length = np.where(length > 1e-12, length, rot)
         feed = np.where(seg.rapid, rapid_feed_mm_min, seg.feed)
+        # Dwell rows have no feed; any positive value does for a row that does not move.
+        feed = np.where((length == 0) & ~(feed > 0), rapid_feed_mm_min, feed)
         if np.any(~(feed > 0)):
             bad = int(np.nonzero(~(feed > 0))[0][0])
             raise UserError(f"line {int(seg.line[bad])}: feed move without a valid feed")

@@ -18,6 +18,7 @@ Selection strings (see :func:`open_transport`):
 from __future__ import annotations
 
 import contextlib
+import errno
 import threading
 import time
 from typing import Callable, Optional
@@ -93,6 +94,21 @@ class SerialTransport:
             self._thread.join(timeout=1.0)
         with contextlib.suppress(Exception):  # closing a dead port
             self.ser.close()
+
+
+def tx_buffer_full(exc: BaseException) -> bool:
+    """python-can's "transmit buffer full": ENOBUFS from SocketCAN, or the
+    message text adapters use ("Transmit buffer full", "... overflow", "No
+    buffer space available"). The frame was not sent: wait and send again."""
+    if errno.ENOBUFS in (getattr(exc, "error_code", None), getattr(exc, "errno", None)):
+        return True
+    text = str(exc).lower()
+    return "buffer" in text and any(w in text for w in ("full", "overflow", "no buffer space"))
+
+
+# How long one CAN frame may wait out a full transmit buffer before it is
+# dropped (the request is then repeated by the client's retry).
+TX_FULL_WAIT_S = 2.0
 
 
 def parse_can_spec(spec: str) -> tuple[str, str, Optional[int]]:
@@ -172,6 +188,12 @@ class CanTransport:
             },
             error_handler=self._isotp_error,
         )
+        # can-isotp calls txfn from its own thread, where an exception (e.g.
+        # python-can's transmit-buffer-full CanOperationError) would end the
+        # thread and with it the link: send through _send_frame instead.
+        self.stack.txfn = self._send_frame
+        self.tx_full_waits = 0
+        self.tx_dropped = 0
         self.isotp_errors = 0
         self.rx_frames = 0
         self._run = False
@@ -182,6 +204,33 @@ class CanTransport:
 
     def _isotp_error(self, error: Exception) -> None:
         self.isotp_errors += 1
+
+    def _send_frame(self, msg) -> None:
+        """can-isotp's transmit function: a full transmit buffer is waited
+        out with back-off (1 ms doubling to 50 ms, at most TX_FULL_WAIT_S);
+        any other send error drops the frame (counted). Never raises."""
+        import can
+
+        frame = can.Message(
+            arbitration_id=msg.arbitration_id,
+            data=msg.data,
+            is_extended_id=msg.is_extended_id,
+            is_fd=msg.is_fd,
+            bitrate_switch=msg.bitrate_switch,
+        )
+        delay = 0.001
+        deadline = time.monotonic() + TX_FULL_WAIT_S
+        while True:
+            try:
+                self.bus.send(frame)
+                return
+            except (can.CanError, OSError) as exc:
+                if not tx_buffer_full(exc) or time.monotonic() > deadline:
+                    self.tx_dropped += 1
+                    return
+            self.tx_full_waits += 1
+            time.sleep(delay)
+            delay = min(delay * 2, 0.05)
 
     def start(self, on_message: OnMessage) -> None:
         self._on = on_message

@@ -55,6 +55,15 @@ _PROTOS = {
     "sim_start": (c.c_int, []),
     "sim_enable": (c.c_int, [c.c_int]),
     "sim_run": (c.c_long, [c.c_uint64, c.c_void_p, c.c_size_t, c.c_uint]),
+    "sim_run_until_free": (
+        c.c_long,
+        [c.c_uint64, c.c_uint, c.c_void_p, c.c_size_t, c.c_uint, c.POINTER(c.c_uint64)],
+    ),
+    "drive_param_get": (c.c_int, [c.c_int, c.c_uint, c.POINTER(c.c_int64)]),
+    "drive_arc_chords": (
+        c.c_uint32,
+        [c.c_void_p, c.c_void_p, c.c_uint, c.c_uint32, c.c_int64, c.c_void_p, c.c_uint32],
+    ),
     "sim_trace_cols": (c.c_uint, []),
     "sim_tick_hz": (c.c_uint32, []),
     "sim_ticks": (c.c_uint64, []),
@@ -138,6 +147,97 @@ def run(ticks: int, every: int = 1, trace: bool = True) -> np.ndarray:
     buf = np.zeros((rows, cols), dtype=np.float64)
     n = check(so.sim_run(ticks, buf.ctypes.data, rows, every), "run")
     return buf[:n]
+
+
+def run_until_free(max_ticks: int, min_free: int) -> np.ndarray:
+    """Run up to `max_ticks` ticks, stopping after the first one that leaves
+    `min_free` free slots in the drive's host queue; trace rows of every tick."""
+    so = lib()
+    buf = np.zeros((max_ticks, so.sim_trace_cols()), dtype=np.float64)
+    ran = c.c_uint64(0)
+    n = check(
+        so.sim_run_until_free(max_ticks, min_free, buf.ctypes.data, max_ticks, 1, c.byref(ran)),
+        "run",
+    )
+    return buf[:n]
+
+
+# drive_param_t (firmware/core/drive.h)
+DRIVE_PARAMS = {
+    "v_max": 0,
+    "a_max": 1,
+    "j_max": 2,
+    "corner_dv": 3,
+    "corner_acc": 4,
+    "junction_dev": 5,
+    "corner": 6,
+    "shape": 7,
+    "min_block_ns": 8,
+    "mbt_window": 9,
+    "stop_decel": 10,
+    "arc_chord": 11,
+    "start_delay_ms": 12,
+}
+DRIVE_QUEUE_DEPTH = 16
+
+
+def drive_param(name: str, axis: int = 0) -> int:
+    """A parameter of the running simulated drive (drive_param_get), in the
+    drive's units (nm, nm/s, nm/s^2, nm/s^3, ns, ms)."""
+    v = c.c_int64(0)
+    if lib().drive_param_get(DRIVE_PARAMS[name], axis, c.byref(v)) != 0:
+        raise UserError(f"simulator: drive parameter {name} (axis {axis}) not readable")
+    return v.value
+
+
+class DriveBlock(c.Structure):
+    """drive_block_t of firmware/core/drive.h (arc fields used here)."""
+
+    _fields_ = [
+        ("kind", c.c_int),
+        ("tag", c.c_uint32),
+        ("target", c.c_int64 * 3),
+        ("feed_nm_s", c.c_int64),
+        ("exact_stop", c.c_bool),
+        ("plane", c.c_int),
+        ("centre_u", c.c_int64),
+        ("centre_v", c.c_int64),
+        ("sense", c.c_int8),
+        ("dwell_ms", c.c_uint32),
+    ]
+
+
+def arc_chords(
+    start_nm,
+    target_nm,
+    feed_nm_s: int,
+    plane: int,
+    centre_u: int,
+    centre_v: int,
+    sense: int,
+    axes: int,
+    tick_hz: int,
+    chord_nm: int,
+) -> np.ndarray:
+    """End points (n, 3) in nm of the chords the drive cuts this arc into
+    (drive_arc_chords: the drive's own segmentation)."""
+    b = DriveBlock(
+        kind=2,
+        target=(c.c_int64 * 3)(*[int(v) for v in target_nm]),
+        feed_nm_s=int(feed_nm_s),
+        plane=int(plane),
+        centre_u=int(centre_u),
+        centre_v=int(centre_v),
+        sense=int(sense),
+    )
+    st = (c.c_int64 * 3)(*[int(v) for v in start_nm])
+    so = lib()
+    n = so.drive_arc_chords(c.byref(b), st, axes, tick_hz, int(chord_nm), None, 0)
+    if n == 0:
+        raise UserError("arc refused by the drive (radius mismatch or bad plane/feed)")
+    out = np.zeros((n, 3), dtype=np.int64)
+    so.drive_arc_chords(c.byref(b), st, axes, tick_hz, int(chord_nm), out.ctypes.data, n)
+    return out
 
 
 def queue_line(target_nm, feed_nm_s: int, tag: int = 0, exact_stop: bool = False) -> int:

@@ -1,0 +1,36 @@
+/*
+ * boot_stm32f4.c - the STM32F4 bootloader: the portable bootloader
+ * (firmware/core/boot) on USART2 and CAN1 (node 1), slot sectors 5..10
+ * (boot_config_default over the HAL region), parameter store sector 11.
+ * No watchdog here: a sector erase takes up to 2 s.
+ */
+#include "boot/boot.h"
+#include "hal.h"
+#include "port.h"
+#include "stm32f4.h"
+
+static void jump(uint32_t load_addr, void *ctx)
+{
+    (void)ctx;
+    cm4_start_image(load_addr);
+}
+
+int main(void)
+{
+    boot_config_t cfg;
+
+    f4_board_init(1000u, NULL);
+    boot_config_default(&cfg, BOOT_BOARD_STM32F4);
+    cfg.node_id = 1u;
+    cfg.request_word = &f4_boot_request_word;
+    cfg.jump = jump;
+    cfg.reset = port_boot_reset;
+    if (cfg.slot_base + BOOT_IMAGE_HDR_AREA != F4_APP_LOAD || !port_boot_init(&cfg, true, true)) {
+        for (;;) {
+            cm4_wfi();
+        }
+    }
+    for (;;) {
+        port_boot_poll();
+    }
+}

@@ -1,0 +1,569 @@
+/*
+ * hal_stm32f4.c - HAL of the STM32F405/407 drive (wiring in stm32f4.h).
+ *
+ * Contexts: SysTick runs the tick hook (control tick); USART2 and CAN1 RX0
+ * interrupts fill / empty byte and frame rings (single producer, single
+ * consumer, volatile indices); the rest is main context.
+ *
+ * Axis encoders: the timers count in hardware (encoder mode 3, x4). The
+ * drive's axis decoders take edges (drive_encoder_edge), so each tick
+ * f4_encoder_edges() turns the change of every axis counter into that many
+ * x4 quadrature steps, time-stamped evenly over the elapsed tick. The
+ * position is exact; the edge times are a reconstruction (velocity
+ * estimates see a constant rate within a tick). hal_encoder_counter() also
+ * reports the axis counters (channels 0..2) for a counter-mode decoder.
+ */
+#include <stddef.h>
+
+#include "drive.h"
+#include "hal.h"
+#include "port.h"
+#include "qdec.h"
+#include "stm32f4.h"
+
+#define AXES     3u
+#define PWM_ARR  (F4_SYSCLK_HZ / 20000u / 2u) /* centre-aligned 20 kHz: 4200 */
+#define MV_FULL  10000                        /* +-10 V at 0 / 100 % duty */
+#define RX_RING  1024u
+#define TX_RING  2048u
+#define CAN_RING 32u
+
+static const uint32_t enc_tim[AXES] = {F4_TIM2, F4_TIM3, F4_TIM4};
+static const uint8_t enc_bits[AXES] = {32u, 16u, 16u};
+
+typedef struct {
+    uint32_t id;
+    uint8_t len;
+    uint8_t data[8];
+} can_frame_t;
+
+static struct {
+    uint8_t rx[RX_RING];
+    volatile uint32_t rx_head, rx_tail;
+    uint8_t tx[TX_RING];
+    volatile uint32_t tx_head, tx_tail;
+    uint32_t overruns;
+} uart;
+
+static struct {
+    can_frame_t q[CAN_RING];
+    volatile uint32_t head, tail;
+    uint32_t dropped;
+} canrx;
+
+static struct {
+    uint32_t load, period_us;
+    volatile uint32_t ticks;
+    void (*hook)(void);
+} tb;
+
+static struct {
+    uint32_t last[AXES]; /* timer count at the previous tick            */
+    int64_t pos[AXES];   /* extended position, counts                   */
+    uint32_t last_ns;    /* time of the previous tick on the drive clock */
+} enc;
+
+/* ---- time base ----------------------------------------------------------------- */
+
+void f4_systick_handler(void);
+void f4_systick_handler(void)
+{
+    tb.ticks++;
+    if (tb.hook != NULL) {
+        tb.hook();
+    }
+}
+
+void f4_set_tick_hook(void (*hook)(void))
+{
+    tb.hook = hook;
+}
+
+uint32_t hal_time_us(void)
+{
+    uint32_t t1, t2, val;
+
+    do {
+        t1 = tb.ticks;
+        val = CM4_SYST_CVR;
+        t2 = tb.ticks;
+        if (CM4_SCB_ICSR & CM4_ICSR_PENDSTSET) {
+            val = tb.load;
+        }
+    } while (t1 != t2);
+    return t1 * tb.period_us + (tb.load - val) / (F4_SYSCLK_HZ / 1000000u);
+}
+
+/* ---- encoders -------------------------------------------------------------------- */
+
+static uint32_t quad_lines(int64_t c)
+{
+    static const uint32_t ab[4] = {0u, QDEC_LINE_A, QDEC_LINE_A | QDEC_LINE_B, QDEC_LINE_B};
+
+    return ab[(uint32_t)c & 3u];
+}
+
+void f4_encoder_edges(void)
+{
+    uint32_t now_ns = hal_time_us() * 1000u, span = now_ns - enc.last_ns;
+    unsigned i;
+
+    for (i = 0; i < AXES; i++) {
+        uint32_t cnt = F4_TIM_CNT(enc_tim[i]);
+        int32_t d = enc_bits[i] == 16u ? (int32_t)(int16_t)(uint16_t)(cnt - enc.last[i])
+                                       : (int32_t)(cnt - enc.last[i]);
+        uint32_t n = d < 0 ? (uint32_t)-d : (uint32_t)d, k;
+
+        enc.last[i] = cnt;
+        for (k = 1; k <= n; k++) {
+            enc.pos[i] += d < 0 ? -1 : 1;
+            drive_encoder_edge(i, quad_lines(enc.pos[i]),
+                               enc.last_ns + (uint32_t)((uint64_t)span * k / n));
+        }
+    }
+    enc.last_ns = now_ns;
+}
+
+bool hal_encoder_counter(unsigned ch, uint32_t *count)
+{
+    if (count == NULL) {
+        return false;
+    }
+    if (ch < AXES) {
+        *count = (uint32_t)enc.pos[ch];
+        return true;
+    }
+    if (ch == AXES) { /* axis 0's reference scale */
+        *count = F4_TIM_CNT(F4_TIM5);
+        return true;
+    }
+    return false;
+}
+
+/* ---- motor outputs and lines -------------------------------------------------------- */
+
+static bool motor_on[AXES];
+
+void hal_motor_set_mv(unsigned axis, int32_t mv)
+{
+    int64_t duty;
+
+    if (axis >= AXES) {
+        return;
+    }
+    if (!motor_on[axis]) {
+        mv = 0;
+    }
+    if (mv > MV_FULL) {
+        mv = MV_FULL;
+    } else if (mv < -MV_FULL) {
+        mv = -MV_FULL;
+    }
+    duty = ((int64_t)(mv + MV_FULL) * PWM_ARR + MV_FULL) / (2 * MV_FULL);
+    F4_TIM_CCR(F4_TIM1, axis + 1u) = (uint32_t)duty;
+}
+
+void hal_motor_enable(unsigned axis, bool on)
+{
+    if (axis >= AXES) {
+        return;
+    }
+    motor_on[axis] = on;
+    if (!on) {
+        F4_TIM_CCR(F4_TIM1, axis + 1u) = PWM_ARR / 2u;
+    }
+    F4_GPIO_BSRR(F4_GPIO(F4_PE)) = on ? (1u << axis) : (1u << (axis + 16u));
+}
+
+bool hal_amp_fault(unsigned axis)
+{
+    return axis < AXES && !(F4_GPIO_IDR(F4_GPIO(F4_PE)) & (1u << (axis + 3u)));
+}
+
+/* ---- USART2 ----------------------------------------------------------------------------- */
+
+void f4_usart2_handler(void);
+void f4_usart2_handler(void)
+{
+    uint32_t sr = F4_USART_SR(F4_USART2);
+
+    if (sr & (F4_USART_SR_RXNE | F4_USART_SR_ORE)) {
+        uint8_t c = (uint8_t)F4_USART_DR(F4_USART2); /* also clears ORE */
+        uint32_t h = uart.rx_head;
+
+        if (sr & F4_USART_SR_ORE) {
+            uart.overruns++;
+        }
+        if (h - uart.rx_tail < RX_RING) {
+            uart.rx[h % RX_RING] = c;
+            uart.rx_head = h + 1u;
+        }
+    }
+    if ((sr & F4_USART_SR_TXE) && (F4_USART_CR1(F4_USART2) & F4_USART_CR1_TXEIE)) {
+        if (uart.tx_tail != uart.tx_head) {
+            F4_USART_DR(F4_USART2) = uart.tx[uart.tx_tail % TX_RING];
+            uart.tx_tail++;
+        } else {
+            F4_USART_CR1(F4_USART2) &= ~F4_USART_CR1_TXEIE;
+        }
+    }
+}
+
+size_t hal_uart_write(const uint8_t *data, size_t len)
+{
+    size_t n = 0;
+    uint32_t pm;
+
+    if (data == NULL) {
+        return 0;
+    }
+    while (n < len && uart.tx_head - uart.tx_tail < TX_RING) {
+        uart.tx[uart.tx_head % TX_RING] = data[n++];
+        uart.tx_head++;
+    }
+    pm = cm4_irq_save();
+    F4_USART_CR1(F4_USART2) |= F4_USART_CR1_TXEIE;
+    cm4_irq_restore(pm);
+    return n;
+}
+
+size_t hal_uart_read(uint8_t *data, size_t cap)
+{
+    size_t n = 0;
+
+    if (data == NULL) {
+        return 0;
+    }
+    while (n < cap && uart.rx_tail != uart.rx_head) {
+        data[n++] = uart.rx[uart.rx_tail % RX_RING];
+        uart.rx_tail++;
+    }
+    return n;
+}
+
+bool port_uart_tx_idle(void)
+{
+    return uart.tx_tail == uart.tx_head && (F4_USART_SR(F4_USART2) & F4_USART_SR_TC);
+}
+
+/* ---- CAN1 -------------------------------------------------------------------------------- */
+
+void f4_can1_rx0_handler(void);
+void f4_can1_rx0_handler(void)
+{
+    while (F4_CAN_RF0R & 3u) {
+        uint32_t rir = F4_CAN_RI0R, h = canrx.head;
+
+        if (!(rir & (1u << 2)) && h - canrx.tail < CAN_RING) { /* standard ids only */
+            can_frame_t *f = &canrx.q[h % CAN_RING];
+            uint32_t lo = F4_CAN_RDL0R, hi = F4_CAN_RDH0R;
+            unsigned i;
+
+            f->id = rir >> 21;
+            f->len = (uint8_t)(F4_CAN_RDT0R & 0xFu);
+            if (f->len > 8u) {
+                f->len = 8u;
+            }
+            for (i = 0; i < 4u; i++) {
+                f->data[i] = (uint8_t)(lo >> (8u * i));
+                f->data[4u + i] = (uint8_t)(hi >> (8u * i));
+            }
+            canrx.head = h + 1u;
+        } else if (!(rir & (1u << 2))) {
+            canrx.dropped++;
+        }
+        F4_CAN_RF0R = 1u << 5; /* RFOM0: release the mailbox */
+    }
+}
+
+bool hal_can_send(uint32_t id, const uint8_t *data, uint8_t len)
+{
+    uint32_t tsr = F4_CAN_TSR, lo = 0, hi = 0;
+    unsigned m, i;
+
+    if (id > 0x7FFu || len > 8u || (len > 0u && data == NULL)) {
+        return false;
+    }
+    if (!(tsr & (7u << 26))) {
+        return false; /* all three mailboxes busy */
+    }
+    m = (tsr >> 24) & 3u; /* CODE: next free mailbox */
+    for (i = 0; i < len; i++) {
+        if (i < 4u) {
+            lo |= (uint32_t)data[i] << (8u * i);
+        } else {
+            hi |= (uint32_t)data[i] << (8u * (i - 4u));
+        }
+    }
+    F4_CAN_TDTR(m) = len;
+    F4_CAN_TDLR(m) = lo;
+    F4_CAN_TDHR(m) = hi;
+    F4_CAN_TIR(m) = (id << 21) | 1u; /* TXRQ */
+    return true;
+}
+
+bool hal_can_receive(uint32_t *id, uint8_t *data, uint8_t *len)
+{
+    const can_frame_t *f;
+    unsigned i;
+
+    if (id == NULL || data == NULL || len == NULL || canrx.tail == canrx.head) {
+        return false;
+    }
+    f = &canrx.q[canrx.tail % CAN_RING];
+    *id = f->id;
+    *len = f->len;
+    for (i = 0; i < f->len; i++) {
+        data[i] = f->data[i];
+    }
+    canrx.tail++;
+    return true;
+}
+
+/* ---- flash: sectors 5..11 ---------------------------------------------------------------- */
+
+static const hal_flash_layout_t flash_layout = {F4_FLASH_REGION_BASE, F4_FLASH_REGION_SIZE,
+                                                F4_FLASH_SECTOR_SIZE, 4u};
+
+const hal_flash_layout_t *hal_flash_layout(void)
+{
+    return &flash_layout;
+}
+
+static bool in_region(uint32_t addr, size_t len)
+{
+    return addr >= F4_FLASH_REGION_BASE && len <= F4_FLASH_REGION_SIZE &&
+           addr - F4_FLASH_REGION_BASE <= F4_FLASH_REGION_SIZE - len;
+}
+
+static bool flash_wait(void)
+{
+    uint32_t sr;
+
+    while (F4_FLASH_SR & F4_FLASH_SR_BSY) {
+    }
+    sr = F4_FLASH_SR;
+    F4_FLASH_SR = sr & F4_FLASH_SR_ERRORS; /* write 1 to clear */
+    return (sr & F4_FLASH_SR_ERRORS) == 0u;
+}
+
+static void flash_unlock(void)
+{
+    if (F4_FLASH_CR & F4_FLASH_CR_LOCK) {
+        F4_FLASH_KEYR = F4_FLASH_KEY1;
+        F4_FLASH_KEYR = F4_FLASH_KEY2;
+    }
+}
+
+bool hal_flash_erase_page(uint32_t addr)
+{
+    bool ok;
+
+    if (!in_region(addr, 1u)) {
+        return false;
+    }
+    flash_unlock();
+    (void)flash_wait();
+    F4_FLASH_CR = F4_FLASH_CR_PSIZE32 | F4_FLASH_CR_SER |
+                  F4_FLASH_CR_SNB(F4_FLASH_FIRST_SECTOR +
+                                  (addr - F4_FLASH_REGION_BASE) / F4_FLASH_SECTOR_SIZE);
+    F4_FLASH_CR |= F4_FLASH_CR_STRT;
+    ok = flash_wait();
+    F4_FLASH_CR = F4_FLASH_CR_LOCK;
+    return ok;
+}
+
+bool hal_flash_write(uint32_t addr, const uint8_t *data, size_t len)
+{
+    volatile uint32_t *p = (volatile uint32_t *)(uintptr_t)addr;
+    bool ok = true;
+    size_t i;
+
+    if (data == NULL || !in_region(addr, len) || addr % 4u != 0u || len % 4u != 0u) {
+        return false;
+    }
+    for (i = 0; i < len / 4u; i++) {
+        if (p[i] != 0xFFFFFFFFu) {
+            return false; /* only erased words may be programmed */
+        }
+    }
+    flash_unlock();
+    (void)flash_wait();
+    F4_FLASH_CR = F4_FLASH_CR_PSIZE32 | F4_FLASH_CR_PG;
+    for (i = 0; i < len / 4u && ok; i++) {
+        p[i] = (uint32_t)data[4u * i] | ((uint32_t)data[4u * i + 1u] << 8) |
+               ((uint32_t)data[4u * i + 2u] << 16) | ((uint32_t)data[4u * i + 3u] << 24);
+        ok = flash_wait();
+    }
+    F4_FLASH_CR = F4_FLASH_CR_LOCK;
+    return ok;
+}
+
+bool hal_flash_read(uint32_t addr, uint8_t *data, size_t len)
+{
+    const volatile uint8_t *p = (const volatile uint8_t *)(uintptr_t)addr;
+    size_t i;
+
+    if (data == NULL || !in_region(addr, len)) {
+        return false;
+    }
+    for (i = 0; i < len; i++) {
+        data[i] = p[i];
+    }
+    return true;
+}
+
+/* ---- system ---------------------------------------------------------------------------------- */
+
+void f4_watchdog_start(void)
+{
+    F4_IWDG_KR = 0xCCCCu; /* start (LSI ~32 kHz) */
+    F4_IWDG_KR = 0x5555u; /* unlock PR / RLR */
+    F4_IWDG_PR = 3u;      /* /32: 1 kHz */
+    F4_IWDG_RLR = 1000u;  /* ~1 s */
+    F4_IWDG_KR = 0xAAAAu;
+}
+
+void hal_watchdog_kick(void)
+{
+    F4_IWDG_KR = 0xAAAAu;
+}
+
+void hal_system_reset(void)
+{
+    cm4_system_reset();
+}
+
+/* ---- bring-up ------------------------------------------------------------------------------ */
+
+static void clocks(void)
+{
+    F4_RCC_CR |= 1u << 16; /* HSEON */
+    while (!(F4_RCC_CR & (1u << 17))) {
+    }
+    /* PLL: M 8, N 336, P 2 (168 MHz), Q 7 (48 MHz), source HSE */
+    F4_RCC_PLLCFGR = 8u | (336u << 6) | (0u << 16) | (1u << 22) | (7u << 24);
+    F4_RCC_CR |= 1u << 24; /* PLLON */
+    while (!(F4_RCC_CR & (1u << 25))) {
+    }
+    F4_FLASH_ACR = 5u | (1u << 8) | (1u << 9) | (1u << 10); /* 5 WS, prefetch, I/D cache */
+    F4_RCC_CFGR = (5u << 10) | (4u << 13) | 2u;             /* APB1 /4, APB2 /2, SYSCLK = PLL */
+    while (((F4_RCC_CFGR >> 2) & 3u) != 2u) {
+    }
+}
+
+/* pin n of port g: mode (0 in, 1 out, 2 AF), alternate function, pull (1 up) */
+static void pin(unsigned g, unsigned n, unsigned mode, unsigned af, unsigned pull)
+{
+    uint32_t b = F4_GPIO(g);
+
+    F4_GPIO_MODER(b) = (F4_GPIO_MODER(b) & ~(3u << (2u * n))) | (mode << (2u * n));
+    F4_GPIO_PUPDR(b) = (F4_GPIO_PUPDR(b) & ~(3u << (2u * n))) | (pull << (2u * n));
+    F4_GPIO_OSPEEDR(b) |= 2u << (2u * n);
+    F4_GPIO_AFR(b, n / 8u) =
+        (F4_GPIO_AFR(b, n / 8u) & ~(15u << (4u * (n % 8u)))) | (af << (4u * (n % 8u)));
+}
+
+static void encoder_timer(uint32_t t, uint32_t arr)
+{
+    F4_TIM_CR1(t) = 0u;
+    F4_TIM_SMCR(t) = 3u;                                       /* encoder mode 3: x4 */
+    F4_TIM_CCMR1(t) = 1u | (1u << 8) | (6u << 4) | (6u << 12); /* TI1, TI2, filter */
+    F4_TIM_CCER(t) = 0u;                                       /* both rising (non-inverted) */
+    F4_TIM_ARR(t) = arr;
+    F4_TIM_CNT(t) = 0u;
+    F4_TIM_CR1(t) = 1u; /* CEN */
+}
+
+static void peripherals(void)
+{
+    unsigned i;
+
+    F4_RCC_AHB1ENR |= (1u << F4_PA) | (1u << F4_PB) | (1u << F4_PE);
+    F4_RCC_APB1ENR |= 0xFu | (1u << 17) | (1u << 25); /* TIM2..5, USART2, CAN1 */
+    F4_RCC_APB2ENR |= 1u;                             /* TIM1 */
+    (void)F4_RCC_APB2ENR;
+
+    /* encoders */
+    pin(F4_PA, 15u, 2u, 1u, 1u);
+    pin(F4_PB, 3u, 2u, 1u, 1u);
+    pin(F4_PA, 6u, 2u, 2u, 1u);
+    pin(F4_PA, 7u, 2u, 2u, 1u);
+    pin(F4_PB, 6u, 2u, 2u, 1u);
+    pin(F4_PB, 7u, 2u, 2u, 1u);
+    pin(F4_PA, 0u, 2u, 2u, 1u);
+    pin(F4_PA, 1u, 2u, 2u, 1u);
+    encoder_timer(F4_TIM2, 0xFFFFFFFFu);
+    encoder_timer(F4_TIM3, 0xFFFFu);
+    encoder_timer(F4_TIM4, 0xFFFFu);
+    encoder_timer(F4_TIM5, 0xFFFFFFFFu);
+    for (i = 0; i < AXES; i++) {
+        enc.last[i] = F4_TIM_CNT(enc_tim[i]);
+        enc.pos[i] = 0;
+    }
+
+    /* PWM: TIM1 CH1..3, centre-aligned, 50 % */
+    for (i = 0; i < AXES; i++) {
+        pin(F4_PA, 8u + i, 2u, 1u, 0u);
+        pin(F4_PE, i, 1u, 0u, 0u);      /* enable line, low */
+        pin(F4_PE, 3u + i, 0u, 0u, 1u); /* fault input, pull-up */
+        F4_GPIO_BSRR(F4_GPIO(F4_PE)) = 1u << (i + 16u);
+    }
+    F4_TIM_CR1(F4_TIM1) = 1u << 5; /* CMS = 01 */
+    F4_TIM_PSC(F4_TIM1) = 0u;
+    F4_TIM_ARR(F4_TIM1) = PWM_ARR;
+    F4_TIM_CCMR1(F4_TIM1) = (6u << 4) | (1u << 3) | (6u << 12) | (1u << 11); /* PWM1, preload */
+    F4_TIM_CCMR2(F4_TIM1) = (6u << 4) | (1u << 3);
+    for (i = 0; i < AXES; i++) {
+        F4_TIM_CCR(F4_TIM1, i + 1u) = PWM_ARR / 2u;
+    }
+    F4_TIM_CCER(F4_TIM1) = 1u | (1u << 4) | (1u << 8);
+    F4_TIM_BDTR(F4_TIM1) = 1u << 15; /* MOE */
+    F4_TIM_EGR(F4_TIM1) = 1u;
+    F4_TIM_CR1(F4_TIM1) |= 1u;
+
+    /* USART2 115200 8N1 */
+    pin(F4_PA, 2u, 2u, 7u, 0u);
+    pin(F4_PA, 3u, 2u, 7u, 1u);
+    F4_USART_BRR(F4_USART2) = (F4_APB1_HZ + 115200u / 2u) / 115200u;
+    F4_USART_CR1(F4_USART2) =
+        F4_USART_CR1_UE | F4_USART_CR1_TE | F4_USART_CR1_RE | F4_USART_CR1_RXNEIE;
+    cm4_nvic_enable(F4_IRQ_USART2, 0x40u);
+
+    /* CAN1 500 kbit/s: 42 MHz / 6 = 7 MHz, 1 + 11 + 2 tq, SJW 1 */
+    pin(F4_PB, 8u, 2u, 9u, 1u);
+    pin(F4_PB, 9u, 2u, 9u, 0u);
+    F4_CAN_MCR = 1u; /* INRQ */
+    while (!(F4_CAN_MSR & 1u)) {
+    }
+    F4_CAN_BTR = (0u << 24) | (1u << 20) | (10u << 16) | 5u;
+    F4_CAN_FMR = 1u;  /* FINIT */
+    F4_CAN_FM1R = 0u; /* mask mode */
+    F4_CAN_FS1R = 1u; /* bank 0: 32 bit */
+    F4_CAN_FFA1R = 0u;
+    F4_CAN_F0R1 = 0u; /* accept everything */
+    F4_CAN_F0R2 = 0u;
+    F4_CAN_FA1R = 1u;
+    F4_CAN_FMR = 0u;
+    F4_CAN_MCR = (1u << 6) | (1u << 2); /* ABOM, TXFP; leave init */
+    while (F4_CAN_MSR & 1u) {
+    }
+    F4_CAN_IER = 1u << 1; /* FMPIE0 */
+    cm4_nvic_enable(F4_IRQ_CAN1_RX0, 0x40u);
+}
+
+void f4_board_init(uint32_t tick_hz, void (*hook)(void))
+{
+    clocks();
+    peripherals();
+    tb.period_us = 1000000u / tick_hz;
+    tb.load = F4_SYSCLK_HZ / tick_hz - 1u;
+    tb.ticks = 0;
+    tb.hook = hook;
+    enc.last_ns = 0;
+    CM4_SCB_SHPR3 = (CM4_SCB_SHPR3 & 0x00FFFFFFu) | (0x80u << 24);
+    CM4_SYST_RVR = tb.load;
+    CM4_SYST_CVR = 0u;
+    CM4_SYST_CSR = CM4_SYST_CSR_ENABLE | CM4_SYST_CSR_TICKINT | CM4_SYST_CSR_CLKSOURCE;
+    cm4_irq_enable();
+}

@@ -1,0 +1,630 @@
+/*
+ * The drive application (drive.h) in the simulator (sim.h: the real drive
+ * through the sim HAL, closed on the axis models):
+ *   - blocks queued right after drive_enable(true), before any tick, run;
+ *   - drive_status reports the planned time still queued (planner plus the
+ *     interpolator's remainder) and it falls by one tick per tick;
+ *   - a job of blocks shorter than one tick keeps the interpolator fed: every
+ *     block ends within one tick of the planner's estimate (plan_estimate on
+ *     the same moves), the reference never stalls mid-job;
+ *   - controlled stop: on the path, the path speed never rises and falls by
+ *     at most the configured deceleration per tick (also when the stop comes
+ *     while the plan is accelerating), ends at rest, the rest of the job is
+ *     dropped and a new block starts from the stop point;
+ *   - emergency stop, external faults, amplifier and following-error faults
+ *     react as drive.h documents;
+ *   - parameter API: ranges, busy while moving, nothing half applied, and the
+ *     new limits are what the planner uses.
+ */
+#include <stdio.h>
+#include <string.h>
+
+#include "drive.h"
+#include "estimator.h"
+#include "hal_sim.h"
+#include "sim.h"
+#include "unity.h"
+
+#define TICK_NS 100000 /* 10 kHz */
+
+static drive_status_t st;
+
+static void start(void)
+{
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 3));
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+}
+
+void setUp(void)
+{
+    start();
+}
+
+void tearDown(void)
+{
+}
+
+static void run(uint64_t ticks)
+{
+    TEST_ASSERT_TRUE(sim_run(ticks, NULL, 0, 0) >= 0);
+    drive_status(&st);
+}
+
+static drive_block_t line(int64_t x, int64_t y, int64_t feed, bool stop, uint32_t tag)
+{
+    drive_block_t b;
+
+    memset(&b, 0, sizeof b);
+    b.kind = DRIVE_BLOCK_LINE;
+    b.tag = tag;
+    b.target[0] = x;
+    b.target[1] = y;
+    b.feed_nm_s = feed;
+    b.exact_stop = stop;
+    return b;
+}
+
+static drive_result_t queue_line(int64_t x, int64_t y, int64_t feed, bool stop, uint32_t tag)
+{
+    drive_block_t b = line(x, y, feed, stop, tag);
+
+    return drive_queue_block(&b);
+}
+
+/* Planner estimate (ns per block) of moves from the origin, as the drive
+ * would plan them with a queue kept full. */
+static int64_t estimate(const plan_move_t *m, uint32_t n, int64_t *each)
+{
+    static plan_block_t store[PLAN_DEPTH_DEFAULT];
+    static plan_est_t out[2048];
+    const pos_nm_t o[CORE_AXES] = {0};
+    uint32_t bad = 0, i;
+    int64_t sum = 0;
+
+    TEST_ASSERT_TRUE(n <= 2048);
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_estimate(&drive_config()->plan, o, m, n, store,
+                                                 PLAN_DEPTH_DEFAULT, out, &bad));
+    for (i = 0; i < n; i++) {
+        sum += out[i].t_total_ns;
+        if (each != NULL) {
+            each[i] = out[i].t_total_ns;
+        }
+    }
+    return sum;
+}
+
+static plan_move_t move(int64_t x, int64_t y, int64_t feed, bool stop)
+{
+    plan_move_t m;
+
+    memset(&m, 0, sizeof m);
+    m.target[0] = x;
+    m.target[1] = y;
+    m.feed = feed;
+    m.flags = stop ? PLAN_MOVE_EXACT_STOP : 0;
+    return m;
+}
+
+/* ---- 1. enable and queue before any tick ------------------------------------ */
+
+static void test_block_queued_right_after_enable_runs(void)
+{
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 0, 20000000, true, 7));
+    run(10000); /* 1 s: the move takes about 55 ms */
+    TEST_ASSERT_EQUAL_UINT32(0, st.faults);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_UINT32(1, st.blocks_done);
+    TEST_ASSERT_EQUAL_UINT32(7, st.tag);
+    TEST_ASSERT_EQUAL_INT64(1000000, st.ref[0]);
+    TEST_ASSERT_INT64_WITHIN(2000, 1000000, st.pos[0]);
+    TEST_ASSERT_TRUE(hal_sim_motor_enabled(0));
+}
+
+static void test_enable_queue_poll_before_the_first_tick(void)
+{
+    /* the main loop may poll before the tick applied the enable */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(500000, 500000, 10000000, false, 1));
+    drive_poll();
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 500000, 10000000, true, 2));
+    drive_poll();
+    run(20000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_UINT32(2, st.blocks_done);
+    TEST_ASSERT_EQUAL_INT64(0, st.ref[0]);
+    TEST_ASSERT_EQUAL_INT64(500000, st.ref[1]);
+}
+
+/* ---- 2. planned time queued -------------------------------------------------- */
+
+static void test_status_reports_planned_time_queued(void)
+{
+    plan_move_t m[3];
+    int64_t total, k;
+
+    m[0] = move(1000000, 0, 20000000, true);
+    m[1] = move(1000000, 2000000, 20000000, true);
+    m[2] = move(0, 0, 30000000, true);
+    total = estimate(m, 3, NULL);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT64(0, st.queued_time_ns);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 0, 20000000, true, 1));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 2000000, 20000000, true, 2));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 0, 30000000, true, 3));
+    drive_poll(); /* hands the blocks to the planner and the interpolator */
+    drive_status(&st);
+    TEST_ASSERT_EQUAL_INT64(total, st.queued_time_ns);
+    /* it falls by one tick per tick while the job runs */
+    for (k = 1; k * TICK_NS < total; k++) {
+        run(1);
+        TEST_ASSERT_INT64_WITHIN(1000, total - k * TICK_NS, st.queued_time_ns);
+    }
+    run(2);
+    TEST_ASSERT_EQUAL_INT64(0, st.queued_time_ns);
+    TEST_ASSERT_EQUAL_UINT32(3, st.blocks_done);
+}
+
+static void test_planned_time_counts_blocks_waiting_in_the_planner(void)
+{
+    plan_move_t m[20];
+    int64_t total;
+    unsigned i;
+
+    for (i = 0; i < 20; i++) {
+        m[i] = move((int64_t)(i + 1) * 100000, (i & 1u) ? 20000 : 0, 5000000, false);
+    }
+    total = estimate(m, 20, NULL);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    for (i = 0; i < 20; i++) {
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK,
+                              queue_line(m[i].target[0], m[i].target[1], m[i].feed, false, i));
+        drive_poll();
+    }
+    drive_status(&st);
+    TEST_ASSERT_EQUAL_INT64(total, st.queued_time_ns);
+    run(30000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_UINT32(20, st.blocks_done);
+    TEST_ASSERT_EQUAL_INT64(0, st.queued_time_ns);
+}
+
+/* ---- 3. a run of blocks shorter than a tick ---------------------------------- */
+
+#define SHORT_N 600
+static int64_t est_each[SHORT_N];
+static uint64_t end_tick[SHORT_N];
+
+/* Stream SHORT_N blocks of step nm along X (the host keeps the drive's
+ * queue full before every tick) and check every block's end tick against
+ * the planner's estimate. Returns the estimated total. */
+static int64_t short_block_job(int64_t step, int64_t feed, unsigned *max_err_ticks)
+{
+    static plan_move_t m[SHORT_N];
+    uint32_t queued = 0, done = 0, i;
+    uint64_t t = 0, t0;
+    int64_t total, cum = 0, prev_x = 0, last_move = -1, first_move = -1;
+    unsigned stalls = 0;
+
+    /* trapezoidal profiles at 50 m/s^2 (an S-curve block starts and ends
+     * at zero acceleration, which keeps um blocks slow): the look-ahead of
+     * 64 blocks of a few um then allows several blocks per tick */
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 3));
+    TEST_ASSERT_EQUAL_INT(0, sim_plan_set(0, "shape", 1.0));
+    for (i = 0; i < 3; i++) {
+        TEST_ASSERT_EQUAL_INT(0, sim_plan_set(i, "a_max", 50.0));
+    }
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    for (i = 0; i < SHORT_N; i++) {
+        m[i] = move((int64_t)(i + 1) * step, 0, feed, i + 1 == SHORT_N);
+    }
+    total = estimate(m, SHORT_N, est_each);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    while (done < SHORT_N && t < 200000) {
+        while (queued < SHORT_N && queue_line(m[queued].target[0], 0, feed, queued + 1 == SHORT_N,
+                                              queued) == DRIVE_OK) {
+            queued++;
+        }
+        run(1);
+        t++;
+        TEST_ASSERT_EQUAL_UINT32(0, st.faults);
+        while (done < st.blocks_done && done < SHORT_N) {
+            end_tick[done++] = t;
+        }
+        if (st.ref[0] != prev_x) {
+            if (first_move < 0) {
+                first_move = (int64_t)t;
+            }
+            last_move = (int64_t)t;
+        } else if (first_move >= 0 && done < SHORT_N && done > 0) {
+            stalls++; /* the reference stood still inside the job */
+        }
+        prev_x = st.ref[0];
+    }
+    TEST_ASSERT_EQUAL_UINT32(SHORT_N, done);
+    TEST_ASSERT_EQUAL_INT64(SHORT_N * step, st.ref[0]);
+    TEST_ASSERT_EQUAL_UINT(0, stalls);
+    /* the first block's start: its end minus its whole ticks */
+    t0 = end_tick[0] - (uint64_t)((est_each[0] + TICK_NS - 1) / TICK_NS);
+    *max_err_ticks = 0;
+    for (i = 0; i < SHORT_N; i++) {
+        int64_t want, err;
+        cum += est_each[i];
+        want = (int64_t)t0 + (cum + TICK_NS - 1) / TICK_NS;
+        err = (int64_t)end_tick[i] - want;
+        err = err < 0 ? -err : err;
+        if ((unsigned)err > *max_err_ticks) {
+            *max_err_ticks = (unsigned)err;
+        }
+    }
+    TEST_ASSERT_TRUE(last_move > first_move);
+    return total;
+}
+
+static void test_short_blocks_keep_the_interpolator_fed(void)
+{
+    unsigned err = 99;
+    int64_t total = short_block_job(2000, 100000000, &err); /* 2 um, 100 mm/s */
+
+    printf("short blocks: %u blocks, estimate %lld ns, max end-tick error %u\n", SHORT_N,
+           (long long)total, err);
+    /* the blocks really are shorter than a tick (several end per tick) */
+    TEST_ASSERT_TRUE(total < (int64_t)SHORT_N * TICK_NS * 3 / 4);
+    TEST_ASSERT_TRUE(err <= 1);
+}
+
+/* ---- 4. controlled stop, emergency stop, faults -------------------------------- */
+
+/* Record the path speed (nm per tick) after drive_stop() until the reference
+ * is at rest; checks the reference stays on the line through the origin with
+ * direction (3, 4) / 5. */
+static unsigned stop_and_watch(int64_t decel_nm_s2, int64_t *v_before, unsigned *ticks_to_rest)
+{
+    int64_t px, py, v_prev, max_dec = decel_nm_s2 / 100000000 + 3;
+    unsigned k, rises = 0, over = 0;
+
+    drive_status(&st);
+    px = st.ref[0];
+    py = st.ref[1];
+    run(1);
+    v_prev = ((st.ref[0] - px) * 3 + (st.ref[1] - py) * 4) / 5;
+    *v_before = v_prev;
+    px = st.ref[0];
+    py = st.ref[1];
+    drive_stop();
+    *ticks_to_rest = 0;
+    for (k = 0; k < 100000; k++) {
+        int64_t dx, dy, v;
+        run(1);
+        dx = st.ref[0] - px;
+        dy = st.ref[1] - py;
+        px = st.ref[0];
+        py = st.ref[1];
+        /* on the path: |4 x - 3 y| / 5 <= 2 nm */
+        TEST_ASSERT_TRUE(4 * px - 3 * py <= 10 && 4 * px - 3 * py >= -10);
+        v = (dx * 3 + dy * 4) / 5; /* along the path, nm per tick */
+        TEST_ASSERT_TRUE(v >= -2);
+        if (v > v_prev + 2) {
+            rises++;
+        }
+        if (v_prev - v > max_dec) {
+            over++;
+        }
+        v_prev = v;
+        if (v == 0 && *ticks_to_rest == 0) {
+            *ticks_to_rest = k + 1;
+        }
+        if (st.state != DRIVE_STOPPING && v == 0) {
+            break;
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT(0, rises);
+    return over;
+}
+
+static void test_stop_decelerates_on_the_path_and_drops_the_job(void)
+{
+    unsigned rest = 0;
+    int64_t x0, y0, v0 = 0;
+
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    /* 3-4-5 diagonal at 20 mm/s, and more blocks behind it */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(30000000, 40000000, 20000000, false, 1));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(60000000, 80000000, 20000000, false, 2));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 0, 20000000, true, 3));
+    run(3000); /* cruising at 2000 nm per tick */
+    TEST_ASSERT_EQUAL_INT(DRIVE_RUNNING, st.state);
+    /* stop_decel 1 m/s^2 = 10 nm per tick per tick: rest after 200 ticks */
+    TEST_ASSERT_EQUAL_UINT(0, stop_and_watch(1000000000, &v0, &rest));
+    TEST_ASSERT_INT64_WITHIN(2, 2000, v0);
+    TEST_ASSERT_UINT_WITHIN(2, 200, rest);
+    run(10);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_UINT32(0, st.faults);
+    TEST_ASSERT_EQUAL_UINT32(0, st.blocks_done); /* nothing completed */
+    TEST_ASSERT_EQUAL_UINT32(DRIVE_QUEUE_DEPTH, st.queue_free);
+    TEST_ASSERT_EQUAL_INT64(0, st.queued_time_ns);
+    x0 = st.ref[0];
+    y0 = st.ref[1];
+    run(5000);
+    TEST_ASSERT_EQUAL_INT64(x0, st.ref[0]); /* the rest of the job was dropped */
+    TEST_ASSERT_EQUAL_INT64(y0, st.ref[1]);
+    TEST_ASSERT_INT64_WITHIN(20000, x0, st.pos[0]);
+    /* stopping distance v^2 / 2a = 0.2 mm along the path */
+    TEST_ASSERT_TRUE(hal_sim_motor_enabled(0));
+    /* the drive accepts a new job from the stop point */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 0, 20000000, true, 9));
+    run(40000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_UINT32(1, st.blocks_done);
+    TEST_ASSERT_EQUAL_INT64(0, st.ref[0]);
+    TEST_ASSERT_EQUAL_INT64(0, st.ref[1]);
+}
+
+static void test_stop_while_accelerating_never_speeds_up(void)
+{
+    unsigned rest = 0;
+    int64_t v0 = 0;
+
+    /* a slow planner acceleration (0.5 m/s^2) beside a 1 m/s^2 stop */
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 3));
+    TEST_ASSERT_EQUAL_INT(0, sim_plan_set(0, "a_max", 0.5));
+    TEST_ASSERT_EQUAL_INT(0, sim_plan_set(1, "a_max", 0.5));
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(30000000, 40000000, 50000000, true, 1));
+    run(300); /* 30 ms into the acceleration */
+    TEST_ASSERT_EQUAL_UINT(0, stop_and_watch(1000000000, &v0, &rest));
+    TEST_ASSERT_TRUE(v0 > 1000); /* it was still accelerating at > 10 mm/s */
+    TEST_ASSERT_UINT_WITHIN(2, (unsigned)(v0 / 10), rest);
+    run(10);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_UINT32(0, st.faults);
+}
+
+static void test_stop_when_idle_or_disabled_changes_nothing(void)
+{
+    drive_stop();
+    run(5);
+    TEST_ASSERT_EQUAL_INT(DRIVE_DISABLED, st.state);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(2);
+    drive_stop();
+    run(5);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(100000, 0, 10000000, true, 1));
+    run(3000);
+    TEST_ASSERT_EQUAL_UINT32(1, st.blocks_done);
+    TEST_ASSERT_EQUAL_INT64(100000, st.ref[0]);
+}
+
+static void test_estop_disables_at_once_and_needs_a_reset(void)
+{
+    unsigned i;
+
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(30000000, 40000000, 20000000, true, 1));
+    run(2000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_RUNNING, st.state);
+    drive_estop();
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state);
+    TEST_ASSERT_EQUAL_HEX32(DRIVE_FAULT_ESTOP, st.faults);
+    for (i = 0; i < 3; i++) {
+        TEST_ASSERT_FALSE(hal_sim_motor_enabled(i));
+        TEST_ASSERT_EQUAL_INT32(0, hal_sim_motor_mv(i));
+    }
+    TEST_ASSERT_EQUAL_UINT32(DRIVE_QUEUE_DEPTH, st.queue_free);
+    TEST_ASSERT_EQUAL_INT64(0, st.queued_time_ns);
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_FAULTED, queue_line(0, 0, 20000000, true, 2));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_FAULTED, drive_enable(true));
+    run(1000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_fault_reset());
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_DISABLED, st.state);
+    TEST_ASSERT_EQUAL_UINT32(0, st.faults);
+    /* enabled again, the drive holds where the axes coasted to and runs */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 0, 20000000, true, 3));
+    run(40000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_UINT32(1, st.blocks_done);
+    TEST_ASSERT_EQUAL_INT64(0, st.ref[0]);
+}
+
+static void test_external_fault_stops_in_a_controlled_way(void)
+{
+    int64_t x;
+
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(30000000, 40000000, 20000000, true, 1));
+    run(2000);
+    drive_raise_fault(DRIVE_FAULT_COMM);
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state);
+    TEST_ASSERT_EQUAL_HEX32(DRIVE_FAULT_COMM, st.faults);
+    TEST_ASSERT_TRUE(hal_sim_motor_enabled(0)); /* the servo ramps down */
+    run(2000);
+    x = st.ref[0];
+    run(100);
+    TEST_ASSERT_EQUAL_INT64(x, st.ref[0]); /* at rest */
+    TEST_ASSERT_TRUE(x < 30000000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_FAULTED, queue_line(0, 0, 20000000, true, 2));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_fault_reset());
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_DISABLED, st.state);
+    TEST_ASSERT_FALSE(hal_sim_motor_enabled(0));
+}
+
+static void test_amplifier_fault_reset_refused_while_present(void)
+{
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(30000000, 40000000, 20000000, true, 1));
+    run(1000);
+    hal_sim_set_amp_fault(1, true);
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state);
+    TEST_ASSERT_TRUE((st.faults & DRIVE_FAULT_AMPLIFIER) != 0u);
+    TEST_ASSERT_FALSE(hal_sim_motor_enabled(1)); /* the faulted axis at once */
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_CAUSE, drive_fault_reset());
+    run(3000);
+    hal_sim_set_amp_fault(1, false);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_fault_reset());
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_DISABLED, st.state);
+    TEST_ASSERT_EQUAL_UINT32(0, st.faults);
+}
+
+static void test_following_error_disables(void)
+{
+    servo_params_t p = drive_config()->servo;
+
+    p.ferr_limit_nm[0] = 100; /* 0.1 um: any real move exceeds it */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_set_servo_params(&p));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(30000000, 40000000, 20000000, true, 1));
+    run(2000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state);
+    TEST_ASSERT_TRUE((st.faults & DRIVE_FAULT_FOLLOWING) != 0u);
+    TEST_ASSERT_FALSE(hal_sim_motor_enabled(0));
+    TEST_ASSERT_EQUAL_INT32(0, hal_sim_motor_mv(0));
+    TEST_ASSERT_EQUAL_UINT32(DRIVE_QUEUE_DEPTH, st.queue_free);
+}
+
+/* ---- 5. parameters ------------------------------------------------------------ */
+
+static void test_parameters_are_checked_and_never_half_applied(void)
+{
+    int64_t v = 0, lo = 0, hi = 0;
+    plan_profile_t before = drive_config()->plan;
+
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_V_MAX, 1, &v));
+    TEST_ASSERT_EQUAL_INT64(before.v_max[1], v);
+    /* unknown id, axis out of range, axis on a scalar parameter */
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_get(DRIVE_PARAM_COUNT, 0, &v));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_get(DRIVE_PARAM_V_MAX, 3, &v));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_CORNER, 1, 1));
+    /* static ranges */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_range(DRIVE_PARAM_V_MAX, 0, &lo, &hi));
+    TEST_ASSERT_EQUAL_INT64(1000, lo);
+    TEST_ASSERT_EQUAL_INT64(SC_V_LIMIT, hi);
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_V_MAX, 0, 999));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_V_MAX, 0, SC_V_LIMIT + 1));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_CORNER, 0, 4));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_MBT_WINDOW, 0, 0));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_START_DELAY_MS, 0, -1));
+    /* the S-curve's a / j <= 3 s narrows the acceleration's range */
+    /* 1 m/s^3 with 10 m/s^2: a / j = 10 s, refused */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_range(DRIVE_PARAM_J_MAX, 0, &lo, &hi));
+    TEST_ASSERT_EQUAL_INT64(3333333334, lo);
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_J_MAX, 0, 1000000000));
+    TEST_ASSERT_EQUAL_INT64(before.j_max[0], drive_config()->plan.j_max[0]);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_A_MAX, 0, 2000000000));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_J_MAX, 0, 1000000000));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_range(DRIVE_PARAM_A_MAX, 0, &lo, &hi));
+    TEST_ASSERT_EQUAL_INT64(3000000000, hi);
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_J_MAX, 0, 999));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_A_MAX, 0, 3000000000));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_A_MAX, 0, 3000000001));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_TRAPEZOID));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_A_MAX, 0, 9000000000));
+    /* back to the S-curve would break a / j on axis 0: refused, unchanged */
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_SHAPE, 0, &v));
+    TEST_ASSERT_EQUAL_INT64(SC_SHAPE_TRAPEZOID, v);
+    /* a whole profile: all or nothing */
+    {
+        plan_profile_t bad = before;
+        bad.v_max[2] = 0;
+        TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_set_plan_profile(&bad));
+        TEST_ASSERT_EQUAL_INT64(9000000000, drive_config()->plan.a_max[0]);
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_set_plan_profile(&before));
+        TEST_ASSERT_EQUAL_MEMORY(&before, &drive_config()->plan, sizeof before);
+    }
+}
+
+static void test_parameters_are_refused_while_moving(void)
+{
+    int64_t v = 0;
+
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_STOP_DECEL, 0, 2000000000));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(2000000, 0, 20000000, true, 1));
+    /* queued but not yet polled: already busy */
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_BUSY, drive_param_set(DRIVE_PARAM_V_MAX, 0, 5000000));
+    run(50);
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_BUSY, drive_param_set(DRIVE_PARAM_V_MAX, 0, 5000000));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_BUSY, drive_set_plan_profile(&drive_config()->plan));
+    drive_stop();
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_BUSY, drive_param_set(DRIVE_PARAM_ARC_CHORD, 0, 500));
+    run(1000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_ARC_CHORD, 0, 500));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_V_MAX, 0, &v));
+    TEST_ASSERT_EQUAL_INT64(1000000000, v); /* the refused values never landed */
+}
+
+static void test_new_limits_are_what_the_planner_uses(void)
+{
+    plan_move_t m[2];
+    unsigned i;
+    int64_t total, start = -1;
+
+    /* 5 mm/s on X, a throughput limit of 2 ms per block, then two blocks */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_V_MAX, 0, 5000000));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_MIN_BLOCK_NS, 0, 2000000));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_MBT_WINDOW, 0, 4));
+    m[0] = move(1000000, 0, 50000000, false);
+    m[1] = move(1000000, 5000, 50000000, true);
+    total = estimate(m, 2, NULL);        /* with drive_config()->plan: the new one */
+    TEST_ASSERT_TRUE(total > 200000000); /* 1 mm at 5 mm/s */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 0, 50000000, false, 1));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 5000, 50000000, true, 2));
+    drive_poll();
+    drive_status(&st);
+    TEST_ASSERT_EQUAL_INT64(total, st.queued_time_ns);
+    for (i = 0; i < 40000 && st.blocks_done < 2; i++) {
+        run(1);
+        if (start < 0 && st.ref[0] != 0) {
+            start = i;
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT32(2, st.blocks_done);
+    /* executed: first motion to the end, whole ticks */
+    TEST_ASSERT_INT64_WITHIN(2, (total + TICK_NS - 1) / TICK_NS, (int64_t)i - start + 1);
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_block_queued_right_after_enable_runs);
+    RUN_TEST(test_enable_queue_poll_before_the_first_tick);
+    RUN_TEST(test_status_reports_planned_time_queued);
+    RUN_TEST(test_planned_time_counts_blocks_waiting_in_the_planner);
+    RUN_TEST(test_short_blocks_keep_the_interpolator_fed);
+    RUN_TEST(test_stop_decelerates_on_the_path_and_drops_the_job);
+    RUN_TEST(test_stop_while_accelerating_never_speeds_up);
+    RUN_TEST(test_stop_when_idle_or_disabled_changes_nothing);
+    RUN_TEST(test_estop_disables_at_once_and_needs_a_reset);
+    RUN_TEST(test_external_fault_stops_in_a_controlled_way);
+    RUN_TEST(test_amplifier_fault_reset_refused_while_present);
+    RUN_TEST(test_following_error_disables);
+    RUN_TEST(test_parameters_are_checked_and_never_half_applied);
+    RUN_TEST(test_parameters_are_refused_while_moving);
+    RUN_TEST(test_new_limits_are_what_the_planner_uses);
+    return UNITY_END();
+}
