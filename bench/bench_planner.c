@@ -2,8 +2,10 @@
  * Planner figures (host build, -O2, no sanitizers).
  *   bench_planner push N     N pushes on a full depth-64 ring (callgrind
  *                            counts bench_push: plan_push + its re-planning)
- *   bench_planner estimate N plan_estimate over N random blocks, prints
- *                            estimator_blocks_per_second
+ *   bench_planner estimate N [trapezoid]
+ *                            plan_estimate over N random blocks (S-curve, or
+ *                            trapezoid: deferred passes), prints
+ *                            estimator_blocks_per_second[_trapezoid]
  *   bench_planner check N HZ the random-path interpolator check of
  *                            tests/unit/test_interp.c at HZ, unsanitized
  *   bench_planner collinear N [DEPTH]
@@ -83,6 +85,9 @@ int main(int argc, char **argv)
         }
         return 0;
     }
+    if (!strcmp(mode, "estimate") && argc > 3 && !strcmp(argv[3], "trapezoid")) {
+        prof.shape = SC_SHAPE_TRAPEZOID;
+    }
     if (!strcmp(mode, "estimate")) {
         plan_move_t *mv = malloc(sizeof(*mv) * (size_t)n);
         plan_est_t *out = malloc(sizeof(*out) * (size_t)n);
@@ -110,7 +115,8 @@ int main(int argc, char **argv)
                 best = dt;
             }
         }
-        printf("estimator_blocks_per_second: %.0f blocks/s\n", (double)n / best);
+        printf("estimator_blocks_per_second%s: %.0f blocks/s\n",
+               prof.shape == SC_SHAPE_TRAPEZOID ? "_trapezoid" : "", (double)n / best);
         free(mv);
         free(out);
         return 0;

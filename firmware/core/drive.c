@@ -978,6 +978,10 @@ drive_result_t drive_queue_block(const drive_block_t *b)
     drv.hq[(drv.hq_head + drv.hq_count) % DRIVE_QUEUE_DEPTH] = h;
     drv.hq_count++;
     drv.queued_at = drv.tick_lo;
+    /* plan it now (main context, like drive_poll): the caller's status then
+     * counts its planned time; drive_poll decides when it is frozen */
+    while (drv.hq_count > 0 && feed_one()) {
+    }
     if (b->kind != DRIVE_BLOCK_DWELL) {
         for (i = 0; i < CORE_AXES; i++) {
             drv.q_end[i] = h.b.target[i];

@@ -23,10 +23,8 @@ size_t plan_profile_sizeof(void)
     return sizeof(plan_profile_t);
 }
 
-static void est_record(const plan_seg_t *seg, const plan_move_t *moves, plan_est_t *out)
+static void est_record(const plan_seg_t *seg, const plan_move_t *moves, plan_est_t *r)
 {
-    plan_est_t *r = &out[seg->tag];
-
     r->len_nm = seg->len;
     r->tag = moves[seg->tag].tag;
     r->flags = seg->flags;
@@ -46,12 +44,23 @@ static void est_record(const plan_seg_t *seg, const plan_move_t *moves, plan_est
     r->t_mbt_ns = (seg->flags & PLAN_BF_MBT) ? seg->total_ns : 0;
 }
 
+/* Pop the oldest block and record its frozen plan, with its final speed
+ * limit (a smoothed-corner cap may have lowered it after it was queued). */
+static void est_pop(plan_t *p, const plan_move_t *moves, plan_est_t *out)
+{
+    plan_seg_t seg;
+    int64_t vmax = plan_peek(p, 0)->lim.v_max;
+
+    (void)plan_pop(p, &seg);
+    out[seg.tag].v_max = vmax;
+    est_record(&seg, moves, &out[seg.tag]);
+}
+
 int plan_estimate(const plan_profile_t *prof, const pos_nm_t start[CORE_AXES],
                   const plan_move_t *moves, uint32_t n, plan_block_t *storage, uint16_t depth,
                   plan_est_t *out, uint32_t *bad_index)
 {
     plan_t p;
-    plan_seg_t seg;
     plan_result_t rc;
     uint32_t i;
 
@@ -65,13 +74,13 @@ int plan_estimate(const plan_profile_t *prof, const pos_nm_t start[CORE_AXES],
     if (rc != PLAN_OK) {
         return rc;
     }
+    plan_set_deferred(&p, true); /* same segments, passes batched */
     for (i = 0; i < n; i++) {
         plan_move_t m = moves[i];
         m.tag = i;
         rc = plan_push(&p, &m);
         if (rc == PLAN_E_FULL) {
-            (void)plan_pop(&p, &seg);
-            est_record(&seg, moves, out);
+            est_pop(&p, moves, out);
             rc = plan_push(&p, &m);
         }
         if (rc == PLAN_SKIPPED) {
@@ -86,12 +95,10 @@ int plan_estimate(const plan_profile_t *prof, const pos_nm_t start[CORE_AXES],
                 *bad_index = i;
             }
             return rc;
-        } else {
-            out[i].v_max = plan_peek(&p, (uint16_t)(plan_count(&p) - 1))->lim.v_max;
         }
     }
-    while (plan_pop(&p, &seg) == PLAN_OK) {
-        est_record(&seg, moves, out);
+    while (plan_count(&p) > 0) {
+        est_pop(&p, moves, out);
     }
     return PLAN_OK;
 }

@@ -37,7 +37,7 @@ typedef struct {
     int64_t v_entry; /* nm/s */
     int64_t v_peak;  /* cruise (highest) speed, nm/s */
     int64_t v_exit;  /* nm/s */
-    int64_t v_max;   /* the block's speed limit (feed, axes, mbt), nm/s */
+    int64_t v_max;   /* the block's final speed limit (feed, axes, mbt, corner cap), nm/s */
     int64_t t_acc_ns;
     int64_t t_cruise_ns;
     int64_t t_dec_ns;

@@ -75,6 +75,7 @@ void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES])
     p->tail = 0;
     p->count = 0;
     p->planned = 0;
+    p->fresh = 0;
     for (i = 0; i < CORE_AXES; i++) {
         p->pos[i] = pos[i];
         p->last_ratio_q62[i] = 0;
@@ -106,6 +107,7 @@ plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
     p->prof = *prof;
     p->ring = storage;
     p->depth = depth;
+    p->deferred = false;
     plan_reset(p, start);
     return PLAN_OK;
 }
@@ -154,8 +156,11 @@ static int64_t pl_q30(int64_t r)
 }
 
 /* Junction speed limit between the last queued move and a new one (nm/s,
- * INT64_MAX when the rule sets no limit). */
-static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2)
+ * INT64_MAX when the rule sets no limit). *smooth receives the smoothed-corner
+ * speed of the junction for the block cap (PLAN_CORNER_SMOOTH only, before
+ * the reversal clamp; INT64_MAX when the junction adds no cap: other rules,
+ * collinear, reversal, or a zero corner speed, which is a stop). */
+static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2, int64_t *smooth)
 {
     const plan_profile_t *pr = &p->prof;
     const int64_t *u1 = p->last_ratio_q62;
@@ -163,6 +168,7 @@ static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2)
     bool straight = true;
     int i;
 
+    *smooth = INT64_MAX;
     for (i = 0; i < CORE_AXES; i++) {
         if (((u1[i] > 0 && u2[i] < 0) || (u1[i] < 0 && u2[i] > 0)) &&
             pl_abs(pl_q30(u1[i])) >= PLAN_REVERSAL_MIN_Q30 &&
@@ -198,6 +204,9 @@ static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2)
                     v = pl_min(v, (int64_t)fx_isqrt64((uint64_t)v2));
                 }
             }
+        }
+        if (v > 0) {
+            *smooth = v;
         }
         break;
     }
@@ -236,10 +245,11 @@ static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2)
 }
 
 /* Reverse and forward passes over the blocks whose entry can still change:
- * indices planned .. count-1 (index 0, the oldest, is fixed). */
+ * indices planned .. count-1 (index 0, the oldest, is fixed). Blocks from
+ * index `fresh` on were queued since the last pass (placeholder entries). */
 static void pl_replan(plan_t *p)
 {
-    uint16_t i, first;
+    uint16_t i, first, from;
     int64_t exit = 0;
 
     if (p->planned < 1) {
@@ -247,23 +257,30 @@ static void pl_replan(plan_t *p)
     }
     if (p->count < 2) {
         p->planned = p->count;
+        p->fresh = p->count;
         return;
     }
     first = p->planned;
-    /* reverse: newest back to the first changeable block */
+    from = (uint16_t)(first - 1);
+    /* reverse: newest back to the first changeable block; an entry that
+     * comes out unchanged (of a block planned by an earlier pass) leaves
+     * every entry before it unchanged */
     for (i = p->count; i-- > first;) {
         plan_block_t *b = pl_at(p, i);
         int64_t e = pl_min(b->v_junction, sc_reach(exit, b->len, &b->lim));
-        if (e == b->v_entry && i + 1 < p->count) {
-            break; /* unchanged: nothing before it changes */
+        if (e == b->v_entry && i < p->fresh) {
+            from = i;
+            break;
         }
         b->v_entry = e;
         exit = e;
     }
-    /* forward: from the last final block; a block whose entry is at its
-     * junction limit, or limited by accelerating from its predecessor, is
-     * final and so is everything before it */
-    for (i = (uint16_t)(first - 1); i + 1 < p->count; i++) {
+    p->fresh = p->count;
+    /* forward, from the block before the first changed entry (before it
+     * nothing changed, so nothing there became final either): a block whose
+     * entry is at its junction limit, or limited by accelerating from its
+     * predecessor, is final and so is everything before it */
+    for (i = from; i + 1 < p->count; i++) {
         plan_block_t *b = pl_at(p, i);
         plan_block_t *n = pl_at(p, (uint16_t)(i + 1));
         if (b->v_entry < n->v_entry) {
@@ -279,10 +296,34 @@ static void pl_replan(plan_t *p)
     }
 }
 
+/* Deferred passes need a reach that never falls when its start speed rises
+ * (then an entry, once final, stays final whatever comes later): true of
+ * the trapezoid, not of the S-curve (planner.h). */
+static bool pl_deferred(const plan_t *p)
+{
+    return p->deferred && p->prof.shape == SC_SHAPE_TRAPEZOID;
+}
+
+void plan_set_deferred(plan_t *p, bool on)
+{
+    p->deferred = on;
+    if (!on && p->fresh != p->count) {
+        pl_replan(p);
+    }
+}
+
+void plan_update(plan_t *p)
+{
+    if (p->fresh != p->count) {
+        pl_replan(p);
+    }
+}
+
 plan_result_t plan_push(plan_t *p, const plan_move_t *m)
 {
     plan_block_t *b;
     int64_t d[CORE_AXES], ratio[CORE_AXES], len = 0, vmax, amax, jmax, vj;
+    int64_t vc = INT64_MAX; /* smoothed-corner speed of the entry junction */
     uint8_t flags = 0;
     int i;
 
@@ -335,11 +376,14 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         b->lim.j_max = p->prof.j_max[0];
         b->lim.shape = p->prof.shape;
         b->v_junction = 0;
+        b->v_corner_in = INT64_MAX;
         b->v_entry = 0;
         b->flags = PLAN_BF_DWELL | PLAN_BF_EXACT_STOP;
         p->last_stop = true;
         p->count++;
-        pl_replan(p);
+        if (!pl_deferred(p)) {
+            pl_replan(p);
+        }
         return PLAN_OK;
     }
 
@@ -386,7 +430,19 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     if (p->last_stop || p->last_len == 0) {
         vj = 0;
     } else {
-        vj = pl_min(pl_min(vmax, p->last_vmax), pl_corner(p, ratio, len));
+        vj = pl_min(pl_min(vmax, p->last_vmax), pl_corner(p, ratio, len, &vc));
+        /* smoothed corner: the previous move (the newest queued block, if
+         * it has not been popped) now knows its exit corner; its speed is
+         * capped by the larger of its two corner speeds. The cap is never
+         * below either junction speed, so no planned entry changes. */
+        if (vc < INT64_MAX && p->count > 0) {
+            plan_block_t *q = pl_at(p, (uint16_t)(p->count - 1));
+            int64_t cap = (q->v_corner_in > vc) ? q->v_corner_in : vc;
+            if (cap < q->lim.v_max) {
+                q->lim.v_max = cap;
+                q->flags = (uint8_t)((q->flags & ~PLAN_BF_MBT) | PLAN_BF_CORNER);
+            }
+        }
     }
 
     for (i = 0; i < CORE_AXES; i++) {
@@ -403,13 +459,16 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     b->lim.j_max = jmax;
     b->lim.shape = p->prof.shape;
     b->v_junction = vj;
+    b->v_corner_in = vc;
     b->v_entry = (p->count == 0) ? pl_min(p->next_entry, vj) : 0;
     b->flags = flags;
     p->last_len = len;
     p->last_vmax = vmax;
     p->last_stop = (flags & PLAN_BF_EXACT_STOP) != 0;
     p->count++;
-    pl_replan(p);
+    if (!pl_deferred(p)) {
+        pl_replan(p);
+    }
     return PLAN_OK;
 }
 
@@ -424,6 +483,9 @@ plan_result_t plan_pop(plan_t *p, plan_seg_t *out)
     }
     if (p->count == 0) {
         return PLAN_E_EMPTY;
+    }
+    if (p->count > 1 && p->planned < 2 && p->fresh != p->count) {
+        pl_replan(p); /* deferred passes: the next entry is not final yet */
     }
     b = pl_at(p, 0);
     exit = (p->count > 1) ? pl_at(p, 1)->v_entry : 0;
@@ -454,6 +516,9 @@ plan_result_t plan_pop(plan_t *p, plan_seg_t *out)
     p->count--;
     if (p->planned > 0) {
         p->planned--;
+    }
+    if (p->fresh > 0) {
+        p->fresh--;
     }
     if (p->planned == 0 && p->count > 0) {
         p->planned = 1; /* the new oldest block's entry is fixed */

@@ -25,7 +25,21 @@
  *       with du = u2 - u1 and dv_i = profile.corner_dv[i] (nm/s).
  *   PLAN_CORNER_SMOOTH         smoothed corner (imitates e.g. an iTNC530):
  *       v = min_i sqrt(a_c_i * l / |du_i|), l = (len1 + len2) / 2,
- *       a_c_i = profile.corner_acc[i] (nm/s^2).
+ *       a_c_i = profile.corner_acc[i] (nm/s^2). The control rounds each
+ *       corner over half of each neighbouring block, so no part of a block
+ *       lies outside a rounding zone: the block's speed is also capped,
+ *         v_max(k) = min(v_max(k), max(vc_in(k), vc_out(k))),
+ *       vc_in/vc_out the smoothed speeds v of its entry and exit junctions
+ *       before the reversal/stop/v_max clamps. A junction adds no cap
+ *       (+inf) when it is collinear (du = 0), an axis reversal, an exact
+ *       stop, next to a dwell, the start of the job, or when its speed is 0
+ *       (a_c_i = 0: a stop); so does the exit of a block with no next block
+ *       yet. A queued block's cap falls when the next move is pushed; a
+ *       popped block is final, so the cap uses only the blocks known when
+ *       the block is popped (plan_estimate pops exactly as the drive does,
+ *       so estimate == execution holds). The cap is never below either
+ *       junction speed of the block, so it changes only the block's own
+ *       profile, never a planned entry speed (flag PLAN_BF_CORNER).
  *   PLAN_CORNER_STOP           every junction is an exact stop.
  * In every rule: an axis whose direction component changes sign (both
  * at least PLAN_REVERSAL_MIN_Q30 = 1/16 in magnitude: a smaller sign change,
@@ -56,6 +70,18 @@
  * acceleration from a planned predecessor), exactly as a new block can only
  * raise speeds. The oldest block's entry speed is fixed (it is the exit of
  * the block that was popped before it, or 0).
+ *
+ * S-curve reach. With the acceleration zero at both ends of a block, the
+ * speed reachable within a distance is NOT monotone in the start speed
+ * (dist(v, w) = (v + w) sqrt((w - v)/J) in the reduced case: from w/2 the
+ * speed w needs 6 % more distance than from rest). A later block can then
+ * lower the reverse limit of a block whose entry was already marked final;
+ * the planner keeps the final entry (the plan stays what the estimator
+ * computes and the interpolator executes, and the block's profile is
+ * scaled to its length by the interpolator), so in S-curve mode the
+ * incremental plan can differ slightly from a from-scratch plan after long
+ * random paths. Trapezoidal reach sqrt(v^2 + 2 A d) is monotone and the
+ * incremental plan equals the from-scratch plan.
  *
  * plan_pop() freezes the oldest block: its exit speed (the next block's
  * entry, or 0 if it is the only one) becomes final, its profile is computed
@@ -133,6 +159,7 @@ typedef struct {
 #define PLAN_BF_DWELL      0x02u /* dwell block                                */
 #define PLAN_BF_MBT        0x04u /* v_max set by the minimum block time        */
 #define PLAN_BF_PLANNED    0x08u /* entry final (look-ahead bookkeeping)       */
+#define PLAN_BF_CORNER     0x10u /* v_max set by the smoothed-corner block cap */
 
 /* One ring entry (opaque to users; sized for the caller's storage array). */
 typedef struct {
@@ -142,8 +169,10 @@ typedef struct {
     int64_t len;                  /* nm (0 for a dwell)                      */
     int64_t dwell_ns;
     sc_limits_t lim;    /* block limits (v_max includes the cap)   */
-    int64_t v_junction; /* entry speed limit, nm/s                 */
-    int64_t v_entry;    /* planned entry speed, nm/s               */
+    int64_t v_junction;  /* entry speed limit, nm/s                 */
+    int64_t v_entry;     /* planned entry speed, nm/s               */
+    int64_t v_corner_in; /* smoothed-corner speed of the entry
+                          * junction (block cap), INT64_MAX: none   */
     uint32_t tag;
     uint8_t flags;
 } plan_block_t;
@@ -168,6 +197,9 @@ typedef struct {
     uint16_t tail;                     /* oldest block                              */
     uint16_t count;                    /* blocks queued                             */
     uint16_t planned;                  /* blocks from the tail whose entry is final */
+    uint16_t fresh;                    /* blocks planned by the last pass (the
+                                        * rest were queued after it)             */
+    bool deferred;                     /* passes deferred to plan_pop/update   */
     pos_nm_t pos[CORE_AXES];           /* end point of the last queued block */
     int64_t last_ratio_q62[CORE_AXES]; /* direction of the last move   */
     int64_t last_len;                  /* length of the last move (0: none)  */
@@ -195,6 +227,21 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m);
 
 /* Freeze and remove the oldest block into *out. Main. */
 plan_result_t plan_pop(plan_t *p, plan_seg_t *out);
+
+/* Deferred passes (off after plan_init; plan_estimate turns it on). Only
+ * with SC_SHAPE_TRAPEZOID (an S-curve profile ignores it: see "S-curve reach"
+ * above). When on,
+ * plan_push only queues the block and computes its limits; the reverse and
+ * forward passes run in plan_pop when the oldest block's exit is not final
+ * yet (planned < 2), or in plan_update, once for all blocks queued since the
+ * last pass. Popped segments are identical to those of the immediate mode
+ * (a final entry never changes; otherwise the passes run first), but the
+ * stored entries, `planned` and plan_queued_ns() are only up to date after
+ * plan_update(). Turning it off runs the pending passes. Main. */
+void plan_set_deferred(plan_t *p, bool on);
+
+/* Run the pending passes (deferred mode); nothing to do otherwise. Main. */
+void plan_update(plan_t *p);
 
 /* Forget every queued block (after a stop); the position becomes `pos`. */
 void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES]);

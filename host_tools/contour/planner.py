@@ -25,7 +25,9 @@ Profile options (see docs/planner.md for the rules):
 - ``corner``: ``"junction-deviation"`` (the drive's default, with
   ``junction_deviation_mm``), ``"velocity-step"`` (per-axis ``corner_dv_mm_s``),
   ``"smoothed-corner"`` (per-axis ``corner_acc_mm_s2``: v = min_i sqrt(a_i l /
-  |du_i|)) or ``"exact-stop"``. Every rule stops at an axis reversal.
+  |du_i|), and each block runs no faster than the larger of its two corner
+  speeds: blocks["corner_capped"]) or ``"exact-stop"``. Every rule stops at an
+  axis reversal.
 - ``min_block_time_s`` with ``block_time_rule``: ``"throughput"`` (a block runs
   no faster than the mean length of its last ``mbt_window`` blocks per
   min_block_time: runs of short blocks take min_block_time each, a single
@@ -77,6 +79,7 @@ _ERRORS = {
 BF_EXACT_STOP = 0x01
 BF_DWELL = 0x02
 BF_MBT = 0x04
+BF_CORNER = 0x10
 EST_SKIPPED = 0x100
 MOVE_EXACT_STOP = 0x01
 
@@ -350,7 +353,8 @@ class Planner:
     def _result(self, out: np.ndarray) -> EstimateResult:
         blocks = np.zeros(
             out.shape[0],
-            dtype=[(f, "f8") for f in BLOCK_FIELDS] + [("skipped", "?"), ("mbt_limited", "?")],
+            dtype=[(f, "f8") for f in BLOCK_FIELDS]
+            + [("skipped", "?"), ("mbt_limited", "?"), ("corner_capped", "?")],
         )
         blocks["length_mm"] = out["len_nm"] / NM_PER_MM
         for src, dst in (
@@ -370,6 +374,7 @@ class Planner:
             blocks[dst] = out[src] / NS_PER_S
         blocks["skipped"] = (out["flags"] & EST_SKIPPED) != 0
         blocks["mbt_limited"] = (out["flags"] & BF_MBT) != 0
+        blocks["corner_capped"] = (out["flags"] & BF_CORNER) != 0
         total_ns = int(out["t_total_ns"].sum())
         tick_ns = NS_PER_S // self.profile.tick_hz
         ticks = -(-total_ns // tick_ns)

@@ -53,6 +53,25 @@ def test_corner_rules_and_exact_stop():
     assert st.total_s > jd.total_s
 
 
+def test_smoothed_corner_caps_block_speed():
+    # staircase of 0.3 mm X/Y blocks: every inner block runs at its corner
+    # speed sqrt(a_c l / |du|) from end to end, t = l / v_c
+    n = 100
+    i = np.arange(n)
+    pts = np.stack([((i + 2) // 2) * 0.3, ((i + 1) // 2) * 0.3, np.zeros(n)], axis=1)
+    prof = _prof(shape="trapezoid", corner="smoothed-corner", corner_acc_mm_s2=(186, 57, 186))
+    r = Planner(prof).estimate(pts, 15000)
+    vc = math.sqrt(57 * 0.3)
+    inner = r.blocks[1:-1]
+    assert np.allclose(inner["v_max_mm_s"], vc, rtol=1e-6)
+    assert np.allclose(inner["t_total_s"], 0.3 / vc, rtol=1e-6)
+    assert inner["corner_capped"].all()
+    assert not r.blocks["corner_capped"][0] and not r.blocks["corner_capped"][-1]
+    # other rules never cap
+    jd = Planner(_prof(shape="trapezoid")).estimate(pts, 15000)
+    assert not jd.blocks["corner_capped"].any()
+
+
 def test_min_block_time_throughput_and_cap():
     # camargo2017-like staircase: 2000 collinear 0.01 mm blocks at F15000
     n = 2000

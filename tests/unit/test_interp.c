@@ -144,6 +144,32 @@ static void test_random_path_trapezoid(void)
     TEST_ASSERT_TRUE(r.total_ticks_ok);
 }
 
+/* Smoothed-corner rule with its block cap (each block capped by the larger
+ * of its two corner speeds, known only once the next block is queued): the
+ * drive-style push-before-pop loop still executes exactly the estimate. */
+static void test_random_path_smooth_corner(void)
+{
+    pc_result_t r;
+    plan_profile_t prof = pc_profile(SC_SHAPE_TRAPEZOID);
+    int i;
+    prof.corner = PLAN_CORNER_SMOOTH;
+    for (i = 0; i < CORE_AXES; i++) {
+        prof.corner_acc[i] = 150000000; /* 150 mm/s^2 */
+    }
+    pc_run_profile(20000, 250000, 4242u, &prof, &r);
+    if (getenv("INTERP_REPORT")) {
+        pc_print("interp_smooth_trapezoid_4khz", &r);
+        printf("interp_smooth_corner_capped: %u blocks\n", r.corner_capped);
+    }
+    TEST_ASSERT_EQUAL_UINT32(20000, r.blocks);
+    TEST_ASSERT_TRUE(r.corner_capped > 2000); /* the cap is exercised */
+    TEST_ASSERT_EQUAL_UINT32(0, r.limit_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.time_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.underruns);
+    TEST_ASSERT_TRUE(r.final_exact);
+    TEST_ASSERT_TRUE(r.total_ticks_ok);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -151,5 +177,6 @@ int main(void)
     RUN_TEST(test_geometry_and_feed_forward);
     RUN_TEST(test_random_path_100k);
     RUN_TEST(test_random_path_trapezoid);
+    RUN_TEST(test_random_path_smooth_corner);
     return UNITY_END();
 }

@@ -200,10 +200,137 @@ static void test_exact_stop_vs_continuous(void)
     TEST_ASSERT_TRUE(stop > cont + 50000000); /* each stop costs > 25 ms here */
 }
 
-/* ---- minimum block time ----------------------------------------------------------- */
-
 static plan_move_t moves[4096];
 static plan_est_t outs[4096];
+
+/* ---- smoothed corner: block speed capped by its corner speeds --------------------- */
+
+static plan_profile_t smooth_profile(void)
+{
+    plan_profile_t s = base_profile(SC_SHAPE_TRAPEZOID, PLAN_CORNER_SMOOTH);
+    s.corner_acc[0] = 186 * MMS;
+    s.corner_acc[1] = 57 * MMS;
+    s.corner_acc[2] = 186 * MMS;
+    return s;
+}
+
+/* A staircase of 0.3 mm X and Y blocks (90 degree corners, no reversal):
+ * both corners of every inner block have v_c = min_i sqrt(a_c,i l / |du_i|)
+ * = sqrt(57 mm/s^2 * 0.3 mm), so the block runs at v_c end to end, t = l /
+ * v_c (without the cap it accelerates in its middle at 2 m/s^2). */
+static void test_smooth_cap_staircase(void)
+{
+    plan_profile_t s = smooth_profile();
+    double vc = sqrt(57e6 * 300000.0), t = 300000.0 / vc * 1e9;
+    int i;
+    for (i = 0; i < 200; i++) {
+        int64_t x = ((i + 2) / 2) * 300000, y = ((i + 1) / 2) * 300000;
+        moves[i] = mv(x, y, 0, 250);
+    }
+    run(&s, moves, 200, outs);
+    for (i = 1; i < 199; i++) {
+        TEST_ASSERT_TRUE(fabs((double)outs[i].v_max - vc) <= 2);
+        TEST_ASSERT_TRUE(fabs((double)outs[i].v_peak - vc) <= 2);
+        TEST_ASSERT_TRUE(fabs((double)outs[i].t_total_ns - t) <= 1e-6 * t);
+        TEST_ASSERT_TRUE(outs[i].flags & PLAN_BF_CORNER);
+        TEST_ASSERT_EQUAL_INT64(0, outs[i].t_acc_ns);
+    }
+    /* the first block (start of the job) and the last (no next block) have
+     * one corner that adds no cap: they keep the feed */
+    TEST_ASSERT_EQUAL_INT64(250 * MMS, outs[0].v_max);
+    TEST_ASSERT_EQUAL_INT64(250 * MMS, outs[199].v_max);
+    TEST_ASSERT_FALSE(outs[0].flags & PLAN_BF_CORNER);
+    TEST_ASSERT_TRUE((double)outs[0].v_peak > 2 * vc);
+}
+
+/* The cap is the LARGER of the two corner speeds: a block after a 90 degree
+ * corner from a long block (l = (5 + 0.3) / 2 mm) followed by a 10 degree
+ * corner (l = 0.3 mm) runs at the first corner's speed in its middle. */
+static void test_smooth_cap_is_larger_corner(void)
+{
+    plan_profile_t s = smooth_profile();
+    double a = 10.0 * M_PI / 180.0;
+    int64_t dx = (int64_t)llround(300000 * sin(a)), dy = (int64_t)llround(300000 * cos(a));
+    plan_move_t m[4] = {mv(5 * MM, 0, 0, 250), mv(5 * MM, 300000, 0, 250),
+                        mv(5 * MM + dx, 300000 + dy, 0, 250),
+                        mv(5 * MM + dx, 300000 + dy + 5 * MM, 0, 250)};
+    plan_est_t o[4];
+    double ux = dx / hypot((double)dx, (double)dy), uy = dy / hypot((double)dx, (double)dy);
+    double vin = sqrt(57e6 * 2650000.0); /* Y turned fully: |du_y| = 1 (a_c,Y) */
+    double vout = fmin(sqrt(186e6 * 300000.0 / ux), sqrt(57e6 * 300000.0 / (1 - uy)));
+    TEST_ASSERT_TRUE(vin > vout * 1.05 || vout > vin * 1.05);
+    run(&s, m, 4, o);
+    TEST_ASSERT_TRUE(fabs((double)o[1].v_max - fmax(vin, vout)) <= 1e-5 * fmax(vin, vout) + 2);
+    TEST_ASSERT_TRUE(o[1].flags & PLAN_BF_CORNER);
+    /* (the min of the two would be vin: at least 5 % lower) */
+    TEST_ASSERT_TRUE((double)o[1].v_max > 1.05 * fmin(vin, vout));
+}
+
+/* Junctions that add no cap, and the cap arriving with the next block. */
+static void test_smooth_cap_rules(void)
+{
+    plan_profile_t s = smooth_profile();
+    plan_move_t a = mv(10 * MM, 0, 0, 250), b = mv(10 * MM, 300000, 0, 250),
+                c = mv(10 * MM + 300000, 300000, 0, 250);
+    plan_seg_t seg;
+    const plan_block_t *q;
+    double vc = sqrt(57e6 * 300000.0);
+
+    /* the cap of a queued block falls when the next block is pushed */
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 8, &s, origin));
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pl, &a));
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pl, &b));
+    q = plan_peek(&pl, 1);
+    TEST_ASSERT_EQUAL_INT64(250 * MMS, q->lim.v_max); /* no next block yet */
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pl, &c));
+    TEST_ASSERT_TRUE(fabs((double)q->lim.v_max - sqrt(57e6 * 5150000.0)) <= 3);
+    TEST_ASSERT_TRUE(q->flags & PLAN_BF_CORNER);
+    TEST_ASSERT_TRUE(plan_peek(&pl, 1)->v_entry <= q->lim.v_max);
+
+    /* popped before its next block is known: its plan is final, uncapped */
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 8, &s, origin));
+    plan_push(&pl, &a);
+    plan_push(&pl, &b);
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&pl, &seg));
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&pl, &seg));
+    TEST_ASSERT_TRUE((double)seg.prof.vp > 2 * vc);
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pl, &c)); /* nothing to cap */
+    TEST_ASSERT_EQUAL_INT64(250 * MMS, plan_peek(&pl, 0)->lim.v_max);
+
+    /* collinear entry (0.3 mm X after X), exact stop, reversal: no cap */
+    {
+        plan_move_t m[4] = {mv(10 * MM, 0, 0, 250), mv(10 * MM + 300000, 0, 0, 250),
+                            mv(10 * MM + 300000, 300000, 0, 250),
+                            mv(10 * MM + 600000, 300000, 0, 250)};
+        plan_est_t o[4];
+        run(&s, m, 4, o);
+        TEST_ASSERT_EQUAL_INT64(250 * MMS, o[1].v_max); /* collinear in, corner out */
+        TEST_ASSERT_TRUE(o[2].flags & PLAN_BF_CORNER);  /* corner in and out */
+        m[2].flags = PLAN_MOVE_EXACT_STOP;
+        run(&s, m, 4, o);
+        TEST_ASSERT_EQUAL_INT64(250 * MMS, o[2].v_max); /* corner in, stop out */
+        m[2].flags = 0;
+        m[3] = mv(10 * MM + 300000, 0, 0, 250); /* Y reverses */
+        run(&s, m, 4, o);
+        TEST_ASSERT_EQUAL_INT64(250 * MMS, o[2].v_max); /* corner in, reversal out */
+        TEST_ASSERT_EQUAL_INT64(0, o[2].v_exit);
+    }
+    /* other rules never cap */
+    {
+        plan_profile_t j = base_profile(SC_SHAPE_TRAPEZOID, PLAN_CORNER_JD);
+        int i;
+        for (i = 0; i < 40; i++) {
+            moves[i] = mv(((i + 2) / 2) * 300000, ((i + 1) / 2) * 300000, 0, 250);
+        }
+        run(&j, moves, 40, outs);
+        for (i = 0; i < 40; i++) {
+            TEST_ASSERT_EQUAL_INT64(250 * MMS, outs[i].v_max);
+        }
+    }
+}
+
+/* ---- minimum block time ----------------------------------------------------------- */
+
 
 /* Trapezoidal mode: in S-curve mode the acceleration is zero at every block
  * boundary, so 0.01 mm blocks cannot reach 22 mm/s within a 64-block
@@ -346,6 +473,114 @@ static void test_incremental_equals_scratch(void)
     }
 }
 
+/* The same with the trapezoid (monotone reach) for every rule, long runs,
+ * immediate and deferred passes; deferred: compared every 7th push only
+ * (after plan_update), so passes run over batches of new blocks and pops
+ * happen on stale queues in between. */
+static void test_incremental_equals_scratch_trapezoid(void)
+{
+    int corner, deferred;
+    for (deferred = 0; deferred < 2; deferred++) {
+        for (corner = 0; corner < 4; corner++) {
+            plan_profile_t s = base_profile(SC_SHAPE_TRAPEZOID, (uint8_t)corner);
+            plan_seg_t seg;
+            pos_nm_t pos[3] = {0, 0, 0};
+            int k;
+            s.min_block_ns = (corner & 1) ? 450000 : 0;
+            s.mbt_window = 16;
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 64, &s, origin));
+            plan_set_deferred(&pl, deferred != 0);
+            for (k = 0; k < 8000; k++) {
+                plan_move_t m;
+                int ax;
+                int64_t scale = (rnd() % 10 == 0) ? 20 * MM : (int64_t)(rnd() % 500000) + 1000;
+                for (ax = 0; ax < 3; ax++) {
+                    pos[ax] += (int64_t)(rnd() % 2001) * scale / 1000 - scale;
+                }
+                m = mv(pos[0], pos[1], pos[2], 20 + (int64_t)(rnd() % 300));
+                m.flags = (rnd() % 50 == 0) ? PLAN_MOVE_EXACT_STOP : 0;
+                if (plan_free_slots(&pl) == 0) {
+                    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&pl, &seg));
+                }
+                (void)plan_push(&pl, &m);
+                if (!deferred || k % 7 == 0) {
+                    plan_update(&pl);
+                    check_against_scratch(&pl);
+                }
+            }
+        }
+    }
+}
+
+/* Deferred passes (what plan_estimate uses) freeze exactly the segments of
+ * the immediate passes (what the drive uses), on long random trapezoid paths
+ * with every rule and depths 64 and 256; an S-curve profile ignores the
+ * option (its reach is not monotone: planner.h). */
+static void test_deferred_pops_equal_immediate(void)
+{
+    static plan_block_t sa[256], sb[256];
+    int corner, depth;
+    for (depth = 64; depth <= 256; depth *= 4) {
+        for (corner = 0; corner < 4; corner++) {
+            plan_profile_t s = base_profile(SC_SHAPE_TRAPEZOID, (uint8_t)corner);
+            plan_t a, b;
+            plan_seg_t ga, gb;
+            pos_nm_t pos[3] = {0, 0, 0};
+            int k, pops = 0;
+            s.min_block_ns = (corner & 1) ? 0 : 450000;
+            s.mbt_window = 16;
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&a, sa, (uint16_t)depth, &s, origin));
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&b, sb, (uint16_t)depth, &s, origin));
+            plan_set_deferred(&b, true);
+            for (k = 0; k < 12000 + depth; k++) {
+                plan_move_t m;
+                int ax;
+                int64_t scale = (rnd() % 10 == 0) ? 20 * MM : (int64_t)(rnd() % 500000) + 1000;
+                if (k % 3000 < 1500) {
+                    scale = 100000; /* runs of collinear 0.1 mm blocks */
+                    pos[0] += scale;
+                } else {
+                    for (ax = 0; ax < 3; ax++) {
+                        pos[ax] += (int64_t)(rnd() % 2001) * scale / 1000 - scale;
+                    }
+                }
+                m = mv(pos[0], pos[1], pos[2], 20 + (int64_t)(rnd() % 300));
+                m.flags = (rnd() % 50 == 0) ? PLAN_MOVE_EXACT_STOP : 0;
+                if (k >= 12000 || plan_free_slots(&a) == 0) {
+                    TEST_ASSERT_EQUAL_INT(plan_pop(&a, &ga), plan_pop(&b, &gb));
+                    TEST_ASSERT_EQUAL_INT64(ga.prof.v0, gb.prof.v0);
+                    TEST_ASSERT_EQUAL_INT64(ga.prof.vp, gb.prof.vp);
+                    TEST_ASSERT_EQUAL_INT64(ga.prof.v1, gb.prof.v1);
+                    TEST_ASSERT_EQUAL_INT64(ga.total_ns, gb.total_ns);
+                    pops++;
+                }
+                if (k < 12000) {
+                    TEST_ASSERT_EQUAL_INT(plan_push(&a, &m), plan_push(&b, &m));
+                }
+            }
+            TEST_ASSERT_TRUE(pops > 11000);
+        }
+    }
+    /* S-curve: the option is ignored, every push re-plans at once */
+    {
+        plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+        plan_move_t m1 = mv(10 * MM, 0, 0, 100), m2 = mv(20 * MM, 0, 0, 100);
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 8, &s, origin));
+        plan_set_deferred(&pl, true);
+        plan_push(&pl, &m1);
+        plan_push(&pl, &m2);
+        TEST_ASSERT_EQUAL_INT64(100 * MMS, plan_peek(&pl, 1)->v_entry);
+        s.shape = SC_SHAPE_TRAPEZOID; /* trapezoid: entries wait for the passes */
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 8, &s, origin));
+        plan_set_deferred(&pl, true);
+        plan_push(&pl, &m1);
+        plan_push(&pl, &m2);
+        TEST_ASSERT_EQUAL_INT64(0, plan_peek(&pl, 1)->v_entry);
+        plan_update(&pl);
+        TEST_ASSERT_EQUAL_INT64(100 * MMS, plan_peek(&pl, 1)->v_entry);
+    }
+}
+
 /* ---- queue accounting and errors -------------------------------------------------- */
 
 static void test_queue_time_slots_and_errors(void)
@@ -430,10 +665,15 @@ int main(void)
     RUN_TEST(test_90_degree_junction_rules);
     RUN_TEST(test_reversal_stops);
     RUN_TEST(test_exact_stop_vs_continuous);
+    RUN_TEST(test_smooth_cap_staircase);
+    RUN_TEST(test_smooth_cap_is_larger_corner);
+    RUN_TEST(test_smooth_cap_rules);
     RUN_TEST(test_tiny_blocks_at_min_block_time);
     RUN_TEST(test_scurve_micro_blocks_are_slow);
     RUN_TEST(test_short_block_between_long_ones_not_slowed);
     RUN_TEST(test_incremental_equals_scratch);
+    RUN_TEST(test_incremental_equals_scratch_trapezoid);
+    RUN_TEST(test_deferred_pops_equal_immediate);
     RUN_TEST(test_queue_time_slots_and_errors);
     RUN_TEST(test_axis_limits_projected);
     return UNITY_END();

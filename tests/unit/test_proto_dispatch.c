@@ -188,7 +188,8 @@ static void test_replayed_request_is_answered_not_executed(void)
     TEST_ASSERT_EQUAL_MEMORY(first, out, r1);
     TEST_ASSERT_EQUAL_UINT32(1, d.stats.replayed);
     s = state();
-    TEST_ASSERT_EQUAL_UINT16(d.ident.planner_slots - 1u, s.free_slots);
+    /* the block is planned at once (1 mm at 5 mm/s: about 0.2 s queued) */
+    TEST_ASSERT_TRUE(s.queued_us > 150000 && s.queued_us < 300000);
     /* exactly one block went into the planner */
     run_ms(2000);
     s = state();

@@ -19,6 +19,8 @@
  *   planner block plan_push() + plan_pop() per block with the look-ahead
  *                 ring full (64 blocks): 1000 chords of 0.2 mm around a
  *                 circle with a 3-axis component, feed 50 mm/s.
+ *   helpers       sc_muldiv (128/64 multiply-divide), a 64-bit division and
+ *                 fx_isqrt64 per call: where the tick and block costs go.
  * Prints `name: value unit` lines on UART0, then exits QEMU (semihosting).
  */
 #include "drive.h"
@@ -27,6 +29,7 @@
 #include "planner.h"
 #include "plant_mps2.h"
 #include "port.h"
+#include "scurve.h"
 
 #define AXES      3u
 #define MAX_TICKS 40000u
@@ -232,6 +235,39 @@ static void bench_planner(void)
     line("planner_block_instructions_m4", instr(sum, n), "instr");
 }
 
+/* Where the time goes: the building blocks the tick and the planner call
+ * (128/64-bit multiply-divide, 64-bit divide and square root) per call. */
+static volatile int64_t sink, va, vb, vc; /* volatile: nothing moves out of the timed region */
+
+static void bench_helpers(void)
+{
+    uint64_t s1 = 0, s2 = 0, s3 = 0;
+    uint32_t k, c0, c1;
+
+    for (k = 0; k < 256u; k++) {
+        va = 3000000000ll + (int64_t)k * 7919;
+        vb = ((int64_t)1 << 32) + k;
+        vc = 700000001ll + (int64_t)k * 104729;
+        c0 = mps2_counter();
+        sink = sc_muldiv(va, vb, vc);
+        c1 = mps2_counter();
+        s1 += c0 - c1;
+        c0 = mps2_counter();
+        sink = va * 1000 / vc;
+        c1 = mps2_counter();
+        s2 += c0 - c1;
+        c0 = mps2_counter();
+        sink = (int64_t)fx_isqrt64((uint64_t)va * 1000u);
+        c1 = mps2_counter();
+        s3 += c0 - c1;
+    }
+    /* the volatile operand loads are inside the timed region: a few
+     * instructions of each figure are theirs */
+    line("sc_muldiv_instructions_m4", instr(s1, 256u), "instr");
+    line("int64_div_instructions_m4", instr(s2, 256u), "instr");
+    line("isqrt64_instructions_m4", instr(s3, 256u), "instr");
+}
+
 int main(void)
 {
     mps2_board_init(MPS2_TICK_HZ, NULL);
@@ -240,6 +276,7 @@ int main(void)
     calibrate();
     bench_planner();
     bench_tick();
+    bench_helpers();
     while (!port_uart_tx_idle()) {
     }
     semihost_exit();

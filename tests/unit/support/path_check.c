@@ -91,10 +91,18 @@ static int64_t pc_abs(int64_t v)
 
 void pc_run(uint32_t n, int64_t tick_ns, uint32_t seed, uint8_t shape, pc_result_t *r)
 {
+    plan_profile_t prof = pc_profile(shape);
+    pc_run_profile(n, tick_ns, seed, &prof, r);
+}
+
+void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profile_t *pp,
+                    pc_result_t *r)
+{
     static plan_block_t store[PLAN_DEPTH_DEFAULT], store2[PLAN_DEPTH_DEFAULT];
     static interp_t ip;
-    plan_profile_t prof = pc_profile(shape);
-    plan_move_t *mv = malloc(sizeof(*mv) * n);
+    plan_profile_t prof = *pp;
+    uint8_t shape = prof.shape;
+    plan_move_t *mv = calloc(n, sizeof(*mv));
     plan_est_t *est = malloc(sizeof(*est) * n);
     int64_t *cum = malloc(sizeof(*cum) * n);
     const pos_nm_t origin[CORE_AXES] = {0, 0, 0};
@@ -120,6 +128,9 @@ void pc_run(uint32_t n, int64_t tick_ns, uint32_t seed, uint8_t shape, pc_result
     for (k = 0; k < n; k++) {
         r->est_total_ns += est[k].t_total_ns;
         cum[k] = r->est_total_ns;
+        if (est[k].flags & PLAN_BF_CORNER) {
+            r->corner_capped++;
+        }
     }
     plan_init(&p, store, PLAN_DEPTH_DEFAULT, &prof, origin);
     interp_init(&ip, tick_ns, origin);

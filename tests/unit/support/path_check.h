@@ -24,6 +24,7 @@ typedef struct {
     double max_v_ratio;   /* max |dp| / (v_i h) over axes and ticks     */
     double max_a_ratio;   /* max |d2p| / (a_i h^2) inside blocks        */
     double max_j_ratio;   /* max |d acc_ff| / (j_i h) inside blocks     */
+    uint32_t corner_capped; /* blocks whose v_max is the smoothed-corner cap */
 } pc_result_t;
 
 /* The test machine: X, Z 500 mm/s, 2 m/s^2, 50 m/s^3; Y 300 mm/s, 1 m/s^2,
@@ -32,6 +33,10 @@ plan_profile_t pc_profile(uint8_t shape);
 
 /* Run n random blocks at tick_ns with the given seed and shape. */
 void pc_run(uint32_t n, int64_t tick_ns, uint32_t seed, uint8_t shape, pc_result_t *r);
+
+/* The same with any profile (its shape selects the jerk check). */
+void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profile_t *prof,
+                    pc_result_t *r);
 
 void pc_print(const char *prefix, const pc_result_t *r);
 

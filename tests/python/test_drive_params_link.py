@@ -1,0 +1,89 @@
+"""Planner parameters and the enable-then-queue batch over the serial link of
+the simulated drive (`sim serve`): typed get/set of the drive's planner
+limits, the drive's own (profile-wide) range check, busy while moving and
+nothing half applied; a block queued right after the enable request, with no
+pause between them, runs to its end point; queued time is reported."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from contour import cli
+from contour import protocol_gen as pg
+from contour.link import DriveError, connect
+from contour.simserve import spawn
+
+
+@pytest.fixture(scope="module")
+def server():
+    with spawn() as s:
+        yield s
+
+
+def wait_state(c, states, timeout=5.0) -> dict:
+    end = time.monotonic() + timeout
+    st = c.status()
+    while time.monotonic() < end and st["state"] not in states:
+        time.sleep(0.02)
+        st = c.status()
+    return st
+
+
+def test_planner_parameters_over_the_link(server, capsys):
+    rc = cli.main(["set", "max_velocity.y", "250000000", "--port", server.serial])
+    assert rc == 0 and "250000000 nm/s" in capsys.readouterr().out
+    with connect(port=server.serial) as c:
+        assert c.get_param("max_velocity.y") == 250000000
+        assert c.get_param("max_velocity.x") != 250000000
+        # the table's range (checked by the drive too, bypassing the host)
+        with pytest.raises(DriveError) as e:
+            c.request("param_set", param=pg.PARAM_BY_NAME["corner_rule"].id, value=4)
+        assert e.value.code == pg.ErrorCode.OUT_OF_RANGE
+        # the drive's range: max_jerk must keep max_acceleration / max_jerk <= 3 s
+        a = c.get_param("max_acceleration.z")
+        with pytest.raises(DriveError, match="out of range") as e:
+            c.set_param("max_jerk.z", 1000)
+        assert e.value.code == pg.ErrorCode.OUT_OF_RANGE
+        assert e.value.fields["lo"] == -(-a // 3)
+        c.set_param("corner_rule", 2)
+        assert c.get_param("corner_rule") == 2
+        c.set_param("corner_rule", 0)
+        c.set_param("max_velocity.y", 1000000000)
+
+
+def test_enable_and_queue_in_one_batch(server):
+    with connect(port=server.serial) as c:
+        c.set_param("comm_timeout_ms", 1000)
+        st = c.status()
+        if st["state"] in (pg.State.FAULT, pg.State.ESTOP):
+            c.request("fault_reset")
+            wait_state(c, (pg.State.DISABLED,))
+        c.enable(False)
+        wait_state(c, (pg.State.DISABLED,))
+        st = c.status()
+        x0, done0 = st["pos"][0], st["blocks_done"]
+        target = [round(x0 / 1000) * 1000 + 2_000_000, st["pos"][1], st["pos"][2], 0]
+        c.enable(True)
+        r = c.request(
+            "queue_block",
+            block_seq=77,
+            kind=pg.BlockKind.LINE,
+            flags=0,
+            feed=20_000_000,
+            target=target,
+        ).fields
+        assert r["queued_us"] > 50_000  # 2 mm at 20 mm/s: about 0.1 s planned
+        with pytest.raises(DriveError) as e:
+            c.set_param("max_velocity.x", 5_000_000)
+        assert e.value.code == pg.ErrorCode.BUSY
+        st = wait_state(c, (pg.State.READY,))
+        assert st["state"] == pg.State.READY
+        assert st["blocks_done"] == done0 + 1 and st["last_block_seq"] == 77
+        end = time.monotonic() + 3.0  # the axis settles after the reference
+        while abs(st["pos"][0] - target[0]) >= 10_000 and time.monotonic() < end:
+            time.sleep(0.02)
+            st = c.status()
+        assert abs(st["pos"][0] - target[0]) < 10_000
+        assert st["queued_us"] == 0
+        assert c.get_param("max_velocity.x") == 1000000000  # the busy set never landed
