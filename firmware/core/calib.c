@@ -7,6 +7,7 @@
 #include "comp_store.h"
 #include "crc.h"
 #include "proto_msgs.h"
+#include "proto_reply.h"
 
 typedef enum {
     PH_PRE = 0, /* start the move to the approach point        */
@@ -354,32 +355,15 @@ bool calib_sample(uint32_t seq, calib_sample_t *out)
     return true;
 }
 
-static void put16(uint8_t *p, uint16_t v)
-{
-    p[0] = (uint8_t)v;
-    p[1] = (uint8_t)(v >> 8);
-}
-
-static void put32(uint8_t *p, uint32_t v)
-{
-    put16(p, (uint16_t)v);
-    put16(p + 2, (uint16_t)(v >> 16));
-}
-
-static uint32_t get32(const uint8_t *p)
-{
-    return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
-}
-
 void calib_sample_encode(const calib_sample_t *s, uint8_t *b)
 {
-    put32(b, s->seq);
-    put16(b + 4, s->point);
+    proto_put_le(b, s->seq, 4u);
+    proto_put_le(b + 4, s->point, 2u);
     b[6] = s->cycle;
     b[7] = s->flags;
-    put32(b + 8, (uint32_t)s->enc);
-    put32(b + 12, (uint32_t)s->comp);
-    put32(b + 16, (uint32_t)s->ref);
+    proto_put_le(b + 8, (uint32_t)s->enc, 4u);
+    proto_put_le(b + 12, (uint32_t)s->comp, 4u);
+    proto_put_le(b + 16, (uint32_t)s->ref, 4u);
 }
 
 /* ---- protocol ----------------------------------------------------------------------------------
@@ -388,15 +372,7 @@ void calib_sample_encode(const calib_sample_t *s, uint8_t *b)
 static size_t reply_error(uint8_t *out, uint8_t req, uint8_t seq, uint8_t code, uint16_t arg,
                           int64_t lo)
 {
-    proto_error_t e;
-    e.req = req;
-    e.code = code;
-    e.arg = arg;
-    e.lo = lo;
-    e.hi = 0;
-    out[0] = (uint8_t)PROTO_MSG_ERROR;
-    out[1] = seq;
-    return PROTO_MSG_HDR + proto_error_encode(&e, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+    return proto_reply_error(out, seq, req, code, arg, lo, 0);
 }
 
 static size_t refuse(uint8_t *out, const uint8_t *msg, uint8_t status, int64_t detail)
@@ -546,16 +522,14 @@ static size_t h_targets(const uint8_t *msg, size_t plen, uint8_t *out)
         return refuse(out, msg, PROTO_CALIB_STATUS_TARGETS, (int64_t)m.first + (int64_t)n);
     }
     for (i = 0; i < n; i++) {
-        pos_nm_t p = (pos_nm_t)((uint64_t)get32(m.data + 8u * i) |
-                                ((uint64_t)get32(m.data + 8u * i + 4u) << 32));
+        pos_nm_t p = (pos_nm_t)proto_get_le(m.data + 8u * i, 8u);
         if (p > CALIB_POS_LIMIT_NM || p < -CALIB_POS_LIMIT_NM) {
             return refuse(out, msg, PROTO_CALIB_STATUS_TARGETS, (int64_t)(m.first + i));
         }
     }
     for (i = 0; i < n; i++) {
         size_t k = m.first + i;
-        cb.target[k] = (pos_nm_t)((uint64_t)get32(m.data + 8u * i) |
-                                  ((uint64_t)get32(m.data + 8u * i + 4u) << 32));
+        cb.target[k] = (pos_nm_t)proto_get_le(m.data + 8u * i, 8u);
         if (!(cb.loaded[k / 8u] & (1u << (k % 8u)))) {
             cb.loaded[k / 8u] = (uint8_t)(cb.loaded[k / 8u] | (1u << (k % 8u)));
             cb.nloaded++;

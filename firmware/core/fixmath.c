@@ -332,28 +332,223 @@ q1_30_t fx_q30_from_q32(q32_32_t v)
 
 /* ---- division ---------------------------------------------------------------- */
 
-/* floor(n / d) and n mod d for 0 < d <= 2^63 and n.hi < d (the quotient fits
- * in 64 bits). One compiler 64/64 division when n.hi == 0, shift-subtract
- * else; r < d <= 2^63 keeps r << 1 within 64 bits. */
-static uint64_t fx_udiv128(fx_u128_t n, uint64_t d, uint64_t *rem)
-{
-    uint64_t r = n.hi, q = 0;
-    int i;
+/*
+ * Unsigned division primitives. Hosts with a 64-bit divider (those whose
+ * compiler has __int128) use it; 32-bit targets (Cortex-M4: UDIV 32/32 and
+ * UMULL 32 x 32 -> 64, no 64-bit divider) run the digit code below, which the
+ * test hooks fx_udivmod64_digits / fx_udiv128_digits expose on every host.
+ * The digit code is Knuth's long division (algorithm D) with a normalised
+ * divisor: quotient digits of 32 bits are estimated from the divisor's top
+ * digit and corrected with its second digit, which makes each estimate exact
+ * for a three-by-two digit step, so no add-back step exists. Estimating a 32-bit
+ * digit needs a 64/32 division, done the same way with 16-bit digits and the
+ * 32/32 hardware divider (at most two corrections per 16-bit digit).
+ */
+#if defined(__SIZEOF_INT128__) && !defined(FX_PORTABLE_ONLY)
+#define FX_NATIVE_DIV 1
+__extension__ typedef unsigned __int128 fx_native_u128;
+#endif
 
-    if (r == 0) {
-        *rem = n.lo % d;
-        return n.lo / d;
+/* number of leading zero bits of v != 0 */
+static unsigned fx_clz32(uint32_t v)
+{
+#if defined(__GNUC__)
+    return (unsigned)__builtin_clz(v);
+#else
+    unsigned n = 0;
+
+    if (v < ((uint32_t)1 << 16)) {
+        n += 16;
+        v <<= 16;
     }
-    for (i = 63; i >= 0; i--) {
-        r = (r << 1) | ((n.lo >> i) & 1u);
-        q <<= 1;
-        if (r >= d) {
-            r -= d;
-            q |= 1u;
+    if (v < ((uint32_t)1 << 24)) {
+        n += 8;
+        v <<= 8;
+    }
+    if (v < ((uint32_t)1 << 28)) {
+        n += 4;
+        v <<= 4;
+    }
+    if (v < ((uint32_t)1 << 30)) {
+        n += 2;
+        v <<= 2;
+    }
+    if (v < ((uint32_t)1 << 31)) {
+        n += 1;
+    }
+    return n;
+#endif
+}
+
+/* number of leading zero bits of v != 0 */
+static unsigned fx_clz64(uint64_t v)
+{
+    uint32_t hi = (uint32_t)(v >> 32);
+
+    return (hi != 0u) ? fx_clz32(hi) : 32u + fx_clz32((uint32_t)v);
+}
+
+/* floor((u1 * 2^32 + u0) / v) and the remainder for a normalised v (bit 31
+ * set) and u1 < v (the quotient fits 32 bits): two 16-bit quotient digits. */
+static uint32_t fx_div64by32n(uint32_t u1, uint32_t u0, uint32_t v, uint32_t *rem)
+{
+    uint32_t vh = v >> 16, vl = v & 0xFFFFu;
+    uint32_t qh, ql, r, t;
+
+    /* first digit: (u1 : top half of u0) / v */
+    qh = u1 / vh;
+    r = u1 - qh * vh;
+    while (qh > 0xFFFFu || qh * vl > ((r << 16) | (u0 >> 16))) {
+        qh--;
+        r += vh;
+        if (r > 0xFFFFu) {
+            break;
         }
     }
-    *rem = r;
+    t = (u1 << 16) + (u0 >> 16) - qh * v; /* the partial remainder, < v */
+    /* second digit: (t : bottom half of u0) / v */
+    ql = t / vh;
+    r = t - ql * vh;
+    while (ql > 0xFFFFu || ql * vl > ((r << 16) | (u0 & 0xFFFFu))) {
+        ql--;
+        r += vh;
+        if (r > 0xFFFFu) {
+            break;
+        }
+    }
+    *rem = (t << 16) + (u0 & 0xFFFFu) - ql * v;
+    return (qh << 16) | ql;
+}
+
+/* floor((u * 2^32 + w) / d) and the remainder for d = dh * 2^32 + dl with
+ * dh normalised (bit 31 set) and u < d: one exact 32-bit quotient digit. */
+static uint32_t fx_div96by64n(uint64_t u, uint32_t w, uint32_t dh, uint32_t dl, uint64_t *rem)
+{
+    uint32_t uh = (uint32_t)(u >> 32), q, r32;
+    uint64_t r;
+
+    /* estimate from the top digits (never below the true digit) */
+    if (uh >= dh) { /* uh == dh: the digit is at most 2^32 - 1 */
+        q = 0xFFFFFFFFu;
+        r = (uint64_t)(uint32_t)u + dh;
+    } else {
+        q = fx_div64by32n(uh, (uint32_t)u, dh, &r32);
+        r = r32;
+    }
+    /* correct with the second divisor digit: exact for three by two digits */
+    while (r <= 0xFFFFFFFFu && (uint64_t)q * dl > ((r << 32) | w)) {
+        q--;
+        r += dh;
+    }
+    /* the remainder is below d < 2^64: arithmetic modulo 2^64 is exact */
+    *rem = ((u << 32) | w) - (uint64_t)q * dl - (((uint64_t)q * dh) << 32);
     return q;
+}
+
+uint64_t fx_udiv128_digits(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem)
+{
+    unsigned s;
+    uint64_t r;
+    uint32_t q1, q0;
+    bool wide;
+
+    if (hi >= d) { /* quotient >= 2^64, or d == 0 */
+        *rem = 0;
+        return UINT64_MAX;
+    }
+    if ((d >> 32) == 0) {
+        /* one-digit divisor: hi < d < 2^32, a 96-bit numerator */
+        uint32_t v = (uint32_t)d, r32;
+        uint32_t u2, u1, u0;
+
+        if ((hi | (lo >> 32)) == 0) { /* both fit 32 bits: the hardware divider */
+            *rem = (uint32_t)lo % v;
+            return (uint32_t)lo / v;
+        }
+        s = fx_clz32(v);
+        v <<= s;
+        u2 = (uint32_t)hi << s;
+        u1 = (uint32_t)(lo >> 32) << s;
+        u0 = (uint32_t)lo << s;
+        if (s != 0) {
+            u2 |= (uint32_t)(lo >> (64 - s));
+            u1 |= (uint32_t)lo >> (32 - s);
+        }
+        q1 = fx_div64by32n(u2, u1, v, &r32);
+        q0 = fx_div64by32n(r32, u0, v, &r32);
+        *rem = r32 >> s;
+        return ((uint64_t)q1 << 32) | q0;
+    }
+    /* two-digit divisor: normalise, then two 96/64 digit steps (one when
+     * hi == 0: the quotient then fits 32 bits) */
+    wide = hi != 0;
+    s = fx_clz32((uint32_t)(d >> 32));
+    if (s != 0) {
+        d <<= s;
+        hi = (hi << s) | (lo >> (64 - s));
+        lo <<= s;
+    }
+    if (wide) {
+        q1 = fx_div96by64n(hi, (uint32_t)(lo >> 32), (uint32_t)(d >> 32), (uint32_t)d, &r);
+    } else {
+        q1 = 0; /* the numerator was below 2^64 and d >= 2^32 */
+        r = (hi << 32) | (lo >> 32);
+    }
+    q0 = fx_div96by64n(r, (uint32_t)lo, (uint32_t)(d >> 32), (uint32_t)d, &r);
+    *rem = r >> s;
+    return ((uint64_t)q1 << 32) | q0;
+}
+
+uint64_t fx_udivmod64_digits(uint64_t n, uint64_t d, uint64_t *rem)
+{
+    if (d == 0) {
+        *rem = 0;
+        return UINT64_MAX;
+    }
+    return fx_udiv128_digits(0, n, d, rem);
+}
+
+uint64_t fx_udiv128(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem)
+{
+#ifdef FX_NATIVE_DIV
+    if (hi >= d) {
+        *rem = 0;
+        return UINT64_MAX;
+    }
+    if (hi == 0) {
+        *rem = lo % d;
+        return lo / d;
+    }
+    {
+        fx_native_u128 n = ((fx_native_u128)hi << 64) | lo;
+        uint64_t q = (uint64_t)(n / d);
+        *rem = lo - q * d;
+        return q;
+    }
+#else
+    return fx_udiv128_digits(hi, lo, d, rem);
+#endif
+}
+
+uint64_t fx_udivmod64(uint64_t n, uint64_t d, uint64_t *rem)
+{
+#ifdef FX_NATIVE_DIV
+    if (d == 0) {
+        *rem = 0;
+        return UINT64_MAX;
+    }
+    *rem = n % d;
+    return n / d;
+#else
+    return fx_udivmod64_digits(n, d, rem);
+#endif
+}
+
+/* floor(n / d) and n mod d for 0 < d and n.hi < d (the quotient fits in 64
+ * bits). */
+static uint64_t fx_udiv128_n(fx_u128_t n, uint64_t d, uint64_t *rem)
+{
+    return fx_udiv128(n.hi, n.lo, d, rem);
 }
 
 /* round(n / d) of magnitudes, ties away from zero, then signed and saturated */
@@ -364,7 +559,7 @@ static int64_t fx_div128_sat(fx_u128_t n, uint64_t d, bool neg)
     if (n.hi >= d) {
         return neg ? INT64_MIN : INT64_MAX; /* quotient >= 2^64 */
     }
-    q = fx_udiv128(n, d, &r);
+    q = fx_udiv128_n(n, d, &r);
     if (r >= d - r) {
         if (q == UINT64_MAX) {
             return neg ? INT64_MIN : INT64_MAX;
@@ -424,77 +619,72 @@ q16_16_t fx_recip_q16(q16_16_t x)
 
 /* ---- roots ------------------------------------------------------------------ */
 
-/* number of leading zero bits of v != 0 (portable, six steps) */
-static unsigned fx_clz64(uint64_t v)
-{
-    unsigned n = 0;
+/* Square roots by Newton's iteration from above, seeded from a table:
+ * for x = v * 4^k normalised to [2^30, 2^32), fx_sqrt_seed[(x >> 26) - 16]
+ * is ceil(sqrt(((x >> 26) + 1) * 2^26)), at most 3 % above sqrt(x). */
+static const uint32_t fx_sqrt_seed[48] = {
+    33777u, 34756u, 35709u, 36636u, 37541u, 38424u,
+    39288u, 40133u, 40960u, 41772u, 42567u, 43348u,
+    44116u, 44870u, 45612u, 46341u, 47060u, 47768u,
+    48465u, 49152u, 49830u, 50499u, 51160u, 51811u,
+    52455u, 53091u, 53719u, 54340u, 54954u, 55561u,
+    56162u, 56756u, 57344u, 57927u, 58503u, 59074u,
+    59639u, 60199u, 60754u, 61304u, 61849u, 62389u,
+    62924u, 63455u, 63982u, 64504u, 65022u, 65536u,
+};
 
-    if (v < ((uint64_t)1 << 32)) {
-        n += 32;
-        v <<= 32;
-    }
-    if (v < ((uint64_t)1 << 48)) {
-        n += 16;
-        v <<= 16;
-    }
-    if (v < ((uint64_t)1 << 56)) {
-        n += 8;
-        v <<= 8;
-    }
-    if (v < ((uint64_t)1 << 60)) {
-        n += 4;
-        v <<= 4;
-    }
-    if (v < ((uint64_t)1 << 62)) {
-        n += 2;
-        v <<= 2;
-    }
-    if (v < ((uint64_t)1 << 63)) {
-        n += 1;
-    }
-    return n;
-}
-
-/* Digit-by-digit square root: one result bit per step, no division. */
+/* From any r >= floor(sqrt(v)), r' = floor((r + floor(v / r)) / 2) is again
+ * >= floor(sqrt(v)) and below r while r > floor(sqrt(v)); floor(v / r) >= r
+ * only at r = floor(sqrt(v)). From the 3 % seed: three or four 32-bit
+ * divisions. */
 uint32_t fx_isqrt32(uint32_t v)
 {
-    uint32_t r = 0, bit;
+    unsigned sh;
+    uint32_t r, q;
 
     if (v == 0) {
         return 0;
     }
-    /* highest power of four <= v */
-    bit = (uint32_t)1 << ((63u - fx_clz64(v)) & ~1u);
-    while (bit != 0) {
-        if (v >= r + bit) {
-            v -= r + bit;
-            r = (r >> 1) + bit;
-        } else {
-            r >>= 1;
+    sh = fx_clz32(v) & ~1u;
+    r = (fx_sqrt_seed[((v << sh) >> 26) - 16u] >> (sh / 2u)) + 1u;
+    for (;;) {
+        q = v / r;
+        if (q >= r) {
+            return r;
         }
-        bit >>= 2;
+        r = (r + q) >> 1;
     }
-    return r;
 }
 
+/* v >= 2^32: with x = v * 4^k in [2^62, 2^64), s = floor(sqrt(x / 2^32))
+ * puts floor(sqrt(x)) = R in [s * 2^16, s * 2^16 + 2^16 - 1]; one Newton step
+ * from the top of that range (a 64/32 division) lands on R or R + 1 (the
+ * start is less than 2^16 off and at least 2^31: the step's error is below
+ * one), and a square decides. floor(sqrt(v)) = floor(R / 2^k). */
 uint32_t fx_isqrt64(uint64_t v)
 {
-    uint64_t r = 0, bit;
+    unsigned sh;
+    uint64_t x, y;
+    uint32_t r0, q, rem;
 
     if (v <= UINT32_MAX) {
         return fx_isqrt32((uint32_t)v);
     }
-    bit = (uint64_t)1 << ((63u - fx_clz64(v)) & ~1u);
-    while (bit != 0) {
-        if (v >= r + bit) {
-            v -= r + bit;
-            r = (r >> 1) + bit;
-        } else {
-            r >>= 1;
-        }
-        bit >>= 2;
+    sh = fx_clz64(v) & ~1u;
+    x = v << sh;
+    r0 = (fx_isqrt32((uint32_t)(x >> 32)) << 16) | 0xFFFFu;
+    if ((uint32_t)(x >> 32) >= r0) {
+        return UINT32_MAX >> (sh / 2u); /* only when R = 2^32 - 1 */
     }
-    return (uint32_t)r;
+    q = fx_div64by32n((uint32_t)(x >> 32), (uint32_t)x, r0, &rem);
+    y = ((uint64_t)r0 + q) >> 1;
+    if (y > UINT32_MAX) {
+        y = UINT32_MAX;
+    }
+    if (y * y > x) {
+        y--;
+    }
+    return (uint32_t)y >> (sh / 2u);
 }
 
 /* floor(sqrt(n)) of a 128-bit value (< 2^128, so the root is < 2^64): the top

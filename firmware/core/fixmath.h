@@ -164,6 +164,20 @@ int64_t fx_div_round64(int64_t num, int64_t den);
  * distance * time / length and the like without intermediate overflow. */
 int64_t fx_muldiv64(int64_t a, int64_t b, int64_t c);
 
+/* Unsigned division, exact: floor(n / d) with *rem = n mod d. d == 0 gives
+ * UINT64_MAX and *rem = 0. */
+uint64_t fx_udivmod64(uint64_t n, uint64_t d, uint64_t *rem);
+
+/* floor((hi * 2^64 + lo) / d) with *rem the remainder, for hi < d (the
+ * quotient fits 64 bits); hi >= d (d == 0 included) gives UINT64_MAX and
+ * *rem = 0. */
+uint64_t fx_udiv128(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem);
+
+/* Test hooks: the same two through the 32-bit-digit code that 32-bit
+ * targets run (hosts with a 64-bit divider use it in the two above). */
+uint64_t fx_udivmod64_digits(uint64_t n, uint64_t d, uint64_t *rem);
+uint64_t fx_udiv128_digits(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem);
+
 /* Reciprocal 1/x in q16_16 of a q16_16 value: round(2^32 / x), saturated
  * to int32 (x = 0, 1, 2 give INT32_MAX, x = -1 gives INT32_MIN; x = -2 gives
  * INT32_MIN exactly). */

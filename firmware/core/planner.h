@@ -68,8 +68,11 @@
  * `planned` mark only: a block is marked planned when its entry can no longer
  * rise (it reached its junction limit, or it is limited by the maximum
  * acceleration from a planned predecessor), exactly as a new block can only
- * raise speeds. The oldest block's entry speed is fixed (it is the exit of
- * the block that was popped before it, or 0).
+ * raise speeds. The reverse pass stops at the first entry it leaves
+ * unchanged, and the forward pass starts at the block before the first
+ * changed entry. The oldest block's entry speed is fixed (it is the exit of
+ * the block that was popped before it, or 0). plan_set_deferred() batches
+ * the passes (trapezoid only; see below).
  *
  * S-curve reach. With the acceleration zero at both ends of a block, the
  * speed reachable within a distance is NOT monotone in the start speed
@@ -79,9 +82,10 @@
  * the planner keeps the final entry (the plan stays what the estimator
  * computes and the interpolator executes, and the block's profile is
  * scaled to its length by the interpolator), so in S-curve mode the
- * incremental plan can differ slightly from a from-scratch plan after long
- * random paths. Trapezoidal reach sqrt(v^2 + 2 A d) is monotone and the
- * incremental plan equals the from-scratch plan.
+ * incremental plan can differ from a from-scratch plan after long random
+ * paths (one entry 4 % above it in 200 000 random pushes). Trapezoidal
+ * reach sqrt(v^2 + 2 A d) is monotone and the incremental plan equals the
+ * from-scratch plan.
  *
  * plan_pop() freezes the oldest block: its exit speed (the next block's
  * entry, or 0 if it is the only one) becomes final, its profile is computed
@@ -168,7 +172,7 @@ typedef struct {
     int64_t ratio_q62[CORE_AXES]; /* delta_i / len * 2^62                    */
     int64_t len;                  /* nm (0 for a dwell)                      */
     int64_t dwell_ns;
-    sc_limits_t lim;    /* block limits (v_max includes the cap)   */
+    sc_limits_t lim;     /* block limits (v_max includes the cap)   */
     int64_t v_junction;  /* entry speed limit, nm/s                 */
     int64_t v_entry;     /* planned entry speed, nm/s               */
     int64_t v_corner_in; /* smoothed-corner speed of the entry

@@ -6,6 +6,7 @@
 
 #include "drive.h"
 #include "fixmath.h"
+#include "proto_reply.h"
 
 #define AXES_OF(d) ((unsigned)(d)->ident.axes)
 
@@ -444,26 +445,7 @@ static refusal_t req_jog(proto_dispatch_t *d, const proto_jog_t *j, drive_status
 
 static size_t put_error(uint8_t *out, uint8_t seq, uint8_t req, const refusal_t *r)
 {
-    proto_error_t e;
-
-    e.req = req;
-    e.code = r->code;
-    e.arg = r->arg;
-    e.lo = r->lo;
-    e.hi = r->hi;
-    out[0] = PROTO_MSG_ERROR;
-    out[1] = seq;
-    return PROTO_MSG_HDR + proto_error_encode(&e, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
-}
-
-static size_t put_ack(uint8_t *out, uint8_t seq, uint8_t req)
-{
-    proto_ack_t a;
-
-    a.req = req;
-    out[0] = PROTO_MSG_ACK;
-    out[1] = seq;
-    return PROTO_MSG_HDR + proto_ack_encode(&a, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+    return proto_reply_error(out, seq, req, r->code, r->arg, r->lo, r->hi);
 }
 
 static size_t put_queue_reply(uint8_t *out, uint8_t seq, uint32_t block_seq,
@@ -589,7 +571,7 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
             r = map_drive_result(dr, &st);
         }
         if (r.code == PROTO_ERROR_CODE_NONE) {
-            return put_ack(out, seq, id);
+            return proto_reply_ack(out, seq, id);
         }
         break;
     }
@@ -627,17 +609,17 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
     }
     case PROTO_MSG_STOP:
         drive_stop();
-        return put_ack(out, seq, id);
+        return proto_reply_ack(out, seq, id);
     case PROTO_MSG_ESTOP:
         drive_estop();
-        return put_ack(out, seq, id);
+        return proto_reply_ack(out, seq, id);
     case PROTO_MSG_FAULT_RESET:
         dr = drive_fault_reset();
         drive_status(&st);
         r = map_drive_result(dr, &st);
         if (r.code == PROTO_ERROR_CODE_NONE) {
             d->wd_stopping = false;
-            return put_ack(out, seq, id);
+            return proto_reply_ack(out, seq, id);
         }
         break;
     default:

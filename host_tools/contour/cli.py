@@ -4,7 +4,9 @@ Every module in `contour.commands` that defines ``register(subparsers)`` adds
 its sub-command(s); ``register`` must set ``func`` (a callable taking the parsed
 arguments and returning an exit code) with ``set_defaults``. Errors a user can
 cause raise :class:`contour.errors.UserError`; they are printed as one line
-``contour: error: ...`` with exit code 2, never as a traceback.
+``contour: error: ...`` with exit code 2, never as a traceback; so are
+command-line mistakes (unknown option, missing argument, a value that is not
+a number), which argparse would otherwise print as a usage block.
 """
 
 from __future__ import annotations
@@ -18,8 +20,15 @@ from contour import __version__, commands
 from contour.errors import UserError
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are UserErrors (sub-parsers inherit it)."""
+
+    def error(self, message: str):
+        raise UserError(f"{message} (see `{self.prog} --help`)")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="contour",
         description="Deploy, calibrate, feed and simulate the contour CNC axis drive.",
     )
@@ -35,11 +44,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return 2
     try:
+        args = parser.parse_args(argv)
+        if not getattr(args, "func", None):
+            parser.print_help()
+            return 2
         return int(args.func(args) or 0)
     except UserError as exc:
         print(f"contour: error: {exc}", file=sys.stderr)

@@ -13,21 +13,13 @@ from contour import cli
 from contour import protocol_gen as pg
 from contour.link import DriveError, connect
 from contour.simserve import spawn
+from linkhelp import wait_state
 
 
 @pytest.fixture(scope="module")
 def server():
     with spawn() as s:
         yield s
-
-
-def wait_state(c, states, timeout=5.0) -> dict:
-    end = time.monotonic() + timeout
-    st = c.status()
-    while time.monotonic() < end and st["state"] not in states:
-        time.sleep(0.02)
-        st = c.status()
-    return st
 
 
 def test_planner_parameters_over_the_link(server, capsys):

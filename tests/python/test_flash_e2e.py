@@ -33,7 +33,6 @@ import time
 from pathlib import Path
 
 import pytest
-from contour import cli
 from contour import image as img
 from contour import protocol_gen as pg
 from contour.commands import flash as fl
@@ -41,6 +40,7 @@ from contour.errors import UserError
 from contour.link import connect
 from contour.link.transport import open_transport
 from contour.simserve import spawn
+from linkhelp import link_args, run_cli
 
 FLASH_BASE = 0x08010000  # FLASH_SIM_DEFAULT_BASE (hal_flash_sim.h)
 LOAD_ADDR = 0x08010200  # slot base + BOOT_IMAGE_HDR_AREA
@@ -77,18 +77,6 @@ def files(tmp_path_factory):
 
 def serve(flash: Path, window_ms: int = 0):
     return spawn(["--flash", str(flash), "--boot-window-ms", str(window_ms)])
-
-
-def link_args(server, transport: str) -> list[str]:
-    if transport == "serial":
-        return ["--port", server.serial]
-    return ["--can", f"slcan:{server.slcan}@500000", "--node", "1"]
-
-
-def cli_run(argv: list[str], capsys) -> tuple[int, str, str]:
-    rc = cli.main(argv)
-    out = capsys.readouterr()
-    return rc, out.out, out.err
 
 
 def drive_state(server, timeout: float = 5.0) -> tuple[str, int]:
@@ -134,7 +122,7 @@ def assert_recoverable(server, flash: Path, allowed: set[int], alive: bool = Tru
 
 
 def flash_ok(server, path: Path, image: img.Image, capsys, transport="serial"):
-    rc, _, err = cli_run(
+    rc, _, err = run_cli(
         ["flash", str(path), *link_args(server, transport), "--no-progress"], capsys
     )
     assert rc == 0, err
@@ -150,29 +138,29 @@ def test_flash_serial_and_slcan_then_info(files, capsys):
     with serve(flash, window_ms=200) as server:  # the default connect window
         assert drive_state(server) == ("bootloader", 0)  # a new, empty drive
         # empty drive, over serial, with the progress bar
-        rc, _, err = cli_run(["flash", str(files["new"]), "--port", server.serial], capsys)
+        rc, _, err = run_cli(["flash", str(files["new"]), "--port", server.serial], capsys)
         assert rc == 0, err
         assert "flash:" in err and "100%" in err  # tqdm progress bar on stderr
         assert "flashed 16001 bytes; drive runs version 2.0.0" in err
-        rc, out, err = cli_run(["info", "--json", "--port", server.serial], capsys)
+        rc, out, err = run_cli(["info", "--json", "--port", server.serial], capsys)
         assert rc == 0, err
         info = json.loads(out)
         assert info["firmware_version"] == "2.0.0" and info["axes"] == 3
         build_id = int.from_bytes(NEW.header.build_id[:4], "little")
         assert info["build_id"] == f"{build_id:08x}"  # the image's, from its header
         # running application -> boot_enter -> bootloader, over SLCAN
-        rc, _, err = cli_run(["flash", str(files["old"]), *link_args(server, "slcan")], capsys)
+        rc, _, err = run_cli(["flash", str(files["old"]), *link_args(server, "slcan")], capsys)
         assert rc == 0, err
         assert "drive runs version 1.0.0" in err
-        rc, out, err = cli_run(["info", "--json", *link_args(server, "slcan")], capsys)
+        rc, out, err = run_cli(["info", "--json", *link_args(server, "slcan")], capsys)
         assert rc == 0, err
         assert json.loads(out)["firmware_version"] == "1.0.0"
         # --verify-only: matches the image in flash, refuses another one
-        rc, _, err = cli_run(
+        rc, _, err = run_cli(
             ["flash", str(files["old"]), "--port", server.serial, "--verify-only"], capsys
         )
         assert rc == 0 and "verified: drive holds version 1.0.0" in err, err
-        rc, _, err = cli_run(
+        rc, _, err = run_cli(
             ["flash", str(files["new"]), "--port", server.serial, "--verify-only"], capsys
         )
         assert rc == 2 and "drive does not hold this image" in err
@@ -225,7 +213,7 @@ def test_bad_images_refused_before_erase(files, transport, capsys):
         for name, (image, message) in cases.items():
             p = d / f"{name}.img"
             p.write_bytes(image.to_bytes())
-            rc, _, err = cli_run(["flash", str(p), *link_args(server, transport)], capsys)
+            rc, _, err = run_cli(["flash", str(p), *link_args(server, transport)], capsys)
             assert rc == 2 and message in err, (name, err)
             assert "Traceback" not in err
             assert flash.read_bytes() == before, name  # not one page erased
@@ -233,7 +221,7 @@ def test_bad_images_refused_before_erase(files, transport, capsys):
         for name, (data, message) in files_bad.items():
             p = d / f"bad-{name}.img"
             p.write_bytes(data)
-            rc, _, err = cli_run(["flash", str(p), *link_args(server, transport)], capsys)
+            rc, _, err = run_cli(["flash", str(p), *link_args(server, transport)], capsys)
             assert rc == 2 and message in err, (name, err)
             assert flash.read_bytes() == before, name
         assert drive_state(server) == ("app", OLD.header.fw_version)

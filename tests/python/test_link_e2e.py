@@ -16,10 +16,10 @@ import os
 import time
 
 import pytest
-from contour import cli
 from contour import protocol_gen as pg
 from contour.link import DriveError, codec, connect
 from contour.simserve import spawn
+from linkhelp import link_args, run_cli, wait_state
 
 TRANSPORTS = ["serial", "slcan"]
 
@@ -28,12 +28,6 @@ TRANSPORTS = ["serial", "slcan"]
 def server():
     with spawn() as s:
         yield s
-
-
-def link_args(server, transport: str) -> list[str]:
-    if transport == "serial":
-        return ["--port", server.serial]
-    return ["--can", f"slcan:{server.slcan}@500000", "--node", "1"]
 
 
 def client_for(server, transport: str, **kw):
@@ -57,21 +51,6 @@ def fresh(c) -> None:
     if st["state"] in (pg.State.FAULT, pg.State.ESTOP):
         c.request("fault_reset")
     c.enable(True)
-
-
-def wait_state(c, states, timeout=5.0) -> dict:
-    end = time.monotonic() + timeout
-    st = c.status()
-    while time.monotonic() < end and st["state"] not in states:
-        time.sleep(0.02)
-        st = c.status()
-    return st
-
-
-def run_cli(argv, capsys) -> tuple[int, str, str]:
-    rc = cli.main(argv)
-    out = capsys.readouterr()
-    return rc, out.out, out.err
 
 
 @pytest.mark.parametrize("transport", TRANSPORTS)

@@ -331,7 +331,6 @@ static void test_smooth_cap_rules(void)
 
 /* ---- minimum block time ----------------------------------------------------------- */
 
-
 /* Trapezoidal mode: in S-curve mode the acceleration is zero at every block
  * boundary, so 0.01 mm blocks cannot reach 22 mm/s within a 64-block
  * look-ahead (see test_scurve_micro_blocks_are_slow below). */

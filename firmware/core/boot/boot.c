@@ -4,6 +4,7 @@
 #include "crc.h"
 #include "hal.h"
 #include "proto_msgs.h"
+#include "proto_reply.h"
 
 #define CHUNK 64u
 
@@ -491,26 +492,9 @@ boot_status_t boot_reboot(boot_t *b)
 }
 
 /* Reply helpers: out = id | seq | payload. */
-static size_t reply_error(uint8_t *out, uint8_t seq, uint8_t req, uint8_t code, uint16_t arg,
-                          int64_t lo)
-{
-    proto_error_t e;
-    size_t n;
-
-    e.req = req;
-    e.code = code;
-    e.arg = arg;
-    e.lo = lo;
-    e.hi = 0;
-    out[0] = (uint8_t)PROTO_MSG_ERROR;
-    out[1] = seq;
-    n = proto_error_encode(&e, out + PROTO_MSG_HDR, BOOT_REPLY_MAX - PROTO_MSG_HDR);
-    return PROTO_MSG_HDR + n;
-}
-
 static size_t reply_boot(uint8_t *out, uint8_t seq, uint8_t req, boot_status_t st, int64_t lo)
 {
-    return reply_error(out, seq, req, (uint8_t)PROTO_ERROR_CODE_BOOT, (uint16_t)st, lo);
+    return proto_reply_error(out, seq, req, (uint8_t)PROTO_ERROR_CODE_BOOT, (uint16_t)st, lo, 0);
 }
 
 static size_t reply_head(uint8_t *out, uint8_t id, uint8_t seq)
@@ -641,21 +625,19 @@ static size_t dispatch(boot_t *b, uint8_t id, uint8_t seq, const uint8_t *p, siz
                proto_boot_finished_encode(&r, o, ocap);
     }
     case PROTO_MSG_BOOT_REBOOT: {
-        proto_ack_t r;
         if (n != PROTO_BOOT_REBOOT_LEN) {
             break;
         }
         (void)boot_reboot(b);
-        r.req = id;
-        return reply_head(out, PROTO_MSG_ACK, seq) + proto_ack_encode(&r, o, ocap);
+        return proto_reply_ack(out, seq, id);
     }
     default:
         if (id >= 0x80u && id <= 0x8Fu) {
             host_seen(b);
         }
-        return reply_error(out, seq, id, (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
+        return proto_reply_error(out, seq, id, (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0, 0);
     }
-    return reply_error(out, seq, id, (uint8_t)PROTO_ERROR_CODE_BAD_LENGTH, 0u, 0);
+    return proto_reply_error(out, seq, id, (uint8_t)PROTO_ERROR_CODE_BAD_LENGTH, 0u, 0, 0);
 }
 
 size_t boot_handle(boot_t *b, const uint8_t *msg, size_t len, uint8_t *out, size_t cap)

@@ -9,6 +9,8 @@
 #ifndef PORT_CM4_H
 #define PORT_CM4_H
 
+#include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #define CM4_REG(addr) (*(volatile uint32_t *)(uintptr_t)(addr))
@@ -78,5 +80,14 @@ void cm4_system_reset(void) __attribute__((noreturn));
  * stopped, NVIC cleared, VTOR set, MSP loaded from vtor[0], jump to vtor[1].
  * Never returns. */
 void cm4_start_image(uint32_t vtor) __attribute__((noreturn));
+
+/* cm4_hal.c (boards with a memory-mapped flash region; they provide
+ * hal_flash_layout, and get hal_flash_read and hal_system_reset from there):
+ * cm4_flash_in_region  [addr, addr + len) lies inside hal_flash_layout()'s
+ *                      region (overflow-safe).
+ * cm4_boot_jump        boot_config_t.jump of the MCU bootloaders:
+ *                      cm4_start_image(load_addr); ctx unused. */
+bool cm4_flash_in_region(uint32_t addr, size_t len);
+void cm4_boot_jump(uint32_t load_addr, void *ctx);
 
 #endif /* PORT_CM4_H */

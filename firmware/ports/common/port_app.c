@@ -5,6 +5,7 @@
 #include "hal.h"
 #include "proto_link.h"
 #include "proto_msgs.h"
+#include "proto_reply.h"
 
 static struct {
     port_app_config_t cfg;
@@ -15,24 +16,13 @@ static struct {
 
 static size_t boot_error(uint8_t *out, uint8_t seq, uint8_t req, uint8_t code, uint16_t arg)
 {
-    proto_error_t e;
-
-    e.req = req;
-    e.code = code;
-    e.arg = arg;
-    e.lo = 1; /* application running */
-    e.hi = 0;
-    out[0] = (uint8_t)PROTO_MSG_ERROR;
-    out[1] = seq;
-    return PROTO_MSG_HDR + proto_error_encode(&e, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+    return proto_reply_error(out, seq, req, code, arg, 1 /* application running */, 0);
 }
 
 /* Extension handler of proto_link: the application's side of the bootloader ids. */
 static size_t app_boot_handler(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out,
                                size_t cap)
 {
-    proto_ack_t a;
-
     if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX ||
         msg[0] < 0x80u || msg[0] > 0x8Fu) {
         return 0;
@@ -48,10 +38,7 @@ static size_t app_boot_handler(const uint8_t *msg, size_t len, uint32_t now_us, 
     boot_request_enter(app.cfg.boot);
     app.reset_pending = true;
     app.reset_at_us = now_us + PORT_RESET_DELAY_US;
-    a.req = msg[0];
-    out[0] = (uint8_t)PROTO_MSG_ACK;
-    out[1] = msg[1];
-    return PROTO_MSG_HDR + proto_ack_encode(&a, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+    return proto_reply_ack(out, msg[1], msg[0]);
 }
 
 bool port_app_init(const port_app_config_t *c)

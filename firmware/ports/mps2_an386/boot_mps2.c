@@ -8,12 +8,6 @@
 #include "mps2.h"
 #include "port.h"
 
-static void jump(uint32_t load_addr, void *ctx)
-{
-    (void)ctx;
-    cm4_start_image(load_addr);
-}
-
 int main(void)
 {
     boot_config_t cfg;
@@ -22,7 +16,7 @@ int main(void)
     boot_config_default(&cfg, BOOT_BOARD_QEMU);
     cfg.node_id = 1u;
     cfg.request_word = &mps2_boot_request_word;
-    cfg.jump = jump;
+    cfg.jump = cm4_boot_jump;
     cfg.reset = port_boot_reset;
     if (cfg.slot_base + BOOT_IMAGE_HDR_AREA != MPS2_APP_LOAD ||
         !port_boot_init(&cfg, true, false)) {

@@ -13,18 +13,19 @@
 #include "hal.h"
 #include "mps2.h"
 #include "port.h"
+#include "port_ring.h"
 
 #define RX_RING 1024u /* power of two */
 #define TX_RING 2048u
 
+static uint8_t rx_buf[RX_RING], tx_buf[TX_RING];
+
 static struct {
-    uint8_t rx[RX_RING];
-    volatile uint32_t rx_head, rx_tail; /* head: ISR writes, tail: main */
-    uint8_t tx[TX_RING];
-    volatile uint32_t tx_head, tx_tail; /* head: main, tail: ISR */
-    volatile bool tx_busy;              /* a byte is in the transmitter */
+    port_ring_t rx;        /* producer: RX ISR, consumer: main */
+    port_ring_t tx;        /* producer: main, consumer: TX ISR */
+    volatile bool tx_busy; /* a byte is in the transmitter */
     uint32_t rx_dropped;
-} uart;
+} uart = {PORT_RING_INIT(rx_buf), PORT_RING_INIT(tx_buf), false, 0u};
 
 static struct {
     uint32_t load;      /* SysTick reload */
@@ -115,12 +116,8 @@ void mps2_uart0_rx_handler(void)
     MPS2_UART_INT(MPS2_UART0) = MPS2_UART_INT_RX;
     while (MPS2_UART_STATE(MPS2_UART0) & MPS2_UART_STATE_RXFULL) {
         uint8_t c = (uint8_t)MPS2_UART_DATA(MPS2_UART0);
-        uint32_t h = uart.rx_head;
 
-        if (h - uart.rx_tail < RX_RING) {
-            uart.rx[h % RX_RING] = c;
-            uart.rx_head = h + 1u;
-        } else {
+        if (!port_ring_put(&uart.rx, c)) {
             uart.rx_dropped++;
         }
     }
@@ -130,13 +127,12 @@ void mps2_uart0_rx_handler(void)
  * (from its handler or with interrupts off). */
 static void tx_next(void)
 {
-    uint32_t t = uart.tx_tail;
+    uint8_t c;
 
-    if (t != uart.tx_head && !(MPS2_UART_STATE(MPS2_UART0) & MPS2_UART_STATE_TXFULL)) {
+    if (!(MPS2_UART_STATE(MPS2_UART0) & MPS2_UART_STATE_TXFULL) && port_ring_get(&uart.tx, &c)) {
         uart.tx_busy = true;
-        MPS2_UART_DATA(MPS2_UART0) = uart.tx[t % TX_RING];
-        uart.tx_tail = t + 1u;
-    } else if (t == uart.tx_head) {
+        MPS2_UART_DATA(MPS2_UART0) = c;
+    } else if (port_ring_empty(&uart.tx)) {
         uart.tx_busy = false;
     }
 }
@@ -150,16 +146,13 @@ void mps2_uart0_tx_handler(void)
 
 size_t hal_uart_write(const uint8_t *data, size_t len)
 {
-    size_t n = 0;
+    size_t n;
     uint32_t pm;
 
     if (data == NULL) {
         return 0;
     }
-    while (n < len && uart.tx_head - uart.tx_tail < TX_RING) {
-        uart.tx[uart.tx_head % TX_RING] = data[n++];
-        uart.tx_head++;
-    }
+    n = port_ring_write(&uart.tx, data, len);
     pm = cm4_irq_save();
     if (!uart.tx_busy) {
         tx_next();
@@ -170,21 +163,12 @@ size_t hal_uart_write(const uint8_t *data, size_t len)
 
 size_t hal_uart_read(uint8_t *data, size_t cap)
 {
-    size_t n = 0;
-
-    if (data == NULL) {
-        return 0;
-    }
-    while (n < cap && uart.rx_tail != uart.rx_head) {
-        data[n++] = uart.rx[uart.rx_tail % RX_RING];
-        uart.rx_tail++;
-    }
-    return n;
+    return data == NULL ? 0 : port_ring_read(&uart.rx, data, cap);
 }
 
 bool port_uart_tx_idle(void)
 {
-    return uart.tx_tail == uart.tx_head && !uart.tx_busy &&
+    return port_ring_empty(&uart.tx) && !uart.tx_busy &&
            !(MPS2_UART_STATE(MPS2_UART0) & MPS2_UART_STATE_TXFULL);
 }
 
@@ -216,18 +200,12 @@ const hal_flash_layout_t *hal_flash_layout(void)
     return &flash_layout;
 }
 
-static bool in_flash(uint32_t addr, size_t len)
-{
-    return addr >= MPS2_FLASH_BASE && len <= MPS2_FLASH_SIZE &&
-           addr - MPS2_FLASH_BASE <= MPS2_FLASH_SIZE - len;
-}
-
 bool hal_flash_erase_page(uint32_t addr)
 {
     volatile uint32_t *p;
     uint32_t i;
 
-    if (!in_flash(addr, 1u)) {
+    if (!cm4_flash_in_region(addr, 1u)) {
         return false;
     }
     addr -= (addr - MPS2_FLASH_BASE) % MPS2_FLASH_PAGE;
@@ -243,7 +221,7 @@ bool hal_flash_write(uint32_t addr, const uint8_t *data, size_t len)
     volatile uint8_t *p = (volatile uint8_t *)(uintptr_t)addr;
     size_t i;
 
-    if (data == NULL || !in_flash(addr, len) || addr % MPS2_FLASH_WRITE != 0u ||
+    if (data == NULL || !cm4_flash_in_region(addr, len) || addr % MPS2_FLASH_WRITE != 0u ||
         len % MPS2_FLASH_WRITE != 0u) {
         return false;
     }
@@ -258,19 +236,7 @@ bool hal_flash_write(uint32_t addr, const uint8_t *data, size_t len)
     return true;
 }
 
-bool hal_flash_read(uint32_t addr, uint8_t *data, size_t len)
-{
-    const volatile uint8_t *p = (const volatile uint8_t *)(uintptr_t)addr;
-    size_t i;
-
-    if (data == NULL || !in_flash(addr, len)) {
-        return false;
-    }
-    for (i = 0; i < len; i++) {
-        data[i] = p[i];
-    }
-    return true;
-}
+/* hal_flash_read: memory-mapped, common/cm4_hal.c */
 
 /* ---- system -------------------------------------------------------------------------- */
 
@@ -281,15 +247,12 @@ void hal_watchdog_kick(void)
     MPS2_WDOG_LOCK = 0u;
 }
 
-void hal_system_reset(void)
-{
-    cm4_system_reset();
-}
+/* hal_system_reset: common/cm4_hal.c */
 
 void mps2_board_init(uint32_t tick_hz, void (*hook)(void))
 {
-    uart.rx_head = uart.rx_tail = 0;
-    uart.tx_head = uart.tx_tail = 0;
+    port_ring_init(&uart.rx);
+    port_ring_init(&uart.tx);
     uart.tx_busy = false;
     MPS2_UART_CTRL(MPS2_UART0) = 0u;
     MPS2_UART_BAUDDIV(MPS2_UART0) = MPS2_SYSCLK_HZ / 115200u;

@@ -4,6 +4,7 @@
 #include "hal.h"
 #include "hal_flash_sim.h"
 #include "proto_msgs.h"
+#include "proto_reply.h"
 
 static boot_t boot;
 static boot_config_t cfg;
@@ -87,48 +88,30 @@ void boot_sim_poll(void)
     }
 }
 
-static size_t error_reply(uint8_t *out, uint8_t seq, uint8_t req, uint8_t code, uint16_t arg,
-                          int32_t lo)
-{
-    proto_error_t e;
-
-    e.req = req;
-    e.code = code;
-    e.arg = arg;
-    e.lo = lo;
-    e.hi = 0;
-    out[0] = (uint8_t)PROTO_MSG_ERROR;
-    out[1] = seq;
-    return PROTO_MSG_HDR + proto_error_encode(&e, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
-}
-
 size_t boot_sim_app_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out,
                            size_t cap)
 {
-    proto_ack_t a;
-
     (void)now_us;
     if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX) {
         return 0;
     }
     if (msg[0] < 0x80u || msg[0] > 0x8Fu) {
-        return error_reply(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
+        return proto_reply_error(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u,
+                                 0, 0);
     }
     if (msg[0] != PROTO_MSG_BOOT_ENTER) {
         /* lo = 1: application running */
-        return error_reply(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_BOOT,
-                           (uint16_t)BOOT_ERR_STATE, 1);
+        return proto_reply_error(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_BOOT,
+                                 (uint16_t)BOOT_ERR_STATE, 1, 0);
     }
     if (len != PROTO_MSG_HDR + PROTO_BOOT_ENTER_LEN) {
-        return error_reply(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_BAD_LENGTH, 0u, 1);
+        return proto_reply_error(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_BAD_LENGTH, 0u, 1,
+                                 0);
     }
     boot_request_enter(&cfg);
     reset_pending = true;
     hal_system_reset();
-    a.req = msg[0];
-    out[0] = (uint8_t)PROTO_MSG_ACK;
-    out[1] = msg[1];
-    return PROTO_MSG_HDR + proto_ack_encode(&a, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+    return proto_reply_ack(out, msg[1], msg[0]);
 }
 
 size_t boot_sim_handle(const uint8_t *msg, size_t len, uint8_t *out, size_t cap)
@@ -200,7 +183,8 @@ size_t boot_sim_drive_handle(const uint8_t *msg, size_t len, uint8_t *out, size_
     }
     n = boot_sim_handle(msg, len, out, cap);
     if (n == 0u && mode == BOOT_SIM_APP) {
-        return error_reply(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
+        return proto_reply_error(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u,
+                                 0, 0);
     }
     return n;
 }

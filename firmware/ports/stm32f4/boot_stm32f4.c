@@ -9,12 +9,6 @@
 #include "port.h"
 #include "stm32f4.h"
 
-static void jump(uint32_t load_addr, void *ctx)
-{
-    (void)ctx;
-    cm4_start_image(load_addr);
-}
-
 int main(void)
 {
     boot_config_t cfg;
@@ -23,7 +17,7 @@ int main(void)
     boot_config_default(&cfg, BOOT_BOARD_STM32F4);
     cfg.node_id = 1u;
     cfg.request_word = &f4_boot_request_word;
-    cfg.jump = jump;
+    cfg.jump = cm4_boot_jump;
     cfg.reset = port_boot_reset;
     if (cfg.slot_base + BOOT_IMAGE_HDR_AREA != F4_APP_LOAD || !port_boot_init(&cfg, true, true)) {
         for (;;) {

@@ -18,6 +18,7 @@
 #include "drive.h"
 #include "hal.h"
 #include "port.h"
+#include "port_ring.h"
 #include "qdec.h"
 #include "stm32f4.h"
 
@@ -37,13 +38,14 @@ typedef struct {
     uint8_t data[8];
 } can_frame_t;
 
+static uint8_t rx_buf[RX_RING], tx_buf[TX_RING];
+
 static struct {
-    uint8_t rx[RX_RING];
-    volatile uint32_t rx_head, rx_tail;
-    uint8_t tx[TX_RING];
-    volatile uint32_t tx_head, tx_tail;
+    port_ring_t rx; /* producer: USART2 ISR, consumer: main */
+    port_ring_t tx; /* producer: main, consumer: USART2 ISR */
     uint32_t overruns;
-} uart;
+    uint32_t rx_dropped;
+} uart = {PORT_RING_INIT(rx_buf), PORT_RING_INIT(tx_buf), 0u, 0u};
 
 static struct {
     can_frame_t q[CAN_RING];
@@ -189,20 +191,19 @@ void f4_usart2_handler(void)
 
     if (sr & (F4_USART_SR_RXNE | F4_USART_SR_ORE)) {
         uint8_t c = (uint8_t)F4_USART_DR(F4_USART2); /* also clears ORE */
-        uint32_t h = uart.rx_head;
 
         if (sr & F4_USART_SR_ORE) {
             uart.overruns++;
         }
-        if (h - uart.rx_tail < RX_RING) {
-            uart.rx[h % RX_RING] = c;
-            uart.rx_head = h + 1u;
+        if (!port_ring_put(&uart.rx, c)) {
+            uart.rx_dropped++;
         }
     }
     if ((sr & F4_USART_SR_TXE) && (F4_USART_CR1(F4_USART2) & F4_USART_CR1_TXEIE)) {
-        if (uart.tx_tail != uart.tx_head) {
-            F4_USART_DR(F4_USART2) = uart.tx[uart.tx_tail % TX_RING];
-            uart.tx_tail++;
+        uint8_t c;
+
+        if (port_ring_get(&uart.tx, &c)) {
+            F4_USART_DR(F4_USART2) = c;
         } else {
             F4_USART_CR1(F4_USART2) &= ~F4_USART_CR1_TXEIE;
         }
@@ -211,16 +212,13 @@ void f4_usart2_handler(void)
 
 size_t hal_uart_write(const uint8_t *data, size_t len)
 {
-    size_t n = 0;
+    size_t n;
     uint32_t pm;
 
     if (data == NULL) {
         return 0;
     }
-    while (n < len && uart.tx_head - uart.tx_tail < TX_RING) {
-        uart.tx[uart.tx_head % TX_RING] = data[n++];
-        uart.tx_head++;
-    }
+    n = port_ring_write(&uart.tx, data, len);
     pm = cm4_irq_save();
     F4_USART_CR1(F4_USART2) |= F4_USART_CR1_TXEIE;
     cm4_irq_restore(pm);
@@ -229,21 +227,12 @@ size_t hal_uart_write(const uint8_t *data, size_t len)
 
 size_t hal_uart_read(uint8_t *data, size_t cap)
 {
-    size_t n = 0;
-
-    if (data == NULL) {
-        return 0;
-    }
-    while (n < cap && uart.rx_tail != uart.rx_head) {
-        data[n++] = uart.rx[uart.rx_tail % RX_RING];
-        uart.rx_tail++;
-    }
-    return n;
+    return data == NULL ? 0 : port_ring_read(&uart.rx, data, cap);
 }
 
 bool port_uart_tx_idle(void)
 {
-    return uart.tx_tail == uart.tx_head && (F4_USART_SR(F4_USART2) & F4_USART_SR_TC);
+    return port_ring_empty(&uart.tx) && (F4_USART_SR(F4_USART2) & F4_USART_SR_TC);
 }
 
 /* ---- CAN1 -------------------------------------------------------------------------------- */
@@ -330,12 +319,6 @@ const hal_flash_layout_t *hal_flash_layout(void)
     return &flash_layout;
 }
 
-static bool in_region(uint32_t addr, size_t len)
-{
-    return addr >= F4_FLASH_REGION_BASE && len <= F4_FLASH_REGION_SIZE &&
-           addr - F4_FLASH_REGION_BASE <= F4_FLASH_REGION_SIZE - len;
-}
-
 static bool flash_wait(void)
 {
     uint32_t sr;
@@ -359,7 +342,7 @@ bool hal_flash_erase_page(uint32_t addr)
 {
     bool ok;
 
-    if (!in_region(addr, 1u)) {
+    if (!cm4_flash_in_region(addr, 1u)) {
         return false;
     }
     flash_unlock();
@@ -379,7 +362,7 @@ bool hal_flash_write(uint32_t addr, const uint8_t *data, size_t len)
     bool ok = true;
     size_t i;
 
-    if (data == NULL || !in_region(addr, len) || addr % 4u != 0u || len % 4u != 0u) {
+    if (data == NULL || !cm4_flash_in_region(addr, len) || addr % 4u != 0u || len % 4u != 0u) {
         return false;
     }
     for (i = 0; i < len / 4u; i++) {
@@ -399,19 +382,7 @@ bool hal_flash_write(uint32_t addr, const uint8_t *data, size_t len)
     return ok;
 }
 
-bool hal_flash_read(uint32_t addr, uint8_t *data, size_t len)
-{
-    const volatile uint8_t *p = (const volatile uint8_t *)(uintptr_t)addr;
-    size_t i;
-
-    if (data == NULL || !in_region(addr, len)) {
-        return false;
-    }
-    for (i = 0; i < len; i++) {
-        data[i] = p[i];
-    }
-    return true;
-}
+/* hal_flash_read: memory-mapped, common/cm4_hal.c */
 
 /* ---- system ---------------------------------------------------------------------------------- */
 
@@ -429,10 +400,7 @@ void hal_watchdog_kick(void)
     F4_IWDG_KR = 0xAAAAu;
 }
 
-void hal_system_reset(void)
-{
-    cm4_system_reset();
-}
+/* hal_system_reset: common/cm4_hal.c */
 
 /* ---- bring-up ------------------------------------------------------------------------------ */
 

@@ -162,8 +162,7 @@ class _Evaluator:
         def run(program):
             return estimate_program(program, profile, model).total_s
 
-        warmup = max(128, 2 * int(profile.motion["lookahead_blocks"]))
-        return np.array(xp.predict(self.experiments, run, warmup=warmup, full=self.full))
+        return np.array(xp.predict(self.experiments, run, full=self.full))
 
 
 def _stats(err: np.ndarray) -> dict:

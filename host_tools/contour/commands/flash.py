@@ -160,16 +160,23 @@ def enter_bootloader(client: BootClient, wait: float = 5.0) -> dict:
     """boot_info of the drive, asking a running application to reset into its
     bootloader (boot_enter) whenever it answers as an application."""
     deadline = time.monotonic() + wait
+    answered = False
     while True:
         try:
             return client.request("boot_connect", retries=2)[1]
         except Refused:
             # an application answers boot_connect with an error: ask it to reset
+            answered = True
             with contextlib.suppress(Refused, LinkLost):
                 client.request("boot_enter", retries=2)
         except LinkLost:
             pass
         if time.monotonic() > deadline:
+            if not answered:
+                raise LinkLost(
+                    f"no reply from the drive in {wait:g} s: is it connected and powered, "
+                    "and is --node right?"
+                )
             raise LinkLost("the drive did not come back in its bootloader")
         client.sleep(0.05)
 
@@ -437,6 +444,10 @@ def cmd_flash(args) -> int:
     image = img.load(args.image)  # refused here, before any link is opened
     if not args.port and not args.can and args.sim_flash is None:
         raise UserError("give --port PATH or --can INTERFACE:CHANNEL[@BITRATE]")
+    if not 1 <= args.attempts <= 100:
+        raise UserError(f"--attempts must be 1..100, got {args.attempts}")
+    if not 0 < args.timeout <= 60:  # also refuses nan
+        raise UserError(f"--timeout must be in (0, 60] s, got {args.timeout:g}")
     link = open_link(args)
     client = BootClient(link, timeout=args.timeout)
     try:

@@ -41,7 +41,7 @@ def _common(p: argparse.ArgumentParser, controller_required: bool = False) -> No
         help="machine description (default hil_sim/machines/default.toml; a bare name "
         "looks in hil_sim/machines/)",
     )
-    p.add_argument("--tick-hz", type=float, default=None, help="control tick rate, Hz")
+    p.add_argument("--tick-hz", type=float, default=None, metavar="N", help="control tick rate, Hz")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 

@@ -254,6 +254,8 @@ def add_link_arguments(parser) -> None:
 
 
 def connect_from_args(args, **kw: Any) -> Client:
+    if not 0 < args.timeout <= 60:  # also refuses nan
+        raise UserError(f"--timeout must be in (0, 60] s, got {args.timeout:g}")
     return connect(port=args.port, can=args.can, node=args.node, timeout=args.timeout, **kw)
 
 

@@ -171,7 +171,7 @@ def resolve(name_or_path: str | None) -> Path:
     p = Path(name_or_path)
     if p.exists():
         return p
-    q = MACHINES / f"{name_or_path}.toml"
+    q = MACHINES / (name_or_path if name_or_path.endswith(".toml") else f"{name_or_path}.toml")
     if q.exists():
         return q
     raise UserError(f"machine file {name_or_path} not found (nor {q})")

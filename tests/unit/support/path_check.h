@@ -20,10 +20,10 @@ typedef struct {
     bool total_ticks_ok;      /* ticks == ceil(sum of estimates / tick)     */
     int64_t max_block_err_ns; /* max |block end - cumulative estimate|      */
     uint64_t ticks;
-    int64_t est_total_ns; /* sum of the estimated block times           */
-    double max_v_ratio;   /* max |dp| / (v_i h) over axes and ticks     */
-    double max_a_ratio;   /* max |d2p| / (a_i h^2) inside blocks        */
-    double max_j_ratio;   /* max |d acc_ff| / (j_i h) inside blocks     */
+    int64_t est_total_ns;   /* sum of the estimated block times           */
+    double max_v_ratio;     /* max |dp| / (v_i h) over axes and ticks     */
+    double max_a_ratio;     /* max |d2p| / (a_i h^2) inside blocks        */
+    double max_j_ratio;     /* max |d acc_ff| / (j_i h) inside blocks     */
     uint32_t corner_capped; /* blocks whose v_max is the smoothed-corner cap */
 } pc_result_t;
 
