@@ -11,7 +11,8 @@ bin=build/bench/bench_servo
 mkdir -p build/bench
 cc -std=c99 -O2 -g -D_DEFAULT_SOURCE -Ifirmware/core -Ifirmware/hal -Ihil_sim -o "$bin" \
   bench/bench_servo.c firmware/core/fixmath.c firmware/core/pid.c firmware/core/cec.c \
-  firmware/core/servo.c firmware/core/qdec.c firmware/core/comp.c hil_sim/qgen.c -lm
+  firmware/core/servo.c firmware/core/qdec.c firmware/core/comp.c firmware/core/crc.c \
+  hil_sim/qgen.c -lm
 n=10000
 "$bin" exact "$n" # fails the bench if the run itself faults
 bash bench/callgrind.sh control_tick_instructions "$bin" bench_tick "$n" exact "$n"

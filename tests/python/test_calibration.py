@@ -370,6 +370,11 @@ def test_cli_import_and_errors(tmp_path, capsys):
         (["calibrate", "--import", str(f), "--apply"], "--apply needs --axis"),
         (["calibrate", "--axis", "Y", "--from", "0", "--to", "10", "--step", "5",
           "--feed", "-1"], "--feed"),
+        # refused before the (simulated) axis moves, not after a run of minutes
+        (["calibrate", "--axis", "Y", "--from", "0", "--to", "10", "--step", "5",
+          "--sim", MACHINE, "--samples", "0"], "--samples 0"),
+        (["calibrate", "--axis", "Y", "--from", "0", "--to", "10", "--step", "5",
+          "--sim", MACHINE, "--out", str(tmp_path / "no" / "t.csv")], "no such directory"),
     ):  # fmt: skip
         assert cli.main(argv) == 2
         assert msg in capsys.readouterr().err

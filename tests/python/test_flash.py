@@ -231,6 +231,23 @@ def test_cli_refuses_corrupt_file_with_one_line(tmp_path, capsys):
     assert "payload CRC mismatch" in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize(
+    "opts, message",
+    [
+        (["--attempts", "0"], "--attempts must be 1..100"),  # would flash nothing
+        (["--timeout", "-1"], "--timeout must be in (0, 60] s"),
+    ],
+)
+def test_cli_refuses_bad_numbers_before_opening_the_link(tmp_path, capsys, opts, message):
+    p = tmp_path / "new.img"
+    p.write_bytes(NEW.to_bytes())
+    # the port does not exist: the options must be refused before it is opened
+    assert cli_main(["flash", str(p), "--port", "/nonexistent", *opts]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("contour: error: ") and err.count("\n") == 1
+    assert message in err
+
+
 # ---- fault injection -------------------------------------------------------------
 
 

@@ -230,7 +230,9 @@ static void test_blocks_are_checked_before_queueing(void)
 
 static void test_queue_full_is_a_specific_refusal(void)
 {
+    proto_queue_reply_t q;
     uint32_t i;
+    uint32_t last_free = 0xFFFFu;
     size_t n = 0;
 
     enable();
@@ -239,8 +241,15 @@ static void test_queue_full_is_a_specific_refusal(void)
         if (out[0] != PROTO_MSG_QUEUE_REPLY) {
             break;
         }
+        TEST_ASSERT_TRUE(proto_queue_reply_decode(out + PROTO_MSG_HDR, n - PROTO_MSG_HDR, &q));
+        TEST_ASSERT_EQUAL_UINT32(i, q.block_seq);
+        TEST_ASSERT_TRUE(q.free_slots <= last_free); /* no tick: nothing frees a slot */
+        last_free = q.free_slots;
     }
     TEST_ASSERT_TRUE(i > 1 && i < 1000);
+    /* refused exactly when the last accepted block reported no free slot (the
+     * planner's ring fills first, then the host-block queue) */
+    TEST_ASSERT_EQUAL_UINT32(0, last_free);
     expect_error(n, PROTO_ERROR_CODE_QUEUE_FULL);
 }
 

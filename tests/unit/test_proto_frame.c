@@ -183,11 +183,20 @@ static void test_oversized_is_dropped_without_overrun(void)
 static void test_bad_cobs_code_is_counted(void)
 {
     const uint8_t bad[] = {0x09, 0x01, 0x02, 0x00}; /* code points past the end */
+    uint8_t msg[] = {0x0B, 0x07, 0x00, 0x42};
+    uint8_t f[PROTO_FRAME_MAX];
+    size_t n = make_frame(f, msg, sizeof msg);
 
     proto_frame_rx_init(&rx);
     got_count = 0;
     feed(bad, sizeof bad);
     TEST_ASSERT_EQUAL_UINT32(1, rx.stats.cobs);
+    TEST_ASSERT_EQUAL_UINT32(1, proto_frame_rx_errors(&rx)); /* counted once, as COBS only */
+    TEST_ASSERT_EQUAL_UINT(0, got_count);                    /* nothing delivered */
+    feed(f, n);                                              /* and the link resynchronises */
+    TEST_ASSERT_EQUAL_UINT(1, got_count);
+    TEST_ASSERT_EQUAL_size_t(sizeof msg, got_len);
+    TEST_ASSERT_EQUAL_MEMORY(msg, got, sizeof msg);
 }
 
 int main(void)

@@ -90,4 +90,13 @@ void cm4_start_image(uint32_t vtor) __attribute__((noreturn));
 bool cm4_flash_in_region(uint32_t addr, size_t len);
 void cm4_boot_jump(uint32_t load_addr, void *ctx);
 
+/* hal_time_us of a SysTick time base: *ticks (incremented by the SysTick
+ * handler, reload value `load`, period_us per tick) times period_us plus the
+ * microseconds elapsed in the current period (clk_per_us SysTick clocks per
+ * us), at most period_us - 1; a wrap whose interrupt is still pending reads
+ * as the start of the period. Consistent against the handler (re-reads until
+ * *ticks is stable). Main context or lower-priority interrupts. */
+uint32_t cm4_systick_time_us(const volatile uint32_t *ticks, uint32_t load, uint32_t period_us,
+                             uint32_t clk_per_us);
+
 #endif /* PORT_CM4_H */

@@ -86,26 +86,10 @@ void mps2_clock_advance(void)
 
 uint32_t hal_time_us(void)
 {
-    uint32_t t1, t2, val, sub;
-
     if (tb.manual) {
         return tb.ticks * tb.period_us;
     }
-    do {
-        t1 = tb.ticks;
-        val = CM4_SYST_CVR;
-        t2 = tb.ticks;
-        /* a wrap not yet counted (interrupt pending or masked): take the
-         * start of the period */
-        if (CM4_SCB_ICSR & CM4_ICSR_PENDSTSET) {
-            val = tb.load;
-        }
-    } while (t1 != t2);
-    sub = (tb.load - val) / (MPS2_SYSCLK_HZ / 1000000u);
-    if (sub >= tb.period_us) {
-        sub = tb.period_us - 1u;
-    }
-    return t1 * tb.period_us + sub;
+    return cm4_systick_time_us(&tb.ticks, tb.load, tb.period_us, MPS2_SYSCLK_HZ / 1000000u);
 }
 
 /* ---- UART0 --------------------------------------------------------------------- */

@@ -83,17 +83,7 @@ void f4_set_tick_hook(void (*hook)(void))
 
 uint32_t hal_time_us(void)
 {
-    uint32_t t1, t2, val;
-
-    do {
-        t1 = tb.ticks;
-        val = CM4_SYST_CVR;
-        t2 = tb.ticks;
-        if (CM4_SCB_ICSR & CM4_ICSR_PENDSTSET) {
-            val = tb.load;
-        }
-    } while (t1 != t2);
-    return t1 * tb.period_us + (tb.load - val) / (F4_SYSCLK_HZ / 1000000u);
+    return cm4_systick_time_us(&tb.ticks, tb.load, tb.period_us, F4_SYSCLK_HZ / 1000000u);
 }
 
 /* ---- encoders -------------------------------------------------------------------- */

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 import time
 from typing import Optional
@@ -175,6 +176,21 @@ def _check_numbers(args) -> None:
         raise UserError(f"--ramp-ms {args.ramp_ms:g}: must be 0..1000")
     if args.comp_type is not None and args.comp_type not in (0, 1):
         raise UserError(f"--comp-type {args.comp_type}: LinuxCNC knows types 0 and 1")
+    # the drive-side limits of run.RunConfig, checked before anything moves
+    if not 1 <= args.samples <= 512:
+        raise UserError(f"--samples {args.samples}: must be 1..512")
+    if not 1 <= args.cycles <= 20:
+        raise UserError(f"--cycles {args.cycles}: must be 1..20")
+    if not 0 < args.timeout <= 60:  # also refuses nan
+        raise UserError(f"--timeout {args.timeout:g} s: must be in (0, 60]")
+    if not 0 <= args.retries <= 100:
+        raise UserError(f"--retries {args.retries}: must be 0..100")
+    if not 0 < args.run_timeout <= 86400:
+        raise UserError(f"--run-timeout {args.run_timeout:g} s: must be in (0, 86400]")
+    # outputs are written after a run that may take minutes: refuse a bad path now
+    for opt, path in (("--out", args.out), ("--comp-file", args.comp_file), ("--plot", args.plot)):
+        if path and not os.path.isdir(os.path.dirname(os.path.abspath(path))):
+            raise UserError(f"{opt} {path}: no such directory")
 
 
 def _outputs(args, em: analysis.ErrorMap, residual: Optional[analysis.ErrorMap]) -> None:
