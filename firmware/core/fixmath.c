@@ -126,7 +126,7 @@ static uint64_t fx_uabs64(int64_t v)
 }
 
 /* full 64 x 64 -> 128 product from four 32 x 32 -> 64 products */
-static fx_u128_t fx_umul64(uint64_t a, uint64_t b)
+static inline fx_u128_t fx_umul64(uint64_t a, uint64_t b)
 {
     uint64_t a_lo = a & 0xFFFFFFFFu, a_hi = a >> 32;
     uint64_t b_lo = b & 0xFFFFFFFFu, b_hi = b >> 32;
@@ -210,54 +210,75 @@ static int64_t fx_signed_sat(bool ok, uint64_t m, bool neg)
 }
 
 /* round(v / 2^s) by the shift rule (ties toward +inf) for v = +m or -m
- * (neg), saturated to int64: ties of the magnitude go up for a positive v and
- * down for a negative one. m <= 2^126 (a product of two int64 magnitudes). */
-static int64_t fx_round_shift128_sat(fx_u128_t m, bool neg, unsigned s)
+ * (neg), saturated to int64. m <= 2^126 (a product of two int64 magnitudes).
+ * Rounding half up on the signed value is floor((m + 2^(s-1)) / 2^s) for
+ * v >= 0 and floor((m - 1 + 2^(s-1)) / 2^s) for v < 0 (a tie of the
+ * magnitude goes down), and floor((x + 2^(s-1)) / 2^s) = floor((t + 1) / 2)
+ * with t = floor(x / 2^(s-1)): one 128-bit shift, no mask of the dropped
+ * bits. */
+static inline int64_t fx_round_shift128_sat(fx_u128_t m, bool neg, unsigned s)
 {
-    uint64_t q, half_bit, below;
+    uint64_t t, lo = m.lo, hi = m.hi;
+    unsigned r;
     bool ok = true;
 
     if (s == 0) {
-        return fx_signed_sat(m.hi == 0, m.lo, neg);
+        return fx_signed_sat(hi == 0, lo, neg);
     }
-    if (s >= 129) {
-        return 0; /* magnitudes here are at most 2^126 */
+    if (s >= 128) {
+        return 0; /* |v| <= 2^126 < 2^(s-1) */
     }
-    /* q = floor(m / 2^s); half_bit = bit s-1 of m; below = bits under it */
-    if (s < 64) {
-        q = (m.lo >> s) | (m.hi << (64 - s));
-        ok = (m.hi >> s) == 0;
-        half_bit = (m.lo >> (s - 1)) & 1u;
-        below = m.lo & (((uint64_t)1 << (s - 1)) - 1u);
-    } else if (s == 64) {
-        q = m.hi;
-        half_bit = m.lo >> 63;
-        below = m.lo & (((uint64_t)1 << 63) - 1u);
-    } else {
-        q = (s < 128) ? m.hi >> (s - 64) : 0;
-        half_bit = (m.hi >> (s - 65)) & 1u;
-        below = (m.hi & (((uint64_t)1 << (s - 65)) - 1u)) | m.lo;
-    }
-    /* round half up on the signed value */
-    if (half_bit && (!neg || below != 0)) {
-        if (q == UINT64_MAX) {
-            ok = false;
+    if (neg) {
+        if (lo == 0) {
+            if (hi == 0) {
+                return 0;
+            }
+            hi--;
         }
-        q++;
+        lo--;
     }
-    return fx_signed_sat(ok, q, neg);
+    r = s - 1;
+    if (r >= 64) {
+        t = hi >> (r - 64);
+    } else if (hi == 0) {
+        t = lo >> r;
+    } else if (r == 0) {
+        t = lo;
+        ok = false;
+    } else {
+        t = (lo >> r) | (hi << (64 - r));
+        ok = (hi >> r) == 0;
+    }
+    /* floor((t + 1) / 2) <= 2^63; !ok: the quotient is at least 2^63 */
+    return fx_signed_sat(ok, (t >> 1) + (t & 1u), neg);
 }
 
 int64_t fx_mul64_shift(int64_t a, int64_t b, unsigned s)
 {
-    fx_u128_t p = fx_umul64(fx_uabs64(a), fx_uabs64(b));
+    uint64_t ua = fx_uabs64(a), ub = fx_uabs64(b);
+    fx_u128_t p;
 
+    if (((ua | ub) >> 32) == 0) { /* one 32 x 32 -> 64 multiply */
+        p.hi = 0;
+        p.lo = ua * ub;
+    } else {
+        p = fx_umul64(ua, ub);
+    }
     return fx_round_shift128_sat(p, (a < 0) != (b < 0), s);
 }
 
 int64_t fx_mul64x32_shift(int64_t a, int32_t b, unsigned s)
 {
-    fx_u128_t p = fx_umul64x32(fx_uabs64(a), (uint32_t)fx_uabs64(b));
+    uint64_t ua = fx_uabs64(a);
+    uint32_t ub = (uint32_t)fx_uabs64(b);
+    fx_u128_t p;
+
+    if ((ua >> 32) == 0) { /* one 32 x 32 -> 64 multiply */
+        p.hi = 0;
+        p.lo = ua * ub;
+    } else {
+        p = fx_umul64x32(ua, ub);
+    }
 
     return fx_round_shift128_sat(p, (a < 0) != (b < 0), s);
 }
@@ -420,6 +441,32 @@ static uint32_t fx_div64by32n(uint32_t u1, uint32_t u0, uint32_t v, uint32_t *re
     return (qh << 16) | ql;
 }
 
+/* The same for a divisor with a precomputed reciprocal v = floor((2^64 - 1)
+ * / d) - 2^32 (Moller and Granlund, "Improved division by invariant
+ * integers", 2011, algorithm 4): one multiply, at most two corrections. */
+static uint32_t fx_div64by32_pre(uint32_t u1, uint32_t u0, uint32_t d, uint32_t v, uint32_t *rem)
+{
+    uint64_t p = (uint64_t)v * u1 + (((uint64_t)u1 << 32) | u0);
+    uint32_t q = (uint32_t)(p >> 32) + 1u;
+    uint32_t r = u0 - q * d;
+
+    if (r > (uint32_t)p) {
+        q--;
+        r += d;
+    }
+    if (r >= d) {
+        q++;
+        r -= d;
+    }
+    *rem = r;
+    return q;
+}
+
+/* 10^9 (ns per second, the most frequent divisor of the planner) normalised,
+ * and its reciprocal for fx_div64by32_pre */
+#define FX_NS_NORM  4000000000u /* 10^9 * 4 */
+#define FX_NS_RECIP 316718722u  /* floor((2^64 - 1) / FX_NS_NORM) - 2^32 */
+
 /* floor((u * 2^32 + w) / d) and the remainder for d = dh * 2^32 + dl with
  * dh normalised (bit 31 set) and u < d: one exact 32-bit quotient digit. */
 static uint32_t fx_div96by64n(uint64_t u, uint32_t w, uint32_t dh, uint32_t dl, uint64_t *rem)
@@ -450,50 +497,46 @@ uint64_t fx_udiv128_digits(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem)
     unsigned s;
     uint64_t r;
     uint32_t q1, q0;
-    bool wide;
 
     if (hi >= d) { /* quotient >= 2^64, or d == 0 */
         *rem = 0;
         return UINT64_MAX;
     }
+    if (hi == 0) {
+        return fx_udivmod64_digits(lo, d, rem);
+    }
     if ((d >> 32) == 0) {
-        /* one-digit divisor: hi < d < 2^32, a 96-bit numerator */
+        /* one-digit divisor: 0 < hi < d < 2^32, a 96-bit numerator */
         uint32_t v = (uint32_t)d, r32;
         uint32_t u2, u1, u0;
 
-        if ((hi | (lo >> 32)) == 0) { /* both fit 32 bits: the hardware divider */
-            *rem = (uint32_t)lo % v;
-            return (uint32_t)lo / v;
-        }
         s = fx_clz32(v);
         v <<= s;
         u2 = (uint32_t)hi << s;
         u1 = (uint32_t)(lo >> 32) << s;
         u0 = (uint32_t)lo << s;
         if (s != 0) {
-            u2 |= (uint32_t)(lo >> (64 - s));
+            u2 |= (uint32_t)(lo >> 32) >> (32 - s);
             u1 |= (uint32_t)lo >> (32 - s);
         }
-        q1 = fx_div64by32n(u2, u1, v, &r32);
-        q0 = fx_div64by32n(r32, u0, v, &r32);
+        if (v == FX_NS_NORM) {
+            q1 = fx_div64by32_pre(u2, u1, v, FX_NS_RECIP, &r32);
+            q0 = fx_div64by32_pre(r32, u0, v, FX_NS_RECIP, &r32);
+        } else {
+            q1 = fx_div64by32n(u2, u1, v, &r32);
+            q0 = fx_div64by32n(r32, u0, v, &r32);
+        }
         *rem = r32 >> s;
         return ((uint64_t)q1 << 32) | q0;
     }
-    /* two-digit divisor: normalise, then two 96/64 digit steps (one when
-     * hi == 0: the quotient then fits 32 bits) */
-    wide = hi != 0;
+    /* two-digit divisor: normalise, then two 96/64 digit steps */
     s = fx_clz32((uint32_t)(d >> 32));
     if (s != 0) {
         d <<= s;
         hi = (hi << s) | (lo >> (64 - s));
         lo <<= s;
     }
-    if (wide) {
-        q1 = fx_div96by64n(hi, (uint32_t)(lo >> 32), (uint32_t)(d >> 32), (uint32_t)d, &r);
-    } else {
-        q1 = 0; /* the numerator was below 2^64 and d >= 2^32 */
-        r = (hi << 32) | (lo >> 32);
-    }
+    q1 = fx_div96by64n(hi, (uint32_t)(lo >> 32), (uint32_t)(d >> 32), (uint32_t)d, &r);
     q0 = fx_div96by64n(r, (uint32_t)lo, (uint32_t)(d >> 32), (uint32_t)d, &r);
     *rem = r >> s;
     return ((uint64_t)q1 << 32) | q0;
@@ -501,11 +544,58 @@ uint64_t fx_udiv128_digits(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem)
 
 uint64_t fx_udivmod64_digits(uint64_t n, uint64_t d, uint64_t *rem)
 {
-    if (d == 0) {
-        *rem = 0;
-        return UINT64_MAX;
+    uint32_t nh = (uint32_t)(n >> 32), nl = (uint32_t)n;
+    uint32_t dh = (uint32_t)(d >> 32), dl = (uint32_t)d;
+    uint32_t q, r32;
+    uint64_t r;
+    unsigned s;
+
+    if (dh == 0) {
+        uint32_t qh = 0, u1, u0, dn;
+
+        if (dl == 0) {
+            *rem = 0;
+            return UINT64_MAX;
+        }
+        if (nh == 0) { /* the hardware divider */
+            *rem = nl % dl;
+            return nl / dl;
+        }
+        if (nh >= dl) { /* high quotient digit, then nh < dl */
+            qh = nh / dl;
+            nh -= qh * dl;
+        }
+        s = fx_clz32(dl); /* 0..31 */
+        u1 = nh << s;
+        u0 = nl << s;
+        if (s != 0) {
+            u1 |= nl >> (32 - s);
+        }
+        dn = dl << s;
+        if (dn == FX_NS_NORM) {
+            q = fx_div64by32_pre(u1, u0, dn, FX_NS_RECIP, &r32);
+        } else {
+            q = fx_div64by32n(u1, u0, dn, &r32);
+        }
+        *rem = r32 >> s;
+        return ((uint64_t)qh << 32) | q;
     }
-    return fx_udiv128_digits(0, n, d, rem);
+    if (n < d) {
+        *rem = n;
+        return 0;
+    }
+    /* d >= 2^32: one exact digit step on the normalised 96-bit numerator */
+    s = fx_clz32(dh);
+    if (s != 0) {
+        dh = (dh << s) | (dl >> (32 - s));
+        dl <<= s;
+        q = fx_div96by64n(((uint64_t)(nh >> (32 - s)) << 32) | (nh << s) | (nl >> (32 - s)),
+                          nl << s, dh, dl, &r);
+    } else {
+        q = fx_div96by64n(nh, nl, dh, dl, &r);
+    }
+    *rem = r >> s;
+    return q;
 }
 
 uint64_t fx_udiv128(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem)
@@ -546,13 +636,17 @@ uint64_t fx_udivmod64(uint64_t n, uint64_t d, uint64_t *rem)
 
 /* floor(n / d) and n mod d for 0 < d and n.hi < d (the quotient fits in 64
  * bits). */
-static uint64_t fx_udiv128_n(fx_u128_t n, uint64_t d, uint64_t *rem)
+static inline uint64_t fx_udiv128_n(fx_u128_t n, uint64_t d, uint64_t *rem)
 {
+#ifdef FX_NATIVE_DIV
     return fx_udiv128(n.hi, n.lo, d, rem);
+#else
+    return fx_udiv128_digits(n.hi, n.lo, d, rem);
+#endif
 }
 
 /* round(n / d) of magnitudes, ties away from zero, then signed and saturated */
-static int64_t fx_div128_sat(fx_u128_t n, uint64_t d, bool neg)
+static inline int64_t fx_div128_sat(fx_u128_t n, uint64_t d, bool neg)
 {
     uint64_t q, r;
 
@@ -594,7 +688,22 @@ int64_t fx_div_shift64(int64_t num, int64_t den, unsigned s)
 
 int64_t fx_div_round64(int64_t num, int64_t den)
 {
-    return fx_div_shift64(num, den, 0);
+    uint64_t d = fx_uabs64(den), q, r;
+    bool neg = (num < 0) != (den < 0);
+
+    if (den == 0) {
+        return fx_div_zero(num == 0, num < 0);
+    }
+    /* fx_div_shift64(num, den, 0) without the 128-bit numerator */
+#ifdef FX_NATIVE_DIV
+    q = fx_udivmod64(fx_uabs64(num), d, &r);
+#else
+    q = fx_udivmod64_digits(fx_uabs64(num), d, &r);
+#endif
+    if (r >= d - r) {
+        q++; /* q <= 2^63 before: no wrap */
+    }
+    return fx_signed_sat(true, q, neg);
 }
 
 int32_t fx_div_sat32(int64_t num, int32_t den, unsigned s)
@@ -623,14 +732,10 @@ q16_16_t fx_recip_q16(q16_16_t x)
  * for x = v * 4^k normalised to [2^30, 2^32), fx_sqrt_seed[(x >> 26) - 16]
  * is ceil(sqrt(((x >> 26) + 1) * 2^26)), at most 3 % above sqrt(x). */
 static const uint32_t fx_sqrt_seed[48] = {
-    33777u, 34756u, 35709u, 36636u, 37541u, 38424u,
-    39288u, 40133u, 40960u, 41772u, 42567u, 43348u,
-    44116u, 44870u, 45612u, 46341u, 47060u, 47768u,
-    48465u, 49152u, 49830u, 50499u, 51160u, 51811u,
-    52455u, 53091u, 53719u, 54340u, 54954u, 55561u,
-    56162u, 56756u, 57344u, 57927u, 58503u, 59074u,
-    59639u, 60199u, 60754u, 61304u, 61849u, 62389u,
-    62924u, 63455u, 63982u, 64504u, 65022u, 65536u,
+    33777u, 34756u, 35709u, 36636u, 37541u, 38424u, 39288u, 40133u, 40960u, 41772u, 42567u, 43348u,
+    44116u, 44870u, 45612u, 46341u, 47060u, 47768u, 48465u, 49152u, 49830u, 50499u, 51160u, 51811u,
+    52455u, 53091u, 53719u, 54340u, 54954u, 55561u, 56162u, 56756u, 57344u, 57927u, 58503u, 59074u,
+    59639u, 60199u, 60754u, 61304u, 61849u, 62389u, 62924u, 63455u, 63982u, 64504u, 65022u, 65536u,
 };
 
 /* From any r >= floor(sqrt(v)), r' = floor((r + floor(v / r)) / 2) is again
@@ -708,22 +813,51 @@ static uint64_t fx_isqrt128(fx_u128_t n)
     return r;
 }
 
-/* Binary digit-by-digit cube root, three input bits per result bit. */
+/* Cube roots by Newton's iteration from above, as the square roots: from
+ * any r >= floor(cbrt(v)), r' = floor((2 r + floor(v / r^2)) / 3) is again
+ * >= floor(cbrt(v)) (arithmetic-geometric mean of r, r, v / r^2) and below r
+ * while r > floor(cbrt(v)). 32-bit values: from a power of two at most twice
+ * the root, five or six 32-bit divisions. */
+static uint32_t fx_icbrt32(uint32_t v)
+{
+    uint32_t r, y;
+
+    if (v == 0) {
+        return 0;
+    }
+    r = (uint32_t)1 << ((32u - fx_clz32(v) + 2u) / 3u); /* r^3 >= 2^bits > v */
+    for (;;) {
+        y = (2u * r + v / (r * r)) / 3u;
+        if (y >= r) {
+            return r;
+        }
+        r = y;
+    }
+}
+
+/* v >= 2^32: y = floor(cbrt(v / 8^t)) for v / 8^t in [2^29, 2^32) puts the
+ * root below r = (y + 1) 2^t, less than 2^t (a 812th of r) above it; one
+ * Newton step (a 64-bit division) lands within 3 of floor(cbrt(v)), from
+ * above, and cubes decide. */
 uint32_t fx_icbrt64(uint64_t v)
 {
-    uint64_t y = 0;
-    int s;
+    unsigned t;
+    uint64_t r, rem;
+    uint32_t y;
 
-    for (s = 63; s >= 0; s -= 3) {
-        uint64_t b;
-        y *= 2;
-        b = 3 * y * (y + 1) + 1;
-        if ((v >> s) >= b) {
-            v -= b << s;
-            y++;
-        }
+    if (v <= UINT32_MAX) {
+        return fx_icbrt32((uint32_t)v);
     }
-    return (uint32_t)y;
+    t = (64u - fx_clz64(v) - 30u) / 3u;
+    r = (uint64_t)(fx_icbrt32((uint32_t)(v >> (3u * t))) + 1u) << t;
+    y = (uint32_t)((2u * r + fx_udivmod64(v, r * r, &rem)) / 3u);
+    if (y > 2642245u) {
+        y = 2642245u; /* floor(cbrt(2^64 - 1)): y^3 below fits 64 bits */
+    }
+    while ((uint64_t)y * y * y > v) {
+        y--;
+    }
+    return y;
 }
 
 /* ---- trigonometry ------------------------------------------------------------- */

@@ -62,8 +62,7 @@ static q32_32_t qdec_rate(int64_t dp, int64_t dt)
         return (dp < 0) ? -INT64_MAX : INT64_MAX;
     }
     num = n * QDEC_NS_PER_S;
-    ip = num / d;
-    r = num % d;
+    ip = fx_udivmod64(num, d, &r); /* fixmath: 32-bit digits on 32-bit targets */
     if (ip >= (1ull << 31)) {
         return (dp < 0) ? -INT64_MAX : INT64_MAX;
     }
@@ -71,7 +70,7 @@ static q32_32_t qdec_rate(int64_t dp, int64_t dt)
         d >>= 1;
         r >>= 1;
     }
-    v = (ip << 32) + (r << 32) / d;
+    v = (ip << 32) + fx_udivmod64(r << 32, d, &r);
     return (dp < 0) ? -(int64_t)v : (int64_t)v;
 }
 
@@ -382,8 +381,10 @@ static void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges, bool vel_ed
 
     q->out.pos_nm_raw = qdec_counts_to_nm(q, q->out.pos);
     q->out.pos_nm = comp_correct(comp, q->out.pos_nm_raw, (comp_dir_t)q->out.dir);
-    q->out.vel_nm_s = fx_div_round64(fx_mul64_shift(q->out.vel, q->cfg.nm_per_count_num, 32),
-                                     q->cfg.nm_per_count_den);
+    q->out.vel_nm_s = fx_mul64_shift(q->out.vel, q->cfg.nm_per_count_num, 32);
+    if (q->cfg.nm_per_count_den != 1) { /* round(x / 1) is x */
+        q->out.vel_nm_s = fx_div_round64(q->out.vel_nm_s, q->cfg.nm_per_count_den);
+    }
 }
 
 void qdec_sample(qdec_t *q, uint32_t now_ns)
@@ -527,14 +528,25 @@ void qdec_set_comp(qdec_t *q, const comp_table_t *comp)
 pos_nm_t qdec_counts_to_nm(const qdec_t *q, int64_t counts)
 {
     int64_t num = q->cfg.nm_per_count_num;
-    int64_t den = q->cfg.nm_per_count_den;
-    int64_t whole = counts / den;
-    int64_t rem = counts % den;
+    int64_t den = q->cfg.nm_per_count_den; /* > 0 (qdec_init) */
+    int64_t whole = counts, rem = 0;
+    uint64_t uw, ur;
     int64_t nm;
 
-    if (whole != 0 && qdec_uabs(whole) > (uint64_t)INT64_MAX / qdec_uabs(num)) {
+    if (den != 1) { /* C division (toward zero), without the 64-bit divider */
+        uw = fx_udivmod64(qdec_uabs(counts), (uint64_t)den, &ur);
+        whole = (int64_t)((counts < 0) ? (uint64_t)0 - uw : uw);
+        rem = (int64_t)((counts < 0) ? (uint64_t)0 - ur : ur);
+    }
+    uw = qdec_uabs(whole);
+    /* |whole| * |num| > INT64_MAX; both below 2^31 never is */
+    if (whole != 0 && ((uw | qdec_uabs(num)) >> 31) != 0 &&
+        uw > (uint64_t)INT64_MAX / qdec_uabs(num)) {
         return ((whole < 0) != (num < 0)) ? INT64_MIN : INT64_MAX;
     }
-    nm = fx_sat_add64(whole * num, fx_div_round64(rem * num, den));
+    nm = whole * num;
+    if (rem != 0) {
+        nm = fx_sat_add64(nm, fx_div_round64(rem * num, den));
+    }
     return fx_sat_add64(nm, q->cfg.offset_nm);
 }

@@ -151,7 +151,9 @@
  *   Multi-core / threaded ports serialise qdec_edge and qdec_sample with a
  *   lock: the sequence count handles preemption on one core only.
  *
- * No floating point, no heap. Division (64-bit) only in the tick functions.
+ * No floating point, no heap. Division only in the tick functions, through
+ * fixmath (32-bit digits on 32-bit targets): the velocity estimate, and the
+ * scaling to nm when nm_per_count_den is not 1.
  */
 #ifndef QDEC_H
 #define QDEC_H

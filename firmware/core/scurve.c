@@ -29,10 +29,19 @@ static sc_u128_t sc_mul_portable(uint64_t a, uint64_t b)
 {
     uint64_t a_lo = a & 0xFFFFFFFFu, a_hi = a >> 32;
     uint64_t b_lo = b & 0xFFFFFFFFu, b_hi = b >> 32;
-    uint64_t ll = a_lo * b_lo, lh = a_lo * b_hi, hl = a_hi * b_lo, hh = a_hi * b_hi;
-    uint64_t mid = (ll >> 32) + (lh & 0xFFFFFFFFu) + (hl & 0xFFFFFFFFu);
+    uint64_t ll, lh, hl, hh, mid;
     sc_u128_t r;
 
+    if ((a_hi | b_hi) == 0) { /* one 32 x 32 -> 64 multiply */
+        r.hi = 0;
+        r.lo = a * b;
+        return r;
+    }
+    ll = a_lo * b_lo;
+    lh = a_lo * b_hi;
+    hl = a_hi * b_lo;
+    hh = a_hi * b_hi;
+    mid = (ll >> 32) + (lh & 0xFFFFFFFFu) + (hl & 0xFFFFFFFFu);
     r.lo = (mid << 32) | (ll & 0xFFFFFFFFu);
     r.hi = hh + (lh >> 32) + (hl >> 32) + (mid >> 32);
     return r;

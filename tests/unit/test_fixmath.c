@@ -761,6 +761,102 @@ static void test_recip_q16(void)
     }
 }
 
+/* The digit division (what 32-bit targets run: fx_udiv128_digits,
+ * fx_udivmod64_digits) against the host's 128-bit division, and the public
+ * fx_udiv128 / fx_udivmod64 against it: random operands of random lengths,
+ * the divisor 10^9 (its own reciprocal path), one-digit divisors, numerators
+ * just below the overflow limit (hi = d - 1) and the correction-step
+ * boundaries (remainders 0 and d - 1). */
+static void check_udiv128(uint64_t hi, uint64_t lo, uint64_t d)
+{
+    uint64_t r1, r2, q1, q2;
+    u128 n = ((u128)hi << 64) | lo;
+
+    q1 = fx_udiv128_digits(hi, lo, d, &r1);
+    q2 = fx_udiv128(hi, lo, d, &r2);
+    if (hi >= d) {
+        if (q1 != UINT64_MAX || r1 != 0 || q2 != UINT64_MAX || r2 != 0) {
+            snprintf(msg, sizeof msg, "udiv128 overflow %" PRIx64 ":%" PRIx64 " / %" PRIx64, hi, lo,
+                     d);
+            TEST_FAIL_MESSAGE(msg);
+        }
+        return;
+    }
+    if (q1 != (uint64_t)(n / d) || r1 != (uint64_t)(n % d) || q2 != q1 || r2 != r1) {
+        snprintf(msg, sizeof msg, "udiv128 %" PRIx64 ":%" PRIx64 " / %" PRIx64, hi, lo, d);
+        TEST_FAIL_MESSAGE(msg);
+    }
+    if (hi == 0) {
+        q1 = fx_udivmod64_digits(lo, d, &r1);
+        q2 = fx_udivmod64(lo, d, &r2);
+        if (q1 != lo / d || r1 != lo % d || q2 != q1 || r2 != r1) {
+            snprintf(msg, sizeof msg, "udivmod64 %" PRIx64 " / %" PRIx64, lo, d);
+            TEST_FAIL_MESSAGE(msg);
+        }
+    }
+}
+
+static void test_udiv_digits_against_native(void)
+{
+    static const uint64_t fixed_d[] = {
+        1, 3, 1000, 1000000000, 999999999, 0x80000000u, 0xFFFFFFFFu, 0x100000000ull, 0x100000001ull,
+        0xFFFFFFFF00000000ull, UINT64_MAX, (uint64_t)1 << 63,
+        /* digits that make the estimates need corrections */
+        0x8000FFFFu, 0x80010000u - 1u, 0xFFFF0001u, 0x80000000FFFFFFFFull, 0x800000007FFFFFFFull,
+        0xFFFFFFFF00000001ull, 0x0000FFFF0000FFFFull};
+    uint64_t r;
+    unsigned i, k;
+
+    TEST_ASSERT_EQUAL_UINT64(UINT64_MAX, fx_udivmod64_digits(5, 0, &r));
+    TEST_ASSERT_EQUAL_UINT64(0, r);
+    TEST_ASSERT_EQUAL_UINT64(UINT64_MAX, fx_udivmod64(5, 0, &r));
+    TEST_ASSERT_EQUAL_UINT64(UINT64_MAX, fx_udiv128_digits(0, 5, 0, &r));
+    TEST_ASSERT_EQUAL_UINT64(UINT64_MAX, fx_udiv128(7, 0, 7, &r));
+    TEST_ASSERT_EQUAL_UINT64(0, r);
+    rng_seed(13);
+    for (i = 0; i < 300000; i++) {
+        uint64_t d = rnd_u64(), hi = rnd_u64(), lo = rnd_u64();
+        switch (i % 6) {
+        case 0:
+            d = fixed_d[rng() % (sizeof fixed_d / sizeof fixed_d[0])];
+            break;
+        case 1:
+            d = 1000000000; /* the reciprocal path */
+            break;
+        case 2:
+            d = rnd_u64() >> 32; /* one digit */
+            break;
+        case 3:
+            hi = 0;
+            break;
+        default:
+            break;
+        }
+        if (d == 0) {
+            d = 1;
+        }
+        if (i % 4 != 0) {
+            hi %= d; /* mostly in range; a quarter overflow-checks */
+        }
+        check_udiv128(hi, lo, d);
+        /* the largest numerators and the remainder boundaries */
+        check_udiv128(d - 1, UINT64_MAX, d);
+        if (hi < d && lo >= 1) {
+            check_udiv128(hi, lo - 1, d);
+        }
+    }
+    for (k = 0; k < sizeof fixed_d / sizeof fixed_d[0]; k++) {
+        uint64_t d = fixed_d[k];
+        for (i = 0; i < 20000; i++) {
+            /* n = q * d + {0, d - 1}: remainders at both ends */
+            u128 n = (u128)rnd_u64() * d + ((i & 1) ? d - 1 : 0);
+            if ((n >> 64) < d) {
+                check_udiv128((uint64_t)(n >> 64), (uint64_t)n, d);
+            }
+        }
+    }
+}
+
 /* ---- roots ------------------------------------------------------------------- */
 
 static void check_isqrt64(uint64_t v)
@@ -1212,6 +1308,7 @@ int main(void)
     RUN_TEST(test_div_shift64_and_sat32);
     RUN_TEST(test_muldiv64);
     RUN_TEST(test_recip_q16);
+    RUN_TEST(test_udiv_digits_against_native);
     RUN_TEST(test_isqrt32_exhaustive_and_boundaries);
     RUN_TEST(test_isqrt64_boundaries_and_random);
     RUN_TEST(test_icbrt64_every_cube_boundary);
