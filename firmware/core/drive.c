@@ -77,8 +77,14 @@ static struct {
     cec_mode_t pend_mode;
     /* tick */
     qdec_t enc[CORE_AXES];
-    qdec_t refs[CORE_AXES];
+    qdec_t refs[CORE_AXES]; /* configuration and scaling only (see ref_*) */
     bool ref_on[CORE_AXES];
+    /* Reference scales: only their position is ever read (published as
+     * refscale), so the tick keeps just the counter's unwrapped count
+     * (what qdec_sample_counter accumulates) and scales it. */
+    uint32_t ref_raw[CORE_AXES]; /* counter value at the last sample   */
+    int64_t ref_cnt[CORE_AXES];  /* counts since init                   */
+    pos_nm_t ref_nm[CORE_AXES];  /* position, nm (published)            */
     servo_t servo;
     motion_ref_t ref;
     drive_state_t state;
@@ -163,7 +169,7 @@ static void publish(void)
         s->ref[i] = on ? drv.ref.pos[i] : 0;
         s->vel_ref[i] = on ? drv.ref.vel[i] : 0;
         s->motor_mv[i] = on ? drv.servo.out_mv[i] : 0;
-        s->refscale[i] = drv.ref_on[i] ? drv.refs[i].out.pos_nm : 0;
+        s->refscale[i] = drv.ref_on[i] ? drv.ref_nm[i] : 0;
         s->encoder_illegal[i] = on ? drv.enc[i].out.illegal : 0;
         s->pos_raw[i] = on ? drv.enc[i].out.pos_nm_raw : 0;
     }
@@ -265,6 +271,9 @@ drive_result_t drive_init(const drive_config_t *cfg)
                 /* absolute: the counter's value is the scale's position */
                 qdec_set_offset_nm(&drv.refs[i],
                                    qdec_counts_to_nm(&drv.refs[i], (int64_t)(int32_t)raw));
+                drv.ref_raw[i] = raw;
+                drv.ref_cnt[i] = 0;
+                drv.ref_nm[i] = drv.refs[i].out.pos_nm; /* until the first sample */
                 drv.ref_on[i] = true;
             }
         }
@@ -575,7 +584,9 @@ void drive_tick(void)
         if (drv.ref_on[i]) {
             uint32_t raw;
             if (hal_encoder_counter(drv.cfg.axes + i, &raw)) {
-                qdec_sample_counter(&drv.refs[i], raw, now_ns);
+                drv.ref_cnt[i] += (int32_t)(raw - drv.ref_raw[i]);
+                drv.ref_raw[i] = raw;
+                drv.ref_nm[i] = qdec_counts_to_nm(&drv.refs[i], drv.ref_cnt[i]);
             }
         }
     }

@@ -50,7 +50,7 @@ def _fmt_s(t) -> str:
         return f"{t:.1f} s ({int(t // 3600)} h {int(t % 3600 // 60)} min {t % 60:.0f} s)"
     if t >= 60:
         return f"{t:.2f} s ({int(t // 60)} min {t % 60:.1f} s)"
-    return f"{t:.4g} s"
+    return f"{t:.3f} s" if t >= 0.01 or t == 0 else f"{t * 1000:.3f} ms"
 
 
 def run(args) -> int:

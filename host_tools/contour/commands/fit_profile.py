@@ -68,6 +68,8 @@ def register(sub) -> None:
         help="fix a profile value before fitting, e.g. motion.corner_rule=smoothed-corner "
         "or axes.XZ.max_jerk_mm_s3=1e6; repeatable",
     )
+    p.add_argument("--name", help="name written into the fitted profile")
+    p.add_argument("--description", help="description written into the fitted profile")
     p.add_argument("--model", default="planner", choices=list(MODELS), help="model to fit")
     p.add_argument(
         "--fit",
@@ -218,6 +220,9 @@ def run(args) -> int:
     experiments = xp.read_all(args.experiments)
     base = profiles.load(args.base) if args.base else profiles.default()
     base = _parse_set(args.set, base)
+    for key in ("name", "description"):
+        if getattr(args, key):
+            base = base.with_values({key: getattr(args, key)})
     compare = [m.strip() for m in args.compare.split(",") if m.strip()]
     for m in compare:
         if m not in MODELS:
@@ -320,6 +325,9 @@ def command_line(args) -> str:
         parts += ["--base", q(args.base)]
     for s in args.set:
         parts += ["--set", q(s)]
+    for key in ("name", "description"):
+        if getattr(args, key):
+            parts += [f"--{key}", q(getattr(args, key))]
     parts += ["--model", args.model]
     if args.fit is not None:
         parts += ["--fit", *[q(f) for f in args.fit]]

@@ -2,7 +2,8 @@
 
 Implemented as specified in ``../shared/models/camargo2017.md`` (HERMLE
 C1200V / iTNC530, coefficients fixed by the thesis; only the MRT, the
-profile's ``min_block_time_s``, is a machine parameter). Each transition
+option ``mrt_s`` or else the profile's ``min_block_time_s``, is a machine
+parameter). Each transition
 between two consecutive segments gets a time TES, the maximum over the
 axes X, Y, Z of:
 
@@ -40,6 +41,15 @@ from contour.estimation.result import Estimate, Moves
 NAME = "camargo2017"
 
 OPTIONS = (
+    Field(
+        "mrt_s",
+        "s",
+        0.0,
+        "MRT of the model (0.45 ms on the HERMLE/iTNC530); 0: use the profile's "
+        "motion.min_block_time_s.",
+        "",
+        zero_ok=True,
+    ),
     Field(
         "collinear_rule",
         "",
@@ -133,6 +143,7 @@ OPTIONS = (
 )
 
 _ZERO = 1e-9
+_CHUNK = 65536  # transitions per vectorised batch (bounds the memory)
 
 
 def defaults() -> dict:
@@ -259,7 +270,7 @@ def transitions(d1, d2, t1, t2, mrt, opts):
 def estimate(moves: Moves, profile, options: dict) -> Estimate:
     opts = dict(profile.options("camargo2017")) if profile is not None else defaults()
     opts.update(options)
-    mrt = float(profile.motion["min_block_time_s"])
+    mrt = float(opts["mrt_s"]) or float(profile.motion["min_block_time_s"])
     n = len(moves)
     t_feed = 60.0 * moves.length / moves.feed
     t_case1 = np.where(moves.length > 0, np.maximum(t_feed, mrt), 0.0)
@@ -284,9 +295,18 @@ def estimate(moves: Moves, profile, options: dict) -> Estimate:
         rot_between = (ro_cum[b] - ro_cum[a + 1]) > 0
         linked = ~(dwell_between | rot_between)
         la, lb = a[linked], b[linked]
-        tes, tes1, case = transitions(
-            moves.delta[la], moves.delta[lb], t_feed[la], t_feed[lb], mrt, opts
-        )
+        parts = [
+            transitions(
+                moves.delta[la[k : k + _CHUNK]],
+                moves.delta[lb[k : k + _CHUNK]],
+                t_feed[la[k : k + _CHUNK]],
+                t_feed[lb[k : k + _CHUNK]],
+                mrt,
+                opts,
+            )
+            for k in range(0, la.size, _CHUNK)
+        ] or [(np.zeros(0), np.zeros(0), np.zeros(0, dtype=np.int8))]
+        tes, tes1, case = (np.concatenate(x) for x in zip(*parts))
         np.add.at(time, la, 0.5 * tes)
         np.add.at(time, lb, 0.5 * tes)
         at_mrt = (case == 1) & (tes1 <= mrt)
