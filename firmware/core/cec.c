@@ -25,11 +25,6 @@ static inline int64_t rsh(int64_t v, unsigned s)
     return (v >> s) + ((v >> (s - 1)) & 1); /* round half up, s >= 1 */
 }
 
-static inline int32_t sat32(int64_t v)
-{
-    return (v > INT32_MAX) ? INT32_MAX : (v < INT32_MIN) ? INT32_MIN : (int32_t)v;
-}
-
 static int64_t mul_q30(int64_t a, q1_30_t n)
 {
     return fx_mul64x32_shift(a, n, 30);
@@ -38,17 +33,6 @@ static int64_t mul_q30(int64_t a, q1_30_t n)
 static int32_t q30_mul32(int32_t a, int32_t b)
 {
     return (int32_t)rsh((int64_t)a * b, 30);
-}
-
-static int32_t diff_sat32(int64_t a, int64_t b)
-{
-    if (b < 0 && a > INT64_MAX + b) {
-        return INT32_MAX;
-    }
-    if (b > 0 && a < INT64_MIN + b) {
-        return INT32_MIN;
-    }
-    return sat32(a - b);
 }
 
 static int64_t abs64(int64_t v)
@@ -122,7 +106,7 @@ bool cec_normals(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3])
 int32_t cec_dot(const int32_t e[3], const q1_30_t n[3])
 {
     int64_t s = (int64_t)e[0] * n[0] + (int64_t)e[1] * n[1] + (int64_t)e[2] * n[2];
-    return sat32(rsh(s, 30));
+    return fx_sat32_fast(rsh(s, 30));
 }
 
 int32_t cec_est_koren(int32_t ex, int32_t ey, int64_t rx, int64_t ry)
@@ -137,7 +121,7 @@ int32_t cec_est_koren(int32_t ex, int32_t ey, int64_t rx, int64_t ry)
         return 0;
     }
     num = ry * ex - rx * ey;
-    return sat32(fx_div_round64(num, den));
+    return fx_sat32_fast(fx_div_round64(num, den));
 }
 
 static int32_t curv_corr(int32_t e_abs, pos_nm_t r, pid_coef_t inv_r)
@@ -174,7 +158,7 @@ int32_t cec_exact_arc(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm
 {
     int64_t rho = fx_hypot2(pu - cu, pv - cv);
     int64_t d = rho - radius;
-    return sat32((s < 0) ? -d : d);
+    return fx_sat32_fast((s < 0) ? -d : d);
 }
 
 int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30_t n[3])
@@ -185,7 +169,7 @@ int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30
     int k;
     for (k = 0; k < 3; k++) {
         d[k] = start[k] - p[k];
-        d32[k] = sat32(d[k]);
+        d32[k] = fx_sat32_fast(d[k]);
         small = small && (d32[k] == d[k]);
     }
     if (small) {
@@ -194,7 +178,7 @@ int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30
     for (k = 0; k < 3; k++) {
         sum = fx_sat_add64(sum, mul_q30(d[k], n[k]));
     }
-    return sat32(sum);
+    return fx_sat32_fast(sum);
 }
 
 /* ---- controller -------------------------------------------------------------- */
@@ -440,7 +424,7 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     c->active = true;
     c->ch2_on = ch2;
     for (k = 0; k < 3; k++) {
-        e[k] = (k < CORE_AXES) ? diff_sat32(ref->pos[k], meas[k]) : 0;
+        e[k] = (k < CORE_AXES) ? fx_sat_diff32(ref->pos[k], meas[k]) : 0;
         c->n[0][k] = n1[k];
         c->n[1][k] = n2[k];
     }
@@ -467,7 +451,7 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
         if (g->kind == MOTION_GEOM_ARC) {
             int64_t eabs = c->p.lag_from_tangent ? abs64(cec_dot(e, t))
                                                  : fx_hypot2(e[g->plane_u], e[g->plane_v]);
-            int32_t corr = curv_corr(sat32(eabs), g->radius, c->inv_r);
+            int32_t corr = curv_corr(fx_sat32_fast(eabs), g->radius, c->inv_r);
             ec1 = fx_sat_add32(ec1, (c->s > 0) ? corr : -corr);
         }
         break;

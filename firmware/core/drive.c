@@ -94,6 +94,8 @@ static struct {
     int64_t v_plan;            /* interpolator's (unscaled) path speed, nm/s   */
     int64_t a_plan;            /* ... and tangential acceleration, nm/s^2      */
     int64_t v_act;             /* path speed of the reference last tick, nm/s  */
+    q1_30_t hyp_tu, hyp_tv;    /* arc overlay: last in-plane chord tangent ... */
+    q1_30_t hyp_m;             /* ... and its length (constant per segment)   */
     volatile uint32_t tick_lo; /* low word of tick (main reads it) */
     uint32_t seen_done;        /* interpolator segments accounted */
     uint32_t seq_done;         /* internal tag of the next segment to complete */
@@ -298,6 +300,7 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.queued_at = 0;
     drv.tick_lo = 0;
     drv.stop_v = drv.stop_dv = drv.v_plan = drv.a_plan = drv.v_act = 0;
+    drv.hyp_tu = drv.hyp_tv = drv.hyp_m = 0; /* fx_hypot2(0, 0) == 0 */
     drv.seq_done = 0;
     drv.seen_done = 0;
     drv.blocks_done = 0;
@@ -329,14 +332,24 @@ const drive_config_t *drive_config(void)
 
 /* ---- tick ------------------------------------------------------------------ */
 
+/* fx_mul64_shift(a, b, 0) (a * b saturated to int64), one SMULL when both
+ * fit 32 bits (the product is then below 2^62: exact, no saturation). */
+static inline int64_t mul_sat64(int64_t a, int64_t b)
+{
+    if (a == (int32_t)a && b == (int32_t)b) {
+        return (int64_t)(int32_t)a * (int32_t)b;
+    }
+    return fx_mul64_shift(a, b, 0);
+}
+
 /* Replace the interpolator's chord reference by the exact arc. */
 static void arc_overlay(motion_ref_t *r, const seg_info_t *g)
 {
     uint8_t u = g->u, v = g->v;
     int64_t du = g->bu - g->au, dv = g->bv - g->av;
     int64_t pu = r->pos[u] - g->au, pv = r->pos[v] - g->av;
-    int64_t num = fx_sat_add64(fx_mul64_shift(pu, du, 0), fx_mul64_shift(pv, dv, 0));
-    int64_t den = fx_sat_add64(fx_mul64_shift(du, du, 0), fx_mul64_shift(dv, dv, 0));
+    int64_t num = fx_sat_add64(mul_sat64(pu, du), mul_sat64(pv, dv));
+    int64_t den = fx_sat_add64(mul_sat64(du, du), mul_sat64(dv, dv));
     int64_t f = ratio_q30(num, den);
     fx_angle_t th = g->th_a + (fx_angle_t)(uint64_t)fx_round_shift64(g->dth * f, 30);
     int64_t rad = g->r_a + fx_round_shift64((g->r_b - g->r_a) * f, 30);
@@ -347,7 +360,12 @@ static void arc_overlay(motion_ref_t *r, const seg_info_t *g)
     r->pos[u] = g->cu + fx_mul64x32_shift(rad, c, 30);
     r->pos[v] = g->cv + fx_mul64x32_shift(rad, s, 30);
     /* unit tangent in the plane, scaled by the chord tangent's in-plane part */
-    m = (q1_30_t)fx_hypot2(r->geom.tangent[u], r->geom.tangent[v]);
+    if (r->geom.tangent[u] != drv.hyp_tu || r->geom.tangent[v] != drv.hyp_tv) {
+        drv.hyp_tu = r->geom.tangent[u];
+        drv.hyp_tv = r->geom.tangent[v];
+        drv.hyp_m = (q1_30_t)fx_hypot2(drv.hyp_tu, drv.hyp_tv);
+    }
+    m = drv.hyp_m;
     tu = (q1_30_t)(g->sense > 0 ? -s : s);
     tv = (q1_30_t)(g->sense > 0 ? c : -c);
     /* path speed and tangential acceleration in the plane (arc / chord) */

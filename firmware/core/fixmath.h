@@ -105,6 +105,26 @@ int64_t fx_sat_sub64(int64_t a, int64_t b);
 int64_t fx_sat_neg64(int64_t a); /* -INT64_MIN gives INT64_MAX */
 int64_t fx_sat_abs64(int64_t a); /* |INT64_MIN| gives INT64_MAX */
 
+/* Inline forms for the per-tick loops (pid.c, cec.c, servo.c).
+ * fx_sat32_fast(v) == fx_sat32(v); fx_sat_diff32(a, b) == fx_sat32(a - b)
+ * computed without overflowing the int64 subtraction (equal to
+ * fx_sat32(fx_sat_sub64(a, b))). */
+static inline int32_t fx_sat32_fast(int64_t v)
+{
+    return (v > INT32_MAX) ? INT32_MAX : (v < INT32_MIN) ? INT32_MIN : (int32_t)v;
+}
+
+static inline int32_t fx_sat_diff32(int64_t a, int64_t b)
+{
+    if (b < 0 && a > INT64_MAX + b) {
+        return INT32_MAX;
+    }
+    if (b > 0 && a < INT64_MIN + b) {
+        return INT32_MIN;
+    }
+    return fx_sat32_fast(a - b);
+}
+
 /* min(max(v, lo), hi): v limited to [lo, hi]. lo <= hi is expected; if
  * lo > hi the result is hi (the upper limit wins). */
 int32_t fx_clamp32(int32_t v, int32_t lo, int32_t hi);

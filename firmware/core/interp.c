@@ -74,6 +74,25 @@ bool interp_idle(const interp_t *ip)
     return !ip->busy && ip_queued(ip) == 0;
 }
 
+/* round(a * r / 2^78), ties toward +inf: fx_mul64_shift(a, r, 78) for every
+ * int64 a and r (|a * r| < 2^126, so the result is below 2^48 and never
+ * saturates), inline: four 32 x 32 -> 64 products and the high word. */
+static inline int64_t ip_scale(int64_t a, int64_t r)
+{
+    uint64_t ua = (a < 0) ? (uint64_t)0 - (uint64_t)a : (uint64_t)a;
+    uint64_t ur = (r < 0) ? (uint64_t)0 - (uint64_t)r : (uint64_t)r;
+    uint64_t al = (uint32_t)ua, ah = ua >> 32, bl = (uint32_t)ur, bh = ur >> 32;
+    uint64_t p0 = al * bl, p1 = al * bh, p2 = ah * bl, p3 = ah * bh;
+    uint64_t mid = (p0 >> 32) + (uint32_t)p1 + (uint32_t)p2;
+    uint64_t hi = p3 + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
+    uint32_t lo_zero = ((uint32_t)p0 | (uint32_t)mid) == 0u;
+
+    if ((a < 0) != (r < 0)) { /* -floor((|p| + 2^77 - 1) / 2^78) */
+        return -(int64_t)((hi + ((uint64_t)1 << 13) - lo_zero) >> 14);
+    }
+    return (int64_t)((hi + ((uint64_t)1 << 13)) >> 14);
+}
+
 static const plan_seg_t *ip_cur(const interp_t *ip)
 {
     return &ip->fifo[ip->rd & (INTERP_FIFO - 1)];
@@ -190,10 +209,10 @@ void interp_tick(interp_t *ip, motion_ref_t *ref)
         sq = lq;
     }
     for (i = 0; i < CORE_AXES; i++) {
-        ip->pos[i] = s->start[i] + fx_mul64_shift(sq, s->ratio_q62[i], 78);
+        ip->pos[i] = s->start[i] + ip_scale(sq, s->ratio_q62[i]);
         ref->pos[i] = ip->pos[i];
-        ref->vel[i] = fx_mul64_shift(st.v_q16, s->ratio_q62[i], 78);
-        ref->acc[i] = fx_mul64_shift(st.a_q16, s->ratio_q62[i], 78);
+        ref->vel[i] = ip_scale(st.v_q16, s->ratio_q62[i]);
+        ref->acc[i] = ip_scale(st.a_q16, s->ratio_q62[i]);
         ref->geom.tangent[i] = (q1_30_t)(s->ratio_q62[i] / ((int64_t)1 << 32));
         ref->geom.start[i] = s->start[i];
     }

@@ -24,11 +24,6 @@ static inline int64_t rsh(int64_t v, unsigned s)
     return (v >> s) + ((v >> (s - 1)) & 1); /* round half up, s >= 1 */
 }
 
-static inline int32_t sat32(int64_t v)
-{
-    return (v > INT32_MAX) ? INT32_MAX : (v < INT32_MIN) ? INT32_MIN : (int32_t)v;
-}
-
 /* round(a * b / 2^30) for |a| < 2^61 and 0 <= b <= 2^30, without a 128-bit
  * product: a = ah * 2^32 + al with al unsigned. */
 static inline int64_t mul_q30_pos(int64_t a, q1_30_t b)
@@ -37,18 +32,6 @@ static inline int64_t mul_q30_pos(int64_t a, q1_30_t b)
     uint64_t al = (uint64_t)a & 0xFFFFFFFFu;
     uint64_t lo = al * (uint64_t)b; /* < 2^62 */
     return ah * b * 4 + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
-}
-
-/* sat32(a - b) without overflowing the int64 subtraction. */
-static int32_t diff_sat32(int64_t a, int64_t b)
-{
-    if (b < 0 && a > INT64_MAX + b) {
-        return INT32_MAX;
-    }
-    if (b > 0 && a < INT64_MIN + b) {
-        return INT32_MIN;
-    }
-    return sat32(a - b);
 }
 
 bool pid_coef_make(pid_coef_t *c, int64_t num, uint32_t mul, uint64_t den)
@@ -285,7 +268,7 @@ static int32_t deadband(int32_t e, int32_t db)
 int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int64_t acc,
                  int64_t extra)
 {
-    int32_t e = diff_sat32(ref, meas);
+    int32_t e = fx_sat_diff32(ref, meas);
     int32_t edb;
     int64_t pterm, raw, u;
 
@@ -310,8 +293,8 @@ int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int6
 
     /* derivative, filtered in output units */
     if (pid->cd.m != 0) {
-        int32_t de = pid->p.d_on_measurement ? diff_sat32(pid->meas_prev, meas)
-                                             : diff_sat32(e, pid->err_prev);
+        int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
+                                             : fx_sat_diff32(e, pid->err_prev);
         int64_t draw = coef_apply(pid->cd, de);
         if (pid->alpha_q30 >= FX_ONE_Q30) {
             pid->dterm = draw;
@@ -327,10 +310,10 @@ int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int6
     /* feed-forward from the interpolator's velocity and acceleration */
     pid->ff = 0;
     if (pid->cv.m != 0) {
-        pid->ff += coef_apply(pid->cv, sat32(rsh(vel, 2)));
+        pid->ff += coef_apply(pid->cv, fx_sat32_fast(rsh(vel, 2)));
     }
     if (pid->ca.m != 0) {
-        pid->ff += coef_apply(pid->ca, sat32(rsh(acc, 10)));
+        pid->ff += coef_apply(pid->ca, fx_sat32_fast(rsh(acc, 10)));
     }
     pid->extra = clamp64(extra, PID_TERM_LIM);
 

@@ -18,22 +18,6 @@ static int64_t clamp64(int64_t v, int64_t lim)
     return (v > lim) ? lim : (v < -lim) ? -lim : v;
 }
 
-static inline int32_t sat32(int64_t v)
-{
-    return (v > INT32_MAX) ? INT32_MAX : (v < INT32_MIN) ? INT32_MIN : (int32_t)v;
-}
-
-static int32_t diff_sat32(int64_t a, int64_t b)
-{
-    if (b < 0 && a > INT64_MAX + b) {
-        return INT32_MAX;
-    }
-    if (b > 0 && a < INT64_MIN + b) {
-        return INT32_MIN;
-    }
-    return sat32(a - b);
-}
-
 void servo_params_default(servo_params_t *p, uint32_t tick_hz)
 {
     unsigned i;
@@ -435,7 +419,7 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
     /* 3. following error */
     for (i = 0; i < n; i++) {
         int32_t lim = s->p.ferr_limit_nm[i];
-        int32_t fe = diff_sat32(rp[i], fb->pos[i]);
+        int32_t fe = fx_sat_diff32(rp[i], fb->pos[i]);
         s->ferr_nm[i] = fe;
         if (s->state != SERVO_OFF && !(s->off_mask & (1u << i)) && lim > 0 &&
             (fe > lim || fe < -lim)) {
