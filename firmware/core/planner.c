@@ -42,7 +42,7 @@ plan_result_t plan_check_profile(const plan_profile_t *prof)
             return PLAN_E_PROFILE;
         }
         /* a/j <= SC_TJ_MAX_NS (only the S-curve uses jerk) */
-        if (prof->shape == SC_SHAPE_SCURVE &&
+        if (prof->shape != SC_SHAPE_TRAPEZOID &&
             sc_muldiv(prof->a_max[i], NS_PER_S, prof->j_max[i]) > SC_TJ_MAX_NS) {
             return PLAN_E_PROFILE;
         }
@@ -62,7 +62,7 @@ plan_result_t plan_check_profile(const plan_profile_t *prof)
     if (prof->mbt_window < 1 || prof->mbt_window > PLAN_WINDOW_MAX) {
         return PLAN_E_PROFILE;
     }
-    if (prof->corner > PLAN_CORNER_STOP || prof->shape > SC_SHAPE_TRAPEZOID) {
+    if (prof->corner > PLAN_CORNER_STOP || prof->shape > SC_SHAPE_SCURVE_AT_REST) {
         return PLAN_E_PROFILE;
     }
     return PLAN_OK;
@@ -298,10 +298,10 @@ static void pl_replan(plan_t *p)
 
 /* Deferred passes need a reach that never falls when its start speed rises
  * (then an entry, once final, stays final whatever comes later): true of
- * the trapezoid, not of the S-curve (planner.h). */
+ * the trapezoid and of the at-rest S-curve, not of the S-curve (planner.h). */
 static bool pl_deferred(const plan_t *p)
 {
-    return p->deferred && p->prof.shape == SC_SHAPE_TRAPEZOID;
+    return p->deferred && p->prof.shape != SC_SHAPE_SCURVE;
 }
 
 void plan_set_deferred(plan_t *p, bool on)

@@ -72,7 +72,7 @@
  * unchanged, and the forward pass starts at the block before the first
  * changed entry. The oldest block's entry speed is fixed (it is the exit of
  * the block that was popped before it, or 0). plan_set_deferred() batches
- * the passes (trapezoid only; see below).
+ * the passes (trapezoid and at-rest S-curve only; see below).
  *
  * S-curve reach. With the acceleration zero at both ends of a block, the
  * speed reachable within a distance is NOT monotone in the start speed
@@ -86,6 +86,20 @@
  * paths (one entry 4 % above it in 200 000 random pushes). Trapezoidal
  * reach sqrt(v^2 + 2 A d) is monotone and the incremental plan equals the
  * from-scratch plan.
+ *
+ * At-rest S-curve (profile.shape = SC_SHAPE_SCURVE_AT_REST, opt-in): a block
+ * whose planned entry or exit speed is 0 (job start and end, exact stop,
+ * reversal, dwell, a zero junction limit) gets the jerk-limited S-curve,
+ * every other block the trapezoid: jerk shows at starts and stops, while
+ * along a path the acceleration is not forced to 0 at every block end
+ * (chains of short blocks run as with the trapezoid). The reverse pass from
+ * an exit of 0 and the forward pass from an entry of 0 use the S-curve
+ * reach, the others the trapezoid reach (scurve.h: the shape follows the
+ * speeds inside sc_reach/sc_dist/sc_plan), and plan_pop() plans the block
+ * with its final entry and exit, so the shape executed is the shape
+ * estimated. This reach is monotone in the start speed (from rest the
+ * S-curve reaches no further than the trapezoid from any speed), so the
+ * incremental plan equals the from-scratch plan and deferred passes apply.
  *
  * plan_pop() freezes the oldest block: its exit speed (the next block's
  * entry, or 0 if it is the only one) becomes final, its profile is computed
@@ -233,8 +247,8 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m);
 plan_result_t plan_pop(plan_t *p, plan_seg_t *out);
 
 /* Deferred passes (off after plan_init; plan_estimate turns it on). Only
- * with SC_SHAPE_TRAPEZOID (an S-curve profile ignores it: see "S-curve reach"
- * above). When on,
+ * with SC_SHAPE_TRAPEZOID or SC_SHAPE_SCURVE_AT_REST (an S-curve profile
+ * ignores it: see "S-curve reach" above). When on,
  * plan_push only queues the block and computes its limits; the reverse and
  * forward passes run in plan_pop when the oldest block's exit is not final
  * yet (planned < 2), or in plan_update, once for all blocks queued since the

@@ -229,13 +229,30 @@ static int64_t sc_sqrt_ceil(int64_t v)
     return (int64_t)((r * r < (uint64_t)v) ? r + 1u : r);
 }
 
+/* ---- at-rest S-curve --------------------------------------------------------- */
+
+/* The limits to use for a profile whose lowest speed involved is `lo`: for
+ * SC_SHAPE_SCURVE_AT_REST a copy in *tmp with the S-curve (lo <= 0) or the
+ * trapezoid; the other shapes unchanged. */
+static const sc_limits_t *sc_resolve(const sc_limits_t *lim, int64_t lo, sc_limits_t *tmp)
+{
+    if (lim->shape != SC_SHAPE_SCURVE_AT_REST) {
+        return lim;
+    }
+    *tmp = *lim;
+    tmp->shape = (uint8_t)((lo <= 0) ? SC_SHAPE_SCURVE : SC_SHAPE_TRAPEZOID);
+    return tmp;
+}
+
 /* ---- distance of a speed change --------------------------------------------- */
 
 int64_t sc_dist(int64_t va, int64_t vb, const sc_limits_t *lim)
 {
     int64_t lo = sc_min(va, vb), hi = sc_max(va, vb), d = hi - lo;
     int64_t a = lim->a_max, j = lim->j_max, q, w;
+    sc_limits_t tmp;
 
+    lim = sc_resolve(lim, lo, &tmp);
     if (d <= 0) {
         return 0;
     }
@@ -263,10 +280,12 @@ static int64_t sc_jw2(int64_t j, int64_t w, bool up)
 static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim)
 {
     int64_t vmax = lim->v_max, a = lim->a_max, j = lim->j_max, dv;
+    sc_limits_t tmp;
 
     if (v < 0) {
         v = 0;
     }
+    lim = sc_resolve(lim, v, &tmp);
     if (dq <= 0 || v >= vmax) {
         return v;
     }
@@ -412,8 +431,9 @@ static void sc_chain(sc_profile_t *p, int first, const int64_t *set_acc, bool tr
 void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limits_t *lim)
 {
     static const int64_t jsign[SC_PHASES] = {1, 0, -1, 0, -1, 0, 1};
-    bool trap = lim->shape == SC_SHAPE_TRAPEZOID;
-    int64_t a = lim->a_max, j = trap ? 0 : lim->j_max;
+    sc_limits_t tmp;
+    bool trap;
+    int64_t a, j;
     int64_t set_acc[SC_PHASES] = {0, 0, 0, 0, 0, 0, 0};
     int64_t vc, vp, tj, ta, s_acc, s_dec, rest, len_q16;
     sc_state_t e;
@@ -421,6 +441,10 @@ void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limi
 
     v0 = sc_max(v0, 0);
     v1 = sc_max(v1, 0);
+    lim = sc_resolve(lim, sc_min(v0, v1), &tmp); /* at rest at either end */
+    trap = lim->shape == SC_SHAPE_TRAPEZOID;
+    a = lim->a_max;
+    j = trap ? 0 : lim->j_max;
     len = sc_max(len, 0);
     vc = sc_max(lim->v_max, sc_max(v0, v1));
 

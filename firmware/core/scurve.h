@@ -53,6 +53,16 @@
  * realised distance `s_end_q16` differs from len * 2^16 by less than
  * vp * 1 ns (rounding of the cruise time); the interpolator scales it out.
  *
+ * At-rest S-curve (SC_SHAPE_SCURVE_AT_REST): the shape is chosen by the
+ * speeds, so every function below stays consistent with the others:
+ *   sc_dist(va, vb)     S-curve if min(va, vb) == 0, else trapezoid;
+ *   sc_reach(v, d)      S-curve if v <= 0, else trapezoid;
+ *   sc_plan(v0, v1)     S-curve if v0 == 0 or v1 == 0 (a block that starts
+ *                       or ends at rest), else trapezoid.
+ * The resulting reach is still monotone in v (from rest the S-curve reaches
+ * less than the trapezoid: sc_reach(0, d) <= trapezoid reach from any v),
+ * and the distance from or to rest is monotone in the other speed.
+ *
  * Range checks (plan_check_profile enforces them per axis): a_max/j_max <= 3 s
  * (SC_TJ_MAX_NS), so every square root argument fits 63 bits.
  *
@@ -76,8 +86,10 @@
 #define SC_TJ_MAX_NS ((int64_t)3000000000) /* a_max / j_max at most 3 s */
 
 typedef enum {
-    SC_SHAPE_SCURVE = 0,   /* jerk-limited, acceleration zero at block ends */
-    SC_SHAPE_TRAPEZOID = 1 /* acceleration-limited, jerk unbounded          */
+    SC_SHAPE_SCURVE = 0,        /* jerk-limited, acceleration zero at block ends */
+    SC_SHAPE_TRAPEZOID = 1,     /* acceleration-limited, jerk unbounded          */
+    SC_SHAPE_SCURVE_AT_REST = 2 /* S-curve where a speed involved is 0, else
+                                 * trapezoid (see "At-rest S-curve" above)  */
 } sc_shape_t;
 
 typedef struct {

@@ -20,8 +20,9 @@ are rounded to the nearest nm.
 
 Profile options (see docs/planner.md for the rules):
 
-- ``shape``: ``"s-curve"`` (jerk-limited, acceleration zero at block ends) or
-  ``"trapezoid"``.
+- ``shape``: ``"s-curve"`` (jerk-limited, acceleration zero at block ends),
+  ``"trapezoid"`` or ``"s-curve-at-rest"`` (S-curve for a block whose entry or
+  exit speed is 0, trapezoid for every other block).
 - ``corner``: ``"junction-deviation"`` (the drive's default, with
   ``junction_deviation_mm``), ``"velocity-step"`` (per-axis ``corner_dv_mm_s``),
   ``"smoothed-corner"`` (per-axis ``corner_acc_mm_s2``: v = min_i sqrt(a_i l /
@@ -55,7 +56,7 @@ AXES = 3
 NM_PER_MM = 1_000_000
 NS_PER_S = 1_000_000_000
 
-SHAPES = {"s-curve": 0, "trapezoid": 1}
+SHAPES = {"s-curve": 0, "trapezoid": 1, "s-curve-at-rest": 2}
 CORNERS = {"junction-deviation": 0, "velocity-step": 1, "smoothed-corner": 2, "exact-stop": 3}
 BLOCK_TIME_RULES = ("throughput", "cap")
 

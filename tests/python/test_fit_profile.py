@@ -285,7 +285,7 @@ def test_no_fit_report_on_the_camargo_tables(capsys):
             *map(str, CAMARGO),
             "--no-fit",
             "--compare",
-            "camargo2017,mrt,feed",
+            "planner,camargo2017,mrt,feed",
             "--base",
             str(ROOT / "profiles" / "hermle_c1200v_itnc530.toml"),
             "--json",
@@ -302,3 +302,12 @@ def test_no_fit_report_on_the_camargo_tables(capsys):
     feed = rep["errors"]["feed"]["all"]["with_suspect"]["mean_abs_pct"]
     assert feed > 5 * cam["all"]["with_suspect"]["mean_abs_pct"]
     assert math.isfinite(cam["exp2_y"]["without_suspect"]["mean_abs_pct"])
+    # the targets the committed HERMLE profile meets (issue 6): the planner's
+    # mean error at most 7 % over the 152 tests, better than camargo2017 on
+    # every table (measured: 4.76 % overall; exp3 3.85 % against 4.10 %)
+    pl = rep["errors"]["planner"]
+    assert pl["all"]["with_suspect"]["n"] == 152
+    assert pl["all"]["with_suspect"]["mean_abs_pct"] <= 7.0
+    for table in ("exp1", "exp2_x", "exp2_y", "exp3"):
+        mine = pl[table]["with_suspect"]["mean_abs_pct"]
+        assert mine < cam[table]["with_suspect"]["mean_abs_pct"], table

@@ -35,6 +35,35 @@ def test_single_move_closed_forms():
     assert r.executed_s == pytest.approx(1.05)
 
 
+def test_s_curve_at_rest_shape():
+    # rest to rest: the S-curve (1.09 s); a chain of collinear 0.1 mm blocks
+    # runs as the trapezoid between its S-curve first and last blocks, where the
+    # plain S-curve (acceleration 0 at every block end) crawls
+    one = [[100, 0, 0]]
+    r = Planner(_prof(shape="s-curve-at-rest")).estimate(one, feed_mm_min=6000)
+    assert r.total_s == pytest.approx(1.09, abs=1e-8)
+    pts = np.zeros((1000, 3))
+    pts[:, 0] = 0.1 * np.arange(1, 1001)
+    kw = dict(j_max_mm_s3=(2000.0,) * 3)
+    res = {
+        shape: Planner(_prof(shape=shape, **kw)).estimate(pts, 12000)
+        for shape in ("trapezoid", "s-curve", "s-curve-at-rest")
+    }
+    t = {k: v.total_s for k, v in res.items()}
+    # measured: 0.708 s, 10.82 s, 0.856 s (the two slow S-curve end blocks)
+    assert t["trapezoid"] < t["s-curve-at-rest"] < t["trapezoid"] * 1.3
+    assert t["s-curve"] > 10 * t["trapezoid"]
+    # inner blocks: about the trapezoid's look-ahead limited speed (depth 64;
+    # a little lower: the newest queued block stops with the S-curve)
+    mid, trap = res["s-curve-at-rest"].blocks[500], res["trapezoid"].blocks[500]
+    assert mid["t_total_s"] == pytest.approx(trap["t_total_s"], rel=0.01)
+    # reversals: every block from and to rest, the S-curve's time
+    rev = np.array([[1.0 * (k % 2 == 0), 0, 0] for k in range(10)])
+    a = Planner(_prof(shape="s-curve-at-rest")).estimate(rev, 6000)
+    s = Planner(_prof(shape="s-curve")).estimate(rev, 6000)
+    assert a.total_s == pytest.approx(s.total_s, abs=1e-9)
+
+
 def test_corner_rules_and_exact_stop():
     pts = [[100, 0, 0], [100, 100, 0]]
     jd = Planner(_prof(corner="junction-deviation")).estimate(pts, 24000)

@@ -9,7 +9,8 @@
  *   - per-axis acceleration by second differences inside a block:
  *     |d2p| <= a_i h^2 + 2 nm (rounding of the positions to 1 nm);
  *   - per-axis jerk from the acceleration feed-forward (closed form, not
- *     rounded to nm): |d acc| <= j_i h + 1 nm/s^2 inside S-curve blocks;
+ *     rounded to nm): |d acc| <= j_i h + 1 nm/s^2 inside S-curve blocks
+ *     (at-rest shape: blocks whose estimated entry or exit speed is 0);
  *   - feed-forward speed and acceleration within the axis limits;
  *   - every block ends within one tick of the sum of the estimated block
  *     times (plan_estimate() on the same moves, the job-time estimator's
@@ -144,6 +145,27 @@ static void test_random_path_trapezoid(void)
     TEST_ASSERT_TRUE(r.total_ticks_ok);
 }
 
+/* At-rest S-curve: blocks that start or end at rest are jerk-limited S-curves
+ * (checked against the jerk limit on every tick), the others trapezoids; the
+ * shape is decided from the final speeds at pop, so execution still equals
+ * the estimate within one tick per block. */
+static void test_random_path_scurve_at_rest(void)
+{
+    pc_result_t r;
+    pc_run(20000, 250000, 999u, SC_SHAPE_SCURVE_AT_REST, &r);
+    if (getenv("INTERP_REPORT")) {
+        pc_print("interp_scurve_at_rest_4khz", &r);
+    }
+    TEST_ASSERT_EQUAL_UINT32(20000, r.blocks);
+    TEST_ASSERT_TRUE(r.jerk_checks > 10000); /* S-curve blocks are exercised */
+    TEST_ASSERT_TRUE(r.max_j_ratio > 0.5);   /* and reach their jerk limit */
+    TEST_ASSERT_EQUAL_UINT32(0, r.limit_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.time_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.underruns);
+    TEST_ASSERT_TRUE(r.final_exact);
+    TEST_ASSERT_TRUE(r.total_ticks_ok);
+}
+
 /* Smoothed-corner rule with its block cap (each block capped by the larger
  * of its two corner speeds, known only once the next block is queued): the
  * drive-style push-before-pop loop still executes exactly the estimate. */
@@ -178,5 +200,6 @@ int main(void)
     RUN_TEST(test_random_path_100k);
     RUN_TEST(test_random_path_trapezoid);
     RUN_TEST(test_random_path_smooth_corner);
+    RUN_TEST(test_random_path_scurve_at_rest);
     return UNITY_END();
 }

@@ -580,6 +580,178 @@ static void test_deferred_pops_equal_immediate(void)
     }
 }
 
+/* ---- at-rest S-curve -------------------------------------------------------------- */
+
+/* time of one block planned with an explicit shape (X-axis limits of
+ * base_profile) */
+static int64_t block_ns(uint8_t shape, int64_t len, int64_t v0, int64_t v1, int64_t vmax)
+{
+    sc_limits_t l = {vmax, 2000 * MMS, 50000 * MMS, shape};
+    sc_profile_t pr;
+    sc_plan(&pr, len, v0, v1, &l);
+    return pr.total_ns;
+}
+
+/* Rest to rest the at-rest shape is the S-curve (1.09 s, not the
+ * trapezoid's 1.05 s); so is every block of a reversal chain (each starts
+ * and ends at rest) and the first and last blocks of a collinear chain of
+ * micro-blocks, while the blocks between run as trapezoids: they settle at
+ * the throughput speed like the trapezoid (the plain S-curve crawls, see
+ * test_scurve_micro_blocks_are_slow). */
+static void test_scurve_at_rest_single_and_reversal(void)
+{
+    plan_profile_t a = base_profile(SC_SHAPE_SCURVE_AT_REST, PLAN_CORNER_JD);
+    plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    plan_move_t m = mv(100 * MM, 0, 0, 100);
+    int64_t ts = run(&s, &m, 1, outs), i;
+
+    TEST_ASSERT_EQUAL_INT64(ts, run(&a, &m, 1, outs));
+    TEST_ASSERT_INT64_WITHIN(5, 1090000000, ts);
+    /* reversal chain: +1 mm / -1 mm, each block an S-curve from and to rest */
+    for (i = 0; i < 20; i++) {
+        moves[i] = mv((i % 2 == 0) ? MM : 0, 0, 0, 100);
+    }
+    run(&a, moves, 20, outs);
+    ts = block_ns(SC_SHAPE_SCURVE, MM, 0, 0, 100 * MMS);
+    TEST_ASSERT_TRUE(ts > block_ns(SC_SHAPE_TRAPEZOID, MM, 0, 0, 100 * MMS) + 1000000);
+    for (i = 0; i < 20; i++) {
+        TEST_ASSERT_EQUAL_INT64(0, outs[i].v_entry);
+        TEST_ASSERT_EQUAL_INT64(0, outs[i].v_exit);
+        TEST_ASSERT_EQUAL_INT64(ts, outs[i].t_total_ns);
+    }
+}
+
+static void test_scurve_at_rest_micro_blocks(void)
+{
+    plan_profile_t a = base_profile(SC_SHAPE_SCURVE_AT_REST, PLAN_CORNER_JD);
+    int i;
+    a.min_block_ns = 450000;
+    a.mbt_window = 8;
+    for (i = 0; i < 1000; i++) {
+        moves[i] = mv((i + 1) * 10000, 0, 0, 250);
+    }
+    run(&a, moves, 1000, outs);
+    for (i = 100; i < 900; i++) { /* throughput speed, as the trapezoid */
+        TEST_ASSERT_INT64_WITHIN(2, 450000, outs[i].t_total_ns);
+    }
+    /* the first block (from rest) and the last (to rest) are S-curves */
+    TEST_ASSERT_EQUAL_INT64(0, outs[0].v_entry);
+    TEST_ASSERT_EQUAL_INT64(
+        block_ns(SC_SHAPE_SCURVE, outs[0].len_nm, 0, outs[0].v_exit, outs[0].v_max),
+        outs[0].t_total_ns);
+    TEST_ASSERT_TRUE(outs[0].t_total_ns > block_ns(SC_SHAPE_TRAPEZOID, outs[0].len_nm, 0,
+                                                   outs[0].v_exit, outs[0].v_max));
+    TEST_ASSERT_EQUAL_INT64(0, outs[999].v_exit);
+    TEST_ASSERT_EQUAL_INT64(
+        block_ns(SC_SHAPE_SCURVE, outs[999].len_nm, outs[999].v_entry, 0, outs[999].v_max),
+        outs[999].t_total_ns);
+}
+
+/* Random paths (junction deviation and smoothed corner, exact stops,
+ * reversals): every block's estimated time is the S-curve profile when its
+ * final entry or exit is 0 and the trapezoid otherwise, both kinds occur,
+ * and the S-curve reach from rest keeps every S-curve block feasible (its
+ * distance fits the block). */
+static void test_scurve_at_rest_block_shapes(void)
+{
+    int corner;
+    for (corner = 0; corner < 3; corner += 2) {
+        plan_profile_t a = base_profile(SC_SHAPE_SCURVE_AT_REST, (uint8_t)corner);
+        pos_nm_t pos[3] = {0, 0, 0};
+        int n = 4000, k, nrest = 0, nmid = 0;
+        for (k = 0; k < n; k++) {
+            int ax;
+            int64_t scale = (rnd() % 10 == 0) ? 20 * MM : (int64_t)(rnd() % 500000) + 1000;
+            if (k % 1000 < 400) { /* gentle staircase: corners, no reversals */
+                pos[k % 2] += 100000 + (int64_t)(rnd() % 200000);
+            } else {
+                for (ax = 0; ax < 3; ax++) {
+                    pos[ax] += (int64_t)(rnd() % 2001) * scale / 1000 - scale;
+                }
+            }
+            moves[k] = mv(pos[0], pos[1], pos[2], 20 + (int64_t)(rnd() % 300));
+            moves[k].flags = (rnd() % 50 == 0) ? PLAN_MOVE_EXACT_STOP : 0;
+        }
+        run(&a, moves, (uint32_t)n, outs);
+        for (k = 0; k < n; k++) {
+            plan_block_t b; /* the block's limits, recomputed by the planner */
+            plan_t one;
+            plan_seg_t seg;
+            plan_move_t m = moves[k];
+            const pos_nm_t *st = (k == 0) ? origin : moves[k - 1].target;
+            sc_limits_t l;
+            sc_profile_t pr;
+            bool rest = outs[k].v_entry == 0 || outs[k].v_exit == 0;
+            if (outs[k].flags & PLAN_EST_SKIPPED) {
+                continue;
+            }
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&one, &b, 1, &a, st));
+            m.flags = 0;
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&one, &m));
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&one, &seg));
+            l = b.lim;
+            l.v_max = outs[k].v_max;
+            l.shape = rest ? SC_SHAPE_SCURVE : SC_SHAPE_TRAPEZOID;
+            sc_plan(&pr, outs[k].len_nm, outs[k].v_entry, outs[k].v_exit, &l);
+            TEST_ASSERT_EQUAL_INT64(pr.total_ns, outs[k].t_total_ns);
+            TEST_ASSERT_TRUE(sc_dist(outs[k].v_entry, outs[k].v_exit, &l) <= outs[k].len_nm);
+            if (rest) {
+                nrest++;
+            } else {
+                nmid++;
+            }
+        }
+        TEST_ASSERT_TRUE(nrest > 50);
+        TEST_ASSERT_TRUE(nmid > 1000);
+    }
+}
+
+/* The at-rest reach is monotone in the start speed, so the incremental
+ * passes give the from-scratch plan and deferred passes (which it allows)
+ * freeze the segments of the immediate passes. */
+static void test_scurve_at_rest_incremental_and_deferred(void)
+{
+    static plan_block_t sa[64], sb[64];
+    int corner;
+    for (corner = 0; corner < 3; corner += 2) {
+        plan_profile_t s = base_profile(SC_SHAPE_SCURVE_AT_REST, (uint8_t)corner);
+        plan_t a, b;
+        plan_seg_t ga, gb;
+        pos_nm_t pos[3] = {0, 0, 0};
+        int k, pops = 0;
+        s.min_block_ns = 450000;
+        s.mbt_window = 16;
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&a, sa, 64, &s, origin));
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&b, sb, 64, &s, origin));
+        plan_set_deferred(&b, true);
+        for (k = 0; k < 6000; k++) {
+            plan_move_t m;
+            int ax;
+            int64_t scale = (rnd() % 10 == 0) ? 20 * MM : (int64_t)(rnd() % 500000) + 1000;
+            if (k % 2000 < 700) {
+                pos[0] += 100000; /* runs of collinear 0.1 mm blocks */
+            } else {
+                for (ax = 0; ax < 3; ax++) {
+                    pos[ax] += (int64_t)(rnd() % 2001) * scale / 1000 - scale;
+                }
+            }
+            m = mv(pos[0], pos[1], pos[2], 20 + (int64_t)(rnd() % 300));
+            m.flags = (rnd() % 50 == 0) ? PLAN_MOVE_EXACT_STOP : 0;
+            if (plan_free_slots(&a) == 0) {
+                TEST_ASSERT_EQUAL_INT(plan_pop(&a, &ga), plan_pop(&b, &gb));
+                TEST_ASSERT_EQUAL_INT64(ga.prof.v0, gb.prof.v0);
+                TEST_ASSERT_EQUAL_INT64(ga.prof.vp, gb.prof.vp);
+                TEST_ASSERT_EQUAL_INT64(ga.prof.v1, gb.prof.v1);
+                TEST_ASSERT_EQUAL_INT64(ga.total_ns, gb.total_ns);
+                pops++;
+            }
+            TEST_ASSERT_EQUAL_INT(plan_push(&a, &m), plan_push(&b, &m));
+            check_against_scratch(&a);
+        }
+        TEST_ASSERT_TRUE(pops > 5000);
+    }
+}
+
 /* ---- queue accounting and errors -------------------------------------------------- */
 
 static void test_queue_time_slots_and_errors(void)
@@ -632,8 +804,15 @@ static void test_queue_time_slots_and_errors(void)
     bad = s;
     bad.j_max[0] = 100 * MMS; /* a/j = 20 s > 3 s */
     TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&bad));
+    bad.shape = SC_SHAPE_SCURVE_AT_REST; /* jerk used at rest: refused too */
+    TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&bad));
     bad.shape = SC_SHAPE_TRAPEZOID; /* jerk unused: fine */
     TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_check_profile(&bad));
+    bad = s;
+    bad.shape = SC_SHAPE_SCURVE_AT_REST;
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_check_profile(&bad));
+    bad.shape = SC_SHAPE_SCURVE_AT_REST + 1;
+    TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&bad));
     bad = s;
     bad.mbt_window = 0;
     TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&bad));
@@ -673,6 +852,10 @@ int main(void)
     RUN_TEST(test_incremental_equals_scratch);
     RUN_TEST(test_incremental_equals_scratch_trapezoid);
     RUN_TEST(test_deferred_pops_equal_immediate);
+    RUN_TEST(test_scurve_at_rest_single_and_reversal);
+    RUN_TEST(test_scurve_at_rest_micro_blocks);
+    RUN_TEST(test_scurve_at_rest_block_shapes);
+    RUN_TEST(test_scurve_at_rest_incremental_and_deferred);
     RUN_TEST(test_queue_time_slots_and_errors);
     RUN_TEST(test_axis_limits_projected);
     return UNITY_END();

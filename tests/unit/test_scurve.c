@@ -334,6 +334,43 @@ static double check_profile(int64_t len, int64_t v0, int64_t v1, const sc_limits
     }
 }
 
+/* At-rest S-curve: the shape follows the speeds. From or to rest every
+ * function is the S-curve's, between two moving speeds the trapezoid's,
+ * bit for bit (the other two shapes are unchanged by it). */
+static void test_at_rest_follows_speeds(void)
+{
+    sc_limits_t s = {100000000, 2000000000, 50000000000, SC_SHAPE_SCURVE};
+    sc_limits_t t = s, r = s;
+    sc_profile_t pr, ps, pt;
+    static const int64_t v[][2] = {{0, 0}, {0, 30000000}, {60000000, 0}, {1, 0}};
+    int k;
+
+    t.shape = SC_SHAPE_TRAPEZOID;
+    r.shape = SC_SHAPE_SCURVE_AT_REST;
+    /* reach: from rest the S-curve, from any speed > 0 the trapezoid */
+    TEST_ASSERT_EQUAL_INT64(sc_reach(0, 1000000, &s), sc_reach(0, 1000000, &r));
+    TEST_ASSERT_TRUE(sc_reach(0, 1000000, &r) < sc_reach(0, 1000000, &t));
+    TEST_ASSERT_EQUAL_INT64(sc_reach(5000000, 1000000, &t), sc_reach(5000000, 1000000, &r));
+    TEST_ASSERT_TRUE(sc_reach(1, 1000000, &r) >= sc_reach(0, 1000000, &r)); /* monotone */
+    /* distance: S-curve when the lower speed is 0 */
+    TEST_ASSERT_EQUAL_INT64(sc_dist(40000000, 0, &s), sc_dist(40000000, 0, &r));
+    TEST_ASSERT_EQUAL_INT64(sc_dist(10000000, 40000000, &t), sc_dist(10000000, 40000000, &r));
+    TEST_ASSERT_TRUE(sc_dist(40000000, 0, &r) > sc_dist(40000000, 0, &t));
+    /* block: S-curve if it starts or ends at rest */
+    for (k = 0; k < 4; k++) {
+        sc_plan(&pr, 30000000, v[k][0], v[k][1], &r);
+        sc_plan(&ps, 30000000, v[k][0], v[k][1], &s);
+        TEST_ASSERT_EQUAL_MEMORY(&ps, &pr, sizeof(pr));
+        check_profile(30000000, v[k][0], v[k][1], &s);
+    }
+    sc_plan(&pr, 30000000, 20000000, 50000000, &r);
+    sc_plan(&pt, 30000000, 20000000, 50000000, &t);
+    TEST_ASSERT_EQUAL_MEMORY(&pt, &pr, sizeof(pr));
+    TEST_ASSERT_EQUAL_INT64(0, pr.jerk[0]);
+    sc_plan(&pr, 30000000, 0, 50000000, &r);
+    TEST_ASSERT_TRUE(pr.jerk[0] > 0 && pr.t_ns[0] > 0);
+}
+
 static void test_named_cases(void)
 {
     sc_limits_t s = {100000000, 2000000000, 50000000000, SC_SHAPE_SCURVE}; /* 100 mm/s, 2 m/s^2 */
@@ -424,6 +461,7 @@ int main(void)
     RUN_TEST(test_dist_matches_closed_form);
     RUN_TEST(test_reach_is_tight_lower_bound);
     RUN_TEST(test_named_cases);
+    RUN_TEST(test_at_rest_follows_speeds);
     RUN_TEST(test_random_profiles_and_optimality);
     return UNITY_END();
 }

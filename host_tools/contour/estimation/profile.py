@@ -144,10 +144,15 @@ MOTION_FIELDS = (
         "velocity_profile",
         "",
         "s-curve",
-        "Shape of the speed profile of each block: 's-curve' (jerk-limited) or "
-        "'trapezoid' (acceleration-limited).",
-        "What the drive (or the imitated control) does; 's-curve' for this drive.",
-        choices=("s-curve", "trapezoid"),
+        "Shape of the speed profile of each block: 's-curve' (jerk-limited), "
+        "'trapezoid' (acceleration-limited) or 's-curve-at-rest' (jerk-limited "
+        "only for a block that starts or ends at rest: job start and end, exact "
+        "stop, reversal, dwell; every other block is a trapezoid).",
+        "What the drive (or the imitated control) does; 's-curve' for this drive. "
+        "'s-curve-at-rest' imitates a control whose acceleration stays "
+        "continuous along a path (jerk then shows only at starts and stops: "
+        "fit max_jerk_mm_s3 on short reversals, exp3 of camargo2017).",
+        choices=("s-curve", "trapezoid", "s-curve-at-rest"),
     ),
     Field(
         "arc_chord_tolerance_mm",

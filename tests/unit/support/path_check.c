@@ -187,7 +187,10 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
                     r->limit_violations++;
                 }
             }
-            if (shape == SC_SHAPE_SCURVE && id != 0xFFFFFFFFu && id == id1) {
+            if (id != 0xFFFFFFFFu && id == id1 && id < n &&
+                (shape == SC_SHAPE_SCURVE || (shape == SC_SHAPE_SCURVE_AT_REST &&
+                                              (est[id].v_entry == 0 || est[id].v_exit == 0)))) {
+                r->jerk_checks++;
                 double jr = (double)pc_abs(ref.acc[i] - acc1[i]) - 1.0;
                 jr /= (double)prof.j_max[i] * h;
                 if (jr > r->max_j_ratio) {

@@ -25,6 +25,9 @@ typedef struct {
     double max_a_ratio;     /* max |d2p| / (a_i h^2) inside blocks        */
     double max_j_ratio;     /* max |d acc_ff| / (j_i h) inside blocks     */
     uint32_t corner_capped; /* blocks whose v_max is the smoothed-corner cap */
+    uint64_t jerk_checks;   /* axis-ticks checked against the jerk limit
+                             * (S-curve blocks; at-rest shape: blocks whose
+                             * estimated entry or exit speed is 0)       */
 } pc_result_t;
 
 /* The test machine: X, Z 500 mm/s, 2 m/s^2, 50 m/s^3; Y 300 mm/s, 1 m/s^2,
