@@ -1209,7 +1209,7 @@ static const struct {
     [DRIVE_PARAM_CORNER_ACC] = {0, SC_A_LIMIT, true},
     [DRIVE_PARAM_JUNCTION_DEV] = {0, (int64_t)1 << 40, false},
     [DRIVE_PARAM_CORNER] = {PLAN_CORNER_JD, PLAN_CORNER_STOP, false},
-    [DRIVE_PARAM_SHAPE] = {SC_SHAPE_SCURVE, SC_SHAPE_TRAPEZOID, false},
+    [DRIVE_PARAM_SHAPE] = {SC_SHAPE_SCURVE, SC_SHAPE_SCURVE_AT_REST, false},
     [DRIVE_PARAM_MIN_BLOCK_NS] = {0, 10 * SC_NS_PER_S, false},
     [DRIVE_PARAM_MBT_WINDOW] = {1, PLAN_WINDOW_MAX, false},
     [DRIVE_PARAM_STOP_DECEL] = {1000, SC_A_LIMIT, false},
@@ -1311,11 +1311,11 @@ drive_result_t drive_param_range(drive_param_t id, unsigned axis, int64_t *lo, i
     *lo = param_info[id].lo;
     *hi = param_info[id].hi;
     /* S-curve: a_max / j_max <= SC_TJ_MAX_NS (3 s) per axis */
-    if (p->shape == SC_SHAPE_SCURVE && id == DRIVE_PARAM_A_MAX &&
+    if (p->shape != SC_SHAPE_TRAPEZOID && id == DRIVE_PARAM_A_MAX &&
         p->j_max[axis] <= SC_A_LIMIT / 3) {
         *hi = p->j_max[axis] * (SC_TJ_MAX_NS / SC_NS_PER_S); /* j * 3 s */
     }
-    if (p->shape == SC_SHAPE_SCURVE && id == DRIVE_PARAM_J_MAX) {
+    if (p->shape != SC_SHAPE_TRAPEZOID && id == DRIVE_PARAM_J_MAX) {
         int64_t tj_s = SC_TJ_MAX_NS / SC_NS_PER_S; /* whole seconds (3) */
         int64_t j = (p->a_max[axis] + tj_s - 1) / tj_s;
         *lo = j > *lo ? j : *lo;

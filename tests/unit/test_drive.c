@@ -540,8 +540,19 @@ static void test_parameters_are_checked_and_never_half_applied(void)
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_A_MAX, 0, 9000000000));
     /* back to the S-curve would break a / j on axis 0: refused, unchanged */
     TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE));
+    /* the at-rest S-curve has the same a / j rule; past it, no shape exists */
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID,
+                          drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE_AT_REST));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID,
+                          drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE_AT_REST + 1));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_SHAPE, 0, &v));
     TEST_ASSERT_EQUAL_INT64(SC_SHAPE_TRAPEZOID, v);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_A_MAX, 0, 3000000000));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE_AT_REST));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_range(DRIVE_PARAM_A_MAX, 0, &lo, &hi));
+    TEST_ASSERT_EQUAL_INT64(3000000000, hi);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_TRAPEZOID));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_A_MAX, 0, 9000000000));
     /* a whole profile: all or nothing */
     {
         plan_profile_t bad = before;
