@@ -4,6 +4,7 @@
 #include <stddef.h>
 
 __extension__ typedef __int128 qgen_i128;
+__extension__ typedef unsigned __int128 qgen_u128;
 
 static const uint32_t qgen_ab[4] = {0u, QDEC_LINE_A, QDEC_LINE_A | QDEC_LINE_B, QDEC_LINE_B};
 
@@ -105,42 +106,140 @@ bool qgen_set_edge_offsets(qgen_t *g, const qgen_pos_t off[4])
     return true;
 }
 
-uint64_t qgen_move_to(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
+/* Quotient and remainder of num / den, with a 64-bit division when both fit. */
+static void qgen_divmod(qgen_u128 num, qgen_u128 den, qgen_u128 *q, qgen_u128 *r)
+{
+    if ((num >> 64) == 0u && (den >> 64) == 0u) {
+        uint64_t n64 = (uint64_t)num;
+        uint64_t d64 = (uint64_t)den;
+        *q = n64 / d64;
+        *r = n64 % d64;
+    } else {
+        *q = num / den;
+        *r = num % den;
+    }
+}
+
+/*
+ * The crossing time of boundary b is t0 + floor(|b - x0| * dt / |dx|) (the
+ * boundaries lie between x0 and x1, so the signs agree and truncation is the
+ * floor). Rather than divide per edge, keep that quotient and its remainder
+ * and step both by |b' - b| * dt per boundary (one count: a quotient and
+ * remainder computed once per move), carrying the remainder into the quotient
+ * when it reaches |dx|. Same integers as the direct division, exactly.
+ */
+
+/* Fast path: ideal edges (no offsets), |x0|, |x1| < 2^61 and dt < 2^38 ns, so
+ * every product and sum fits in 64 bits; boundary b lies at b * QGEN_ONE. */
+static uint64_t qgen_move_ideal(qgen_t *g, qgen_pos_t x1, uint64_t dt)
 {
     qgen_pos_t x0 = g->x;
     uint64_t t0 = g->t;
-    uint64_t dt = (t1_ns > t0) ? t1_ns - t0 : 0u;
+    bool fwd = x1 > x0;
+    uint64_t den = fwd ? (uint64_t)(x1 - x0) : (uint64_t)(x0 - x1);
+    uint64_t frac = (uint64_t)x0 & (uint64_t)(QGEN_ONE - 1);
+    int64_t c1 = qgen_floor_count(x1);
+    uint64_t n = fwd ? (uint64_t)(c1 - g->count) : (uint64_t)(g->count - c1);
+    uint64_t num, t, rem, q1 = 0u, r1 = 0u, k;
+    int64_t step = fwd ? 1 : -1;
+
+    if (n == 0u) {
+        return 0u;
+    }
+    num = (fwd ? (uint64_t)QGEN_ONE - frac : frac) * dt;
+    t = t0 + num / den; /* the first crossing */
+    rem = num % den;
+    if (n > 1u) {
+        q1 = ((uint64_t)QGEN_ONE * dt) / den;
+        r1 = ((uint64_t)QGEN_ONE * dt) % den;
+    }
+    for (k = n; k > 0u; k--) {
+        uint64_t carry;
+        int64_t c = g->count + step;
+
+        g->count = c;
+        qgen_emit(g, g->has_index ? qgen_lines_at(g, c) : qgen_ab[(uint64_t)c & 3u], t);
+        g->edges++;
+        t += q1;
+        rem += r1;
+        carry = (uint64_t)(rem >= den);
+        t += carry;
+        rem -= den & (0u - carry);
+    }
+    return n;
+}
+
+/* General path: edge offsets, huge positions or times (128-bit arithmetic). */
+__attribute__((noinline)) static uint64_t qgen_move_general(qgen_t *g, qgen_pos_t x1, uint64_t dt)
+{
+    qgen_pos_t x0 = g->x;
+    uint64_t t0 = g->t;
     qgen_i128 dx = (qgen_i128)x1 - (qgen_i128)x0;
+    bool fwd = dx > 0;
+    qgen_u128 den = (qgen_u128)(fwd ? dx : -dx);
+    qgen_u128 quo = 0u, rem = 0u; /* floor(|b - x0| * dt / den), remainder */
+    qgen_i128 b, prev_b;
     uint64_t n = 0;
 
-    for (;;) {
-        int64_t next;
-        qgen_i128 b;
-        uint64_t t;
+    if (dx != 0) {
+        b = qgen_boundary(g, fwd ? g->count + 1 : g->count);
+        if (fwd ? (qgen_i128)x1 >= b : (qgen_i128)x1 < b) {
+            qgen_u128 q_one = 0u, r_one = 0u; /* the same for one whole count */
+            bool have_one = false;
 
-        if (dx > 0) {
-            b = qgen_boundary(g, g->count + 1);
-            if ((qgen_i128)x1 < b) {
-                break;
+            qgen_divmod((qgen_u128)(fwd ? b - x0 : x0 - b) * dt, den, &quo, &rem);
+            for (;;) {
+                qgen_u128 step, q, r;
+
+                g->count += fwd ? 1 : -1;
+                qgen_emit(g, qgen_lines_at(g, g->count), t0 + (uint64_t)quo);
+                g->edges++;
+                n++;
+                prev_b = b;
+                b = qgen_boundary(g, fwd ? g->count + 1 : g->count);
+                if (fwd ? (qgen_i128)x1 < b : (qgen_i128)x1 >= b) {
+                    break;
+                }
+                step = (qgen_u128)(fwd ? b - prev_b : prev_b - b);
+                if (step == (qgen_u128)QGEN_ONE) {
+                    if (!have_one) {
+                        qgen_divmod((qgen_u128)QGEN_ONE * dt, den, &q_one, &r_one);
+                        have_one = true;
+                    }
+                    q = q_one;
+                    r = r_one;
+                } else {
+                    qgen_divmod(step * dt, den, &q, &r); /* only with edge offsets */
+                }
+                quo += q;
+                rem += r;
+                if (rem >= den) {
+                    rem -= den;
+                    quo++;
+                }
             }
-            next = g->count + 1;
-        } else if (dx < 0) {
-            b = qgen_boundary(g, g->count);
-            if ((qgen_i128)x1 >= b) {
-                break;
-            }
-            next = g->count - 1;
-        } else {
-            break;
         }
-        t = t0 + (uint64_t)((b - (qgen_i128)x0) * (qgen_i128)dt / dx);
-        g->count = next;
-        qgen_emit(g, qgen_lines_at(g, g->count), t);
-        g->edges++;
-        n++;
+    }
+    return n;
+}
+
+uint64_t qgen_move_to(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
+{
+    const uint64_t lim = (uint64_t)1 << 61;
+    uint64_t dt = (t1_ns > g->t) ? t1_ns - g->t : 0u;
+    uint64_t n;
+
+    if (x1 == g->x) {
+        n = 0u;
+    } else if (dt < ((uint64_t)1 << 38) && (uint64_t)g->x + lim < 2u * lim &&
+               (uint64_t)x1 + lim < 2u * lim &&
+               (g->edge_off[0] | g->edge_off[1] | g->edge_off[2] | g->edge_off[3]) == 0) {
+        n = qgen_move_ideal(g, x1, dt);
+    } else {
+        n = qgen_move_general(g, x1, dt);
     }
     g->x = x1;
-    g->t = t0 + dt;
+    g->t += dt;
     return n;
 }
 

@@ -35,7 +35,12 @@
  *   qgen_glitch(g, line, t, width): one pulse of `width` ns on A or B:
  *     two legal edges that cancel (x4 net 0), counted in g->glitches.
  *
- * No heap; uses 128-bit integer arithmetic (GCC/Clang) for crossing times.
+ * No heap; uses 128-bit integer arithmetic (GCC/Clang) for crossing times
+ * when 64 bits may not suffice. Cost: at most two divisions per
+ * qgen_move_to (the first crossing and the time per count), then each further
+ * crossing time is stepped by addition with exact remainder bookkeeping, so
+ * the times equal the formula above to the ns (one division per edge only
+ * with edge offsets).
  */
 #ifndef QGEN_H
 #define QGEN_H
