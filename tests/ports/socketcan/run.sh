@@ -19,20 +19,20 @@ mkdir -p "$out"
 ./mk/firmware.sh linux > "$out/firmware.log"
 
 # kernel + busybox (the kernel package named by the linux-image-amd64 metapackage)
-if ! ls $g/root/boot/vmlinuz-* > /dev/null 2>&1; then
+if ! ls $g/debroot/boot/vmlinuz-* > /dev/null 2>&1; then
   ./mk/debian-fetch.sh bookworm "$g/meta" linux-image-amd64 > /dev/null
   kpkg=$(dpkg-deb -f "$(ls -t .cache/debs/linux-image-amd64_*.deb | head -n 1)" Depends |
          sed -n 's/^\(linux-image-[^ ,]*-amd64\).*/\1/p')
-  ./mk/debian-fetch.sh bookworm "$g/root" "$kpkg" busybox-static > /dev/null
+  ./mk/debian-fetch.sh bookworm "$g/debroot" "$kpkg" busybox-static > /dev/null
 fi
-kernel=$(ls $g/root/boot/vmlinuz-* | head -n 1)
+kernel=$(ls $g/debroot/boot/vmlinuz-* | head -n 1)
 kver=${kernel##*/vmlinuz-}
-moddir=$g/root/lib/modules/$kver
+moddir=$g/debroot/lib/modules/$kver
 
 # initramfs: busybox, /init, the modules in dependency order
 rm -rf "$out/initramfs"
 mkdir -p "$out/initramfs"/{bin,dev,proc,sys,host,lib/modules}
-cp $g/root/bin/busybox "$out/initramfs/bin/busybox"
+cp $g/debroot/bin/busybox "$out/initramfs/bin/busybox"
 mods=$(python3 - "$moddir" <<'PY'
 import glob, os, sys
 d = sys.argv[1]
