@@ -100,12 +100,14 @@ static void qdec_apply(qdec_t *q, uint32_t ab, uint32_t t)
     if (d == QDEC_ILL) {
         e->illegal = e->illegal + 1u;
     } else if (d != 0) {
-        e->count = e->count + (uint32_t)(int32_t)d;
+        uint32_t count = e->count + (uint32_t)(int32_t)d;
+
+        e->count = count;
         e->nedge = e->nedge + 1u;
         e->t_last = t;
         e->dir = d;
-        if ((e->count & q->cyc_mask) == 0u) {
-            e->cyc_count = e->count;
+        if ((count & q->cyc_mask) == 0u) {
+            e->cyc_count = count;
             e->cyc_t = t;
             e->ncyc = e->ncyc + 1u;
         }
@@ -172,12 +174,22 @@ static void qdec_filter_edge(qdec_t *q, uint32_t ab, uint32_t t)
     }
 }
 
-void qdec_edge(qdec_t *q, uint32_t lines, uint32_t t_ns)
+/* Out of line so that the fast path of qdec_edge() stays a leaf function
+ * (no registers to save). */
+#if defined(__GNUC__)
+#define QDEC_NOINLINE __attribute__((noinline))
+#else
+#define QDEC_NOINLINE
+#endif
+
+/* General edge path: glitch filter on, or Z high before or after. */
+static QDEC_NOINLINE void qdec_edge_slow(qdec_t *q, uint32_t lines, uint32_t t_ns)
 {
     qdec_edge_state_t *e = &q->e;
     uint8_t z = (uint8_t)((lines >> 2) & 1u);
+    uint32_t seq = e->seq;
 
-    e->seq = e->seq + 1u;
+    e->seq = seq + 1u;
     if (q->cfg.glitch_ns == 0u) {
         qdec_apply(q, lines & 3u, t_ns);
     } else {
@@ -187,7 +199,47 @@ void qdec_edge(qdec_t *q, uint32_t lines, uint32_t t_ns)
         e->z = z;
         qdec_index_eval(q, t_ns);
     }
-    e->seq = e->seq + 1u;
+    e->seq = seq + 2u;
+}
+
+void qdec_edge(qdec_t *q, uint32_t lines, uint32_t t_ns)
+{
+    qdec_edge_state_t *e = &q->e;
+    uint32_t ab = lines & 3u;
+    uint32_t seq;
+    int8_t d;
+
+    if (q->cfg.glitch_ns != 0u || ((lines & QDEC_LINE_Z) | e->z) != 0u) {
+        qdec_edge_slow(q, lines, t_ns);
+        return;
+    }
+    /* Fast path: no filter, Z low before and after (so e->gated is 0 and
+     * stays 0). The same result as qdec_apply(), with each shared field read
+     * and written once. Only fields the tick snapshots are guarded by seq. */
+    d = q->table[((uint32_t)e->ab << 2) | ab];
+    if (d == 0) {
+        e->ab = (uint8_t)ab; /* not counted (x2/x1) or no change */
+        return;
+    }
+    seq = e->seq;
+    e->seq = seq + 1u;
+    if (d == QDEC_ILL) {
+        e->illegal = e->illegal + 1u;
+    } else {
+        uint32_t count = e->count + (uint32_t)(int32_t)d;
+
+        e->count = count;
+        e->nedge = e->nedge + 1u;
+        e->t_last = t_ns;
+        e->dir = d;
+        if ((count & q->cyc_mask) == 0u) {
+            e->cyc_count = count;
+            e->cyc_t = t_ns;
+            e->ncyc = e->ncyc + 1u;
+        }
+    }
+    e->ab = (uint8_t)ab;
+    e->seq = seq + 2u;
 }
 
 void qdec_index_capture(qdec_t *q, uint32_t raw, uint32_t t_ns)

@@ -139,10 +139,15 @@
  *       edge loop). They write only q->e. May preempt the tick.
  *   qdec_sample(), qdec_sample_counter()  tick only. They write q->out and
  *       the tick-private state, and read q->e under its sequence count (a
- *       preempting edge interrupt makes the read retry). With the glitch
- *       filter on, qdec_sample() also confirms pending edges in q->e: the
- *       port must not run qdec_edge() concurrently with it (mask the edge
- *       interrupt around qdec_sample, or hold the port's lock).
+ *       preempting edge interrupt makes the read retry). qdec_edge() makes
+ *       seq odd before its first store to a field the tick snapshots and
+ *       even (+2) after its last; an event that changes none of them (A/B
+ *       change not counted in x2/x1, or no change, without filter or Z)
+ *       stores only e.ab, which the tick does not read without the filter.
+ *       With the glitch filter on, qdec_sample() also confirms pending
+ *       edges in q->e: the port must not run qdec_edge() concurrently with
+ *       it (mask the edge interrupt around qdec_sample, or hold the port's
+ *       lock).
  *   qdec_init(), qdec_clear_faults(), qdec_set_offset_nm() tick or main while
  *       the tick is not running for this decoder (init), or tick.
  *   qdec_set_comp()                      any (one pointer store).
@@ -207,7 +212,7 @@ typedef struct {
 
 /* Edge-context state (written by qdec_edge / qdec_index_capture). */
 typedef struct {
-    volatile uint32_t seq;        /* +2 per event (odd while writing)            */
+    volatile uint32_t seq;        /* +2 per change of snapshot fields, odd during */
     volatile uint32_t count;      /* wrapping count, mode units                  */
     volatile uint32_t nedge;      /* counted edges (wrapping)                    */
     volatile uint32_t t_last;     /* time of the last counted edge, ns           */
