@@ -119,6 +119,17 @@ static void ip_begin(interp_t *ip)
     }
 }
 
+/* The arc fields of a reference that is not on an arc (G17 plane, no centre). */
+static void interp_geom_no_arc(motion_geom_t *g)
+{
+    g->plane_u = 0;
+    g->plane_v = 1;
+    g->centre_u = 0;
+    g->centre_v = 0;
+    g->radius = 0;
+    g->sense = 0;
+}
+
 static void ip_out_rest(interp_t *ip, motion_ref_t *ref, bool active)
 {
     int i;
@@ -131,12 +142,7 @@ static void ip_out_rest(interp_t *ip, motion_ref_t *ref, bool active)
         ref->geom.start[i] = ip->pos[i];
     }
     ref->geom.kind = MOTION_GEOM_NONE;
-    ref->geom.plane_u = 0;
-    ref->geom.plane_v = 1;
-    ref->geom.centre_u = 0;
-    ref->geom.centre_v = 0;
-    ref->geom.radius = 0;
-    ref->geom.sense = 0;
+    interp_geom_no_arc(&ref->geom);
     ref->active = active;
 }
 
@@ -217,11 +223,6 @@ void interp_tick(interp_t *ip, motion_ref_t *ref)
         ref->geom.start[i] = s->start[i];
     }
     ref->geom.kind = MOTION_GEOM_LINE;
-    ref->geom.plane_u = 0;
-    ref->geom.plane_v = 1;
-    ref->geom.centre_u = 0;
-    ref->geom.centre_v = 0;
-    ref->geom.radius = 0;
-    ref->geom.sense = 0;
+    interp_geom_no_arc(&ref->geom);
     ref->active = true;
 }

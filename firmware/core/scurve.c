@@ -143,7 +143,8 @@ static int64_t sc_sat(uint64_t q, bool ovf)
     return (ovf || q > (uint64_t)INT64_MAX) ? INT64_MAX : (int64_t)q;
 }
 
-int64_t sc_muldiv(int64_t a, int64_t b, int64_t c)
+/* a * b / c for a, b > 0 and c > 0, rounded down or up; 0 or INT64_MAX outside. */
+static int64_t sc_muldiv_round(int64_t a, int64_t b, int64_t c, bool up)
 {
     uint64_t rem;
     bool ovf;
@@ -156,27 +157,21 @@ int64_t sc_muldiv(int64_t a, int64_t b, int64_t c)
         return INT64_MAX;
     }
     q = sc_div(sc_mul((uint64_t)a, (uint64_t)b), (uint64_t)c, &rem, &ovf);
-    return sc_sat(q, ovf);
-}
-
-int64_t sc_muldiv_ceil(int64_t a, int64_t b, int64_t c)
-{
-    uint64_t rem;
-    bool ovf;
-    uint64_t q;
-
-    if (a <= 0 || b <= 0) {
-        return 0;
-    }
-    if (c <= 0) {
-        return INT64_MAX;
-    }
-    q = sc_div(sc_mul((uint64_t)a, (uint64_t)b), (uint64_t)c, &rem, &ovf);
-    if (!ovf && rem != 0u) {
+    if (up && !ovf && rem != 0u) {
         q++;
         ovf = (q == 0u);
     }
     return sc_sat(q, ovf);
+}
+
+int64_t sc_muldiv(int64_t a, int64_t b, int64_t c)
+{
+    return sc_muldiv_round(a, b, c, false);
+}
+
+int64_t sc_muldiv_ceil(int64_t a, int64_t b, int64_t c)
+{
+    return sc_muldiv_round(a, b, c, true);
 }
 
 int64_t sc_muldiv_portable(int64_t a, int64_t b, int64_t c)
