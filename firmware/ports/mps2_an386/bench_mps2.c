@@ -34,6 +34,9 @@
 #define AXES      3u
 #define MAX_TICKS 40000u
 
+/* profile mode: stop the tick workload after this many running ticks */
+static uint32_t tick_limit = MAX_TICKS;
+
 static void put(const char *s)
 {
     size_t n = 0;
@@ -69,6 +72,26 @@ static void line(const char *name, uint32_t v, const char *unit)
     put(" ");
     put(unit);
     put("\n");
+}
+
+/* The semihosting command line (QEMU: -semihosting-config arg=...): which
+ * workload to run (bench/profile-m4.sh profiles one at a time). Empty when
+ * none was given. */
+static const char *semihost_cmdline(void)
+{
+    static char buf[64];
+    static uint32_t block[2];
+    register uint32_t r0 __asm__("r0") = 0x15u; /* SYS_GET_CMDLINE */
+    register uint32_t r1 __asm__("r1") = (uint32_t)block;
+
+    block[0] = (uint32_t)buf;
+    block[1] = sizeof(buf) - 1u;
+    __asm__ volatile("bkpt 0xab" : "+r"(r0) : "r"(r1) : "memory");
+    if (r0 != 0u || block[1] >= sizeof(buf)) {
+        return "";
+    }
+    buf[block[1]] = '\0';
+    return buf;
 }
 
 static void semihost_exit(void)
@@ -178,8 +201,14 @@ static void bench_tick(void)
         } else if (n > 0u) {
             break;
         }
+        if (n >= tick_limit) {
+            break;
+        }
     }
     drive_status(&st);
+    if (n >= tick_limit) {
+        return; /* profile run: partial helix, no figures */
+    }
     if (st.faults != 0u || n == 0u) {
         put("bench: the helix did not run (faults ");
         put_u32(st.faults);
@@ -270,13 +299,23 @@ static void bench_helpers(void)
 
 int main(void)
 {
+    const char *cmd;
+
     mps2_board_init(MPS2_TICK_HZ, NULL);
     mps2_clock_manual();
     mps2_counter_start();
     calibrate();
-    bench_planner();
-    bench_tick();
-    bench_helpers();
+    cmd = semihost_cmdline();
+    if (cmd[0] == 'p') { /* "planner": profile the planner workload only */
+        bench_planner();
+    } else if (cmd[0] == 't') { /* "tick": the first 1500 running ticks */
+        tick_limit = 1500u;
+        bench_tick();
+    } else {
+        bench_planner();
+        bench_tick();
+        bench_helpers();
+    }
     while (!port_uart_tx_idle()) {
     }
     semihost_exit();
