@@ -24,7 +24,9 @@
  * the augmented matrix M = [[A, B], [0, 0]] (5 states + 3 inputs) is
  * exponentiated in double precision (scaling and squaring of a Taylor series),
  * giving Phi = e^{Ah} and Gamma = int_0^h e^{As} ds B. Each substep is then
- * z <- Phi z + Gamma [u, T1, T2]. The inputs are constant over a substep: the
+ * z <- Phi z + Gamma [u, T1, T2] (row i: the products with z[0..4], u, T1,
+ * T2 summed left to right; the T1, T2 terms are skipped when both are 0,
+ * which leaves every bit of the result unchanged). The inputs are constant over a substep: the
  * command is constant over the control tick anyway (and the +-Vmax clamp acts
  * on it exactly), so with no nonlinear option configured the result is exact
  * for any substep length. Friction and backlash are evaluated once per
@@ -99,7 +101,15 @@ typedef struct {
     double gam[AXIS_NSTATE][AXIS_NINPUT];
     double phi_free[AXIS_NSTATE][AXIS_NSTATE]; /* backlash gap open */
     double gam_free[AXIS_NSTATE][AXIS_NINPUT];
+    /* the same as phi and gam's u column, by columns, one padding row:
+     * lin[j][i] = phi[i][j] (j < 5), lin[5][i] = gam[i][0]; lin[j][5] = 0.
+     * The substep with only u acting (T1 = T2 = 0, gap closed) uses it:
+     * the same products summed in the same order as the full update (the
+     * dropped T1, T2 terms are exact zeros), so the same bits, in a form the
+     * compiler can vectorise. */
+    double lin[AXIS_NSTATE + 1][AXIS_NSTATE + 1];
     double z[AXIS_NSTATE];
+    double enc_scale;  /* encoder counts per rad of th1 (cpr / 2 pi)  */
     double v_applied;  /* motor voltage of the last substep, V    */
     int pitch_dir;     /* +1 / -1: direction for the pitch map      */
     double pitch_turn; /* table position where dir last changed     */

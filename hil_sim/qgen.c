@@ -129,42 +129,123 @@ static void qgen_divmod(qgen_u128 num, qgen_u128 den, qgen_u128 *q, qgen_u128 *r
  * when it reaches |dx|. Same integers as the direct division, exactly.
  */
 
+/* The crossing-time stepper of the fast path: t is the current crossing
+ * time, rem its remainder (< den); each step adds one count's worth. */
+typedef struct {
+    uint64_t t, rem, q1, r1, den;
+} qgen_edge_step_t;
+
+static inline void qgen_step(uint64_t *t, uint64_t *rem, const qgen_edge_step_t *st)
+{
+    uint64_t r = *rem + st->r1;
+    uint64_t carry = (uint64_t)(r >= st->den);
+
+    *rem = r - (st->den & (0u - carry));
+    *t += st->q1 + carry;
+}
+
+/* n events from count c + inc on; st->t ends as the last event's time.
+ * Returns the last count (mod 2^32). The time and remainder stay in locals,
+ * the per-count constants are read from the generator on each event (memory
+ * operands rather than registers spilled around the callback); count, lines
+ * and the counters are written back by the caller (the callback must not
+ * read the generator). */
+static inline uint32_t qgen_run_ideal(qgen_t *g, uint32_t c, uint32_t inc, uint64_t n,
+                                      qgen_edge_step_t *st)
+{
+    uint64_t t = st->t, rem = st->rem, k;
+
+    /* rem + r1 >= den as the sign of rem + r1 - den (|.| < den < 2^62; two's
+     * complement and arithmetic shift, GCC/Clang as the rest of this file):
+     * m = -1 (no carry) or 0 (carry) */
+    g->step_q1 = st->q1 + 1u;
+    g->step_r1 = st->r1 - st->den;
+    g->step_den = st->den;
+    c += inc;
+    g->emit(g->ctx, qgen_ab[c & 3u], (uint32_t)t);
+    for (k = n - 1u; k > 0u; k--) {
+        uint64_t r = rem + g->step_r1;
+        uint64_t m = (uint64_t)((int64_t)r >> 63);
+
+        rem = r + (g->step_den & m);
+        t += g->step_q1 + m;
+        c += inc;
+        g->emit(g->ctx, qgen_ab[c & 3u], (uint32_t)t);
+    }
+    st->t = t;
+    return c;
+}
+
 /* Fast path: ideal edges (no offsets), |x0|, |x1| < 2^61 and dt < 2^38 ns, so
  * every product and sum fits in 64 bits; boundary b lies at b * QGEN_ONE. */
-static uint64_t qgen_move_ideal(qgen_t *g, qgen_pos_t x1, uint64_t dt)
+static bool qgen_fast_ok(const qgen_t *g, qgen_pos_t x1, uint64_t dt)
+{
+    const uint64_t lim = (uint64_t)1 << 61;
+
+    return dt < ((uint64_t)1 << 38) && (uint64_t)g->x + lim < 2u * lim &&
+           (uint64_t)x1 + lim < 2u * lim &&
+           (g->edge_off[0] | g->edge_off[1] | g->edge_off[2] | g->edge_off[3]) == 0;
+}
+
+/* The fast path's set-up for a move to x1 (x1 != x) over dt: the number of
+ * events, the first crossing time and the stepper. */
+static uint64_t qgen_ideal_setup(const qgen_t *g, qgen_pos_t x1, uint64_t dt, qgen_edge_step_t *st)
 {
     qgen_pos_t x0 = g->x;
-    uint64_t t0 = g->t;
     bool fwd = x1 > x0;
     uint64_t den = fwd ? (uint64_t)(x1 - x0) : (uint64_t)(x0 - x1);
     uint64_t frac = (uint64_t)x0 & (uint64_t)(QGEN_ONE - 1);
     int64_t c1 = qgen_floor_count(x1);
     uint64_t n = fwd ? (uint64_t)(c1 - g->count) : (uint64_t)(g->count - c1);
-    uint64_t num, t, rem, q1 = 0u, r1 = 0u, k;
-    int64_t step = fwd ? 1 : -1;
+    uint64_t num;
 
     if (n == 0u) {
         return 0u;
     }
     num = (fwd ? (uint64_t)QGEN_ONE - frac : frac) * dt;
-    t = t0 + num / den; /* the first crossing */
-    rem = num % den;
+    st->t = g->t + num / den; /* the first crossing */
+    st->rem = num % den;
+    st->den = den;
+    st->q1 = 0u;
+    st->r1 = 0u;
     if (n > 1u) {
-        q1 = ((uint64_t)QGEN_ONE * dt) / den;
-        r1 = ((uint64_t)QGEN_ONE * dt) % den;
+        st->q1 = ((uint64_t)QGEN_ONE * dt) / den;
+        st->r1 = ((uint64_t)QGEN_ONE * dt) % den;
     }
+    return n;
+}
+
+/* The fast path with the callback. Without an index window, the loop keeps
+ * everything in locals and writes the generator's fields back once at the
+ * end (the callback must not read them; it gets the lines and the time). */
+static uint64_t qgen_move_ideal(qgen_t *g, qgen_pos_t x1, uint64_t dt)
+{
+    qgen_edge_step_t st;
+    uint64_t n = qgen_ideal_setup(g, x1, dt, &st), k, t, rem;
+    bool fwd = x1 > g->x;
+
+    if (n == 0u) {
+        return 0u;
+    }
+    if (!g->has_index && g->emit != NULL) {
+        uint32_t c = (uint32_t)(uint64_t)g->count; /* only c mod 4 matters here */
+
+        c = fwd ? qgen_run_ideal(g, c, 1u, n, &st) : qgen_run_ideal(g, c, 0xFFFFFFFFu, n, &st);
+        g->count += fwd ? (int64_t)n : -(int64_t)n;
+        g->lines = qgen_ab[c & 3u];
+        g->last_edge_t = st.t;
+        g->edges += n;
+        return n;
+    }
+    t = st.t;
+    rem = st.rem;
     for (k = n; k > 0u; k--) {
-        uint64_t carry;
-        int64_t c = g->count + step;
+        int64_t c = g->count + (fwd ? 1 : -1);
 
         g->count = c;
         qgen_emit(g, g->has_index ? qgen_lines_at(g, c) : qgen_ab[(uint64_t)c & 3u], t);
         g->edges++;
-        t += q1;
-        rem += r1;
-        carry = (uint64_t)(rem >= den);
-        t += carry;
-        rem -= den & (0u - carry);
+        qgen_step(&t, &rem, &st);
     }
     return n;
 }
@@ -225,15 +306,12 @@ __attribute__((noinline)) static uint64_t qgen_move_general(qgen_t *g, qgen_pos_
 
 uint64_t qgen_move_to(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
 {
-    const uint64_t lim = (uint64_t)1 << 61;
     uint64_t dt = (t1_ns > g->t) ? t1_ns - g->t : 0u;
     uint64_t n;
 
     if (x1 == g->x) {
         n = 0u;
-    } else if (dt < ((uint64_t)1 << 38) && (uint64_t)g->x + lim < 2u * lim &&
-               (uint64_t)x1 + lim < 2u * lim &&
-               (g->edge_off[0] | g->edge_off[1] | g->edge_off[2] | g->edge_off[3]) == 0) {
+    } else if (qgen_fast_ok(g, x1, dt)) {
         n = qgen_move_ideal(g, x1, dt);
     } else {
         n = qgen_move_general(g, x1, dt);

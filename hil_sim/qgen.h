@@ -40,7 +40,11 @@
  * qgen_move_to (the first crossing and the time per count), then each further
  * crossing time is stepped by addition with exact remainder bookkeeping, so
  * the times equal the formula above to the ns (one division per edge only
- * with edge offsets).
+ * with edge offsets). On the fast path (no edge offsets, no index, |x| <
+ * 2^61, steps < 2^38 ns) the per-event loop keeps its state in locals and
+ * brings count, lines, edges and last_edge_t up to date when qgen_move_to
+ * returns: the callback gets the lines and the time and must not read or
+ * change the generator.
  */
 #ifndef QGEN_H
 #define QGEN_H
@@ -75,6 +79,9 @@ typedef struct {
     uint64_t glitches;      /* pulses injected                               */
     uint64_t last_edge_t;   /* time of the last event emitted, ns          */
     qgen_pos_t edge_off[4]; /* edge placement errors (qgen_set_edge_offsets) */
+    /* internal (fast path): time per count of the current move, quotient + 1,
+     * remainder - divisor (mod 2^64) and divisor */
+    uint64_t step_q1, step_r1, step_den;
 } qgen_t;
 
 /* Start at position x0, time t0, no index. Emits nothing. */

@@ -485,13 +485,15 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
 {
     uint64_t k;
     size_t rows = 0;
-    unsigned i, s;
+    unsigned i, s, row_in; /* row_in: ticks until S.ticks % every == 0 */
     if (!S.started) {
         return SIM_E_STATE;
     }
     if (every == 0) {
         every = 1;
     }
+    row_in = (unsigned)(S.ticks % every);
+    row_in = row_in == 0 ? 0 : every - row_in;
     for (k = 0; k < ticks; k++) {
         hal_sim_set_time_ns(S.t_ns);
         for (i = 0; i < S.axes; i++) {
@@ -505,10 +507,14 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
                 break;
             }
         }
-        if (trace != NULL && rows < rows_cap && S.ticks % every == 0) {
-            write_row(trace + rows * SIM_TRACE_COLS);
-            rows++;
+        if (row_in == 0) {
+            if (trace != NULL && rows < rows_cap) {
+                write_row(trace + rows * SIM_TRACE_COLS);
+                rows++;
+            }
+            row_in = every;
         }
+        row_in--;
         drive_poll();
         for (i = 0; i < S.axes; i++) {
             double u = (double)hal_sim_motor_mv(i) * 1e-3;

@@ -139,6 +139,86 @@ static void test_edge_offsets(void)
     TEST_ASSERT_EQUAL_INT64(2, g.count);
 }
 
+/* The fast path (ideal edges, no index: the loop that writes the state back
+ * at the end) against the crossing-time formula of the spec in 128-bit
+ * arithmetic, event by event, and the state after each move: random moves
+ * of 0..300 counts either way, steps of 0..200 us, around 64-bit wrap of
+ * the 32-bit time and at both ends of the fast path's position range. */
+static uint64_t rnd_state = 0x1234567u;
+static uint64_t rnd64(void)
+{
+    rnd_state = rnd_state * 6364136223846793005ull + 1442695040888963407ull;
+    return rnd_state >> 11;
+}
+
+static int64_t count_of(qgen_pos_t x) /* floor(x / QGEN_ONE) */
+{
+    return x >= 0 ? x / QGEN_ONE : -((-x + QGEN_ONE - 1) / QGEN_ONE);
+}
+
+static void fast_path_case(qgen_pos_t x0, uint64_t t0)
+{
+    __extension__ typedef __int128 i128;
+    qgen_t g;
+    unsigned m;
+    uint64_t edges = 0;
+
+    qgen_init(&g, x0, t0, rec_emit, &rec);
+    for (m = 0; m < 400; m++) {
+        qgen_pos_t xa = g.x, dx = (qgen_pos_t)(rnd64() % (300u * (uint64_t)QGEN_ONE));
+        uint64_t ta = g.t, dt = (m % 7 == 3) ? 0u : rnd64() % 200000u;
+        qgen_pos_t x1 = (rnd64() & 1u) ? xa + dx : xa - dx;
+        int64_t c0, c1;
+
+        if (m % 5 == 2 || m % 5 == 3) {
+            /* onto whole counts, then whole counts in 1 us: crossings at
+             * exact ns (remainder == divisor) */
+            int64_t j = (int64_t)(rnd64() % 40u) + 2;
+            x1 = m % 5 == 2 ? QGEN_COUNTS(count_of(xa) + j) : xa - QGEN_COUNTS(j);
+            dt = 1000u;
+        }
+        c0 = count_of(xa);
+        c1 = count_of(x1);
+        uint64_t n = (uint64_t)(c1 > c0 ? c1 - c0 : c0 - c1), k;
+
+        if (m % 11 == 5) {
+            x1 = xa; /* no motion */
+            c1 = c0;
+            n = 0;
+        }
+        rec.n = 0;
+        TEST_ASSERT_EQUAL_UINT64(n, qgen_move_to(&g, x1, ta + dt));
+        TEST_ASSERT_EQUAL_UINT32(n, rec.n);
+        for (k = 0; k < n; k++) {
+            int64_t c = x1 > xa ? c0 + 1 + (int64_t)k : c0 - (int64_t)k;
+            i128 b = (i128)c * QGEN_ONE;
+            i128 d = x1 > xa ? b - xa : xa - b;
+            uint64_t t = ta + (uint64_t)(d * (i128)dt / (i128)(x1 > xa ? x1 - xa : xa - x1));
+            int64_t now = x1 > xa ? c : c - 1;
+            TEST_ASSERT_EQUAL_UINT32((uint32_t)t, rec.t[k]);
+            TEST_ASSERT_EQUAL_UINT32(qgen_lines_at(&g, now), rec.lines[k]);
+            if (k + 1 == n) {
+                TEST_ASSERT_EQUAL_UINT64(t, g.last_edge_t);
+            }
+        }
+        edges += n;
+        TEST_ASSERT_EQUAL_INT64(c1, g.count);
+        TEST_ASSERT_EQUAL_UINT32(qgen_lines_at(&g, c1), qgen_lines(&g));
+        TEST_ASSERT_EQUAL_UINT64(edges, g.edges);
+        TEST_ASSERT_EQUAL_UINT64(ta + dt, g.t);
+        TEST_ASSERT_EQUAL_INT64(x1, g.x);
+    }
+}
+
+static void test_fast_path_matches_formula(void)
+{
+    const qgen_pos_t lim = (qgen_pos_t)1 << 61;
+    fast_path_case(QGEN_ONE / 3, 1000);
+    fast_path_case(-QGEN_COUNTS(123457) - 77, 0xFFFF0000ull);
+    fast_path_case(lim - QGEN_COUNTS(200000), 5);
+    fast_path_case(-lim + QGEN_COUNTS(200000) + 1, 5);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -147,5 +227,6 @@ int main(void)
     RUN_TEST(test_index_window);
     RUN_TEST(test_injections);
     RUN_TEST(test_edge_offsets);
+    RUN_TEST(test_fast_path_matches_formula);
     return UNITY_END();
 }
