@@ -112,7 +112,7 @@ static stat_t run_vel(double v, double a, bool counter, uint64_t window_ns, bool
         if (tt < start) {
             continue;
         }
-        err = (double)dec.out.vel / 4294967296.0 - (v + a * tt);
+        err = (double)qdec_velocity(&dec) / 4294967296.0 - (v + a * tt);
         sum += err;
         sum2 += err * err;
         cnt++;

@@ -148,6 +148,11 @@ void calib_init(void)
     }
 }
 
+bool calib_sampling(void)
+{
+    return cb.s_active;
+}
+
 void calib_tick(const drive_status_t *st)
 {
     unsigned i;
@@ -155,7 +160,14 @@ void calib_tick(const drive_status_t *st)
         return;
     }
     for (i = 0; i < CORE_AXES; i++) {
-        comp_ramp_step(&cb.ramp[i], st->vel_ref[i]);
+        const comp_ramp_t *r = &cb.ramp[i];
+        int64_t v = st->vel_ref[i];
+        int d = v > 0 ? 1 : (v < 0 ? -1 : r->dir);
+        /* settled (the usual case: moving on in the same direction, or at
+         * rest): comp_ramp_step would change nothing */
+        if (d != r->dir || (d != 0 && r->w_q30 != (d > 0 ? COMP_W_ONE : -COMP_W_ONE))) {
+            comp_ramp_step(&cb.ramp[i], v);
+        }
     }
     if (!cb.s_active) {
         return;

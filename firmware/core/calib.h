@@ -134,6 +134,9 @@ typedef size_t (*calib_handler_fn)(const uint8_t *msg, size_t len, uint32_t now_
 
 void calib_init(void);
 void calib_tick(const drive_status_t *st);
+/* True while sampling is armed: calib_tick then reads pos, pos_raw and
+ * refscale of the status (otherwise only vel_ref and faults). Tick. */
+bool calib_sampling(void);
 void calib_poll(void);
 size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out, size_t cap);
 void calib_set_next_handler(calib_handler_fn fn);

@@ -235,6 +235,7 @@ cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err)
     }
     c->ch[0] = tmp[0];
     c->ch[1] = tmp[1];
+    c->idle = false;
     if (c->p.mode != p->mode) {
         c->reseg = true;
     }
@@ -279,6 +280,10 @@ static void hand_over(cec_t *c, const int64_t rem[3])
 
 static void deactivate(cec_t *c)
 {
+    if (c->idle) {
+        return; /* the state below is already there */
+    }
+    c->idle = true;
     if (c->active) {
         int64_t iv[3];
         integral_vector(c, iv);
@@ -414,6 +419,7 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
         deactivate(c);
         return;
     }
+    c->idle = false; /* the channels run (or are reset) below */
     ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
     if (segment_changed(c, g, w)) {
         new_segment(c, ref, w, n1, n2, ch2);

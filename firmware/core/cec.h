@@ -131,6 +131,8 @@ typedef struct {
     int8_t key_sense;
     pid_coef_t inv_r; /* 2^30 / radius */
     int8_t s;         /* side of the centre: +1 on +n1 */
+    bool idle;        /* inactive and the channels reset, untouched since:
+                       * the next inactive tick has nothing to do (tick) */
 } cec_t;
 
 /* Validate and apply (nothing changes on error; *pid_err gets the detail

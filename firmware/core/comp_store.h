@@ -3,36 +3,61 @@
  *
  * Specification
  * -------------
- * Where: the store region is the top COMP_STORE_REGION_BYTES (32 KiB) of the
- * HAL flash region (hal_flash_layout(); docs/bootloader.md leaves it to the
- * parameter and compensation store, the bootloader never touches it). The
- * compensation tables take the TOP of that region: for each axis a = 0..
- * CORE_AXES-1 two slots s = 0, 1 of `slot_bytes` = COMP_RECORD_MAX rounded up
- * to whole pages, slot (a, s) at
- *     end - (2 * CORE_AXES - (2 a + s)) * slot_bytes,   end = base + size.
- * The rest of the store region (below) is left to a parameter store.
- * Simulated drive (2 KiB pages): 6 slots of 2 KiB, 0x0803D000..0x08040000.
+ * Where: the store takes the top of the HAL flash region (hal_flash_layout();
+ * the bootloader never touches it, docs/bootloader.md): two banks of
+ * `bank_bytes` = COMP_STORE_REGION_BYTES / 2 rounded up to whole erase pages,
+ * bank 0 at end - 2 * bank_bytes, bank 1 at end - bank_bytes (end = base +
+ * size). comp_store_bytes() = 2 * bank_bytes is what the port must keep out
+ * of its application slot:
+ *   simulated drive (2 KiB pages): 2 x 16 KiB, 0x08048000..0x08050000;
+ *   QEMU mps2-an386 (4 KiB pages): 2 x 16 KiB, the top 32 KiB;
+ *   STM32F4 (128 KiB sectors): 2 x 128 KiB = sectors 10 and 11.
+ * No layout (COMP_STORE_E_LAYOUT) when the write unit is 0, > 64 or does not
+ * divide 64, or the two banks would take more than half of the region.
  *
- * What: one comp record (comp.h: header with magic, format, axis, version,
- * header CRC, data CRC) per slot, padded with 0xFF to the write unit.
+ * Bank: a 64-byte header cell at offset 0, then a log of comp records (comp.h:
+ * magic, format, axis, version, header CRC, data CRC) from offset 64, each
+ * padded with 0xFF to the write unit, appended in address order:
+ *   0 u32 magic "CSTB" (0x42545343)  4 u32 seq  8 u32 bank_bytes
+ *   12 u32 crc32 of bytes 0..11      16..63 0xFF
+ * A bank is valid when its header is; the ACTIVE bank is the valid one with
+ * the later seq (serial arithmetic, (int32_t)(a - b) > 0). The log of the
+ * active bank ends at the first cell whose 32 header bytes are all 0xFF
+ * (clean end) or at a record header that is not valid / does not fit (dirty
+ * end: an interrupted append; the next write compacts).
  *
- * Writing a new table (comp_store_write) never endangers the current one:
- *   1. the slot NOT holding the axis's current record is erased (the
- *      current record stays in the other slot);
- *   2. the new record is programmed there with version = current + 1;
- *   3. it is read back and decoded (magic, header CRC, data CRC, limits) and
- *      compared with what was meant to be written.
- * Only a record that passed 3 is ever returned by comp_store_load; until
- * then (and after any failure, power cut included) the previous version is
- * the current one. The previous table stays in flash until the next write.
+ * Writing a new table (comp_store_write) never endangers the current one;
+ * version = current version + 1 (1 when none):
+ *   append, when the active bank has a clean end and room: the record is
+ *     programmed at the end (after checking those bytes are erased), read
+ *     back and decoded (magic, header CRC, data CRC, limits), compared with
+ *     what was meant;
+ *   compact, otherwise (no valid bank, full or dirty): the other bank is
+ *     erased; the new record, then the current record of every other axis
+ *     (copied byte for byte from the active bank) are programmed from offset
+ *     64; every axis is checked by reading the new bank back; only then the
+ *     header with seq = active seq + 1 is programmed and read back. Until the
+ *     header is valid the old bank stays active, untouched.
+ * The old records stay in flash (and old versions in the log are the
+ * fallback) until their bank is erased by the compaction after next.
+ * A power cut at any byte of an erase or program leaves the previous or the
+ * new table current, for every axis (tests/unit/test_comp_store.c).
  *
- * Loading (comp_store_load): of the two slots of the axis, the valid record
- * (magic, format, header and data CRC, axis, limits) with the higher version;
- * none: COMP_STORE_EMPTY. A record with n == 0 is a valid "no compensation"
- * (comp_store_clear writes one).
+ * Loading (comp_store_load): in the active bank, the record of the axis with
+ * the highest version (the later one on a tie) that decodes (magic, format,
+ * header and data CRC, axis, limits); a damaged record falls back to the
+ * previous version while that is still in the log. None: COMP_STORE_EMPTY.
+ * A record with n == 0 is a valid "no compensation" (comp_store_clear).
+ * "slot" in this interface is the bank (0 or 1) holding the record.
  *
- * Context: main only (flash erase and program). No heap: one static record
- * buffer of COMP_RECORD_MAX bytes.
+ * Capacity: a bank holds (bank_bytes - 64) / record bytes records: 7 full
+ * (126-point, 2 KiB) records in 16 KiB, 63 in 128 KiB, so a sector is
+ * erased about every 60 full-table writes on the STM32F4. Compaction needs
+ * CORE_AXES full records + 64 bytes per bank (checked by the layout).
+ *
+ * Context: main only (flash erase and program; on single-bank flash an erase
+ * stalls the CPU, see docs/ports.md). No heap: one static record buffer of
+ * COMP_RECORD_MAX bytes and a few static tables.
  */
 #ifndef COMP_STORE_H
 #define COMP_STORE_H
@@ -43,37 +68,45 @@
 #include "comp.h"
 #include "core_config.h"
 
-#define COMP_STORE_REGION_BYTES (32u * 1024u)
+#define COMP_STORE_REGION_BYTES (32u * 1024u) /* minimum size of both banks */
+#define COMP_STORE_HDR_BYTES    64u           /* bank header cell            */
+#define COMP_STORE_BANK_MAGIC   0x42545343u   /* "CSTB" little-endian        */
 
 typedef enum {
     COMP_STORE_OK = 0,
     COMP_STORE_EMPTY,    /* no valid record for this axis            */
     COMP_STORE_E_ARG,    /* axis out of range, NULL, invalid table    */
-    COMP_STORE_E_LAYOUT, /* the flash layout cannot hold the slots    */
+    COMP_STORE_E_LAYOUT, /* the flash layout cannot hold the banks    */
     COMP_STORE_E_FLASH,  /* erase / program / read failed             */
     COMP_STORE_E_VERIFY  /* read back differs from what was written   */
 } comp_store_result_t;
 
 typedef struct {
-    uint32_t base;       /* first slot (axis 0, slot 0) address */
-    uint32_t slot_bytes; /* bytes per slot (whole pages)       */
+    uint32_t base;       /* bank 0 address (bank 1 follows)  */
+    uint32_t bank_bytes; /* bytes per bank (whole pages)     */
     uint32_t write_size;
 } comp_store_layout_t;
 
-/* Slot geometry from hal_flash_layout(). False when the region cannot hold
- * 2 * CORE_AXES slots inside the top COMP_STORE_REGION_BYTES. */
+/* Bank geometry from hal_flash_layout() (see top); false: no layout. */
 bool comp_store_layout(comp_store_layout_t *out);
 
-/* Address of slot (axis, slot); 0 when out of range or no layout. */
-uint32_t comp_store_slot_addr(unsigned axis, unsigned slot);
+/* Bytes the store takes at the top of the HAL region (0: no layout). */
+uint32_t comp_store_bytes(void);
 
-/* Current table of `axis` into *table (dir_src NULL). *slot gets the slot
+/* Address of bank 0 or 1; 0 when out of range or no layout. */
+uint32_t comp_store_bank_addr(unsigned bank);
+
+/* Address of the axis's current record (what comp_store_load returns);
+ * 0 when none. For tests and diagnostics. */
+uint32_t comp_store_record_addr(unsigned axis);
+
+/* Current table of `axis` into *table (dir_src NULL). *slot gets the bank
  * it came from (may be NULL). */
 comp_store_result_t comp_store_load(unsigned axis, comp_table_t *table, unsigned *slot);
 
 /* Store `table` (its axis field must equal `axis`) as the new current
  * table, version = current version + 1 (1 when none); the version written
- * is returned in *version and the slot in *slot (either may be NULL).
+ * is returned in *version and the bank in *slot (either may be NULL).
  * Steps and guarantees: see top. */
 comp_store_result_t comp_store_write(unsigned axis, const comp_table_t *table, uint32_t *version,
                                      unsigned *slot);

@@ -52,6 +52,27 @@ typedef struct {
     uint8_t u, v, w;
 } host_block_t;
 
+/* Per-chord constants and per-value caches of the arc overlay (tick
+ * context). arc_fast() gives bit for bit the result of arc_overlay()
+ * (the exact formulas) with 32-bit products where the ranges allow, the
+ * chord fraction's division by a per-chord reciprocal with an exact
+ * remainder correction, and the square roots and the division of the
+ * speed terms only when their inputs change (constant while cruising). */
+typedef struct {
+    bool valid;     /* the chord fields are those of segment `tag`        */
+    bool fast;      /* chord within the fast ranges (see arc_fast_setup)  */
+    uint32_t tag;   /* interpolator segment tag (seq number)              */
+    int32_t du, dv; /* chord vector in the plane, nm                       */
+    uint8_t den_sh; /* ratio_q30's normalising shift of num and den       */
+    uint32_t den_s; /* (du^2 + dv^2) >> den_sh, in [1, 2^32)              */
+    int64_t den;    /* du^2 + dv^2                                        */
+    uint64_t rec;   /* floor(2^62 / den_s)                                */
+    /* value caches: v_uv of (vel_u, vel_v); a_c of (v_uv, rad) */
+    bool v_ok, ac_ok;
+    int64_t v_key_u, v_key_v, v_uv;
+    int64_t ac_key_v, ac_key_r, a_c;
+} arc_fast_t;
+
 static plan_block_t plan_store[PLAN_DEPTH_DEFAULT];
 
 static struct {
@@ -93,9 +114,14 @@ static struct {
     int64_t stop_dv;           /* stopping: cap decrease per tick, nm/s        */
     int64_t v_plan;            /* interpolator's (unscaled) path speed, nm/s   */
     int64_t a_plan;            /* ... and tangential acceleration, nm/s^2      */
+    int64_t ch_vel[CORE_AXES]; /* the interpolator's (chord) reference of the  */
+    int64_t ch_acc[CORE_AXES]; /* last tick, before the arc overlay and the    */
+    q1_30_t ch_tan[CORE_AXES]; /* stop scaling (v_plan, a_plan derive from it) */
     int64_t v_act;             /* path speed of the reference last tick, nm/s  */
     q1_30_t hyp_tu, hyp_tv;    /* arc overlay: last in-plane chord tangent ... */
     q1_30_t hyp_m;             /* ... and its length (constant per segment)   */
+    arc_fast_t arc;            /* arc overlay: per-segment constants (tick)    */
+    bool ff_on;                /* some cfg.friction_ff_mv[] != 0 (drive_init)  */
     volatile uint32_t tick_lo; /* low word of tick (main reads it) */
     uint32_t seen_done;        /* interpolator segments accounted */
     uint32_t seq_done;         /* internal tag of the next segment to complete */
@@ -157,23 +183,44 @@ static void plane_axes(drive_plane_t p, uint8_t *u, uint8_t *v, uint8_t *w)
     }
 }
 
+/* The encoder, motor and reference-scale fields of the status, from the
+ * state the tick owns (nothing else writes it: qdec outputs, servo outputs,
+ * the reference scales; drive_init publishes after setting them). */
+static void status_live(drive_status_t *s)
+{
+    unsigned i;
+    for (i = 0; i < drv.cfg.axes; i++) {
+        const qdec_t *e = &drv.enc[i];
+        s->pos[i] = e->out.pos_nm;
+        s->pos_raw[i] = e->out.pos_nm_raw;
+        s->encoder_illegal[i] = e->out.illegal;
+        s->motor_mv[i] = drv.servo.out_mv[i];
+    }
+    for (i = 0; i < CORE_AXES; i++) {
+        s->refscale[i] = drv.ref_on[i] ? drv.ref_nm[i] : 0;
+    }
+}
+
+/* End of the tick's status update (drive_tick made st_seq odd at its
+ * start). The fields status_live() gives are read by the snapshot from the
+ * live state (the tick changes them only inside its odd st_seq window), and
+ * copied here only while calibration samples them (calib_tick reads pos,
+ * pos_raw and refscale); the rest is published every tick. */
 static void publish(void)
 {
     drive_status_t *s = &drv.st;
     unsigned i;
-    drv.st_seq++;
     s->state = drv.state;
     s->faults = drv.faults;
     s->tick = drv.tick;
-    for (i = 0; i < CORE_AXES; i++) {
-        bool on = i < drv.cfg.axes;
-        s->pos[i] = on ? drv.enc[i].out.pos_nm : 0;
-        s->ref[i] = on ? drv.ref.pos[i] : 0;
-        s->vel_ref[i] = on ? drv.ref.vel[i] : 0;
-        s->motor_mv[i] = on ? drv.servo.out_mv[i] : 0;
-        s->refscale[i] = drv.ref_on[i] ? drv.ref_nm[i] : 0;
-        s->encoder_illegal[i] = on ? drv.enc[i].out.illegal : 0;
-        s->pos_raw[i] = on ? drv.enc[i].out.pos_nm_raw : 0;
+    /* axes beyond cfg.axes: all zero (drive_init zeroes st; cfg.axes is
+     * set only there) */
+    for (i = 0; i < drv.cfg.axes; i++) {
+        s->ref[i] = drv.ref.pos[i];
+        s->vel_ref[i] = drv.ref.vel[i];
+    }
+    if (calib_sampling()) {
+        status_live(s);
     }
     s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
     s->blocks_done = drv.blocks_done + drv.blocks_done_main;
@@ -238,6 +285,10 @@ drive_result_t drive_init(const drive_config_t *cfg)
     }
     drv.ready = false;
     drv.cfg = *cfg;
+    drv.ff_on = false; /* friction_ff_mv is set only here */
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.ff_on = drv.ff_on || drv.cfg.friction_ff_mv[i] != 0;
+    }
     if (drv.cfg.arc_chord_nm == 0) {
         drv.cfg.arc_chord_nm = DRIVE_ARC_CHORD_NM;
     }
@@ -249,12 +300,22 @@ drive_result_t drive_init(const drive_config_t *cfg)
         }
         {
             qdec_config_t qc;
+            uint32_t init;
             qdec_config_default(&qc);
             qc.nm_per_count_num = cfg->nm_per_count_num[i];
             qc.nm_per_count_den = cfg->nm_per_count_den[i];
             qc.illegal_limit = 1;
             qc.illegal_window_ns = 1000000000ull;
-            if (!qdec_init(&drv.enc[i], &qc, cfg->enc_initial_lines[i], now_ns)) {
+            init = cfg->enc_initial_lines[i];
+            if (cfg->enc_counter[i]) {
+                /* counter input: the port must have the counter */
+                qc.input = QDEC_INPUT_COUNTER;
+                qc.counter_bits = 32;
+                if (!hal_encoder_counter(i, &init)) {
+                    return DRIVE_E_INVALID;
+                }
+            }
+            if (!qdec_init(&drv.enc[i], &qc, init, now_ns)) {
                 return DRIVE_E_INVALID;
             }
         }
@@ -295,12 +356,15 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.hq_count = 0;
     for (i = 0; i < CORE_AXES; i++) {
         drv.q_end[i] = 0;
+        drv.ch_vel[i] = drv.ch_acc[i] = 0;
+        drv.ch_tan[i] = 0;
     }
     drv.seq_next = 0;
     drv.queued_at = 0;
     drv.tick_lo = 0;
     drv.stop_v = drv.stop_dv = drv.v_plan = drv.a_plan = drv.v_act = 0;
     drv.hyp_tu = drv.hyp_tv = drv.hyp_m = 0; /* fx_hypot2(0, 0) == 0 */
+    drv.arc.valid = drv.arc.v_ok = drv.arc.ac_ok = false;
     drv.seq_done = 0;
     drv.seen_done = 0;
     drv.blocks_done = 0;
@@ -314,7 +378,7 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.cec_mode = DRIVE_CEC_OFF;
     drv.tick = 0;
     drv.st = zero_st;
-    drv.st_seq = 0;
+    drv.st_seq = 1; /* publish() below ends the update: 2 */
     for (i = 0; i < cfg->axes; i++) {
         hal_motor_enable(i, false);
         hal_motor_set_mv(i, 0);
@@ -340,6 +404,152 @@ static inline int64_t mul_sat64(int64_t a, int64_t b)
         return (int64_t)(int32_t)a * (int32_t)b;
     }
     return fx_mul64_shift(a, b, 0);
+}
+
+/* round(a * b / 2^30) (shift rule): fx_mul64x32_shift(a, b, 30), one SMULL
+ * when a fits 32 bits (the product is then below 2^62: exact). */
+static inline int64_t mul_q30(int64_t a, int32_t b)
+{
+    if (a == (int32_t)a) {
+        return ((int64_t)(int32_t)a * b + ((int64_t)1 << 29)) >> 30;
+    }
+    return fx_mul64x32_shift(a, b, 30);
+}
+
+/* mul_q30 for an int32 a: one SMLAL. */
+static inline int64_t mul32_q30(int32_t a, int32_t b)
+{
+    return ((int64_t)a * b + ((int64_t)1 << 29)) >> 30;
+}
+
+/* Per-chord constants of the fast arc overlay. The fast path needs the
+ * chord start, end and vector in the plane and the radius within int32
+ * (|.| < 2.1 m), a non-degenerate chord and |dth| <= the maximum chord
+ * angle; other chords take arc_overlay() every tick. */
+static void arc_fast_setup(arc_fast_t *a, const seg_info_t *g)
+{
+    int64_t du = g->bu - g->au, dv = g->bv - g->av, den;
+    unsigned sh = 0;
+
+    a->valid = true;
+    a->tag = drv.ip.tag;
+    a->fast = false;
+    if (du != (int32_t)du || dv != (int32_t)dv || g->au != (int32_t)g->au ||
+        g->av != (int32_t)g->av || g->r_a != (int32_t)g->r_a || g->r_b != (int32_t)g->r_b ||
+        (g->r_b - g->r_a) != (int32_t)(g->r_b - g->r_a) ||
+        abs64(g->dth) > (int64_t)DRIVE_ARC_SEG_MAX_ANGLE) {
+        return;
+    }
+    den = (int64_t)du * du + (int64_t)dv * dv; /* < 2^63: exact, as mul_sat64 */
+    if (den <= 0) {
+        return;
+    }
+    a->du = (int32_t)du;
+    a->dv = (int32_t)dv;
+    a->den = den;
+    while ((den >> sh) >= ((int64_t)1 << 32)) {
+        sh++;
+    }
+    a->den_sh = (uint8_t)sh;
+    a->den_s = (uint32_t)(den >> sh);
+    a->rec = fx_recip62(a->den_s);
+    a->fast = true;
+}
+
+/* arc_overlay() for a chord with arc_fast_t.fast: the same result, bit for
+ * bit (see arc_fast_t). False (nothing written) when a value leaves the
+ * fast ranges; the caller then runs arc_overlay(). */
+static bool arc_fast(motion_ref_t *r, const seg_info_t *g, arc_fast_t *a)
+{
+    uint8_t u = g->u, v = g->v;
+    int64_t pu = r->pos[u] - g->au, pv = r->pos[v] - g->av;
+    int64_t num, f, p, rad, v_uv, a_t, a_c;
+    fx_angle_t th;
+    q1_30_t s, c, m, tu, tv;
+
+    if (pu != (int32_t)pu || pv != (int32_t)pv) {
+        return false;
+    }
+    /* f = ratio_q30(num, den): round(num_s * 2^30 / den_s) after the same
+     * normalising shift, by the reciprocal and an exact remainder */
+    num = (int64_t)(int32_t)pu * a->du + (int64_t)(int32_t)pv * a->dv;
+    if (num <= 0) {
+        f = 0;
+    } else if (num >= a->den) {
+        f = Q30;
+    } else {
+        /* num < den: num >> den_sh <= den_s < 2^32 */
+        f = fx_div_q30_rec((uint32_t)(num >> a->den_sh), a->den_s, a->rec);
+    }
+    p = (int64_t)(int32_t)g->dth * f; /* |.| < 2^57 */
+    th = g->th_a + (fx_angle_t)(uint64_t)((p >> 30) + ((p >> 29) & 1));
+    p = (int64_t)(int32_t)(g->r_b - g->r_a) * f;
+    rad = g->r_a + ((p >> 30) + ((p >> 29) & 1));
+    fx_sincos(th, &s, &c);
+    /* rad lies between r_a and r_b, both int32 (arc_fast_setup) */
+    r->pos[u] = g->cu + mul32_q30((int32_t)rad, c);
+    r->pos[v] = g->cv + mul32_q30((int32_t)rad, s);
+    /* unit tangent in the plane, scaled by the chord tangent's in-plane part */
+    if (r->geom.tangent[u] != drv.hyp_tu || r->geom.tangent[v] != drv.hyp_tv) {
+        drv.hyp_tu = r->geom.tangent[u];
+        drv.hyp_tv = r->geom.tangent[v];
+        drv.hyp_m = (q1_30_t)fx_hypot2(drv.hyp_tu, drv.hyp_tv);
+    }
+    m = drv.hyp_m;
+    tu = (q1_30_t)(g->sense > 0 ? -s : s);
+    tv = (q1_30_t)(g->sense > 0 ? c : -c);
+    /* path speed and tangential acceleration in the plane (arc / chord) */
+    if (!a->v_ok || a->v_key_u != r->vel[u] || a->v_key_v != r->vel[v]) {
+        a->v_key_u = r->vel[u];
+        a->v_key_v = r->vel[v];
+        a->v_uv = fx_mul64x32_shift(fx_hypot2(r->vel[u], r->vel[v]), g->k_arc, 30);
+        a->v_ok = true;
+    }
+    v_uv = a->v_uv;
+    if (r->acc[u] == 0 && r->acc[v] == 0) {
+        a_t = 0; /* fx_hypot2(0, 0) */
+    } else {
+        int64_t dot = fx_sat_add64(fx_mul64x32_shift(r->acc[u], r->geom.tangent[u], 30),
+                                   fx_mul64x32_shift(r->acc[v], r->geom.tangent[v], 30));
+        a_t = fx_mul64x32_shift(fx_hypot2(r->acc[u], r->acc[v]), g->k_arc, 30);
+        if (dot < 0) {
+            a_t = -a_t;
+        }
+    }
+    if (rad > 0) {
+        if (!a->ac_ok || a->ac_key_v != v_uv || a->ac_key_r != rad) {
+            a->ac_key_v = v_uv;
+            a->ac_key_r = rad;
+            if (v_uv < ((int64_t)1 << 31)) {
+                a->a_c = fx_div_round64(v_uv * v_uv, rad);
+            } else {
+                a->a_c = fx_div_round64(fx_mul64_shift(v_uv, v_uv, 16), rad) << 16;
+            }
+            a->ac_ok = true;
+        }
+        a_c = a->a_c;
+    } else {
+        a_c = 0;
+    }
+    r->vel[u] = mul_q30(v_uv, tu);
+    r->vel[v] = mul_q30(v_uv, tv);
+    if (a_t == 0) { /* cruising: mul_q30(0, x) == 0 */
+        r->acc[u] = -mul_q30(a_c, c);
+        r->acc[v] = -mul_q30(a_c, s);
+    } else {
+        r->acc[u] = mul_q30(a_t, tu) - mul_q30(a_c, c);
+        r->acc[v] = mul_q30(a_t, tv) - mul_q30(a_c, s);
+    }
+    r->geom.tangent[u] = (q1_30_t)mul32_q30(tu, m);
+    r->geom.tangent[v] = (q1_30_t)mul32_q30(tv, m);
+    r->geom.kind = MOTION_GEOM_ARC;
+    r->geom.plane_u = u;
+    r->geom.plane_v = v;
+    r->geom.centre_u = g->cu;
+    r->geom.centre_v = g->cv;
+    r->geom.radius = rad;
+    r->geom.sense = g->sense;
+    return true;
 }
 
 /* Replace the interpolator's chord reference by the exact arc. */
@@ -433,6 +643,13 @@ static int64_t stop_scale(void)
 {
     int64_t cap = drv.stop_v - drv.stop_dv;
     int64_t den;
+    unsigned i;
+    /* the plan's own path speed and tangential acceleration (chord) */
+    drv.v_plan = path_speed(drv.ch_vel);
+    drv.a_plan = 0;
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.a_plan = fx_sat_add64(drv.a_plan, fx_mul64x32_shift(drv.ch_acc[i], drv.ch_tan[i], 30));
+    }
     if (drv.v_act < cap) {
         cap = drv.v_act; /* the plan itself slowed down more */
     }
@@ -468,17 +685,22 @@ static void reference_step(void)
     }
     interp_tick(&drv.ip, &drv.ref);
     track_segments();
-    /* the plan's own path speed and tangential acceleration (chord) */
-    drv.v_plan = path_speed(drv.ref.vel);
-    drv.a_plan = 0;
+    /* the chord reference, for the stop ramp's v_plan and a_plan (computed
+     * from it only while stopping, see stop_scale) */
     for (i = 0; i < CORE_AXES; i++) {
-        drv.a_plan = fx_sat_add64(drv.a_plan,
-                                  fx_mul64x32_shift(drv.ref.acc[i], drv.ref.geom.tangent[i], 30));
+        drv.ch_vel[i] = drv.ref.vel[i];
+        drv.ch_acc[i] = drv.ref.acc[i];
+        drv.ch_tan[i] = drv.ref.geom.tangent[i];
     }
     if (drv.ref.active && drv.ip.busy) {
         const seg_info_t *g = &drv.seg[drv.ip.tag % SEG_RING];
         if (g->arc) {
-            arc_overlay(&drv.ref, g);
+            if (!drv.arc.valid || drv.arc.tag != drv.ip.tag) {
+                arc_fast_setup(&drv.arc, g);
+            }
+            if (!drv.arc.fast || !arc_fast(&drv.ref, g, &drv.arc)) {
+                arc_overlay(&drv.ref, g);
+            }
         }
     }
     if (drv.state == DRIVE_STOPPING) {
@@ -488,18 +710,27 @@ static void reference_step(void)
             drv.ref.acc[i] = fx_mul64x32_shift(fx_mul64x32_shift(drv.ref.acc[i], (int32_t)k, 30),
                                                (int32_t)k, 30);
         }
+        /* only the stop ramp reads it (req_stop sets it when a stop starts) */
+        drv.v_act = path_speed(drv.ref.vel);
     }
-    drv.v_act = path_speed(drv.ref.vel);
 }
 
 /* Friction feed-forward as an extra reference acceleration (see drive.h). */
 static void friction_ff(void)
 {
     unsigned i;
+    if (!drv.ff_on) {
+        return;
+    }
     for (i = 0; i < drv.cfg.axes; i++) {
-        int64_t f = drv.cfg.friction_ff_mv[i], v = drv.ref.vel[i], band;
-        int64_t kaff = drv.servo.p.axis[i].kaff >> 16, u;
-        if (f == 0 || kaff <= 0 || v == 0) {
+        int64_t f, v, band, kaff, u;
+        if (drv.cfg.friction_ff_mv[i] == 0) {
+            continue; /* the usual case: nothing else to load */
+        }
+        f = drv.cfg.friction_ff_mv[i];
+        v = drv.ref.vel[i];
+        kaff = drv.servo.p.axis[i].kaff >> 16;
+        if (kaff <= 0 || v == 0) {
             continue;
         }
         band = drv.cfg.friction_ff_band_nm_s > 0 ? drv.cfg.friction_ff_band_nm_s : 1;
@@ -595,9 +826,16 @@ void drive_tick(void)
     if (!drv.ready) {
         return;
     }
+    drv.st_seq++; /* odd: the status is being updated (publish ends it) */
     now_ns = hal_time_us() * 1000u;
     for (i = 0; i < drv.cfg.axes; i++) {
-        qdec_sample(&drv.enc[i], now_ns);
+        if (drv.cfg.enc_counter[i]) {
+            uint32_t raw = drv.enc[i].last_raw; /* no snapshot: no change */
+            (void)hal_encoder_counter(i, &raw);
+            qdec_sample_counter(&drv.enc[i], raw, now_ns);
+        } else {
+            qdec_sample(&drv.enc[i], now_ns);
+        }
         encs[i] = &drv.enc[i];
         if (drv.ref_on[i]) {
             uint32_t raw;
@@ -630,7 +868,8 @@ void drive_tick(void)
     if (drv.faults != 0) {
         drv.state = DRIVE_FAULT;
     } else if (drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING) {
-        bool busy = !interp_idle(&drv.ip) || plan_count(&drv.plan) > 0 || drv.hq_count > 0;
+        bool busy = drv.ip.busy || drv.ip.wr != drv.ip.rd || /* !interp_idle() */
+                    plan_count(&drv.plan) > 0 || drv.hq_count > 0;
         drv.state = busy ? DRIVE_RUNNING : DRIVE_IDLE;
     }
     drv.tick++;
@@ -1090,6 +1329,7 @@ static void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t *ip_rem)
     do {
         s = drv.st_seq;
         *out = drv.st;
+        status_live(out);
         *ip_rd = drv.st_ip_rd;
         *ip_rem = drv.st_ip_rem;
     } while ((s & 1u) != 0 || s != drv.st_seq);
@@ -1128,7 +1368,7 @@ void drive_status(drive_status_t *out)
 
 void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns)
 {
-    if (drv.ready && ch < drv.cfg.axes) {
+    if (drv.ready && ch < drv.cfg.axes && !drv.cfg.enc_counter[ch]) {
         qdec_edge(&drv.enc[ch], lines, t_ns);
     }
 }

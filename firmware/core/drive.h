@@ -210,6 +210,12 @@ typedef struct {
     int32_t nm_per_count_num[CORE_AXES];
     int32_t nm_per_count_den[CORE_AXES];
     uint32_t enc_initial_lines[CORE_AXES]; /* A/B/Z levels at drive_init      */
+    /* Axis i read as a 32-bit hardware counter (hal_encoder_counter(i),
+     * polled at the top of each tick, qdec counter input) instead of edges:
+     * drive_encoder_edge on such an axis is ignored and enc_initial_lines
+     * is unused; the count starts from 0 = position 0 at drive_init.
+     * Default false (drive_config_default). */
+    bool enc_counter[CORE_AXES];
     /* Reference-scale inputs (hal_encoder_counter channels axes + i, 32-bit
      * counters): nm per count num / den; num == 0: no reference scale. */
     int32_t ref_nm_per_count_num[CORE_AXES];
@@ -276,7 +282,8 @@ void drive_snapshot(drive_status_t *out);
 /* Deliver one encoder edge to channel ch (axes 0..axes-1, then the
  * reference-scale inputs): the new line levels (QDEC_LINE_A/B/Z bits) and
  * the edge time in ns of the tick clock (uint32, wrapping; see qdec.h).
- * Channels out of range are ignored. */
+ * Channels out of range, and axes read as counters (enc_counter), are
+ * ignored. */
 void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns);
 
 /* Decoded position of channel ch in counts (0 for a channel not in use). */

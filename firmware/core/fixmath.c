@@ -1127,3 +1127,8 @@ int64_t fx_hypot3(int64_t x, int64_t y, int64_t z)
     n = fx_add128(fx_umul64(ax, ax), fx_umul64(ay, ay));
     return fx_sat_u64(fx_isqrt128(fx_add128(n, fx_umul64(az, az))));
 }
+
+uint64_t fx_recip62(uint32_t d)
+{
+    return d == 0u ? 0u : ((uint64_t)1 << 62) / d;
+}

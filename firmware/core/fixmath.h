@@ -240,4 +240,30 @@ fx_angle_t fx_atan2(int64_t y, int64_t x);
 int64_t fx_hypot2(int64_t x, int64_t y);
 int64_t fx_hypot3(int64_t x, int64_t y, int64_t z);
 
+/* ---- division by a constant with its reciprocal ---------------------------- */
+
+/* floor(2^62 / d) for 1 <= d < 2^32 (d == 0 gives 0): the reciprocal that
+ * fx_div_q30_rec uses, computed once per divisor (a 64-bit division). */
+uint64_t fx_recip62(uint32_t d);
+
+/* round(n * 2^30 / d), ties away from zero (== fx_div_round64(n << 30, d)),
+ * for 0 <= n <= d, 1 <= d < 2^32, rec = fx_recip62(d); result in [0, 2^30].
+ * Two 32 x 32 -> 64 products and an exact remainder correction instead of a
+ * 64-bit division: q = floor(n * rec / 2^32) is floor(n * 2^30 / d) or one
+ * less (n * (2^62 / d - rec) / 2^32 < 1). */
+static inline uint32_t fx_div_q30_rec(uint32_t n, uint32_t d, uint64_t rec)
+{
+    uint64_t q = (rec >> 32) * n + (((uint64_t)(uint32_t)rec * n) >> 32);
+    uint64_t rem = ((uint64_t)n << 30) - q * d; /* in [0, 2d) */
+
+    if (rem >= d) {
+        q++;
+        rem -= d;
+    }
+    if (2u * rem >= d) {
+        q++;
+    }
+    return (uint32_t)q;
+}
+
 #endif /* FIXMATH_H */

@@ -18,8 +18,13 @@ void interp_reset(interp_t *ip, const pos_nm_t pos[CORE_AXES])
     ip->phase = 0;
     ip->phase_t0 = 0;
     ip->corr_q32 = 0;
+    ip->s_q16 = 0;
+    ip->v_q16 = 0;
+    ip->a_q16 = 0;
+    ip->cr_ok = false;
     for (i = 0; i < CORE_AXES; i++) {
         ip->pos[i] = pos[i];
+        ip->tan[i] = 0;
     }
 }
 
@@ -93,6 +98,25 @@ static inline int64_t ip_scale(int64_t a, int64_t r)
     return (int64_t)((hi + ((uint64_t)1 << 13)) >> 14);
 }
 
+/* round(a * b / 2^32), ties toward +inf: fx_mul64_shift(a, b, 32) for every
+ * int64 a and int32 b (|a * b| <= 2^94: the result fits, never saturates),
+ * inline: two 32 x 32 -> 64 products. */
+static inline int64_t ip_mul_q32(int64_t a, int32_t b)
+{
+    uint64_t ua = (a < 0) ? (uint64_t)0 - (uint64_t)a : (uint64_t)a;
+    uint64_t ub = (b < 0) ? (uint64_t)0 - (uint64_t)(int64_t)b : (uint64_t)(int64_t)b;
+    uint64_t lo = (uint32_t)ua * ub;
+    uint64_t hi = (ua >> 32) * ub + (lo >> 32); /* |a * b| >> 32 */
+    uint32_t l32 = (uint32_t)lo;
+
+    if ((a < 0) != (b < 0)) { /* -floor((|p| + 2^31 - 1) / 2^32) */
+        return -(int64_t)(hi + (((uint64_t)l32 + 0x7FFFFFFFu) >> 32));
+    }
+    return (int64_t)(hi + (((uint64_t)l32 + 0x80000000u) >> 32));
+}
+
+#define IP_NS ((uint64_t)1000000000u)
+
 static const plan_seg_t *ip_cur(const interp_t *ip)
 {
     return &ip->fifo[ip->rd & (INTERP_FIFO - 1)];
@@ -102,12 +126,17 @@ static void ip_begin(interp_t *ip)
 {
     const plan_seg_t *s = ip_cur(ip);
     int64_t diff;
+    int i;
 
     ip->busy = true;
     ip->phase = 0;
     ip->phase_t0 = 0;
     ip->corr_q32 = 0;
+    ip->cr_ok = false;
     ip->tag = s->tag;
+    for (i = 0; i < CORE_AXES; i++) {
+        ip->tan[i] = (q1_30_t)(s->ratio_q62[i] / ((int64_t)1 << 32));
+    }
     if (s->dwell_ns > 0 || s->prof.s_end_q16 <= 0) {
         return;
     }
@@ -144,6 +173,57 @@ static void ip_out_rest(interp_t *ip, motion_ref_t *ref, bool active)
     ref->geom.kind = MOTION_GEOM_NONE;
     interp_geom_no_arc(&ref->geom);
     ref->active = active;
+    ip->s_q16 = 0;
+    ip->v_q16 = 0;
+    ip->a_q16 = 0;
+}
+
+/* The closed-form state at time tau into phase ph: sc_eval_phase, with
+ * cruise phases advanced tick by tick as an exact quotient and remainder
+ * (floor(v * tau / 1e9), the same value) while tau grows by whole steps. */
+static void ip_eval(interp_t *ip, const sc_profile_t *p, int ph, int64_t tau, sc_state_t *st)
+{
+    const sc_state_t *s0 = &p->start[ph];
+    uint64_t v, q, r;
+
+    /* the cache is of this segment (ip_begin clears it) and phase, whose
+     * cruise conditions were checked when it was filled */
+    if (ip->cr_ok && ip->cr_phase == ph && tau - ip->cr_tau == ip->cr_h) {
+        q = ip->cr_q + ip->cr_dq;
+        r = ip->cr_r + ip->cr_dr;
+        if (r >= IP_NS) {
+            r -= IP_NS;
+            q++;
+        }
+    } else {
+        int64_t h = ip->tick_ns;
+        int i;
+
+        if (p->jerk[ph] != 0 || s0->a_q16 != 0 || s0->v_q16 < 0 || tau < 0 || h <= 0) {
+            ip->cr_ok = false;
+            sc_eval_phase(p, ph, tau, st);
+            return;
+        }
+        v = (uint64_t)s0->v_q16;
+
+        q = (uint64_t)sc_muldiv(s0->v_q16, tau, (int64_t)IP_NS);
+        r = v * (uint64_t)tau - q * IP_NS; /* exact modulo 2^64, < 1e9 */
+        ip->cr_dq = (uint64_t)sc_muldiv(s0->v_q16, h, (int64_t)IP_NS);
+        ip->cr_dr = v * (uint64_t)h - ip->cr_dq * IP_NS;
+        /* saturated quotients (v * tau >= 2^63 * 1e9) are never cached */
+        ip->cr_ok = q < (uint64_t)INT64_MAX / 2 && ip->cr_dq < (uint64_t)INT64_MAX / 2;
+        ip->cr_phase = ph;
+        ip->cr_h = h;
+        for (i = 0; i < CORE_AXES; i++) {
+            ip->cr_vel[i] = ip_scale(s0->v_q16, ip_cur(ip)->ratio_q62[i]);
+        }
+    }
+    ip->cr_tau = tau;
+    ip->cr_q = q;
+    ip->cr_r = r;
+    st->s_q16 = s0->s_q16 + (int64_t)q;
+    st->v_q16 = s0->v_q16;
+    st->a_q16 = 0;
 }
 
 void interp_tick(interp_t *ip, motion_ref_t *ref)
@@ -201,10 +281,14 @@ void interp_tick(interp_t *ip, motion_ref_t *ref)
     if (tau > s->prof.t_ns[ip->phase]) {
         tau = s->prof.t_ns[ip->phase];
     }
-    sc_eval_phase(&s->prof, ip->phase, tau, &st);
+    ip_eval(ip, &s->prof, ip->phase, tau, &st);
     lq = s->len * 65536;
     if (s->prof.s_end_q16 > 0) {
-        sq = st.s_q16 + fx_mul64_shift(st.s_q16, ip->corr_q32, 32);
+        if (ip->corr_q32 == (int32_t)ip->corr_q32) {
+            sq = st.s_q16 + ip_mul_q32(st.s_q16, (int32_t)ip->corr_q32);
+        } else {
+            sq = st.s_q16 + fx_mul64_shift(st.s_q16, ip->corr_q32, 32);
+        }
     } else {
         sq = sc_muldiv(lq, ip->t_ns, s->total_ns); /* degenerate: linear in time */
     }
@@ -214,13 +298,27 @@ void interp_tick(interp_t *ip, motion_ref_t *ref)
     if (sq > lq) {
         sq = lq;
     }
-    for (i = 0; i < CORE_AXES; i++) {
-        ip->pos[i] = s->start[i] + ip_scale(sq, s->ratio_q62[i]);
-        ref->pos[i] = ip->pos[i];
-        ref->vel[i] = ip_scale(st.v_q16, s->ratio_q62[i]);
-        ref->acc[i] = ip_scale(st.a_q16, s->ratio_q62[i]);
-        ref->geom.tangent[i] = (q1_30_t)(s->ratio_q62[i] / ((int64_t)1 << 32));
-        ref->geom.start[i] = s->start[i];
+    ip->s_q16 = sq;
+    ip->v_q16 = st.v_q16;
+    ip->a_q16 = st.a_q16;
+    if (ip->cr_ok) { /* cruise: constant velocity, no acceleration */
+        for (i = 0; i < CORE_AXES; i++) {
+            ip->pos[i] = s->start[i] + ip_scale(sq, s->ratio_q62[i]);
+            ref->pos[i] = ip->pos[i];
+            ref->vel[i] = ip->cr_vel[i];
+            ref->acc[i] = 0;
+            ref->geom.tangent[i] = ip->tan[i];
+            ref->geom.start[i] = s->start[i];
+        }
+    } else {
+        for (i = 0; i < CORE_AXES; i++) {
+            ip->pos[i] = s->start[i] + ip_scale(sq, s->ratio_q62[i]);
+            ref->pos[i] = ip->pos[i];
+            ref->vel[i] = ip_scale(st.v_q16, s->ratio_q62[i]);
+            ref->acc[i] = ip_scale(st.a_q16, s->ratio_q62[i]);
+            ref->geom.tangent[i] = ip->tan[i];
+            ref->geom.start[i] = s->start[i];
+        }
     }
     ref->geom.kind = MOTION_GEOM_LINE;
     interp_geom_no_arc(&ref->geom);

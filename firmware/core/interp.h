@@ -27,7 +27,12 @@
  * len / s_end that absorbs the sub-nanometre rounding of the phase times.
  * Axis i: pos_i = start_i + round(s * delta_i / len) with the exact ratio
  * in q2_62, so the last tick of a block lands exactly on its integer end
- * point and nothing drifts over any number of blocks. Velocity and
+ * point and nothing drifts over any number of blocks. Cost (Cortex-M4):
+ * in cruise phases the distance floor(v * tau / 1e9) advances by an exact
+ * quotient/remainder increment per tick (no 128-bit multiply-divide) and
+ * the velocities are those of the phase start; the products are inline
+ * 32 x 32 -> 64 multiplies. Every output equals the closed form bit for
+ * bit (test_interp checks it on every tick). Velocity and
  * acceleration feed-forward: v * u_i and a * u_i (nm/s, nm/s^2). Geometry:
  * MOTION_GEOM_LINE through the block start with the block's unit tangent
  * (q1_30); MOTION_GEOM_NONE while idle or dwelling. The planner has no arc
@@ -76,6 +81,25 @@ typedef struct {
     uint32_t blocks_done;    /* segments completed                     */
     uint32_t underruns;      /* segments that ended moving, FIFO empty */
     uint32_t tag;            /* tag of the current (or last) segment   */
+    /* Written by interp_tick for the drive's arc overlay and stop ramp
+     * (tick context; zero while idle or dwelling): */
+    int64_t s_q16; /* path distance into the current segment,
+                    * q16 nm, in [0, len * 2^16]              */
+    int64_t v_q16; /* profile path speed, q16 nm/s (>= 0)     */
+    int64_t a_q16; /* profile path acceleration, q16 nm/s^2   */
+    /* per-segment constants (set when a segment begins) */
+    q1_30_t tan[CORE_AXES]; /* unit tangent, ratio_q62 / 2^32          */
+    /* Cruise phases (jerk 0, acceleration 0, speed v >= 0): the distance
+     * floor(v * tau / 1e9) is advanced by whole ticks of cr_h ns as an
+     * exact quotient (cr_q) and remainder (cr_r < 1e9) instead of a
+     * 128-bit multiply-divide per tick; identical to sc_eval_phase. */
+    bool cr_ok;                /* the cache below holds this phase         */
+    int cr_phase;              /* phase of the cache                       */
+    int64_t cr_tau;            /* time into the phase of the last tick, ns */
+    int64_t cr_h;              /* step the increments below are for, ns    */
+    uint64_t cr_q, cr_r;       /* v * cr_tau = cr_q * 1e9 + cr_r           */
+    uint64_t cr_dq, cr_dr;     /* v * cr_h = cr_dq * 1e9 + cr_dr          */
+    int64_t cr_vel[CORE_AXES]; /* axis velocities of the cruise, nm/s   */
 } interp_t;
 
 /* Initialise idle at `start` with a tick period of tick_ns (> 0). Main. */

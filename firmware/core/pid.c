@@ -24,14 +24,30 @@ static inline int64_t rsh(int64_t v, unsigned s)
     return (v >> s) + ((v >> (s - 1)) & 1); /* round half up, s >= 1 */
 }
 
-/* round(a * b / 2^30) for |a| < 2^61 and 0 <= b <= 2^30, without a 128-bit
+/* fx_sat_diff32(a, b) (sat32 of the exact a - b) with fewer 64-bit steps:
+ * the wrapped difference, its overflow from the signs, then one compare of
+ * the high word. */
+static inline int32_t sat_diff32(int64_t a, int64_t b)
+{
+    int64_t d = (int64_t)((uint64_t)a - (uint64_t)b);
+
+    if (((a ^ b) & (a ^ d)) < 0) { /* a - b overflowed int64: sign of a */
+        return (a < 0) ? INT32_MIN : INT32_MAX;
+    }
+    if (d == (int64_t)(int32_t)d) {
+        return (int32_t)d;
+    }
+    return (d < 0) ? INT32_MIN : INT32_MAX;
+}
+
+/* round(a * b / 2^30) for |a| <= 2^61 and 0 <= b <= 2^30, without a 128-bit
  * product: a = ah * 2^32 + al with al unsigned. */
 static inline int64_t mul_q30_pos(int64_t a, q1_30_t b)
 {
-    int64_t ah = a >> 32; /* |ah| < 2^29 */
+    int32_t ah = (int32_t)(a >> 32); /* |ah| <= 2^29 */
     uint64_t al = (uint64_t)a & 0xFFFFFFFFu;
     uint64_t lo = al * (uint64_t)b; /* < 2^62 */
-    return ah * b * 4 + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
+    return (int64_t)ah * b * 4 + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
 }
 
 bool pid_coef_make(pid_coef_t *c, int64_t num, uint32_t mul, uint64_t den)
@@ -101,9 +117,26 @@ bool pid_coef_make(pid_coef_t *c, int64_t num, uint32_t mul, uint64_t den)
 
 static inline int64_t coef_apply(pid_coef_t c, int32_t x)
 {
-    int64_t p = (int64_t)x * c.m;
+    int64_t p = (int64_t)x * c.m; /* |p| < 2^62: one SMULL */
+    if (c.sh > 0 && c.sh < 32) {
+        /* the same rounding with 32-bit shifts (the usual shifts: 4..20 for
+         * the default gains at 5-10 kHz); |v| < 2^61 needs the clamp only
+         * for sh == 1 */
+        unsigned sh = (unsigned)c.sh;
+        uint64_t u = (uint64_t)p + ((uint32_t)1 << (sh - 1u));
+        uint32_t lo = (uint32_t)u, hi = (uint32_t)(u >> 32);
+        uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
+        uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
+        int64_t v = (int64_t)(((uint64_t)rhi << 32) | rlo);
+        return (sh >= 2u) ? v : clamp64(v, PID_TERM_LIM);
+    }
     if (c.sh > 0) {
-        return clamp64(rsh(p, (unsigned)c.sh), PID_TERM_LIM);
+        /* round half up, as rsh(): |p| + 2^(sh-1) < 2^63 never overflows */
+        int64_t v = (p + ((int64_t)1 << (unsigned)(c.sh - 1))) >> (unsigned)c.sh;
+        if (c.sh >= 2) {
+            return v; /* |v| <= 2^62 / 4 = PID_TERM_LIM: inside the clamp */
+        }
+        return clamp64(v, PID_TERM_LIM);
     }
     if (c.sh < 0) {
         int64_t lim = PID_TERM_LIM >> (unsigned)(-c.sh);
@@ -268,9 +301,9 @@ static int32_t deadband(int32_t e, int32_t db)
 int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int64_t acc,
                  int64_t extra)
 {
-    int32_t e = fx_sat_diff32(ref, meas);
+    int32_t e = sat_diff32(ref, meas);
     int32_t edb;
-    int64_t pterm, raw, u;
+    int64_t pterm, dterm, ff, ex, integ, raw, u;
 
     pid->err_nm = e;
     if (!pid->primed) {
@@ -292,53 +325,55 @@ int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int6
     pterm = coef_apply(pid->cp, edb);
 
     /* derivative, filtered in output units */
+    dterm = 0;
     if (pid->cd.m != 0) {
-        int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
-                                             : fx_sat_diff32(e, pid->err_prev);
+        int32_t de = pid->p.d_on_measurement ? sat_diff32(pid->meas_prev, meas)
+                                             : sat_diff32(e, pid->err_prev);
         int64_t draw = coef_apply(pid->cd, de);
-        if (pid->alpha_q30 >= FX_ONE_Q30) {
-            pid->dterm = draw;
-        } else {
-            pid->dterm += mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
+        dterm = draw;
+        if (pid->alpha_q30 < FX_ONE_Q30) {
+            dterm = pid->dterm + mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
         }
-    } else {
-        pid->dterm = 0;
     }
+    pid->dterm = dterm;
     pid->meas_prev = meas;
     pid->err_prev = e;
 
     /* feed-forward from the interpolator's velocity and acceleration */
-    pid->ff = 0;
+    ff = 0;
     if (pid->cv.m != 0) {
-        pid->ff += coef_apply(pid->cv, fx_sat32_fast(rsh(vel, 2)));
+        ff += coef_apply(pid->cv, fx_sat32_fast(rsh(vel, 2)));
     }
     if (pid->ca.m != 0) {
-        pid->ff += coef_apply(pid->ca, fx_sat32_fast(rsh(acc, 10)));
+        ff += coef_apply(pid->ca, fx_sat32_fast(rsh(acc, 10)));
     }
-    pid->extra = clamp64(extra, PID_TERM_LIM);
+    pid->ff = ff;
+    ex = (extra == 0) ? 0 : clamp64(extra, PID_TERM_LIM);
+    pid->extra = ex;
 
     if (pid->bumpless) {
         /* continue from hold_mv: the integrator takes the difference */
         int64_t hold = (int64_t)pid->hold_mv * U_PER_MV;
-        pid->integ = clamp64(hold - (pterm + pid->dterm + pid->ff + pid->extra), pid->i_lim);
+        integ = clamp64(hold - (pterm + dterm + ff + ex), pid->i_lim);
         pid->bumpless = false;
     } else {
-        pid->integ = clamp64(pid->integ + coef_apply(pid->ci, edb), pid->i_lim);
+        integ = clamp64(pid->integ + coef_apply(pid->ci, edb), pid->i_lim);
     }
-    raw = pterm + pid->integ + pid->dterm + pid->ff + pid->extra;
+    raw = pterm + integ + dterm + ff + ex;
     u = clamp64(raw, pid->out_lim);
     if (u != raw) {
         pid->saturated = true;
         pid->sat_ticks++;
         pid->sat_total++;
         if (pid->kt_q30 != 0) {
-            pid->integ += mul_q30_pos(clamp64(u - raw, (int64_t)1 << 61), pid->kt_q30);
+            integ = clamp64(integ + mul_q30_pos(clamp64(u - raw, (int64_t)1 << 61), pid->kt_q30),
+                            pid->i_lim);
         }
     } else {
         pid->saturated = false;
         pid->sat_ticks = 0;
-    }
-    pid->integ = clamp64(pid->integ, pid->i_lim);
+    } /* the integrator is within its clamp on every path */
+    pid->integ = integ;
     pid->out = u;
     pid->out_mv = (int32_t)rsh(u, 32);
     return pid->out_mv;

@@ -32,17 +32,19 @@ static const int8_t qdec_table_x1[16] = {
 
 /* ---- helpers ----------------------------------------------------------------- */
 
-/* Sign-extend the low `bits` bits of d. */
-static int64_t qdec_sext(uint32_t d, uint8_t bits)
+/* Sign-extend the low `bits` bits of d (1..32: the result fits int32). */
+static inline int32_t qdec_sext32(uint32_t d, uint8_t bits)
 {
-    uint32_t m = (bits >= 32u) ? 0xFFFFFFFFu : ((1u << bits) - 1u);
     uint32_t sign = 1u << (bits - 1u);
+    uint32_t m = (sign - 1u) | sign;
 
-    d &= m;
-    if ((d & sign) != 0u) {
-        return (int64_t)d - ((int64_t)m + 1);
-    }
-    return (int64_t)d;
+    return (int32_t)(((d & m) ^ sign) - sign);
+}
+
+/* The decoder's count difference (counter_bits, 32 for edge input). */
+static inline int32_t qdec_sx(const qdec_t *q, uint32_t d)
+{
+    return (q->bits == 32u) ? (int32_t)d : qdec_sext32(d, q->bits);
 }
 
 static uint64_t qdec_uabs(int64_t v)
@@ -272,9 +274,13 @@ typedef struct {
     int8_t idx_dir;
 } qdec_snap_t;
 
+/* Only the fields the sample will use: the cycle-aligned edge with
+ * vel_cycle, the glitch count with the filter (else it stays 0), the index
+ * latch when a new one came. */
 static void qdec_snapshot(const qdec_t *q, qdec_snap_t *s)
 {
     const qdec_edge_state_t *e = &q->e;
+    const bool cyc = q->cfg.vel_cycle, filt = q->cfg.glitch_ns != 0u;
     uint32_t seq;
 
     do {
@@ -282,27 +288,111 @@ static void qdec_snapshot(const qdec_t *q, qdec_snap_t *s)
         s->raw = e->count;
         s->nedge = e->nedge;
         s->t_last = e->t_last;
-        s->cyc_count = e->cyc_count;
-        s->cyc_t = e->cyc_t;
-        s->ncyc = e->ncyc;
+        if (cyc) {
+            s->cyc_count = e->cyc_count;
+            s->cyc_t = e->cyc_t;
+            s->ncyc = e->ncyc;
+        }
         s->dir = e->dir;
         s->illegal = e->illegal;
-        s->glitches = e->glitches;
+        s->glitches = filt ? e->glitches : 0u;
         s->idx_events = e->idx_events;
-        s->idx_raw = e->idx_raw;
-        s->idx_t = e->idx_t;
-        s->idx_dir = e->idx_dir;
+        if (s->idx_events != q->last_idx_events) {
+            s->idx_raw = e->idx_raw;
+            s->idx_t = e->idx_t;
+            s->idx_dir = e->idx_dir;
+        }
     } while (seq != e->seq || (seq & 1u) != 0u);
+}
+
+/* Anchor of the estimate at ring entry `head` (n entries): the oldest
+ * entry within the window, at least the previous one; its index. */
+static unsigned qdec_vel_anchor(const qdec_t *q, unsigned head, unsigned n)
+{
+    int64_t window = (int64_t)q->cfg.vel_window_ns;
+    int64_t t_edge = q->ring_t[head];
+    unsigned k = 1, i;
+
+    for (i = 2; i < n; i++) {
+        unsigned idx = (head + QDEC_VEL_RING - i) % QDEC_VEL_RING;
+        if (t_edge - q->ring_t[idx] > window) {
+            break;
+        }
+        k = i;
+    }
+    return (head + QDEC_VEL_RING - k) % QDEC_VEL_RING;
+}
+
+/* Bring out.vel up to the last sample: the pending estimate (its anchor and
+ * division), then the bound between edges: still moving at vel, the next
+ * recorded edge would have come within `since`. */
+static void qdec_vel_resolve(qdec_t *q)
+{
+    if (q->vel_lazy) {
+        /* recorded at the newest ring entry, the ring unchanged since */
+        unsigned head = q->ring_head;
+        unsigned idx = qdec_vel_anchor(q, head, q->ring_n);
+        q->vel_dp = q->ring_p[head] - q->ring_p[idx];
+        q->vel_dt = q->ring_t[head] - q->ring_t[idx]; /* > 0: see qdec_velocity_edge */
+        q->vel_lazy = false;
+        q->vel_pending = true;
+    }
+    if (q->vel_pending) {
+        q->out.vel = qdec_rate(q->vel_dp, q->vel_dt);
+        q->vel_pending = false;
+    }
+    if (q->vel_since > 0 && q->out.vel != 0) {
+        q32_32_t bound = qdec_rate(q->cfg.vel_cycle ? (int64_t)q->cyc_mask + 1 : 1, q->vel_since);
+        if (q->out.vel > bound) {
+            q->out.vel = bound;
+        } else if (q->out.vel < -bound) {
+            q->out.vel = -bound;
+        }
+    }
+    q->vel_since = 0;
+}
+
+q32_32_t qdec_velocity(qdec_t *q)
+{
+    qdec_vel_resolve(q);
+    q->out.vel_nm_s = fx_mul64_shift(q->out.vel, q->cfg.nm_per_count_num, 32);
+    if (q->cfg.nm_per_count_den != 1) { /* round(x / 1) is x */
+        q->out.vel_nm_s = fx_div_round64(q->out.vel_nm_s, q->cfg.nm_per_count_den);
+    }
+    return q->out.vel;
 }
 
 static void qdec_velocity_edge(qdec_t *q, int64_t p_edge, int64_t t_edge)
 {
     unsigned n = q->ring_n;
     unsigned head = q->ring_head;
-    unsigned k, i, idx;
-    int64_t window = (int64_t)q->cfg.vel_window_ns;
+    unsigned idx;
     int64_t dt;
+    bool rising = n > 0u && t_edge > q->t_vel;
 
+    if (rising && q->ring_mono + 1u >= n) {
+        /* Every recorded time, the newest included, is below t_edge: the
+         * new estimate exists (dt > 0 for any anchor) and replaces the
+         * pending one: record the edge, find the anchor when asked. */
+        head = (head + 1u) % QDEC_VEL_RING;
+        q->ring_p[head] = p_edge;
+        q->ring_t[head] = t_edge;
+        q->ring_head = (uint8_t)head;
+        if (n < QDEC_VEL_RING) {
+            q->ring_n = (uint8_t)(n + 1u);
+        }
+        if (q->ring_mono < QDEC_VEL_RING - 1u) {
+            q->ring_mono++;
+        }
+        q->t_vel = t_edge;
+        q->vel_lazy = true;
+        q->vel_pending = false;
+        q->vel_since = 0;
+        return;
+    }
+    if (q->vel_lazy) {
+        qdec_vel_resolve(q); /* before the ring changes (keeps the clamp) */
+    }
     /* record the newest edge */
     head = (head + 1u) % QDEC_VEL_RING;
     q->ring_p[head] = p_edge;
@@ -312,46 +402,42 @@ static void qdec_velocity_edge(qdec_t *q, int64_t p_edge, int64_t t_edge)
     }
     q->ring_head = (uint8_t)head;
     q->ring_n = (uint8_t)n;
+    q->ring_mono = rising ? (uint8_t)(q->ring_mono + 1u) : 0u; /* < n - 1 here */
     q->t_vel = t_edge;
 
     if (n < 2u) {
+        qdec_vel_resolve(q); /* no new estimate: the last one stays */
         return;
     }
-    /* anchor: oldest entry within the window, at least the previous one */
-    k = 1;
-    for (i = 2; i < n; i++) {
-        idx = (head + QDEC_VEL_RING - i) % QDEC_VEL_RING;
-        if (t_edge - q->ring_t[idx] > window) {
-            break;
-        }
-        k = i;
-    }
-    idx = (head + QDEC_VEL_RING - k) % QDEC_VEL_RING;
+    idx = qdec_vel_anchor(q, head, n);
     dt = t_edge - q->ring_t[idx];
     if (dt > 0) {
-        q->out.vel = qdec_rate(p_edge - q->ring_p[idx], dt);
+        /* the new estimate replaces everything before it: keep its inputs,
+         * divide when someone asks (qdec_velocity) */
+        q->vel_dp = p_edge - q->ring_p[idx];
+        q->vel_dt = dt;
+        q->vel_pending = true;
+        q->vel_since = 0;
+    } else {
+        qdec_vel_resolve(q); /* no new estimate: the last one stays */
     }
 }
 
 static void qdec_velocity_idle(qdec_t *q)
 {
     int64_t since = q->now - q->t_vel;
-    q32_32_t bound;
 
     if (q->now - q->t_edge >= (int64_t)q->cfg.zero_timeout_ns) {
         q->out.vel = 0;
+        q->vel_pending = false;
+        q->vel_lazy = false;
+        q->vel_since = 0;
         q->out.stopped = true;
         return;
     }
-    if (since <= 0 || q->out.vel == 0) {
-        return;
-    }
-    /* still moving at vel, the next recorded edge would have come */
-    bound = qdec_rate(q->cfg.vel_cycle ? (int64_t)q->cyc_mask + 1 : 1, since);
-    if (q->out.vel > bound) {
-        q->out.vel = bound;
-    } else if (q->out.vel < -bound) {
-        q->out.vel = -bound;
+    if (since > 0) {
+        /* the bound falls with `since`: only the last one matters */
+        q->vel_since = since;
     }
 }
 
@@ -384,10 +470,18 @@ static void qdec_illegal_window(qdec_t *q, uint32_t new_illegal)
 /* Common part of both sample functions. `edges`: new counted edges since the
  * last sample, the last one at s->t_last (raw clock); `vel_edge`: a new edge
  * for the velocity estimate, the last one at (s->cyc_count, s->cyc_t). */
-static void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges, bool vel_edge, uint32_t now_ns)
+/* Inlined into both sample functions: the snapshot stays in registers. */
+#if defined(__GNUC__)
+#define QDEC_INLINE inline __attribute__((always_inline))
+#else
+#define QDEC_INLINE inline
+#endif
+
+static QDEC_INLINE void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges, bool vel_edge,
+                                    uint32_t now_ns)
 {
-    int64_t dt = qdec_sext(now_ns - q->now_raw, 32);
-    int64_t delta;
+    int32_t dt = (int32_t)(now_ns - q->now_raw);
+    int32_t delta;
     const comp_table_t *comp = q->cfg.comp;
 
     if (dt > 0) {
@@ -397,10 +491,10 @@ static void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges, bool vel_ed
         q->out.faults |= QDEC_FAULT_TIME;
     }
 
-    delta = qdec_sext(s->raw - q->last_raw, q->bits);
+    delta = qdec_sx(q, s->raw - q->last_raw);
     q->last_raw = s->raw;
     q->out.pos += delta;
-    if (qdec_uabs(delta) > q->max_delta) {
+    if ((delta < 0 ? (uint32_t)0 - (uint32_t)delta : (uint32_t)delta) > q->max_delta) {
         q->out.faults |= QDEC_FAULT_OVERSPEED;
     }
     if (s->dir != 0) {
@@ -408,40 +502,39 @@ static void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges, bool vel_ed
     }
 
     if (edges) {
-        q->t_edge = q->now + qdec_sext(s->t_last - q->now_raw, 32);
+        q->t_edge = q->now + (int32_t)(s->t_last - q->now_raw);
         q->out.stopped = false;
     }
     if (vel_edge) {
-        qdec_velocity_edge(q, q->out.pos - qdec_sext(s->raw - s->cyc_count, q->bits),
-                           q->now + qdec_sext(s->cyc_t - q->now_raw, 32));
+        qdec_velocity_edge(q, q->out.pos - qdec_sx(q, s->raw - s->cyc_count),
+                           q->now + (int32_t)(s->cyc_t - q->now_raw));
     } else {
         qdec_velocity_idle(q);
     }
 
-    qdec_illegal_window(q, s->illegal - q->last_illegal);
+    if (s->illegal != q->last_illegal) {
+        qdec_illegal_window(q, s->illegal - q->last_illegal);
+    }
     q->last_illegal = s->illegal;
     q->out.illegal = s->illegal;
     q->out.glitches = s->glitches;
 
     if (s->idx_events != q->last_idx_events) {
         q->last_idx_events = s->idx_events;
-        q->out.index_pos = q->out.pos - qdec_sext(s->raw - s->idx_raw, q->bits);
+        q->out.index_pos = q->out.pos - qdec_sx(q, s->raw - s->idx_raw);
         q->out.index_t_ns = s->idx_t;
         q->out.index_dir = s->idx_dir;
         q->out.index_events = s->idx_events;
     }
 
     q->out.pos_nm_raw = qdec_counts_to_nm(q, q->out.pos);
-    q->out.pos_nm = comp_correct(comp, q->out.pos_nm_raw, (comp_dir_t)q->out.dir);
-    q->out.vel_nm_s = fx_mul64_shift(q->out.vel, q->cfg.nm_per_count_num, 32);
-    if (q->cfg.nm_per_count_den != 1) { /* round(x / 1) is x */
-        q->out.vel_nm_s = fx_div_round64(q->out.vel_nm_s, q->cfg.nm_per_count_den);
-    }
+    q->out.pos_nm = (comp == NULL) ? q->out.pos_nm_raw
+                                   : comp_correct(comp, q->out.pos_nm_raw, (comp_dir_t)q->out.dir);
 }
 
 void qdec_sample(qdec_t *q, uint32_t now_ns)
 {
-    qdec_snap_t s;
+    qdec_snap_t s = {0};
 
     if (q->cfg.glitch_ns != 0u) {
         q->e.seq = q->e.seq + 1u;
@@ -461,8 +554,8 @@ void qdec_sample(qdec_t *q, uint32_t now_ns)
 
 void qdec_sample_counter(qdec_t *q, uint32_t raw, uint32_t now_ns)
 {
-    qdec_snap_t s;
-    int64_t delta = qdec_sext(raw - q->last_raw, q->bits);
+    qdec_snap_t s = {0};
+    int32_t delta = qdec_sx(q, raw - q->last_raw);
 
     qdec_snapshot(q, &s);
     s.raw = raw;
@@ -577,7 +670,7 @@ void qdec_set_comp(qdec_t *q, const comp_table_t *comp)
     q->cfg.comp = comp;
 }
 
-pos_nm_t qdec_counts_to_nm(const qdec_t *q, int64_t counts)
+pos_nm_t qdec_counts_to_nm_any(const qdec_t *q, int64_t counts)
 {
     int64_t num = q->cfg.nm_per_count_num;
     int64_t den = q->cfg.nm_per_count_den; /* > 0 (qdec_init) */

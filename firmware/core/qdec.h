@@ -236,10 +236,10 @@ typedef struct {
 /* Outputs, written by the tick functions. */
 typedef struct {
     int64_t pos;           /* position, counts (mode units), from 0 at init   */
-    q32_32_t vel;          /* velocity, counts/s, q32_32                      */
+    q32_32_t vel;          /* velocity, counts/s, q32_32: see qdec_velocity() */
     pos_nm_t pos_nm_raw;   /* scaled position, nm, before compensation         */
     pos_nm_t pos_nm;       /* compensated position, nm (the feedback)          */
-    int64_t vel_nm_s;      /* velocity, nm/s                                   */
+    int64_t vel_nm_s;      /* velocity, nm/s: see qdec_velocity()             */
     int8_t dir;            /* direction of the last count (+1/-1; 0: none yet) */
     bool stopped;          /* zero-speed timeout expired                       */
     uint32_t faults;       /* QDEC_FAULT_* latched                             */
@@ -276,6 +276,13 @@ typedef struct {
     int64_t ring_t[QDEC_VEL_RING]; /* ... and extended time                   */
     uint8_t ring_n;
     uint8_t ring_head;
+    /* velocity evaluated on demand (qdec_velocity): the newest estimate's
+     * counts and time (divided when asked) and the idle bound's time */
+    bool vel_pending;
+    bool vel_lazy;                   /* estimate at ring_head, anchor not searched yet */
+    uint8_t ring_mono;               /* ring entries head-ring_mono..head rise strictly */
+    int64_t vel_dp, vel_dt;          /* pending estimate: vel_dp counts in vel_dt ns */
+    int64_t vel_since;               /* > 0: clamp to 1 count (cycle) / vel_since ns */
     int64_t ill_t[QDEC_ILLEGAL_MAX]; /* times of the last illegal transitions  */
     uint8_t ill_head;
     uint8_t ill_n;
@@ -305,6 +312,13 @@ void qdec_sample(qdec_t *q, uint32_t now_ns);
 /* Counter input, with the counter snapshot taken at now_ns: */
 void qdec_sample_counter(qdec_t *q, uint32_t raw, uint32_t now_ns);
 
+/* The velocity estimate as of the last sample (see Velocity above), q32_32
+ * counts/s; also brings out.vel and out.vel_nm_s up to date. The samples
+ * only record the estimate's inputs (the division is done here, on demand:
+ * nothing in the tick reads it), so out.vel / out.vel_nm_s are valid only
+ * after this call. Tick context (or main while the tick is not running). */
+q32_32_t qdec_velocity(qdec_t *q);
+
 /* Clear latched faults (the illegal-window history too). Tick. */
 void qdec_clear_faults(qdec_t *q);
 
@@ -315,7 +329,22 @@ void qdec_set_offset_nm(qdec_t *q, pos_nm_t offset_nm);
 void qdec_set_comp(qdec_t *q, const comp_table_t *comp);
 
 /* Scale a count value with this decoder's scale and offset (no comp):
- * round(counts * num / den) + offset_nm, saturated. Pure. */
-pos_nm_t qdec_counts_to_nm(const qdec_t *q, int64_t counts);
+ * round(counts * num / den) + offset_nm, saturated. Pure.
+ * qdec_counts_to_nm_any is the general form (64-bit division when den != 1);
+ * the inline one takes the tick's usual case, den == 1, |counts| < 2^31
+ * and |offset_nm| < 2^62, with one 32x32->64 multiply (|counts * num| <=
+ * 2^62, so the sum cannot overflow): the same result. */
+pos_nm_t qdec_counts_to_nm_any(const qdec_t *q, int64_t counts);
+
+static inline pos_nm_t qdec_counts_to_nm(const qdec_t *q, int64_t counts)
+{
+    int64_t off = q->cfg.offset_nm;
+
+    if (q->cfg.nm_per_count_den == 1 && counts == (int64_t)(int32_t)counts &&
+        off > -((int64_t)1 << 62) && off < ((int64_t)1 << 62)) {
+        return (int64_t)(int32_t)counts * (int64_t)q->cfg.nm_per_count_num + off;
+    }
+    return qdec_counts_to_nm_any(q, counts);
+}
 
 #endif /* QDEC_H */

@@ -18,6 +18,21 @@ static int64_t clamp64(int64_t v, int64_t lim)
     return (v > lim) ? lim : (v < -lim) ? -lim : v;
 }
 
+/* fx_sat_diff32(a, b) with fewer 64-bit steps (as in pid.c): the wrapped
+ * difference, its overflow from the signs, one compare of the high word. */
+static inline int32_t sat_diff32(int64_t a, int64_t b)
+{
+    int64_t d = (int64_t)((uint64_t)a - (uint64_t)b);
+
+    if (((a ^ b) & (a ^ d)) < 0) { /* a - b overflowed int64: sign of a */
+        return (a < 0) ? INT32_MIN : INT32_MAX;
+    }
+    if (d == (int64_t)(int32_t)d) {
+        return (int32_t)d;
+    }
+    return (d < 0) ? INT32_MIN : INT32_MAX;
+}
+
 void servo_params_default(servo_params_t *p, uint32_t tick_hz)
 {
     unsigned i;
@@ -352,20 +367,27 @@ pos_nm_t servo_hold_pos(const servo_t *s, unsigned axis)
 void servo_fb_from_qdec(servo_fb_t *fb, const qdec_t *const enc[CORE_AXES], unsigned axes)
 {
     unsigned i;
-    fb->enc_fault = 0;
+    uint32_t fault = 0;
     for (i = 0; i < CORE_AXES; i++) {
         const qdec_t *q = (i < axes) ? enc[i] : NULL;
-        fb->pos[i] = (q != NULL) ? q->out.pos_nm : 0;
-        if (q != NULL && q->out.faults != 0) {
-            fb->enc_fault |= 1u << i;
+        if (q != NULL) {
+            fb->pos[i] = q->out.pos_nm;
+            if (q->out.faults != 0) {
+                fault |= 1u << i;
+            }
+        } else {
+            fb->pos[i] = 0;
         }
     }
+    fb->enc_fault = fault;
 }
 
 void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
 {
-    pos_nm_t rp[CORE_AXES];
-    int64_t rv[CORE_AXES], ra[CORE_AXES];
+    /* the tick's reference is written straight into s->ref_* */
+    pos_nm_t *const rp = s->ref_pos;
+    int64_t *const rv = s->ref_vel;
+    int64_t *const ra = s->ref_acc;
     const unsigned n = s->p.axes;
     const motion_ref_t *cref = NULL;
     unsigned i;
@@ -381,21 +403,21 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
         }
     }
     /* 2. reference */
-    for (i = 0; i < n; i++) {
-        rp[i] = s->ref_pos[i];
-        rv[i] = 0;
-        ra[i] = 0;
+    if (s->state == SERVO_RUN && ref != NULL) {
+        cref = ref;
+        for (i = 0; i < n; i++) {
+            rp[i] = ref->pos[i];
+            rv[i] = ref->vel[i];
+            ra[i] = ref->acc[i];
+        }
+    } else {
+        for (i = 0; i < n; i++) { /* the position holds unless set below */
+            rv[i] = 0;
+            ra[i] = 0;
+        }
     }
     switch (s->state) {
-    case SERVO_RUN:
-        if (ref != NULL) {
-            cref = ref;
-            for (i = 0; i < n; i++) {
-                rp[i] = ref->pos[i];
-                rv[i] = ref->vel[i];
-                ra[i] = ref->acc[i];
-            }
-        }
+    case SERVO_RUN: /* done above (without a reference: hold) */
         break;
     case SERVO_STOPPING:
         stop_advance(s, rp, rv, ra);
@@ -411,15 +433,10 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
         }
         break;
     }
-    for (i = 0; i < n; i++) {
-        s->ref_pos[i] = rp[i];
-        s->ref_vel[i] = rv[i];
-        s->ref_acc[i] = ra[i];
-    }
     /* 3. following error */
     for (i = 0; i < n; i++) {
         int32_t lim = s->p.ferr_limit_nm[i];
-        int32_t fe = fx_sat_diff32(rp[i], fb->pos[i]);
+        int32_t fe = sat_diff32(rp[i], fb->pos[i]);
         s->ferr_nm[i] = fe;
         if (s->state != SERVO_OFF && !(s->off_mask & (1u << i)) && lim > 0 &&
             (fe > lim || fe < -lim)) {

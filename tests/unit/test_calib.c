@@ -489,7 +489,7 @@ static void test_compensation_upload_verify_and_fallbacks(void)
     TEST_ASSERT_EQUAL_INT32(4000, calib_comp_active(1)->fwd[0]);
     /* flash fails half way: refused, previous table active AND current in flash */
     len = make_record(2222);
-    flash_sim_power_cut_after(100);
+    flash_sim_power_cut_after(40); /* inside the 80-byte record appended to the log */
     upload(rec, len, crc32_update(CRC32_INIT, rec, len));
     expect_error(PROTO_ERROR_CODE_CALIB, PROTO_CALIB_STATUS_FLASH);
     flash_sim_power_cut_after(-1);

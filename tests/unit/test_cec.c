@@ -468,6 +468,29 @@ static void test_segment_change_and_handover(void)
         TEST_ASSERT_EQUAL_INT64(0, c.out_u[k]);
     }
     TEST_ASSERT_EQUAL_INT64(0, c.ch[0].integ);
+    /* more inactive ticks (nothing left to do: no second hand-over), then
+     * active again and stopped again: the new integral is handed over */
+    for (k = 0; k < 5; k++) {
+        cec_step(&c, &ref, meas);
+        TEST_ASSERT_FALSE(c.active);
+        for (j = 0; j < CORE_AXES; j++) {
+            TEST_ASSERT_EQUAL_INT64(0, c.handover_u[j]);
+            TEST_ASSERT_EQUAL_INT64(0, c.out_u[j]);
+        }
+        TEST_ASSERT_EQUAL_INT64(0, c.ch[0].integ);
+    }
+    line_ref(&ref, 0.0);
+    for (k = 0; k < 100; k++) {
+        cec_step(&c, &ref, meas);
+    }
+    TEST_ASSERT_TRUE(c.active);
+    i1 = c.ch[0].integ;
+    TEST_ASSERT_TRUE(i1 > 0);
+    ref.geom.kind = MOTION_GEOM_NONE;
+    cec_step(&c, &ref, meas);
+    TEST_ASSERT_FALSE(c.active);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3, -UMV(i1), UMV(c.handover_u[1]));
+    TEST_ASSERT_EQUAL_INT64(0, c.ch[0].integ);
 
     /* handover off: dropped */
     config(&c, CEC_MODE_TANGENT, 0, 2e6);

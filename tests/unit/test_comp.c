@@ -2,9 +2,10 @@
  * Compensation table (comp.h) and its flash store (comp_store.h):
  * interpolation against a reference, ends held, direction blend and the
  * reversal ramp (bounded change per tick), limits, the decoder hook, the
- * record codec (every corrupted byte refused), and the A/B store: versions,
- * previous table kept until the new one is verified, power cuts at every
- * byte of a write, corrupted slots.
+ * record codec (every corrupted byte refused), and the store (log in two
+ * banks): versions, previous table kept until the new one is verified,
+ * power cuts during a write, corrupted records. More store tests (sector
+ * flash, compaction, power cuts at every step): test_comp_store.c.
  */
 #include "comp.h"
 #include "comp_store.h"
@@ -363,24 +364,26 @@ static void test_store_layout(void)
 {
     comp_store_layout_t lay;
     const hal_flash_layout_t *l = hal_flash_layout();
-    unsigned a, s;
     TEST_ASSERT_TRUE(comp_store_layout(&lay));
-    TEST_ASSERT_EQUAL_UINT32(2048, lay.slot_bytes);
-    TEST_ASSERT_EQUAL_UINT32(l->base + l->size - 2u * CORE_AXES * 2048u, lay.base);
-    /* inside the top 32 KiB (never the bootloader's slot) */
+    /* two banks of 16 KiB (8 pages) at the top 32 KiB (never the
+     * bootloader's slot) */
+    TEST_ASSERT_EQUAL_UINT32(16384, lay.bank_bytes);
+    TEST_ASSERT_EQUAL_UINT32(l->base + l->size - 2u * 16384u, lay.base);
+    TEST_ASSERT_EQUAL_UINT32(COMP_STORE_REGION_BYTES, comp_store_bytes());
     TEST_ASSERT_TRUE(lay.base >= l->base + l->size - COMP_STORE_REGION_BYTES);
-    for (a = 0; a < CORE_AXES; a++) {
-        for (s = 0; s < 2; s++) {
-            TEST_ASSERT_EQUAL_UINT32(lay.base + (2u * a + s) * 2048u, comp_store_slot_addr(a, s));
-        }
-    }
-    TEST_ASSERT_EQUAL_UINT32(0, comp_store_slot_addr(CORE_AXES, 0));
-    TEST_ASSERT_EQUAL_UINT32(0, comp_store_slot_addr(0, 2));
-    /* pages too large for the store region: no layout, writes refused */
-    TEST_ASSERT_TRUE(flash_sim_configure(0x08000000u, 512u * 1024u, 16384u, 8u));
+    TEST_ASSERT_EQUAL_UINT32(lay.base, comp_store_bank_addr(0));
+    TEST_ASSERT_EQUAL_UINT32(lay.base + 16384u, comp_store_bank_addr(1));
+    TEST_ASSERT_EQUAL_UINT32(0, comp_store_bank_addr(2));
+    TEST_ASSERT_EQUAL_UINT32(0, comp_store_record_addr(CORE_AXES));
+    TEST_ASSERT_EQUAL_UINT32(0, comp_store_record_addr(0)); /* none yet */
+    /* pages too large for the region (two banks > half of it): no layout,
+     * writes refused */
+    TEST_ASSERT_TRUE(flash_sim_configure(0x08000000u, 512u * 1024u, 262144u, 8u));
     TEST_ASSERT_FALSE(comp_store_layout(&lay));
+    TEST_ASSERT_EQUAL_UINT32(0, comp_store_bytes());
     table57(&T);
     TEST_ASSERT_EQUAL_INT(COMP_STORE_E_LAYOUT, comp_store_write(1, &T, NULL, NULL));
+    TEST_ASSERT_EQUAL_INT(COMP_STORE_E_LAYOUT, comp_store_load(1, &U, NULL));
 }
 
 static void test_store_versions_and_slots(void)
@@ -395,12 +398,12 @@ static void test_store_versions_and_slots(void)
     T.fwd[0] = 1234;
     TEST_ASSERT_EQUAL_INT(COMP_STORE_OK, comp_store_write(1, &T, &ver, &slot));
     TEST_ASSERT_EQUAL_UINT32(2, ver);
-    TEST_ASSERT_EQUAL_UINT(1, slot);
+    TEST_ASSERT_EQUAL_UINT(0, slot); /* appended to the log of bank 0 */
     TEST_ASSERT_EQUAL_INT(COMP_STORE_OK, comp_store_load(1, &U, &slot));
     TEST_ASSERT_EQUAL_UINT32(2, U.version);
     TEST_ASSERT_EQUAL_INT32(1234, U.fwd[0]);
-    TEST_ASSERT_EQUAL_UINT(1, slot);
-    /* the third write reuses slot 0; the second stays as the previous */
+    TEST_ASSERT_EQUAL_UINT(0, slot);
+    /* the third write goes to the same bank; the second stays as the previous */
     T.fwd[0] = 999;
     TEST_ASSERT_EQUAL_INT(COMP_STORE_OK, comp_store_write(1, &T, &ver, &slot));
     TEST_ASSERT_EQUAL_UINT(0, slot);
@@ -431,14 +434,18 @@ static void test_store_corrupt_new_slot_falls_back(void)
     TEST_ASSERT_EQUAL_INT(COMP_STORE_OK, comp_store_write(2, &T, &ver, &slot));
     TEST_ASSERT_EQUAL_UINT32(2, ver);
     /* a bit flips in the new record's data: the previous one is current */
-    TEST_ASSERT_TRUE(flash_sim_poke(comp_store_slot_addr(2, slot) + 100u, 0x00));
+    TEST_ASSERT_TRUE(flash_sim_poke(comp_store_record_addr(2) + 100u, 0x00));
     TEST_ASSERT_EQUAL_INT(COMP_STORE_OK, comp_store_load(2, &U, &slot));
     TEST_ASSERT_EQUAL_UINT32(1, U.version);
     TEST_ASSERT_EQUAL_INT32(14000, U.rev[4]);
-    /* and the next write replaces the broken slot, not the good one */
+    /* and the next write is version 2 again, after the broken one; the good
+     * one stays */
     TEST_ASSERT_EQUAL_INT(COMP_STORE_OK, comp_store_write(2, &T, &ver, &slot));
     TEST_ASSERT_EQUAL_UINT32(2, ver);
-    TEST_ASSERT_EQUAL_UINT(1, slot);
+    TEST_ASSERT_EQUAL_UINT(0, slot);
+    TEST_ASSERT_EQUAL_INT(COMP_STORE_OK, comp_store_load(2, &U, NULL));
+    TEST_ASSERT_EQUAL_UINT32(2, U.version);
+    TEST_ASSERT_EQUAL_INT32(-5, U.rev[4]);
 }
 
 static void test_store_power_cut_anywhere(void)

@@ -619,10 +619,63 @@ static void test_new_limits_are_what_the_planner_uses(void)
     TEST_ASSERT_INT64_WITHIN(2, (total + TICK_NS - 1) / TICK_NS, (int64_t)i - start + 1);
 }
 
+/* The arc overlay's chord fraction: fx_div_q30_rec (reciprocal, two
+ * 32 x 32 products, exact remainder correction) equals the 64-bit division
+ * round(n * 2^30 / d) it replaces over its whole stated range, 0 <= n <= d,
+ * 1 <= d < 2^32: edges of every divisor size and 10^6 random pairs. */
+static void test_reciprocal_fraction_equals_the_division(void)
+{
+    uint64_t x = 88172645463325252u; /* xorshift64 */
+    uint32_t k, bad = 0;
+    unsigned b;
+
+    for (k = 0; k < 1000000u + 32u * 8u; k++) {
+        uint32_t d, n;
+        if (k < 32u * 8u) { /* every bit length, edge numerators */
+            b = k / 8u;
+            d = (k % 2u) ? (uint32_t)((((uint64_t)1 << (b + 1)) - 1u)) : ((uint32_t)1 << b);
+            switch ((k / 2u) % 4u) {
+            case 0:
+                n = 0;
+                break;
+            case 1:
+                n = d;
+                break;
+            case 2:
+                n = d - 1u;
+                break;
+            default:
+                n = d / 2u + (d & 1u);
+                break;
+            }
+        } else {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            b = (unsigned)(x >> 59) + 1u; /* divisor bit length 1..32 */
+            d = (uint32_t)(x >> 8) >> (32u - b);
+            if (d == 0u) {
+                d = 1u;
+            }
+            n = (uint32_t)(((x & 0xFFFFFFFFu) * ((uint64_t)d + 1u)) >> 32);
+        }
+        if ((int64_t)fx_div_q30_rec(n, d, fx_recip62(d)) !=
+            fx_div_round64((int64_t)n << 30, (int64_t)d)) {
+            bad++;
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT32(0, bad);
+    TEST_ASSERT_EQUAL_UINT32(1u << 30,
+                             fx_div_q30_rec(0xFFFFFFFFu, 0xFFFFFFFFu, fx_recip62(0xFFFFFFFFu)));
+    TEST_ASSERT_EQUAL_UINT32(1u << 29, fx_div_q30_rec(1, 2, fx_recip62(2)));
+    TEST_ASSERT_EQUAL_UINT32(357913941u, fx_div_q30_rec(1, 3, fx_recip62(3))); /* 2^30 / 3 */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_block_queued_right_after_enable_runs);
+    RUN_TEST(test_reciprocal_fraction_equals_the_division);
     RUN_TEST(test_enable_queue_poll_before_the_first_tick);
     RUN_TEST(test_status_reports_planned_time_queued);
     RUN_TEST(test_planned_time_counts_blocks_waiting_in_the_planner);

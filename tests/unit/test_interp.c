@@ -114,6 +114,88 @@ static void test_geometry_and_feed_forward(void)
     TEST_ASSERT_TRUE(ref.active);
 }
 
+/* The reference of one tick recomputed from the segment with the closed
+ * form and the 128-bit helpers (what interp_tick computed before its cruise
+ * increments and inline products): every field must be equal, bit for bit. */
+static void ref_closed_form(const interp_t *ip, motion_ref_t *out)
+{
+    const plan_seg_t *s = &ip->fifo[ip->rd & (INTERP_FIFO - 1)];
+    int64_t tau = ip->t_ns - ip->phase_t0, sq, lq = s->len * 65536;
+    sc_state_t st;
+    int i;
+
+    if (tau > s->prof.t_ns[ip->phase]) {
+        tau = s->prof.t_ns[ip->phase];
+    }
+    sc_eval_phase(&s->prof, ip->phase, tau, &st);
+    sq = st.s_q16 + fx_mul64_shift(st.s_q16, ip->corr_q32, 32);
+    sq = sq < 0 ? 0 : (sq > lq ? lq : sq);
+    for (i = 0; i < CORE_AXES; i++) {
+        out->pos[i] = s->start[i] + fx_mul64_shift(sq, s->ratio_q62[i], 78);
+        out->vel[i] = fx_mul64_shift(st.v_q16, s->ratio_q62[i], 78);
+        out->acc[i] = fx_mul64_shift(st.a_q16, s->ratio_q62[i], 78);
+        out->geom.tangent[i] = (q1_30_t)(s->ratio_q62[i] / ((int64_t)1 << 32));
+    }
+}
+
+/* Cruise phases advance by exact quotient and remainder increments; fast
+ * moves, long cruises (many remainder carries), an odd tick period and a
+ * tick period that changes on the way (as the drive's stop ramp does) must
+ * give exactly the closed form on every tick. */
+static void test_cruise_increments_equal_closed_form(void)
+{
+    static plan_block_t store[16];
+    plan_profile_t prof = pc_profile(SC_SHAPE_SCURVE);
+    plan_t p;
+    interp_t ip;
+    motion_ref_t ref, chk;
+    plan_move_t m;
+    const pos_nm_t o[CORE_AXES] = {-5, 7, 11};
+    static const int64_t tgt[][3] = {{400000000, 3, -1},
+                                     {400000123, 250000007, 9999},
+                                     {-1234567, 250000007, 20000000},
+                                     {0, 0, 0}};
+    static const int64_t feed[] = {499999999, 123456789, 77777777, 300000000};
+    uint32_t checked = 0, cruise = 0;
+    int k, n = 0;
+
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&p, store, 16, &prof, o));
+    for (k = 0; k < 4; k++) {
+        memset(&m, 0, sizeof(m));
+        m.target[0] = tgt[k][0];
+        m.target[1] = tgt[k][1];
+        m.target[2] = tgt[k][2];
+        m.feed = feed[k];
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&p, &m));
+    }
+    interp_init(&ip, 100003, o);
+    while (interp_refill(&ip, &p) != 0) {
+    }
+    do {
+        n++;
+        if (n % 20000 == 0) { /* an odd step for a while, then back */
+            ip.tick_ns = (n / 20000) % 2 ? 33331 : 100003;
+        }
+        interp_tick(&ip, &ref);
+        if (ip.busy && ip.fifo[ip.rd & (INTERP_FIFO - 1)].dwell_ns == 0) {
+            ref_closed_form(&ip, &chk);
+            for (k = 0; k < CORE_AXES; k++) {
+                TEST_ASSERT_EQUAL_INT64(chk.pos[k], ref.pos[k]);
+                TEST_ASSERT_EQUAL_INT64(chk.vel[k], ref.vel[k]);
+                TEST_ASSERT_EQUAL_INT64(chk.acc[k], ref.acc[k]);
+                TEST_ASSERT_EQUAL_INT32(chk.geom.tangent[k], ref.geom.tangent[k]);
+            }
+            checked++;
+            cruise += ip.cr_ok ? 1u : 0u;
+        }
+        TEST_ASSERT_TRUE(n < 10000000);
+    } while (!interp_idle(&ip));
+    TEST_ASSERT_TRUE(cruise > 10000); /* the increments are exercised */
+    TEST_ASSERT_TRUE(checked > cruise + 100);
+    TEST_ASSERT_EQUAL_INT64(0, ref.pos[0]);
+    TEST_ASSERT_EQUAL_INT64(0, ref.pos[2]);
+}
+
 static void test_random_path_100k(void)
 {
     pc_result_t r;
@@ -197,6 +279,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_single_block_lands_exactly);
     RUN_TEST(test_geometry_and_feed_forward);
+    RUN_TEST(test_cruise_increments_equal_closed_form);
     RUN_TEST(test_random_path_100k);
     RUN_TEST(test_random_path_trapezoid);
     RUN_TEST(test_random_path_smooth_corner);

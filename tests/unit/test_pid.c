@@ -18,6 +18,8 @@ void tearDown(void)
 
 #define Q32(x) ((q32_32_t)llround((double)(x)*4294967296.0))
 
+__extension__ typedef __int128 i128;
+
 static double coef_value(pid_coef_t c)
 {
     return (double)c.m * ldexp(1.0, -c.sh);
@@ -473,9 +475,66 @@ static void test_extremes(void)
     TEST_ASSERT_TRUE(pid.out > 0);
 }
 
+/* The error and the derivative input are the exact difference saturated to
+ * int32 (fx_sat_diff32) for any pair of int64 positions, overflowing
+ * differences included, and the coefficient products with every shift
+ * equal the rounded, clamped exact value (pid_coef_apply). */
+static void test_error_and_products_exact(void)
+{
+    static const int64_t v[] = {INT64_MIN,
+                                INT64_MIN + 1,
+                                -((int64_t)1 << 62),
+                                (int64_t)INT32_MIN - 1,
+                                INT32_MIN,
+                                -1,
+                                0,
+                                1,
+                                INT32_MAX,
+                                (int64_t)INT32_MAX + 1,
+                                (int64_t)1 << 62,
+                                INT64_MAX - 1,
+                                INT64_MAX};
+    pid_params_t p = params(1.5e3, 8e3, 5, 10000);
+    pid_loop_t pid;
+    unsigned i, j;
+    int sh;
+
+    p.d_on_measurement = true;
+    start(&pid, &p);
+    for (i = 0; i < 13; i++) {
+        for (j = 0; j < 13; j++) {
+            pid_step(&pid, v[i], v[j], 0, 0, 0);
+            TEST_ASSERT_EQUAL_INT32(fx_sat_diff32(v[i], v[j]), pid.err_nm);
+            TEST_ASSERT_EQUAL_INT64(v[j], pid.meas_prev);
+        }
+    }
+    for (sh = -31; sh <= 62; sh++) {
+        static const int32_t xs[] = {INT32_MIN, -3, -1, 0, 1, 2, 3, 12345, INT32_MAX};
+        static const int32_t ms[] = {INT32_MIN + 1, -1, 1, 3, 1 << 30, INT32_MAX};
+        for (i = 0; i < 9; i++) {
+            for (j = 0; j < 6; j++) {
+                pid_coef_t c = {ms[j], sh};
+                i128 prod = (i128)xs[i] * ms[j], ref;
+                if (sh > 0) {
+                    ref = (prod + ((i128)1 << (sh - 1))) >> sh; /* half up */
+                } else {
+                    ref = prod * ((i128)1 << -sh);
+                }
+                if (ref > PID_TERM_LIM) {
+                    ref = PID_TERM_LIM;
+                } else if (ref < -PID_TERM_LIM) {
+                    ref = -PID_TERM_LIM;
+                }
+                TEST_ASSERT_EQUAL_INT64((int64_t)ref, pid_coef_apply(c, xs[i]));
+            }
+        }
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
+    RUN_TEST(test_error_and_products_exact);
     RUN_TEST(test_coef_make_matches_double);
     RUN_TEST(test_coef_make_edges);
     RUN_TEST(test_config_resolution_over_tick_rates);

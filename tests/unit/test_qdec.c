@@ -462,7 +462,7 @@ static verr_t run_velocity(double v, bool counter, uint64_t window_ns, const qge
         if (tt < start) {
             continue;
         }
-        est = (double)d.out.vel / 4294967296.0;
+        est = (double)qdec_velocity(&d) / 4294967296.0;
         err = fabs(est - v);
         if (counter) {
             /* counts exact at sample times: < min(1, |v| Ts) / W, W the window */
@@ -549,7 +549,7 @@ static void test_velocity_long_interval(void)
     }
     qdec_sample_counter(&d, 1001, t + TS_NS);
     /* 1000 counts in 7.0001 s */
-    TEST_ASSERT_INT64_WITHIN(1 << 20, (int64_t)(1000.0 / 7.0001 * 4294967296.0), d.out.vel);
+    TEST_ASSERT_INT64_WITHIN(1 << 20, (int64_t)(1000.0 / 7.0001 * 4294967296.0), qdec_velocity(&d));
     TEST_ASSERT_EQUAL_UINT32(0, d.out.faults);
 }
 
@@ -570,7 +570,7 @@ static void test_velocity_decay_and_timeout(void)
         qgen_move_to(&g, g.x - QGEN_ONE / 10, t);
         qdec_sample(&d, (uint32_t)t);
     }
-    TEST_ASSERT_INT64_WITHIN(1ll << 22, -(1000ll << 32), d.out.vel);
+    TEST_ASSERT_INT64_WITHIN(1ll << 22, -(1000ll << 32), qdec_velocity(&d));
     TEST_ASSERT_EQUAL_INT8(-1, d.out.dir);
     stop = g.last_edge_t;
     /* stopped: the estimate is bounded by 1 count / time since the edge */
@@ -582,11 +582,12 @@ static void test_velocity_decay_and_timeout(void)
         since = (double)(t - stop) * 1e-9;
         if (since < 0.05) {
             bound = 1.0 / since;
-            TEST_ASSERT_TRUE((double)-d.out.vel / 4294967296.0 <= fmin(bound, 1000.0) * 1.0001);
-            TEST_ASSERT_TRUE(d.out.vel < 0);
+            TEST_ASSERT_TRUE((double)-qdec_velocity(&d) / 4294967296.0 <=
+                             fmin(bound, 1000.0) * 1.0001);
+            TEST_ASSERT_TRUE(qdec_velocity(&d) < 0);
             TEST_ASSERT_FALSE(d.out.stopped);
         } else {
-            TEST_ASSERT_EQUAL_INT64(0, d.out.vel);
+            TEST_ASSERT_EQUAL_INT64(0, qdec_velocity(&d));
             TEST_ASSERT_TRUE(d.out.stopped);
         }
     }
@@ -604,9 +605,82 @@ static void test_velocity_decay_and_timeout(void)
             t += TS_NS;
             qdec_sample(&d, (uint32_t)t);
             if (k > 0) {
-                TEST_ASSERT_EQUAL_INT64(0, d.out.vel);
+                TEST_ASSERT_EQUAL_INT64(0, qdec_velocity(&d));
             }
             TEST_ASSERT_FALSE(d.out.stopped);
+        }
+    }
+}
+
+/* The velocity is evaluated on demand (qdec_velocity): asking at every
+ * sample or only now and then gives the same value, whatever happened in
+ * between (new estimates, the bound between edges, undefined estimates,
+ * the zero-speed timeout), for edge and counter input and any window. */
+static void test_velocity_on_demand_equals_every_sample(void)
+{
+    static const uint64_t windows[3] = {0, 350000, 2000000};
+    unsigned w, cyc, counter;
+
+    for (counter = 0; counter < 2; counter++) {
+        for (cyc = 0; cyc < 2; cyc++) {
+            for (w = 0; w < 3; w++) {
+                qgen_t g;
+                qdec_t a, b;
+                fan_t fan = {{&a, &b}, 2};
+                qdec_config_t c = edge_cfg(QDEC_X4);
+                uint64_t t = 0;
+                uint32_t lcg = 12345u;
+                unsigned k, asked = 0, next = 0, stops = 0;
+                qgen_pos_t step = 0;
+
+                if (counter && cyc) {
+                    continue; /* vel_cycle is edge input only */
+                }
+                c.input = counter ? QDEC_INPUT_COUNTER : QDEC_INPUT_EDGES;
+                c.vel_cycle = cyc != 0;
+                c.vel_window_ns = windows[w];
+                c.zero_timeout_ns = 30000000; /* 30 ms */
+                qgen_init(&g, QGEN_ONE / 2, t, counter ? NULL : fan_emit, &fan);
+                TEST_ASSERT_TRUE(qdec_init(&a, &c, counter ? 0u : qgen_lines(&g), 0));
+                TEST_ASSERT_TRUE(qdec_init(&b, &c, counter ? 0u : qgen_lines(&g), 0));
+                for (k = 0; k < 6000; k++) {
+                    /* segments of 20 or 400 ticks (40 ms: longer than the
+                     * timeout), 0..+-30 counts per tick, a third of them
+                     * standing still */
+                    if (k == next) {
+                        lcg = lcg * 1664525u + 1013904223u;
+                        step =
+                            (qgen_pos_t)((int32_t)(lcg >> 16) % 60001 - 30000) * (QGEN_ONE / 1000);
+                        if ((lcg >> 8) % 3u == 0u) {
+                            step = 0;
+                        }
+                        next += ((lcg >> 4) & 1u) ? 400u : 20u;
+                    }
+                    t += TS_NS;
+                    qgen_move_to(&g, g.x + step, t);
+                    if (counter) {
+                        qdec_sample_counter(&a, (uint32_t)g.count, (uint32_t)t);
+                        qdec_sample_counter(&b, (uint32_t)g.count, (uint32_t)t);
+                    } else {
+                        qdec_sample(&a, (uint32_t)t);
+                        qdec_sample(&b, (uint32_t)t);
+                    }
+                    (void)qdec_velocity(&a);
+                    stops += a.out.stopped ? 1u : 0u;
+                    lcg = lcg * 1664525u + 1013904223u;
+                    /* asked now and then, with pauses of 50 ms (longer
+                     * than the timeout) without any question */
+                    if ((k / 500u) % 2u == 0u && (lcg >> 20) % 9u == 0u) {
+                        asked++;
+                        TEST_ASSERT_EQUAL_INT64(a.out.vel, qdec_velocity(&b));
+                        TEST_ASSERT_EQUAL_INT64(a.out.vel_nm_s, b.out.vel_nm_s);
+                        TEST_ASSERT_EQUAL(a.out.stopped, b.out.stopped);
+                    }
+                }
+                TEST_ASSERT_TRUE(stops > 100); /* the timeout was reached */
+                TEST_ASSERT_TRUE(asked > 150);
+                TEST_ASSERT_EQUAL_INT64(a.out.pos, b.out.pos);
+            }
         }
     }
 }
@@ -767,6 +841,47 @@ static void test_glitch_filter_counts_exact_pulses(void)
 
 __extension__ typedef __int128 i128;
 
+/* The inline 32-bit scaling (den 1, |counts| < 2^31, |offset| < 2^62)
+ * equals the general form and the exact saturated value over its whole
+ * range, and its edges fall back to the general form. */
+static void test_scaling_fast_path(void)
+{
+    static const int32_t nums[] = {1, 1250, -1250, INT32_MAX, INT32_MIN};
+    static const int64_t offs[] = {0,
+                                   -12345,
+                                   ((int64_t)1 << 62) - 1,
+                                   -((int64_t)1 << 62) + 1,
+                                   (int64_t)1 << 62,
+                                   -((int64_t)1 << 62),
+                                   INT64_MAX,
+                                   INT64_MIN};
+    static const int64_t fixed[] = {
+        0, 1, -1, INT32_MAX, INT32_MIN, (int64_t)INT32_MAX + 1, (int64_t)INT32_MIN - 1};
+    qdec_t d;
+    qdec_config_t c = edge_cfg(QDEC_X4);
+    unsigned k, o, j;
+
+    for (k = 0; k < 5; k++) {
+        for (o = 0; o < 8; o++) {
+            c.nm_per_count_num = nums[k];
+            c.nm_per_count_den = 1;
+            c.offset_nm = offs[o];
+            TEST_ASSERT_TRUE(qdec_init(&d, &c, 0, 0));
+            for (j = 0; j < 2000; j++) {
+                int64_t counts = (j < 7) ? fixed[j] : (int64_t)(int32_t)(rnd() ^ (rnd() << 16));
+                i128 ref = (i128)counts * nums[k] + offs[o];
+                if (ref > INT64_MAX) {
+                    ref = INT64_MAX;
+                } else if (ref < INT64_MIN) {
+                    ref = INT64_MIN;
+                }
+                TEST_ASSERT_EQUAL_INT64((int64_t)ref, qdec_counts_to_nm(&d, counts));
+                TEST_ASSERT_EQUAL_INT64((int64_t)ref, qdec_counts_to_nm_any(&d, counts));
+            }
+        }
+    }
+}
+
 static void test_scaling_exact(void)
 {
     qdec_t d;
@@ -840,6 +955,7 @@ static void test_nm_outputs_and_identity_comp(void)
     TEST_ASSERT_EQUAL_INT64(40000, d.out.pos);
     TEST_ASSERT_EQUAL_INT64(1000000 + 48828125, d.out.pos_nm_raw);
     TEST_ASSERT_EQUAL_INT64(d.out.pos_nm_raw, d.out.pos_nm);
+    (void)qdec_velocity(&d);
     TEST_ASSERT_INT64_WITHIN(2, 488281250, d.out.vel_nm_s);
     TEST_ASSERT_EQUAL_INT64(123, comp_correct(NULL, 123, COMP_DIR_POS));
     TEST_ASSERT_EQUAL_INT64(INT64_MIN, comp_correct(NULL, INT64_MIN, COMP_DIR_NEG));
@@ -921,6 +1037,8 @@ int main(void)
     RUN_TEST(test_velocity_decay_and_timeout);
     RUN_TEST(test_glitch_filter);
     RUN_TEST(test_glitch_filter_counts_exact_pulses);
+    RUN_TEST(test_velocity_on_demand_equals_every_sample);
+    RUN_TEST(test_scaling_fast_path);
     RUN_TEST(test_scaling_exact);
     RUN_TEST(test_nm_outputs_and_identity_comp);
     RUN_TEST(test_config_rejected);

@@ -1,6 +1,6 @@
 /*
  * app_stm32f4.c - the drive application on the STM32F405/407 board: the
- * control tick (encoder edges from the timer counters, then drive_tick) in
+ * control tick (drive_tick; it reads the encoder timers as counters) in
  * the SysTick interrupt at F4_TICK_HZ; host link (USART2 and CAN1, node 1),
  * background work and the watchdog in main.
  *
@@ -21,7 +21,6 @@ static boot_config_t boot_cfg;
 
 static void tick(void)
 {
-    f4_encoder_edges();
     drive_tick();
 }
 
@@ -36,7 +35,7 @@ int main(void)
     for (i = 0; i < APP_AXES; i++) {
         cfg.nm_per_count_num[i] = 1250;
         cfg.nm_per_count_den[i] = 1;
-        cfg.enc_initial_lines[i] = 0u; /* count 0: A and B low */
+        cfg.enc_counter[i] = true; /* TIM2..4 counts (hal_encoder_counter) */
         cfg.servo.axis[i].out_max_mv = 10000;
         cfg.servo.axis[i].i_max_mv = 10000;
     }
@@ -48,6 +47,7 @@ int main(void)
         hal_system_reset();
     }
     boot_config_default(&boot_cfg, BOOT_BOARD_STM32F4);
+    boot_cfg.slot_size = F4_APP_SLOT_SIZE; /* sectors 10, 11: the store */
     boot_cfg.node_id = 1u;
     boot_cfg.request_word = &f4_boot_request_word;
     pc.board_id = BOOT_BOARD_STM32F4;

@@ -5,21 +5,21 @@
  * interrupts fill / empty byte and frame rings (single producer, single
  * consumer, volatile indices); the rest is main context.
  *
- * Axis encoders: the timers count in hardware (encoder mode 3, x4). The
- * drive's axis decoders take edges (drive_encoder_edge), so each tick
- * f4_encoder_edges() turns the change of every axis counter into that many
- * x4 quadrature steps, time-stamped evenly over the elapsed tick. The
- * position is exact; the edge times are a reconstruction (velocity
- * estimates see a constant rate within a tick). hal_encoder_counter() also
- * reports the axis counters (channels 0..2) for a counter-mode decoder.
+ * Axis encoders: the timers count in hardware (encoder mode 3, x4) and the
+ * drive reads them as counters (drive_config_t.enc_counter, set by
+ * app_stm32f4.c): hal_encoder_counter(0..2) returns a 32-bit count (TIM2
+ * as is; TIM3/TIM4 16-bit counts extended by their signed 16-bit change
+ * since the previous read, which holds while the axis moves less than
+ * 32767 counts between two reads: one read per control tick, e.g. 3.2e8
+ * counts/s at 10 kHz). Channel 3 is axis 0's reference scale (TIM5,
+ * 32-bit). Called from the tick, and from main before the tick hook runs
+ * (drive_init).
  */
 #include <stddef.h>
 
-#include "drive.h"
 #include "hal.h"
 #include "port.h"
 #include "port_ring.h"
-#include "qdec.h"
 #include "stm32f4.h"
 
 #define AXES     3u
@@ -60,9 +60,8 @@ static struct {
 } tb;
 
 static struct {
-    uint32_t last[AXES]; /* timer count at the previous tick            */
-    int64_t pos[AXES];   /* extended position, counts                   */
-    uint32_t last_ns;    /* time of the previous tick on the drive clock */
+    uint32_t last[AXES];  /* timer count at the previous read */
+    uint32_t count[AXES]; /* 32-bit extended count (wraps)    */
 } enc;
 
 /* ---- time base ----------------------------------------------------------------- */
@@ -88,41 +87,20 @@ uint32_t hal_time_us(void)
 
 /* ---- encoders -------------------------------------------------------------------- */
 
-static uint32_t quad_lines(int64_t c)
-{
-    static const uint32_t ab[4] = {0u, QDEC_LINE_A, QDEC_LINE_A | QDEC_LINE_B, QDEC_LINE_B};
-
-    return ab[(uint32_t)c & 3u];
-}
-
-void f4_encoder_edges(void)
-{
-    uint32_t now_ns = hal_time_us() * 1000u, span = now_ns - enc.last_ns;
-    unsigned i;
-
-    for (i = 0; i < AXES; i++) {
-        uint32_t cnt = F4_TIM_CNT(enc_tim[i]);
-        int32_t d = enc_bits[i] == 16u ? (int32_t)(int16_t)(uint16_t)(cnt - enc.last[i])
-                                       : (int32_t)(cnt - enc.last[i]);
-        uint32_t n = d < 0 ? (uint32_t)-d : (uint32_t)d, k;
-
-        enc.last[i] = cnt;
-        for (k = 1; k <= n; k++) {
-            enc.pos[i] += d < 0 ? -1 : 1;
-            drive_encoder_edge(i, quad_lines(enc.pos[i]),
-                               enc.last_ns + (uint32_t)((uint64_t)span * k / n));
-        }
-    }
-    enc.last_ns = now_ns;
-}
-
 bool hal_encoder_counter(unsigned ch, uint32_t *count)
 {
     if (count == NULL) {
         return false;
     }
     if (ch < AXES) {
-        *count = (uint32_t)enc.pos[ch];
+        uint32_t cnt = F4_TIM_CNT(enc_tim[ch]);
+        uint32_t d = cnt - enc.last[ch];
+        if (enc_bits[ch] == 16u) {
+            d = (uint32_t)(int32_t)(int16_t)(uint16_t)d; /* signed 16-bit change */
+        }
+        enc.last[ch] = cnt;
+        enc.count[ch] += d;
+        *count = enc.count[ch];
         return true;
     }
     if (ch == AXES) { /* axis 0's reference scale */
@@ -299,7 +277,7 @@ bool hal_can_receive(uint32_t *id, uint8_t *data, uint8_t *len)
     return true;
 }
 
-/* ---- flash: sectors 5..11 ---------------------------------------------------------------- */
+/* ---- flash: sectors 5..11 (app slot 5..9, store 10..11) ---------------------------------- */
 
 static const hal_flash_layout_t flash_layout = {F4_FLASH_REGION_BASE, F4_FLASH_REGION_SIZE,
                                                 F4_FLASH_SECTOR_SIZE, 4u};
@@ -337,12 +315,14 @@ bool hal_flash_erase_page(uint32_t addr)
     }
     flash_unlock();
     (void)flash_wait();
+    hal_watchdog_kick(); /* the erase (up to 2 s) stalls the CPU; IWDG ~4 s */
     F4_FLASH_CR = F4_FLASH_CR_PSIZE32 | F4_FLASH_CR_SER |
                   F4_FLASH_CR_SNB(F4_FLASH_FIRST_SECTOR +
                                   (addr - F4_FLASH_REGION_BASE) / F4_FLASH_SECTOR_SIZE);
     F4_FLASH_CR |= F4_FLASH_CR_STRT;
     ok = flash_wait();
     F4_FLASH_CR = F4_FLASH_CR_LOCK;
+    hal_watchdog_kick();
     return ok;
 }
 
@@ -380,8 +360,8 @@ void f4_watchdog_start(void)
 {
     F4_IWDG_KR = 0xCCCCu; /* start (LSI ~32 kHz) */
     F4_IWDG_KR = 0x5555u; /* unlock PR / RLR */
-    F4_IWDG_PR = 3u;      /* /32: 1 kHz */
-    F4_IWDG_RLR = 1000u;  /* ~1 s */
+    F4_IWDG_PR = 4u;      /* /64: 500 Hz (LSI 17..47 kHz: 266..734 Hz) */
+    F4_IWDG_RLR = 2000u;  /* ~4 s, at least 2.7 s: longer than a sector erase */
     F4_IWDG_KR = 0xAAAAu;
 }
 
@@ -457,7 +437,7 @@ static void peripherals(void)
     encoder_timer(F4_TIM5, 0xFFFFFFFFu);
     for (i = 0; i < AXES; i++) {
         enc.last[i] = F4_TIM_CNT(enc_tim[i]);
-        enc.pos[i] = 0;
+        enc.count[i] = 0u;
     }
 
     /* PWM: TIM1 CH1..3, centre-aligned, 50 % */
@@ -518,7 +498,6 @@ void f4_board_init(uint32_t tick_hz, void (*hook)(void))
     tb.load = F4_SYSCLK_HZ / tick_hz - 1u;
     tb.ticks = 0;
     tb.hook = hook;
-    enc.last_ns = 0;
     CM4_SCB_SHPR3 = (CM4_SCB_SHPR3 & 0x00FFFFFFu) | (0x80u << 24);
     CM4_SYST_RVR = tb.load;
     CM4_SYST_CVR = 0u;

@@ -14,11 +14,12 @@
  *   fault inputs    PE3..PE5 (pull-up, low = amplifier fault)
  *   host UART       USART2 PA2/PA3, 115200 8N1, interrupt driven rings
  *   CAN             CAN1 PB8/PB9, 500 kbit/s, RX FIFO 0 interrupt into a ring
- *   watchdog        IWDG, ~1 s (application only: a 128 KiB sector erase in
- *                   the bootloader takes up to 2 s)
+ *   watchdog        IWDG, ~4 s (application only; a 128 KiB sector erase,
+ *                   up to 2 s, stalls the CPU: single-bank flash)
  * Flash (1 MiB): sectors 0..4 (16/16/16/16/64 KiB) bootloader, sectors
- * 5..11 (128 KiB each) the HAL region: application slot sectors 5..10
- * (header 0x08020000, payload 0x08020200), parameter store sector 11.
+ * 5..11 (128 KiB each) the HAL region: application slot sectors 5..9
+ * (640 KiB, header 0x08020000, payload 0x08020200), compensation store
+ * sectors 10 and 11 (comp_store.h: its two banks, comp_store_bytes()).
  */
 #ifndef STM32F4_H
 #define STM32F4_H
@@ -144,6 +145,11 @@
 #define F4_FLASH_SECTOR_SIZE  131072u
 #define F4_FLASH_FIRST_SECTOR 5u
 #define F4_APP_LOAD           (F4_FLASH_REGION_BASE + 512u)
+/* Application slot: sectors 5..9; the store (two sectors) above it. Both
+ * images set boot_config_t.slot_size to this (boot_config_default keeps
+ * only one sector free at the top). */
+#define F4_APP_SLOT_SIZE (5u * F4_FLASH_SECTOR_SIZE)
+#define F4_STORE_BASE    (F4_FLASH_REGION_BASE + F4_APP_SLOT_SIZE)
 
 #ifndef F4_TICK_HZ
 #define F4_TICK_HZ 10000u
@@ -155,9 +161,6 @@
 void f4_board_init(uint32_t tick_hz, void (*hook)(void));
 void f4_set_tick_hook(void (*hook)(void));
 void f4_watchdog_start(void);
-/* Encoder timer counts of the axes as quadrature edges: call at the start
- * of the tick hook, before drive_tick (see hal_stm32f4.c). */
-void f4_encoder_edges(void);
 
 /* The boot request word (linker script: last word of SRAM). */
 extern volatile uint32_t f4_boot_request_word;
