@@ -149,18 +149,99 @@ static int64_t pl_length(const int64_t *d)
     return (int64_t)((uint64_t)fx_isqrt64(sum) << k);
 }
 
+/* min over the axes with d_i != 0 of floor(lim_i * len / |d_i|) (sc_muldiv,
+ * INT64_MAX when no axis moves): the axis with the smallest lim_i / |d_i| is
+ * found by comparing exact products, then one division gives its value,
+ * the same as the minimum of every axis's quotient (the floor is monotone).
+ * lim_i > 0, |d_i| < 2^63, len >= 0. */
+static int64_t pl_axis_limit(const int64_t *lim, const int64_t *d, int64_t len)
+{
+    int i, best = -1;
+    bool same = true; /* equal limits: the longest component decides */
+
+    for (i = 1; i < CORE_AXES; i++) {
+        same = same && lim[i] == lim[0];
+    }
+    for (i = 0; i < CORE_AXES; i++) {
+        uint64_t ad = (uint64_t)pl_abs(d[i]);
+        if (ad == 0u) {
+            continue;
+        }
+        if (best < 0) {
+            best = i;
+        } else if (same) {
+            if (ad > (uint64_t)pl_abs(d[best])) {
+                best = i;
+            }
+        } else if (sc_cmp_products((uint64_t)lim[i], (uint64_t)pl_abs(d[best]), (uint64_t)lim[best],
+                                   ad) < 0) {
+            /* lim_i / ad_i < lim_b / ad_b  <=>  lim_i * ad_b < lim_b * ad_i */
+            best = i;
+        }
+    }
+    return (best < 0) ? INT64_MAX : sc_muldiv(lim[best], len, pl_abs(d[best]));
+}
+
+/* every axis has the same limit */
+static bool pl_same(const int64_t *lim)
+{
+    int i;
+
+    for (i = 1; i < CORE_AXES; i++) {
+        if (lim[i] != lim[0]) {
+            return false;
+        }
+    }
+    return true;
+}
+
 /* q1_30 component of a q2_62 ratio */
 static int64_t pl_q30(int64_t r)
 {
     return r / ((int64_t)1 << 32);
 }
 
+static bool pl_jd_fast_off; /* test hook: plan_test_jd_fast */
+
+void plan_test_jd_fast(bool on)
+{
+    pl_jd_fast_off = !on;
+}
+
+/* Junction deviation: true when the corner speed cannot be below vcap, so
+ * the full computation below can be skipped. With h = floor(c1 / 2) (q30,
+ * h <= 2^30) the computed s_q = isqrt(h 2^30) >= h, a_j >= min_i a_i, and
+ * t = floor(a_j s_q / (2^30 - s_q)) >= floor(a_min h / (2^30 - h)) >= K for
+ * K = ceil(vcap^2 / dev) whenever a_min h dev >= (vcap^2 + dev) (2^30 - h);
+ * then t dev >= vcap^2 and v = isqrt(t dev) >= vcap. The left product is
+ * saturated down, the right one up (both exact 128-bit products). */
+static bool pl_jd_above(const plan_t *p, int64_t c1, int64_t vcap)
+{
+    const plan_profile_t *pr = &p->prof;
+    int64_t amin = pr->a_max[0], dev = pr->junction_dev_nm;
+    uint64_t h = (uint64_t)(c1 / 2), vv;
+    int i;
+
+    if (pl_jd_fast_off || dev <= 0 || vcap <= 0 || vcap > SC_V_LIMIT || h > ((uint64_t)1 << 30)) {
+        return false;
+    }
+    for (i = 1; i < CORE_AXES; i++) {
+        amin = pl_min(amin, pr->a_max[i]);
+    }
+    vv = (uint64_t)vcap * (uint64_t)vcap; /* vcap < 2^32 */
+    vv = (vv > UINT64_MAX - (uint64_t)dev) ? UINT64_MAX : vv + (uint64_t)dev;
+    return sc_cmp_products((uint64_t)sc_mul_sat(amin, dev), h, vv, ((uint64_t)1 << 30) - h) >= 0;
+}
+
 /* Junction speed limit between the last queued move and a new one (nm/s,
  * INT64_MAX when the rule sets no limit). *smooth receives the smoothed-corner
  * speed of the junction for the block cap (PLAN_CORNER_SMOOTH only, before
  * the reversal clamp; INT64_MAX when the junction adds no cap: other rules,
- * collinear, reversal, or a zero corner speed, which is a stop). */
-static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2, int64_t *smooth)
+ * collinear, reversal, or a zero corner speed, which is a stop). vcap: the
+ * caller's other limit (min of both blocks' v_max); the junction-deviation
+ * rule returns INT64_MAX early when it provably cannot go below it. */
+static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2, int64_t vcap,
+                         int64_t *smooth)
 {
     const plan_profile_t *pr = &p->prof;
     const int64_t *u1 = p->last_ratio_q62;
@@ -199,7 +280,7 @@ static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2, int64
         for (i = 0; i < CORE_AXES; i++) {
             if (du[i] != 0) {
                 int64_t m = sc_muldiv(pr->corner_acc[i], (int64_t)1 << 30, du[i]);
-                int64_t v2 = sc_muldiv(m, l, 1);
+                int64_t v2 = sc_mul_sat(m, l);
                 if (v2 < INT64_MAX) {
                     v = pl_min(v, (int64_t)fx_isqrt64((uint64_t)v2));
                 }
@@ -211,7 +292,7 @@ static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2, int64
         break;
     }
     default: { /* junction deviation */
-        int64_t dot = 0, e2 = 0, e, s, aj = INT64_MAX, c1, t, v2;
+        int64_t dot = 0, e2 = 0, e, s, aj, c1, t, v2, de[CORE_AXES];
         for (i = 0; i < CORE_AXES; i++) {
             int64_t d = pl_q30(u2[i]) - pl_q30(u1[i]);
             dot += pl_q30(u1[i]) * pl_q30(u2[i]);
@@ -222,19 +303,20 @@ static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2, int64
         if (c1 < 2) {
             return 0; /* 180 degrees: reversal */
         }
+        if (pl_jd_above(p, c1, vcap)) {
+            return INT64_MAX; /* cannot limit: the caller's min is vcap */
+        }
         s = (int64_t)fx_isqrt64((uint64_t)(c1 / 2) << 30);
         if (s >= ((int64_t)1 << 30) - 1) {
             return INT64_MAX; /* collinear within resolution */
         }
         e = (int64_t)fx_isqrt64((uint64_t)e2); /* |u2 - u1|, q30 */
         for (i = 0; i < CORE_AXES; i++) {
-            int64_t d = pl_abs(pl_q30(u2[i]) - pl_q30(u1[i]));
-            if (d != 0) {
-                aj = pl_min(aj, sc_muldiv(pr->a_max[i], e, d));
-            }
+            de[i] = pl_q30(u2[i]) - pl_q30(u1[i]);
         }
+        aj = pl_axis_limit(pr->a_max, de, e);
         t = sc_muldiv(aj, s, ((int64_t)1 << 30) - s);
-        v2 = sc_muldiv(t, pr->junction_dev_nm, 1);
+        v2 = sc_mul_sat(t, pr->junction_dev_nm);
         if (v2 < INT64_MAX) {
             v = (int64_t)fx_isqrt64((uint64_t)v2);
         }
@@ -267,7 +349,7 @@ static void pl_replan(plan_t *p)
      * every entry before it unchanged */
     for (i = p->count; i-- > first;) {
         plan_block_t *b = pl_at(p, i);
-        int64_t e = pl_min(b->v_junction, sc_reach(exit, b->len, &b->lim));
+        int64_t e = pl_min(b->v_junction, sc_reach_pre(exit, b->len, &b->lim, b->aaj, b->aaj_ceil));
         if (e == b->v_entry && i < p->fresh) {
             from = i;
             break;
@@ -284,7 +366,7 @@ static void pl_replan(plan_t *p)
         plan_block_t *b = pl_at(p, i);
         plan_block_t *n = pl_at(p, (uint16_t)(i + 1));
         if (b->v_entry < n->v_entry) {
-            int64_t r = sc_reach(b->v_entry, b->len, &b->lim);
+            int64_t r = sc_reach_pre(b->v_entry, b->len, &b->lim, b->aaj, b->aaj_ceil);
             if (r < n->v_entry) {
                 n->v_entry = r;
                 p->planned = (uint16_t)(i + 2);
@@ -377,6 +459,8 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         b->lim.shape = p->prof.shape;
         b->v_junction = 0;
         b->v_corner_in = INT64_MAX;
+        b->aaj = -1;
+        b->aaj_ceil = -1;
         b->v_entry = 0;
         b->flags = PLAN_BF_DWELL | PLAN_BF_EXACT_STOP;
         p->last_stop = true;
@@ -388,17 +472,23 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     }
 
     /* block limits: axis limits projected on the direction */
-    vmax = m->feed;
-    amax = SC_A_LIMIT;
-    jmax = SC_J_LIMIT;
     for (i = 0; i < CORE_AXES; i++) {
-        int64_t ad = pl_abs(d[i]);
-        ratio[i] = (d[i] < 0 ? -1 : 1) * sc_muldiv(ad, (int64_t)1 << 62, len);
-        if (ad != 0) {
-            vmax = pl_min(vmax, sc_muldiv(p->prof.v_max[i], len, ad));
-            amax = pl_min(amax, sc_muldiv(p->prof.a_max[i], len, ad));
-            jmax = pl_min(jmax, sc_muldiv(p->prof.j_max[i], len, ad));
+        ratio[i] = (d[i] < 0 ? -1 : 1) * sc_muldiv(pl_abs(d[i]), (int64_t)1 << 62, len);
+    }
+    if (pl_same(p->prof.v_max) && pl_same(p->prof.a_max) && pl_same(p->prof.j_max)) {
+        /* equal limits on every axis: the longest component limits all
+         * three (what pl_axis_limit picks), found once */
+        int64_t dm = pl_abs(d[0]);
+        for (i = 1; i < CORE_AXES; i++) {
+            dm = (pl_abs(d[i]) > dm) ? pl_abs(d[i]) : dm;
         }
+        vmax = pl_min(m->feed, sc_muldiv(p->prof.v_max[0], len, dm));
+        amax = pl_min(SC_A_LIMIT, sc_muldiv(p->prof.a_max[0], len, dm));
+        jmax = pl_min(SC_J_LIMIT, sc_muldiv(p->prof.j_max[0], len, dm));
+    } else {
+        vmax = pl_min(m->feed, pl_axis_limit(p->prof.v_max, d, len));
+        amax = pl_min(SC_A_LIMIT, pl_axis_limit(p->prof.a_max, d, len));
+        jmax = pl_min(SC_J_LIMIT, pl_axis_limit(p->prof.j_max, d, len));
     }
     /* minimum block time: throughput window over this block and the W-1
      * before it */
@@ -430,7 +520,8 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     if (p->last_stop || p->last_len == 0) {
         vj = 0;
     } else {
-        vj = pl_min(pl_min(vmax, p->last_vmax), pl_corner(p, ratio, len, &vc));
+        vj = pl_min(vmax, p->last_vmax);
+        vj = pl_min(vj, pl_corner(p, ratio, len, vj, &vc));
         /* smoothed corner: the previous move (the newest queued block, if
          * it has not been popped) now knows its exit corner; its speed is
          * capped by the larger of its two corner speeds. The cap is never
@@ -458,6 +549,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     b->lim.a_max = amax;
     b->lim.j_max = jmax;
     b->lim.shape = p->prof.shape;
+    sc_limits_aaj(&b->lim, &b->aaj, &b->aaj_ceil);
     b->v_junction = vj;
     b->v_corner_in = vc;
     b->v_entry = (p->count == 0) ? pl_min(p->next_entry, vj) : 0;

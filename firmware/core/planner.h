@@ -186,11 +186,13 @@ typedef struct {
     int64_t ratio_q62[CORE_AXES]; /* delta_i / len * 2^62                    */
     int64_t len;                  /* nm (0 for a dwell)                      */
     int64_t dwell_ns;
-    sc_limits_t lim;     /* block limits (v_max includes the cap)   */
-    int64_t v_junction;  /* entry speed limit, nm/s                 */
-    int64_t v_entry;     /* planned entry speed, nm/s               */
-    int64_t v_corner_in; /* smoothed-corner speed of the entry
-                          * junction (block cap), INT64_MAX: none   */
+    sc_limits_t lim;       /* block limits (v_max includes the cap)   */
+    int64_t v_junction;    /* entry speed limit, nm/s                 */
+    int64_t v_entry;       /* planned entry speed, nm/s               */
+    int64_t v_corner_in;   /* smoothed-corner speed of the entry
+                            * junction (block cap), INT64_MAX: none   */
+    int64_t aaj, aaj_ceil; /* floor, ceil of a_max^2 / j_max (nm/s;
+                            * sc_limits_aaj), -1 for a dwell        */
     uint32_t tag;
     uint8_t flags;
 } plan_block_t;
@@ -273,5 +275,9 @@ int64_t plan_queued_ns(const plan_t *p);
 
 /* Read access for tests and the estimator: i-th queued block from the oldest. */
 const plan_block_t *plan_peek(const plan_t *p, uint16_t i);
+
+/* Test hook: the junction-deviation early exit (on by default; off: the
+ * full computation always runs; the junction speeds are identical). */
+void plan_test_jd_fast(bool on);
 
 #endif /* PLANNER_H */

@@ -11,7 +11,11 @@
 
 #include "fixmath.h"
 
+#include <stddef.h>
+
 #define NS ((uint64_t)1000000000u)
+/* floor(sqrt(INT64_MAX)): squares up to it fit int64 */
+#define SC_SQRT_INT64_MAX ((int64_t)3037000499)
 /* 2^72 / 1e9 rounded: ns -> seconds * 2^40 with one multiply (>> 32) */
 #define SC_NS_TO_Q40 ((int64_t)4722366482870)
 
@@ -198,6 +202,11 @@ uint64_t sc_isqrt_wide(uint64_t hi, uint64_t lo)
     return sc_isqrt128(x);
 }
 
+int sc_cmp_products(uint64_t a, uint64_t b, uint64_t c, uint64_t d)
+{
+    return sc_cmp128(sc_mul(a, b), sc_mul(c, d));
+}
+
 static int64_t sc_min(int64_t a, int64_t b)
 {
     return a < b ? a : b;
@@ -241,10 +250,27 @@ static const sc_limits_t *sc_resolve(const sc_limits_t *lim, int64_t lo, sc_limi
 
 /* ---- distance of a speed change --------------------------------------------- */
 
-int64_t sc_dist(int64_t va, int64_t vb, const sc_limits_t *lim)
+/* floor(A^2/J) and ceil(A^2/J) from one division */
+static void sc_aaj(int64_t a, int64_t j, int64_t *qf, int64_t *qc)
+{
+    uint64_t rem, q;
+    bool ovf;
+
+    if (a <= 0 || j <= 0) { /* as sc_muldiv / sc_muldiv_ceil */
+        *qf = (a <= 0) ? 0 : INT64_MAX;
+        *qc = *qf;
+        return;
+    }
+    q = sc_div(sc_mul((uint64_t)a, (uint64_t)a), (uint64_t)j, &rem, &ovf);
+    *qf = sc_sat(q, ovf);
+    *qc = (ovf || rem == 0u || *qf == INT64_MAX) ? *qf : *qf + 1;
+}
+
+/* sc_dist with qc = ceil(A^2/J) supplied (< 0: computed here) */
+static int64_t sc_dist_q(int64_t va, int64_t vb, const sc_limits_t *lim, int64_t qc)
 {
     int64_t lo = sc_min(va, vb), hi = sc_max(va, vb), d = hi - lo;
-    int64_t a = lim->a_max, j = lim->j_max, q, w;
+    int64_t a = lim->a_max, j = lim->j_max, w;
     sc_limits_t tmp;
 
     lim = sc_resolve(lim, lo, &tmp);
@@ -254,12 +280,44 @@ int64_t sc_dist(int64_t va, int64_t vb, const sc_limits_t *lim)
     if (lim->shape == SC_SHAPE_TRAPEZOID) {
         return sc_muldiv_ceil(lo + hi, d, 2 * a);
     }
-    q = sc_muldiv_ceil(a, a, j); /* A^2/J: speed change that reaches A */
-    if (d >= q) {
+    if (qc < 0) {
+        qc = sc_muldiv_ceil(a, a, j); /* A^2/J: speed change that reaches A */
+    }
+    if (d >= qc) {
         return sc_sat_add(sc_muldiv_ceil(lo + hi, d, 2 * a), sc_muldiv_ceil(lo + hi, a, 2 * j));
+    }
+    if (lo + hi <= SC_SQRT_INT64_MAX) {
+        /* (lo + hi) sqrt(d / J) = sqrt(X), X = (lo + hi)^2 d / J: one
+         * division; r = isqrt(floor(X)) = floor(sqrt(X)), and the exact
+         * ceiling is r unless r^2 J < (lo + hi)^2 d (never above the
+         * time-rounded form below, never below the exact distance) */
+        int64_t s2 = (lo + hi) * (lo + hi);
+        int64_t x = sc_muldiv(s2, d, j);
+        if (x < INT64_MAX) {
+            int64_t r = (int64_t)fx_isqrt64((uint64_t)x);
+            return (sc_cmp_products((uint64_t)(r * r), (uint64_t)j, (uint64_t)s2, (uint64_t)d) < 0)
+                       ? r + 1
+                       : r;
+        }
     }
     w = sc_sqrt_ceil(sc_muldiv_ceil(d, (int64_t)NS * (int64_t)NS, j)); /* sqrt(d/J), ns */
     return sc_muldiv_ceil(lo + hi, w, (int64_t)NS);
+}
+
+int64_t sc_dist(int64_t va, int64_t vb, const sc_limits_t *lim)
+{
+    return sc_dist_q(va, vb, lim, -1);
+}
+
+int64_t sc_mul_sat(int64_t a, int64_t b)
+{
+    sc_u128_t x;
+
+    if (a <= 0 || b <= 0) {
+        return 0;
+    }
+    x = sc_mul((uint64_t)a, (uint64_t)b);
+    return sc_sat(x.lo, x.hi != 0u);
 }
 
 /* J w^2 (nm/s * 2^16) for a half-segment time w (ns), floor or ceil */
@@ -271,8 +329,171 @@ static int64_t sc_jw2(int64_t j, int64_t w, bool up)
     return sc_muldiv(sc_muldiv(j * 65536, w, (int64_t)NS), w, (int64_t)NS);
 }
 
-/* sc_reach with the distance in nm * 2^16 */
-static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim)
+/* bit length of v > 0 */
+static unsigned sc_bits(uint64_t v)
+{
+    return 64u - (unsigned)__builtin_clzll(v);
+}
+
+/* ---- S-curve reach without the acceleration limit: estimate and check --------
+ * An approximate root is computed with a small normalised binary format
+ * (sc_mf_t: m * 2^e, 32-bit mantissa with bit 31 set, or m == 0 for 0;
+ * each operation truncates, relative error below 2^-30), then lowered by a
+ * margin and confirmed with sc_dist (the exact, rounded-up distance).
+ * Only the confirmation decides what is returned, so the estimate's
+ * arithmetic needs no error analysis for safety, only for tightness. */
+typedef struct {
+    uint32_t m;
+    int32_t e;
+} sc_mf_t;
+
+/* x * 2^e0 */
+static sc_mf_t sc_mf(uint64_t x, int32_t e0)
+{
+    sc_mf_t r;
+    int32_t s;
+
+    if (x == 0u) {
+        r.m = 0u;
+        r.e = 0;
+        return r;
+    }
+    s = 32 - (int32_t)__builtin_clzll(x); /* bits above the 32-bit mantissa */
+    r.m = (uint32_t)((s >= 0) ? (x >> s) : (x << -s));
+    r.e = e0 + s;
+    return r;
+}
+
+static sc_mf_t sc_mf_mul(sc_mf_t a, sc_mf_t b)
+{
+    return sc_mf((uint64_t)a.m * b.m, a.e + b.e);
+}
+
+static sc_mf_t sc_mf_div(sc_mf_t a, sc_mf_t b) /* b != 0 */
+{
+    return sc_mf(((uint64_t)a.m << 32) / b.m, a.e - b.e - 32);
+}
+
+/* a + b (sign +1) or a - b (sign -1, a >= b: else 0), both >= 0 */
+static sc_mf_t sc_mf_add(sc_mf_t a, sc_mf_t b, int sign)
+{
+    uint64_t x, y;
+    int32_t d;
+
+    if (b.m == 0u) {
+        return a;
+    }
+    if (a.m == 0u) {
+        return (sign > 0) ? b : a;
+    }
+    d = a.e - b.e;
+    if (d >= 0) {
+        x = (uint64_t)a.m << 30;
+        y = (d >= 62) ? 0u : ((uint64_t)b.m << 30) >> d;
+        d = a.e;
+    } else {
+        x = (-d >= 62) ? 0u : ((uint64_t)a.m << 30) >> -d;
+        y = (uint64_t)b.m << 30;
+        d = b.e;
+    }
+    if (sign > 0) {
+        return sc_mf(x + y, d - 30);
+    }
+    return sc_mf((x > y) ? x - y : 0u, d - 30);
+}
+
+/* a > b for values >= 0 */
+static bool sc_mf_gt(sc_mf_t a, sc_mf_t b)
+{
+    if (a.m == 0u || b.m == 0u) {
+        return a.m > b.m;
+    }
+    return (a.e != b.e) ? (a.e > b.e) : (a.m > b.m);
+}
+
+/* value as int64 (>= 0, INT64_MAX above 2^62) */
+static int64_t sc_mf_int(sc_mf_t a)
+{
+    if (a.m == 0u || a.e <= -32) {
+        return 0;
+    }
+    if (a.e >= 31) {
+        return INT64_MAX;
+    }
+    return (int64_t)((a.e >= 0) ? ((uint64_t)a.m << a.e) : ((uint64_t)a.m >> -a.e));
+}
+
+/* The reduced S-curve reach: the half-segment time w (s) solves
+ * J w^3 + 2 v w = d (d = dq / 2^16 nm) and the speed gained is J w^2.
+ * From rest w = cbrt(d / J): x = dq 2^k / J is formed with about 60 bits
+ * (k such that 16 + k is a multiple of 3; its top 32 bits exact, from the
+ * format's division), so c = floor(cbrt(x)) = w 2^((16+k)/3) has 20 bits
+ * (1e-6). With v > 0, four Newton steps from
+ * the upper bound min(d / 2v, cbrt(d / J)) (within a factor 1.26 of the
+ * root; quadratic convergence to the format's resolution). The speed is
+ * lowered by 1/4096 + 2 nm/s, capped at v_max, and returned only if
+ * sc_dist confirms it (sc_dist(v, result) <= d, the guarantee of
+ * sc_reach); otherwise -1 and the caller takes the bracketing path. Also
+ * -1 when the estimate reaches A^2/J (the acceleration limit applies). */
+static int64_t sc_reach_fast(int64_t v, int64_t dq, int64_t q, int64_t qc, const sc_limits_t *lim)
+{
+    int64_t j = lim->j_max, x, dv, r, dd;
+    unsigned sh, bj, m, e;
+    sc_mf_t w, mj, md, m2v;
+    int k;
+
+    if (j < 32 || dq <= 0) { /* j >= 32: the exponent m below stays >= 1 */
+        return -1;
+    }
+    sh = 63u - sc_bits((uint64_t)dq);
+    bj = sc_bits((uint64_t)j);
+    /* x = (dq << sh) * 2^m / J, about 2^60; 16 + sh + m = 3 e */
+    m = bj - 3u;
+    m -= (16u + sh + m) % 3u;
+    e = (16u + sh + m) / 3u;
+    mj = sc_mf((uint64_t)j, 0);
+    x = sc_mf_int(sc_mf_div(sc_mf((uint64_t)dq << sh, (int32_t)m), mj)); /* 32 bits exact */
+    if (x <= 0 || x == INT64_MAX) {
+        return -1;
+    }
+    w = sc_mf(fx_icbrt64((uint64_t)x), -(int32_t)e);
+    if (v > 0) {
+        sc_mf_t wv;
+        md = sc_mf((uint64_t)dq, -16);
+        m2v = sc_mf((uint64_t)v, 1);
+        wv = sc_mf_div(md, m2v);
+        if (sc_mf_gt(w, wv)) {
+            w = wv;
+        }
+        for (k = 0; k < 4; k++) {
+            /* f = (J w^2 + 2 v) w - d >= 0 above the root, f' = 3 J w^2 + 2 v */
+            sc_mf_t jw2 = sc_mf_mul(mj, sc_mf_mul(w, w));
+            sc_mf_t fw = sc_mf_mul(sc_mf_add(jw2, m2v, 1), w);
+            sc_mf_t fp = sc_mf_add(sc_mf_mul(jw2, sc_mf(3u, 0)), m2v, 1);
+            if (!sc_mf_gt(fw, md)) {
+                break;
+            }
+            w = sc_mf_add(w, sc_mf_div(sc_mf_add(fw, md, -1), fp), -1);
+        }
+    }
+    dv = sc_mf_int(sc_mf_mul(mj, sc_mf_mul(w, w)));
+    if (dv >= q) {
+        return -1; /* the acceleration limit is reached: not this case */
+    }
+    dv -= dv / 4096 + 2;
+    if (dv <= 0) {
+        return -1;
+    }
+    r = (dv >= lim->v_max - v) ? lim->v_max : v + dv;
+    dd = sc_dist_q(v, r, lim, qc);
+    return (dd < INT64_MAX / 65536 && dd * 65536 <= dq) ? r : -1;
+}
+
+/* sc_reach with the distance in nm * 2^16; q, qc: floor and ceil of A^2/J
+ * (qc < 0: computed here) */
+static bool sc_fast_off; /* test hook: sc_reach_bracket */
+
+static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim, int64_t q, int64_t qc)
 {
     int64_t vmax = lim->v_max, a = lim->a_max, j = lim->j_max, dv;
     sc_limits_t tmp;
@@ -294,12 +515,25 @@ static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim)
         return (r >= (uint64_t)vmax) ? vmax : sc_max(v, (int64_t)r);
     }
     {
-        int64_t q = sc_muldiv(a, a, j); /* floor(A^2/J) */
-        int64_t dfull = (q < vmax) ? sc_dist(v, v + q, lim) : INT64_MAX;
+        int64_t dfull, dmax;
+
+        if (qc < 0) {
+            sc_aaj(a, j, &q, &qc); /* floor and ceil of A^2/J */
+        }
+        if (v > 0) { /* from rest the estimate below checks the cap itself */
+            dmax = sc_dist_q(v, vmax, lim, qc);
+            if (dmax < INT64_MAX / 65536 && dq >= dmax * 65536) {
+                return vmax; /* the cap itself is reachable: no root to find */
+            }
+        }
+        dv = sc_fast_off ? -1 : sc_reach_fast(v, dq, q, qc, lim);
+        if (dv > 0) {
+            return dv; /* confirmed by sc_dist, at most vmax */
+        }
+        dfull = (q < vmax) ? sc_dist_q(v, v + q, lim, qc) : INT64_MAX;
 
         if (dfull < INT64_MAX / 65536 && dq >= dfull * 65536) {
             /* acceleration limit reached: stable root of the quadratic */
-            int64_t qc = sc_muldiv_ceil(a, a, j);
             int64_t vaj = sc_muldiv_ceil(v * 65536, a, j); /* v A / J, nm * 2^16 */
             int64_t num = dq - vaj, t1 = 2 * v - q, t2 = 2 * v - qc, t, den;
             sc_u128_t y, ad = sc_mul((uint64_t)(8 * a), (uint64_t)dq);
@@ -348,10 +582,30 @@ static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim)
 
 int64_t sc_reach(int64_t v, int64_t d, const sc_limits_t *lim)
 {
+    return sc_reach_pre(v, d, lim, -1, -1);
+}
+
+int64_t sc_reach_bracket(int64_t v, int64_t d, const sc_limits_t *lim)
+{
+    int64_t r;
+
+    sc_fast_off = true;
+    r = sc_reach(v, d, lim);
+    sc_fast_off = false;
+    return r;
+}
+
+void sc_limits_aaj(const sc_limits_t *lim, int64_t *q, int64_t *qc)
+{
+    sc_aaj(lim->a_max, lim->j_max, q, qc);
+}
+
+int64_t sc_reach_pre(int64_t v, int64_t d, const sc_limits_t *lim, int64_t q, int64_t qc)
+{
     if (d > INT64_MAX / 65536) {
         d = INT64_MAX / 65536;
     }
-    return sc_reach_q16(v, d * 65536, lim);
+    return sc_reach_q16(v, d * 65536, lim, q, qc);
 }
 
 /* ---- one block ------------------------------------------------------------------ */
@@ -384,6 +638,10 @@ void sc_eval_phase(const sc_profile_t *p, int ph, int64_t t_ns, sc_state_t *out)
     int64_t j = p->jerk[ph];
     int64_t tq, in_s, in_v;
 
+    if (t_ns == 0) { /* the phase start itself (every product below is 0) */
+        *out = *s0;
+        return;
+    }
     if (j == 0 && s0->a_q16 == 0) {
         /* cruise: exact, any duration */
         out->a_q16 = 0;
@@ -405,33 +663,86 @@ void sc_eval_phase(const sc_profile_t *p, int ph, int64_t t_ns, sc_state_t *out)
     out->s_q16 = s0->s_q16 + fx_mul64_shift(in_s, tq, 40);
 }
 
-/* start states of phases first..6 from the state at the start of `first`;
- * `set_acc` gives each phase's acceleration in trapezoidal mode */
-static void sc_chain(sc_profile_t *p, int first, const int64_t *set_acc, bool trap)
+/* start states of phases first+1..last from the state at the start of
+ * `first` (evaluating phases first..last-1); `set_acc` gives each phase's
+ * acceleration in trapezoidal mode (set for phases first..last; NULL:
+ * S-curve, nothing set) */
+static void sc_chain(sc_profile_t *p, int first, int last, const int64_t *set_acc)
 {
     int ph;
-    for (ph = first; ph < SC_PHASES; ph++) {
-        sc_state_t e;
-        if (trap) {
+    for (ph = first; ph <= last; ph++) {
+        if (set_acc != NULL) {
             p->start[ph].a_q16 = set_acc[ph];
         }
-        if (ph == SC_PHASES - 1) {
+        if (ph == last) {
             break;
         }
-        sc_eval_phase(p, ph, p->t_ns[ph], &e);
-        p->start[ph + 1] = e;
+        sc_eval_phase(p, ph, p->t_ns[ph], &p->start[ph + 1]);
     }
+}
+
+/* jerk of each phase and its evaluation constant (the division truncates,
+ * so -x / 6 = -(x / 6)) */
+static void sc_set_jerk(sc_profile_t *p, int64_t j)
+{
+    /* signs +, 0, -, 0, -, 0, + written out (no multiplies) */
+    int64_t j6 = (j * 65536) / 6;
+
+    p->jerk[0] = j;
+    p->jerk[1] = 0;
+    p->jerk[2] = -j;
+    p->jerk[3] = 0;
+    p->jerk[4] = -j;
+    p->jerk[5] = 0;
+    p->jerk[6] = j;
+    p->j6_q16[0] = j6;
+    p->j6_q16[1] = 0;
+    p->j6_q16[2] = -j6;
+    p->j6_q16[3] = 0;
+    p->j6_q16[4] = -j6;
+    p->j6_q16[5] = 0;
+    p->j6_q16[6] = j6;
+}
+
+/* sc_plan of a block entered and left at its cruise speed v >= 1: only
+ * phase 3 lasts; the same values the general path computes (every other
+ * phase of zero duration is its start state; in trapezoidal mode phases 1
+ * and 5 still carry their set acceleration) */
+static void sc_plan_cruise(sc_profile_t *p, int64_t len, int64_t v, int64_t a, int64_t j, bool trap)
+{
+    int64_t vq = v * 65536, t3 = 0, off = 0;
+    int ph;
+
+    sc_set_jerk(p, j);
+    if (len > 0) {
+        /* (2 len 2^16 NS / vq + 1) / 2 with the 2^16 cancelled (the same
+         * floor; a one-word divisor v < 2^32) */
+        t3 = (sc_muldiv(2 * len, (int64_t)NS, v) + 1) / 2;
+        off = sc_muldiv(vq, t3, (int64_t)NS);
+    }
+    a = trap ? a * 65536 : 0;
+    for (ph = 0; ph < SC_PHASES; ph++) { /* one loop, no zero-fill calls */
+        p->t_ns[ph] = (ph == 3) ? t3 : 0;
+        p->start[ph].s_q16 = (ph >= 4) ? off : 0;
+        p->start[ph].v_q16 = vq;
+        p->start[ph].a_q16 = (ph == 1) ? a : ((ph == 5) ? -a : 0);
+    }
+    p->s_end_q16 = off;
+    p->total_ns = t3;
+    p->len = len;
+    p->v0 = v;
+    p->v1 = v;
+    p->vp = v;
 }
 
 void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limits_t *lim)
 {
-    static const int64_t jsign[SC_PHASES] = {1, 0, -1, 0, -1, 0, 1};
     sc_limits_t tmp;
     bool trap;
     int64_t a, j;
-    int64_t set_acc[SC_PHASES] = {0, 0, 0, 0, 0, 0, 0};
+    int64_t set_acc[SC_PHASES];
     int64_t vc, vp, tj, ta, s_acc, s_dec, rest, len_q16;
-    sc_state_t e;
+    sc_state_t e, dec5, dec6, dec_end;
     int ph;
 
     v0 = sc_max(v0, 0);
@@ -443,6 +754,10 @@ void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limi
     len = sc_max(len, 0);
     vc = sc_max(lim->v_max, sc_max(v0, v1));
 
+    if (v0 == vc && v1 == vc && vc >= 1) {
+        sc_plan_cruise(p, len, vc, a, j, trap);
+        return;
+    }
     /* peak speed */
     if (sc_sat_add(sc_dist(v0, vc, lim), sc_dist(vc, v1, lim)) <= len) {
         vp = vc;
@@ -456,22 +771,22 @@ void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limi
         vp = sc_min(vc, sc_max((int64_t)sc_isqrt128(x), sc_max(v0, v1)));
     } else {
         int64_t vm = sc_max(v0, v1), rem = len - sc_dist(v0, v1, lim);
-        vp = (rem > 0) ? sc_reach_q16(vm, rem * 32768, lim) : vm; /* half of rem */
+        vp = (rem > 0) ? sc_reach_q16(vm, rem * 32768, lim, -1, -1) : vm; /* half of rem */
         vp = sc_min(vc, vp);
     }
     if (vp < 1) {
         vp = 1;
     }
 
-    for (ph = 0; ph < SC_PHASES; ph++) {
-        p->t_ns[ph] = 0;
-        p->jerk[ph] = j * jsign[ph];
-        p->j6_q16[ph] = (p->jerk[ph] * 65536) / 6;
-        p->start[ph].s_q16 = 0;
-        p->start[ph].v_q16 = 0;
-        p->start[ph].a_q16 = 0;
-    }
+    /* every phase duration and start state is written below (start 0 here,
+     * the others by the chains) */
+    sc_set_jerk(p, j);
+    p->start[0].s_q16 = 0;
+    p->start[0].a_q16 = 0;
     if (trap) {
+        for (ph = 0; ph < SC_PHASES; ph++) {
+            set_acc[ph] = 0;
+        }
         set_acc[1] = a * 65536;
         set_acc[5] = -a * 65536;
     }
@@ -484,21 +799,21 @@ void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limi
     p->t_ns[5] = ta;
     p->t_ns[6] = tj;
 
-    /* realised accel distance and peak speed */
+    /* realised accel distance and peak speed: phases 0..2 (their start
+     * states are final: they do not depend on the cruise time) */
     p->start[0].v_q16 = v0 * 65536;
-    sc_chain(p, 0, set_acc, trap);
+    sc_chain(p, 0, 3, trap ? set_acc : NULL);
     s_acc = p->start[3].s_q16;
     /* realised decel distance from the realised peak */
     e = p->start[3];
     p->start[4].s_q16 = 0;
     p->start[4].v_q16 = e.v_q16;
     p->start[4].a_q16 = 0;
-    sc_chain(p, 4, set_acc, trap);
-    {
-        sc_state_t end;
-        sc_eval_phase(p, 6, p->t_ns[6], &end);
-        s_dec = end.s_q16;
-    }
+    sc_chain(p, 4, 6, trap ? set_acc : NULL);
+    sc_eval_phase(p, 6, p->t_ns[6], &dec_end);
+    s_dec = dec_end.s_q16;
+    dec5 = p->start[5];
+    dec6 = p->start[6];
     /* cruise covers the rest (rounded to the nearest ns) */
     len_q16 = len * 65536;
     rest = len_q16 - s_acc - s_dec;
@@ -507,9 +822,25 @@ void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limi
         p->t_ns[3] = sc_muldiv(2 * rest, (int64_t)NS, e.v_q16);
         p->t_ns[3] = (p->t_ns[3] + 1) / 2;
     }
-    /* final chain from the start */
-    sc_chain(p, 0, set_acc, trap);
-    sc_eval_phase(p, 6, p->t_ns[6], &e);
+    /* final states from phase 3 on. With no acceleration left at the peak
+     * (always in trapezoidal mode, and whenever the S-curve's rounding
+     * leaves none) phase 3 is a pure cruise: phase 4 starts at the decel
+     * chain's state moved by the cruise end point, and since a phase's
+     * evaluation does not depend on its start distance, so do phases 5, 6
+     * and the end (the same values as chaining them again). */
+    sc_eval_phase(p, 3, p->t_ns[3], &p->start[4]);
+    if (p->start[4].a_q16 == 0 && p->start[4].v_q16 == e.v_q16) {
+        int64_t off = p->start[4].s_q16;
+        p->start[5] = dec5;
+        p->start[5].s_q16 += off;
+        p->start[6] = dec6;
+        p->start[6].s_q16 += off;
+        e = dec_end;
+        e.s_q16 += off;
+    } else {
+        sc_chain(p, 4, 6, trap ? set_acc : NULL);
+        sc_eval_phase(p, 6, p->t_ns[6], &e);
+    }
     p->s_end_q16 = e.s_q16;
     p->total_ns = 0;
     for (ph = 0; ph < SC_PHASES; ph++) {

@@ -834,6 +834,111 @@ static void test_axis_limits_projected(void)
     TEST_ASSERT_INT64_WITHIN(1, 125 * MMS, o[0].v_peak);
 }
 
+/* block limits (one division for the limiting axis, found by comparing
+ * products) equal the minimum over the axes of every axis's quotient, with
+ * equal and with different per-axis limits */
+static void test_block_limits_are_axis_minimum(void)
+{
+    int run, k, i;
+    for (run = 0; run < 2; run++) {
+        plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+        pos_nm_t pos[CORE_AXES] = {0, 0, 0};
+        if (run == 1) {
+            s.v_max[1] = 170 * MMS;
+            s.a_max[0] = 700 * MMS;
+            s.a_max[2] = 3100 * MMS;
+            s.j_max[1] = 9000 * MMS;
+            s.j_max[2] = 77777 * MMS;
+        }
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 256, &s, origin));
+        for (k = 0; k < 3000; k++) {
+            plan_move_t m = mv(0, 0, 0, 4000);
+            int64_t d[CORE_AXES], len = 0, ev = m.feed, ea = SC_A_LIMIT, ej = SC_J_LIMIT;
+            const plan_block_t *b;
+            for (i = 0; i < CORE_AXES; i++) {
+                int64_t step = (int64_t)(rnd() % 2000001) - 1000000;
+                step >>= (rnd() % 16);
+                if (rnd() % 5 == 0) {
+                    step = 0;
+                }
+                m.target[i] = pos[i] + step;
+            }
+            if (plan_free_slots(&pl) == 0) {
+                plan_seg_t seg;
+                TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&pl, &seg));
+            }
+            if (plan_push(&pl, &m) != PLAN_OK) {
+                continue; /* zero-length move */
+            }
+            b = plan_peek(&pl, (uint16_t)(plan_count(&pl) - 1));
+            len = b->len;
+            for (i = 0; i < CORE_AXES; i++) {
+                d[i] = m.target[i] - pos[i];
+                d[i] = d[i] < 0 ? -d[i] : d[i];
+                pos[i] = m.target[i];
+                if (d[i] != 0) {
+                    int64_t v = sc_muldiv(s.v_max[i], len, d[i]);
+                    int64_t a = sc_muldiv(s.a_max[i], len, d[i]);
+                    int64_t j = sc_muldiv(s.j_max[i], len, d[i]);
+                    ev = v < ev ? v : ev;
+                    ea = a < ea ? a : ea;
+                    ej = j < ej ? j : ej;
+                }
+            }
+            TEST_ASSERT_EQUAL_INT64(ev, b->lim.v_max);
+            TEST_ASSERT_EQUAL_INT64(ea, b->lim.a_max);
+            TEST_ASSERT_EQUAL_INT64(ej, b->lim.j_max);
+        }
+    }
+}
+
+/* The junction-deviation early exit (pl_jd_above) must give exactly the
+ * junction speed of the full computation: random corners (mostly shallow,
+ * as on segmented arcs, where the exit applies), random per-axis
+ * accelerations, deviations and feeds; both outcomes (capped by v_max and
+ * limited by the corner) must occur. */
+static void test_jd_early_exit_matches_full(void)
+{
+    int64_t vj[2];
+    int capped = 0, limited = 0, n, k, i;
+
+    for (n = 0; n < 4000; n++) {
+        plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+        plan_move_t m1, m2;
+        int64_t len1 = 1000 + (int64_t)(rnd() % (20 * MM));
+        int64_t turn = (int64_t)(rnd() % 4096) >> (rnd() % 12); /* of 4096 */
+        for (i = 0; i < CORE_AXES; i++) {
+            s.a_max[i] = SC_A_MIN + (int64_t)(rnd() % (uint64_t)(50000 * MMS));
+        }
+        s.junction_dev_nm = (int64_t)(rnd() % 100000) >> (rnd() % 16);
+        m1 = mv(len1, (int64_t)(rnd() % 1000), 0, 1 + (int64_t)(rnd() % 2000));
+        m2 = mv(len1 + len1, m1.target[1] + len1 * turn / 4096,
+                (rnd() % 2) ? (int64_t)(rnd() % (uint64_t)len1) >> (rnd() % 20) : 0,
+                1 + (int64_t)(rnd() % 2000));
+        for (k = 0; k < 2; k++) {
+            plan_test_jd_fast(k == 0);
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 8, &s, origin));
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pl, &m1));
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pl, &m2));
+            vj[k] = plan_peek(&pl, 1)->v_junction;
+        }
+        plan_test_jd_fast(true);
+        TEST_ASSERT_EQUAL_INT64(vj[1], vj[0]);
+        {
+            int64_t cap = plan_peek(&pl, 0)->lim.v_max;
+            int64_t c2 = plan_peek(&pl, 1)->lim.v_max;
+            cap = c2 < cap ? c2 : cap;
+            if (vj[0] == cap) {
+                capped++;
+            } else {
+                limited++;
+            }
+        }
+    }
+    TEST_ASSERT_TRUE(capped > 200);
+    TEST_ASSERT_TRUE(limited > 200);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -858,5 +963,7 @@ int main(void)
     RUN_TEST(test_scurve_at_rest_incremental_and_deferred);
     RUN_TEST(test_queue_time_slots_and_errors);
     RUN_TEST(test_axis_limits_projected);
+    RUN_TEST(test_block_limits_are_axis_minimum);
+    RUN_TEST(test_jd_early_exit_matches_full);
     return UNITY_END();
 }

@@ -454,14 +454,123 @@ static void test_random_profiles_and_optimality(void)
     }
 }
 
+/* the estimate-and-check reach against the bracketing path it replaces
+ * (both lower bounds; the estimate within 0.03 % of its speed gain or
+ * better), sc_reach_pre with the cached A^2/J, and the wide helpers */
+static void test_reach_paths_and_helpers(void)
+{
+    int i, differ = 0;
+    for (i = 0; i < 50000; i++) {
+        sc_limits_t l = random_limits((uint8_t)(i % 3));
+        int64_t v = (rng() & 1) ? 0 : (int64_t)(rng() % (uint64_t)l.v_max);
+        int64_t d = rlog(1, 1000000000), q, qc, r, rb;
+        u128 aa = (u128)l.a_max * (u128)l.a_max;
+        sc_limits_aaj(&l, &q, &qc);
+        TEST_ASSERT_EQUAL_INT64((int64_t)(aa / (u128)l.j_max), q);
+        TEST_ASSERT_EQUAL_INT64(q + (aa % (u128)l.j_max != 0 ? 1 : 0), qc);
+        r = sc_reach(v, d, &l);
+        TEST_ASSERT_EQUAL_INT64(r, sc_reach_pre(v, d, &l, q, qc));
+        rb = sc_reach_bracket(v, d, &l);
+        TEST_ASSERT_TRUE_MESSAGE(sc_dist(v, rb, &l) <= d + 3, "bracket reach infeasible");
+        TEST_ASSERT_TRUE_MESSAGE(r - v >= (rb - v) - (rb - v) / 3000 - 3,
+                                 "estimate loses against the bracket");
+        differ += (r != rb) ? 1 : 0;
+    }
+    printf("sc_reach estimate != bracket in %d of 50000 cases\n", differ);
+    TEST_ASSERT_TRUE(differ > 1000); /* the two paths are distinct */
+    for (i = 0; i < 100000; i++) {
+        uint64_t a = rng() >> (rng() % 64), b = rng() >> (rng() % 64);
+        uint64_t c = rng() >> (rng() % 64), e = rng() >> (rng() % 64);
+        u128 x = (u128)a * b, y = (u128)c * e;
+        int64_t sa = (int64_t)(a >> 1), sb = (int64_t)(b >> 1);
+        TEST_ASSERT_EQUAL_INT(x < y ? -1 : (x > y ? 1 : 0), sc_cmp_products(a, b, c, e));
+        TEST_ASSERT_EQUAL_INT(0, sc_cmp_products(a, b, b, a));
+        TEST_ASSERT_EQUAL_INT64(sc_muldiv(sa, sb, 1), sc_mul_sat(sa, sb));
+    }
+    TEST_ASSERT_EQUAL_INT64(0, sc_mul_sat(-5, 7));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, sc_mul_sat(INT64_MAX, 2));
+}
+
+/* sc_plan builds the decel phases once and moves them by the cruise end
+ * point: every start state is still the previous phase evaluated at its
+ * full duration (acceleration set, not chained, in trapezoidal mode) */
+static void test_plan_states_chain(void)
+{
+    int i, ph;
+    for (i = 0; i < 30000; i++) {
+        sc_limits_t l = random_limits((uint8_t)(i % 3));
+        int64_t len = rlog(1, 1000000000);
+        int64_t v0 = (rng() & 3) == 0 ? 0 : (int64_t)(rng() % (uint64_t)l.v_max);
+        int64_t v1 = (rng() & 3) == 0 ? 0 : (int64_t)(rng() % (uint64_t)l.v_max);
+        sc_profile_t p;
+        sc_state_t e;
+        v1 = (rng() & 1) ? sc_reach(v0, len, &l) : v1;
+        if (sc_dist(v0, v1, &l) > len) {
+            v1 = v0;
+        }
+        sc_plan(&p, len, v0, v1, &l);
+        for (ph = 0; ph + 1 < SC_PHASES; ph++) {
+            sc_eval_phase(&p, ph, p.t_ns[ph], &e);
+            TEST_ASSERT_EQUAL_INT64(e.s_q16, p.start[ph + 1].s_q16);
+            TEST_ASSERT_EQUAL_INT64(e.v_q16, p.start[ph + 1].v_q16);
+            if (p.jerk[0] != 0 || p.jerk[6] != 0) { /* S-curve: continuous */
+                TEST_ASSERT_EQUAL_INT64(e.a_q16, p.start[ph + 1].a_q16);
+            }
+        }
+        sc_eval_phase(&p, SC_PHASES - 1, p.t_ns[SC_PHASES - 1], &e);
+        TEST_ASSERT_EQUAL_INT64(e.s_q16, p.s_end_q16);
+    }
+}
+
+/* The reduced S-curve distance (speed change below A^2/J) is
+ * ceil(sqrt(ceil(S^2 dv / J))) with S = va + vb when S^2 fits int64 (one
+ * division), else through the half-segment time: it must be an upper bound
+ * of the exact S sqrt(dv / J), at most 2 nm above it on the one-division
+ * path (checked with exact
+ * 128-bit integers). */
+static void test_dist_reduced_exact_bound(void)
+{
+    int i, small = 0;
+    const uint64_t saved = rng_state; /* own sequence: later tests unchanged */
+
+    rng_state = 0x9E3779B97F4A7C15ull;
+    for (i = 0; i < 200000; i++) {
+        sc_limits_t l = random_limits(SC_SHAPE_SCURVE);
+        int64_t q = sc_muldiv(l.a_max, l.a_max, l.j_max);
+        int64_t va = (int64_t)(rng() % (uint64_t)l.v_max), dv, vb, d;
+        u128 s2dv;
+        bool one;
+        dv = 1 + (int64_t)(rng() % (uint64_t)(q > 1 ? q - 1 : 1));
+        if (dv >= q || va + dv > SC_V_LIMIT) {
+            continue;
+        }
+        vb = va + dv;
+        d = sc_dist(vb, va, &l);
+        s2dv = (u128)(uint64_t)(va + vb) * (uint64_t)(va + vb) * (u128)(uint64_t)dv;
+        /* d >= S sqrt(dv / J)  <=>  d^2 J >= S^2 dv */
+        TEST_ASSERT_TRUE((u128)(uint64_t)d * (uint64_t)d * (u128)(uint64_t)l.j_max >= s2dv);
+        one = va + vb <= (int64_t)3037000499 &&
+              (s2dv + (u128)(uint64_t)(l.j_max - 1)) / (u128)(uint64_t)l.j_max < (u128)INT64_MAX;
+        TEST_ASSERT_TRUE(!one || d < 2 ||
+                         (u128)(uint64_t)(d - 1) * (uint64_t)(d - 1) * (u128)(uint64_t)l.j_max <
+                             s2dv);
+        small += one;
+    }
+    rng_state = saved;
+    TEST_ASSERT_TRUE(small > 1000);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_muldiv_and_sqrt);
     RUN_TEST(test_dist_matches_closed_form);
+    RUN_TEST(test_dist_reduced_exact_bound);
     RUN_TEST(test_reach_is_tight_lower_bound);
     RUN_TEST(test_named_cases);
     RUN_TEST(test_at_rest_follows_speeds);
     RUN_TEST(test_random_profiles_and_optimality);
+    RUN_TEST(test_reach_paths_and_helpers);
+    RUN_TEST(test_plan_states_chain);
     return UNITY_END();
 }
