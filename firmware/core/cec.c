@@ -399,16 +399,26 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     bool ch2;
     int k;
 
+    if (c->p.mode == CEC_MODE_OFF || ref == NULL || !ref->active ||
+        ref->geom.kind == MOTION_GEOM_NONE) {
+        if (c->idle && c->out_zero) {
+            return; /* outputs 0, saturated false since the last idle tick */
+        }
+        for (k = 0; k < CORE_AXES; k++) {
+            c->out_u[k] = 0;
+            c->handover_u[k] = 0;
+        }
+        c->saturated = false;
+        c->out_zero = c->idle; /* idle already: deactivate writes nothing */
+        deactivate(c);
+        return;
+    }
     for (k = 0; k < CORE_AXES; k++) {
         c->out_u[k] = 0;
         c->handover_u[k] = 0;
     }
     c->saturated = false;
-    if (c->p.mode == CEC_MODE_OFF || ref == NULL || !ref->active ||
-        ref->geom.kind == MOTION_GEOM_NONE) {
-        deactivate(c);
-        return;
-    }
+    c->out_zero = false;
     g = &ref->geom;
     for (k = 0; k < 3; k++) {
         t[k] = (k < CORE_AXES) ? g->tangent[k] : 0;

@@ -133,6 +133,8 @@ typedef struct {
     int8_t s;         /* side of the centre: +1 on +n1 */
     bool idle;        /* inactive and the channels reset, untouched since:
                        * the next inactive tick has nothing to do (tick) */
+    bool out_zero;    /* idle, and out_u / handover_u already 0: an inactive
+                       * tick returns at once (tick) */
 } cec_t;
 
 /* Validate and apply (nothing changes on error; *pid_err gets the detail

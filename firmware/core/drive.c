@@ -131,9 +131,6 @@ static struct {
     /* published snapshot */
     volatile uint32_t st_seq;
     drive_status_t st;
-    uint16_t st_ip_rd; /* interpolator FIFO read index            */
-    int64_t st_ip_rem; /* time left in the current segment, ns,
-                        * -1: none current                        */
 } drv;
 
 /* ---- helpers ------------------------------------------------------------- */
@@ -225,14 +222,6 @@ static void publish(void)
     s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
     s->blocks_done = drv.blocks_done + drv.blocks_done_main;
     s->tag = drv.cur_tag;
-    drv.st_ip_rd = drv.ip.rd;
-    drv.st_ip_rem = -1;
-    if (drv.ip.busy) {
-        drv.st_ip_rem = drv.ip.fifo[drv.ip.rd & (INTERP_FIFO - 1)].total_ns - drv.ip.t_ns;
-        if (drv.st_ip_rem < 0) {
-            drv.st_ip_rem = 0;
-        }
-    }
     drv.st_seq++;
 }
 
@@ -483,8 +472,12 @@ static bool arc_fast(motion_ref_t *r, const seg_info_t *g, arc_fast_t *a)
     }
     p = (int64_t)(int32_t)g->dth * f; /* |.| < 2^57 */
     th = g->th_a + (fx_angle_t)(uint64_t)((p >> 30) + ((p >> 29) & 1));
-    p = (int64_t)(int32_t)(g->r_b - g->r_a) * f;
-    rad = g->r_a + ((p >> 30) + ((p >> 29) & 1));
+    if (g->r_b == g->r_a) {
+        rad = g->r_a; /* a circle: round(0 * f / 2^30) == 0 */
+    } else {
+        p = (int64_t)(int32_t)(g->r_b - g->r_a) * f;
+        rad = g->r_a + ((p >> 30) + ((p >> 29) & 1));
+    }
     fx_sincos(th, &s, &c);
     /* rad lies between r_a and r_b, both int32 (arc_fast_setup) */
     r->pos[u] = g->cu + mul32_q30((int32_t)rad, c);
@@ -820,7 +813,7 @@ void drive_tick(void)
     unsigned i;
     uint32_t now_ns;
     servo_fb_t fb;
-    const qdec_t *encs[CORE_AXES] = {0};
+    uint32_t enc_fault = 0;
     bool moving_ok;
 
     if (!drv.ready) {
@@ -828,15 +821,25 @@ void drive_tick(void)
     }
     drv.st_seq++; /* odd: the status is being updated (publish ends it) */
     now_ns = hal_time_us() * 1000u;
-    for (i = 0; i < drv.cfg.axes; i++) {
-        if (drv.cfg.enc_counter[i]) {
-            uint32_t raw = drv.enc[i].last_raw; /* no snapshot: no change */
-            (void)hal_encoder_counter(i, &raw);
-            qdec_sample_counter(&drv.enc[i], raw, now_ns);
-        } else {
-            qdec_sample(&drv.enc[i], now_ns);
+    /* sample the encoders and fill fb in the same pass (what
+     * servo_fb_from_qdec gives: pos_nm, fault bit, 0 beyond the axes) */
+    for (i = 0; i < CORE_AXES; i++) {
+        qdec_t *q = &drv.enc[i];
+        if (i >= drv.cfg.axes) {
+            fb.pos[i] = 0;
+            continue;
         }
-        encs[i] = &drv.enc[i];
+        if (drv.cfg.enc_counter[i]) {
+            uint32_t raw = q->last_raw; /* no snapshot: no change */
+            (void)hal_encoder_counter(i, &raw);
+            qdec_sample_counter(q, raw, now_ns);
+        } else {
+            qdec_sample(q, now_ns);
+        }
+        fb.pos[i] = q->out.pos_nm;
+        if (q->out.faults != 0) {
+            enc_fault |= 1u << i;
+        }
         if (drv.ref_on[i]) {
             uint32_t raw;
             if (hal_encoder_counter(drv.cfg.axes + i, &raw)) {
@@ -846,7 +849,7 @@ void drive_tick(void)
             }
         }
     }
-    servo_fb_from_qdec(&fb, encs, drv.cfg.axes);
+    fb.enc_fault = enc_fault;
     apply_requests(&fb);
     moving_ok =
         drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING || drv.state == DRIVE_STOPPING;
@@ -890,9 +893,6 @@ static void flush_all(const pos_nm_t pos[CORE_AXES])
     drv.ip.tick_ns = (int64_t)(1000000000u / drv.cfg.tick_hz);
     drv.seen_done = drv.ip.blocks_done;
     drv.seq_done = drv.seq_next;
-    /* what the tick would publish for the empty interpolator */
-    drv.st_ip_rd = 0;
-    drv.st_ip_rem = -1;
     for (i = 0; i < CORE_AXES; i++) {
         drv.q_end[i] = pos[i];
     }
@@ -1330,8 +1330,18 @@ static void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t *ip_rem)
         s = drv.st_seq;
         *out = drv.st;
         status_live(out);
-        *ip_rd = drv.st_ip_rd;
-        *ip_rem = drv.st_ip_rem;
+        /* the interpolator's read index and the time left in its current
+         * segment (-1: none): the tick changes them only inside its odd
+         * st_seq window; main, which runs this, is the only writer of the
+         * FIFO slots and does not write the current one */
+        *ip_rd = drv.ip.rd;
+        *ip_rem = -1;
+        if (drv.ip.busy) {
+            *ip_rem = drv.ip.fifo[*ip_rd & (INTERP_FIFO - 1)].total_ns - drv.ip.t_ns;
+            if (*ip_rem < 0) {
+                *ip_rem = 0;
+            }
+        }
     } while ((s & 1u) != 0 || s != drv.st_seq);
 }
 

@@ -116,13 +116,17 @@ static inline int32_t fx_sat32_fast(int64_t v)
 
 static inline int32_t fx_sat_diff32(int64_t a, int64_t b)
 {
-    if (b < 0 && a > INT64_MAX + b) {
-        return INT32_MAX;
+    /* the wrapped difference; it overflowed when a and b differ in sign and
+     * d's sign is not a's (then the exact value lies beyond a's side) */
+    int64_t d = (int64_t)((uint64_t)a - (uint64_t)b);
+
+    if (((a ^ b) & (a ^ d)) < 0) {
+        return (a < 0) ? INT32_MIN : INT32_MAX;
     }
-    if (b > 0 && a < INT64_MIN + b) {
-        return INT32_MIN;
+    if (d == (int64_t)(int32_t)d) {
+        return (int32_t)d;
     }
-    return fx_sat32_fast(a - b);
+    return (d < 0) ? INT32_MIN : INT32_MAX;
 }
 
 /* min(max(v, lo), hi): v limited to [lo, hi]. lo <= hi is expected; if

@@ -22,6 +22,7 @@ void interp_reset(interp_t *ip, const pos_nm_t pos[CORE_AXES])
     ip->v_q16 = 0;
     ip->a_q16 = 0;
     ip->cr_ok = false;
+    ip->cr_fast = false;
     for (i = 0; i < CORE_AXES; i++) {
         ip->pos[i] = pos[i];
         ip->tan[i] = 0;
@@ -79,23 +80,32 @@ bool interp_idle(const interp_t *ip)
     return !ip->busy && ip_queued(ip) == 0;
 }
 
-/* round(a * r / 2^78), ties toward +inf: fx_mul64_shift(a, r, 78) for every
- * int64 a and r (|a * r| < 2^126, so the result is below 2^48 and never
- * saturates), inline: four 32 x 32 -> 64 products and the high word. */
-static inline int64_t ip_scale(int64_t a, int64_t r)
+/* round(sign * ua * ur / 2^78), ties toward +inf, for magnitudes ua, ur
+ * < 2^63 and the sign negative when `neg`: four 32 x 32 -> 64 products and
+ * the high word. */
+static inline int64_t ip_scale_mag(uint64_t ua, uint64_t ur, bool neg)
 {
-    uint64_t ua = (a < 0) ? (uint64_t)0 - (uint64_t)a : (uint64_t)a;
-    uint64_t ur = (r < 0) ? (uint64_t)0 - (uint64_t)r : (uint64_t)r;
     uint64_t al = (uint32_t)ua, ah = ua >> 32, bl = (uint32_t)ur, bh = ur >> 32;
     uint64_t p0 = al * bl, p1 = al * bh, p2 = ah * bl, p3 = ah * bh;
     uint64_t mid = (p0 >> 32) + (uint32_t)p1 + (uint32_t)p2;
     uint64_t hi = p3 + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
     uint32_t lo_zero = ((uint32_t)p0 | (uint32_t)mid) == 0u;
 
-    if ((a < 0) != (r < 0)) { /* -floor((|p| + 2^77 - 1) / 2^78) */
+    if (neg) { /* -floor((|p| + 2^77 - 1) / 2^78) */
         return -(int64_t)((hi + ((uint64_t)1 << 13) - lo_zero) >> 14);
     }
     return (int64_t)((hi + ((uint64_t)1 << 13)) >> 14);
+}
+
+/* round(a * r / 2^78), ties toward +inf: fx_mul64_shift(a, r, 78) for every
+ * int64 a and r (|a * r| < 2^126, so the result is below 2^48 and never
+ * saturates), inline. */
+static inline int64_t ip_scale(int64_t a, int64_t r)
+{
+    uint64_t ua = (a < 0) ? (uint64_t)0 - (uint64_t)a : (uint64_t)a;
+    uint64_t ur = (r < 0) ? (uint64_t)0 - (uint64_t)r : (uint64_t)r;
+
+    return ip_scale_mag(ua, ur, (a < 0) != (r < 0));
 }
 
 /* round(a * b / 2^32), ties toward +inf: fx_mul64_shift(a, b, 32) for every
@@ -133,6 +143,7 @@ static void ip_begin(interp_t *ip)
     ip->phase_t0 = 0;
     ip->corr_q32 = 0;
     ip->cr_ok = false;
+    ip->cr_fast = false;
     ip->tag = s->tag;
     for (i = 0; i < CORE_AXES; i++) {
         ip->tan[i] = (q1_30_t)(s->ratio_q62[i] / ((int64_t)1 << 32));
@@ -215,7 +226,11 @@ static void ip_eval(interp_t *ip, const sc_profile_t *p, int ph, int64_t tau, sc
         ip->cr_phase = ph;
         ip->cr_h = h;
         for (i = 0; i < CORE_AXES; i++) {
-            ip->cr_vel[i] = ip_scale(s0->v_q16, ip_cur(ip)->ratio_q62[i]);
+            int64_t rq = ip_cur(ip)->ratio_q62[i];
+
+            ip->cr_vel[i] = ip_scale(s0->v_q16, rq);
+            ip->cr_ur[i] = (rq < 0) ? (uint64_t)0 - (uint64_t)rq : (uint64_t)rq;
+            ip->cr_neg[i] = rq < 0;
         }
     }
     ip->cr_tau = tau;
@@ -226,14 +241,81 @@ static void ip_eval(interp_t *ip, const sc_profile_t *p, int ph, int64_t tau, sc
     st->a_q16 = 0;
 }
 
-void interp_tick(interp_t *ip, motion_ref_t *ref)
+/* The reference of a cruise tick at path distance sq (q16 nm, >= 0):
+ * constant velocity, no acceleration; ip_scale(sq, ratio_q62[i]) with the
+ * ratio's magnitude and sign from the cache. */
+static inline void ip_out_cruise(interp_t *ip, const plan_seg_t *s, int64_t sq, motion_ref_t *ref)
+{
+    int i;
+
+    for (i = 0; i < CORE_AXES; i++) {
+        ip->pos[i] = s->start[i] + ip_scale_mag((uint64_t)sq, ip->cr_ur[i], ip->cr_neg[i]);
+        ref->pos[i] = ip->pos[i];
+        ref->vel[i] = ip->cr_vel[i];
+        ref->acc[i] = 0;
+        ref->geom.tangent[i] = ip->tan[i];
+        ref->geom.start[i] = s->start[i];
+    }
+    ref->geom.kind = MOTION_GEOM_LINE;
+    interp_geom_no_arc(&ref->geom);
+    ref->active = true;
+}
+
+/* A tick of the cruise fast path (see interp_t.cr_fast): what the general
+ * path computes for a cache hit, without its checks. False (nothing
+ * changed) when the tick leaves the fast path's conditions. */
+static bool ip_tick_cruise(interp_t *ip, motion_ref_t *ref)
+{
+    int64_t t = ip->t_ns + ip->cr_h;
+    uint64_t q, r;
+    int64_t sq;
+
+    if (ip->tick_ns != ip->cr_h || t >= ip->cr_tend) {
+        return false;
+    }
+    ip->t_ns = t;
+    ip->busy_ticks++;
+    q = ip->cr_q + ip->cr_dq;
+    r = ip->cr_r + ip->cr_dr;
+    if (r >= IP_NS) {
+        r -= IP_NS;
+        q++;
+    }
+    ip->cr_q = q; /* cr_tau: set when the fast path ends (interp_tick) */
+    ip->cr_r = r;
+    sq = ip->cr_s0 + (int64_t)q;
+    sq += ip_mul_q32(sq, (int32_t)ip->corr_q32);
+    if (sq < 0) {
+        sq = 0;
+    }
+    if (sq > ip->cr_lq) {
+        sq = ip->cr_lq;
+    }
+    ip->s_q16 = sq;
+    ip_out_cruise(ip, ip_cur(ip), sq, ref);
+    return true;
+}
+
+/* Out of line, so that the cruise fast path in interp_tick() keeps a small
+ * frame. */
+#if defined(__GNUC__)
+#define IP_NOINLINE __attribute__((noinline))
+#else
+#define IP_NOINLINE
+#endif
+
+/* interp_tick() after ticks++, except for the fast path. */
+static IP_NOINLINE void ip_tick_general(interp_t *ip, motion_ref_t *ref)
 {
     const plan_seg_t *s;
     sc_state_t st;
     int64_t sq, lq, tau;
     int i;
 
-    ip->ticks++;
+    if (ip->cr_fast) {
+        ip->cr_tau = ip->t_ns - ip->phase_t0; /* the last tick's tau */
+        ip->cr_fast = false;
+    }
     if (ip->busy) {
         ip->t_ns += ip->tick_ns;
     } else if (ip_queued(ip) > 0) {
@@ -302,25 +384,37 @@ void interp_tick(interp_t *ip, motion_ref_t *ref)
     ip->v_q16 = st.v_q16;
     ip->a_q16 = st.a_q16;
     if (ip->cr_ok) { /* cruise: constant velocity, no acceleration */
-        for (i = 0; i < CORE_AXES; i++) {
-            ip->pos[i] = s->start[i] + ip_scale(sq, s->ratio_q62[i]);
-            ref->pos[i] = ip->pos[i];
-            ref->vel[i] = ip->cr_vel[i];
-            ref->acc[i] = 0;
-            ref->geom.tangent[i] = ip->tan[i];
-            ref->geom.start[i] = s->start[i];
+        ip_out_cruise(ip, s, sq, ref);
+        /* the next ticks of this phase may take the fast path */
+        if (s->prof.s_end_q16 > 0 && ip->corr_q32 == (int32_t)ip->corr_q32) {
+            ip->cr_fast = true;
+            ip->cr_tend = ip->phase_t0 + s->prof.t_ns[ip->phase];
+            if (ip->cr_tend > s->total_ns) {
+                ip->cr_tend = s->total_ns;
+            }
+            ip->cr_s0 = s->prof.start[ip->phase].s_q16;
+            ip->cr_lq = lq;
         }
-    } else {
-        for (i = 0; i < CORE_AXES; i++) {
-            ip->pos[i] = s->start[i] + ip_scale(sq, s->ratio_q62[i]);
-            ref->pos[i] = ip->pos[i];
-            ref->vel[i] = ip_scale(st.v_q16, s->ratio_q62[i]);
-            ref->acc[i] = ip_scale(st.a_q16, s->ratio_q62[i]);
-            ref->geom.tangent[i] = ip->tan[i];
-            ref->geom.start[i] = s->start[i];
-        }
+        return;
+    }
+    for (i = 0; i < CORE_AXES; i++) {
+        ip->pos[i] = s->start[i] + ip_scale(sq, s->ratio_q62[i]);
+        ref->pos[i] = ip->pos[i];
+        ref->vel[i] = ip_scale(st.v_q16, s->ratio_q62[i]);
+        ref->acc[i] = ip_scale(st.a_q16, s->ratio_q62[i]);
+        ref->geom.tangent[i] = ip->tan[i];
+        ref->geom.start[i] = s->start[i];
     }
     ref->geom.kind = MOTION_GEOM_LINE;
     interp_geom_no_arc(&ref->geom);
     ref->active = true;
+}
+
+void interp_tick(interp_t *ip, motion_ref_t *ref)
+{
+    ip->ticks++;
+    if (ip->cr_fast && ip_tick_cruise(ip, ref)) {
+        return;
+    }
+    ip_tick_general(ip, ref);
 }

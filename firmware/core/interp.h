@@ -31,8 +31,11 @@
  * in cruise phases the distance floor(v * tau / 1e9) advances by an exact
  * quotient/remainder increment per tick (no 128-bit multiply-divide) and
  * the velocities are those of the phase start; the products are inline
- * 32 x 32 -> 64 multiplies. Every output equals the closed form bit for
- * bit (test_interp checks it on every tick). Velocity and
+ * 32 x 32 -> 64 multiplies. A cruise tick that stays inside its phase and
+ * segment (the usual tick) takes a short path that updates only the
+ * quotient, the corrected distance and the positions (cr_fast). Every
+ * output equals the closed form bit for bit (test_interp checks it on
+ * every tick). Velocity and
  * acceleration feed-forward: v * u_i and a * u_i (nm/s, nm/s^2). Geometry:
  * MOTION_GEOM_LINE through the block start with the block's unit tangent
  * (q1_30); MOTION_GEOM_NONE while idle or dwelling. The planner has no arc
@@ -95,11 +98,23 @@ typedef struct {
      * 128-bit multiply-divide per tick; identical to sc_eval_phase. */
     bool cr_ok;                /* the cache below holds this phase         */
     int cr_phase;              /* phase of the cache                       */
-    int64_t cr_tau;            /* time into the phase of the last tick, ns */
+    int64_t cr_tau;            /* time into the phase of the last tick, ns
+                                * (not kept up to date while cr_fast)     */
     int64_t cr_h;              /* step the increments below are for, ns    */
     uint64_t cr_q, cr_r;       /* v * cr_tau = cr_q * 1e9 + cr_r           */
     uint64_t cr_dq, cr_dr;     /* v * cr_h = cr_dq * 1e9 + cr_dr          */
     int64_t cr_vel[CORE_AXES]; /* axis velocities of the cruise, nm/s   */
+    uint64_t cr_ur[CORE_AXES]; /* |ratio_q62| of the segment            */
+    bool cr_neg[CORE_AXES];    /* ratio_q62 < 0                          */
+    /* Cruise fast path: while cr_fast, a tick of cr_h ns whose new time
+     * stays below cr_tend (the end of the phase or of the segment, ns) is
+     * a cache hit of the same phase with no phase or segment change, so
+     * interp_tick evaluates only the quotient step, the length correction
+     * (corr_q32 fits int32) and the positions: the same values. */
+    bool cr_fast;
+    int64_t cr_tend; /* min(phase end, segment end), ns into the segment */
+    int64_t cr_s0;   /* path distance at the phase start, q16 nm         */
+    int64_t cr_lq;   /* segment length, q16 nm                           */
 } interp_t;
 
 /* Initialise idle at `start` with a tick period of tick_ns (> 0). Main. */

@@ -24,22 +24,6 @@ static inline int64_t rsh(int64_t v, unsigned s)
     return (v >> s) + ((v >> (s - 1)) & 1); /* round half up, s >= 1 */
 }
 
-/* fx_sat_diff32(a, b) (sat32 of the exact a - b) with fewer 64-bit steps:
- * the wrapped difference, its overflow from the signs, then one compare of
- * the high word. */
-static inline int32_t sat_diff32(int64_t a, int64_t b)
-{
-    int64_t d = (int64_t)((uint64_t)a - (uint64_t)b);
-
-    if (((a ^ b) & (a ^ d)) < 0) { /* a - b overflowed int64: sign of a */
-        return (a < 0) ? INT32_MIN : INT32_MAX;
-    }
-    if (d == (int64_t)(int32_t)d) {
-        return (int32_t)d;
-    }
-    return (d < 0) ? INT32_MIN : INT32_MAX;
-}
-
 /* round(a * b / 2^30) for |a| <= 2^61 and 0 <= b <= 2^30, without a 128-bit
  * product: a = ah * 2^32 + al with al unsigned. */
 static inline int64_t mul_q30_pos(int64_t a, q1_30_t b)
@@ -151,6 +135,24 @@ static inline int64_t coef_apply(pid_coef_t c, int32_t x)
     return clamp64(p, PID_TERM_LIM);
 }
 
+/* coef_apply for a shift in 2..31 (coef_mid): the rounding with 32-bit
+ * shifts, no clamp needed (|x * m| < 2^62, so |result| <= 2^60) */
+static inline bool coef_mid(pid_coef_t c)
+{
+    return c.sh >= 2 && c.sh <= 31;
+}
+
+static inline int64_t coef_apply_mid(pid_coef_t c, int32_t x)
+{
+    unsigned sh = (unsigned)c.sh;
+    uint64_t u = (uint64_t)((int64_t)x * c.m) + ((uint32_t)1 << (sh - 1u));
+    uint32_t lo = (uint32_t)u, hi = (uint32_t)(u >> 32);
+    uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
+    uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
+
+    return (int64_t)(((uint64_t)rhi << 32) | rlo);
+}
+
 int64_t pid_coef_apply(pid_coef_t c, int32_t x)
 {
     return coef_apply(c, x);
@@ -209,6 +211,8 @@ pid_err_t pid_config(pid_loop_t *pid, const pid_params_t *p)
     pid->i_lim = (int64_t)p->i_max_mv * U_PER_MV;
     pid->out_lim = (int64_t)p->out_max_mv * U_PER_MV;
     pid->deadband = p->deadband_nm;
+    pid->fast = coef_mid(cp) && coef_mid(ci) && coef_mid(cd) && cv.m == 0 && ca.m == 0 &&
+                p->deadband_nm == 0;
     if (pid->enabled && pid->primed) {
         /* bumpless gain change: the next step continues from the last output */
         pid->hold_mv = pid->out_mv;
@@ -301,9 +305,82 @@ static int32_t deadband(int32_t e, int32_t db)
 int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int64_t acc,
                  int64_t extra)
 {
-    int32_t e = sat_diff32(ref, meas);
+    return pid_step_e(pid, fx_sat_diff32(ref, meas), meas, vel, acc, extra);
+}
+
+/* The end of a step, common to both paths: output clamp, saturation
+ * count, back-calculation, integrator clamp, outputs. */
+static inline int32_t pid_finish(pid_loop_t *pid, int64_t pterm, int64_t integ, int64_t dterm,
+                                 int64_t ff, int64_t ex)
+{
+    int64_t raw = pterm + integ + dterm + ff + ex;
+    int64_t u = clamp64(raw, pid->out_lim);
+
+    if (u != raw) {
+        pid->saturated = true;
+        pid->sat_ticks++;
+        pid->sat_total++;
+        if (pid->kt_q30 != 0) {
+            integ = clamp64(integ + mul_q30_pos(clamp64(u - raw, (int64_t)1 << 61), pid->kt_q30),
+                            pid->i_lim);
+        }
+    } else {
+        pid->saturated = false;
+        pid->sat_ticks = 0;
+    } /* the integrator is within its clamp on every path */
+    pid->integ = integ;
+    pid->out = u;
+    pid->out_mv = (int32_t)rsh(u, 32);
+    return pid->out_mv;
+}
+
+#if defined(__GNUC__)
+#define PID_NOINLINE __attribute__((noinline))
+#else
+#define PID_NOINLINE
+#endif
+
+/* The short path (pid_fast_ready): the general path below with edb = e,
+ * cd != 0, ff = 0 and coef_apply_mid for coef_apply; the same results. */
+/* sat32(a - b) of two int32 in 32-bit arithmetic (wrapped difference; on
+ * overflow the true difference has the sign of a) */
+static inline int32_t sat_diff32_32(int32_t a, int32_t b)
+{
+    int32_t d = (int32_t)((uint32_t)a - (uint32_t)b);
+
+    if (((a ^ b) & (a ^ d)) < 0) {
+        return (a < 0) ? INT32_MIN : INT32_MAX;
+    }
+    return d;
+}
+
+int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra)
+{
+    int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
+                                         : sat_diff32_32(e, pid->err_prev);
+    int64_t pterm = coef_apply_mid(pid->cp, e);
+    int64_t dterm = coef_apply_mid(pid->cd, de);
+    int64_t ex, integ;
+
+    pid->err_nm = e;
+    if (pid->alpha_q30 < FX_ONE_Q30) {
+        dterm = pid->dterm + mul_q30_pos(dterm - pid->dterm, pid->alpha_q30);
+    }
+    pid->dterm = dterm;
+    pid->meas_prev = meas;
+    pid->err_prev = e;
+    pid->ff = 0;
+    ex = (extra == 0) ? 0 : clamp64(extra, PID_TERM_LIM);
+    pid->extra = ex;
+    integ = clamp64(pid->integ + coef_apply_mid(pid->ci, e), pid->i_lim);
+    return pid_finish(pid, pterm, integ, dterm, 0, ex);
+}
+
+static PID_NOINLINE int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel,
+                                             int64_t acc, int64_t extra)
+{
     int32_t edb;
-    int64_t pterm, dterm, ff, ex, integ, raw, u;
+    int64_t pterm, dterm, ff, ex, integ;
 
     pid->err_nm = e;
     if (!pid->primed) {
@@ -327,8 +404,8 @@ int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int6
     /* derivative, filtered in output units */
     dterm = 0;
     if (pid->cd.m != 0) {
-        int32_t de = pid->p.d_on_measurement ? sat_diff32(pid->meas_prev, meas)
-                                             : sat_diff32(e, pid->err_prev);
+        int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
+                                             : fx_sat_diff32(e, pid->err_prev);
         int64_t draw = coef_apply(pid->cd, de);
         dterm = draw;
         if (pid->alpha_q30 < FX_ONE_Q30) {
@@ -359,22 +436,14 @@ int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int6
     } else {
         integ = clamp64(pid->integ + coef_apply(pid->ci, edb), pid->i_lim);
     }
-    raw = pterm + integ + dterm + ff + ex;
-    u = clamp64(raw, pid->out_lim);
-    if (u != raw) {
-        pid->saturated = true;
-        pid->sat_ticks++;
-        pid->sat_total++;
-        if (pid->kt_q30 != 0) {
-            integ = clamp64(integ + mul_q30_pos(clamp64(u - raw, (int64_t)1 << 61), pid->kt_q30),
-                            pid->i_lim);
-        }
-    } else {
-        pid->saturated = false;
-        pid->sat_ticks = 0;
-    } /* the integrator is within its clamp on every path */
-    pid->integ = integ;
-    pid->out = u;
-    pid->out_mv = (int32_t)rsh(u, 32);
-    return pid->out_mv;
+    return pid_finish(pid, pterm, integ, dterm, ff, ex);
+}
+
+int32_t pid_step_e(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
+                   int64_t extra)
+{
+    if (pid_fast_ready(pid)) {
+        return pid_step_fast(pid, e, meas, extra);
+    }
+    return pid_step_general(pid, e, meas, vel, acc, extra);
 }

@@ -131,6 +131,8 @@ typedef struct {
     int64_t i_lim;   /* U */
     int64_t out_lim; /* U */
     int32_t deadband;
+    bool fast; /* pid_config: cp, ci, cd shifts in 2..31, no deadband, no
+                * feed-forward gains: pid_step's short path applies */
     /* state (tick) */
     int64_t integ; /* U */
     int64_t dterm; /* U, filtered derivative term */
@@ -176,5 +178,19 @@ void pid_add_integrator(pid_loop_t *pid, int64_t delta_u);
  * The clamped output in U is in pid->out. */
 int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int64_t acc,
                  int64_t extra);
+/* pid_step with the error already computed: e = sat32(ref - meas) (as the
+ * servo's following-error check has it); the same result as pid_step. */
+int32_t pid_step_e(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
+                   int64_t extra);
+/* The short path of pid_step_e, valid only while pid_fast_ready(pid): the
+ * loop configured with every coefficient shift of cp, ci, cd in 2..31, no
+ * deadband and no feed-forward gains (pid->fast), and enabled, primed, not
+ * bumpless. vel and acc are not needed (no feed-forward). Same results. */
+int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra);
+
+static inline bool pid_fast_ready(const pid_loop_t *pid)
+{
+    return pid->fast && pid->primed && pid->enabled && !pid->bumpless;
+}
 
 #endif /* PID_H */

@@ -277,10 +277,15 @@ typedef struct {
 /* Only the fields the sample will use: the cycle-aligned edge with
  * vel_cycle, the glitch count with the filter (else it stays 0), the index
  * latch when a new one came. */
-static void qdec_snapshot(const qdec_t *q, qdec_snap_t *s)
+#if defined(__GNUC__)
+#define QDEC_INLINE inline __attribute__((always_inline))
+#else
+#define QDEC_INLINE inline
+#endif
+
+static QDEC_INLINE void qdec_snapshot_k(const qdec_t *q, qdec_snap_t *s, bool cyc, bool filt)
 {
     const qdec_edge_state_t *e = &q->e;
-    const bool cyc = q->cfg.vel_cycle, filt = q->cfg.glitch_ns != 0u;
     uint32_t seq;
 
     do {
@@ -303,6 +308,11 @@ static void qdec_snapshot(const qdec_t *q, qdec_snap_t *s)
             s->idx_dir = e->idx_dir;
         }
     } while (seq != e->seq || (seq & 1u) != 0u);
+}
+
+static void qdec_snapshot(const qdec_t *q, qdec_snap_t *s)
+{
+    qdec_snapshot_k(q, s, q->cfg.vel_cycle, q->cfg.glitch_ns != 0u);
 }
 
 /* Anchor of the estimate at ring entry `head` (n entries): the oldest
@@ -362,15 +372,16 @@ q32_32_t qdec_velocity(qdec_t *q)
     return q->out.vel;
 }
 
-static void qdec_velocity_edge(qdec_t *q, int64_t p_edge, int64_t t_edge)
+static void qdec_velocity_edge_slow(qdec_t *q, int64_t p_edge, int64_t t_edge);
+
+/* Record a new edge for the velocity estimate: the usual case here (inline
+ * in the sample), the rest in qdec_velocity_edge_slow. */
+static QDEC_INLINE void qdec_velocity_edge(qdec_t *q, int64_t p_edge, int64_t t_edge)
 {
     unsigned n = q->ring_n;
     unsigned head = q->ring_head;
-    unsigned idx;
-    int64_t dt;
-    bool rising = n > 0u && t_edge > q->t_vel;
 
-    if (rising && q->ring_mono + 1u >= n) {
+    if (n > 0u && t_edge > q->t_vel && q->ring_mono + 1u >= n) {
         /* Every recorded time, the newest included, is below t_edge: the
          * new estimate exists (dt > 0 for any anchor) and replaces the
          * pending one: record the edge, find the anchor when asked. */
@@ -390,6 +401,17 @@ static void qdec_velocity_edge(qdec_t *q, int64_t p_edge, int64_t t_edge)
         q->vel_since = 0;
         return;
     }
+    qdec_velocity_edge_slow(q, p_edge, t_edge);
+}
+
+static void qdec_velocity_edge_slow(qdec_t *q, int64_t p_edge, int64_t t_edge)
+{
+    unsigned n = q->ring_n;
+    unsigned head = q->ring_head;
+    unsigned idx;
+    int64_t dt;
+    bool rising = n > 0u && t_edge > q->t_vel;
+
     if (q->vel_lazy) {
         qdec_vel_resolve(q); /* before the ring changes (keeps the clamp) */
     }
@@ -470,15 +492,12 @@ static void qdec_illegal_window(qdec_t *q, uint32_t new_illegal)
 /* Common part of both sample functions. `edges`: new counted edges since the
  * last sample, the last one at s->t_last (raw clock); `vel_edge`: a new edge
  * for the velocity estimate, the last one at (s->cyc_count, s->cyc_t). */
-/* Inlined into both sample functions: the snapshot stays in registers. */
-#if defined(__GNUC__)
-#define QDEC_INLINE inline __attribute__((always_inline))
-#else
-#define QDEC_INLINE inline
-#endif
-
-static QDEC_INLINE void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges, bool vel_edge,
-                                    uint32_t now_ns)
+/* Inlined into the sample functions: the snapshot stays in registers.
+ * Constant flags for the edge fast path: bits32 (q->bits is 32: the count
+ * difference needs no sign extension), last_is_cyc (the velocity edge is
+ * the last counted edge: s->cyc_count == s->raw, s->cyc_t == s->t_last). */
+static QDEC_INLINE void qdec_update_k(qdec_t *q, const qdec_snap_t *s, bool edges, bool vel_edge,
+                                      uint32_t now_ns, bool bits32, bool last_is_cyc)
 {
     int32_t dt = (int32_t)(now_ns - q->now_raw);
     int32_t delta;
@@ -491,7 +510,7 @@ static QDEC_INLINE void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges,
         q->out.faults |= QDEC_FAULT_TIME;
     }
 
-    delta = qdec_sx(q, s->raw - q->last_raw);
+    delta = bits32 ? (int32_t)(s->raw - q->last_raw) : qdec_sx(q, s->raw - q->last_raw);
     q->last_raw = s->raw;
     q->out.pos += delta;
     if ((delta < 0 ? (uint32_t)0 - (uint32_t)delta : (uint32_t)delta) > q->max_delta) {
@@ -505,7 +524,10 @@ static QDEC_INLINE void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges,
         q->t_edge = q->now + (int32_t)(s->t_last - q->now_raw);
         q->out.stopped = false;
     }
-    if (vel_edge) {
+    if (vel_edge && last_is_cyc) {
+        /* vel_edge implies edges here: t_edge is this edge's time */
+        qdec_velocity_edge(q, q->out.pos, q->t_edge);
+    } else if (vel_edge) {
         qdec_velocity_edge(q, q->out.pos - qdec_sx(q, s->raw - s->cyc_count),
                            q->now + (int32_t)(s->cyc_t - q->now_raw));
     } else {
@@ -521,7 +543,8 @@ static QDEC_INLINE void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges,
 
     if (s->idx_events != q->last_idx_events) {
         q->last_idx_events = s->idx_events;
-        q->out.index_pos = q->out.pos - qdec_sx(q, s->raw - s->idx_raw);
+        q->out.index_pos = q->out.pos - (bits32 ? (int32_t)(s->raw - s->idx_raw)
+                                                : qdec_sx(q, s->raw - s->idx_raw));
         q->out.index_t_ns = s->idx_t;
         q->out.index_dir = s->idx_dir;
         q->out.index_events = s->idx_events;
@@ -532,10 +555,28 @@ static QDEC_INLINE void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges,
                                    : comp_correct(comp, q->out.pos_nm_raw, (comp_dir_t)q->out.dir);
 }
 
+static QDEC_INLINE void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges, bool vel_edge,
+                                    uint32_t now_ns)
+{
+    qdec_update_k(q, s, edges, vel_edge, now_ns, false, false);
+}
+
 void qdec_sample(qdec_t *q, uint32_t now_ns)
 {
     qdec_snap_t s = {0};
 
+    if (q->cfg.glitch_ns == 0u && !q->cfg.vel_cycle) {
+        /* the usual case: no filter, every counted edge is a velocity
+         * edge, 32-bit count (edge input) */
+        bool edges;
+
+        qdec_snapshot_k(q, &s, false, false);
+        edges = s.nedge != q->last_nedge;
+        qdec_update_k(q, &s, edges, edges, now_ns, true, true);
+        q->last_nedge = s.nedge;
+        q->last_ncyc = s.nedge;
+        return;
+    }
     if (q->cfg.glitch_ns != 0u) {
         q->e.seq = q->e.seq + 1u;
         qdec_confirm(q, now_ns);
@@ -563,10 +604,16 @@ void qdec_sample_counter(qdec_t *q, uint32_t raw, uint32_t now_ns)
     s.cyc_count = raw;
     s.cyc_t = now_ns;
     s.dir = (int8_t)((delta > 0) - (delta < 0));
-    qdec_update(q, &s, delta != 0, delta != 0, now_ns);
+    qdec_update_k(q, &s, delta != 0, delta != 0, now_ns, false, true);
 }
 
 /* ---- configuration and scaling ------------------------------------------------------ */
+
+static bool qdec_nm_fast(const qdec_config_t *cfg)
+{
+    return cfg->nm_per_count_den == 1 && cfg->offset_nm > -((int64_t)1 << 62) &&
+           cfg->offset_nm < ((int64_t)1 << 62);
+}
 
 void qdec_config_default(qdec_config_t *cfg)
 {
@@ -649,6 +696,7 @@ bool qdec_init(qdec_t *q, const qdec_config_t *cfg, uint32_t initial, uint32_t n
                                           q->e.ab == cfg->index_qual));
         q->e.t_last = now_ns;
     }
+    q->nm_fast = qdec_nm_fast(&q->cfg);
     q->out.pos_nm_raw = qdec_counts_to_nm(q, 0);
     q->out.pos_nm = comp_correct(cfg->comp, q->out.pos_nm_raw, COMP_DIR_NONE);
     return true;
@@ -663,6 +711,7 @@ void qdec_clear_faults(qdec_t *q)
 void qdec_set_offset_nm(qdec_t *q, pos_nm_t offset_nm)
 {
     q->cfg.offset_nm = offset_nm;
+    q->nm_fast = qdec_nm_fast(&q->cfg);
 }
 
 void qdec_set_comp(qdec_t *q, const comp_table_t *comp)

@@ -268,7 +268,8 @@ typedef struct {
     uint32_t last_idx_events;
     uint32_t max_delta;
     uint8_t bits;
-    int64_t now; /* extended sample time, ns                        */
+    bool nm_fast; /* nm_per_count_den == 1 and |offset_nm| < 2^62 (init, set_offset) */
+    int64_t now;  /* extended sample time, ns                        */
     uint32_t now_raw;
     int64_t t_edge;                /* extended time of the last counted edge          */
     int64_t t_vel;                 /* extended time of the last recorded edge */
@@ -338,11 +339,10 @@ pos_nm_t qdec_counts_to_nm_any(const qdec_t *q, int64_t counts);
 
 static inline pos_nm_t qdec_counts_to_nm(const qdec_t *q, int64_t counts)
 {
-    int64_t off = q->cfg.offset_nm;
-
-    if (q->cfg.nm_per_count_den == 1 && counts == (int64_t)(int32_t)counts &&
-        off > -((int64_t)1 << 62) && off < ((int64_t)1 << 62)) {
-        return (int64_t)(int32_t)counts * (int64_t)q->cfg.nm_per_count_num + off;
+    /* nm_fast: den == 1 and |offset_nm| < 2^62, kept by qdec_init and
+     * qdec_set_offset_nm (the only writers of the scale and offset) */
+    if (q->nm_fast && counts == (int64_t)(int32_t)counts) {
+        return (int64_t)(int32_t)counts * (int64_t)q->cfg.nm_per_count_num + q->cfg.offset_nm;
     }
     return qdec_counts_to_nm_any(q, counts);
 }

@@ -18,21 +18,6 @@ static int64_t clamp64(int64_t v, int64_t lim)
     return (v > lim) ? lim : (v < -lim) ? -lim : v;
 }
 
-/* fx_sat_diff32(a, b) with fewer 64-bit steps (as in pid.c): the wrapped
- * difference, its overflow from the signs, one compare of the high word. */
-static inline int32_t sat_diff32(int64_t a, int64_t b)
-{
-    int64_t d = (int64_t)((uint64_t)a - (uint64_t)b);
-
-    if (((a ^ b) & (a ^ d)) < 0) { /* a - b overflowed int64: sign of a */
-        return (a < 0) ? INT32_MIN : INT32_MAX;
-    }
-    if (d == (int64_t)(int32_t)d) {
-        return (int32_t)d;
-    }
-    return (d < 0) ? INT32_MIN : INT32_MAX;
-}
-
 void servo_params_default(servo_params_t *p, uint32_t tick_hz)
 {
     unsigned i;
@@ -391,6 +376,7 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
     const unsigned n = s->p.axes;
     const motion_ref_t *cref = NULL;
     unsigned i;
+    bool quiet;
 
     s->ticks++;
     /* 1. input faults */
@@ -436,7 +422,7 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
     /* 3. following error */
     for (i = 0; i < n; i++) {
         int32_t lim = s->p.ferr_limit_nm[i];
-        int32_t fe = sat_diff32(rp[i], fb->pos[i]);
+        int32_t fe = fx_sat_diff32(rp[i], fb->pos[i]);
         s->ferr_nm[i] = fe;
         if (s->state != SERVO_OFF && !(s->off_mask & (1u << i)) && lim > 0 &&
             (fe > lim || fe < -lim)) {
@@ -446,16 +432,22 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
     }
     /* 4. contour error controller (RUN only) */
     cec_step(&s->cec, (s->state == SERVO_RUN) ? cref : NULL, fb->pos);
+    /* idle with outputs known to be 0 (cec.h): nothing to read */
+    quiet = s->cec.idle && s->cec.out_zero;
     /* 5. axis loops */
     for (i = 0; i < n; i++) {
         int64_t extra = 0;
-        if (i < 3 && i < CORE_AXES) {
+        if (i < 3 && i < CORE_AXES && !quiet) {
             if (s->cec.handover_u[i] != 0) {
                 pid_add_integrator(&s->pid[i], s->cec.handover_u[i]);
             }
             extra = s->cec.out_u[i];
         }
-        s->out_mv[i] = pid_step(&s->pid[i], rp[i], fb->pos[i], rv[i], ra[i], extra);
+        /* ferr_nm[i] is sat32(rp[i] - fb->pos[i]) of this tick (step 3;
+         * nothing since changes rp or fb) */
+        s->out_mv[i] = pid_fast_ready(&s->pid[i])
+                           ? pid_step_fast(&s->pid[i], s->ferr_nm[i], fb->pos[i], extra)
+                           : pid_step_e(&s->pid[i], s->ferr_nm[i], fb->pos[i], rv[i], ra[i], extra);
         /* 6. saturation supervision */
         if (s->p.sat_limit_ticks > 0 && s->pid[i].sat_ticks > s->p.sat_limit_ticks) {
             bool esc = s->state != SERVO_RUN && s->pid[i].sat_ticks / 2 > s->p.sat_limit_ticks;

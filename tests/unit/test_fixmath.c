@@ -311,6 +311,38 @@ static void test_sat_arith64_edges_and_random(void)
     }
 }
 
+/* fx_sat_diff32 (the servo's following error) against the exact difference
+ * saturated to int32: the edges (int64 overflow of a - b both ways, the
+ * int32 limits) and random pairs, near each other and far apart. */
+static i128 clamp_i32(i128 v)
+{
+    return v > INT32_MAX ? INT32_MAX : v < INT32_MIN ? INT32_MIN : v;
+}
+
+static void test_sat_diff32_exact(void)
+{
+    unsigned i, j;
+    for (i = 0; i < N_EDGE64; i++) {
+        for (j = 0; j < N_EDGE64; j++) {
+            int64_t a = edge64[i], b = edge64[j];
+            EXPECT_I64((int64_t)clamp_i32((i128)a - b), fx_sat_diff32(a, b),
+                       "diff %" PRId64 " %" PRId64, a, b);
+        }
+    }
+    rng_seed(32);
+    for (i = 0; i < 100000; i++) {
+        int64_t a = rnd_i64(), b = rnd_i64();
+        i128 near = (i128)a + (int32_t)rnd_i64(); /* within +-2^31 of a */
+        int64_t c = (int64_t)near;
+        EXPECT_I64((int64_t)clamp_i32((i128)a - b), fx_sat_diff32(a, b),
+                   "diff %" PRId64 " %" PRId64, a, b);
+        if (near == c) {
+            EXPECT_I64((int64_t)clamp_i32((i128)c - a), fx_sat_diff32(c, a),
+                       "near %" PRId64 " %" PRId64, c, a);
+        }
+    }
+}
+
 static void test_clamp(void)
 {
     TEST_ASSERT_EQUAL_INT32(5, fx_clamp32(5, 0, 10));
@@ -1296,6 +1328,7 @@ int main(void)
     RUN_TEST(test_sat32_boundaries);
     RUN_TEST(test_sat_arith32_edges_and_random);
     RUN_TEST(test_sat_arith64_edges_and_random);
+    RUN_TEST(test_sat_diff32_exact);
     RUN_TEST(test_clamp);
     RUN_TEST(test_round_shift64_ties_toward_plus_inf);
     RUN_TEST(test_round_shift64_extremes_and_random);

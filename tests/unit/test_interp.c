@@ -156,7 +156,7 @@ static void test_cruise_increments_equal_closed_form(void)
                                      {-1234567, 250000007, 20000000},
                                      {0, 0, 0}};
     static const int64_t feed[] = {499999999, 123456789, 77777777, 300000000};
-    uint32_t checked = 0, cruise = 0;
+    uint32_t checked = 0, cruise = 0, fast = 0;
     int k, n = 0;
 
     TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&p, store, 16, &prof, o));
@@ -176,14 +176,19 @@ static void test_cruise_increments_equal_closed_form(void)
         if (n % 20000 == 0) { /* an odd step for a while, then back */
             ip.tick_ns = (n / 20000) % 2 ? 33331 : 100003;
         }
+        fast += ip.cr_fast ? 1u : 0u; /* this tick may take the fast path */
         interp_tick(&ip, &ref);
         if (ip.busy && ip.fifo[ip.rd & (INTERP_FIFO - 1)].dwell_ns == 0) {
             ref_closed_form(&ip, &chk);
+            TEST_ASSERT_EQUAL_INT(MOTION_GEOM_LINE, ref.geom.kind);
+            TEST_ASSERT_TRUE(ref.active);
             for (k = 0; k < CORE_AXES; k++) {
                 TEST_ASSERT_EQUAL_INT64(chk.pos[k], ref.pos[k]);
                 TEST_ASSERT_EQUAL_INT64(chk.vel[k], ref.vel[k]);
                 TEST_ASSERT_EQUAL_INT64(chk.acc[k], ref.acc[k]);
                 TEST_ASSERT_EQUAL_INT32(chk.geom.tangent[k], ref.geom.tangent[k]);
+                TEST_ASSERT_EQUAL_INT64(ip.fifo[ip.rd & (INTERP_FIFO - 1)].start[k],
+                                        ref.geom.start[k]);
             }
             checked++;
             cruise += ip.cr_ok ? 1u : 0u;
@@ -191,6 +196,7 @@ static void test_cruise_increments_equal_closed_form(void)
         TEST_ASSERT_TRUE(n < 10000000);
     } while (!interp_idle(&ip));
     TEST_ASSERT_TRUE(cruise > 10000); /* the increments are exercised */
+    TEST_ASSERT_TRUE(fast > 10000);   /* and the cruise fast path */
     TEST_ASSERT_TRUE(checked > cruise + 100);
     TEST_ASSERT_EQUAL_INT64(0, ref.pos[0]);
     TEST_ASSERT_EQUAL_INT64(0, ref.pos[2]);

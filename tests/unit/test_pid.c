@@ -531,6 +531,74 @@ static void test_error_and_products_exact(void)
     }
 }
 
+/* The short path (pid->fast: shifts 2..31, no deadband, no feed-forward)
+ * against the general one on a copy with fast cleared: every state and
+ * output field equal after each step, over errors across int32 (saturated
+ * differences included), measurements far apart (D input saturation),
+ * extra inputs up to and beyond the term clamp, both D sources, with and
+ * without the D filter, and gains that make the shifts span 2..31. */
+static uint64_t lcg_state = 12345;
+
+static int64_t rnd64(void)
+{
+    lcg_state = lcg_state * 6364136223846793005ull + 1442695040888963407ull;
+    return (int64_t)(lcg_state ^ (lcg_state >> 29));
+}
+
+static void test_fast_path_matches_general(void)
+{
+    /* Kp, Ki, Kd, tick rate: shifts from 2 (1e5, 1e7, 1e3 at 100 Hz) to
+     * 28 (1e-3, 0.1, 1e-3 at 100 Hz) */
+    static const double gains[][4] = {
+        {1.5e3, 8e3, 5, 5000}, {1e-3, 0.1, 1e-3, 100}, {1e5, 1e7, 1e3, 100},
+        {4e4, 2e6, 100, 100},  {10, 100, 0.1, 5000},   {1e3, 1e5, 1, 100000},
+    };
+    int fast_seen = 0, shifts[33] = {0};
+    size_t g;
+    int d, k;
+
+    for (g = 0; g < sizeof gains / sizeof gains[0]; g++) {
+        {
+            for (d = 0; d < 4; d++) {
+                pid_params_t p =
+                    params(gains[g][0], gains[g][1], gains[g][2], (uint32_t)gains[g][3]);
+                pid_loop_t a, b;
+                p.d_on_measurement = (d & 1) != 0;
+                p.d_tau_us = (d & 2) ? 100u : 0u;
+                p.kt = Q32(10);
+                memset(&a, 0, sizeof a);
+                TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &p));
+                if (!a.fast) {
+                    continue;
+                }
+                fast_seen++;
+                shifts[a.cp.sh]++;
+                shifts[a.ci.sh]++;
+                shifts[a.cd.sh]++;
+                pid_enable(&a, 0);
+                for (k = 0; k < 400; k++) {
+                    int64_t r = rnd64();
+                    int sel = (int)((uint64_t)r >> 60);
+                    pos_nm_t ref = (sel < 4) ? (r >> 40) : (sel < 8) ? (r >> 20) : r;
+                    pos_nm_t meas = (sel & 1) ? ref - (rnd64() >> 44) : rnd64() >> (sel * 4);
+                    int64_t extra = (sel == 3) ? 0 : rnd64() >> (sel + 1);
+                    b = a;
+                    b.fast = false;
+                    pid_step(&a, ref, meas, 0, 0, extra);
+                    pid_step(&b, ref, meas, 0, 0, extra);
+                    b.fast = true;
+                    TEST_ASSERT_EQUAL_INT32(b.out_mv, a.out_mv);
+                    TEST_ASSERT_TRUE(a.out == b.out && a.integ == b.integ && a.dterm == b.dterm &&
+                                     a.extra == b.extra);
+                    TEST_ASSERT_EQUAL_MEMORY(&b, &a, sizeof a);
+                }
+            }
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(24, fast_seen);              /* every set takes the short path */
+    TEST_ASSERT_TRUE(shifts[2] > 0 && shifts[28] > 0); /* both ends of the range */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -553,5 +621,6 @@ int main(void)
     RUN_TEST(test_position_reset_no_spike);
     RUN_TEST(test_config_validation_all_or_nothing);
     RUN_TEST(test_extremes);
+    RUN_TEST(test_fast_path_matches_general);
     return UNITY_END();
 }

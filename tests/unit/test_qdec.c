@@ -868,8 +868,15 @@ static void test_scaling_fast_path(void)
             c.offset_nm = offs[o];
             TEST_ASSERT_TRUE(qdec_init(&d, &c, 0, 0));
             for (j = 0; j < 2000; j++) {
-                int64_t counts = (j < 7) ? fixed[j] : (int64_t)(int32_t)(rnd() ^ (rnd() << 16));
-                i128 ref = (i128)counts * nums[k] + offs[o];
+                /* second half: the offset set by qdec_set_offset_nm (it keeps
+                 * the short path's condition up to date) */
+                int64_t off = (j < 1000) ? offs[o] : offs[7 - o];
+                int64_t counts =
+                    (j % 1000 < 7) ? fixed[j % 1000] : (int64_t)(int32_t)(rnd() ^ (rnd() << 16));
+                i128 ref = (i128)counts * nums[k] + off;
+                if (j == 1000) {
+                    qdec_set_offset_nm(&d, off);
+                }
                 if (ref > INT64_MAX) {
                     ref = INT64_MAX;
                 } else if (ref < INT64_MIN) {
