@@ -73,7 +73,14 @@ if mount -t 9p -o trans=virtio,version=9p2000.L,ro hostroot /host; then
   mount -t proc proc /host/proc
   mount -t sysfs sys /host/sys
   mount -t devtmpfs dev /host/dev
+  # the guest's own /tmp hides the host's: keep the checkout reachable when
+  # it lives below /tmp (a bind mount taken before, put back after)
+  mkdir -p /repo
+  mount -o bind /host$repo /repo
   mount -t tmpfs tmp /host/tmp
+  if [ ! -d /host$repo/tests ]; then
+    mkdir -p /host$repo && mount -o bind /repo /host$repo
+  fi
   chroot /host /bin/sh $repo/tests/ports/socketcan/guest.sh $repo
 else
   echo "SOCKETCAN: FAIL (no 9p host root)"
