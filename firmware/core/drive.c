@@ -445,6 +445,30 @@ static void arc_fast_setup(arc_fast_t *a, const seg_info_t *g)
     a->fast = true;
 }
 
+/* The reference's geometry: the arc of chord g at radius rad. */
+static inline void arc_geom(motion_ref_t *r, const seg_info_t *g, int64_t rad)
+{
+    r->geom.kind = MOTION_GEOM_ARC;
+    r->geom.plane_u = g->u;
+    r->geom.plane_v = g->v;
+    r->geom.centre_u = g->cu;
+    r->geom.centre_v = g->cv;
+    r->geom.radius = rad;
+    r->geom.sense = g->sense;
+}
+
+/* Length of the chord tangent's in-plane part (q30), recomputed only when
+ * the tangent changes (once per segment). */
+static inline q1_30_t chord_tangent_len(const motion_ref_t *r, uint8_t u, uint8_t v)
+{
+    if (r->geom.tangent[u] != drv.hyp_tu || r->geom.tangent[v] != drv.hyp_tv) {
+        drv.hyp_tu = r->geom.tangent[u];
+        drv.hyp_tv = r->geom.tangent[v];
+        drv.hyp_m = (q1_30_t)fx_hypot2(drv.hyp_tu, drv.hyp_tv);
+    }
+    return drv.hyp_m;
+}
+
 /* arc_overlay() for a chord with arc_fast_t.fast: the same result, bit for
  * bit (see arc_fast_t). False (nothing written) when a value leaves the
  * fast ranges; the caller then runs arc_overlay(). */
@@ -483,12 +507,7 @@ static bool arc_fast(motion_ref_t *r, const seg_info_t *g, arc_fast_t *a)
     r->pos[u] = g->cu + mul32_q30((int32_t)rad, c);
     r->pos[v] = g->cv + mul32_q30((int32_t)rad, s);
     /* unit tangent in the plane, scaled by the chord tangent's in-plane part */
-    if (r->geom.tangent[u] != drv.hyp_tu || r->geom.tangent[v] != drv.hyp_tv) {
-        drv.hyp_tu = r->geom.tangent[u];
-        drv.hyp_tv = r->geom.tangent[v];
-        drv.hyp_m = (q1_30_t)fx_hypot2(drv.hyp_tu, drv.hyp_tv);
-    }
-    m = drv.hyp_m;
+    m = chord_tangent_len(r, u, v);
     tu = (q1_30_t)(g->sense > 0 ? -s : s);
     tv = (q1_30_t)(g->sense > 0 ? c : -c);
     /* path speed and tangential acceleration in the plane (arc / chord) */
@@ -535,13 +554,7 @@ static bool arc_fast(motion_ref_t *r, const seg_info_t *g, arc_fast_t *a)
     }
     r->geom.tangent[u] = (q1_30_t)mul32_q30(tu, m);
     r->geom.tangent[v] = (q1_30_t)mul32_q30(tv, m);
-    r->geom.kind = MOTION_GEOM_ARC;
-    r->geom.plane_u = u;
-    r->geom.plane_v = v;
-    r->geom.centre_u = g->cu;
-    r->geom.centre_v = g->cv;
-    r->geom.radius = rad;
-    r->geom.sense = g->sense;
+    arc_geom(r, g, rad);
     return true;
 }
 
@@ -563,12 +576,7 @@ static void arc_overlay(motion_ref_t *r, const seg_info_t *g)
     r->pos[u] = g->cu + fx_mul64x32_shift(rad, c, 30);
     r->pos[v] = g->cv + fx_mul64x32_shift(rad, s, 30);
     /* unit tangent in the plane, scaled by the chord tangent's in-plane part */
-    if (r->geom.tangent[u] != drv.hyp_tu || r->geom.tangent[v] != drv.hyp_tv) {
-        drv.hyp_tu = r->geom.tangent[u];
-        drv.hyp_tv = r->geom.tangent[v];
-        drv.hyp_m = (q1_30_t)fx_hypot2(drv.hyp_tu, drv.hyp_tv);
-    }
-    m = drv.hyp_m;
+    m = chord_tangent_len(r, u, v);
     tu = (q1_30_t)(g->sense > 0 ? -s : s);
     tv = (q1_30_t)(g->sense > 0 ? c : -c);
     /* path speed and tangential acceleration in the plane (arc / chord) */
@@ -594,13 +602,7 @@ static void arc_overlay(motion_ref_t *r, const seg_info_t *g)
     r->acc[v] = fx_mul64x32_shift(a_t, tv, 30) - fx_mul64x32_shift(a_c, s, 30);
     r->geom.tangent[u] = (q1_30_t)fx_mul64x32_shift(tu, m, 30);
     r->geom.tangent[v] = (q1_30_t)fx_mul64x32_shift(tv, m, 30);
-    r->geom.kind = MOTION_GEOM_ARC;
-    r->geom.plane_u = u;
-    r->geom.plane_v = v;
-    r->geom.centre_u = g->cu;
-    r->geom.centre_v = g->cv;
-    r->geom.radius = rad;
-    r->geom.sense = g->sense;
+    arc_geom(r, g, rad);
 }
 
 /* Account completed interpolator segments (host blocks done, current tag). */
