@@ -90,6 +90,7 @@ static struct {
     /* shared */
     interp_t ip;
     volatile bool req_enable, req_disable, req_stop, req_estop, req_reset, req_gains;
+    volatile bool req_ref; /* main (drive_status): sample the reference scales */
     volatile uint32_t req_fault;
     volatile bool halted; /* tick: controlled stop reached rest      */
     drive_cec_mode_t cec_mode;
@@ -110,13 +111,21 @@ static struct {
     motion_ref_t ref;
     drive_state_t state;
     uint32_t faults;
-    int64_t stop_v;            /* stopping: path speed cap, nm/s               */
-    int64_t stop_dv;           /* stopping: cap decrease per tick, nm/s        */
-    int64_t v_plan;            /* interpolator's (unscaled) path speed, nm/s   */
-    int64_t a_plan;            /* ... and tangential acceleration, nm/s^2      */
-    int64_t ch_vel[CORE_AXES]; /* the interpolator's (chord) reference of the  */
-    int64_t ch_acc[CORE_AXES]; /* last tick, before the arc overlay and the    */
-    q1_30_t ch_tan[CORE_AXES]; /* stop scaling (v_plan, a_plan derive from it) */
+    int64_t stop_v;  /* stopping: path speed cap, nm/s               */
+    int64_t stop_dv; /* stopping: cap decrease per tick, nm/s        */
+    int64_t v_plan;  /* interpolator's (unscaled) path speed, nm/s   */
+    int64_t a_plan;  /* ... and tangential acceleration, nm/s^2      */
+    /* The interpolator's (chord) reference of the last tick: written by
+     * interp_tick only (a fast-path tick writes only its pos[]); drv.ref is
+     * built from it (reference_step), then the arc overlay, the stop
+     * scaling and the friction feed-forward adjust drv.ref. */
+    motion_ref_t ch;
+    /* drv.ref holds every field of ch except those the arc overlay rewrites
+     * every tick of an arc segment (pos and the plane axes' vel, acc and
+     * tangent, the geometry's arc fields): nothing else changed it since the
+     * last full copy. A fast-path tick then copies only pos. */
+    bool ref_synced;
+    bool ref_full;             /* test hook (drive_test_full_ref): no pos-only copy */
     int64_t v_act;             /* path speed of the reference last tick, nm/s  */
     q1_30_t hyp_tu, hyp_tv;    /* arc overlay: last in-plane chord tangent ... */
     q1_30_t hyp_m;             /* ... and its length (constant per segment)   */
@@ -341,12 +350,13 @@ drive_result_t drive_init(const drive_config_t *cfg)
     }
     interp_init(&drv.ip, (int64_t)(1000000000u / cfg->tick_hz), origin);
     drv.ref = zero_ref;
+    drv.ch = zero_ref;
+    drv.ref_synced = false;
+    drv.ref_full = false;
     drv.hq_head = 0;
     drv.hq_count = 0;
     for (i = 0; i < CORE_AXES; i++) {
         drv.q_end[i] = 0;
-        drv.ch_vel[i] = drv.ch_acc[i] = 0;
-        drv.ch_tan[i] = 0;
     }
     drv.seq_next = 0;
     drv.queued_at = 0;
@@ -361,6 +371,7 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.req_enable = drv.req_disable = drv.req_stop = false;
     drv.req_estop = drv.req_reset = drv.req_gains = drv.req_cec = false;
     drv.req_fault = 0;
+    drv.req_ref = false;
     drv.halted = false;
     drv.state = DRIVE_DISABLED;
     drv.faults = 0;
@@ -459,11 +470,11 @@ static inline void arc_geom(motion_ref_t *r, const seg_info_t *g, int64_t rad)
 
 /* Length of the chord tangent's in-plane part (q30), recomputed only when
  * the tangent changes (once per segment). */
-static inline q1_30_t chord_tangent_len(const motion_ref_t *r, uint8_t u, uint8_t v)
+static inline q1_30_t chord_tangent_len(const motion_ref_t *ch, uint8_t u, uint8_t v)
 {
-    if (r->geom.tangent[u] != drv.hyp_tu || r->geom.tangent[v] != drv.hyp_tv) {
-        drv.hyp_tu = r->geom.tangent[u];
-        drv.hyp_tv = r->geom.tangent[v];
+    if (ch->geom.tangent[u] != drv.hyp_tu || ch->geom.tangent[v] != drv.hyp_tv) {
+        drv.hyp_tu = ch->geom.tangent[u];
+        drv.hyp_tv = ch->geom.tangent[v];
         drv.hyp_m = (q1_30_t)fx_hypot2(drv.hyp_tu, drv.hyp_tv);
     }
     return drv.hyp_m;
@@ -472,10 +483,10 @@ static inline q1_30_t chord_tangent_len(const motion_ref_t *r, uint8_t u, uint8_
 /* arc_overlay() for a chord with arc_fast_t.fast: the same result, bit for
  * bit (see arc_fast_t). False (nothing written) when a value leaves the
  * fast ranges; the caller then runs arc_overlay(). */
-static bool arc_fast(motion_ref_t *r, const seg_info_t *g, arc_fast_t *a)
+static bool arc_fast(motion_ref_t *r, const motion_ref_t *ch, const seg_info_t *g, arc_fast_t *a)
 {
     uint8_t u = g->u, v = g->v;
-    int64_t pu = r->pos[u] - g->au, pv = r->pos[v] - g->av;
+    int64_t pu = ch->pos[u] - g->au, pv = ch->pos[v] - g->av;
     int64_t num, f, p, rad, v_uv, a_t, a_c;
     fx_angle_t th;
     q1_30_t s, c, m, tu, tv;
@@ -507,23 +518,23 @@ static bool arc_fast(motion_ref_t *r, const seg_info_t *g, arc_fast_t *a)
     r->pos[u] = g->cu + mul32_q30((int32_t)rad, c);
     r->pos[v] = g->cv + mul32_q30((int32_t)rad, s);
     /* unit tangent in the plane, scaled by the chord tangent's in-plane part */
-    m = chord_tangent_len(r, u, v);
+    m = chord_tangent_len(ch, u, v);
     tu = (q1_30_t)(g->sense > 0 ? -s : s);
     tv = (q1_30_t)(g->sense > 0 ? c : -c);
     /* path speed and tangential acceleration in the plane (arc / chord) */
-    if (!a->v_ok || a->v_key_u != r->vel[u] || a->v_key_v != r->vel[v]) {
-        a->v_key_u = r->vel[u];
-        a->v_key_v = r->vel[v];
-        a->v_uv = fx_mul64x32_shift(fx_hypot2(r->vel[u], r->vel[v]), g->k_arc, 30);
+    if (!a->v_ok || a->v_key_u != ch->vel[u] || a->v_key_v != ch->vel[v]) {
+        a->v_key_u = ch->vel[u];
+        a->v_key_v = ch->vel[v];
+        a->v_uv = fx_mul64x32_shift(fx_hypot2(ch->vel[u], ch->vel[v]), g->k_arc, 30);
         a->v_ok = true;
     }
     v_uv = a->v_uv;
-    if (r->acc[u] == 0 && r->acc[v] == 0) {
+    if (ch->acc[u] == 0 && ch->acc[v] == 0) {
         a_t = 0; /* fx_hypot2(0, 0) */
     } else {
-        int64_t dot = fx_sat_add64(fx_mul64x32_shift(r->acc[u], r->geom.tangent[u], 30),
-                                   fx_mul64x32_shift(r->acc[v], r->geom.tangent[v], 30));
-        a_t = fx_mul64x32_shift(fx_hypot2(r->acc[u], r->acc[v]), g->k_arc, 30);
+        int64_t dot = fx_sat_add64(fx_mul64x32_shift(ch->acc[u], ch->geom.tangent[u], 30),
+                                   fx_mul64x32_shift(ch->acc[v], ch->geom.tangent[v], 30));
+        a_t = fx_mul64x32_shift(fx_hypot2(ch->acc[u], ch->acc[v]), g->k_arc, 30);
         if (dot < 0) {
             a_t = -a_t;
         }
@@ -559,11 +570,11 @@ static bool arc_fast(motion_ref_t *r, const seg_info_t *g, arc_fast_t *a)
 }
 
 /* Replace the interpolator's chord reference by the exact arc. */
-static void arc_overlay(motion_ref_t *r, const seg_info_t *g)
+static void arc_overlay(motion_ref_t *r, const motion_ref_t *ch, const seg_info_t *g)
 {
     uint8_t u = g->u, v = g->v;
     int64_t du = g->bu - g->au, dv = g->bv - g->av;
-    int64_t pu = r->pos[u] - g->au, pv = r->pos[v] - g->av;
+    int64_t pu = ch->pos[u] - g->au, pv = ch->pos[v] - g->av;
     int64_t num = fx_sat_add64(mul_sat64(pu, du), mul_sat64(pv, dv));
     int64_t den = fx_sat_add64(mul_sat64(du, du), mul_sat64(dv, dv));
     int64_t f = ratio_q30(num, den);
@@ -576,14 +587,14 @@ static void arc_overlay(motion_ref_t *r, const seg_info_t *g)
     r->pos[u] = g->cu + fx_mul64x32_shift(rad, c, 30);
     r->pos[v] = g->cv + fx_mul64x32_shift(rad, s, 30);
     /* unit tangent in the plane, scaled by the chord tangent's in-plane part */
-    m = chord_tangent_len(r, u, v);
+    m = chord_tangent_len(ch, u, v);
     tu = (q1_30_t)(g->sense > 0 ? -s : s);
     tv = (q1_30_t)(g->sense > 0 ? c : -c);
     /* path speed and tangential acceleration in the plane (arc / chord) */
-    v_uv = fx_mul64x32_shift(fx_hypot2(r->vel[u], r->vel[v]), g->k_arc, 30);
-    dot = fx_sat_add64(fx_mul64x32_shift(r->acc[u], r->geom.tangent[u], 30),
-                       fx_mul64x32_shift(r->acc[v], r->geom.tangent[v], 30));
-    a_t = fx_mul64x32_shift(fx_hypot2(r->acc[u], r->acc[v]), g->k_arc, 30);
+    v_uv = fx_mul64x32_shift(fx_hypot2(ch->vel[u], ch->vel[v]), g->k_arc, 30);
+    dot = fx_sat_add64(fx_mul64x32_shift(ch->acc[u], ch->geom.tangent[u], 30),
+                       fx_mul64x32_shift(ch->acc[v], ch->geom.tangent[v], 30));
+    a_t = fx_mul64x32_shift(fx_hypot2(ch->acc[u], ch->acc[v]), g->k_arc, 30);
     if (dot < 0) {
         a_t = -a_t;
     }
@@ -640,10 +651,11 @@ static int64_t stop_scale(void)
     int64_t den;
     unsigned i;
     /* the plan's own path speed and tangential acceleration (chord) */
-    drv.v_plan = path_speed(drv.ch_vel);
+    drv.v_plan = path_speed(drv.ch.vel);
     drv.a_plan = 0;
     for (i = 0; i < CORE_AXES; i++) {
-        drv.a_plan = fx_sat_add64(drv.a_plan, fx_mul64x32_shift(drv.ch_acc[i], drv.ch_tan[i], 30));
+        drv.a_plan =
+            fx_sat_add64(drv.a_plan, fx_mul64x32_shift(drv.ch.acc[i], drv.ch.geom.tangent[i], 30));
     }
     if (drv.v_act < cap) {
         cap = drv.v_act; /* the plan itself slowed down more */
@@ -676,16 +688,20 @@ static void reference_step(void)
         }
         drv.ref.active = false;
         drv.ref.geom.kind = MOTION_GEOM_NONE;
+        drv.ref_synced = false;
         return;
     }
-    interp_tick(&drv.ip, &drv.ref);
+    interp_tick(&drv.ip, &drv.ch);
     track_segments();
-    /* the chord reference, for the stop ramp's v_plan and a_plan (computed
-     * from it only while stopping, see stop_scale) */
-    for (i = 0; i < CORE_AXES; i++) {
-        drv.ch_vel[i] = drv.ref.vel[i];
-        drv.ch_acc[i] = drv.ref.acc[i];
-        drv.ch_tan[i] = drv.ref.geom.tangent[i];
+    if (drv.ip.ref_pos_only && drv.ref_synced && !drv.ref_full) {
+        /* same segment and phase as the last tick: only pos changed in ch,
+         * and the arc overlay (if any) rewrites its fields below */
+        for (i = 0; i < CORE_AXES; i++) {
+            drv.ref.pos[i] = drv.ch.pos[i];
+        }
+    } else {
+        drv.ref = drv.ch;
+        drv.ref_synced = true;
     }
     if (drv.ref.active && drv.ip.busy) {
         const seg_info_t *g = &drv.seg[drv.ip.tag % SEG_RING];
@@ -693,8 +709,8 @@ static void reference_step(void)
             if (!drv.arc.valid || drv.arc.tag != drv.ip.tag) {
                 arc_fast_setup(&drv.arc, g);
             }
-            if (!drv.arc.fast || !arc_fast(&drv.ref, g, &drv.arc)) {
-                arc_overlay(&drv.ref, g);
+            if (!drv.arc.fast || !arc_fast(&drv.ref, &drv.ch, g, &drv.arc)) {
+                arc_overlay(&drv.ref, &drv.ch, g);
             }
         }
     }
@@ -707,6 +723,7 @@ static void reference_step(void)
         }
         /* only the stop ramp reads it (req_stop sets it when a stop starts) */
         drv.v_act = path_speed(drv.ref.vel);
+        drv.ref_synced = false;
     }
 }
 
@@ -717,6 +734,7 @@ static void friction_ff(void)
     if (!drv.ff_on) {
         return;
     }
+    drv.ref_synced = false; /* drv.ref.acc may change below */
     for (i = 0; i < drv.cfg.axes; i++) {
         int64_t f, v, band, kaff, u;
         if (drv.cfg.friction_ff_mv[i] == 0) {
@@ -810,6 +828,26 @@ static void apply_requests(const servo_fb_t *fb)
     }
 }
 
+/* Sample the reference scales (see drive_status_t.refscale): the counter's
+ * change since the last sample, taken as int32, is added to the count, so
+ * samples must come while the scale moves less than 2^31 counts between
+ * them (DRIVE_REF_SAMPLE_TICKS). A drive_status() request (req_ref) is
+ * cleared before the counters are read: a request set after that gets the
+ * next tick. */
+static void ref_scales_sample(void)
+{
+    unsigned i;
+    drv.req_ref = false;
+    for (i = 0; i < drv.cfg.axes; i++) {
+        uint32_t raw;
+        if (drv.ref_on[i] && hal_encoder_counter(drv.cfg.axes + i, &raw)) {
+            drv.ref_cnt[i] += (int32_t)(raw - drv.ref_raw[i]);
+            drv.ref_raw[i] = raw;
+            drv.ref_nm[i] = qdec_counts_to_nm(&drv.refs[i], drv.ref_cnt[i]);
+        }
+    }
+}
+
 void drive_tick(void)
 {
     unsigned i;
@@ -842,16 +880,12 @@ void drive_tick(void)
         if (q->out.faults != 0) {
             enc_fault |= 1u << i;
         }
-        if (drv.ref_on[i]) {
-            uint32_t raw;
-            if (hal_encoder_counter(drv.cfg.axes + i, &raw)) {
-                drv.ref_cnt[i] += (int32_t)(raw - drv.ref_raw[i]);
-                drv.ref_raw[i] = raw;
-                drv.ref_nm[i] = qdec_counts_to_nm(&drv.refs[i], drv.ref_cnt[i]);
-            }
-        }
     }
     fb.enc_fault = enc_fault;
+    if (calib_sampling() || drv.req_ref ||
+        ((uint32_t)drv.tick & (DRIVE_REF_SAMPLE_TICKS - 1u)) == 0u) {
+        ref_scales_sample();
+    }
     apply_requests(&fb);
     moving_ok =
         drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING || drv.state == DRIVE_STOPPING;
@@ -868,6 +902,7 @@ void drive_tick(void)
         }
         drv.ref.active = false;
         drv.ref.geom.kind = MOTION_GEOM_NONE;
+        drv.ref_synced = false;
     }
     drv.faults |= drv.servo.faults;
     if (drv.faults != 0) {
@@ -1365,6 +1400,7 @@ void drive_status(drive_status_t *out)
         return;
     }
     snapshot(out, &rd, &rem);
+    drv.req_ref = true; /* the next tick samples the reference scales */
     out->queue_free = (uint32_t)(DRIVE_QUEUE_DEPTH - drv.hq_count);
     /* planner, then the interpolator's FIFO from the published read index
      * (segments loaded since are counted; a current one by its remainder) */
@@ -1441,6 +1477,11 @@ void drive_set_comp(unsigned axis, const comp_table_t *table)
     if (drv.ready && axis < drv.cfg.axes) {
         qdec_set_comp(&drv.enc[axis], table);
     }
+}
+
+void drive_test_full_ref(bool on)
+{
+    drv.ref_full = on;
 }
 
 bool drive_has_refscale(unsigned axis)

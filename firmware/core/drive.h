@@ -115,6 +115,14 @@
 #define DRIVE_ARC_RADIUS_TOL_NM 5000
 /* Host blocks queued ahead of the planner. */
 #define DRIVE_QUEUE_DEPTH 16
+/* The reference scales are sampled at least every DRIVE_REF_SAMPLE_TICKS
+ * ticks (a power of two; see drive_status_t.refscale). Wrap guard: the
+ * 32-bit counter's change between samples is taken as int32, so a scale
+ * must move less than 2^31 counts in that time: below
+ * 2^31 / 64 * tick_hz = 33.5e6 * tick_hz counts/s: 3.3e9 counts/s at
+ * PID_TICK_HZ_MIN (100 Hz), 1.67e11 at 5 kHz; at 1 nm per count 3.3 km/s
+ * and 167 km/s, far above any axis. */
+#define DRIVE_REF_SAMPLE_TICKS 64u
 /* Default and largest start delay (drive_config_t.start_delay_ms), ms. */
 #define DRIVE_START_DELAY_MS     50u
 #define DRIVE_START_DELAY_MS_MAX 10000u
@@ -188,15 +196,21 @@ typedef struct {
     pos_nm_t ref[CORE_AXES];    /* reference position, nm                 */
     int64_t vel_ref[CORE_AXES]; /* reference velocity, nm/s               */
     int32_t motor_mv[CORE_AXES];
-    int64_t contour_error_nm;            /* CEC's estimate (0 when the CEC is off) */
-    uint32_t queue_free;                 /* free planner slots                     */
-    int64_t queued_time_ns;              /* planned time still queued: planner plus
-                                          * the interpolator's remainder (blocks
-                                          * in the host FIFO not yet planned are
-                                          * not counted); drive_status only, main */
-    uint32_t blocks_done;                /* blocks completed since init            */
-    uint32_t tag;                        /* tag of the block executing (or last)   */
-    pos_nm_t refscale[CORE_AXES];        /* reference-scale positions, nm */
+    int64_t contour_error_nm; /* CEC's estimate (0 when the CEC is off) */
+    uint32_t queue_free;      /* free planner slots                     */
+    int64_t queued_time_ns;   /* planned time still queued: planner plus
+                               * the interpolator's remainder (blocks
+                               * in the host FIFO not yet planned are
+                               * not counted); drive_status only, main */
+    uint32_t blocks_done;     /* blocks completed since init            */
+    uint32_t tag;             /* tag of the block executing (or last)   */
+    /* Reference-scale positions, nm (0 without a scale), as of the last
+     * sample: every tick while calibration samples (calib_sampling()), the
+     * tick after each drive_status() call, and otherwise every
+     * DRIVE_REF_SAMPLE_TICKS ticks (the counters are read by the tick only:
+     * a status reply reports the sample of the tick after the previous
+     * drive_status(), at most DRIVE_REF_SAMPLE_TICKS ticks old). */
+    pos_nm_t refscale[CORE_AXES];
     uint32_t encoder_illegal[CORE_AXES]; /* illegal transitions seen      */
     pos_nm_t pos_raw[CORE_AXES];         /* measured position before the
                                           * compensation table, nm       */
@@ -299,6 +313,11 @@ int64_t drive_encoder_count(unsigned ch);
 void drive_set_comp(unsigned axis, const comp_table_t *table);
 /* True when the axis has a reference-scale input in use. Any. */
 bool drive_has_refscale(unsigned axis);
+/* Test hook: when on, every tick rebuilds the reference from the
+ * interpolator's in full (no pos-only copy on its fast-path ticks); the
+ * outputs are the same. drive_init turns it off. Main, with the tick
+ * stopped. */
+void drive_test_full_ref(bool on);
 
 /* Select the contour-error controller (refused while moving). Main. */
 drive_result_t drive_set_cec_mode(drive_cec_mode_t mode);

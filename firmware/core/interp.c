@@ -23,6 +23,7 @@ void interp_reset(interp_t *ip, const pos_nm_t pos[CORE_AXES])
     ip->a_q16 = 0;
     ip->cr_ok = false;
     ip->cr_fast = false;
+    ip->ref_pos_only = false;
     for (i = 0; i < CORE_AXES; i++) {
         ip->pos[i] = pos[i];
         ip->tan[i] = 0;
@@ -292,7 +293,18 @@ static bool ip_tick_cruise(interp_t *ip, motion_ref_t *ref)
         sq = ip->cr_lq;
     }
     ip->s_q16 = sq;
-    ip_out_cruise(ip, ip_cur(ip), sq, ref);
+    /* only the positions change: the other fields are those the general
+     * path's ip_out_cruise() wrote (see interp_t.ref_pos_only) */
+    {
+        const plan_seg_t *s = ip_cur(ip);
+        int i;
+
+        for (i = 0; i < CORE_AXES; i++) {
+            ip->pos[i] = s->start[i] + ip_scale_mag((uint64_t)sq, ip->cr_ur[i], ip->cr_neg[i]);
+            ref->pos[i] = ip->pos[i];
+        }
+    }
+    ip->ref_pos_only = true;
     return true;
 }
 
@@ -312,6 +324,7 @@ static IP_NOINLINE void ip_tick_general(interp_t *ip, motion_ref_t *ref)
     int64_t sq, lq, tau;
     int i;
 
+    ip->ref_pos_only = false;
     if (ip->cr_fast) {
         ip->cr_tau = ip->t_ns - ip->phase_t0; /* the last tick's tau */
         ip->cr_fast = false;

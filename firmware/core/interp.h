@@ -115,6 +115,10 @@ typedef struct {
     int64_t cr_tend; /* min(phase end, segment end), ns into the segment */
     int64_t cr_s0;   /* path distance at the phase start, q16 nm         */
     int64_t cr_lq;   /* segment length, q16 nm                           */
+    /* True when the last interp_tick was a fast-path tick, which writes
+     * only ref->pos[]: every other field of the motion_ref_t is what the
+     * tick before wrote (the same values). Tick context. */
+    bool ref_pos_only;
 } interp_t;
 
 /* Initialise idle at `start` with a tick period of tick_ns (> 0). Main. */
@@ -134,7 +138,11 @@ bool interp_load(interp_t *ip, const plan_seg_t *seg);
  * Main. */
 unsigned interp_refill(interp_t *ip, plan_t *p);
 
-/* Advance one tick and write the reference for the new time. Tick. */
+/* Advance one tick and write the reference for the new time into *ref.
+ * A cruise fast-path tick (ip->ref_pos_only set) writes only ref->pos[]:
+ * the caller passes the same motion_ref_t every tick and changes none of
+ * its fields (a caller that adjusts the reference works on a copy; the
+ * drive does). Every other tick writes every field. Tick. */
 void interp_tick(interp_t *ip, motion_ref_t *ref);
 
 /* True when no segment is current or queued. Any (snapshot). */

@@ -3,6 +3,12 @@
  *
  * Written by the interpolator (interp_, tick context) once per tick and read
  * by the servo tick (servo_) in the same tick; nothing else writes it.
+ * On a cruise fast-path tick (interp_t.ref_pos_only) interp_tick writes only
+ * pos[]: vel, acc and geom are constant within the phase and stay as the
+ * tick before wrote them, so the writer keeps one motion_ref_t per
+ * interpolator and changes none of its fields. The drive copies it (all
+ * fields, or pos only on such ticks) into the reference it adjusts (arc
+ * overlay, stop scaling, friction feed-forward) and hands the servo.
  * Units are those of docs/conventions.md.
  */
 #ifndef MOTION_REF_H

@@ -24,14 +24,28 @@ static inline int64_t rsh(int64_t v, unsigned s)
     return (v >> s) + ((v >> (s - 1)) & 1); /* round half up, s >= 1 */
 }
 
+/* An int32 value the compiler must treat as a plain 32-bit register, so
+ * the widening products below stay single SMULL/UMULL instructions (GCC
+ * otherwise keeps some sign-extended values as 64-bit pairs and emits a
+ * 64x64 multiply). No effect on the value. */
+static inline int32_t opaque32(int32_t v)
+{
+#if defined(__GNUC__)
+    __asm__("" : "+r"(v));
+#endif
+    return v;
+}
+
 /* round(a * b / 2^30) for |a| <= 2^61 and 0 <= b <= 2^30, without a 128-bit
- * product: a = ah * 2^32 + al with al unsigned. */
+ * product: a = ah * 2^32 + al with al unsigned; a * b = ah * b * 2^32 + al * b
+ * (ah * b: one SMULL, al * b: one UMULL). */
 static inline int64_t mul_q30_pos(int64_t a, q1_30_t b)
 {
-    int32_t ah = (int32_t)(a >> 32); /* |ah| <= 2^29 */
-    uint64_t al = (uint64_t)a & 0xFFFFFFFFu;
-    uint64_t lo = al * (uint64_t)b; /* < 2^62 */
-    return (int64_t)ah * b * 4 + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
+    int32_t ah = opaque32((int32_t)(a >> 32)); /* |ah| <= 2^29 */
+    uint32_t al = (uint32_t)a;
+    int64_t h = (int64_t)ah * b;              /* |h| <= 2^59 */
+    uint64_t lo = (uint64_t)al * (uint32_t)b; /* < 2^62 */
+    return (int64_t)((uint64_t)h << 2) + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
 }
 
 bool pid_coef_make(pid_coef_t *c, int64_t num, uint32_t mul, uint64_t den)
@@ -135,22 +149,24 @@ static inline int64_t coef_apply(pid_coef_t c, int32_t x)
     return clamp64(p, PID_TERM_LIM);
 }
 
-/* coef_apply for a shift in 2..31 (coef_mid): the rounding with 32-bit
- * shifts, no clamp needed (|x * m| < 2^62, so |result| <= 2^60) */
-static inline bool coef_mid(pid_coef_t c)
-{
-    return c.sh >= 2 && c.sh <= 31;
-}
-
-static inline int64_t coef_apply_mid(pid_coef_t c, int32_t x)
+/* coef_apply for a shift in 2..31, with its rounding constant rnd = 2^(sh - 1) given
+ * (pid_config keeps it in pid->rnd[]) */
+static inline int64_t coef_apply_rnd(pid_coef_t c, int32_t x, uint32_t rnd)
 {
     unsigned sh = (unsigned)c.sh;
-    uint64_t u = (uint64_t)((int64_t)x * c.m) + ((uint32_t)1 << (sh - 1u));
+    uint64_t u = (uint64_t)((int64_t)opaque32(x) * c.m) + rnd;
     uint32_t lo = (uint32_t)u, hi = (uint32_t)(u >> 32);
     uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
     uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
 
     return (int64_t)(((uint64_t)rhi << 32) | rlo);
+}
+
+/* coef_apply for a shift in 2..31 (coef_mid): the rounding with 32-bit
+ * shifts, no clamp needed (|x * m| < 2^62, so |result| <= 2^60) */
+static inline bool coef_mid(pid_coef_t c)
+{
+    return c.sh >= 2 && c.sh <= 31;
 }
 
 int64_t pid_coef_apply(pid_coef_t c, int32_t x)
@@ -213,6 +229,9 @@ pid_err_t pid_config(pid_loop_t *pid, const pid_params_t *p)
     pid->deadband = p->deadband_nm;
     pid->fast = coef_mid(cp) && coef_mid(ci) && coef_mid(cd) && cv.m == 0 && ca.m == 0 &&
                 p->deadband_nm == 0;
+    pid->rnd[0] = pid->fast ? (uint32_t)1 << (unsigned)(cp.sh - 1) : 0u;
+    pid->rnd[1] = pid->fast ? (uint32_t)1 << (unsigned)(ci.sh - 1) : 0u;
+    pid->rnd[2] = pid->fast ? (uint32_t)1 << (unsigned)(cd.sh - 1) : 0u;
     if (pid->enabled && pid->primed) {
         /* bumpless gain change: the next step continues from the last output */
         pid->hold_mv = pid->out_mv;
@@ -341,7 +360,7 @@ static inline int32_t pid_finish(pid_loop_t *pid, int64_t pterm, int64_t integ, 
 #endif
 
 /* The short path (pid_fast_ready): the general path below with edb = e,
- * cd != 0, ff = 0 and coef_apply_mid for coef_apply; the same results. */
+ * cd != 0, ff = 0 and coef_apply_rnd for coef_apply; the same results. */
 /* sat32(a - b) of two int32 in 32-bit arithmetic (wrapped difference; on
  * overflow the true difference has the sign of a) */
 static inline int32_t sat_diff32_32(int32_t a, int32_t b)
@@ -358,8 +377,8 @@ int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra)
 {
     int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
                                          : sat_diff32_32(e, pid->err_prev);
-    int64_t pterm = coef_apply_mid(pid->cp, e);
-    int64_t dterm = coef_apply_mid(pid->cd, de);
+    int64_t pterm = coef_apply_rnd(pid->cp, e, pid->rnd[0]);
+    int64_t dterm = coef_apply_rnd(pid->cd, de, pid->rnd[2]);
     int64_t ex, integ;
 
     pid->err_nm = e;
@@ -372,7 +391,7 @@ int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra)
     pid->ff = 0;
     ex = (extra == 0) ? 0 : clamp64(extra, PID_TERM_LIM);
     pid->extra = ex;
-    integ = clamp64(pid->integ + coef_apply_mid(pid->ci, e), pid->i_lim);
+    integ = clamp64(pid->integ + coef_apply_rnd(pid->ci, e, pid->rnd[1]), pid->i_lim);
     return pid_finish(pid, pterm, integ, dterm, 0, ex);
 }
 

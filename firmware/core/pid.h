@@ -131,8 +131,9 @@ typedef struct {
     int64_t i_lim;   /* U */
     int64_t out_lim; /* U */
     int32_t deadband;
-    bool fast; /* pid_config: cp, ci, cd shifts in 2..31, no deadband, no
-                * feed-forward gains: pid_step's short path applies */
+    bool fast;       /* pid_config: cp, ci, cd shifts in 2..31, no deadband, no
+                      * feed-forward gains: pid_step's short path applies */
+    uint32_t rnd[3]; /* fast: rounding constants 2^(sh - 1) of cp, ci, cd */
     /* state (tick) */
     int64_t integ; /* U */
     int64_t dterm; /* U, filtered derivative term */

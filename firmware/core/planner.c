@@ -127,6 +127,55 @@ const plan_block_t *plan_peek(const plan_t *p, uint16_t i)
     return (i < p->count) ? pl_at(p, i) : NULL;
 }
 
+/* sc_muldiv(a, b, c) (floor(a b / c), 0 for a <= 0 or b <= 0, saturated),
+ * with one 64/64 division when a b fits 64 bits (both factors below 2^32,
+ * one 32 x 32 multiply; or an exact 64 x 64 product without overflow):
+ * the same quotient the 128-bit path gives. */
+static int64_t pl_muldiv(int64_t a, int64_t b, int64_t c)
+{
+    uint64_t n, q, rem;
+
+    if (a <= 0 || b <= 0) {
+        return 0;
+    }
+    if (c <= 0) {
+        return INT64_MAX;
+    }
+    if ((((uint64_t)a | (uint64_t)b) >> 32) == 0u) {
+        n = (uint64_t)(uint32_t)a * (uint32_t)b;
+    } else if (__builtin_mul_overflow((uint64_t)a, (uint64_t)b, &n)) {
+        return sc_muldiv(a, b, c);
+    }
+    q = fx_udivmod64(n, (uint64_t)c, &rem);
+    return (q > (uint64_t)INT64_MAX) ? INT64_MAX : (int64_t)q;
+}
+
+/* floor(a 2^62 / len) for 0 <= a < 2^63, len > 0 (saturated: INT64_MAX),
+ * as sc_muldiv(a, 2^62, len): one 128/64 division of a 2^62 by len. */
+static int64_t pl_ratio(int64_t a, int64_t len)
+{
+    uint64_t q, rem, hi = (uint64_t)a >> 2, lo = (uint64_t)a << 62;
+
+    if (a <= 0) {
+        return 0;
+    }
+    if (hi >= (uint64_t)len) {
+        return INT64_MAX;
+    }
+    q = fx_udiv128(hi, lo, (uint64_t)len, &rem);
+    return (q > (uint64_t)INT64_MAX) ? INT64_MAX : (int64_t)q;
+}
+
+int64_t plan_test_muldiv(int64_t a, int64_t b, int64_t c)
+{
+    return pl_muldiv(a, b, c);
+}
+
+int64_t plan_test_ratio(int64_t a, int64_t len)
+{
+    return pl_ratio(a, len);
+}
+
 /* floor(sqrt(sum delta_i^2)), scaled so that the squares cannot overflow */
 static int64_t pl_length(const int64_t *d)
 {
@@ -179,7 +228,7 @@ static int64_t pl_axis_limit(const int64_t *lim, const int64_t *d, int64_t len)
             best = i;
         }
     }
-    return (best < 0) ? INT64_MAX : sc_muldiv(lim[best], len, pl_abs(d[best]));
+    return (best < 0) ? INT64_MAX : pl_muldiv(lim[best], len, pl_abs(d[best]));
 }
 
 /* every axis has the same limit */
@@ -473,7 +522,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
 
     /* block limits: axis limits projected on the direction */
     for (i = 0; i < CORE_AXES; i++) {
-        ratio[i] = (d[i] < 0 ? -1 : 1) * sc_muldiv(pl_abs(d[i]), (int64_t)1 << 62, len);
+        ratio[i] = (d[i] < 0 ? -1 : 1) * pl_ratio(pl_abs(d[i]), len);
     }
     if (pl_same(p->prof.v_max) && pl_same(p->prof.a_max) && pl_same(p->prof.j_max)) {
         /* equal limits on every axis: the longest component limits all
@@ -482,9 +531,9 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         for (i = 1; i < CORE_AXES; i++) {
             dm = (pl_abs(d[i]) > dm) ? pl_abs(d[i]) : dm;
         }
-        vmax = pl_min(m->feed, sc_muldiv(p->prof.v_max[0], len, dm));
-        amax = pl_min(SC_A_LIMIT, sc_muldiv(p->prof.a_max[0], len, dm));
-        jmax = pl_min(SC_J_LIMIT, sc_muldiv(p->prof.j_max[0], len, dm));
+        vmax = pl_min(m->feed, pl_muldiv(p->prof.v_max[0], len, dm));
+        amax = pl_min(SC_A_LIMIT, pl_muldiv(p->prof.a_max[0], len, dm));
+        jmax = pl_min(SC_J_LIMIT, pl_muldiv(p->prof.j_max[0], len, dm));
     } else {
         vmax = pl_min(m->feed, pl_axis_limit(p->prof.v_max, d, len));
         amax = pl_min(SC_A_LIMIT, pl_axis_limit(p->prof.a_max, d, len));

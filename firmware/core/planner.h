@@ -280,4 +280,10 @@ const plan_block_t *plan_peek(const plan_t *p, uint16_t i);
  * full computation always runs; the junction speeds are identical). */
 void plan_test_jd_fast(bool on);
 
+/* Test hooks: the block limits' multiply-divide (sc_muldiv with one 64/64
+ * division when the product fits 64 bits) and the direction ratio
+ * floor(a 2^62 / len) (one 128/64 division); both equal sc_muldiv. */
+int64_t plan_test_muldiv(int64_t a, int64_t b, int64_t c);
+int64_t plan_test_ratio(int64_t a, int64_t len);
+
 #endif /* PLANNER_H */

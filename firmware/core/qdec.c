@@ -333,14 +333,37 @@ static unsigned qdec_vel_anchor(const qdec_t *q, unsigned head, unsigned n)
     return (head + QDEC_VEL_RING - k) % QDEC_VEL_RING;
 }
 
+/* Fold the short records (qdec_velocity_edge's usual case: ring entry and
+ * q->rec only) into the ring's bookkeeping: each one added an entry to a
+ * strictly rising ring and left the new estimate for later (lazy), with no
+ * clamp. Called before anything reads or changes ring_n, ring_mono or the
+ * vel_* fields; q->rec - q->rec_norm <= QDEC_VEL_RING (the short record
+ * folds when the ring index wraps). */
+static void qdec_vel_fold(qdec_t *q)
+{
+    uint32_t d = q->rec - q->rec_norm;
+
+    if (d != 0u) {
+        uint32_t n = q->ring_n + d, mono = q->ring_mono + d;
+
+        q->ring_n = (uint8_t)((n < QDEC_VEL_RING) ? n : QDEC_VEL_RING);
+        q->ring_mono = (uint8_t)((mono < QDEC_VEL_RING - 1u) ? mono : QDEC_VEL_RING - 1u);
+        q->vel_lazy = true;
+        q->vel_pending = false;
+        q->vel_since = 0;
+        q->rec_norm = q->rec;
+    }
+}
+
 /* Bring out.vel up to the last sample: the pending estimate (its anchor and
  * division), then the bound between edges: still moving at vel, the next
  * recorded edge would have come within `since`. */
 static void qdec_vel_resolve(qdec_t *q)
 {
+    qdec_vel_fold(q);
     if (q->vel_lazy) {
         /* recorded at the newest ring entry, the ring unchanged since */
-        unsigned head = q->ring_head;
+        unsigned head = q->rec % QDEC_VEL_RING;
         unsigned idx = qdec_vel_anchor(q, head, q->ring_n);
         q->vel_dp = q->ring_p[head] - q->ring_p[idx];
         q->vel_dt = q->ring_t[head] - q->ring_t[idx]; /* > 0: see qdec_velocity_edge */
@@ -372,46 +395,43 @@ q32_32_t qdec_velocity(qdec_t *q)
     return q->out.vel;
 }
 
-static void qdec_velocity_edge_slow(qdec_t *q, int64_t p_edge, int64_t t_edge);
+static QDEC_NOINLINE void qdec_velocity_edge_slow(qdec_t *q, int64_t p_edge, int64_t t_edge);
 
-/* Record a new edge for the velocity estimate: the usual case here (inline
- * in the sample), the rest in qdec_velocity_edge_slow. */
+/* Record a new edge for the velocity estimate. The usual case here (inline
+ * in the sample): the ring rises strictly (vel_fast: ring_n > 0 and
+ * ring_mono + 1 >= ring_n, which such a record keeps) and t_edge is above
+ * the newest entry, so the new estimate exists (dt > 0 for any anchor) and
+ * replaces the pending one: store the entry and count it in q->rec;
+ * qdec_vel_fold does the rest when the ring is next read. The rest in
+ * qdec_velocity_edge_slow. */
 static QDEC_INLINE void qdec_velocity_edge(qdec_t *q, int64_t p_edge, int64_t t_edge)
 {
-    unsigned n = q->ring_n;
-    unsigned head = q->ring_head;
+    uint32_t rec = q->rec;
 
-    if (n > 0u && t_edge > q->t_vel && q->ring_mono + 1u >= n) {
-        /* Every recorded time, the newest included, is below t_edge: the
-         * new estimate exists (dt > 0 for any anchor) and replaces the
-         * pending one: record the edge, find the anchor when asked. */
-        head = (head + 1u) % QDEC_VEL_RING;
+    if (q->vel_fast && t_edge > q->ring_t[rec % QDEC_VEL_RING]) {
+        unsigned head = (rec + 1u) % QDEC_VEL_RING;
+
         q->ring_p[head] = p_edge;
         q->ring_t[head] = t_edge;
-        q->ring_head = (uint8_t)head;
-        if (n < QDEC_VEL_RING) {
-            q->ring_n = (uint8_t)(n + 1u);
+        q->rec = rec + 1u;
+        if (head == 0u) {
+            qdec_vel_fold(q); /* keeps rec - rec_norm <= QDEC_VEL_RING */
         }
-        if (q->ring_mono < QDEC_VEL_RING - 1u) {
-            q->ring_mono++;
-        }
-        q->t_vel = t_edge;
-        q->vel_lazy = true;
-        q->vel_pending = false;
-        q->vel_since = 0;
         return;
     }
     qdec_velocity_edge_slow(q, p_edge, t_edge);
 }
 
-static void qdec_velocity_edge_slow(qdec_t *q, int64_t p_edge, int64_t t_edge)
+static QDEC_NOINLINE void qdec_velocity_edge_slow(qdec_t *q, int64_t p_edge, int64_t t_edge)
 {
-    unsigned n = q->ring_n;
-    unsigned head = q->ring_head;
-    unsigned idx;
+    unsigned n, head, idx;
     int64_t dt;
-    bool rising = n > 0u && t_edge > q->t_vel;
+    bool rising;
 
+    qdec_vel_fold(q);
+    n = q->ring_n;
+    head = q->rec % QDEC_VEL_RING;
+    rising = n > 0u && t_edge > q->ring_t[head]; /* the newest recorded time */
     if (q->vel_lazy) {
         qdec_vel_resolve(q); /* before the ring changes (keeps the clamp) */
     }
@@ -422,10 +442,11 @@ static void qdec_velocity_edge_slow(qdec_t *q, int64_t p_edge, int64_t t_edge)
     if (n < QDEC_VEL_RING) {
         n++;
     }
-    q->ring_head = (uint8_t)head;
+    q->rec++;
+    q->rec_norm = q->rec;
     q->ring_n = (uint8_t)n;
     q->ring_mono = rising ? (uint8_t)(q->ring_mono + 1u) : 0u; /* < n - 1 here */
-    q->t_vel = t_edge;
+    q->vel_fast = q->ring_mono + 1u >= n;
 
     if (n < 2u) {
         qdec_vel_resolve(q); /* no new estimate: the last one stays */
@@ -445,9 +466,14 @@ static void qdec_velocity_edge_slow(qdec_t *q, int64_t p_edge, int64_t t_edge)
     }
 }
 
-static void qdec_velocity_idle(qdec_t *q)
+static QDEC_INLINE void qdec_velocity_idle(qdec_t *q)
 {
-    int64_t since = q->now - q->t_vel;
+    int64_t since;
+
+    if (q->rec != q->rec_norm) {
+        qdec_vel_fold(q);
+    }
+    since = q->now - q->ring_t[q->rec % QDEC_VEL_RING]; /* the newest recorded edge */
 
     if (q->now - q->t_edge >= (int64_t)q->cfg.zero_timeout_ns) {
         q->out.vel = 0;
@@ -561,13 +587,14 @@ static QDEC_INLINE void qdec_update(qdec_t *q, const qdec_snap_t *s, bool edges,
     qdec_update_k(q, s, edges, vel_edge, now_ns, false, false);
 }
 
-void qdec_sample(qdec_t *q, uint32_t now_ns)
+/* The reference sample path (every configuration of edge input): the
+ * usual case on 32-bit counts below, the rest through qdec_update. */
+static QDEC_NOINLINE void qdec_sample_ref(qdec_t *q, uint32_t now_ns)
 {
     qdec_snap_t s = {0};
 
     if (q->cfg.glitch_ns == 0u && !q->cfg.vel_cycle) {
-        /* the usual case: no filter, every counted edge is a velocity
-         * edge, 32-bit count (edge input) */
+        /* no filter, every counted edge is a velocity edge, 32-bit count */
         bool edges;
 
         qdec_snapshot_k(q, &s, false, false);
@@ -591,6 +618,79 @@ void qdec_sample(qdec_t *q, uint32_t now_ns)
     qdec_update(q, &s, s.nedge != q->last_nedge, s.ncyc != q->last_ncyc, now_ns);
     q->last_nedge = s.nedge;
     q->last_ncyc = s.ncyc;
+}
+
+/* The tick's usual sample (q->fast: edge input, no filter, no vel_cycle)
+ * when nothing rare happened: time forward (0 < dt < 2^31 ns), no new
+ * illegal transition, no new index latch. Reads only the count, the edge
+ * counter, the last edge time and direction; the count difference and the
+ * edge time relative to the sample are 32-bit, the 64-bit values (position,
+ * extended time) take one add each; position in nm by one 32x32 multiply.
+ * Returns false before writing anything when the sample needs the
+ * reference path (qdec_sample_ref), which then gives the same result. */
+static QDEC_INLINE bool qdec_sample_fast(qdec_t *q, uint32_t now_ns)
+{
+    const qdec_edge_state_t *e = &q->e;
+    uint32_t seq, raw, nedge, t_last, mag;
+    int32_t dt, delta;
+    int8_t dir;
+    int64_t pos;
+    const comp_table_t *comp;
+
+    do {
+        seq = e->seq;
+        raw = e->count;
+        nedge = e->nedge;
+        t_last = e->t_last;
+        dir = e->dir;
+        if (e->illegal != q->last_illegal || e->idx_events != q->last_idx_events) {
+            return false;
+        }
+    } while (seq != e->seq || (seq & 1u) != 0u);
+    dt = (int32_t)(now_ns - q->now_raw);
+    if (dt <= 0) {
+        return false;
+    }
+    q->now += dt;
+    q->now_raw = now_ns;
+
+    delta = (int32_t)(raw - q->last_raw);
+    q->last_raw = raw;
+    pos = q->out.pos + delta;
+    q->out.pos = pos;
+    mag = (delta < 0) ? (uint32_t)0 - (uint32_t)delta : (uint32_t)delta;
+    if (mag > q->max_delta) {
+        q->out.faults |= QDEC_FAULT_OVERSPEED;
+    }
+    if (dir != 0) {
+        q->out.dir = dir;
+    }
+    if (nedge != q->last_nedge) {
+        /* the last counted edge: within 2^31 ns of this sample (see Timestamps) */
+        int64_t t_edge = q->now + (int32_t)(t_last - now_ns);
+
+        q->last_nedge = nedge;
+        q->last_ncyc = nedge;
+        q->t_edge = t_edge;
+        q->out.stopped = false;
+        qdec_velocity_edge(q, pos, t_edge);
+    } else {
+        qdec_velocity_idle(q);
+    }
+    /* out.illegal and out.glitches are unchanged (equal to e's: filter off) */
+    comp = q->cfg.comp;
+    q->out.pos_nm_raw = qdec_counts_to_nm(q, pos);
+    q->out.pos_nm = (comp == NULL) ? q->out.pos_nm_raw
+                                   : comp_correct(comp, q->out.pos_nm_raw, (comp_dir_t)q->out.dir);
+    return true;
+}
+
+void qdec_sample(qdec_t *q, uint32_t now_ns)
+{
+    if (q->fast && qdec_sample_fast(q, now_ns)) {
+        return;
+    }
+    qdec_sample_ref(q, now_ns);
 }
 
 void qdec_sample_counter(qdec_t *q, uint32_t raw, uint32_t now_ns)
@@ -683,7 +783,9 @@ bool qdec_init(qdec_t *q, const qdec_config_t *cfg, uint32_t initial, uint32_t n
     q->now = 0;
     q->t_edge = 0;
     q->ring_n = 0; /* the first counted edge gives no estimate yet */
-    q->ring_head = 0;
+    q->rec = 0;
+    q->rec_norm = 0;
+    q->vel_fast = false;
     for (i = 0; i < QDEC_ILLEGAL_MAX; i++) {
         q->ill_t[i] = 0;
     }
@@ -697,6 +799,7 @@ bool qdec_init(qdec_t *q, const qdec_config_t *cfg, uint32_t initial, uint32_t n
         q->e.t_last = now_ns;
     }
     q->nm_fast = qdec_nm_fast(&q->cfg);
+    q->fast = cfg->input == QDEC_INPUT_EDGES && cfg->glitch_ns == 0u && !cfg->vel_cycle;
     q->out.pos_nm_raw = qdec_counts_to_nm(q, 0);
     q->out.pos_nm = comp_correct(cfg->comp, q->out.pos_nm_raw, COMP_DIR_NONE);
     return true;

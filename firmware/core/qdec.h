@@ -156,6 +156,18 @@
  *   Multi-core / threaded ports serialise qdec_edge and qdec_sample with a
  *   lock: the sequence count handles preemption on one core only.
  *
+ * Sample cost (edge input, no filter, no vel_cycle: the drive's decoders).
+ * qdec_sample takes a short path unless the sample is rare (time not
+ * forward, a new illegal transition or index latch: then the reference
+ * path, same results): the count difference since the last sample and the
+ * last edge's time relative to the sample are 32-bit (|delta| < 2^31, edge
+ * within 2^31 ns, as above); the 64-bit position and extended time take one
+ * add each; pos_nm one 32x32->64 multiply (|pos| < 2^31, den 1). The
+ * velocity record of such a sample stores the ring entry and counts it in
+ * `rec` (the ring rising, vel_fast); ring_n, ring_mono and the pending
+ * estimate are brought up to date from the count when they are next read
+ * (qdec_velocity, an idle sample, the general record) or every 16 records.
+ *
  * No floating point, no heap. Division only in the tick functions, through
  * fixmath (32-bit digits on 32-bit targets): the velocity estimate, and the
  * scaling to nm when nm_per_count_den is not 1.
@@ -269,14 +281,17 @@ typedef struct {
     uint32_t max_delta;
     uint8_t bits;
     bool nm_fast; /* nm_per_count_den == 1 and |offset_nm| < 2^62 (init, set_offset) */
+    bool fast;    /* edge input, no filter, no vel_cycle: qdec_sample's short path
+                   * (set by init; false forces the reference path: tests) */
     int64_t now;  /* extended sample time, ns                        */
     uint32_t now_raw;
     int64_t t_edge;                /* extended time of the last counted edge          */
-    int64_t t_vel;                 /* extended time of the last recorded edge */
     int64_t ring_p[QDEC_VEL_RING]; /* recorded last edges: position           */
     int64_t ring_t[QDEC_VEL_RING]; /* ... and extended time                   */
+    uint32_t rec;                  /* edges recorded (wrapping): the newest at ring[rec % RING] */
+    uint32_t rec_norm; /* rec when ring_n, ring_mono and vel_* were last brought up to date */
     uint8_t ring_n;
-    uint8_t ring_head;
+    bool vel_fast; /* ring_n > 0 and ring_mono + 1 >= ring_n: the short record applies */
     /* velocity evaluated on demand (qdec_velocity): the newest estimate's
      * counts and time (divided when asked) and the idle bound's time */
     bool vel_pending;

@@ -160,7 +160,14 @@ static int64_t sc_muldiv_round(int64_t a, int64_t b, int64_t c, bool up)
     if (c <= 0) {
         return INT64_MAX;
     }
-    q = sc_div(sc_mul((uint64_t)a, (uint64_t)b), (uint64_t)c, &rem, &ovf);
+    if ((((uint64_t)a | (uint64_t)b) >> 32) == 0u) {
+        /* the product fits 64 bits (one 32 x 32 multiply): one 64/64
+         * division, the same quotient and remainder */
+        q = fx_udivmod64((uint64_t)(uint32_t)a * (uint32_t)b, (uint64_t)c, &rem);
+        ovf = false;
+    } else {
+        q = sc_div(sc_mul((uint64_t)a, (uint64_t)b), (uint64_t)c, &rem, &ovf);
+    }
     if (up && !ovf && rem != 0u) {
         q++;
         ovf = (q == 0u);
@@ -309,6 +316,37 @@ int64_t sc_dist(int64_t va, int64_t vb, const sc_limits_t *lim)
     return sc_dist_q(va, vb, lim, -1);
 }
 
+static bool sc_fits_off; /* test hook: sc_test_dist_fits */
+
+void sc_test_dist_fits(bool on)
+{
+    sc_fits_off = !on;
+}
+
+/* Whether sc_dist_q(lo, hi, lim, qc) fits in dq (nm * 2^16), i.e. the
+ * reach's test `dd < INT64_MAX / 65536 && dd * 65536 <= dq`, decided by
+ * one exact 128-bit comparison where sc_dist_q takes its reduced exact
+ * branch: lim already resolved to the S-curve, 0 <= lo < hi,
+ * hi - lo < qc, lo + hi <= SC_SQRT_INT64_MAX and df = floor(dq / 2^16)
+ * < 2^31. There sc_dist_q returns ceil(D), D = (lo + hi) sqrt((hi - lo) / J)
+ * (the exact ceiling whenever its quotient does not saturate, never below
+ * it otherwise), so it fits iff D <= df iff (lo + hi)^2 (hi - lo) <=
+ * df^2 J; and then (lo + hi)^2 (hi - lo) / J <= df^2 < 2^62, so the
+ * quotient did not saturate. Outside these ranges sc_dist_q decides. */
+static bool sc_dist_fits(int64_t lo, int64_t hi, int64_t dq, const sc_limits_t *lim, int64_t qc)
+{
+    int64_t dd, df = (dq > 0) ? dq / 65536 : 0; /* floor for dq >= 0 */
+
+    if (!sc_fits_off && lim->shape == SC_SHAPE_SCURVE && lo >= 0 && hi > lo && qc >= 0 &&
+        hi - lo < qc && lo + hi <= SC_SQRT_INT64_MAX && dq >= 0 && df < ((int64_t)1 << 31)) {
+        uint64_t s = (uint64_t)(lo + hi);
+        return sc_cmp_products(s * s, (uint64_t)(hi - lo), (uint64_t)(df * df),
+                               (uint64_t)lim->j_max) <= 0;
+    }
+    dd = sc_dist_q(lo, hi, lim, qc);
+    return dd < INT64_MAX / 65536 && dd * 65536 <= dq;
+}
+
 int64_t sc_mul_sat(int64_t a, int64_t b)
 {
     sc_u128_t x;
@@ -437,7 +475,7 @@ static int64_t sc_mf_int(sc_mf_t a)
  * -1 when the estimate reaches A^2/J (the acceleration limit applies). */
 static int64_t sc_reach_fast(int64_t v, int64_t dq, int64_t q, int64_t qc, const sc_limits_t *lim)
 {
-    int64_t j = lim->j_max, x, dv, r, dd;
+    int64_t j = lim->j_max, x, dv, r;
     unsigned sh, bj, m, e;
     sc_mf_t w, mj, md, m2v;
     int k;
@@ -485,8 +523,7 @@ static int64_t sc_reach_fast(int64_t v, int64_t dq, int64_t q, int64_t qc, const
         return -1;
     }
     r = (dv >= lim->v_max - v) ? lim->v_max : v + dv;
-    dd = sc_dist_q(v, r, lim, qc);
-    return (dd < INT64_MAX / 65536 && dd * 65536 <= dq) ? r : -1;
+    return sc_dist_fits(v, r, dq, lim, qc) ? r : -1;
 }
 
 /* sc_reach with the distance in nm * 2^16; q, qc: floor and ceil of A^2/J
@@ -515,16 +552,14 @@ static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim, int64
         return (r >= (uint64_t)vmax) ? vmax : sc_max(v, (int64_t)r);
     }
     {
-        int64_t dfull, dmax;
+        int64_t dfull;
 
         if (qc < 0) {
             sc_aaj(a, j, &q, &qc); /* floor and ceil of A^2/J */
         }
-        if (v > 0) { /* from rest the estimate below checks the cap itself */
-            dmax = sc_dist_q(v, vmax, lim, qc);
-            if (dmax < INT64_MAX / 65536 && dq >= dmax * 65536) {
-                return vmax; /* the cap itself is reachable: no root to find */
-            }
+        if (v > 0 && sc_dist_fits(v, vmax, dq, lim, qc)) {
+            /* from rest the estimate below checks the cap itself */
+            return vmax; /* the cap itself is reachable: no root to find */
         }
         dv = sc_fast_off ? -1 : sc_reach_fast(v, dq, q, qc, lim);
         if (dv > 0) {

@@ -138,6 +138,10 @@ uint64_t sc_isqrt_wide(uint64_t hi, uint64_t lo);
 /* Test hook: sc_reach without the estimate-and-check path (the bracketing
  * Newton steps and chord it falls back to). Not reentrant. */
 int64_t sc_reach_bracket(int64_t v, int64_t d, const sc_limits_t *lim);
+/* Test hook: the reach's exact one-comparison distance checks in the
+ * reduced S-curve case (on by default; off: sc_dist decides every check;
+ * the results are identical). */
+void sc_test_dist_fits(bool on);
 
 /* a * b saturated to INT64_MAX; 0 when a <= 0 or b <= 0 (= sc_muldiv(a, b, 1)). */
 int64_t sc_mul_sat(int64_t a, int64_t b);

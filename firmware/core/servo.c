@@ -367,19 +367,66 @@ void servo_fb_from_qdec(servo_fb_t *fb, const qdec_t *const enc[CORE_AXES], unsi
     fb->enc_fault = fault;
 }
 
+/* Step 2 outside RUN (or RUN without a reference): hold, stop ramp or
+ * track the feedback. */
+static void tick_reference(servo_t *s, const servo_fb_t *fb)
+{
+    const unsigned n = s->p.axes;
+    unsigned i;
+
+    for (i = 0; i < n; i++) { /* the position holds unless set below */
+        s->ref_vel[i] = 0;
+        s->ref_acc[i] = 0;
+    }
+    switch (s->state) {
+    case SERVO_RUN: /* without a reference: hold the last one */
+        break;
+    case SERVO_STOPPING:
+        stop_advance(s, s->ref_pos, s->ref_vel, s->ref_acc);
+        break;
+    case SERVO_HOLD:
+        for (i = 0; i < n; i++) {
+            s->ref_pos[i] = s->stop_pos[i];
+        }
+        break;
+    default: /* OFF: the loops track the feedback */
+        for (i = 0; i < n; i++) {
+            s->ref_pos[i] = fb->pos[i];
+        }
+        break;
+    }
+}
+
+/* Step 3's reactions, in axis order, for the axes whose following error
+ * was over the limit (over: bit mask). Whether an axis is checked and
+ * whether the fault escalates depend on the state left by the faults of
+ * the axes before it, exactly as if each were raised as it was found. */
+static void tick_ferr_faults(servo_t *s, uint32_t over)
+{
+    unsigned i;
+
+    for (i = 0; i < s->p.axes; i++) {
+        int32_t lim = s->p.ferr_limit_nm[i];
+        int32_t fe = s->ferr_nm[i];
+
+        if ((over & (1u << i)) && s->state != SERVO_OFF && !(s->off_mask & (1u << i))) {
+            bool esc = s->state != SERVO_RUN && (fe / 2 > lim || fe / 2 < -lim);
+            raise_fault(s, SERVO_FAULT_FOLLOWING, i, esc);
+        }
+    }
+}
+
 void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
 {
-    /* the tick's reference is written straight into s->ref_* */
-    pos_nm_t *const rp = s->ref_pos;
-    int64_t *const rv = s->ref_vel;
-    int64_t *const ra = s->ref_acc;
     const unsigned n = s->p.axes;
-    const motion_ref_t *cref = NULL;
+    const bool run = s->state == SERVO_RUN && ref != NULL;
+    uint32_t over = 0;
     unsigned i;
     bool quiet;
 
     s->ticks++;
-    /* 1. input faults */
+    /* 1. input faults (each raised at once: the state they leave decides
+     * step 2) */
     for (i = 0; i < n; i++) {
         if (fb->enc_fault & (1u << i)) {
             raise_fault(s, SERVO_FAULT_ENCODER, i, false);
@@ -388,78 +435,80 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
             raise_fault(s, SERVO_FAULT_AMPLIFIER, i, false);
         }
     }
-    /* 2. reference */
-    if (s->state == SERVO_RUN && ref != NULL) {
-        cref = ref;
+    /* 2. reference and 3. following error in one pass (the reactions after
+     * it: a controlled stop starts from this tick's reference of every axis) */
+    if (run && s->state == SERVO_RUN) {
         for (i = 0; i < n; i++) {
-            rp[i] = ref->pos[i];
-            rv[i] = ref->vel[i];
-            ra[i] = ref->acc[i];
+            int32_t lim = s->p.ferr_limit_nm[i];
+            int32_t fe;
+
+            s->ref_pos[i] = ref->pos[i];
+            s->ref_vel[i] = ref->vel[i];
+            s->ref_acc[i] = ref->acc[i];
+            fe = fx_sat_diff32(ref->pos[i], fb->pos[i]);
+            s->ferr_nm[i] = fe;
+            if (lim > 0 && (fe > lim || fe < -lim)) {
+                over |= 1u << i;
+            }
         }
     } else {
-        for (i = 0; i < n; i++) { /* the position holds unless set below */
-            rv[i] = 0;
-            ra[i] = 0;
-        }
-    }
-    switch (s->state) {
-    case SERVO_RUN: /* done above (without a reference: hold) */
-        break;
-    case SERVO_STOPPING:
-        stop_advance(s, rp, rv, ra);
-        break;
-    case SERVO_HOLD:
+        tick_reference(s, fb);
         for (i = 0; i < n; i++) {
-            rp[i] = s->stop_pos[i];
-        }
-        break;
-    default: /* OFF: the loops track the feedback */
-        for (i = 0; i < n; i++) {
-            rp[i] = fb->pos[i];
-        }
-        break;
-    }
-    /* 3. following error */
-    for (i = 0; i < n; i++) {
-        int32_t lim = s->p.ferr_limit_nm[i];
-        int32_t fe = fx_sat_diff32(rp[i], fb->pos[i]);
-        s->ferr_nm[i] = fe;
-        if (s->state != SERVO_OFF && !(s->off_mask & (1u << i)) && lim > 0 &&
-            (fe > lim || fe < -lim)) {
-            bool esc = s->state != SERVO_RUN && (fe / 2 > lim || fe / 2 < -lim);
-            raise_fault(s, SERVO_FAULT_FOLLOWING, i, esc);
+            int32_t lim = s->p.ferr_limit_nm[i];
+            int32_t fe = fx_sat_diff32(s->ref_pos[i], fb->pos[i]);
+
+            s->ferr_nm[i] = fe;
+            if (lim > 0 && (fe > lim || fe < -lim)) {
+                over |= 1u << i;
+            }
         }
     }
-    /* 4. contour error controller (RUN only) */
-    cec_step(&s->cec, (s->state == SERVO_RUN) ? cref : NULL, fb->pos);
+    if (over != 0) {
+        tick_ferr_faults(s, over);
+    }
+    /* 4. contour error controller (RUN only); an idle CEC that is off with
+     * its outputs at 0 has nothing to do (cec_step would return at once) */
+    if (!(s->cec.p.mode == CEC_MODE_OFF && s->cec.idle && s->cec.out_zero)) {
+        cec_step(&s->cec, (s->state == SERVO_RUN && run) ? ref : NULL, fb->pos);
+    }
     /* idle with outputs known to be 0 (cec.h): nothing to read */
     quiet = s->cec.idle && s->cec.out_zero;
-    /* 5. axis loops */
+    /* 5. axis loops and 6. saturation supervision, per axis */
     for (i = 0; i < n; i++) {
+        pid_loop_t *pid = &s->pid[i];
         int64_t extra = 0;
+
         if (i < 3 && i < CORE_AXES && !quiet) {
             if (s->cec.handover_u[i] != 0) {
-                pid_add_integrator(&s->pid[i], s->cec.handover_u[i]);
+                pid_add_integrator(pid, s->cec.handover_u[i]);
             }
             extra = s->cec.out_u[i];
         }
-        /* ferr_nm[i] is sat32(rp[i] - fb->pos[i]) of this tick (step 3;
-         * nothing since changes rp or fb) */
-        s->out_mv[i] = pid_fast_ready(&s->pid[i])
-                           ? pid_step_fast(&s->pid[i], s->ferr_nm[i], fb->pos[i], extra)
-                           : pid_step_e(&s->pid[i], s->ferr_nm[i], fb->pos[i], rv[i], ra[i], extra);
-        /* 6. saturation supervision */
-        if (s->p.sat_limit_ticks > 0 && s->pid[i].sat_ticks > s->p.sat_limit_ticks) {
-            bool esc = s->state != SERVO_RUN && s->pid[i].sat_ticks / 2 > s->p.sat_limit_ticks;
+        /* ferr_nm[i] is sat32(ref_pos[i] - fb->pos[i]) of this tick (step 3;
+         * nothing since changes either) */
+        s->out_mv[i] = pid_fast_ready(pid) ? pid_step_fast(pid, s->ferr_nm[i], fb->pos[i], extra)
+                                           : pid_step_e(pid, s->ferr_nm[i], fb->pos[i],
+                                                        s->ref_vel[i], s->ref_acc[i], extra);
+        if (pid->sat_ticks > s->p.sat_limit_ticks && s->p.sat_limit_ticks > 0) {
+            bool esc = s->state != SERVO_RUN && pid->sat_ticks / 2 > s->p.sat_limit_ticks;
             raise_fault(s, SERVO_FAULT_SATURATION, i, esc);
         }
     }
-    /* 7. outputs */
-    for (i = 0; i < n; i++) {
-        if (s->state == SERVO_OFF || (s->off_mask & (1u << i))) {
+    /* 7. outputs (after every loop: a fault of a later axis may still zero
+     * an earlier one) */
+    if (s->state == SERVO_OFF) {
+        for (i = 0; i < n; i++) {
             s->out_mv[i] = 0;
         }
-        if (s->io.set_mv != NULL) {
+    } else if (s->off_mask != 0) {
+        for (i = 0; i < n; i++) {
+            if (s->off_mask & (1u << i)) {
+                s->out_mv[i] = 0;
+            }
+        }
+    }
+    if (s->io.set_mv != NULL) {
+        for (i = 0; i < n; i++) {
             s->io.set_mv(i, s->out_mv[i]);
         }
     }

@@ -24,6 +24,10 @@
  *   7. writes the commands (mV, clamped by each PID's out_max_mv) with
  *      io.set_mv for every axis in use (0 for disabled axes); enable lines
  *      change through io.enable only on state changes.
+ * (Implementation: steps 2 and 3 run in one pass over the axes and the
+ * following-error reactions follow it in axis order; steps 5 and 6 run in
+ * one pass; each reaction still sees the state left by the faults before
+ * it, and every fault takes effect in the tick that raised it.)
  *
  * States: OFF (outputs 0, enable lines off; the loops keep tracking the
  * feedback so enabling is bumpless) -> servo_enable -> HOLD (holds the

@@ -671,11 +671,140 @@ static void test_reciprocal_fraction_equals_the_division(void)
     TEST_ASSERT_EQUAL_UINT32(357913941u, fx_div_q30_rec(1, 3, fx_recip62(3))); /* 2^30 / 3 */
 }
 
+/* Reference scales (drive_status_t.refscale): the tick reads the counters
+ * on every DRIVE_REF_SAMPLE_TICKS-th tick and on the tick after a
+ * drive_status() call. With the counter moving at the largest speed the
+ * wrap guard allows (2^31 - 64 counts per sampling period: it wraps about
+ * every period), every published value is exact: the sample of the last
+ * sampling tick, or of this tick after a drive_status(). Fails when the
+ * period is longer than stated (a wrong wrap), when there is no periodic
+ * sample or when drive_status() does not request one. */
+static void test_reference_scale_samples_and_wrap_guard(void)
+{
+    const uint32_t raw0 = 0xFFFFFF00u;
+    const uint32_t step = (1u << 31) / DRIVE_REF_SAMPLE_TICKS - 1u;
+    drive_config_t cfg;
+    drive_status_t s;
+    uint64_t t = 1000000;
+    uint32_t raw = raw0, k;
+    int64_t cnt = (int32_t)raw0, sampled;
+
+    drive_config_default(&cfg, 10000, 1);
+    cfg.ref_nm_per_count_num[0] = 5;
+    cfg.ref_nm_per_count_den[0] = 1;
+    hal_sim_set_time_ns(t);
+    hal_sim_set_counter(1, raw0, true);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_init(&cfg));
+    TEST_ASSERT_TRUE(drive_has_refscale(0));
+    sampled = 5 * cnt; /* set by the first tick (k = 0) */
+    for (k = 0; k < 12u * DRIVE_REF_SAMPLE_TICKS; k++) {
+        bool status = k >= 6u * DRIVE_REF_SAMPLE_TICKS; /* a status every tick */
+        raw += step;
+        cnt += step;
+        t += TICK_NS;
+        hal_sim_set_time_ns(t);
+        hal_sim_set_counter(1, raw, true);
+        drive_tick(); /* tick number k since drive_init */
+        if (k % DRIVE_REF_SAMPLE_TICKS == 0u || (status && k > 6u * DRIVE_REF_SAMPLE_TICKS)) {
+            sampled = 5 * cnt;
+        }
+        if (status) {
+            drive_status(&s);
+        } else {
+            drive_snapshot(&s);
+        }
+        TEST_ASSERT_EQUAL_INT64(sampled, s.refscale[0]);
+    }
+    TEST_ASSERT_TRUE(cnt > 4 * ((int64_t)1 << 32)); /* wrapped several times */
+}
+
+/* One job (line, helix arc, line; friction feed-forward on X or none; a
+ * controlled stop during the second line) with the drive's pos-only reference copy on
+ * the interpolator's fast-path ticks or with the full copy every tick
+ * (drive_test_full_ref): reference, feed-forward velocity and motor
+ * voltages of every tick. */
+#define FR_TICKS 4500u
+static int64_t fr_out[2][FR_TICKS][3 * CORE_AXES];
+
+static void full_ref_job(int full, bool friction)
+{
+    const int64_t a[CORE_AXES] = {2000000, 0, 0};
+    const int64_t b[CORE_AXES] = {2000000, 0, 400000}; /* a full circle, up 0.4 mm */
+    const int64_t c[CORE_AXES] = {0, 1000000, 400000};
+    uint32_t k;
+    int r, i;
+
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 3));
+    TEST_ASSERT_EQUAL_INT(0, sim_gain_set(0, "kaff", 0.002));
+    if (friction) {
+        TEST_ASSERT_EQUAL_INT(0, sim_servo_set(0, "friction_ff", 0.3));
+    }
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    drive_test_full_ref(full != 0);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_line(a, 30000000, 1, 0, &r));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, r);
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_arc(b, 30000000, DRIVE_PLANE_XY, 1000000, 0, 1, 2, &r));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, r);
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_line(c, 30000000, 3, 1, &r));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, r);
+    for (k = 0; k < FR_TICKS; k++) {
+        if (k == 3300u) {
+            drive_stop();
+        }
+        TEST_ASSERT_TRUE(sim_run(1, NULL, 0, 0) >= 0);
+        drive_snapshot(&st);
+        for (i = 0; i < CORE_AXES; i++) {
+            fr_out[full][k][i] = st.ref[i];
+            fr_out[full][k][CORE_AXES + i] = st.vel_ref[i];
+            fr_out[full][k][2 * CORE_AXES + i] = st.motor_mv[i];
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT32(0, st.faults);
+}
+
+/* The pos-only copy gives the same outputs as the full copy on every tick
+ * (fails e.g. when the arc overlay reads its own output of the last tick
+ * or the friction feed-forward is added again to an uncopied acceleration). */
+static void pos_only_vs_full(bool friction)
+{
+    uint32_t k, bad = 0, first = FR_TICKS;
+    unsigned i;
+
+    full_ref_job(1, friction);
+    full_ref_job(0, friction);
+    for (k = 0; k < FR_TICKS; k++) {
+        for (i = 0; i < 3 * CORE_AXES; i++) {
+            if (fr_out[0][k][i] != fr_out[1][k][i]) {
+                bad++;
+                first = k < first ? k : first;
+            }
+        }
+    }
+    if (bad != 0) {
+        printf("first difference at tick %u\n", first);
+    }
+    TEST_ASSERT_EQUAL_UINT32_MESSAGE(0, bad, "pos-only copy differs");
+    TEST_ASSERT_TRUE(fr_out[0][2500][1] != 0);                 /* on the arc */
+    TEST_ASSERT_TRUE(fr_out[0][2500][2] != 0);                 /* climbing */
+    TEST_ASSERT_TRUE(fr_out[0][3299][1] > fr_out[0][3000][1]); /* last line */
+    TEST_ASSERT_TRUE(fr_out[0][FR_TICKS - 1][1] < 1000000);    /* stopped on it */
+    TEST_ASSERT_EQUAL_INT64(0, fr_out[0][FR_TICKS - 1][CORE_AXES + 1]);
+}
+
+static void test_pos_only_reference_copy_equals_the_full_copy(void)
+{
+    pos_only_vs_full(false);
+    pos_only_vs_full(true);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_block_queued_right_after_enable_runs);
     RUN_TEST(test_reciprocal_fraction_equals_the_division);
+    RUN_TEST(test_reference_scale_samples_and_wrap_guard);
+    RUN_TEST(test_pos_only_reference_copy_equals_the_full_copy);
     RUN_TEST(test_enable_queue_poll_before_the_first_tick);
     RUN_TEST(test_status_reports_planned_time_queued);
     RUN_TEST(test_planned_time_counts_blocks_waiting_in_the_planner);

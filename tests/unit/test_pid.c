@@ -545,6 +545,52 @@ static int64_t rnd64(void)
     return (int64_t)(lcg_state ^ (lcg_state >> 29));
 }
 
+/* The D filter's product round(x * alpha / 2^30) (two 32-bit products in
+ * pid.c) against the exact 128-bit value, on both paths, with D inputs
+ * from 1 nm to the int32 limit per tick and filter factors from 2^30 / 1001
+ * to 2^30 / 2 (so |x| reaches the 2^61 of its stated range). */
+static void test_d_filter_product_exact(void)
+{
+    static const double kd[] = {1e-3, 5, 1e3, 2e5};
+    static const uint32_t tau_us[] = {10, 100, 10000};
+    size_t g, t;
+    int fast, k, fast_runs = 0;
+
+    for (g = 0; g < sizeof kd / sizeof kd[0]; g++) {
+        for (t = 0; t < sizeof tau_us / sizeof tau_us[0]; t++) {
+            for (fast = 0; fast < 2; fast++) {
+                pid_params_t p = params(1e3, 1e4, kd[g], 10000);
+                pid_loop_t a;
+                pos_nm_t meas = 0;
+                p.d_on_measurement = true;
+                p.d_tau_us = tau_us[t];
+                start(&a, &p);
+                pid_step(&a, 0, 0, 0, 0, 0);
+                if (fast && !a.fast) {
+                    continue; /* shifts outside the short path's range */
+                }
+                a.fast = fast != 0;
+                fast_runs += fast;
+                TEST_ASSERT_TRUE(a.alpha_q30 < FX_ONE_Q30);
+                for (k = 0; k < 300; k++) {
+                    int64_t r = rnd64();
+                    int sh = (int)((uint64_t)r >> 59); /* 0..31 */
+                    pos_nm_t next = meas + ((r & 0xFFFFFFFF) >> sh) - ((int64_t)1 << (31 - sh));
+                    int32_t de = fx_sat_diff32(meas, next);
+                    int64_t draw = pid_coef_apply(a.cd, de), prev = a.dterm;
+                    i128 x = (i128)draw - prev;
+                    int64_t want = prev + (int64_t)((x * a.alpha_q30 + ((i128)1 << 29)) >> 30);
+                    pid_step(&a, next, next, 0, 0, 0);
+                    TEST_ASSERT_TRUE(x <= ((i128)1 << 61) && x >= -((i128)1 << 61));
+                    TEST_ASSERT_EQUAL_INT64(want, a.dterm);
+                    meas = next;
+                }
+            }
+        }
+    }
+    TEST_ASSERT_TRUE(fast_runs >= 6);
+}
+
 static void test_fast_path_matches_general(void)
 {
     /* Kp, Ki, Kd, tick rate: shifts from 2 (1e5, 1e7, 1e3 at 100 Hz) to
@@ -622,5 +668,6 @@ int main(void)
     RUN_TEST(test_config_validation_all_or_nothing);
     RUN_TEST(test_extremes);
     RUN_TEST(test_fast_path_matches_general);
+    RUN_TEST(test_d_filter_product_exact);
     return UNITY_END();
 }

@@ -939,6 +939,38 @@ static void test_jd_early_exit_matches_full(void)
     TEST_ASSERT_TRUE(limited > 200);
 }
 
+/* the block limits' 64-bit multiply-divide and the direction ratio's one
+ * 128/64 division equal sc_muldiv over their whole input range: factors
+ * of every bit length (products below and above 2^64, at the 2^32 split),
+ * ratios with a <= len and a up to 4 len (saturation included) */
+static void test_limit_and_ratio_divisions(void)
+{
+    int i, fast = 0;
+    TEST_ASSERT_EQUAL_INT64(0, plan_test_muldiv(0, 5, 7));
+    TEST_ASSERT_EQUAL_INT64(0, plan_test_muldiv(5, -1, 7));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, plan_test_muldiv(5, 1, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, plan_test_muldiv((int64_t)1 << 40, (int64_t)1 << 23, 1));
+    TEST_ASSERT_EQUAL_INT64(sc_muldiv(4294967295LL, 4294967295LL, 3),
+                            plan_test_muldiv(4294967295LL, 4294967295LL, 3));
+    TEST_ASSERT_EQUAL_INT64((int64_t)1 << 62, plan_test_ratio(12345, 12345));
+    TEST_ASSERT_EQUAL_INT64(0, plan_test_ratio(0, 12345));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, plan_test_ratio(4 * 12345, 12345));
+    for (i = 0; i < 200000; i++) {
+        int64_t a = (int64_t)(rnd() >> (1 + rnd() % 63)), b = (int64_t)(rnd() >> (1 + rnd() % 63));
+        int64_t c = (int64_t)(rnd() >> (1 + rnd() % 63)) + 1, len, x;
+        TEST_ASSERT_EQUAL_INT64(sc_muldiv(a, b, c), plan_test_muldiv(a, b, c));
+        fast += (a > 0 && b > 0 && (uint64_t)a * (uint64_t)b / (uint64_t)b == (uint64_t)a) ? 1 : 0;
+        len = (int64_t)(rnd() >> (1 + rnd() % 63)) + 1;
+        x = (int64_t)(rnd() % (uint64_t)len);
+        if (rnd() % 4 == 0 && len < ((int64_t)1 << 60)) {
+            x += (int64_t)(rnd() % (3 * (uint64_t)len + 1)); /* above len: saturates at 4 len */
+        }
+        TEST_ASSERT_EQUAL_INT64(sc_muldiv(x, (int64_t)1 << 62, len), plan_test_ratio(x, len));
+        TEST_ASSERT_EQUAL_INT64(sc_muldiv(len, (int64_t)1 << 62, len), plan_test_ratio(len, len));
+    }
+    TEST_ASSERT_TRUE(fast > 50000); /* the 64-bit path is exercised */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -965,5 +997,6 @@ int main(void)
     RUN_TEST(test_axis_limits_projected);
     RUN_TEST(test_block_limits_are_axis_minimum);
     RUN_TEST(test_jd_early_exit_matches_full);
+    RUN_TEST(test_limit_and_ratio_divisions);
     return UNITY_END();
 }

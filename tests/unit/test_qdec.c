@@ -1007,6 +1007,168 @@ static void test_config_rejected(void)
     TEST_ASSERT_TRUE(qdec_init(&d, &c, 0, 0));
 }
 
+/* ---- qdec_sample's short path against the reference path --------------------------------------
+ */
+
+static void assert_same_out(const qdec_t *a, const qdec_t *b)
+{
+    TEST_ASSERT_EQUAL_INT64(b->out.pos, a->out.pos);
+    TEST_ASSERT_EQUAL_INT64(b->out.pos_nm_raw, a->out.pos_nm_raw);
+    TEST_ASSERT_EQUAL_INT64(b->out.pos_nm, a->out.pos_nm);
+    TEST_ASSERT_EQUAL_INT(b->out.dir, a->out.dir);
+    TEST_ASSERT_EQUAL(b->out.stopped, a->out.stopped);
+    TEST_ASSERT_EQUAL_UINT32(b->out.faults, a->out.faults);
+    TEST_ASSERT_EQUAL_UINT32(b->out.illegal, a->out.illegal);
+    TEST_ASSERT_EQUAL_UINT32(b->out.glitches, a->out.glitches);
+    TEST_ASSERT_EQUAL_UINT32(b->out.index_events, a->out.index_events);
+    TEST_ASSERT_EQUAL_INT64(b->out.index_pos, a->out.index_pos);
+    TEST_ASSERT_EQUAL_UINT32(b->out.index_t_ns, a->out.index_t_ns);
+    TEST_ASSERT_EQUAL_INT(b->out.index_dir, a->out.index_dir);
+}
+
+/* Random edge streams (legal steps both ways, illegal transitions, Z with a
+ * gated index), edge times before and after the sample, sample periods from
+ * 1 ns to 2^31 - 1 ns and backwards (time fault), count jumps of any 32-bit
+ * size (overspeed, positions beyond 2^31), scale, offset and compensation
+ * table: the short path (q->fast) and the reference path (fast cleared)
+ * give the same outputs and the same velocity at every sample. */
+static void test_sample_fast_equals_reference(void)
+{
+    static const uint8_t seq4[4] = {0, 1, 3, 2};
+    static const uint64_t windows[2] = {0, 350000};
+    static comp_table_t tab;
+    unsigned cfgi, k, fast_used = 0, ref_used = 0;
+
+    tab.n = 3;
+    tab.pos[0] = -1000000;
+    tab.pos[1] = 0;
+    tab.pos[2] = 1000000;
+    tab.fwd[0] = 5;
+    tab.fwd[1] = -7;
+    tab.fwd[2] = 11;
+    tab.rev[0] = -3;
+    tab.rev[1] = 2;
+    tab.rev[2] = 9;
+    TEST_ASSERT_EQUAL(COMP_OK, comp_table_check(&tab));
+    for (cfgi = 0; cfgi < 8; cfgi++) {
+        qdec_t a, b;
+        qdec_config_t c = edge_cfg((qdec_mode_t)(cfgi % 3u));
+        uint32_t t = 0xFFFF0000u, lines = 0; /* the clock wraps early */
+        unsigned ph = 0;
+
+        c.vel_window_ns = windows[cfgi & 1u];
+        c.nm_per_count_num = (cfgi & 2u) ? -3 : 250;
+        c.nm_per_count_den = (cfgi == 6u) ? 7 : 1;
+        c.offset_nm = (cfgi & 4u) ? -123456789 : 0;
+        c.comp = (cfgi == 5u) ? &tab : NULL;
+        c.illegal_limit = 3;
+        c.illegal_window_ns = 5000000;
+        c.index_qual = (cfgi & 1u) ? 3u : QDEC_INDEX_UNGATED;
+        c.zero_timeout_ns = 20000000;
+        TEST_ASSERT_TRUE(qdec_init(&a, &c, lines, t));
+        TEST_ASSERT_TRUE(qdec_init(&b, &c, lines, t));
+        TEST_ASSERT_TRUE(a.fast);
+        b.fast = false;
+        for (k = 0; k < 20000; k++) {
+            uint32_t r = rnd(), n = r % 8u, j, ts;
+            int32_t dt;
+            bool fast_before;
+
+            for (j = 0; j < n; j++) {
+                uint32_t rr = rnd();
+                if (rr % 401u == 0u) {
+                    lines ^= 3u; /* illegal: both channels at once */
+                    ph = (ph + 2u) % 4u;
+                } else if (rr % 211u == 0u) {
+                    lines |= QDEC_LINE_Z; /* an index pulse until the next step */
+                } else {
+                    /* either way, or mostly forward in half of the stretches */
+                    bool fwd = ((k / 700u) % 2u == 0u) ? (rr & 448u) != 0u : (rr & 64u) != 0u;
+                    ph = fwd ? (ph + 1u) % 4u : (ph + 3u) % 4u;
+                    lines = seq4[ph];
+                }
+                ts = t + (uint32_t)((int32_t)(rnd() % 300000u) - 100000);
+                qdec_edge(&a, lines, ts);
+                qdec_edge(&b, lines, ts);
+            }
+            if (r % 97u == 0u) { /* a count jump of any 32-bit size, or at the overspeed limit */
+                static const uint32_t edge_jumps[4] = {(1u << 30) - 1u, 1u << 30,
+                                                       0u - ((1u << 30) - 1u), 0u - (1u << 30)};
+                uint32_t jump = (r & 0x300u) ? rnd() * 65599u : edge_jumps[(r >> 12) & 3u];
+                a.e.count += jump;
+                b.e.count += jump;
+                a.e.nedge++;
+                b.e.nedge++;
+            }
+            switch ((r >> 8) % 50u) {
+            case 0:
+                dt = -(int32_t)(rnd() % 1000u); /* backwards or the same time */
+                break;
+            case 1:
+                dt = (int32_t)(0x7FFFFFFFu - rnd() % 1000u); /* the longest period */
+                break;
+            case 2:
+                dt = (int32_t)(rnd() % 30000000u); /* up to 30 ms: timeouts */
+                break;
+            case 3:
+                dt = 1;
+                break;
+            default:
+                dt = 100000;
+                break;
+            }
+            t += (uint32_t)dt;
+            fast_before =
+                a.last_illegal == a.e.illegal && a.last_idx_events == a.e.idx_events && dt > 0;
+            fast_used += fast_before ? 1u : 0u;
+            ref_used += fast_before ? 0u : 1u;
+            qdec_sample(&a, t);
+            qdec_sample(&b, t);
+            assert_same_out(&a, &b);
+            if ((r >> 16) % 3u == 0u) {
+                TEST_ASSERT_EQUAL_INT64(qdec_velocity(&b), qdec_velocity(&a));
+                TEST_ASSERT_EQUAL_INT64(b.out.vel_nm_s, a.out.vel_nm_s);
+            }
+            if ((r >> 20) % 500u == 0u) {
+                qdec_clear_faults(&a);
+                qdec_clear_faults(&b);
+            }
+        }
+        TEST_ASSERT_EQUAL_INT64(qdec_velocity(&b), qdec_velocity(&a));
+    }
+    printf("sample paths: %u short, %u reference\n", fast_used, ref_used);
+    TEST_ASSERT_TRUE(fast_used > 100000u);
+    TEST_ASSERT_TRUE(ref_used > 5000u);
+}
+
+/* Steady motion keeps the velocity record on its short path (the ring
+ * rising: vel_fast) once the ring is full, and the folded bookkeeping is
+ * what the record count says. */
+static void test_velocity_short_record_stays(void)
+{
+    static const uint8_t seq4[4] = {0, 1, 3, 2};
+    qdec_t q;
+    qdec_config_t c = edge_cfg(QDEC_X4);
+    uint32_t t = 1000;
+    unsigned k;
+
+    TEST_ASSERT_TRUE(qdec_init(&q, &c, 0, t));
+    for (k = 1; k <= 40; k++) {
+        qdec_edge(&q, seq4[k % 4u], t + 50000u);
+        t += 100000u;
+        qdec_sample(&q, t);
+        if (k >= 2u) {
+            TEST_ASSERT_TRUE(q.vel_fast);
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT32(40, q.rec);
+    TEST_ASSERT_TRUE(q.rec - q.rec_norm <= QDEC_VEL_RING);
+    TEST_ASSERT_EQUAL_INT64(10000ll << 32, qdec_velocity(&q)); /* 1 count per 100 us */
+    TEST_ASSERT_EQUAL_UINT32(q.rec, q.rec_norm);
+    TEST_ASSERT_EQUAL_UINT8(QDEC_VEL_RING, q.ring_n);
+    TEST_ASSERT_EQUAL_UINT8(QDEC_VEL_RING - 1u, q.ring_mono);
+}
+
 static void test_time_fault(void)
 {
     qdec_t d;
@@ -1050,5 +1212,7 @@ int main(void)
     RUN_TEST(test_nm_outputs_and_identity_comp);
     RUN_TEST(test_config_rejected);
     RUN_TEST(test_time_fault);
+    RUN_TEST(test_sample_fast_equals_reference);
+    RUN_TEST(test_velocity_short_record_stays);
     return UNITY_END();
 }

@@ -184,6 +184,12 @@ static void test_muldiv_and_sqrt(void)
         uint64_t r = sc_isqrt_wide((uint64_t)(x >> 64), (uint64_t)x);
         TEST_ASSERT_EQUAL_INT64(ref, sc_muldiv(a, b, c));
         TEST_ASSERT_EQUAL_INT64(ref, sc_muldiv_portable(a, b, c));
+        /* the ceiling (both the 64-bit and the 128-bit path) */
+        TEST_ASSERT_EQUAL_INT64((ref < INT64_MAX && a > 0 && b > 0 &&
+                                 (u128)(uint64_t)a * (uint64_t)b % (uint64_t)c != 0)
+                                    ? ref + 1
+                                    : ref,
+                                sc_muldiv_ceil(a, b, c));
         TEST_ASSERT_TRUE((u128)r * r <= x);
         TEST_ASSERT_TRUE(r == UINT64_MAX || (u128)(r + 1) * (r + 1) > x);
     }
@@ -560,6 +566,78 @@ static void test_dist_reduced_exact_bound(void)
     TEST_ASSERT_TRUE(small > 1000);
 }
 
+/* the reach's one-comparison distance checks (sc_test_dist_fits) give the
+ * same speeds and profiles as sc_dist deciding every check: random
+ * distances and distances at the boundary (sc_dist(v, w) - 1 .. + 1 with
+ * v_max = w, where the exact comparison decides between equal and one
+ * nm short), every shape, from rest and from speed */
+static void test_dist_fits_matches_dist(void)
+{
+    int i, k, reached = 0;
+    for (i = 0; i < 60000; i++) {
+        sc_limits_t l = random_limits((uint8_t)(i % 3));
+        int64_t v = (i & 2) ? 0 : (int64_t)(rng() % (uint64_t)l.v_max), d, w, r_on, r_off;
+        sc_profile_t p_on, p_off;
+        if (i & 4) {
+            w = v + 1 + (int64_t)(rng() % (uint64_t)(l.v_max - v));
+            l.v_max = w;
+            d = sc_dist(v, w, &l) - 1 + (int64_t)(rng() % 3);
+        } else {
+            d = rlog(1, 1000000000);
+        }
+        for (k = 0; k < 2; k++) {
+            int64_t dd = (k == 0) ? d : d / 3;
+            sc_test_dist_fits(false);
+            r_off = sc_reach(v, dd, &l);
+            sc_plan(&p_off, dd, v, v / 2, &l);
+            sc_test_dist_fits(true);
+            r_on = sc_reach(v, dd, &l);
+            sc_plan(&p_on, dd, v, v / 2, &l);
+            TEST_ASSERT_EQUAL_INT64(r_off, r_on);
+            TEST_ASSERT_EQUAL_INT64(p_off.total_ns, p_on.total_ns);
+            TEST_ASSERT_EQUAL_INT64(p_off.s_end_q16, p_on.s_end_q16);
+            TEST_ASSERT_EQUAL_INT64(p_off.vp, p_on.vp);
+            reached += (v > 0 && r_on == l.v_max && sc_dist(v, l.v_max, &l) == dd) ? 1 : 0;
+        }
+    }
+    printf("reach exactly at the cap's distance: %d cases\n", reached);
+    TEST_ASSERT_TRUE(reached > 500); /* the equality boundary is exercised */
+    /* exact equality D = (lo + hi) sqrt(dv / J) = d: J = dv g^2 and g
+     * divides lo + hi, so D = (lo + hi) / g; the cap is reachable in d and
+     * not in d - 1 */
+    for (i = 0; i < 20000; i++) {
+        int64_t g = 1 + (int64_t)(rng() % 3000), dv = rlog(1, 10000000), lo, hi, d;
+        sc_limits_t l;
+        l.shape = (uint8_t)SC_SHAPE_SCURVE;
+        l.j_max = dv * g * g;
+        if (l.j_max < SC_J_MIN || l.j_max > SC_J_LIMIT) {
+            continue;
+        }
+        l.a_max = SC_A_LIMIT; /* A^2 / J > dv: the reduced case */
+        if ((u128)l.a_max * (u128)l.a_max <= (u128)l.j_max * (u128)(dv + 1)) {
+            continue;
+        }
+        lo = g * (1 + (int64_t)(rng() % (uint64_t)(200000000 / g))); /* lo + hi */
+        if (((lo - dv) & 1) != 0) {
+            lo += g;
+        }
+        if (((lo - dv) & 1) != 0 || lo <= dv) {
+            continue;
+        }
+        lo = (lo - dv) / 2;
+        hi = lo + dv;
+        l.v_max = hi;
+        d = (lo + hi) / g;
+        for (k = 0; k < 2; k++) {
+            sc_test_dist_fits(k == 0);
+            TEST_ASSERT_EQUAL_INT64(d, sc_dist(lo, hi, &l));
+            TEST_ASSERT_EQUAL_INT64(hi, sc_reach(lo, d, &l));
+            TEST_ASSERT_TRUE(sc_reach(lo, d - 1, &l) < hi);
+        }
+        sc_test_dist_fits(true);
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -572,5 +650,6 @@ int main(void)
     RUN_TEST(test_random_profiles_and_optimality);
     RUN_TEST(test_reach_paths_and_helpers);
     RUN_TEST(test_plan_states_chain);
+    RUN_TEST(test_dist_fits_matches_dist);
     return UNITY_END();
 }

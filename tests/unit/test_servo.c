@@ -375,6 +375,101 @@ static void test_saturation_fault(void)
     TEST_ASSERT_FALSE(line_log[0]);
 }
 
+/* servo_tick checks every axis's following error in one pass with the
+ * reference and reacts after it, in axis order: what each fault does must
+ * still depend on the faults of the axes before it, and a controlled stop
+ * must start from this tick's reference of every axis. */
+static void test_following_errors_of_several_axes_in_one_tick(void)
+{
+    servo_params_t p;
+    servo_fb_t fb;
+    motion_ref_t ref;
+    unsigned i;
+    servo_params_default(&p, HZ);
+    /* DISABLE: the first axis over the limit switches everything off; the
+     * later ones are no longer checked (OFF) */
+    start(&p, &fb);
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
+    memset(&ref, 0, sizeof ref);
+    for (i = 0; i < CORE_AXES; i++) {
+        ref.pos[i] = fb.pos[i];
+    }
+    servo_tick(&s, &ref, &fb);
+    ref.pos[1] += 6000000;
+    ref.pos[2] -= 7000000;
+    servo_tick(&s, &ref, &fb);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_FOLLOWING, s.faults);
+    TEST_ASSERT_EQUAL_UINT32(1u << 1, s.fault_axes);
+    TEST_ASSERT_EQUAL_INT(SERVO_OFF, s.state);
+    TEST_ASSERT_EQUAL_INT32(6000000, s.ferr_nm[1]);
+    TEST_ASSERT_EQUAL_INT32(-7000000, s.ferr_nm[2]);
+    for (i = 0; i < CORE_AXES; i++) {
+        TEST_ASSERT_EQUAL_INT32(0, mv_log[i]);
+    }
+    /* STOP: both axes raise (the first stop does not end the checks), the
+     * ramp starts from this tick's reference of every axis (moving, so the
+     * stop is not immediate), and the outputs of this tick are the loops' */
+    p.on_following = SERVO_REACT_STOP;
+    start(&p, &fb);
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
+    memset(&ref, 0, sizeof ref);
+    for (i = 0; i < CORE_AXES; i++) {
+        ref.pos[i] = fb.pos[i];
+        ref.vel[i] = 1000000;
+    }
+    servo_tick(&s, &ref, &fb);
+    ref.pos[0] += 100;
+    ref.pos[1] += 6000000;
+    ref.pos[2] -= 7000000;
+    servo_tick(&s, &ref, &fb);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_FOLLOWING, s.faults);
+    TEST_ASSERT_EQUAL_UINT32((1u << 1) | (1u << 2), s.fault_axes);
+    TEST_ASSERT_EQUAL_INT(SERVO_STOPPING, s.state);
+    for (i = 0; i < CORE_AXES; i++) {
+        TEST_ASSERT_EQUAL_INT64(ref.pos[i], servo_hold_pos(&s, i));
+        TEST_ASSERT_EQUAL_INT64(1000000, s.stop_v0[i]);
+        TEST_ASSERT_EQUAL_INT32(s.pid[i].out_mv, mv_log[i]);
+    }
+    TEST_ASSERT_TRUE(mv_log[1] > 0 && mv_log[2] < 0);
+}
+
+/* A saturation fault that disables, raised by the last axis, zeroes the
+ * commands of the axes before it in the same tick (the outputs are written
+ * after every loop has run). */
+static void test_saturation_disable_of_a_later_axis_zeroes_all(void)
+{
+    servo_params_t p;
+    servo_fb_t fb;
+    motion_ref_t ref;
+    unsigned k, i;
+    servo_params_default(&p, HZ);
+    p.sat_limit_ticks = 3;
+    p.on_saturation = SERVO_REACT_DISABLE;
+    p.ferr_limit_nm[2] = 0;
+    start(&p, &fb);
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
+    memset(&ref, 0, sizeof ref);
+    for (i = 0; i < CORE_AXES; i++) {
+        ref.pos[i] = fb.pos[i];
+    }
+    servo_tick(&s, &ref, &fb);
+    ref.pos[0] += 1000;      /* X: a small, unsaturated command */
+    ref.pos[2] += 200000000; /* Z saturates */
+    for (k = 0; k < 3; k++) {
+        servo_tick(&s, &ref, &fb);
+        TEST_ASSERT_TRUE(mv_log[0] > 0);
+        TEST_ASSERT_EQUAL_INT32(160000, mv_log[2]);
+    }
+    servo_tick(&s, &ref, &fb);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_SATURATION, s.faults);
+    TEST_ASSERT_EQUAL_UINT32(1u << 2, s.fault_axes);
+    TEST_ASSERT_EQUAL_INT(SERVO_OFF, s.state);
+    for (i = 0; i < CORE_AXES; i++) {
+        TEST_ASSERT_EQUAL_INT32(0, mv_log[i]);
+        TEST_ASSERT_EQUAL_INT32(0, s.out_mv[i]);
+    }
+}
+
 static void test_stop_command_and_resume(void)
 {
     servo_params_t p;
@@ -595,6 +690,8 @@ int main(void)
     RUN_TEST(test_encoder_fault_controlled_stop);
     RUN_TEST(test_amplifier_fault);
     RUN_TEST(test_saturation_fault);
+    RUN_TEST(test_following_errors_of_several_axes_in_one_tick);
+    RUN_TEST(test_saturation_disable_of_a_later_axis_zeroes_all);
     RUN_TEST(test_stop_command_and_resume);
     RUN_TEST(test_position_reset_no_spike);
     RUN_TEST(test_config_validation);

@@ -17,8 +17,9 @@ static struct {
     unsigned nsub;
     uint32_t period_ns;
     axis_t ax[CORE_AXES];
-    int64_t count[CORE_AXES];  /* encoder count last delivered (floor of the reading) */
-    double reading[CORE_AXES]; /* reading at the end of the last substep, counts */
+    int64_t count[CORE_AXES];      /* encoder count last delivered (floor of the reading) */
+    uint32_t ref_count[CORE_AXES]; /* reference-scale counter, latched per plant step */
+    double reading[CORE_AXES];     /* reading at the end of the last substep, counts */
     int32_t mv[HAL_MAX_AXES];
     bool on[HAL_MAX_AXES];
 } pl;
@@ -95,6 +96,7 @@ bool plant_init(uint32_t tick_hz, unsigned axes, drive_config_t *cfg)
             return false;
         }
         axis_set_position(&pl.ax[i], 0.0);
+        pl.ref_count[i] = (uint32_t)(uint64_t)axis_ref_count(&pl.ax[i]);
         pl.reading[i] = axis_encoder_reading(&pl.ax[i]);
         pl.count[i] = (int64_t)floor(pl.reading[i]);
         cfg->enc_initial_lines[i] = lines_at(pl.count[i]);
@@ -123,6 +125,9 @@ void plant_step(uint32_t tick)
                          t0 + (uint64_t)pl.period_ns * s / pl.nsub,
                          t0 + (uint64_t)pl.period_ns * (s + 1u) / pl.nsub);
         }
+        /* the scale's counter as a timer register holds it: computed here,
+         * read in the tick for the price of a register read */
+        pl.ref_count[i] = (uint32_t)(uint64_t)axis_ref_count(&pl.ax[i]);
     }
 }
 
@@ -164,6 +169,6 @@ bool hal_encoder_counter(unsigned ch, uint32_t *count)
     if (count == NULL || ch < pl.axes || ch >= 2u * pl.axes) {
         return false;
     }
-    *count = (uint32_t)(uint64_t)axis_ref_count(&pl.ax[ch - pl.axes]);
+    *count = pl.ref_count[ch - pl.axes];
     return true;
 }
