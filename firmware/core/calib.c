@@ -60,6 +60,9 @@ static struct {
     uint8_t act[CORE_AXES]; /* index of the active buffer, 0xFF: none */
     uint8_t slot[CORE_AXES];
     comp_ramp_t ramp[CORE_AXES];
+    /* bit i: ramp[i] has a direction and w has not reached its end (tick;
+     * calib_init clears it with the ramps) */
+    uint8_t ramp_busy;
     uint8_t stage[COMP_RECORD_MAX];
     int16_t stage_axis;
     /* protocol */
@@ -142,6 +145,7 @@ void calib_init(void)
         cb.act[i] = 0xFFu;
         cb.slot[i] = 0xFFu;
         comp_ramp_init(&cb.ramp[i], 0u, tick_hz());
+        cb.ramp_busy = 0u;
         if (i < axes() && comp_store_load(i, &t, &slot) == COMP_STORE_OK) {
             comp_install(i, &t, slot);
         }
@@ -160,13 +164,19 @@ void calib_tick(const drive_status_t *st)
         return;
     }
     for (i = 0; i < CORE_AXES; i++) {
-        const comp_ramp_t *r = &cb.ramp[i];
+        comp_ramp_t *r = &cb.ramp[i];
         int64_t v = st->vel_ref[i];
-        int d = v > 0 ? 1 : (v < 0 ? -1 : r->dir);
+        bool turn = r->dir > 0 ? v < 0 : (r->dir < 0 ? v > 0 : v != 0);
         /* settled (the usual case: moving on in the same direction, or at
-         * rest): comp_ramp_step would change nothing */
-        if (d != r->dir || (d != 0 && r->w_q30 != (d > 0 ? COMP_W_ONE : -COMP_W_ONE))) {
-            comp_ramp_step(&cb.ramp[i], v);
+         * rest, with w at that direction's end): comp_ramp_step would
+         * change nothing */
+        if (turn || (cb.ramp_busy & (1u << i)) != 0u) {
+            comp_ramp_step(r, v);
+            if (r->dir != 0 && r->w_q30 != (r->dir > 0 ? COMP_W_ONE : -COMP_W_ONE)) {
+                cb.ramp_busy |= (uint8_t)(1u << i);
+            } else {
+                cb.ramp_busy &= (uint8_t) ~(1u << i);
+            }
         }
     }
     if (!cb.s_active) {

@@ -92,6 +92,11 @@ static struct {
     volatile bool req_enable, req_disable, req_stop, req_estop, req_reset, req_gains;
     volatile bool req_ref; /* main (drive_status): sample the reference scales */
     volatile uint32_t req_fault;
+    /* some req_* above (except req_ref) may be set: main sets it after the
+     * flag itself, the tick clears it before it reads the flags (and sets it
+     * again while a request stays pending), so the tick skips
+     * apply_requests on the usual tick */
+    volatile bool req_any;
     volatile bool halted; /* tick: controlled stop reached rest      */
     drive_cec_mode_t cec_mode;
     servo_params_t pend;
@@ -212,7 +217,7 @@ static void status_live(drive_status_t *s)
  * live state (the tick changes them only inside its odd st_seq window), and
  * copied here only while calibration samples them (calib_tick reads pos,
  * pos_raw and refscale); the rest is published every tick. */
-static void publish(void)
+static void publish(bool sampling)
 {
     drive_status_t *s = &drv.st;
     unsigned i;
@@ -225,7 +230,7 @@ static void publish(void)
         s->ref[i] = drv.ref.pos[i];
         s->vel_ref[i] = drv.ref.vel[i];
     }
-    if (calib_sampling()) {
+    if (sampling) {
         status_live(s);
     }
     s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
@@ -371,6 +376,7 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.req_enable = drv.req_disable = drv.req_stop = false;
     drv.req_estop = drv.req_reset = drv.req_gains = drv.req_cec = false;
     drv.req_fault = 0;
+    drv.req_any = false;
     drv.req_ref = false;
     drv.halted = false;
     drv.state = DRIVE_DISABLED;
@@ -384,7 +390,7 @@ drive_result_t drive_init(const drive_config_t *cfg)
         hal_motor_set_mv(i, 0);
     }
     drv.ready = true;
-    publish();
+    publish(calib_sampling());
     calib_init();
     return DRIVE_OK;
 }
@@ -482,8 +488,11 @@ static inline q1_30_t chord_tangent_len(const motion_ref_t *ch, uint8_t u, uint8
 
 /* arc_overlay() for a chord with arc_fast_t.fast: the same result, bit for
  * bit (see arc_fast_t). False (nothing written) when a value leaves the
- * fast ranges; the caller then runs arc_overlay(). */
-static bool arc_fast(motion_ref_t *r, const motion_ref_t *ch, const seg_info_t *g, arc_fast_t *a)
+ * fast ranges; the caller then runs arc_overlay(). geom_kept: r->geom holds
+ * what the arc code wrote for chord g last tick (a pos-only reference copy
+ * of the same segment): only the radius can differ. */
+static bool arc_fast(motion_ref_t *r, const motion_ref_t *ch, const seg_info_t *g, arc_fast_t *a,
+                     bool geom_kept)
 {
     uint8_t u = g->u, v = g->v;
     int64_t pu = ch->pos[u] - g->au, pv = ch->pos[v] - g->av;
@@ -565,7 +574,11 @@ static bool arc_fast(motion_ref_t *r, const motion_ref_t *ch, const seg_info_t *
     }
     r->geom.tangent[u] = (q1_30_t)mul32_q30(tu, m);
     r->geom.tangent[v] = (q1_30_t)mul32_q30(tv, m);
-    arc_geom(r, g, rad);
+    if (geom_kept) {
+        r->geom.radius = rad;
+    } else {
+        arc_geom(r, g, rad);
+    }
     return true;
 }
 
@@ -676,6 +689,7 @@ static void reference_step(void)
 {
     unsigned i;
     int64_t k = Q30;
+    bool pos_only;
     if (drv.state == DRIVE_STOPPING && !drv.halted) {
         k = stop_scale();
         drv.ip.tick_ns = fx_round_shift64((int64_t)(1000000000u / drv.cfg.tick_hz) * k, 30);
@@ -693,7 +707,8 @@ static void reference_step(void)
     }
     interp_tick(&drv.ip, &drv.ch);
     track_segments();
-    if (drv.ip.ref_pos_only && drv.ref_synced && !drv.ref_full) {
+    pos_only = drv.ip.ref_pos_only && drv.ref_synced && !drv.ref_full;
+    if (pos_only) {
         /* same segment and phase as the last tick: only pos changed in ch,
          * and the arc overlay (if any) rewrites its fields below */
         for (i = 0; i < CORE_AXES; i++) {
@@ -709,7 +724,7 @@ static void reference_step(void)
             if (!drv.arc.valid || drv.arc.tag != drv.ip.tag) {
                 arc_fast_setup(&drv.arc, g);
             }
-            if (!drv.arc.fast || !arc_fast(&drv.ref, &drv.ch, g, &drv.arc)) {
+            if (!drv.arc.fast || !arc_fast(&drv.ref, &drv.ch, g, &drv.arc, pos_only)) {
                 arc_overlay(&drv.ref, &drv.ch, g);
             }
         }
@@ -762,6 +777,10 @@ static void friction_ff(void)
 static void apply_requests(const servo_fb_t *fb)
 {
     unsigned i;
+    if (!drv.req_any) {
+        return; /* the usual tick: no request */
+    }
+    drv.req_any = false;
     if (drv.req_gains) {
         drv.pend.axes = drv.cfg.axes;
         drv.pend.tick_hz = drv.cfg.tick_hz;
@@ -795,6 +814,8 @@ static void apply_requests(const servo_fb_t *fb)
             servo_disable(&drv.servo);
             drv.faults = 0;
             drv.state = DRIVE_DISABLED;
+        } else {
+            drv.req_any = true; /* retried next tick */
         }
     }
     if (drv.req_disable) {
@@ -809,7 +830,9 @@ static void apply_requests(const servo_fb_t *fb)
         drv.req_enable = false;
         /* drive_enable set IDLE; a block queued before this tick has already
          * made it RUNNING: the servo is switched on in either state */
-        if ((drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING) &&
+        /* never after a fault latched in this same tick (e.g. an e-stop
+         * that arrived together with the enable) */
+        if (drv.faults == 0 && (drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING) &&
             drv.servo.state == SERVO_OFF && servo_enable(&drv.servo, fb) == SERVO_OK) {
             servo_run(&drv.servo);
         }
@@ -854,7 +877,7 @@ void drive_tick(void)
     uint32_t now_ns;
     servo_fb_t fb;
     uint32_t enc_fault = 0;
-    bool moving_ok;
+    bool moving_ok, sampling;
 
     if (!drv.ready) {
         return;
@@ -882,8 +905,9 @@ void drive_tick(void)
         }
     }
     fb.enc_fault = enc_fault;
-    if (calib_sampling() || drv.req_ref ||
-        ((uint32_t)drv.tick & (DRIVE_REF_SAMPLE_TICKS - 1u)) == 0u) {
+    /* calib_tick (the end of this tick) is the only writer besides main */
+    sampling = calib_sampling();
+    if (sampling || drv.req_ref || ((uint32_t)drv.tick & (DRIVE_REF_SAMPLE_TICKS - 1u)) == 0u) {
         ref_scales_sample();
     }
     apply_requests(&fb);
@@ -914,7 +938,7 @@ void drive_tick(void)
     }
     drv.tick++;
     drv.tick_lo = (uint32_t)drv.tick;
-    publish();
+    publish(sampling);
     calib_tick(&drv.st);
 }
 
@@ -1309,6 +1333,7 @@ drive_result_t drive_enable(bool on)
     }
     if (!on) {
         drv.req_disable = true;
+        drv.req_any = true;
         return DRIVE_OK;
     }
     if (drv.state == DRIVE_DISABLED) {
@@ -1322,6 +1347,7 @@ drive_result_t drive_enable(bool on)
         }
         drv.req_disable = false;
         drv.req_enable = true;
+        drv.req_any = true;
         drv.state = DRIVE_IDLE;
     }
     return DRIVE_OK;
@@ -1330,16 +1356,19 @@ drive_result_t drive_enable(bool on)
 void drive_stop(void)
 {
     drv.req_stop = true;
+    drv.req_any = true;
 }
 
 void drive_estop(void)
 {
     drv.req_estop = true;
+    drv.req_any = true;
 }
 
 void drive_raise_fault(uint32_t fault_bits)
 {
     drv.req_fault |= fault_bits;
+    drv.req_any = true;
 }
 
 drive_result_t drive_fault_reset(void)
@@ -1357,6 +1386,7 @@ drive_result_t drive_fault_reset(void)
         }
     }
     drv.req_reset = true;
+    drv.req_any = true;
     return DRIVE_OK;
 }
 
@@ -1447,6 +1477,7 @@ drive_result_t drive_set_cec_mode(drive_cec_mode_t mode)
     drv.pend_mode = map[mode];
     drv.cec_mode = mode;
     drv.req_cec = true;
+    drv.req_any = true;
     return DRIVE_OK;
 }
 
@@ -1469,6 +1500,7 @@ drive_result_t drive_set_servo_params(const servo_params_t *p)
     }
     drv.pend = q;
     drv.req_gains = true;
+    drv.req_any = true;
     return DRIVE_OK;
 }
 

@@ -238,6 +238,7 @@ pid_err_t pid_config(pid_loop_t *pid, const pid_params_t *p)
         pid->bumpless = true;
     }
     pid->integ = clamp64(pid->integ, pid->i_lim);
+    pid_refresh_ready(pid);
     return PID_OK;
 }
 
@@ -272,12 +273,14 @@ void pid_enable(pid_loop_t *pid, int32_t u_hold_mv)
     pid->enabled = true;
     pid->sat_ticks = 0;
     pid->sat_total = 0;
+    pid_refresh_ready(pid);
 }
 
 void pid_disable(pid_loop_t *pid)
 {
     pid->enabled = false;
     pid->bumpless = false;
+    pid->ready = false;
     pid->integ = 0;
     pid->dterm = 0;
     pid->out = 0;
@@ -291,12 +294,14 @@ void pid_reset(pid_loop_t *pid, bool bumpless)
     if (bumpless) {
         pid->hold_mv = pid->out_mv;
         pid->bumpless = pid->enabled;
+        pid_refresh_ready(pid);
         return;
     }
     pid->integ = 0;
     pid->dterm = 0;
     pid->primed = false;
     pid->bumpless = false;
+    pid->ready = false;
     pid->sat_ticks = 0;
 }
 
@@ -373,7 +378,13 @@ static inline int32_t sat_diff32_32(int32_t a, int32_t b)
     return d;
 }
 
-int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra)
+#if defined(__GNUC__)
+#define PID_INLINE __attribute__((always_inline)) inline
+#else
+#define PID_INLINE inline
+#endif
+
+static PID_INLINE int32_t step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra)
 {
     int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
                                          : sat_diff32_32(e, pid->err_prev);
@@ -388,11 +399,22 @@ int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra)
     pid->dterm = dterm;
     pid->meas_prev = meas;
     pid->err_prev = e;
-    pid->ff = 0;
+    /* pid->ff is already 0: ready is only set by an enabled general step
+     * under the current configuration, which has no feed-forward gains */
     ex = (extra == 0) ? 0 : clamp64(extra, PID_TERM_LIM);
     pid->extra = ex;
     integ = clamp64(pid->integ + coef_apply_rnd(pid->ci, e, pid->rnd[1]), pid->i_lim);
     return pid_finish(pid, pterm, integ, dterm, 0, ex);
+}
+
+int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra)
+{
+    return step_fast(pid, e, meas, extra);
+}
+
+int32_t pid_step_fast0(pid_loop_t *pid, int32_t e, pos_nm_t meas)
+{
+    return step_fast(pid, e, meas, 0);
 }
 
 static PID_NOINLINE int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel,
@@ -455,6 +477,7 @@ static PID_NOINLINE int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_
     } else {
         integ = clamp64(pid->integ + coef_apply(pid->ci, edb), pid->i_lim);
     }
+    pid_refresh_ready(pid);
     return pid_finish(pid, pterm, integ, dterm, ff, ex);
 }
 

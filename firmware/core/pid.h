@@ -137,7 +137,8 @@ typedef struct {
     /* state (tick) */
     int64_t integ; /* U */
     int64_t dterm; /* U, filtered derivative term */
-    int64_t ff;    /* U, last feed-forward */
+    int64_t ff;    /* U, last feed-forward (0 while ready: not written by
+                    * the short path) */
     int64_t extra; /* U, last extra input */
     int64_t out;   /* U, last clamped output */
     pos_nm_t meas_prev;
@@ -146,6 +147,10 @@ typedef struct {
     bool enabled;
     bool primed;   /* meas_prev/err_prev valid: no D kick             */
     bool bumpless; /* next enabled step re-computes the integrator     */
+    bool ready;    /* cached fast && primed && enabled && !bumpless:
+                    * re-derived (pid_refresh_ready) by every function
+                    * that writes one of the four, so the tick reads one
+                    * flag; a copy that pokes fast must call it too */
     /* status (read anywhere) */
     int32_t err_nm;     /* last error before the deadband                  */
     int32_t out_mv;     /* last output, mV                                 */
@@ -188,10 +193,20 @@ int32_t pid_step_e(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64
  * deadband and no feed-forward gains (pid->fast), and enabled, primed, not
  * bumpless. vel and acc are not needed (no feed-forward). Same results. */
 int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra);
+/* pid_step_fast with extra = 0 (the servo's axes while the contour error
+ * controller is quiet): the same results, one 64-bit argument less. */
+int32_t pid_step_fast0(pid_loop_t *pid, int32_t e, pos_nm_t meas);
 
+/* Re-derive pid->ready from its four inputs. */
+static inline void pid_refresh_ready(pid_loop_t *pid)
+{
+    pid->ready = pid->fast && pid->primed && pid->enabled && !pid->bumpless;
+}
+
+/* fast && primed && enabled && !bumpless (the cached pid->ready). */
 static inline bool pid_fast_ready(const pid_loop_t *pid)
 {
-    return pid->fast && pid->primed && pid->enabled && !pid->bumpless;
+    return pid->ready;
 }
 
 #endif /* PID_H */

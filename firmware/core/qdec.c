@@ -89,6 +89,7 @@ static void qdec_index_eval(qdec_t *q, uint32_t t)
         e->idx_t = t;
         e->idx_dir = e->dir;
         e->idx_events = e->idx_events + 1u;
+        e->rare = e->rare + 1u;
     }
     e->gated = gated;
 }
@@ -101,6 +102,7 @@ static void qdec_apply(qdec_t *q, uint32_t ab, uint32_t t)
 
     if (d == QDEC_ILL) {
         e->illegal = e->illegal + 1u;
+        e->rare = e->rare + 1u;
     } else if (d != 0) {
         uint32_t count = e->count + (uint32_t)(int32_t)d;
 
@@ -227,6 +229,7 @@ void qdec_edge(qdec_t *q, uint32_t lines, uint32_t t_ns)
     e->seq = seq + 1u;
     if (d == QDEC_ILL) {
         e->illegal = e->illegal + 1u;
+        e->rare = e->rare + 1u;
     } else {
         uint32_t count = e->count + (uint32_t)(int32_t)d;
 
@@ -253,6 +256,7 @@ void qdec_index_capture(qdec_t *q, uint32_t raw, uint32_t t_ns)
     e->idx_t = t_ns;
     e->idx_dir = q->out.dir;
     e->idx_events = e->idx_events + 1u;
+    e->rare = e->rare + 1u;
     e->seq = e->seq + 1u;
 }
 
@@ -269,6 +273,7 @@ typedef struct {
     uint32_t illegal;
     uint32_t glitches;
     uint32_t idx_events;
+    uint32_t rare;
     uint32_t idx_raw;
     uint32_t idx_t;
     int8_t idx_dir;
@@ -302,6 +307,7 @@ static QDEC_INLINE void qdec_snapshot_k(const qdec_t *q, qdec_snap_t *s, bool cy
         s->illegal = e->illegal;
         s->glitches = filt ? e->glitches : 0u;
         s->idx_events = e->idx_events;
+        s->rare = e->rare;
         if (s->idx_events != q->last_idx_events) {
             s->idx_raw = e->idx_raw;
             s->idx_t = e->idx_t;
@@ -539,7 +545,7 @@ static QDEC_INLINE void qdec_update_k(qdec_t *q, const qdec_snap_t *s, bool edge
     delta = bits32 ? (int32_t)(s->raw - q->last_raw) : qdec_sx(q, s->raw - q->last_raw);
     q->last_raw = s->raw;
     q->out.pos += delta;
-    if ((delta < 0 ? (uint32_t)0 - (uint32_t)delta : (uint32_t)delta) > q->max_delta) {
+    if (qdec_overspeed(delta, q->max_delta)) {
         q->out.faults |= QDEC_FAULT_OVERSPEED;
     }
     if (s->dir != 0) {
@@ -600,6 +606,7 @@ static QDEC_NOINLINE void qdec_sample_ref(qdec_t *q, uint32_t now_ns)
         qdec_snapshot_k(q, &s, false, false);
         edges = s.nedge != q->last_nedge;
         qdec_update_k(q, &s, edges, edges, now_ns, true, true);
+        q->last_rare = s.rare; /* with last_illegal, last_idx_events: for the short path */
         q->last_nedge = s.nedge;
         q->last_ncyc = s.nedge;
         return;
@@ -631,7 +638,7 @@ static QDEC_NOINLINE void qdec_sample_ref(qdec_t *q, uint32_t now_ns)
 static QDEC_INLINE bool qdec_sample_fast(qdec_t *q, uint32_t now_ns)
 {
     const qdec_edge_state_t *e = &q->e;
-    uint32_t seq, raw, nedge, t_last, mag;
+    uint32_t seq, raw, nedge, t_last;
     int32_t dt, delta;
     int8_t dir;
     int64_t pos;
@@ -643,7 +650,7 @@ static QDEC_INLINE bool qdec_sample_fast(qdec_t *q, uint32_t now_ns)
         nedge = e->nedge;
         t_last = e->t_last;
         dir = e->dir;
-        if (e->illegal != q->last_illegal || e->idx_events != q->last_idx_events) {
+        if (e->rare != q->last_rare) {
             return false;
         }
     } while (seq != e->seq || (seq & 1u) != 0u);
@@ -658,8 +665,7 @@ static QDEC_INLINE bool qdec_sample_fast(qdec_t *q, uint32_t now_ns)
     q->last_raw = raw;
     pos = q->out.pos + delta;
     q->out.pos = pos;
-    mag = (delta < 0) ? (uint32_t)0 - (uint32_t)delta : (uint32_t)delta;
-    if (mag > q->max_delta) {
+    if (qdec_overspeed(delta, q->max_delta)) {
         q->out.faults |= QDEC_FAULT_OVERSPEED;
     }
     if (dir != 0) {

@@ -158,8 +158,9 @@
  *
  * Sample cost (edge input, no filter, no vel_cycle: the drive's decoders).
  * qdec_sample takes a short path unless the sample is rare (time not
- * forward, a new illegal transition or index latch: then the reference
- * path, same results): the count difference since the last sample and the
+ * forward, a new illegal transition or index latch, seen as a change of
+ * e.rare, which the edge context increments with either: then the
+ * reference path, same results): the count difference since the last sample and the
  * last edge's time relative to the sample are 32-bit (|delta| < 2^31, edge
  * within 2^31 ns, as above); the 64-bit position and extended time take one
  * add each; pos_nm one 32x32->64 multiply (|pos| < 2^31, den 1). The
@@ -243,6 +244,8 @@ typedef struct {
     volatile int8_t idx_dir;      /* direction at the latch                      */
     uint8_t pend;                 /* glitch filter: pending channels (A/B bits)  */
     uint32_t pend_t[2];           /* glitch filter: time of the pending A, B edge */
+    volatile uint32_t rare;       /* illegal + idx_events (wrapping): the short
+                                   * sample path checks only this one          */
 } qdec_edge_state_t;
 
 /* Outputs, written by the tick functions. */
@@ -271,19 +274,19 @@ typedef struct {
     qdec_edge_state_t e;
     qdec_out_t out;
     const int8_t *table; /* decode table of cfg.mode (set by init)          */
-    uint32_t cyc_mask;   /* counts per cycle - 1 (3, 1, 0 for x4, x2, x1)   */
     /* tick-private */
     uint32_t last_raw; /* raw count (edge or hardware) at the last sample */
     uint32_t last_nedge;
     uint32_t last_ncyc;
     uint32_t last_illegal;
     uint32_t last_idx_events;
-    uint32_t max_delta;
+    uint32_t max_delta; /* overspeed limit, <= 2^31 - 1 (qdec_init)          */
     uint8_t bits;
-    bool nm_fast; /* nm_per_count_den == 1 and |offset_nm| < 2^62 (init, set_offset) */
-    bool fast;    /* edge input, no filter, no vel_cycle: qdec_sample's short path
-                   * (set by init; false forces the reference path: tests) */
-    int64_t now;  /* extended sample time, ns                        */
+    bool nm_fast;     /* nm_per_count_den == 1 and |offset_nm| < 2^62 (init, set_offset) */
+    bool fast;        /* edge input, no filter, no vel_cycle: qdec_sample's short path
+                       * (set by init; false forces the reference path: tests) */
+    uint8_t cyc_mask; /* counts per cycle - 1 (3, 1, 0 for x4, x2, x1)   */
+    int64_t now;      /* extended sample time, ns                        */
     uint32_t now_raw;
     int64_t t_edge;                /* extended time of the last counted edge          */
     int64_t ring_p[QDEC_VEL_RING]; /* recorded last edges: position           */
@@ -302,6 +305,7 @@ typedef struct {
     int64_t ill_t[QDEC_ILLEGAL_MAX]; /* times of the last illegal transitions  */
     uint8_t ill_head;
     uint8_t ill_n;
+    uint32_t last_rare; /* e.rare at the last sample (with last_illegal, last_idx_events) */
 } qdec_t;
 
 /* Fill cfg with defaults: edge input, x4, 32-bit, no illegal fault, no
@@ -351,6 +355,16 @@ void qdec_set_comp(qdec_t *q, const comp_table_t *comp);
  * and |offset_nm| < 2^62, with one 32x32->64 multiply (|counts * num| <=
  * 2^62, so the sum cannot overflow): the same result. */
 pos_nm_t qdec_counts_to_nm_any(const qdec_t *q, int64_t counts);
+
+/* |delta| > max_delta, for max_delta <= 2^31 - 1 (2 * max_delta < 2^32),
+ * with one add and one unsigned compare: delta + max_delta
+ * (mod 2^32) lies in [0, 2 * max_delta] exactly when |delta| <= max_delta
+ * (above: delta + max_delta <= 2^31 - 1 + max_delta < 2^32; below:
+ * delta + max_delta >= 2^31 + max_delta > 2 * max_delta mod 2^32). */
+static inline bool qdec_overspeed(int32_t delta, uint32_t max_delta)
+{
+    return (uint32_t)delta + max_delta > 2u * max_delta;
+}
 
 static inline pos_nm_t qdec_counts_to_nm(const qdec_t *q, int64_t counts)
 {

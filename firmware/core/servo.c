@@ -420,19 +420,24 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
 {
     const unsigned n = s->p.axes;
     const bool run = s->state == SERVO_RUN && ref != NULL;
+    bool (*const amp_fault)(unsigned axis) = s->io.amp_fault;
+    const uint32_t enc_fault = fb->enc_fault;
     uint32_t over = 0;
     unsigned i;
     bool quiet;
 
     s->ticks++;
     /* 1. input faults (each raised at once: the state they leave decides
-     * step 2) */
-    for (i = 0; i < n; i++) {
-        if (fb->enc_fault & (1u << i)) {
-            raise_fault(s, SERVO_FAULT_ENCODER, i, false);
-        }
-        if (s->io.amp_fault != NULL && s->io.amp_fault(i)) {
-            raise_fault(s, SERVO_FAULT_AMPLIFIER, i, false);
+     * step 2); fb and the callback are read once (neither changes during
+     * the tick) */
+    if (amp_fault != NULL || enc_fault != 0) {
+        for (i = 0; i < n; i++) {
+            if (enc_fault & (1u << i)) {
+                raise_fault(s, SERVO_FAULT_ENCODER, i, false);
+            }
+            if (amp_fault != NULL && amp_fault(i)) {
+                raise_fault(s, SERVO_FAULT_AMPLIFIER, i, false);
+            }
         }
     }
     /* 2. reference and 3. following error in one pass (the reactions after
@@ -473,22 +478,30 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
     }
     /* idle with outputs known to be 0 (cec.h): nothing to read */
     quiet = s->cec.idle && s->cec.out_zero;
-    /* 5. axis loops and 6. saturation supervision, per axis */
-    for (i = 0; i < n; i++) {
+    /* 5. axis loops and 6. saturation supervision, per axis (n <=
+     * CORE_AXES: servo_config; the second bound is for the compiler) */
+    for (i = 0; i < n && i < CORE_AXES; i++) {
         pid_loop_t *pid = &s->pid[i];
         int64_t extra = 0;
+        bool cec_in = false;
 
         if (i < 3 && i < CORE_AXES && !quiet) {
             if (s->cec.handover_u[i] != 0) {
                 pid_add_integrator(pid, s->cec.handover_u[i]);
             }
             extra = s->cec.out_u[i];
+            cec_in = true;
         }
         /* ferr_nm[i] is sat32(ref_pos[i] - fb->pos[i]) of this tick (step 3;
-         * nothing since changes either) */
-        s->out_mv[i] = pid_fast_ready(pid) ? pid_step_fast(pid, s->ferr_nm[i], fb->pos[i], extra)
-                                           : pid_step_e(pid, s->ferr_nm[i], fb->pos[i],
-                                                        s->ref_vel[i], s->ref_acc[i], extra);
+         * nothing since changes either); quiet CEC: extra is 0 */
+        if (!pid_fast_ready(pid)) {
+            s->out_mv[i] =
+                pid_step_e(pid, s->ferr_nm[i], fb->pos[i], s->ref_vel[i], s->ref_acc[i], extra);
+        } else if (cec_in) {
+            s->out_mv[i] = pid_step_fast(pid, s->ferr_nm[i], fb->pos[i], extra);
+        } else {
+            s->out_mv[i] = pid_step_fast0(pid, s->ferr_nm[i], fb->pos[i]);
+        }
         if (pid->sat_ticks > s->p.sat_limit_ticks && s->p.sat_limit_ticks > 0) {
             bool esc = s->state != SERVO_RUN && pid->sat_ticks / 2 > s->p.sat_limit_ticks;
             raise_fault(s, SERVO_FAULT_SATURATION, i, esc);
@@ -508,8 +521,9 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
         }
     }
     if (s->io.set_mv != NULL) {
+        void (*const set_mv)(unsigned axis, int32_t mv) = s->io.set_mv;
         for (i = 0; i < n; i++) {
-            s->io.set_mv(i, s->out_mv[i]);
+            set_mv(i, s->out_mv[i]);
         }
     }
 }

@@ -453,6 +453,58 @@ static proto_comp_info_t info_of_reply(void)
     return m;
 }
 
+/* calib_tick steps a table's direction ramp only when the direction turns
+ * or w has not reached its end: the same w and direction as comp_ramp_step
+ * on every tick (the reference), over reversals, rests and a ramp cut short
+ * by a reversal. */
+static void test_ramp_skip_matches_stepping_every_tick(void)
+{
+    static const int64_t seq[][2] = {
+        /* velocity, ticks */
+        {0, 5},
+        {1000, 3},
+        {0, 40},
+        {-1, 10},
+        {5, 2},
+        {0, 400},
+        {-7, 120},
+        {3, 300},
+        {-1, 5},
+        {0, 10},
+        {1, 5},
+        {0, 300},
+        {1, 2},
+        {INT64_MIN, 1},
+        {INT64_MAX, 300},
+        {0, 3},
+        {-((int64_t)1 << 32), 50},
+        {((int64_t)1 << 32), 1},
+        {-1, 500},
+        {1, 3},
+    };
+    static drive_status_t s;
+    const comp_table_t *act;
+    comp_ramp_t ref;
+    size_t len = make_record(4000), k;
+    uint32_t n;
+
+    upload(rec, len, crc32_update(CRC32_INIT, rec, len));
+    act = calib_comp_active(1);
+    TEST_ASSERT_NOT_NULL(act);
+    TEST_ASSERT_NOT_NULL(act->dir_src);
+    ref = *act->dir_src;
+    memset(&s, 0, sizeof s);
+    for (k = 0; k < sizeof seq / sizeof seq[0]; k++) {
+        for (n = 0; n < (uint32_t)seq[k][1]; n++) {
+            s.vel_ref[1] = seq[k][0];
+            comp_ramp_step(&ref, seq[k][0]);
+            calib_tick(&s);
+            TEST_ASSERT_EQUAL_INT32(ref.w_q30, act->dir_src->w_q30);
+            TEST_ASSERT_EQUAL_INT8(ref.dir, act->dir_src->dir);
+        }
+    }
+}
+
 static void test_compensation_upload_verify_and_fallbacks(void)
 {
     size_t len = make_record(4000);
@@ -554,6 +606,7 @@ int main(void)
     RUN_TEST(test_other_ids_go_to_next_handler);
     RUN_TEST(test_abort_and_drive_fault_end_the_run);
     RUN_TEST(test_compensation_upload_verify_and_fallbacks);
+    RUN_TEST(test_ramp_skip_matches_stepping_every_tick);
     RUN_TEST(test_samples_carry_the_compensated_position);
     return UNITY_END();
 }

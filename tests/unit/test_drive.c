@@ -403,6 +403,25 @@ static void test_stop_when_idle_or_disabled_changes_nothing(void)
     TEST_ASSERT_EQUAL_INT64(100000, st.ref[0]);
 }
 
+/* An e-stop that arrives together with an enable (both before the same
+ * tick) wins: the motors are never switched on. */
+static void test_estop_with_enable_in_the_same_tick_keeps_motors_off(void)
+{
+    unsigned i, k;
+
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    drive_estop();
+    for (k = 0; k < 5; k++) {
+        run(1);
+        TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state);
+        TEST_ASSERT_EQUAL_HEX32(DRIVE_FAULT_ESTOP, st.faults);
+        for (i = 0; i < 3; i++) {
+            TEST_ASSERT_FALSE(hal_sim_motor_enabled(i));
+            TEST_ASSERT_EQUAL_INT32(0, hal_sim_motor_mv(i));
+        }
+    }
+}
+
 static void test_estop_disables_at_once_and_needs_a_reset(void)
 {
     unsigned i;
@@ -461,6 +480,38 @@ static void test_external_fault_stops_in_a_controlled_way(void)
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_fault_reset());
     run(1);
     TEST_ASSERT_EQUAL_INT(DRIVE_DISABLED, st.state);
+    TEST_ASSERT_FALSE(hal_sim_motor_enabled(0));
+}
+
+/* A reset requested while the servo still ramps down stays pending (the
+ * tick skips apply_requests only when no request is pending) and is applied
+ * once the servo has stopped; requests made between ticks all apply. */
+static void test_reset_during_ramp_down_applies_once_stopped(void)
+{
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(30000000, 40000000, 20000000, true, 1));
+    run(2000);
+    drive_raise_fault(DRIVE_FAULT_COMM);
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state);
+    TEST_ASSERT_TRUE(hal_sim_motor_enabled(0)); /* still ramping down */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_fault_reset());
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state); /* not yet: servo stopping */
+    run(3000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_DISABLED, st.state);
+    TEST_ASSERT_EQUAL_HEX32(0, st.faults);
+    TEST_ASSERT_FALSE(hal_sim_motor_enabled(0));
+    /* two requests between ticks: both apply on the next tick */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_TRUE(hal_sim_motor_enabled(0));
+    drive_estop();
+    drive_raise_fault(DRIVE_FAULT_COMM);
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state);
+    TEST_ASSERT_EQUAL_HEX32(DRIVE_FAULT_ESTOP | DRIVE_FAULT_COMM, st.faults);
     TEST_ASSERT_FALSE(hal_sim_motor_enabled(0));
 }
 
@@ -725,6 +776,7 @@ static void test_reference_scale_samples_and_wrap_guard(void)
  * voltages of every tick. */
 #define FR_TICKS 4500u
 static int64_t fr_out[2][FR_TICKS][3 * CORE_AXES];
+static bool fr_cec; /* contour error control on (reads the arc geometry) */
 
 static void full_ref_job(int full, bool friction)
 {
@@ -740,6 +792,9 @@ static void full_ref_job(int full, bool friction)
         TEST_ASSERT_EQUAL_INT(0, sim_servo_set(0, "friction_ff", 0.3));
     }
     TEST_ASSERT_EQUAL_INT(0, sim_start());
+    if (fr_cec) {
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_set_cec_mode(DRIVE_CEC_EXACT));
+    }
     drive_test_full_ref(full != 0);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
     TEST_ASSERT_EQUAL_INT(0, sim_queue_line(a, 30000000, 1, 0, &r));
@@ -796,6 +851,11 @@ static void test_pos_only_reference_copy_equals_the_full_copy(void)
 {
     pos_only_vs_full(false);
     pos_only_vs_full(true);
+    /* the arc's geometry (kept from the last tick on a pos-only copy) is
+     * what contour error control reads */
+    fr_cec = true;
+    pos_only_vs_full(false);
+    fr_cec = false;
 }
 
 int main(void)
@@ -813,8 +873,10 @@ int main(void)
     RUN_TEST(test_stop_while_accelerating_never_speeds_up);
     RUN_TEST(test_stop_when_idle_or_disabled_changes_nothing);
     RUN_TEST(test_estop_disables_at_once_and_needs_a_reset);
+    RUN_TEST(test_estop_with_enable_in_the_same_tick_keeps_motors_off);
     RUN_TEST(test_external_fault_stops_in_a_controlled_way);
     RUN_TEST(test_amplifier_fault_reset_refused_while_present);
+    RUN_TEST(test_reset_during_ramp_down_applies_once_stopped);
     RUN_TEST(test_following_error_disables);
     RUN_TEST(test_parameters_are_checked_and_never_half_applied);
     RUN_TEST(test_parameters_are_refused_while_moving);

@@ -570,6 +570,8 @@ static void test_d_filter_product_exact(void)
                     continue; /* shifts outside the short path's range */
                 }
                 a.fast = fast != 0;
+                pid_refresh_ready(&a);
+                TEST_ASSERT_TRUE(a.ready == (fast != 0));
                 fast_runs += fast;
                 TEST_ASSERT_TRUE(a.alpha_q30 < FX_ONE_Q30);
                 for (k = 0; k < 300; k++) {
@@ -591,6 +593,98 @@ static void test_d_filter_product_exact(void)
     TEST_ASSERT_TRUE(fast_runs >= 6);
 }
 
+/* The cached pid->ready equals fast && primed && enabled && !bumpless after
+ * every call that writes one of them (config on a new and on a running loop,
+ * enable, steps, both resets, disable), for a fast and a deadband (not fast)
+ * configuration. */
+static bool ready_expected(const pid_loop_t *pid)
+{
+    return pid->fast && pid->primed && pid->enabled && !pid->bumpless;
+}
+
+static void test_ready_cache_follows_inputs(void)
+{
+    int db, seen_ready = 0, k;
+
+    for (db = 0; db < 2; db++) {
+        pid_params_t p = params(1.5e3, 8e3, 5, 10000);
+        pid_loop_t pid;
+        int32_t want;
+        p.deadband_nm = db ? 10 : 0;
+        memset(&pid, 0, sizeof pid);
+#define CHECK_READY()                                                                              \
+    do {                                                                                           \
+        TEST_ASSERT_TRUE(pid.ready == ready_expected(&pid));                                       \
+        seen_ready += pid.ready;                                                                   \
+    } while (0)
+        TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&pid, &p));
+        TEST_ASSERT_TRUE(pid.fast == (db == 0));
+        CHECK_READY();
+        pid_step(&pid, 100, 0, 0, 0, 0);
+        CHECK_READY();
+        pid_enable(&pid, 500);
+        CHECK_READY();
+        for (k = 0; k < 3; k++) {
+            pid_step(&pid, 100, k, 0, 0, 0);
+            CHECK_READY();
+        }
+        pid_reset(&pid, true);
+        CHECK_READY();
+        pid_step(&pid, 100, 5, 0, 0, 0);
+        CHECK_READY();
+        p.kp = Q32(2e3);
+        TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&pid, &p));
+        CHECK_READY();
+        TEST_ASSERT_FALSE(pid.ready); /* bumpless gain change pending */
+        pid_step(&pid, 100, 5, 0, 0, 0);
+        CHECK_READY();
+        pid_reset(&pid, false);
+        CHECK_READY();
+        want = pid_step(&pid, 100, 5, 0, 0, 0);
+        CHECK_READY();
+        TEST_ASSERT_EQUAL_INT32(want, pid.out_mv);
+        pid_disable(&pid);
+        CHECK_READY();
+        TEST_ASSERT_FALSE(pid.ready);
+        pid_step(&pid, 100, 5, 0, 0, 0);
+        CHECK_READY();
+#undef CHECK_READY
+    }
+    TEST_ASSERT_TRUE(seen_ready >= 5); /* the fast loop did become ready */
+}
+
+/* From feed-forward gains (general path, ff != 0) to a fast configuration
+ * on a running loop: the short path does not write ff, so the general step
+ * the bumpless change forces must leave it 0; the outputs then equal a loop
+ * stepped on the general path only. */
+static void test_fast_after_feed_forward_config(void)
+{
+    pid_params_t p = params(1.5e3, 8e3, 5, 10000);
+    pid_loop_t a, b;
+    int k;
+    p.kvff = Q32(20);
+    start(&a, &p);
+    for (k = 0; k < 5; k++) {
+        pid_step(&a, 1000 + k, k, 300000000, 0, 0);
+    }
+    TEST_ASSERT_FALSE(a.fast);
+    TEST_ASSERT_TRUE(a.ff != 0);
+    p.kvff = 0;
+    TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &p));
+    TEST_ASSERT_TRUE(a.fast && !a.ready);
+    b = a;
+    b.fast = false;
+    pid_refresh_ready(&b);
+    for (k = 0; k < 5; k++) {
+        pid_step(&a, 2000 + k * 7, k, 300000000, 0, 0);
+        pid_step(&b, 2000 + k * 7, k, 300000000, 0, 0);
+        TEST_ASSERT_TRUE(a.ready);
+        TEST_ASSERT_EQUAL_INT64(0, a.ff);
+        TEST_ASSERT_EQUAL_INT64(b.out, a.out);
+        TEST_ASSERT_EQUAL_INT64(b.integ, a.integ);
+    }
+}
+
 static void test_fast_path_matches_general(void)
 {
     /* Kp, Ki, Kd, tick rate: shifts from 2 (1e5, 1e7, 1e3 at 100 Hz) to
@@ -599,7 +693,7 @@ static void test_fast_path_matches_general(void)
         {1.5e3, 8e3, 5, 5000}, {1e-3, 0.1, 1e-3, 100}, {1e5, 1e7, 1e3, 100},
         {4e4, 2e6, 100, 100},  {10, 100, 0.1, 5000},   {1e3, 1e5, 1, 100000},
     };
-    int fast_seen = 0, shifts[33] = {0};
+    int fast_seen = 0, shifts[33] = {0}, fast0_runs = 0;
     size_t g;
     int d, k;
 
@@ -608,7 +702,7 @@ static void test_fast_path_matches_general(void)
             for (d = 0; d < 4; d++) {
                 pid_params_t p =
                     params(gains[g][0], gains[g][1], gains[g][2], (uint32_t)gains[g][3]);
-                pid_loop_t a, b;
+                pid_loop_t a, b, c;
                 p.d_on_measurement = (d & 1) != 0;
                 p.d_tau_us = (d & 2) ? 100u : 0u;
                 p.kt = Q32(10);
@@ -629,10 +723,23 @@ static void test_fast_path_matches_general(void)
                     pos_nm_t meas = (sel & 1) ? ref - (rnd64() >> 44) : rnd64() >> (sel * 4);
                     int64_t extra = (sel == 3) ? 0 : rnd64() >> (sel + 1);
                     b = a;
+                    c = a;
                     b.fast = false;
+                    pid_refresh_ready(&b); /* b: the general path */
                     pid_step(&a, ref, meas, 0, 0, extra);
                     pid_step(&b, ref, meas, 0, 0, extra);
+                    if (c.ready) { /* the extra-free entry (servo, quiet CEC) */
+                        int32_t e = fx_sat_diff32(ref, meas);
+                        int32_t u = (extra == 0) ? pid_step_fast0(&c, e, meas)
+                                                 : pid_step_fast(&c, e, meas, extra);
+                        TEST_ASSERT_EQUAL_INT32(a.out_mv, u);
+                        TEST_ASSERT_EQUAL_MEMORY(&a, &c, sizeof a);
+                        fast0_runs += extra == 0;
+                    }
+                    TEST_ASSERT_FALSE(b.ready);
                     b.fast = true;
+                    pid_refresh_ready(&b);
+                    TEST_ASSERT_TRUE(a.ready); /* enabled, primed, not bumpless */
                     TEST_ASSERT_EQUAL_INT32(b.out_mv, a.out_mv);
                     TEST_ASSERT_TRUE(a.out == b.out && a.integ == b.integ && a.dterm == b.dterm &&
                                      a.extra == b.extra);
@@ -641,6 +748,7 @@ static void test_fast_path_matches_general(void)
             }
         }
     }
+    TEST_ASSERT_TRUE(fast0_runs >= 100);               /* extra = 0 (sel 3) was covered */
     TEST_ASSERT_EQUAL_INT(24, fast_seen);              /* every set takes the short path */
     TEST_ASSERT_TRUE(shifts[2] > 0 && shifts[28] > 0); /* both ends of the range */
 }
@@ -667,6 +775,8 @@ int main(void)
     RUN_TEST(test_position_reset_no_spike);
     RUN_TEST(test_config_validation_all_or_nothing);
     RUN_TEST(test_extremes);
+    RUN_TEST(test_ready_cache_follows_inputs);
+    RUN_TEST(test_fast_after_feed_forward_config);
     RUN_TEST(test_fast_path_matches_general);
     RUN_TEST(test_d_filter_product_exact);
     return UNITY_END();

@@ -287,6 +287,51 @@ static void run_counter(uint8_t bits, int64_t step, unsigned samples, bool expec
     TEST_ASSERT_EQUAL_INT8(step > 0 ? 1 : -1, d.out.dir);
 }
 
+/* The overspeed test's one-compare form against |delta| > max_delta over
+ * its whole range: every limit the decoder can hold (0 .. 2^31 - 1), the
+ * deltas around +-limit and the ends of int32, and random pairs. */
+static void test_overspeed_compare(void)
+{
+    static const uint32_t lims[] = {
+        0u, 1u, 63u, 16383u, 32767u, (1u << 30) - 1u, 1u << 30, 0x7FFFFFFEu, 0x7FFFFFFFu};
+    unsigned i, j, k;
+
+    for (i = 0; i < sizeof lims / sizeof lims[0]; i++) {
+        uint32_t m = lims[i];
+        int64_t ds[] = {INT32_MIN,
+                        INT32_MIN + 1,
+                        -(int64_t)m - 1,
+                        -(int64_t)m,
+                        -(int64_t)m + 1,
+                        -1,
+                        0,
+                        1,
+                        (int64_t)m - 1,
+                        m,
+                        (int64_t)m + 1,
+                        INT32_MAX - 1,
+                        INT32_MAX};
+
+        for (j = 0; j < sizeof ds / sizeof ds[0]; j++) {
+            int64_t d = ds[j];
+            if (d < INT32_MIN || d > INT32_MAX) {
+                continue;
+            }
+            TEST_ASSERT_EQUAL_INT((d < 0 ? -d : d) > (int64_t)m, qdec_overspeed((int32_t)d, m));
+        }
+    }
+    for (k = 0; k < 200000u; k++) {
+        uint32_t m = rnd() & 0x7FFFFFFFu;
+        int32_t d = (int32_t)rnd();
+
+        if (k & 1u) {
+            m >>= rnd() % 31u;
+        }
+        TEST_ASSERT_EQUAL_INT((d < 0 ? -(int64_t)d : (int64_t)d) > (int64_t)m,
+                              qdec_overspeed(d, m));
+    }
+}
+
 static void test_counter_extension_max_delta(void)
 {
     /* 16 bit: +-32767 per sample, 2 samples per wrap, 5000 wraps each way */
@@ -1120,6 +1165,10 @@ static void test_sample_fast_equals_reference(void)
             t += (uint32_t)dt;
             fast_before =
                 a.last_illegal == a.e.illegal && a.last_idx_events == a.e.idx_events && dt > 0;
+            /* the short path's one check (e.rare) stands for both counters */
+            TEST_ASSERT_EQUAL_INT(a.last_illegal == a.e.illegal &&
+                                      a.last_idx_events == a.e.idx_events,
+                                  a.last_rare == a.e.rare);
             fast_used += fast_before ? 1u : 0u;
             ref_used += fast_before ? 0u : 1u;
             qdec_sample(&a, t);
@@ -1195,6 +1244,7 @@ int main(void)
     RUN_TEST(test_illegal_never_counts_a_step);
     RUN_TEST(test_illegal_fault_window);
     RUN_TEST(test_counter_extension_max_delta);
+    RUN_TEST(test_overspeed_compare);
     RUN_TEST(test_counter_random_and_overspeed);
     RUN_TEST(test_index_qualified_same_both_directions);
     RUN_TEST(test_index_ungated_has_hysteresis);

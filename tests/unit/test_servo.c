@@ -680,10 +680,53 @@ static void test_closed_loop_cec_cuts_contour_error(void)
     }
 }
 
+/* Step 1 reads the encoder fault mask and the amplifier callback once per
+ * tick: an encoder fault is raised without an amplifier callback (io
+ * without amp_fault), and both sources of the same tick are raised, on
+ * their axes, in axis order (the last disables every axis). */
+static void test_input_faults_without_and_with_callback(void)
+{
+    static const servo_io_t io_no_amp = {fake_set_mv, fake_enable, NULL};
+    servo_params_t p;
+    servo_fb_t fb;
+    unsigned i;
+
+    servo_params_default(&p, 5000);
+    memset(&fb, 0, sizeof fb);
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_init(&s, &p, &io_no_amp));
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_enable(&s, &fb));
+    servo_tick(&s, NULL, &fb);
+    TEST_ASSERT_EQUAL_UINT32(0, s.faults);
+    fb.enc_fault = 1u << 2;
+    servo_tick(&s, NULL, &fb);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_ENCODER, s.faults);
+    TEST_ASSERT_EQUAL_UINT32(1u << 2, s.fault_axes);
+    TEST_ASSERT_EQUAL_UINT32(1u << 2, s.off_mask);
+    TEST_ASSERT_FALSE(line_log[2]);
+
+    memset(&fb, 0, sizeof fb);
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_init(&s, &p, &io));
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_enable(&s, &fb));
+    servo_tick(&s, NULL, &fb);
+    TEST_ASSERT_EQUAL_UINT32(0, s.faults);
+    fb.enc_fault = 1u << 0;
+    amp_bad[1] = true;
+    amp_bad[2] = true;
+    servo_tick(&s, NULL, &fb);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_ENCODER | SERVO_FAULT_AMPLIFIER, s.faults);
+    TEST_ASSERT_EQUAL_UINT32(7u, s.fault_axes);
+    TEST_ASSERT_EQUAL_INT(SERVO_OFF, s.state);
+    for (i = 0; i < CORE_AXES; i++) {
+        TEST_ASSERT_FALSE(line_log[i]);
+        TEST_ASSERT_EQUAL_INT32(0, mv_log[i]);
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_enable_hold_is_bumpless);
+    RUN_TEST(test_input_faults_without_and_with_callback);
     RUN_TEST(test_run_equals_the_loops);
     RUN_TEST(test_cec_in_the_tick_and_handover);
     RUN_TEST(test_following_error_disables_everything);
