@@ -64,6 +64,18 @@ static void start(servo_params_t *p, servo_fb_t *fb)
     TEST_ASSERT_EQUAL_INT(SERVO_HOLD, s.state);
 }
 
+/* start(), then running with the reference on the measured positions. */
+static void start_running(servo_params_t *p, servo_fb_t *fb, motion_ref_t *ref)
+{
+    unsigned i;
+    start(p, fb);
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
+    memset(ref, 0, sizeof *ref);
+    for (i = 0; i < CORE_AXES; i++) {
+        ref->pos[i] = fb->pos[i];
+    }
+}
+
 /* The reference of a straight move from the hold point at velocity v (nm/s
  * per axis), tick k. */
 static void ramp_ref(motion_ref_t *ref, const servo_fb_t *fb0, const int64_t *v, unsigned k)
@@ -219,12 +231,7 @@ static void test_following_error_disables_everything(void)
     motion_ref_t ref;
     unsigned i;
     servo_params_default(&p, HZ);
-    start(&p, &fb);
-    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
-    memset(&ref, 0, sizeof ref);
-    for (i = 0; i < CORE_AXES; i++) {
-        ref.pos[i] = fb.pos[i];
-    }
+    start_running(&p, &fb, &ref);
     servo_tick(&s, &ref, &fb);
     TEST_ASSERT_EQUAL_UINT32(0, s.faults);
     ref.pos[2] += 5000000; /* exactly at the limit: allowed */
@@ -330,16 +337,11 @@ static void test_saturation_fault(void)
     servo_params_t p;
     servo_fb_t fb;
     motion_ref_t ref;
-    unsigned k, i;
+    unsigned k;
     servo_params_default(&p, HZ);
     p.sat_limit_ticks = 10;
     p.ferr_limit_nm[0] = 0; /* following error check off on X */
-    start(&p, &fb);
-    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
-    memset(&ref, 0, sizeof ref);
-    for (i = 0; i < CORE_AXES; i++) {
-        ref.pos[i] = fb.pos[i];
-    }
+    start_running(&p, &fb, &ref);
     servo_tick(&s, &ref, &fb); /* the bumpless first tick */
     ref.pos[0] += 200000000;   /* 200 mm: 300 V wanted */
     for (k = 1; k <= 10; k++) {
@@ -388,12 +390,7 @@ static void test_following_errors_of_several_axes_in_one_tick(void)
     servo_params_default(&p, HZ);
     /* DISABLE: the first axis over the limit switches everything off; the
      * later ones are no longer checked (OFF) */
-    start(&p, &fb);
-    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
-    memset(&ref, 0, sizeof ref);
-    for (i = 0; i < CORE_AXES; i++) {
-        ref.pos[i] = fb.pos[i];
-    }
+    start_running(&p, &fb, &ref);
     servo_tick(&s, &ref, &fb);
     ref.pos[1] += 6000000;
     ref.pos[2] -= 7000000;
@@ -446,12 +443,7 @@ static void test_saturation_disable_of_a_later_axis_zeroes_all(void)
     p.sat_limit_ticks = 3;
     p.on_saturation = SERVO_REACT_DISABLE;
     p.ferr_limit_nm[2] = 0;
-    start(&p, &fb);
-    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
-    memset(&ref, 0, sizeof ref);
-    for (i = 0; i < CORE_AXES; i++) {
-        ref.pos[i] = fb.pos[i];
-    }
+    start_running(&p, &fb, &ref);
     servo_tick(&s, &ref, &fb);
     ref.pos[0] += 1000;      /* X: a small, unsaturated command */
     ref.pos[2] += 200000000; /* Z saturates */
