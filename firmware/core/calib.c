@@ -699,6 +699,22 @@ static size_t h_comp_write(const uint8_t *msg, size_t plen, uint8_t *out)
     return PROTO_MSG_HDR + proto_comp_written_encode(&w, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
 }
 
+/* Compensation tables reach flash only with the drive disabled: a flash
+ * program or erase stalls a single-bank MCU (STM32F4: up to 2 s for a
+ * sector) and no control tick may be lost while the axes are powered.
+ * Checked on every board so the host sees one behaviour. True when the
+ * drive refuses (nothing is changed; a staged record is kept). */
+static bool flash_refused(const uint8_t *msg, uint8_t *out, size_t *len)
+{
+    drive_status_t st;
+    drive_snapshot(&st);
+    if (st.state == DRIVE_DISABLED) {
+        return false;
+    }
+    *len = refuse(out, msg, PROTO_CALIB_STATUS_DRIVE_ENABLED, st.state);
+    return true;
+}
+
 static size_t h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
 {
     static comp_table_t t;
@@ -707,6 +723,7 @@ static size_t h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
     comp_store_result_t sr;
     unsigned slot;
     uint32_t crc;
+    size_t rlen;
     if (!proto_comp_commit_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_COMMIT_LEN) {
         return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
                            PROTO_COMP_COMMIT_LEN);
@@ -729,6 +746,9 @@ static size_t h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
     if (cr != COMP_OK) {
         return refuse(out, msg, PROTO_CALIB_STATUS_RECORD, cr);
     }
+    if (flash_refused(msg, out, &rlen)) {
+        return rlen;
+    }
     sr = comp_store_write(m.axis, &t, NULL, NULL);
     if (sr != COMP_STORE_OK) {
         return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
@@ -749,12 +769,16 @@ static size_t h_comp_clear(const uint8_t *msg, size_t plen, uint8_t *out)
     proto_comp_clear_t m;
     comp_store_result_t sr;
     unsigned slot;
+    size_t rlen;
     if (!proto_comp_clear_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_CLEAR_LEN) {
         return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
                            PROTO_COMP_CLEAR_LEN);
     }
     if (m.axis >= axes()) {
         return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
+    }
+    if (flash_refused(msg, out, &rlen)) {
+        return rlen;
     }
     sr = comp_store_clear(m.axis, NULL);
     if (sr == COMP_STORE_OK) {

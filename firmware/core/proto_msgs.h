@@ -151,6 +151,7 @@
 #define PROTO_CALIB_STATUS_RECORD_CRC 13u /* compensation record CRC differs from the host's (lo = CRC received) */
 #define PROTO_CALIB_STATUS_RECORD_RANGE 14u /* comp_write offset/length outside the record buffer */
 #define PROTO_CALIB_STATUS_FLASH 15u /* flash store failed (lo = comp_store result); the previous table stays active */
+#define PROTO_CALIB_STATUS_DRIVE_ENABLED 16u /* compensation tables are written with the drive disabled (lo = drive state): a flash write stalls a single-bank MCU; the staged record is kept for a retry */
 
 /* calib_state.state */
 #define PROTO_CALIB_RUN_STATE_IDLE 0u /* no run set up */

@@ -201,6 +201,7 @@ class CalibStatus(IntEnum):
     RECORD_CRC = 13
     RECORD_RANGE = 14
     FLASH = 15
+    DRIVE_ENABLED = 16
 
 
 class CalibRunState(IntEnum):

@@ -27,10 +27,11 @@ from pathlib import Path
 
 import pytest
 from contour import cli
+from contour import protocol_gen as pg
 from contour.calibration import analysis, inproc, run, tables
 from contour.calibration.faults import FrameFaults
 from contour.errors import UserError
-from contour.link.client import Client
+from contour.link.client import Client, DriveError
 
 REPO = Path(__file__).resolve().parents[2]
 DATA = REPO.parent / "shared" / "data" / "lacerda1998" / "encoder_calibration_kgm101.csv"
@@ -222,7 +223,7 @@ def _calibrate_and_apply(loss: float):
     cal = run.Calibrator(client, t.wait)
     res = cal.run(_cfg(TARGETS_MM))
     before = run.errmap_from_run(res, "enc", axis="Y")
-    info = run.upload(client, 1, before)
+    info = run.upload(client, 1, before, wait=t.wait)
     vpts = [x / 2 for x in range(-150, 151, 15)]
     res2 = cal.run(_cfg(vpts))
     after = run.errmap_from_run(res2, "comp", axis="Y")
@@ -324,8 +325,25 @@ def test_drive_refusals_are_clear():
         cal.run(run.RunConfig(axis=1, targets_nm=[1000, 0]))
     em = analysis.analyse([(0.0, 1, 0.0), (0.0, -1, 0.0)])
     em.points[0].mean_err_pos_mm = 0.5  # 500 um: within the record, applied
-    rec_ok = run.upload(client, 1, em)
+    # an enabled drive refuses a table on the wire (a flash write would
+    # stall a single-bank MCU's tick); upload disables it for the commit and
+    # enables it again
+    record = tables.encode_record(tables.corrections_nm(em), 1, ramp_us=20000)
+    client.request("comp_write", axis=1, offset=0, data=record)
+    with pytest.raises(DriveError) as exc:
+        client.request("comp_commit", axis=1, length=len(record), crc=zlib.crc32(record))
+    assert exc.value.fields["arg"] == pg.CalibStatus.DRIVE_ENABLED
+    rec_ok = run.upload(client, 1, em, wait=t.wait)
     assert rec_ok["n"] == 1
+    t.wait(0.01)
+    assert client.status()["state"] == pg.State.READY
+    # a faulted drive: refused before anything is sent, the table unchanged
+    client.request("estop")
+    t.wait(0.01)
+    em.points[0].mean_err_pos_mm = 0.25
+    with pytest.raises(UserError, match="reset the fault"):
+        run.upload(client, 1, em, wait=t.wait)
+    assert client.request("comp_get", axis=1).fields["data_crc"] == rec_ok["data_crc"]
 
 
 # ---- the command ------------------------------------------------------------------------------

@@ -419,7 +419,35 @@ static size_t make_record(int32_t fwd0)
     return comp_record_encode(&TB, rec, sizeof rec);
 }
 
-static void upload(const uint8_t *r, size_t len, uint32_t crc)
+/* Disable the drive and let the tick apply it (tables are written only
+ * with the drive disabled). */
+static void drive_off(void)
+{
+    drive_status_t st;
+    TEST_ASSERT_EQUAL_INT(0, sim_enable(0));
+    TEST_ASSERT_TRUE(sim_run(2, NULL, 0, 0) >= 0);
+    drive_snapshot(&st);
+    TEST_ASSERT_EQUAL_INT(DRIVE_DISABLED, st.state);
+}
+
+static void drive_on(void)
+{
+    TEST_ASSERT_EQUAL_INT(0, sim_enable(1));
+    TEST_ASSERT_TRUE(sim_run(10, NULL, 0, 0) >= 0);
+}
+
+static void commit(size_t len, uint32_t crc)
+{
+    proto_comp_commit_t c;
+    uint8_t p[PROTO_COMP_COMMIT_LEN];
+    c.axis = 1;
+    c.length = (uint16_t)len;
+    c.crc = crc;
+    proto_comp_commit_encode(&c, p, sizeof p);
+    req(PROTO_MSG_COMP_COMMIT, p, sizeof p);
+}
+
+static void stage(const uint8_t *r, size_t len)
 {
     size_t off;
     for (off = 0; off < len; off += 200) {
@@ -434,15 +462,14 @@ static void upload(const uint8_t *r, size_t len, uint32_t crc)
         req(PROTO_MSG_COMP_WRITE, p, plen);
         TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_COMP_WRITTEN, out[0]);
     }
-    {
-        proto_comp_commit_t c;
-        uint8_t p[PROTO_COMP_COMMIT_LEN];
-        c.axis = 1;
-        c.length = (uint16_t)len;
-        c.crc = crc;
-        proto_comp_commit_encode(&c, p, sizeof p);
-        req(PROTO_MSG_COMP_COMMIT, p, sizeof p);
-    }
+}
+
+/* stage and commit a record with the drive disabled */
+static void upload(const uint8_t *r, size_t len, uint32_t crc)
+{
+    drive_off();
+    stage(r, len);
+    commit(len, crc);
 }
 
 static proto_comp_info_t info_of_reply(void)
@@ -561,6 +588,7 @@ static void test_compensation_upload_verify_and_fallbacks(void)
         uint8_t a = 1;
         req(PROTO_MSG_COMP_GET, &a, 1);
         TEST_ASSERT_EQUAL_UINT32(2, info_of_reply().version);
+        drive_off();
         req(PROTO_MSG_COMP_CLEAR, &a, 1);
         m = info_of_reply();
         TEST_ASSERT_EQUAL_UINT8(0, m.active);
@@ -574,12 +602,51 @@ static void test_compensation_upload_verify_and_fallbacks(void)
     TEST_ASSERT_NULL(calib_comp_active(1)); /* the empty table is current */
 }
 
+/* With the drive enabled, commit and clear are refused before anything
+ * reaches flash (a flash write stalls a single-bank MCU's control tick):
+ * the active table and the flash stay as they were, and the staged record
+ * is kept, so a commit after disabling succeeds without re-sending it. */
+static void test_compensation_written_only_with_the_drive_disabled(void)
+{
+    size_t len = make_record(4000);
+    uint32_t crc = crc32_update(CRC32_INIT, rec, len);
+    uint8_t a = 1;
+    drive_status_t st;
+
+    drive_snapshot(&st);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state); /* setUp enabled it */
+    stage(rec, len);
+    commit(len, crc);
+    expect_error(PROTO_ERROR_CODE_CALIB, PROTO_CALIB_STATUS_DRIVE_ENABLED);
+    TEST_ASSERT_NULL(calib_comp_active(1));
+    start_sim(); /* a restart finds nothing in flash either */
+    TEST_ASSERT_NULL(calib_comp_active(1));
+
+    stage(rec, len);
+    commit(len, crc);
+    expect_error(PROTO_ERROR_CODE_CALIB, PROTO_CALIB_STATUS_DRIVE_ENABLED);
+    drive_off();
+    commit(len, crc); /* the staged record was kept */
+    TEST_ASSERT_EQUAL_UINT8(1, info_of_reply().active);
+    TEST_ASSERT_EQUAL_INT32(4000, calib_comp_active(1)->fwd[0]);
+
+    drive_on();
+    req(PROTO_MSG_COMP_CLEAR, &a, 1);
+    expect_error(PROTO_ERROR_CODE_CALIB, PROTO_CALIB_STATUS_DRIVE_ENABLED);
+    TEST_ASSERT_NOT_NULL(calib_comp_active(1));
+    drive_off();
+    req(PROTO_MSG_COMP_CLEAR, &a, 1);
+    TEST_ASSERT_EQUAL_UINT8(0, info_of_reply().active);
+    TEST_ASSERT_NULL(calib_comp_active(1));
+}
+
 static void test_samples_carry_the_compensated_position(void)
 {
     size_t len = make_record(4000);
     unsigned n, i;
     upload(rec, len, crc32_update(CRC32_INIT, rec, len));
     TEST_ASSERT_EQUAL_UINT8(1, info_of_reply().active);
+    drive_on();
     setup_run(1, 0, 3, 1, 10);
     send_targets(0, T3, 3);
     req(PROTO_MSG_CALIB_START, NULL, 0);
@@ -607,6 +674,7 @@ int main(void)
     RUN_TEST(test_abort_and_drive_fault_end_the_run);
     RUN_TEST(test_compensation_upload_verify_and_fallbacks);
     RUN_TEST(test_ramp_skip_matches_stepping_every_tick);
+    RUN_TEST(test_compensation_written_only_with_the_drive_disabled);
     RUN_TEST(test_samples_carry_the_compensated_position);
     return UNITY_END();
 }

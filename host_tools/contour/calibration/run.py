@@ -304,10 +304,48 @@ def errmap_with_host_reference(res: RunResult, readings: list, axis: str = "") -
     return analyse(out, axis=axis, source="host reference")
 
 
-def upload(client, axis: int, errmap: ErrorMap, ramp_us: int = 20000) -> dict:
+def _drive_state(client) -> pg.State:
+    return pg.State(client.status()["state"])
+
+
+def _disable_for_write(client, wait: Callable[[float], None], timeout_s: float) -> None:
+    """Disable the drive and wait until its tick has switched the axes off."""
+    client.enable(False)
+    polls = max(1, round(timeout_s / 0.005))
+    for _ in range(polls):
+        if _drive_state(client) == pg.State.DISABLED:
+            return
+        wait(0.005)
+    raise UserError(f"the drive did not disable within {timeout_s:g} s")
+
+
+def upload(
+    client,
+    axis: int,
+    errmap: ErrorMap,
+    ramp_us: int = 20000,
+    wait: Callable[[float], None] = time.sleep,
+    timeout_s: float = 2.0,
+) -> dict:
     """Send the compensation table and make it active (comp_write chunks,
-    comp_commit with the record's CRC-32); checks what the drive reports."""
+    comp_commit with the record's CRC-32); checks what the drive reports.
+
+    The drive writes tables to flash only while disabled (a flash write
+    stalls a single-bank MCU's control tick): a drive enabled at rest is
+    disabled for the commit and enabled again afterwards, also when the
+    commit is refused. A moving or faulted drive is refused before anything
+    is sent."""
     record = encode_record(corrections_nm(errmap), axis, ramp_us=ramp_us)
+    state = _drive_state(client)
+    if state in (pg.State.RUNNING, pg.State.STOPPING):
+        raise UserError(
+            "the drive is moving: wait until it is at rest before writing a compensation table"
+        )
+    if state in (pg.State.FAULT, pg.State.ESTOP):
+        raise UserError(
+            f"the drive is in {state.name.lower()}: reset the fault before writing a"
+            " compensation table"
+        )
     for off in range(0, len(record), CHUNK):
         part = record[off : off + CHUNK]
         w = client.request("comp_write", axis=axis, offset=off, data=part).fields
@@ -315,7 +353,10 @@ def upload(client, axis: int, errmap: ErrorMap, ramp_us: int = 20000) -> dict:
             raise UserError(
                 f"drive staged {w['len']} bytes at {w['offset']}, sent {len(part)} at {off}"
             )
+    was_enabled = state == pg.State.READY
     try:
+        if was_enabled:
+            _disable_for_write(client, wait, timeout_s)
         info = client.request(
             "comp_commit", axis=axis, length=len(record), crc=zlib.crc32(record)
         ).fields
@@ -327,6 +368,9 @@ def upload(client, axis: int, errmap: ErrorMap, ramp_us: int = 20000) -> dict:
                 " the previous table stays active"
             ) from None
         raise
+    finally:
+        if was_enabled:
+            client.enable(True)
     data_crc = zlib.crc32(record[32:])
     n = (len(record) - 32) // 16
     if info["n"] != n or info["data_crc"] != data_crc or info["ramp_us"] != ramp_us:

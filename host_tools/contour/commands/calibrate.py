@@ -221,7 +221,9 @@ def cmd_calibrate(args) -> int:
                 raise UserError("--apply needs --axis")
             sess = Session(args)
             try:
-                info = run.upload(sess.client, axis, em, ramp_us=round(args.ramp_ms * 1000))
+                info = run.upload(
+                    sess.client, axis, em, ramp_us=round(args.ramp_ms * 1000), wait=sess.wait
+                )
             finally:
                 sess.close()
             report["applied"] = info
@@ -256,7 +258,7 @@ def cmd_calibrate(args) -> int:
         report["measure"] = _run_report(res)
         residual = None
         if args.apply:
-            info = run.upload(client, axis, em, ramp_us=round(args.ramp_ms * 1000))
+            info = run.upload(client, axis, em, ramp_us=round(args.ramp_ms * 1000), wait=sess.wait)
             report["applied"] = info
             if host_ref:
                 report["residual"] = "not measured: the reference is a file (no reference scale)"
