@@ -18,7 +18,8 @@ ARM_CC     := arm-none-eabi-gcc
 CORE_SRC   := $(shell find firmware/core -name '*.c' 2>/dev/null | sort)
 CORE_HDR   := $(shell find firmware/core firmware/hal -name '*.h' 2>/dev/null | sort)
 HIL_SRC    := $(sort $(wildcard hil_sim/*.c) $(wildcard firmware/ports/sim/*.c))
-HIL_HDR    := $(sort $(wildcard hil_sim/*.h) $(wildcard firmware/ports/sim/*.h))
+HIL_HDR    := $(sort $(wildcard hil_sim/*.h) $(wildcard firmware/ports/sim/*.h) \
+                     $(wildcard firmware/ports/common/*.h))
 UNIT_SRC   := $(sort $(wildcard tests/unit/test_*.c))
 UNIT_SUP   := $(sort $(wildcard tests/unit/support/*.c))
 UNIT_BIN   := $(patsubst tests/unit/%.c,$(BUILD)/unit/%,$(UNIT_SRC))

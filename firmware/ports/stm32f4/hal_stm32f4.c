@@ -19,12 +19,13 @@
 
 #include "hal.h"
 #include "port.h"
+#include "port_counter.h"
 #include "port_ring.h"
 #include "stm32f4.h"
 
 #define AXES     3u
-#define PWM_ARR  (F4_SYSCLK_HZ / 20000u / 2u) /* centre-aligned 20 kHz: 4200 */
-#define MV_FULL  10000                        /* +-10 V at 0 / 100 % duty */
+#define PWM_HZ   20000u /* centre-aligned: ARR = f_tim / 2 / PWM_HZ */
+#define MV_FULL  10000  /* +-10 V at 0 / 100 % duty */
 #define RX_RING  1024u
 #define TX_RING  2048u
 #define CAN_RING 32u
@@ -53,16 +54,23 @@ static struct {
     uint32_t dropped;
 } canrx;
 
+/* The clock tree actually running (clocks()): the PLL from HSE, or HSI
+ * when the crystal or the PLL did not start (hse_ok false). Written once at
+ * bring-up, before any interrupt is enabled. */
+static struct {
+    uint32_t sysclk_hz, apb1_hz, tim1_hz;
+    bool hse_ok;
+    bool can_ok;
+    uint32_t pwm_arr;
+} clk;
+
 static struct {
     uint32_t load, period_us;
     volatile uint32_t ticks;
     void (*hook)(void);
 } tb;
 
-static struct {
-    uint32_t last[AXES];  /* timer count at the previous read */
-    uint32_t count[AXES]; /* 32-bit extended count (wraps)    */
-} enc;
+static port_counter_t enc[AXES]; /* the axis timers, extended to 32 bits */
 
 /* ---- time base ----------------------------------------------------------------- */
 
@@ -82,7 +90,7 @@ void f4_set_tick_hook(void (*hook)(void))
 
 uint32_t hal_time_us(void)
 {
-    return cm4_systick_time_us(&tb.ticks, tb.load, tb.period_us, F4_SYSCLK_HZ / 1000000u);
+    return cm4_systick_time_us(&tb.ticks, tb.load, tb.period_us, clk.sysclk_hz / 1000000u);
 }
 
 /* ---- encoders -------------------------------------------------------------------- */
@@ -93,14 +101,7 @@ bool hal_encoder_counter(unsigned ch, uint32_t *count)
         return false;
     }
     if (ch < AXES) {
-        uint32_t cnt = F4_TIM_CNT(enc_tim[ch]);
-        uint32_t d = cnt - enc.last[ch];
-        if (enc_bits[ch] == 16u) {
-            d = (uint32_t)(int32_t)(int16_t)(uint16_t)d; /* signed 16-bit change */
-        }
-        enc.last[ch] = cnt;
-        enc.count[ch] += d;
-        *count = enc.count[ch];
+        *count = port_counter_update(&enc[ch], F4_TIM_CNT(enc_tim[ch]));
         return true;
     }
     if (ch == AXES) { /* axis 0's reference scale */
@@ -129,7 +130,7 @@ void hal_motor_set_mv(unsigned axis, int32_t mv)
     } else if (mv < -MV_FULL) {
         mv = -MV_FULL;
     }
-    duty = ((int64_t)(mv + MV_FULL) * PWM_ARR + MV_FULL) / (2 * MV_FULL);
+    duty = ((int64_t)(mv + MV_FULL) * clk.pwm_arr + MV_FULL) / (2 * MV_FULL);
     F4_TIM_CCR(F4_TIM1, axis + 1u) = (uint32_t)duty;
 }
 
@@ -140,14 +141,26 @@ void hal_motor_enable(unsigned axis, bool on)
     }
     motor_on[axis] = on;
     if (!on) {
-        F4_TIM_CCR(F4_TIM1, axis + 1u) = PWM_ARR / 2u;
+        F4_TIM_CCR(F4_TIM1, axis + 1u) = clk.pwm_arr / 2u;
     }
     F4_GPIO_BSRR(F4_GPIO(F4_PE)) = on ? (1u << axis) : (1u << (axis + 16u));
 }
 
+/* A board running on HSI (crystal or PLL failed) reports an amplifier
+ * fault on every axis: the drive then refuses to enable, and a fault reset
+ * is refused while the cause persists. The loops must not run on a time
+ * base that is 1 % off (HSI) and unverified. */
 bool hal_amp_fault(unsigned axis)
 {
-    return axis < AXES && !(F4_GPIO_IDR(F4_GPIO(F4_PE)) & (1u << (axis + 3u)));
+    if (axis >= AXES) {
+        return false;
+    }
+    return !clk.hse_ok || !(F4_GPIO_IDR(F4_GPIO(F4_PE)) & (1u << (axis + 3u)));
+}
+
+bool f4_clock_ok(void)
+{
+    return clk.hse_ok;
 }
 
 /* ---- USART2 ----------------------------------------------------------------------------- */
@@ -193,8 +206,24 @@ size_t hal_uart_write(const uint8_t *data, size_t len)
     return n;
 }
 
+/* Top up the transmitter from main context while its data register is
+ * empty (at most two bytes on the real USART, whose TXE interrupt sends the
+ * rest; everything on a USART model without a TXE interrupt, such as
+ * QEMU's). The USART interrupt is masked: the ring's consumer is the ISR. */
+static void uart_tx_service(void)
+{
+    uint32_t pm = cm4_irq_save();
+    uint8_t c;
+
+    while ((F4_USART_SR(F4_USART2) & F4_USART_SR_TXE) && port_ring_get(&uart.tx, &c)) {
+        F4_USART_DR(F4_USART2) = c;
+    }
+    cm4_irq_restore(pm);
+}
+
 size_t hal_uart_read(uint8_t *data, size_t cap)
 {
+    uart_tx_service();
     return data == NULL ? 0 : port_ring_read(&uart.rx, data, cap);
 }
 
@@ -235,8 +264,13 @@ void f4_can1_rx0_handler(void)
 
 bool hal_can_send(uint32_t id, const uint8_t *data, uint8_t len)
 {
-    uint32_t tsr = F4_CAN_TSR, lo = 0, hi = 0;
+    uint32_t tsr, lo = 0, hi = 0;
     unsigned m, i;
+
+    if (!clk.can_ok) {
+        return false;
+    }
+    tsr = F4_CAN_TSR;
 
     if (id > 0x7FFu || len > 8u || (len > 0u && data == NULL)) {
         return false;
@@ -374,20 +408,53 @@ void hal_watchdog_kick(void)
 
 /* ---- bring-up ------------------------------------------------------------------------------ */
 
+/* Poll until (reg & mask) == want, at most F4_CLOCK_POLLS reads (about
+ * 20 ms on HSI; HSE starts in 2 ms, the PLL locks in 0.1 ms). */
+static bool wait_bits(volatile uint32_t *reg, uint32_t mask, uint32_t want)
+{
+    uint32_t n;
+
+    for (n = 0; n < F4_CLOCK_POLLS; n++) {
+        if ((*reg & mask) == want) {
+            return true;
+        }
+    }
+    return false;
+}
+
+/* 168 MHz from the 8 MHz crystal; on any timeout the board stays on HSI
+ * 16 MHz (APB1 = APB2 = 16 MHz) with hse_ok false, and every peripheral is
+ * set up for the clock that runs. */
 static void clocks(void)
 {
+    clk.hse_ok = false;
+    clk.sysclk_hz = F4_HSI_HZ;
+    clk.apb1_hz = F4_HSI_HZ;
+    clk.tim1_hz = F4_HSI_HZ;
     F4_RCC_CR |= 1u << 16; /* HSEON */
-    while (!(F4_RCC_CR & (1u << 17))) {
+    if (!wait_bits(&F4_RCC_CR, 1u << 17, 1u << 17)) {
+        F4_RCC_CR &= ~(1u << 16);
+        return;
     }
     /* PLL: M 8, N 336, P 2 (168 MHz), Q 7 (48 MHz), source HSE */
     F4_RCC_PLLCFGR = 8u | (336u << 6) | (0u << 16) | (1u << 22) | (7u << 24);
     F4_RCC_CR |= 1u << 24; /* PLLON */
-    while (!(F4_RCC_CR & (1u << 25))) {
+    if (!wait_bits(&F4_RCC_CR, 1u << 25, 1u << 25)) {
+        F4_RCC_CR &= ~((1u << 24) | (1u << 16));
+        return;
     }
     F4_FLASH_ACR = 5u | (1u << 8) | (1u << 9) | (1u << 10); /* 5 WS, prefetch, I/D cache */
     F4_RCC_CFGR = (5u << 10) | (4u << 13) | 2u;             /* APB1 /4, APB2 /2, SYSCLK = PLL */
-    while (((F4_RCC_CFGR >> 2) & 3u) != 2u) {
+    if (!wait_bits(&F4_RCC_CFGR, 3u << 2, 2u << 2)) {
+        F4_RCC_CFGR = 0u; /* back to HSI, no prescalers */
+        (void)wait_bits(&F4_RCC_CFGR, 3u << 2, 0u);
+        F4_RCC_CR &= ~((1u << 24) | (1u << 16));
+        return;
     }
+    clk.hse_ok = true;
+    clk.sysclk_hz = F4_SYSCLK_HZ;
+    clk.apb1_hz = F4_APB1_HZ;
+    clk.tim1_hz = 2u * F4_APB2_HZ; /* APB2 prescaler > 1: timers run at 2 x APB2 */
 }
 
 /* pin n of port g: mode (0 in, 1 out, 2 AF), alternate function, pull (1 up) */
@@ -436,8 +503,7 @@ static void peripherals(void)
     encoder_timer(F4_TIM4, 0xFFFFu);
     encoder_timer(F4_TIM5, 0xFFFFFFFFu);
     for (i = 0; i < AXES; i++) {
-        enc.last[i] = F4_TIM_CNT(enc_tim[i]);
-        enc.count[i] = 0u;
+        port_counter_init(&enc[i], F4_TIM_CNT(enc_tim[i]), enc_bits[i]);
     }
 
     /* PWM: TIM1 CH1..3, centre-aligned, 50 % */
@@ -449,11 +515,11 @@ static void peripherals(void)
     }
     F4_TIM_CR1(F4_TIM1) = 1u << 5; /* CMS = 01 */
     F4_TIM_PSC(F4_TIM1) = 0u;
-    F4_TIM_ARR(F4_TIM1) = PWM_ARR;
+    F4_TIM_ARR(F4_TIM1) = clk.pwm_arr;
     F4_TIM_CCMR1(F4_TIM1) = (6u << 4) | (1u << 3) | (6u << 12) | (1u << 11); /* PWM1, preload */
     F4_TIM_CCMR2(F4_TIM1) = (6u << 4) | (1u << 3);
     for (i = 0; i < AXES; i++) {
-        F4_TIM_CCR(F4_TIM1, i + 1u) = PWM_ARR / 2u;
+        F4_TIM_CCR(F4_TIM1, i + 1u) = clk.pwm_arr / 2u;
     }
     F4_TIM_CCER(F4_TIM1) = 1u | (1u << 4) | (1u << 8);
     F4_TIM_BDTR(F4_TIM1) = 1u << 15; /* MOE */
@@ -463,18 +529,23 @@ static void peripherals(void)
     /* USART2 115200 8N1 */
     pin(F4_PA, 2u, 2u, 7u, 0u);
     pin(F4_PA, 3u, 2u, 7u, 1u);
-    F4_USART_BRR(F4_USART2) = (F4_APB1_HZ + 115200u / 2u) / 115200u;
+    F4_USART_BRR(F4_USART2) = (clk.apb1_hz + 115200u / 2u) / 115200u;
     F4_USART_CR1(F4_USART2) =
         F4_USART_CR1_UE | F4_USART_CR1_TE | F4_USART_CR1_RE | F4_USART_CR1_RXNEIE;
     cm4_nvic_enable(F4_IRQ_USART2, 0x40u);
 
-    /* CAN1 500 kbit/s: 42 MHz / 6 = 7 MHz, 1 + 11 + 2 tq, SJW 1 */
+    /* CAN1 500 kbit/s, SJW 1: 42 MHz / 6 = 7 MHz, 1 + 11 + 2 tq (sample
+     * point 86 %); on HSI 16 MHz / 2 = 8 MHz, 1 + 13 + 2 tq (88 %). A
+     * controller that does not acknowledge init leaves CAN off (can_ok). */
     pin(F4_PB, 8u, 2u, 9u, 1u);
     pin(F4_PB, 9u, 2u, 9u, 0u);
+    clk.can_ok = false;
     F4_CAN_MCR = 1u; /* INRQ */
-    while (!(F4_CAN_MSR & 1u)) {
+    if (!wait_bits(&F4_CAN_MSR, 1u, 1u)) {
+        return;
     }
-    F4_CAN_BTR = (0u << 24) | (1u << 20) | (10u << 16) | 5u;
+    F4_CAN_BTR = clk.hse_ok ? (0u << 24) | (1u << 20) | (10u << 16) | 5u
+                            : (0u << 24) | (1u << 20) | (12u << 16) | 1u;
     F4_CAN_FMR = 1u;  /* FINIT */
     F4_CAN_FM1R = 0u; /* mask mode */
     F4_CAN_FS1R = 1u; /* bank 0: 32 bit */
@@ -484,8 +555,10 @@ static void peripherals(void)
     F4_CAN_FA1R = 1u;
     F4_CAN_FMR = 0u;
     F4_CAN_MCR = (1u << 6) | (1u << 2); /* ABOM, TXFP; leave init */
-    while (F4_CAN_MSR & 1u) {
+    if (!wait_bits(&F4_CAN_MSR, 1u, 0u)) {
+        return;
     }
+    clk.can_ok = true;
     F4_CAN_IER = 1u << 1; /* FMPIE0 */
     cm4_nvic_enable(F4_IRQ_CAN1_RX0, 0x40u);
 }
@@ -493,9 +566,10 @@ static void peripherals(void)
 void f4_board_init(uint32_t tick_hz, void (*hook)(void))
 {
     clocks();
+    clk.pwm_arr = clk.tim1_hz / PWM_HZ / 2u; /* 4200 at 168 MHz */
     peripherals();
     tb.period_us = 1000000u / tick_hz;
-    tb.load = F4_SYSCLK_HZ / tick_hz - 1u;
+    tb.load = clk.sysclk_hz / tick_hz - 1u;
     tb.ticks = 0;
     tb.hook = hook;
     CM4_SCB_SHPR3 = (CM4_SCB_SHPR3 & 0x00FFFFFFu) | (0x80u << 24);

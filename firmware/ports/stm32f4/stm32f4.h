@@ -28,10 +28,12 @@
 
 #include "cm4.h"
 
-#define F4_HSE_HZ    8000000u
-#define F4_SYSCLK_HZ 168000000u
-#define F4_APB1_HZ   42000000u
-#define F4_APB2_HZ   84000000u
+#define F4_HSE_HZ      8000000u
+#define F4_SYSCLK_HZ   168000000u
+#define F4_APB1_HZ     42000000u
+#define F4_APB2_HZ     84000000u
+#define F4_HSI_HZ      16000000u /* the fallback when HSE or the PLL fails */
+#define F4_CLOCK_POLLS 100000u   /* bounded waits on clock and CAN ready bits */
 
 /* RCC */
 #define F4_RCC         0x40023800u
@@ -161,6 +163,9 @@
 void f4_board_init(uint32_t tick_hz, void (*hook)(void));
 void f4_set_tick_hook(void (*hook)(void));
 void f4_watchdog_start(void);
+/* False when the board runs on HSI because the crystal or the PLL did not
+ * start: every axis then reports an amplifier fault (hal_amp_fault). */
+bool f4_clock_ok(void);
 
 /* The boot request word (linker script: last word of SRAM). */
 extern volatile uint32_t f4_boot_request_word;
