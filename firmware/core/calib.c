@@ -63,6 +63,10 @@ static struct {
     /* bit i: ramp[i] has a direction and w has not reached its end (tick;
      * calib_init clears it with the ramps) */
     uint8_t ramp_busy;
+    /* bits 2i and 2i + 1: a negative, a positive reference velocity of
+     * axis i is a turn for ramp[i] (dir >= 0, dir <= 0); written with
+     * every change of a ramp's dir (tick; calib_init) */
+    uint32_t turn_mask;
     uint8_t stage[COMP_RECORD_MAX];
     int16_t stage_axis;
     /* protocol */
@@ -100,6 +104,8 @@ static uint32_t tick_hz(void)
 }
 
 /* ---- compensation ---------------------------------------------------------------- */
+
+static void ramp_masks(void);
 
 static void comp_install(unsigned axis, const comp_table_t *t, unsigned slot)
 {
@@ -146,6 +152,7 @@ void calib_init(void)
         cb.slot[i] = 0xFFu;
         comp_ramp_init(&cb.ramp[i], 0u, tick_hz());
         cb.ramp_busy = 0u;
+        ramp_masks();
         if (i < axes() && comp_store_load(i, &t, &slot) == COMP_STORE_OK) {
             comp_install(i, &t, slot);
         }
@@ -157,15 +164,38 @@ bool calib_sampling(void)
     return cb.s_active;
 }
 
-void calib_tick(const drive_status_t *st)
+/* The turn masks of the ramps' directions (see cb.turn_neg). */
+static void ramp_masks(void)
 {
     unsigned i;
-    if (st == NULL) {
-        return;
+    uint32_t m = 0u;
+    for (i = 0; i < CORE_AXES; i++) {
+        if (cb.ramp[i].dir >= 0) {
+            m |= 1u << (2u * i);
+        }
+        if (cb.ramp[i].dir <= 0) {
+            m |= 2u << (2u * i);
+        }
     }
+    cb.turn_mask = m;
+}
+
+/* Bit 0: v < 0, bit 1: v > 0 (sign bits of v and of -v, mod 2^64; both
+ * for INT64_MIN, which only sends calib_tick to the exact per-ramp test). */
+static inline uint32_t sign_bits(int64_t v)
+{
+    uint32_t n = (uint32_t)((uint64_t)v >> 63);
+    uint32_t p = (uint32_t)(((uint64_t)0 - (uint64_t)v) >> 63);
+    return n | (p << 1);
+}
+
+/* Step the ramps that turn or still move (the rest would not change). */
+static void ramp_tick(const int64_t *vel_ref)
+{
+    unsigned i;
     for (i = 0; i < CORE_AXES; i++) {
         comp_ramp_t *r = &cb.ramp[i];
-        int64_t v = st->vel_ref[i];
+        int64_t v = vel_ref[i];
         bool turn = r->dir > 0 ? v < 0 : (r->dir < 0 ? v > 0 : v != 0);
         /* settled (the usual case: moving on in the same direction, or at
          * rest, with w at that direction's end): comp_ramp_step would
@@ -178,6 +208,48 @@ void calib_tick(const drive_status_t *st)
                 cb.ramp_busy &= (uint8_t) ~(1u << i);
             }
         }
+    }
+    ramp_masks();
+}
+
+#if defined(__GNUC__)
+#define CALIB_NOINLINE __attribute__((noinline))
+#else
+#define CALIB_NOINLINE
+#endif
+
+static CALIB_NOINLINE void calib_tick_work(const drive_status_t *st,
+                                           const int64_t vel_ref[CORE_AXES], uint32_t turn);
+
+void calib_tick(const drive_status_t *st, const int64_t vel_ref[CORE_AXES])
+{
+    uint32_t sb = 0u, turn;
+    unsigned i;
+    if (st == NULL || vel_ref == NULL) {
+        return;
+    }
+    /* the usual tick: no axis turns, every ramp is settled and nothing
+     * samples (the signs of the velocities against the turn mask of the
+     * ramps' directions); the rest out of line */
+#if CORE_AXES == 3
+    sb = sign_bits(vel_ref[0]) | (sign_bits(vel_ref[1]) << 2) | (sign_bits(vel_ref[2]) << 4);
+    (void)i;
+#else
+    for (i = 0; i < CORE_AXES; i++) {
+        sb |= sign_bits(vel_ref[i]) << (2u * i);
+    }
+#endif
+    turn = (sb & cb.turn_mask) | cb.ramp_busy;
+    if ((turn | (uint32_t)cb.s_active) != 0u) {
+        calib_tick_work(st, vel_ref, turn);
+    }
+}
+
+static void calib_tick_work(const drive_status_t *st, const int64_t vel_ref[CORE_AXES],
+                            uint32_t turn)
+{
+    if (turn != 0u) {
+        ramp_tick(vel_ref);
     }
     if (!cb.s_active) {
         return;

@@ -73,8 +73,9 @@
  *
  * Contexts
  *   calib_init()      main, from drive_init (drive stopped).
- *   calib_tick(st)    tick, at the end of drive_tick with the snapshot the
- *                     tick just published: direction ramps, sampling.
+ *   calib_tick(st, v) tick, at the end of drive_tick with the snapshot the
+ *                     tick just published and its reference velocities:
+ *                     direction ramps, sampling.
  *   calib_poll()      main, from drive_poll: the run's state machine.
  *   calib_handle()    main (the link's extension handler).
  *   Tick writes: ring entries, seq_next, the sampling flag, ramps. Main
@@ -133,9 +134,11 @@ typedef size_t (*calib_handler_fn)(const uint8_t *msg, size_t len, uint32_t now_
                                    size_t cap);
 
 void calib_init(void);
-void calib_tick(const drive_status_t *st);
-/* True while sampling is armed: calib_tick then reads pos, pos_raw and
- * refscale of the status (otherwise only vel_ref and faults). Tick. */
+void calib_tick(const drive_status_t *st, const int64_t vel_ref[CORE_AXES]);
+/* True while sampling is armed: calib_tick then reads pos, pos_raw,
+ * refscale and faults of the status (otherwise only vel_ref, the reference
+ * velocities the ramps follow, nm/s; the status's own vel_ref field is not
+ * read). Tick. */
 bool calib_sampling(void);
 void calib_poll(void);
 size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out, size_t cap);

@@ -73,6 +73,35 @@ typedef struct {
     int64_t ac_key_v, ac_key_r, a_c;
 } arc_fast_t;
 
+/* Rotation recurrence of the arc overlay on cruise ticks (see drive.h,
+ * "Arc overlay on cruise ticks"). Tick context. The angle's cosine and sine
+ * (C, S, q62) are rotated each tick by the phase's constant step delta:
+ *     C' = C - c (1 - cos delta) - s sin delta
+ *     S' = S - s (1 - cos delta) + c sin delta
+ * where c, s are C, S rounded to q30 (the outputs' values) and the two
+ * constants are q62 split as h 2^31 + l (0 <= l < 2^31): two SMULL/SMLAL
+ * pairs per component, constant shifts. */
+typedef struct {
+    bool on;       /* C, S hold the last tick's arc point          */
+    uint32_t left; /* steps before the next exact anchor          */
+    int64_t C, S;  /* cos and sin of the angle, q62               */
+    q1_30_t c, s;  /* ... rounded to q30                           */
+    int64_t R;     /* radius, q32 nm                               */
+    int32_t rad;   /* radius, nm (circle: constant)                */
+    int32_t v_uv;  /* path speed in the plane, nm/s                */
+    /* output factors (q30 products with c or s): velocity -+v_uv,
+     * acceleration -v_uv^2 / rad (circle: constant), tangent -+m */
+    int32_t kvu, kvv, ka, kmu, kmv;
+    uint8_t u, v;    /* the plane's axes                        */
+    pos_nm_t cu, cv; /* the centre                              */
+    /* step constants of a phase, and their key */
+    bool k_ok;
+    int64_t k_dth, k_ds, k_len, k_dr;
+    int32_t dh, dl; /* sin delta, q62: dh 2^31 + dl             */
+    int32_t eh, el; /* 1 - cos delta, q62: eh 2^31 + el         */
+    int64_t dR;     /* radius change per tick, q32 nm (0: circle) */
+} arc_rot_t;
+
 static plan_block_t plan_store[PLAN_DEPTH_DEFAULT];
 
 static struct {
@@ -135,7 +164,10 @@ static struct {
     q1_30_t hyp_tu, hyp_tv;    /* arc overlay: last in-plane chord tangent ... */
     q1_30_t hyp_m;             /* ... and its length (constant per segment)   */
     arc_fast_t arc;            /* arc overlay: per-segment constants (tick)    */
+    arc_rot_t rot;             /* arc overlay: cruise recurrence (tick)        */
+    bool arc_exact;            /* test hook: no recurrence (drive_test_arc_exact) */
     bool ff_on;                /* some cfg.friction_ff_mv[] != 0 (drive_init)  */
+    bool enc_any_counter;      /* some axis in use has enc_counter (drive_init) */
     volatile uint32_t tick_lo; /* low word of tick (main reads it) */
     uint32_t seen_done;        /* interpolator segments accounted */
     uint32_t seq_done;         /* internal tag of the next segment to complete */
@@ -194,14 +226,19 @@ static void plane_axes(drive_plane_t p, uint8_t *u, uint8_t *v, uint8_t *w)
     }
 }
 
-/* The encoder, motor and reference-scale fields of the status, from the
- * state the tick owns (nothing else writes it: qdec outputs, servo outputs,
- * the reference scales; drive_init publishes after setting them). */
+/* The encoder, motor, reference, reference-scale, contour-error and block
+ * fields of the status, from the state the tick owns (nothing else writes
+ * it: qdec outputs, servo outputs, the reference handed to the servo, the
+ * reference scales, the CEC estimate, blocks done and tag; drive_init
+ * publishes after setting them) plus main's count of blocks it completed
+ * (blocks_done_main: the snapshot runs in main). */
 static void status_live(drive_status_t *s)
 {
     unsigned i;
     for (i = 0; i < drv.cfg.axes; i++) {
         const qdec_t *e = &drv.enc[i];
+        s->ref[i] = drv.ref.pos[i];
+        s->vel_ref[i] = drv.ref.vel[i];
         s->pos[i] = e->out.pos_nm;
         s->pos_raw[i] = e->out.pos_nm_raw;
         s->encoder_illegal[i] = e->out.illegal;
@@ -210,32 +247,26 @@ static void status_live(drive_status_t *s)
     for (i = 0; i < CORE_AXES; i++) {
         s->refscale[i] = drv.ref_on[i] ? drv.ref_nm[i] : 0;
     }
+    s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
+    s->blocks_done = drv.blocks_done + drv.blocks_done_main;
+    s->tag = drv.cur_tag;
 }
 
 /* End of the tick's status update (drive_tick made st_seq odd at its
  * start). The fields status_live() gives are read by the snapshot from the
  * live state (the tick changes them only inside its odd st_seq window), and
  * copied here only while calibration samples them (calib_tick reads pos,
- * pos_raw and refscale); the rest is published every tick. */
+ * pos_raw and refscale); the rest is published every tick. Axes beyond
+ * cfg.axes: all zero (drive_init zeroes st; cfg.axes is set only there). */
 static void publish(bool sampling)
 {
     drive_status_t *s = &drv.st;
-    unsigned i;
     s->state = drv.state;
     s->faults = drv.faults;
     s->tick = drv.tick;
-    /* axes beyond cfg.axes: all zero (drive_init zeroes st; cfg.axes is
-     * set only there) */
-    for (i = 0; i < drv.cfg.axes; i++) {
-        s->ref[i] = drv.ref.pos[i];
-        s->vel_ref[i] = drv.ref.vel[i];
-    }
     if (sampling) {
         status_live(s);
     }
-    s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
-    s->blocks_done = drv.blocks_done + drv.blocks_done_main;
-    s->tag = drv.cur_tag;
     drv.st_seq++;
 }
 
@@ -288,9 +319,11 @@ drive_result_t drive_init(const drive_config_t *cfg)
     }
     drv.ready = false;
     drv.cfg = *cfg;
-    drv.ff_on = false; /* friction_ff_mv is set only here */
+    drv.ff_on = false; /* friction_ff_mv and enc_counter are set only here */
+    drv.enc_any_counter = false;
     for (i = 0; i < CORE_AXES; i++) {
         drv.ff_on = drv.ff_on || drv.cfg.friction_ff_mv[i] != 0;
+        drv.enc_any_counter = drv.enc_any_counter || (i < cfg->axes && cfg->enc_counter[i]);
     }
     if (drv.cfg.arc_chord_nm == 0) {
         drv.cfg.arc_chord_nm = DRIVE_ARC_CHORD_NM;
@@ -350,6 +383,8 @@ drive_result_t drive_init(const drive_config_t *cfg)
     if (servo_init(&drv.servo, &drv.cfg.servo, &drive_io) != SERVO_OK) {
         return DRIVE_E_INVALID;
     }
+    /* one HAL call per tick for all outputs and all fault inputs */
+    servo_set_io_all(&drv.servo, hal_motor_set_mv_all, hal_amp_fault_mask);
     if (plan_init(&drv.plan, plan_store, PLAN_DEPTH_DEFAULT, &cfg->plan, origin) != PLAN_OK) {
         return DRIVE_E_INVALID;
     }
@@ -369,6 +404,8 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.stop_v = drv.stop_dv = drv.v_plan = drv.a_plan = drv.v_act = 0;
     drv.hyp_tu = drv.hyp_tv = drv.hyp_m = 0; /* fx_hypot2(0, 0) == 0 */
     drv.arc.valid = drv.arc.v_ok = drv.arc.ac_ok = false;
+    drv.rot.on = drv.rot.k_ok = false;
+    drv.arc_exact = false;
     drv.seq_done = 0;
     drv.seen_done = 0;
     drv.blocks_done = 0;
@@ -486,13 +523,33 @@ static inline q1_30_t chord_tangent_len(const motion_ref_t *ch, uint8_t u, uint8
     return drv.hyp_m;
 }
 
+/* v^2 / rad (nm/s^2, division rule; 0 for rad <= 0) as arc_overlay()
+ * computes it, cached while v and rad are unchanged. */
+static inline int64_t arc_centripetal(arc_fast_t *a, int64_t v_uv, int64_t rad)
+{
+    if (rad <= 0) {
+        return 0;
+    }
+    if (!a->ac_ok || a->ac_key_v != v_uv || a->ac_key_r != rad) {
+        a->ac_key_v = v_uv;
+        a->ac_key_r = rad;
+        if (v_uv < ((int64_t)1 << 31)) {
+            a->a_c = fx_div_round64(v_uv * v_uv, rad);
+        } else {
+            a->a_c = fx_div_round64(fx_mul64_shift(v_uv, v_uv, 16), rad) << 16;
+        }
+        a->ac_ok = true;
+    }
+    return a->a_c;
+}
+
 /* arc_overlay() for a chord with arc_fast_t.fast: the same result, bit for
  * bit (see arc_fast_t). False (nothing written) when a value leaves the
  * fast ranges; the caller then runs arc_overlay(). geom_kept: r->geom holds
  * what the arc code wrote for chord g last tick (a pos-only reference copy
  * of the same segment): only the radius can differ. */
 static bool arc_fast(motion_ref_t *r, const motion_ref_t *ch, const seg_info_t *g, arc_fast_t *a,
-                     bool geom_kept)
+                     bool geom_kept, q1_30_t *so, q1_30_t *co, int64_t *rado)
 {
     uint8_t u = g->u, v = g->v;
     int64_t pu = ch->pos[u] - g->au, pv = ch->pos[v] - g->av;
@@ -548,21 +605,10 @@ static bool arc_fast(motion_ref_t *r, const motion_ref_t *ch, const seg_info_t *
             a_t = -a_t;
         }
     }
-    if (rad > 0) {
-        if (!a->ac_ok || a->ac_key_v != v_uv || a->ac_key_r != rad) {
-            a->ac_key_v = v_uv;
-            a->ac_key_r = rad;
-            if (v_uv < ((int64_t)1 << 31)) {
-                a->a_c = fx_div_round64(v_uv * v_uv, rad);
-            } else {
-                a->a_c = fx_div_round64(fx_mul64_shift(v_uv, v_uv, 16), rad) << 16;
-            }
-            a->ac_ok = true;
-        }
-        a_c = a->a_c;
-    } else {
-        a_c = 0;
-    }
+    a_c = arc_centripetal(a, v_uv, rad);
+    *so = s;
+    *co = c;
+    *rado = rad;
     r->vel[u] = mul_q30(v_uv, tu);
     r->vel[v] = mul_q30(v_uv, tv);
     if (a_t == 0) { /* cruising: mul_q30(0, x) == 0 */
@@ -629,6 +675,200 @@ static void arc_overlay(motion_ref_t *r, const motion_ref_t *ch, const seg_info_
     arc_geom(r, g, rad);
 }
 
+/* ---- arc overlay: rotation recurrence on cruise ticks ----------------------- */
+
+#define PI_HALF_Q61   3622009729038561421ll  /* round(pi / 2 * 2^61) */
+#define RECIP_1E9_Q64 18446744073ull         /* floor(2^64 / 1e9) */
+#define RECIP_6_Q64   3074457345618258602ull /* floor(2^64 / 6) */
+#define RECIP_24_Q64  768614336404564650ull  /* floor(2^64 / 24) */
+#define RECIP_120_Q64 153722867280912930ull  /* floor(2^64 / 120) */
+#define RECIP_720_Q64 25620477880152155ull   /* floor(2^64 / 720) */
+
+/* floor(a * b / 2^64), exact (four 32 x 32 -> 64 products). */
+static uint64_t umulhi64(uint64_t a, uint64_t b)
+{
+    uint64_t al = (uint32_t)a, ah = a >> 32, bl = (uint32_t)b, bh = b >> 32;
+    uint64_t p0 = al * bl, p1 = al * bh, p2 = ah * bl, p3 = ah * bh;
+    uint64_t mid = (p0 >> 32) + (uint32_t)p1 + (uint32_t)p2;
+
+    return p3 + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
+}
+
+/* v (q62, |v| < 2^61) as h 2^31 + l with 0 <= l < 2^31. */
+static void rot_split(int64_t v, int32_t *h, int32_t *l)
+{
+    *h = (int32_t)(v >> 31);
+    *l = (int32_t)(v & 0x7FFFFFFF);
+}
+
+/* floor((x (h 2^31 + l) + y (h2 2^31 + l2)) / 2^30) to within 1: the sum of
+ * two q30 values (|x|, |y| <= 2^30) times split q62 constants (|h|, |h2|
+ * <= 2^30), in q62. */
+static inline int64_t rot_mul2(int32_t x, int32_t h, int32_t l, int32_t y, int32_t h2, int32_t l2)
+{
+    int64_t hi = (int64_t)x * h + (int64_t)y * h2; /* |.| <= 2^61 */
+    int64_t lo = (int64_t)x * l + (int64_t)y * l2; /* |.| < 2^62  */
+
+    return hi * 2 + (lo >> 30);
+}
+
+/* Step constants of the interpolator's cruise phase on chord g (segment
+ * length len, nm): the path advances by ds = (cr_dq + cr_dr / 1e9) * 2^16
+ * * (1 + corr / 2^32) q32 nm per fast-path tick (to within 2 q16 units,
+ * not accumulated: see interp.h), the chord fraction by ds / (len 2^32),
+ * the angle by delta = dth ds / len (binary angle * 2^32, rounded) and the
+ * radius by dR = (r_b - r_a) ds / len (q32 nm). sin and 1 - cos of delta
+ * (|delta| <= pi/32 rad) by their Taylor series to x^5 and x^6 (remainders
+ * below x^7 / 5040 and x^8 / 40320: 2e-11 and 3e-13 at pi/32), in q62.
+ * Cached while the key (dth, ds, len, r_b - r_a) is unchanged. False when
+ * out of range (no recurrence). */
+static bool arc_rot_consts(arc_rot_t *t, const seg_info_t *g, int64_t len)
+{
+    const interp_t *ip = &drv.ip;
+    int64_t ds, d;
+    uint64_t x, x2, x3, x4, sn, e;
+    int64_t dr = g->r_b - g->r_a;
+
+    if (ip->cr_dq >= ((uint64_t)1 << 46) || len <= 0) {
+        return false;
+    }
+    /* cr_dr / 1e9 * 2^16 (< 2^16) by the reciprocal: within 1 of the exact
+     * floor, 2.3e-10 nm */
+    ds = (int64_t)(ip->cr_dq << 16) + (int64_t)umulhi64((uint64_t)ip->cr_dr << 16, RECIP_1E9_Q64);
+    ds += fx_mul64x32_shift(ds, (int32_t)ip->corr_q32, 32);
+    if (t->k_ok && t->k_dth == g->dth && t->k_ds == ds && t->k_len == len && t->k_dr == dr) {
+        return true;
+    }
+    t->k_ok = false;
+    d = fx_muldiv64(g->dth, ds, len);
+    if (abs64(d) > ((int64_t)DRIVE_ARC_SEG_MAX_ANGLE << 32)) {
+        return false;
+    }
+    /* |delta| in rad, q64 (< 2^61), and the series in q64 by high products
+     * (each within 2 units of q64 of the exact floor: 1e-19) */
+    x = (uint64_t)fx_mul64_shift(abs64(d), PI_HALF_Q61, 61) << 2;
+    x2 = umulhi64(x, x);
+    x3 = umulhi64(x2, x);
+    x4 = umulhi64(x2, x2);
+    sn = x - umulhi64(x3, RECIP_6_Q64) + umulhi64(umulhi64(x4, x), RECIP_120_Q64);
+    e = (x2 >> 1) - umulhi64(x4, RECIP_24_Q64) + umulhi64(umulhi64(x4, x2), RECIP_720_Q64);
+    sn >>= 2; /* q62 */
+    e >>= 2;
+    rot_split(d < 0 ? -(int64_t)sn : (int64_t)sn, &t->dh, &t->dl);
+    rot_split((int64_t)e, &t->eh, &t->el);
+    t->dR = dr == 0 ? 0 : fx_muldiv64(dr, ds, len);
+    t->k_dth = g->dth;
+    t->k_ds = ds;
+    t->k_len = len;
+    t->k_dr = dr;
+    t->k_ok = true;
+    return true;
+}
+
+/* Anchor the recurrence on this tick's exact arc point (sine s, cosine c,
+ * radius rad from arc_fast) when the interpolator's next ticks may take
+ * its cruise fast path (interp_t.cr_fast). */
+static void arc_rot_anchor(arc_rot_t *t, const seg_info_t *g, q1_30_t s, q1_30_t c, int64_t rad)
+{
+    int64_t v_uv = drv.arc.v_uv, a_c = drv.arc.a_c;
+
+    t->on = false;
+    /* arc_fast filled the caches for this v_uv and rad; 32-bit products
+     * below need v_uv and v_uv^2 / r (here and along the chord) < 2^31 */
+    if (drv.arc_exact || !drv.ip.cr_fast || g->r_a >= INT32_MAX - 1 || g->r_b >= INT32_MAX - 1 ||
+        rad <= 0 || rad >= INT32_MAX - 1 || v_uv < 0 || v_uv >= ((int64_t)1 << 30) ||
+        !drv.arc.ac_ok || a_c < 0 || a_c >= ((int64_t)1 << 29) ||
+        !arc_rot_consts(t, g, drv.ip.fifo[drv.ip.rd & (INTERP_FIFO - 1)].len)) {
+        return;
+    }
+    if (t->dR != 0 && (v_uv * v_uv) / (g->r_a < g->r_b ? g->r_a : g->r_b) >= ((int64_t)1 << 30)) {
+        return; /* a spiral: v^2 / r along the chord must stay < 2^31 */
+    }
+    t->C = (int64_t)c * ((int64_t)1 << 32);
+    t->S = (int64_t)s * ((int64_t)1 << 32);
+    t->c = c;
+    t->s = s;
+    t->R = rad * ((int64_t)1 << 32);
+    t->rad = (int32_t)rad;
+    t->v_uv = (int32_t)v_uv;
+    /* tu = -s, tv = c counter-clockwise (s, -c clockwise), as arc_fast */
+    t->kvu = g->sense > 0 ? -(int32_t)v_uv : (int32_t)v_uv;
+    t->kvv = -t->kvu;
+    t->ka = -(int32_t)a_c;
+    t->kmu = g->sense > 0 ? -drv.hyp_m : drv.hyp_m;
+    t->kmv = -t->kmu;
+    t->u = g->u;
+    t->v = g->v;
+    t->cu = g->cu;
+    t->cv = g->cv;
+    t->left = DRIVE_ARC_ROT_TICKS;
+    t->on = true;
+    /* the recurrence rewrites the plane axes' positions without reading
+     * them: the interpolator's fast path may skip them */
+    drv.ip.fast_skip = (uint8_t)((1u << g->u) | (1u << g->v));
+}
+
+/* A cruise fast-path tick of an anchored chord: rotate (C, S) by delta and
+ * write what arc_fast() writes, from the rotated point (see drive.h for
+ * the error bound against arc_fast). The path speed v_uv, the chord
+ * tangent's in-plane length and v^2 / r come from the caches arc_fast
+ * filled at the anchor (the chord reference's velocity and tangent are
+ * constant in the phase, its acceleration 0). */
+#if defined(__GNUC__)
+#define DRV_NOINLINE __attribute__((noinline))
+#else
+#define DRV_NOINLINE
+#endif
+
+/* Out of line: a small frame of its own (inlined into drive_tick, its
+ * values spill to the stack). */
+static DRV_NOINLINE void arc_rot_step(motion_ref_t *r, arc_rot_t *t, bool geom_kept)
+{
+    uint8_t u = t->u, v = t->v;
+    q1_30_t c = t->c, s = t->s;
+    int64_t C = t->C - rot_mul2(c, t->eh, t->el, s, t->dh, t->dl);
+    int64_t S = t->S - rot_mul2(s, t->eh, t->el, -c, t->dh, t->dl);
+    int32_t rad = t->rad;
+
+    t->C = C;
+    t->S = S;
+    /* round(C / 2^32) from the two words (32-bit values for SMULL below) */
+    c = (q1_30_t)((int32_t)(C >> 32) + (int32_t)((uint32_t)C >> 31));
+    s = (q1_30_t)((int32_t)(S >> 32) + (int32_t)((uint32_t)S >> 31));
+    t->c = c;
+    t->s = s;
+    if (--t->left == 0u) {
+        drv.ip.fast_skip = 0; /* the next tick is exact: it reads them */
+    }
+    if (t->dR != 0) { /* a spiral */
+        t->R += t->dR;
+        rad = (int32_t)((t->R + ((int64_t)1 << 31)) >> 32);
+        t->rad = rad;
+        t->ka = -(int32_t)arc_centripetal(&drv.arc, t->v_uv, rad);
+    }
+#if defined(__GNUC__)
+    /* re-read c and s as 32-bit fields: GCC then multiplies them with one
+     * SMULL each (it widens the registers' values to 64 x 64 otherwise) */
+    __asm__ volatile("" ::: "memory");
+    c = t->c;
+    s = t->s;
+    rad = t->rad;
+#endif
+    r->pos[u] = t->cu + mul32_q30(rad, c);
+    r->pos[v] = t->cv + mul32_q30(rad, s);
+    r->vel[u] = mul32_q30(t->kvu, s);
+    r->vel[v] = mul32_q30(t->kvv, c);
+    r->acc[u] = mul32_q30(t->ka, c);
+    r->acc[v] = mul32_q30(t->ka, s);
+    r->geom.tangent[u] = (q1_30_t)mul32_q30(t->kmu, s);
+    r->geom.tangent[v] = (q1_30_t)mul32_q30(t->kmv, c);
+    if (geom_kept) {
+        r->geom.radius = rad;
+    } else {
+        arc_geom(r, &drv.seg[drv.ip.tag % SEG_RING], rad);
+    }
+}
+
 /* Account completed interpolator segments (host blocks done, current tag). */
 static void track_segments(void)
 {
@@ -689,7 +929,7 @@ static void reference_step(void)
 {
     unsigned i;
     int64_t k = Q30;
-    bool pos_only;
+    bool pos_only, stepped;
     if (drv.state == DRIVE_STOPPING && !drv.halted) {
         k = stop_scale();
         drv.ip.tick_ns = fx_round_shift64((int64_t)(1000000000u / drv.cfg.tick_hz) * k, 30);
@@ -706,9 +946,29 @@ static void reference_step(void)
         return;
     }
     interp_tick(&drv.ip, &drv.ch);
-    track_segments();
+    if (!drv.ip.ref_pos_only) {
+        /* a fast-path tick ends no segment and keeps the tag */
+        track_segments();
+        drv.rot.on = false; /* anchored again below if on an arc */
+    }
     pos_only = drv.ip.ref_pos_only && drv.ref_synced && !drv.ref_full;
-    if (pos_only) {
+    stepped = drv.rot.on && drv.rot.left != 0u;
+    if (stepped) {
+        /* a cruise fast-path tick of the anchored arc phase (rot.on: every
+         * tick since the anchor was one, in the same segment) */
+        if (pos_only) {
+            unsigned skip = drv.ip.fast_skip; /* the plane axes */
+            for (i = 0; i < CORE_AXES; i++) {
+                if ((skip & (1u << i)) == 0u) {
+                    drv.ref.pos[i] = drv.ch.pos[i];
+                }
+            }
+        } else {
+            drv.ref = drv.ch;
+            drv.ref_synced = true;
+        }
+        arc_rot_step(&drv.ref, &drv.rot, pos_only);
+    } else if (pos_only) {
         /* same segment and phase as the last tick: only pos changed in ch,
          * and the arc overlay (if any) rewrites its fields below */
         for (i = 0; i < CORE_AXES; i++) {
@@ -718,14 +978,24 @@ static void reference_step(void)
         drv.ref = drv.ch;
         drv.ref_synced = true;
     }
-    if (drv.ref.active && drv.ip.busy) {
+    if (!stepped && drv.ref.active && drv.ip.busy) {
         const seg_info_t *g = &drv.seg[drv.ip.tag % SEG_RING];
         if (g->arc) {
             if (!drv.arc.valid || drv.arc.tag != drv.ip.tag) {
                 arc_fast_setup(&drv.arc, g);
+                drv.rot.on = false;
             }
-            if (!drv.arc.fast || !arc_fast(&drv.ref, &drv.ch, g, &drv.arc, pos_only)) {
-                arc_overlay(&drv.ref, &drv.ch, g);
+            {
+                q1_30_t s, c;
+                int64_t rad;
+                drv.rot.on = false;
+                drv.ip.fast_skip = 0;
+                if (drv.arc.fast &&
+                    arc_fast(&drv.ref, &drv.ch, g, &drv.arc, pos_only, &s, &c, &rad)) {
+                    arc_rot_anchor(&drv.rot, g, s, c, rad);
+                } else {
+                    arc_overlay(&drv.ref, &drv.ch, g);
+                }
             }
         }
     }
@@ -892,7 +1162,9 @@ void drive_tick(void)
             fb.pos[i] = 0;
             continue;
         }
-        if (drv.cfg.enc_counter[i]) {
+        if (!drv.enc_any_counter) { /* the usual configuration */
+            qdec_sample(q, now_ns);
+        } else if (drv.cfg.enc_counter[i]) {
             uint32_t raw = q->last_raw; /* no snapshot: no change */
             (void)hal_encoder_counter(i, &raw);
             qdec_sample_counter(q, raw, now_ns);
@@ -939,7 +1211,7 @@ void drive_tick(void)
     drv.tick++;
     drv.tick_lo = (uint32_t)drv.tick;
     publish(sampling);
-    calib_tick(&drv.st);
+    calib_tick(&drv.st, drv.ref.vel);
 }
 
 /* ---- main -------------------------------------------------------------------- */
@@ -967,7 +1239,7 @@ static int64_t arc_seg_angle(int64_t r, int64_t feed, int64_t tol, uint32_t tick
         return DRIVE_ARC_SEG_MAX_ANGLE;
     }
     /* sagitta r (1 - cos(a/2)) ~ r a^2 / 8 = tol: a = sqrt(8 tol / r) rad */
-    x = fx_div_round64((8 * tol) << 40, r);
+    x = fx_div_shift64(8 * tol, r, 40); /* exact 128-bit numerator (tol up to 1e9) */
     a_tol = (int64_t)fx_isqrt64((uint64_t)x) * 651899 / 1000; /* * 2^32/(2 pi) / 2^20 */
     dist = feed * DRIVE_ARC_SEG_TICKS / (int64_t)tick_hz;
     a_tick = fx_mul64_shift(dist, ANGLE_K, 0) / r;
@@ -1514,6 +1786,18 @@ void drive_set_comp(unsigned axis, const comp_table_t *table)
 void drive_test_full_ref(bool on)
 {
     drv.ref_full = on;
+}
+
+void drive_test_arc_exact(bool on)
+{
+    drv.arc_exact = on;
+    drv.rot.on = false;
+    drv.ip.fast_skip = 0;
+}
+
+const motion_ref_t *drive_test_ref(void)
+{
+    return &drv.ref;
 }
 
 bool drive_has_refscale(unsigned axis)

@@ -1132,3 +1132,19 @@ uint64_t fx_recip62(uint32_t d)
 {
     return d == 0u ? 0u : ((uint64_t)1 << 62) / d;
 }
+
+uint32_t fx_udiv64by32(uint64_t n, uint32_t d)
+{
+    uint32_t nh = (uint32_t)(n >> 32), rem;
+    unsigned s;
+
+    if (nh >= d) { /* quotient >= 2^32, or d == 0 */
+        return UINT32_MAX;
+    }
+    if (nh == 0u) { /* the hardware divider */
+        return (uint32_t)n / d;
+    }
+    s = fx_clz32(d); /* nh < d: the shifted numerator's top word stays below d */
+    n <<= s;
+    return fx_div64by32n((uint32_t)(n >> 32), (uint32_t)n, d << s, &rem);
+}

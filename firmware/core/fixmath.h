@@ -270,4 +270,9 @@ static inline uint32_t fx_div_q30_rec(uint32_t n, uint32_t d, uint64_t rec)
     return (uint32_t)q;
 }
 
+/* floor(n / d) when the quotient fits 32 bits (n / 2^32 < d); UINT32_MAX
+ * otherwise (also for d == 0). One normalised two-digit long division (two
+ * 32-bit UDIV), no 64-bit division helper. */
+uint32_t fx_udiv64by32(uint64_t n, uint32_t d);
+
 #endif /* FIXMATH_H */

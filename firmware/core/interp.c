@@ -24,6 +24,7 @@ void interp_reset(interp_t *ip, const pos_nm_t pos[CORE_AXES])
     ip->cr_ok = false;
     ip->cr_fast = false;
     ip->ref_pos_only = false;
+    ip->fast_skip = 0;
     for (i = 0; i < CORE_AXES; i++) {
         ip->pos[i] = pos[i];
         ip->tan[i] = 0;
@@ -202,7 +203,7 @@ static void ip_eval(interp_t *ip, const sc_profile_t *p, int ph, int64_t tau, sc
      * cruise conditions were checked when it was filled */
     if (ip->cr_ok && ip->cr_phase == ph && tau - ip->cr_tau == ip->cr_h) {
         q = ip->cr_q + ip->cr_dq;
-        r = ip->cr_r + ip->cr_dr;
+        r = (uint64_t)ip->cr_r + ip->cr_dr;
         if (r >= IP_NS) {
             r -= IP_NS;
             q++;
@@ -221,7 +222,7 @@ static void ip_eval(interp_t *ip, const sc_profile_t *p, int ph, int64_t tau, sc
         q = (uint64_t)sc_muldiv(s0->v_q16, tau, (int64_t)IP_NS);
         r = v * (uint64_t)tau - q * IP_NS; /* exact modulo 2^64, < 1e9 */
         ip->cr_dq = (uint64_t)sc_muldiv(s0->v_q16, h, (int64_t)IP_NS);
-        ip->cr_dr = v * (uint64_t)h - ip->cr_dq * IP_NS;
+        ip->cr_dr = (uint32_t)(v * (uint64_t)h - ip->cr_dq * IP_NS); /* < 1e9 */
         /* saturated quotients (v * tau >= 2^63 * 1e9) are never cached */
         ip->cr_ok = q < (uint64_t)INT64_MAX / 2 && ip->cr_dq < (uint64_t)INT64_MAX / 2;
         ip->cr_phase = ph;
@@ -236,7 +237,7 @@ static void ip_eval(interp_t *ip, const sc_profile_t *p, int ph, int64_t tau, sc
     }
     ip->cr_tau = tau;
     ip->cr_q = q;
-    ip->cr_r = r;
+    ip->cr_r = (uint32_t)r; /* < 1e9 */
     st->s_q16 = s0->s_q16 + (int64_t)q;
     st->v_q16 = s0->v_q16;
     st->a_q16 = 0;
@@ -268,7 +269,8 @@ static inline void ip_out_cruise(interp_t *ip, const plan_seg_t *s, int64_t sq, 
 static bool ip_tick_cruise(interp_t *ip, motion_ref_t *ref)
 {
     int64_t t = ip->t_ns + ip->cr_h;
-    uint64_t q, r;
+    uint64_t q;
+    uint32_t r;
     int64_t sq;
 
     if (ip->tick_ns != ip->cr_h || t >= ip->cr_tend) {
@@ -277,13 +279,13 @@ static bool ip_tick_cruise(interp_t *ip, motion_ref_t *ref)
     ip->t_ns = t;
     ip->busy_ticks++;
     q = ip->cr_q + ip->cr_dq;
-    r = ip->cr_r + ip->cr_dr;
-    if (r >= IP_NS) {
-        r -= IP_NS;
+    r = ip->cr_r + ip->cr_dr; /* < 2e9: 32 bits */
+    if (r >= (uint32_t)IP_NS) {
+        r -= (uint32_t)IP_NS;
         q++;
     }
     ip->cr_q = q; /* cr_tau: set when the fast path ends (interp_tick) */
-    ip->cr_r = r;
+    ip->cr_r = (uint32_t)r;
     sq = ip->cr_s0 + (int64_t)q;
     sq += ip_mul_q32(sq, (int32_t)ip->corr_q32);
     if (sq < 0) {
@@ -297,11 +299,15 @@ static bool ip_tick_cruise(interp_t *ip, motion_ref_t *ref)
      * path's ip_out_cruise() wrote (see interp_t.ref_pos_only) */
     {
         const plan_seg_t *s = ip_cur(ip);
+        unsigned skip = ip->fast_skip;
         int i;
 
+        /* ip->pos (the hold position) is not needed here: every tick
+         * that reads it (end of segment, dwell, idle) writes it first */
         for (i = 0; i < CORE_AXES; i++) {
-            ip->pos[i] = s->start[i] + ip_scale_mag((uint64_t)sq, ip->cr_ur[i], ip->cr_neg[i]);
-            ref->pos[i] = ip->pos[i];
+            if ((skip & (1u << i)) == 0u) {
+                ref->pos[i] = s->start[i] + ip_scale_mag((uint64_t)sq, ip->cr_ur[i], ip->cr_neg[i]);
+            }
         }
     }
     ip->ref_pos_only = true;
@@ -325,6 +331,7 @@ static IP_NOINLINE void ip_tick_general(interp_t *ip, motion_ref_t *ref)
     int i;
 
     ip->ref_pos_only = false;
+    ip->fast_skip = 0;
     if (ip->cr_fast) {
         ip->cr_tau = ip->t_ns - ip->phase_t0; /* the last tick's tau */
         ip->cr_fast = false;

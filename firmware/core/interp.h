@@ -78,7 +78,9 @@ typedef struct {
     int phase;               /* current phase of the segment           */
     int64_t phase_t0;        /* start time of that phase, ns           */
     int64_t corr_q32;        /* (len * 2^16 - s_end) / s_end, q32      */
-    pos_nm_t pos[CORE_AXES]; /* last reference position                */
+    pos_nm_t pos[CORE_AXES]; /* hold position: the last reference position
+                              * of a general tick (fast-path ticks write
+                              * only the reference's)                    */
     uint64_t ticks;          /* ticks since init                       */
     uint64_t busy_ticks;     /* ticks with a segment current           */
     uint32_t blocks_done;    /* segments completed                     */
@@ -101,8 +103,8 @@ typedef struct {
     int64_t cr_tau;            /* time into the phase of the last tick, ns
                                 * (not kept up to date while cr_fast)     */
     int64_t cr_h;              /* step the increments below are for, ns    */
-    uint64_t cr_q, cr_r;       /* v * cr_tau = cr_q * 1e9 + cr_r           */
-    uint64_t cr_dq, cr_dr;     /* v * cr_h = cr_dq * 1e9 + cr_dr          */
+    uint64_t cr_q, cr_dq;      /* v * cr_tau = cr_q * 1e9 + cr_r           */
+    uint32_t cr_r, cr_dr;      /* v * cr_h = cr_dq * 1e9 + cr_dr (< 1e9)  */
     int64_t cr_vel[CORE_AXES]; /* axis velocities of the cruise, nm/s   */
     uint64_t cr_ur[CORE_AXES]; /* |ratio_q62| of the segment            */
     bool cr_neg[CORE_AXES];    /* ratio_q62 < 0                          */
@@ -119,6 +121,12 @@ typedef struct {
      * only ref->pos[]: every other field of the motion_ref_t is what the
      * tick before wrote (the same values). Tick context. */
     bool ref_pos_only;
+    /* Bit i: fast-path ticks leave pos[i] (of ip and of the reference)
+     * unwritten, stale (the drive sets it for the plane axes whose arc
+     * overlay rewrites them without reading them). Written by the caller
+     * after an interp_tick, in effect for the following fast-path ticks;
+     * every other tick clears it and writes every axis. Tick context. */
+    uint8_t fast_skip;
 } interp_t;
 
 /* Initialise idle at `start` with a tick period of tick_ns (> 0). Main. */

@@ -149,19 +149,6 @@ static inline int64_t coef_apply(pid_coef_t c, int32_t x)
     return clamp64(p, PID_TERM_LIM);
 }
 
-/* coef_apply for a shift in 2..31, with its rounding constant rnd = 2^(sh - 1) given
- * (pid_config keeps it in pid->rnd[]) */
-static inline int64_t coef_apply_rnd(pid_coef_t c, int32_t x, uint32_t rnd)
-{
-    unsigned sh = (unsigned)c.sh;
-    uint64_t u = (uint64_t)((int64_t)opaque32(x) * c.m) + rnd;
-    uint32_t lo = (uint32_t)u, hi = (uint32_t)(u >> 32);
-    uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
-    uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
-
-    return (int64_t)(((uint64_t)rhi << 32) | rlo);
-}
-
 /* coef_apply for a shift in 2..31 (coef_mid): the rounding with 32-bit
  * shifts, no clamp needed (|x * m| < 2^62, so |result| <= 2^60) */
 static inline bool coef_mid(pid_coef_t c)
@@ -172,6 +159,65 @@ static inline bool coef_mid(pid_coef_t c)
 int64_t pid_coef_apply(pid_coef_t c, int32_t x)
 {
     return coef_apply(c, x);
+}
+
+/* The fast path's form of the D coefficient c (U per input unit): value
+ * in F = 2^21 U as m * 2^-sh with sh in 1..31 (see pid.h), and the largest
+ * |x| with |round(x * m * 2^-sh)| <= lim. False when the gain is too large
+ * for the form (sh + 21 < 1). */
+static bool fast_coef(pid_coef_t c, int32_t *m, uint8_t *sh, uint32_t *rnd, uint32_t *xmax,
+                      uint32_t lim)
+{
+    int32_t s = c.sh + 21;
+    int64_t mm = c.m;
+    uint64_t q, r;
+
+    if (c.m == 0) {
+        s = 31;
+    } else if (s < 1) {
+        return false;
+    } else if (s > 31) {
+        unsigned d = (unsigned)(s - 31);
+        mm = (d >= 32u) ? 0 : fx_round_shift64(mm, d);
+        s = 31;
+    }
+    *m = (int32_t)mm;
+    *sh = (uint8_t)s;
+    *rnd = (uint32_t)1 << (unsigned)(s - 1);
+    if (mm == 0) {
+        *xmax = 0x7FFFFFFFu;
+        return true;
+    }
+    /* |x| * |m| + 2^(s-1) < (lim + 1) * 2^s  <=>  |x| * |m| <= (lim + 1/2) * 2^s - 1 */
+    q = fx_udivmod64((((uint64_t)lim << 1) + 1u) << (unsigned)(s - 1),
+                     (uint64_t)((mm < 0) ? -mm : mm), &r);
+    if (r == 0u) {
+        q--;
+    }
+    *xmax = (q > 0x7FFFFFFFu) ? 0x7FFFFFFFu : (uint32_t)q;
+    return true;
+}
+
+/* pid->fast and the fast path's coefficients (pid.h, Fast path). */
+static void fast_config(pid_loop_t *pid)
+{
+    const pid_params_t *p = &pid->p;
+    bool ok = pid->cv.m == 0 && pid->ca.m == 0 && p->deadband_nm == 0 &&
+              (pid->ci.m == 0 || coef_mid(pid->ci)) && coef_mid(pid->cp);
+
+    pid->fp_m = pid->cp.m;
+    pid->fp_sh = (uint8_t)(coef_mid(pid->cp) ? pid->cp.sh : 2);
+    pid->fp_rnd = (uint32_t)1 << (pid->fp_sh - 1u);
+    ok = fast_coef(pid->cd, &pid->fd_m, &pid->fd_sh, &pid->fd_rnd, &pid->de_max, PID_FAST_D_MAX) &&
+         ok;
+    pid->fi_m = pid->ci.m;
+    pid->fi_sh = (uint8_t)((pid->ci.m == 0 || !coef_mid(pid->ci)) ? 2 : pid->ci.sh);
+    pid->fi_rnd = (uint32_t)1 << (pid->fi_sh - 1u);
+    pid->dfilt = pid->alpha_q30 < FX_ONE_Q30;
+    pid->alpha_q31 = pid->dfilt ? pid->alpha_q30 * 2 : 0;
+    pid->i_max = p->i_max_mv;
+    pid->o_max = p->out_max_mv;
+    pid->fast = ok;
 }
 
 static bool gain_ok(q32_32_t g)
@@ -227,11 +273,7 @@ pid_err_t pid_config(pid_loop_t *pid, const pid_params_t *p)
     pid->i_lim = (int64_t)p->i_max_mv * U_PER_MV;
     pid->out_lim = (int64_t)p->out_max_mv * U_PER_MV;
     pid->deadband = p->deadband_nm;
-    pid->fast = coef_mid(cp) && coef_mid(ci) && coef_mid(cd) && cv.m == 0 && ca.m == 0 &&
-                p->deadband_nm == 0;
-    pid->rnd[0] = pid->fast ? (uint32_t)1 << (unsigned)(cp.sh - 1) : 0u;
-    pid->rnd[1] = pid->fast ? (uint32_t)1 << (unsigned)(ci.sh - 1) : 0u;
-    pid->rnd[2] = pid->fast ? (uint32_t)1 << (unsigned)(cd.sh - 1) : 0u;
+    fast_config(pid);
     if (pid->enabled && pid->primed) {
         /* bumpless gain change: the next step continues from the last output */
         pid->hold_mv = pid->out_mv;
@@ -281,8 +323,10 @@ void pid_disable(pid_loop_t *pid)
     pid->enabled = false;
     pid->bumpless = false;
     pid->ready = false;
+    pid->dq_live = false;
     pid->integ = 0;
     pid->dterm = 0;
+    pid->dq = 0;
     pid->out = 0;
     pid->out_mv = 0;
     pid->saturated = false;
@@ -299,6 +343,8 @@ void pid_reset(pid_loop_t *pid, bool bumpless)
     }
     pid->integ = 0;
     pid->dterm = 0;
+    pid->dq = 0;
+    pid->dq_live = false;
     pid->primed = false;
     pid->bumpless = false;
     pid->ready = false;
@@ -334,10 +380,8 @@ int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int6
 
 /* The end of a step, common to both paths: output clamp, saturation
  * count, back-calculation, integrator clamp, outputs. */
-static inline int32_t pid_finish(pid_loop_t *pid, int64_t pterm, int64_t integ, int64_t dterm,
-                                 int64_t ff, int64_t ex)
+static inline int32_t pid_finish_raw(pid_loop_t *pid, int64_t raw, int64_t integ)
 {
-    int64_t raw = pterm + integ + dterm + ff + ex;
     int64_t u = clamp64(raw, pid->out_lim);
 
     if (u != raw) {
@@ -364,75 +408,50 @@ static inline int32_t pid_finish(pid_loop_t *pid, int64_t pterm, int64_t integ, 
 #define PID_NOINLINE
 #endif
 
-/* The short path (pid_fast_ready): the general path below with edb = e,
- * cd != 0, ff = 0 and coef_apply_rnd for coef_apply; the same results. */
-/* sat32(a - b) of two int32 in 32-bit arithmetic (wrapped difference; on
- * overflow the true difference has the sign of a) */
-static inline int32_t sat_diff32_32(int32_t a, int32_t b)
+int32_t pid_fast_saturated(pid_loop_t *pid, int64_t raw, int64_t integ)
 {
-    int32_t d = (int32_t)((uint32_t)a - (uint32_t)b);
-
-    if (((a ^ b) & (a ^ d)) < 0) {
-        return (a < 0) ? INT32_MIN : INT32_MAX;
-    }
-    return d;
-}
-
-#if defined(__GNUC__)
-#define PID_INLINE __attribute__((always_inline)) inline
-#else
-#define PID_INLINE inline
-#endif
-
-static PID_INLINE int32_t step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra)
-{
-    int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
-                                         : sat_diff32_32(e, pid->err_prev);
-    int64_t pterm = coef_apply_rnd(pid->cp, e, pid->rnd[0]);
-    int64_t dterm = coef_apply_rnd(pid->cd, de, pid->rnd[2]);
-    int64_t ex, integ;
-
-    pid->err_nm = e;
-    if (pid->alpha_q30 < FX_ONE_Q30) {
-        dterm = pid->dterm + mul_q30_pos(dterm - pid->dterm, pid->alpha_q30);
-    }
-    pid->dterm = dterm;
-    pid->meas_prev = meas;
-    pid->err_prev = e;
-    /* pid->ff is already 0: ready is only set by an enabled general step
-     * under the current configuration, which has no feed-forward gains */
-    ex = (extra == 0) ? 0 : clamp64(extra, PID_TERM_LIM);
-    pid->extra = ex;
-    integ = clamp64(pid->integ + coef_apply_rnd(pid->ci, e, pid->rnd[1]), pid->i_lim);
-    return pid_finish(pid, pterm, integ, dterm, 0, ex);
+    return pid_finish_raw(pid, raw, integ);
 }
 
 int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra)
 {
-    return step_fast(pid, e, meas, extra);
+    return pid_step_fast_inline(pid, e, meas, extra, true);
 }
 
 int32_t pid_step_fast0(pid_loop_t *pid, int32_t e, pos_nm_t meas)
 {
-    return step_fast(pid, e, meas, 0);
+    return pid_step_fast_inline(pid, e, meas, 0, false);
 }
 
-static PID_NOINLINE int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel,
-                                             int64_t acc, int64_t extra)
+int64_t pid_dterm(const pid_loop_t *pid)
 {
-    int32_t edb;
+    return pid->dq_live ? fx_round_shift64(pid->dq, 10) : pid->dterm;
+}
+
+/* Largest |dterm| (U) handed to the fast path: |floor(D)| <= 2^30 - 2 F. */
+#define PID_FAST_DTERM_MAX ((int64_t)PID_FAST_D_MAX << 21)
+
+int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
+                         int64_t extra)
+{
+    int32_t edb, e_prev;
     int64_t pterm, dterm, ff, ex, integ;
 
+    if (pid->dq_live) { /* take the D state back from the fast path */
+        pid->dterm = fx_round_shift64(pid->dq, 10);
+        pid->dq_live = false;
+        pid->ready = false;
+    }
+    e_prev = pid->err_nm; /* the previous step's error (D on the error) */
     pid->err_nm = e;
     if (!pid->primed) {
         pid->meas_prev = meas;
-        pid->err_prev = e;
+        e_prev = e;
         pid->dterm = 0;
         pid->primed = true;
     }
     if (!pid->enabled) {
         pid->meas_prev = meas;
-        pid->err_prev = e;
         pid->out = 0;
         pid->out_mv = 0;
         pid->saturated = false;
@@ -446,7 +465,7 @@ static PID_NOINLINE int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_
     dterm = 0;
     if (pid->cd.m != 0) {
         int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
-                                             : fx_sat_diff32(e, pid->err_prev);
+                                             : fx_sat_diff32(e, e_prev);
         int64_t draw = coef_apply(pid->cd, de);
         dterm = draw;
         if (pid->alpha_q30 < FX_ONE_Q30) {
@@ -455,7 +474,6 @@ static PID_NOINLINE int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_
     }
     pid->dterm = dterm;
     pid->meas_prev = meas;
-    pid->err_prev = e;
 
     /* feed-forward from the interpolator's velocity and acceleration */
     ff = 0;
@@ -477,15 +495,20 @@ static PID_NOINLINE int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_
     } else {
         integ = clamp64(pid->integ + coef_apply(pid->ci, edb), pid->i_lim);
     }
+    /* hand the D state over to the fast path when it can take it */
+    if (pid->fast && dterm >= -PID_FAST_DTERM_MAX && dterm <= PID_FAST_DTERM_MAX) {
+        pid->dq = (int64_t)((uint64_t)dterm << 10);
+        pid->dq_live = true;
+    }
     pid_refresh_ready(pid);
-    return pid_finish(pid, pterm, integ, dterm, ff, ex);
+    return pid_finish_raw(pid, pterm + integ + dterm + ff + ex, integ);
 }
 
 int32_t pid_step_e(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
                    int64_t extra)
 {
     if (pid_fast_ready(pid)) {
-        return pid_step_fast(pid, e, meas, extra);
+        return pid_step_fast_inline(pid, e, meas, extra, true);
     }
     return pid_step_general(pid, e, meas, vel, acc, extra);
 }

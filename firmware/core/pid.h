@@ -50,6 +50,37 @@
  * Resolution of the integrator: 2^-32 mV. out_max_mv and i_max_mv are at most
  * PID_MV_MAX; the amplifier range of this product is +-160000 mV.
  *
+ * Fast path (pid_step_fast*, taken by pid_step/pid_step_e whenever it applies):
+ * P and the integrator exactly as above (64-bit, U: the same products,
+ * rounding and clamps), the derivative in 32 bits, in units F = mV * 2^-11
+ * (0.49 uV):
+ *   Draw_F = round(de * Kd_F)                   |Draw_F| <= 2^30 - 2 F (524 V)
+ *   D     += alpha * (Draw_F - floor(D))        D in F * 2^-31 (int64 pid->dq):
+ *                                               one 32x32 multiply-accumulate
+ *   u_raw  = P + I + floor(D) * 2^21 + extra    (then as above)
+ * Kd_F = m * 2^-s with s in 1..31: the general path's mantissa of cd when its
+ * shift + 21 is in range, else (Kd_F below 2^-1 F per nm/tick) a mantissa
+ * rounded to s = 31. It applies when the loop is ready (pid->ready: fast
+ * configuration, enabled, primed, not bumpless, D state handed over within
+ * +-(2^30 - 2) F) and |de| <= pid->de_max (the largest D input keeping
+ * |Draw_F| <= 2^30 - 2); otherwise the step takes the general path (the D
+ * state converted back to dterm, then exact). A loop is fast when there is no
+ * deadband, no feed-forward gain, cp's shift is in 2..31, ci's in 2..31 (or
+ * Ki = 0) and cd's shift + 21 >= 1.
+ * Error against the general (exact) path, for the same inputs: Draw_F * 2^21
+ * is within 0.5 F (1 F with a rounded mantissa) of the exact D input; the
+ * filter state e' = (1 - alpha) e + alpha (input error + floor loss < 1 F)
+ * + the exact path's own rounding (0.5 U per tick, 0.5 U / alpha in total,
+ * < 0.25 F for any alpha >= 2^-20) stays within 2.25 F of the exact filter,
+ * and floor(D) loses less than 1 F more: |D_used - dterm_exact| < 4 F, so
+ * |u_raw - u_raw_exact| < 4 F = 2^-9 mV (2 uV) and the output (mV, rounded)
+ * differs by at most 1. Over a run the integrator has identical increments;
+ * the back-calculation (Kt/f <= 1) and the clamps never widen a difference
+ * beyond the D difference, so the integrator stays within 4 F as well.
+ * tests/unit/test_pid.c runs the fast and the general path side by side
+ * over random inputs, gains and tick rates and checks these bounds (out_mv
+ * within 1 mV; u_raw, I and D within 4 F).
+ *
  * Bumpless operation and resets:
  *   pid_enable(u_hold)   the first step after it outputs u_hold (the integrator
  *                        absorbs the difference, within its clamp) and has no
@@ -89,6 +120,7 @@
 #define PID_GAIN_MAX     ((q32_32_t)1 << 62) /* 2^30 in any gain unit, exclusive */
 #define PID_DFILT_US_MAX 10000000u           /* D filter time constant limit: 10 s */
 #define PID_TERM_LIM     ((int64_t)1 << 60)  /* 2^28 mV in U: clamp of each term  */
+#define PID_FAST_D_MAX   0x3FFFFFFE          /* fast path: |Draw_F|, |D| bound, F    */
 
 /* Pseudo-float coefficient: value = m * 2^-sh (sh may be negative). */
 typedef struct {
@@ -131,26 +163,43 @@ typedef struct {
     int64_t i_lim;   /* U */
     int64_t out_lim; /* U */
     int32_t deadband;
-    bool fast;       /* pid_config: cp, ci, cd shifts in 2..31, no deadband, no
-                      * feed-forward gains: pid_step's short path applies */
-    uint32_t rnd[3]; /* fast: rounding constants 2^(sh - 1) of cp, ci, cd */
+    bool fast;       /* pid_config: the fast path applies (see Fast path) */
+    bool dfilt;      /* fast: D filter on (alpha < 1)                       */
+    uint8_t fp_sh;   /* fast: P = round(e * fp_m * 2^-fp_sh) U (as cp), 2..31 */
+    uint8_t fd_sh;   /* fast: Draw_F = round(de * fd_m * 2^-fd_sh), 1..31   */
+    uint8_t fi_sh;   /* fast: integrator increment shift (ci.sh, 2..31)     */
+    int32_t fp_m;    /* fast: cp.m; each mantissa next to its rounding  */
+    uint32_t fp_rnd; /* constant 2^(shift - 1) (one paired load)         */
+    int32_t fd_m;    /* fast: D mantissa, F per nm/tick * 2^fd_sh        */
+    uint32_t fd_rnd;
+    int32_t fi_m; /* fast: ci.m (0 when Ki = 0)                          */
+    uint32_t fi_rnd;
+    int32_t alpha_q31; /* fast: alpha_q30 * 2 (dfilt)         */
+    uint32_t de_max;   /* fast: largest |de| with |Draw_F| <= 2^30 - 2        */
+    int32_t i_max;     /* fast: i_max_mv                                      */
+    int32_t o_max;     /* fast: out_max_mv                                    */
     /* state (tick) */
     int64_t integ; /* U */
-    int64_t dterm; /* U, filtered derivative term */
+    int64_t dterm; /* U, filtered derivative term (stale while dq_live:
+                    * pid_dterm() reads either) */
+    int64_t dq;    /* fast path's D state, F * 2^-31 = mV * 2^-42 (dq_live) */
     int64_t ff;    /* U, last feed-forward (0 while ready: not written by
                     * the short path) */
-    int64_t extra; /* U, last extra input */
+    int64_t extra; /* U, last extra input (not written by pid_step_fast0) */
     int64_t out;   /* U, last clamped output */
     pos_nm_t meas_prev;
-    int32_t err_prev;
     int32_t hold_mv; /* output to continue from on the next step (bumpless) */
     bool enabled;
-    bool primed;   /* meas_prev/err_prev valid: no D kick             */
+    bool primed;   /* meas_prev/err_nm valid: no D kick             */
     bool bumpless; /* next enabled step re-computes the integrator     */
-    bool ready;    /* cached fast && primed && enabled && !bumpless:
-                    * re-derived (pid_refresh_ready) by every function
-                    * that writes one of the four, so the tick reads one
-                    * flag; a copy that pokes fast must call it too */
+    bool dq_live;  /* the D state is dq (fast path), not dterm: set by a
+                    * general step that hands over to the fast path (D
+                    * within range), cleared when the general path takes
+                    * the state back (it converts dq to dterm first) */
+    bool ready;    /* cached fast && primed && enabled && !bumpless &&
+                    * dq_live: re-derived (pid_refresh_ready) by every
+                    * function that writes one of them, so the tick reads
+                    * one flag; a copy that pokes fast must call it too */
     /* status (read anywhere) */
     int32_t err_nm;     /* last error before the deadband                  */
     int32_t out_mv;     /* last output, mV                                 */
@@ -188,25 +237,147 @@ int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int6
  * servo's following-error check has it); the same result as pid_step. */
 int32_t pid_step_e(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
                    int64_t extra);
-/* The short path of pid_step_e, valid only while pid_fast_ready(pid): the
- * loop configured with every coefficient shift of cp, ci, cd in 2..31, no
- * deadband and no feed-forward gains (pid->fast), and enabled, primed, not
- * bumpless. vel and acc are not needed (no feed-forward). Same results. */
+/* The fast path of pid_step_e (see Fast path), valid only while
+ * pid_fast_ready(pid); inputs out of its range take the general path.
+ * vel and acc are not needed (no feed-forward). */
 int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra);
 /* pid_step_fast with extra = 0 (the servo's axes while the contour error
  * controller is quiet): the same results, one 64-bit argument less. */
 int32_t pid_step_fast0(pid_loop_t *pid, int32_t e, pos_nm_t meas);
+/* The general (exact) path, whatever pid->ready says (the oracle of the
+ * fast path in tests; pid_step_e uses it when the fast path does not
+ * apply). */
+int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
+                         int64_t extra);
+/* The saturated end of a fast step (out of line: rare). raw: u_raw in U;
+ * integ: the integrator after this step's increment and clamp. */
+int32_t pid_fast_saturated(pid_loop_t *pid, int64_t raw, int64_t integ);
 
-/* Re-derive pid->ready from its four inputs. */
+/* The filtered D term in U, from whichever state is live. */
+int64_t pid_dterm(const pid_loop_t *pid);
+
+/* Re-derive pid->ready from its inputs. */
 static inline void pid_refresh_ready(pid_loop_t *pid)
 {
-    pid->ready = pid->fast && pid->primed && pid->enabled && !pid->bumpless;
+    pid->ready = pid->fast && pid->primed && pid->enabled && !pid->bumpless && pid->dq_live;
 }
 
-/* fast && primed && enabled && !bumpless (the cached pid->ready). */
+/* The cached pid->ready. */
 static inline bool pid_fast_ready(const pid_loop_t *pid)
 {
     return pid->ready;
+}
+
+/* An int32 the compiler must keep as a plain 32-bit register (so that
+ * widening products stay single SMULL/SMLAL instructions); no effect on
+ * the value. */
+static inline int32_t pid_opaque32(int32_t v)
+{
+#if defined(__GNUC__)
+    __asm__("" : "+r"(v));
+#endif
+    return v;
+}
+
+/* |v| <= max for max <= 2^31 - 1, one add and one compare (qdec.h's trick) */
+static inline bool pid_in_range(int32_t v, uint32_t max)
+{
+    return (uint32_t)v + max <= 2u * max;
+}
+
+/* round(x * m * 2^-sh) to 32 bits for sh in 1..31 and a result known to fit:
+ * one multiply-accumulate (rnd = 2^(sh - 1) preloaded) and a funnel shift. */
+static inline int32_t pid_mul_shift32(int32_t x, int32_t m, unsigned sh, uint32_t rnd)
+{
+    uint64_t u = (uint64_t)rnd + (uint64_t)((int64_t)x * m);
+
+    return (int32_t)(((uint32_t)u >> sh) | ((uint32_t)(u >> 32) << (32u - sh)));
+}
+
+/* round(x * m * 2^-sh) to 64 bits for sh in 1..31 (the integrator increment,
+ * as the general path's coefficient product: the same value) */
+static inline int64_t pid_mul_shift64(int32_t x, int32_t m, unsigned sh, uint32_t rnd)
+{
+    uint64_t u = (uint64_t)rnd + (uint64_t)((int64_t)x * m);
+    uint32_t lo = (uint32_t)u, hi = (uint32_t)(u >> 32);
+    uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
+    uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
+
+    return (int64_t)(((uint64_t)rhi << 32) | rlo);
+}
+
+/* The fast step (see Fast path) for the servo's inline use: the same as
+ * pid_step_fast (has_extra) or pid_step_fast0. Valid only while
+ * pid_fast_ready(pid). */
+#if defined(__GNUC__)
+#define PID_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define PID_ALWAYS_INLINE inline
+#endif
+
+static PID_ALWAYS_INLINE int32_t pid_step_fast_inline(pid_loop_t *pid, int32_t e, pos_nm_t meas,
+                                                      int64_t extra, bool has_extra)
+{
+    int32_t de, df, dn, ih, rh;
+    int64_t integ, raw, dq;
+
+    if (pid->p.d_on_measurement) {
+        uint64_t a = (uint64_t)pid->meas_prev, b = (uint64_t)meas;
+        uint64_t d = a - b;
+        uint32_t ah = (uint32_t)(a >> 32), bh = (uint32_t)(b >> 32), dh = (uint32_t)(d >> 32);
+
+        de = (int32_t)(uint32_t)d;
+        if ((int32_t)((ah ^ bh) & (ah ^ dh)) < 0 || (int32_t)dh != (de >> 31)) {
+            return pid_step_general(pid, e, meas, 0, 0, extra); /* |de| >= 2^31 */
+        }
+    } else {
+        int64_t d = (int64_t)e - pid->err_nm; /* err_nm: the previous step's e */
+        if (d > (int64_t)pid->de_max || d < -(int64_t)pid->de_max) {
+            return pid_step_general(pid, e, meas, 0, 0, extra);
+        }
+        de = (int32_t)d;
+    }
+    if (!pid_in_range(de, pid->de_max)) {
+        return pid_step_general(pid, e, meas, 0, 0, extra);
+    }
+    dn = pid_mul_shift32(de, pid->fd_m, pid->fd_sh, pid->fd_rnd);
+    dq = pid->dq;
+    if (pid->dfilt) {
+        df = (int32_t)(dq >> 31);
+        dq += (int64_t)(dn - df) * pid->alpha_q31;
+    } else {
+        dq = (int64_t)((uint64_t)(int64_t)dn << 31);
+    }
+    df = (int32_t)(dq >> 31);
+    pid->dq = dq;
+    pid->meas_prev = meas;
+    pid->err_nm = e;
+    integ = pid->integ + pid_mul_shift64(e, pid->fi_m, pid->fi_sh, pid->fi_rnd);
+    ih = (int32_t)(integ >> 32);
+    if (!((uint32_t)ih + (uint32_t)pid->i_max < 2u * (uint32_t)pid->i_max)) {
+        /* |I| may exceed i_max: the exact clamp */
+        int64_t lim = pid->i_lim;
+        integ = (integ > lim) ? lim : (integ < -lim) ? -lim : integ;
+    }
+    raw = integ + pid_mul_shift64(e, pid->fp_m, pid->fp_sh, pid->fp_rnd);
+    raw += (int64_t)df * pid_opaque32((int32_t)1 << 21); /* floor(D) in U: one SMLAL */
+    if (has_extra) {
+        int64_t ex = extra;
+        ex = (ex > PID_TERM_LIM) ? PID_TERM_LIM : (ex < -PID_TERM_LIM) ? -PID_TERM_LIM : ex;
+        pid->extra = ex;
+        raw += ex;
+    }
+    rh = (int32_t)(raw >> 32);
+    if (!((uint32_t)rh + (uint32_t)pid->o_max < 2u * (uint32_t)pid->o_max)) {
+        return pid_fast_saturated(pid, raw, integ); /* |u_raw| may exceed out_max */
+    }
+    pid->integ = integ;
+    pid->out = raw;
+    pid->saturated = false;
+    pid->sat_ticks = 0;
+    rh += (int32_t)((uint32_t)raw >> 31); /* round(u / 2^32) */
+    pid->out_mv = rh;
+    return rh;
 }
 
 #endif /* PID_H */

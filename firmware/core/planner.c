@@ -15,6 +15,8 @@ static int64_t pl_abs(int64_t a)
     return a < 0 ? -a : a;
 }
 
+static bool pl_same(const int64_t *lim);
+
 static plan_block_t *pl_at(const plan_t *p, uint16_t i)
 {
     uint32_t idx = (uint32_t)p->tail + i;
@@ -79,6 +81,7 @@ void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES])
     for (i = 0; i < CORE_AXES; i++) {
         p->pos[i] = pos[i];
         p->last_ratio_q62[i] = 0;
+        p->last_q30[i] = 0;
     }
     p->last_len = 0;
     p->last_vmax = 0;
@@ -90,6 +93,8 @@ void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES])
     p->win_pos = 0;
     p->win_n = 0;
     p->win_sum = 0;
+    p->cruise_v = 0;
+    p->cruise_rec = 0;
 }
 
 plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
@@ -105,6 +110,24 @@ plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
         return rc;
     }
     p->prof = *prof;
+    p->same_limits = pl_same(prof->v_max) && pl_same(prof->a_max) && pl_same(prof->j_max);
+    {
+        int64_t amin = prof->a_max[0];
+        int i;
+        for (i = 1; i < CORE_AXES; i++) {
+            amin = pl_min(amin, prof->a_max[i]);
+        }
+        p->jd_amin_dev = sc_mul_sat(amin, prof->junction_dev_nm); /* saturated */
+    }
+    {
+        sc_limits_t l0;
+        int64_t qc0;
+        l0.v_max = prof->v_max[0];
+        l0.a_max = prof->a_max[0];
+        l0.j_max = prof->j_max[0];
+        l0.shape = prof->shape;
+        sc_limits_aaj(&l0, &p->aaj0, &qc0);
+    }
     p->ring = storage;
     p->depth = depth;
     p->deferred = false;
@@ -176,24 +199,156 @@ int64_t plan_test_ratio(int64_t a, int64_t len)
     return pl_ratio(a, len);
 }
 
+/* Direction ratios from one reciprocal: with b the bit length of len
+ * (1 <= len <= 2^40), inv = floor((2^(63+b) - 1) / len) in [2^63, 2^64)
+ * (one 128/64 division), then floor(ad inv / 2^(b+1)) for each 0 <= ad <=
+ * len (two to four 32 x 32 multiplies). Error: ad inv / 2^(b+1) is below
+ * ad 2^62 / len by ad (1 / len + theta) / 2^(b+1) < 1 (theta < 1, ad <=
+ * len < 2^b), so each ratio is floor(ad 2^62 / len) or one less (test:
+ * test_ratio_reciprocal against pl_ratio); ad == len gives 2^62 exactly. */
+/* bit length of x > 0 (32-bit CLZ only) */
+static unsigned pl_bits(uint64_t x)
+{
+    uint32_t h = (uint32_t)(x >> 32);
+
+    return (h != 0u) ? 64u - (unsigned)__builtin_clz(h)
+                     : 32u - (unsigned)__builtin_clz((uint32_t)x);
+}
+
+typedef struct {
+    uint64_t inv;
+    uint64_t pow; /* 2^(63 - b) */
+} pl_recip_t;
+
+static inline pl_recip_t pl_recip(int64_t len)
+{
+    pl_recip_t r;
+    uint64_t rem;
+    unsigned b = pl_bits((uint64_t)len);
+
+    r.pow = (uint64_t)1 << (63u - b);
+    if (b <= 31u) {
+        /* a 95-bit numerator over a one-word divisor: two 64/32 digit
+         * divisions (the same quotient) */
+        uint32_t d = (uint32_t)len, q1, q0;
+        uint64_t n1 = ((((uint64_t)1 << (b - 1u)) - 1u) << 32) | 0xFFFFFFFFu;
+        q1 = fx_udiv64by32(n1, d); /* n1 / 2^32 < d */
+        q0 = fx_udiv64by32(((n1 - (uint64_t)q1 * d) << 32) | 0xFFFFFFFFu, d);
+        r.inv = ((uint64_t)q1 << 32) | q0;
+        return r;
+    }
+    r.inv = fx_udiv128(((uint64_t)1 << (b - 1u)) - 1u, UINT64_MAX, (uint64_t)len, &rem);
+    return r;
+}
+
+static int64_t pl_ratio_rec(int64_t ad, int64_t len, const pl_recip_t *r)
+{
+    uint64_t x;
+    uint32_t x0, x1, i0 = (uint32_t)r->inv, i1 = (uint32_t)(r->inv >> 32);
+    uint64_t mid;
+
+    if (ad >= len) { /* 0 <= ad <= len; ad == 0 gives 0 below */
+        return (int64_t)1 << 62;
+    }
+    /* (ad inv) >> (b + 1) = high word of (ad 2^(63 - b)) inv, the shifted
+     * ad below 2^63 (ad < len < 2^b): no bit is lost */
+    if ((r->pow >> 32) != 0u) {
+        /* len < 2^31: the shifted ad is x1 2^32 with x1 = ad 2^(31 - b)
+         * below 2^31 (the same sum with the low word zero) */
+        x1 = (uint32_t)ad * (uint32_t)(r->pow >> 32);
+        return (int64_t)((uint64_t)x1 * i1 + (((uint64_t)x1 * i0) >> 32));
+    }
+    x = (uint64_t)ad * r->pow; /* ad 2^(63 - b) < 2^63: exact */
+    x0 = (uint32_t)x;
+    x1 = (uint32_t)(x >> 32);
+    mid =
+        (((uint64_t)x0 * i0) >> 32) + (uint32_t)((uint64_t)x0 * i1) + (uint32_t)((uint64_t)x1 * i0);
+    return (int64_t)((uint64_t)x1 * i1 + (((uint64_t)x0 * i1) >> 32) + (((uint64_t)x1 * i0) >> 32) +
+                     (mid >> 32));
+}
+
+int64_t plan_test_ratio_rec(int64_t a, int64_t len)
+{
+    pl_recip_t r = pl_recip(len);
+    return pl_ratio_rec(a, len, &r);
+}
+
+/* f = floor(len 2^31 / dm) or less (a lower bound, within 2^-30 of it):
+ * 0 < dm <= len <= 2 dm (the longest of three components), len <= 2^41.
+ * Operands above 31 bits are cut to 31 bits, len down and dm up; then
+ * f = floor(l 2^31 / d) exactly, without a division helper: with d
+ * normalised to [2^30, 2^31), a reciprocal y <= 2^62 / d from one 32-bit
+ * UDIV (within 2^-15) and one Newton step (within about 2^-30, still a
+ * lower bound), q = l y / 2^31 <= f, and the remainder l 2^31 - q d brings
+ * q up to the floor (a few steps at most). */
+static uint32_t pl_len_factor(int64_t len, int64_t dm)
+{
+    unsigned b = pl_bits((uint64_t)dm), s;
+    uint64_t l = (uint64_t)len, d = (uint64_t)dm, e, rem;
+    uint32_t y, q, dn, ln;
+
+    if (b > 31u) {
+        l >>= b - 31u;
+        d = (d >> (b - 31u)) + 1u;
+        if (d == ((uint64_t)1 << 31)) {
+            return (uint32_t)l; /* floor(l 2^31 / 2^31) */
+        }
+    }
+    s = (unsigned)__builtin_clz((uint32_t)d) - 1u; /* d < 2^31: d << s in [2^30, 2^31) */
+    dn = (uint32_t)d << s;
+    ln = (uint32_t)(l << s);                                    /* l / d < 2: below 2^32 */
+    y = (0xFFFFFFFFu / ((dn >> 15) + 1u)) << 15;                /* < 2^62 / dn, within 2^-15 */
+    e = ((uint64_t)1 << 62) - (uint64_t)dn * y;                 /* >= 0, below 2^47.4 */
+    y += (uint32_t)(((uint64_t)y * (uint32_t)(e >> 16)) >> 46); /* y e / 2^62, down */
+    q = (uint32_t)(((uint64_t)ln * y) >> 31);
+    rem = ((uint64_t)ln << 31) - (uint64_t)q * dn;
+    while (rem >= dn) {
+        q++;
+        rem -= dn;
+    }
+    return q;
+}
+
+uint32_t plan_test_len_factor(int64_t len, int64_t dm)
+{
+    return pl_len_factor(len, dm);
+}
+
+/* floor(lim f / 2^31) for 0 <= lim < 2^63 / 2^32: at most floor(lim len /
+ * dm), at least that minus lim / 2^30 + 1 */
+static int64_t pl_scale31(int64_t lim, uint32_t f)
+{
+    uint64_t lo = (uint64_t)(uint32_t)lim * f;
+    uint64_t hi = (uint64_t)(uint32_t)((uint64_t)lim >> 32) * f + (lo >> 32);
+
+    return (int64_t)((hi << 1) | ((uint32_t)lo >> 31));
+}
+
 /* floor(sqrt(sum delta_i^2)), scaled so that the squares cannot overflow */
-static int64_t pl_length(const int64_t *d)
+static int64_t pl_length(const int64_t *ad)
 {
     uint64_t a[CORE_AXES], m = 0, sum = 0;
     unsigned k = 0;
     int i;
 
     for (i = 0; i < CORE_AXES; i++) {
-        a[i] = (uint64_t)pl_abs(d[i]);
-        m |= a[i];
+        m |= (uint64_t)ad[i];
+        sum += (uint64_t)(uint32_t)ad[i] * (uint32_t)ad[i]; /* used below 2^29 */
+    }
+    if (m < ((uint64_t)1 << 29)) { /* the usual case: no scaling */
+        return (int64_t)fx_isqrt64(sum);
+    }
+    sum = 0;
+    for (i = 0; i < CORE_AXES; i++) {
+        a[i] = (uint64_t)ad[i];
     }
     while (m >= ((uint64_t)1 << 29)) {
         m >>= 1;
         k++;
     }
     for (i = 0; i < CORE_AXES; i++) {
-        uint64_t s = a[i] >> k;
-        sum += s * s;
+        uint32_t s = (uint32_t)(a[i] >> k); /* below 2^29 */
+        sum += (uint64_t)s * s;
     }
     return (int64_t)((uint64_t)fx_isqrt64(sum) << k);
 }
@@ -244,12 +399,6 @@ static bool pl_same(const int64_t *lim)
     return true;
 }
 
-/* q1_30 component of a q2_62 ratio */
-static int64_t pl_q30(int64_t r)
-{
-    return r / ((int64_t)1 << 32);
-}
-
 static bool pl_jd_fast_off; /* test hook: plan_test_jd_fast */
 
 void plan_test_jd_fast(bool on)
@@ -264,22 +413,33 @@ void plan_test_jd_fast(bool on)
  * K = ceil(vcap^2 / dev) whenever a_min h dev >= (vcap^2 + dev) (2^30 - h);
  * then t dev >= vcap^2 and v = isqrt(t dev) >= vcap. The left product is
  * saturated down, the right one up (both exact 128-bit products). */
+/* x y (x < 2^64, y < 2^32) as 96 bits: *hi the top 32 */
+static uint64_t pl_mul64x32(uint64_t x, uint32_t y, uint32_t *hi)
+{
+    uint64_t lo = (uint64_t)(uint32_t)x * y;
+    uint64_t up = (uint64_t)(uint32_t)(x >> 32) * y + (lo >> 32);
+
+    *hi = (uint32_t)(up >> 32);
+    return (up << 32) | (uint32_t)lo;
+}
+
 static bool pl_jd_above(const plan_t *p, int64_t c1, int64_t vcap)
 {
-    const plan_profile_t *pr = &p->prof;
-    int64_t amin = pr->a_max[0], dev = pr->junction_dev_nm;
-    uint64_t h = (uint64_t)(c1 / 2), vv;
-    int i;
+    int64_t dev = p->prof.junction_dev_nm;
+    uint64_t vv, l, r;
+    uint32_t h = (uint32_t)(c1 / 2), lh, rh;
 
-    if (pl_jd_fast_off || dev <= 0 || vcap <= 0 || vcap > SC_V_LIMIT || h > ((uint64_t)1 << 30)) {
+    /* (jd_amin_dev > 0 iff dev > 0; vcap - 1 wraps for vcap <= 0) */
+    if (pl_jd_fast_off || p->jd_amin_dev <= 0 || (uint64_t)vcap - 1u >= (uint64_t)SC_V_LIMIT ||
+        c1 > ((int64_t)1 << 31) + 1) {
         return false;
     }
-    for (i = 1; i < CORE_AXES; i++) {
-        amin = pl_min(amin, pr->a_max[i]);
-    }
-    vv = (uint64_t)vcap * (uint64_t)vcap; /* vcap < 2^32 */
+    vv = (uint64_t)(uint32_t)vcap * (uint32_t)vcap; /* vcap < 2^32 */
     vv = (vv > UINT64_MAX - (uint64_t)dev) ? UINT64_MAX : vv + (uint64_t)dev;
-    return sc_cmp_products((uint64_t)sc_mul_sat(amin, dev), h, vv, ((uint64_t)1 << 30) - h) >= 0;
+    /* the exact comparison of the two 96-bit products */
+    l = pl_mul64x32((uint64_t)p->jd_amin_dev, h, &lh);
+    r = pl_mul64x32(vv, ((uint32_t)1 << 30) - h, &rh);
+    return lh != rh ? lh > rh : l >= r;
 }
 
 /* Junction speed limit between the last queued move and a new one (nm/s,
@@ -289,32 +449,37 @@ static bool pl_jd_above(const plan_t *p, int64_t c1, int64_t vcap)
  * collinear, reversal, or a zero corner speed, which is a stop). vcap: the
  * caller's other limit (min of both blocks' v_max); the junction-deviation
  * rule returns INT64_MAX early when it provably cannot go below it. */
-static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2, int64_t vcap,
+static int64_t pl_corner(const plan_t *p, const int32_t *w2, int64_t len2, int64_t vcap,
                          int64_t *smooth)
 {
     const plan_profile_t *pr = &p->prof;
-    const int64_t *u1 = p->last_ratio_q62;
+    const int32_t *w1 = p->last_q30; /* q1_30 of the two directions */
     int64_t du[CORE_AXES], v = INT64_MAX;
     bool straight = true;
     int i;
 
     *smooth = INT64_MAX;
     for (i = 0; i < CORE_AXES; i++) {
-        if (((u1[i] > 0 && u2[i] < 0) || (u1[i] < 0 && u2[i] > 0)) &&
-            pl_abs(pl_q30(u1[i])) >= PLAN_REVERSAL_MIN_Q30 &&
-            pl_abs(pl_q30(u2[i])) >= PLAN_REVERSAL_MIN_Q30) {
-            return 0; /* axis reversal: stop */
+        /* opposite signs, both at least PLAN_REVERSAL_MIN_Q30 in q30 (the
+         * q30 value has the sign of the q62 one once it is that large) */
+        if ((w1[i] ^ w2[i]) < 0) {
+            int32_t a1 = (w1[i] < 0) ? -w1[i] : w1[i], a2 = (w2[i] < 0) ? -w2[i] : w2[i];
+            if (a1 >= PLAN_REVERSAL_MIN_Q30 && a2 >= PLAN_REVERSAL_MIN_Q30) {
+                return 0; /* axis reversal: stop */
+            }
         }
-        du[i] = pl_abs(pl_q30(u2[i]) - pl_q30(u1[i]));
-        if (du[i] != 0) {
-            straight = false;
-        }
+        straight = straight && w1[i] == w2[i];
     }
     if (pr->corner == PLAN_CORNER_STOP) {
         return 0;
     }
     if (straight) {
         return INT64_MAX;
+    }
+    if (pr->corner != PLAN_CORNER_JD) {
+        for (i = 0; i < CORE_AXES; i++) {
+            du[i] = pl_abs((int64_t)w2[i] - w1[i]); /* |u2 - u1| per axis, q30 */
+        }
     }
     switch (pr->corner) {
     case PLAN_CORNER_VSTEP:
@@ -343,9 +508,10 @@ static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2, int64
     default: { /* junction deviation */
         int64_t dot = 0, e2 = 0, e, s, aj, c1, t, v2, de[CORE_AXES];
         for (i = 0; i < CORE_AXES; i++) {
-            int64_t d = pl_q30(u2[i]) - pl_q30(u1[i]);
-            dot += pl_q30(u1[i]) * pl_q30(u2[i]);
-            e2 += d * d;
+            /* |w2 - w1| < 2^31: a larger step is a reversal, handled above */
+            int32_t d = w2[i] - w1[i];
+            dot += (int64_t)w1[i] * w2[i];
+            e2 += (int64_t)d * d;
         }
         /* 1 - cos(theta) = 1 + u1.u2, q30; sin(theta/2) = sqrt of half of it */
         c1 = ((int64_t)1 << 30) + dot / ((int64_t)1 << 30);
@@ -361,7 +527,7 @@ static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2, int64
         }
         e = (int64_t)fx_isqrt64((uint64_t)e2); /* |u2 - u1|, q30 */
         for (i = 0; i < CORE_AXES; i++) {
-            de[i] = pl_q30(u2[i]) - pl_q30(u1[i]);
+            de[i] = (int64_t)w2[i] - w1[i];
         }
         aj = pl_axis_limit(pr->a_max, de, e);
         t = sc_muldiv(aj, s, ((int64_t)1 << 30) - s);
@@ -380,15 +546,17 @@ static int64_t pl_corner(const plan_t *p, const int64_t *u2, int64_t len2, int64
  * index `fresh` on were queued since the last pass (placeholder entries). */
 static void pl_replan(plan_t *p)
 {
-    uint16_t i, first, from;
+    uint16_t i, first, from, count = p->count, fresh = p->fresh, planned, depth = p->depth;
+    plan_block_t *ring = p->ring, *b, *n;
+    uint32_t k; /* ring index of block i */
     int64_t exit = 0;
 
     if (p->planned < 1) {
         p->planned = 1;
     }
-    if (p->count < 2) {
-        p->planned = p->count;
-        p->fresh = p->count;
+    if (count < 2) {
+        p->planned = count;
+        p->fresh = count;
         return;
     }
     first = p->planned;
@@ -396,35 +564,51 @@ static void pl_replan(plan_t *p)
     /* reverse: newest back to the first changeable block; an entry that
      * comes out unchanged (of a block planned by an earlier pass) leaves
      * every entry before it unchanged */
-    for (i = p->count; i-- > first;) {
-        plan_block_t *b = pl_at(p, i);
-        int64_t e = pl_min(b->v_junction, sc_reach_pre(exit, b->len, &b->lim, b->aaj, b->aaj_ceil));
-        if (e == b->v_entry && i < p->fresh) {
+    k = (uint32_t)p->tail + count - 1u;
+    if (k >= depth) {
+        k -= depth;
+    }
+    for (i = count; i-- > first;) {
+        int64_t e;
+        b = &ring[k];
+        k = (k == 0u) ? depth - 1u : k - 1u;
+        /* sc_reach returns its start speed from v_max on: no call */
+        e = (exit >= b->lim.v_max && b->len > 0) ? exit : sc_reach_k(exit, &b->lim, &b->rk);
+        e = pl_min(b->v_junction, e);
+        if (e == b->v_entry && i < fresh) {
             from = i;
             break;
         }
         b->v_entry = e;
         exit = e;
     }
-    p->fresh = p->count;
+    p->fresh = count;
     /* forward, from the block before the first changed entry (before it
      * nothing changed, so nothing there became final either): a block whose
      * entry is at its junction limit, or limited by accelerating from its
      * predecessor, is final and so is everything before it */
-    for (i = from; i + 1 < p->count; i++) {
-        plan_block_t *b = pl_at(p, i);
-        plan_block_t *n = pl_at(p, (uint16_t)(i + 1));
+    planned = p->planned;
+    k = (uint32_t)p->tail + from;
+    if (k >= depth) {
+        k -= depth;
+    }
+    b = &ring[k];
+    for (i = from; i + 1 < count; i++) {
+        k = (k + 1u == depth) ? 0u : k + 1u;
+        n = &ring[k];
         if (b->v_entry < n->v_entry) {
-            int64_t r = sc_reach_pre(b->v_entry, b->len, &b->lim, b->aaj, b->aaj_ceil);
+            int64_t r = sc_reach_k(b->v_entry, &b->lim, &b->rk);
             if (r < n->v_entry) {
                 n->v_entry = r;
-                p->planned = (uint16_t)(i + 2);
+                planned = (uint16_t)(i + 2);
             }
         }
         if (n->v_entry == n->v_junction) {
-            p->planned = (uint16_t)(i + 2);
+            planned = (uint16_t)(i + 2);
         }
+        b = n;
     }
+    p->planned = planned;
 }
 
 /* Deferred passes need a reach that never falls when its start speed rises
@@ -453,7 +637,9 @@ void plan_update(plan_t *p)
 plan_result_t plan_push(plan_t *p, const plan_move_t *m)
 {
     plan_block_t *b;
-    int64_t d[CORE_AXES], ratio[CORE_AXES], len = 0, vmax, amax, jmax, vj;
+    int64_t d[CORE_AXES], ratio[CORE_AXES], len = 0, vmax, amax, jmax, vj, aaj;
+    int32_t u30[CORE_AXES];
+    int64_t ad[CORE_AXES];  /* |d| */
     int64_t vc = INT64_MAX; /* smoothed-corner speed of the entry junction */
     uint8_t flags = 0;
     int i;
@@ -469,16 +655,18 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
             return PLAN_E_FEED;
         }
         for (i = 0; i < CORE_AXES; i++) {
-            const int64_t lim = (int64_t)1 << 61;
-            if (m->target[i] > lim || m->target[i] < -lim) {
+            const uint64_t lim = (uint64_t)1 << 61;
+            /* |target| <= 2^61 and |d| <= SC_LEN_MAX, each as one compare */
+            if ((uint64_t)m->target[i] + lim > 2u * lim) {
                 return PLAN_E_RANGE;
             }
             d[i] = m->target[i] - p->pos[i];
-            if (d[i] > SC_LEN_MAX || d[i] < -SC_LEN_MAX) {
+            if ((uint64_t)d[i] + (uint64_t)SC_LEN_MAX > 2u * (uint64_t)SC_LEN_MAX) {
                 return PLAN_E_RANGE;
             }
+            ad[i] = pl_abs(d[i]);
         }
-        len = pl_length(d);
+        len = pl_length(ad);
         if (len == 0) {
             return PLAN_SKIPPED;
         }
@@ -508,8 +696,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         b->lim.shape = p->prof.shape;
         b->v_junction = 0;
         b->v_corner_in = INT64_MAX;
-        b->aaj = -1;
-        b->aaj_ceil = -1;
+        sc_reach_k_init(&b->rk, 0, &b->lim, -1, -1);
         b->v_entry = 0;
         b->flags = PLAN_BF_DWELL | PLAN_BF_EXACT_STOP;
         p->last_stop = true;
@@ -521,19 +708,35 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     }
 
     /* block limits: axis limits projected on the direction */
-    for (i = 0; i < CORE_AXES; i++) {
-        ratio[i] = (d[i] < 0 ? -1 : 1) * pl_ratio(pl_abs(d[i]), len);
-    }
-    if (pl_same(p->prof.v_max) && pl_same(p->prof.a_max) && pl_same(p->prof.j_max)) {
-        /* equal limits on every axis: the longest component limits all
-         * three (what pl_axis_limit picks), found once */
-        int64_t dm = pl_abs(d[0]);
-        for (i = 1; i < CORE_AXES; i++) {
-            dm = (pl_abs(d[i]) > dm) ? pl_abs(d[i]) : dm;
+    {
+        pl_recip_t rc = pl_recip(len);
+        for (i = 0; i < CORE_AXES; i++) {
+            int64_t r = pl_ratio_rec(ad[i], len, &rc);
+            int32_t w = (int32_t)(r >> 32); /* q1_30 of the q2_62 ratio */
+            ratio[i] = (d[i] < 0) ? -r : r;
+            u30[i] = (d[i] < 0) ? -w : w; /* truncated toward 0 */
         }
-        vmax = pl_min(m->feed, pl_muldiv(p->prof.v_max[0], len, dm));
-        amax = pl_min(SC_A_LIMIT, pl_muldiv(p->prof.a_max[0], len, dm));
-        jmax = pl_min(SC_J_LIMIT, pl_muldiv(p->prof.j_max[0], len, dm));
+    }
+    aaj = -1;
+    if (p->same_limits) {
+        /* equal limits on every axis: the longest component limits all
+         * three (what pl_axis_limit picks), by one factor f = len / dm in
+         * q31 (rounded down: each limit at most its exact floor and at
+         * most lim / 2^30 + 1 below it); a lower bound of A^2/J from the
+         * profile's a^2/j: (a f - 1)^2 / (j f) > a^2 f / j - 2 a / j and
+         * a / j <= 3 s */
+        int64_t dm = ad[0];
+        uint32_t f;
+        for (i = 1; i < CORE_AXES; i++) {
+            dm = (ad[i] > dm) ? ad[i] : dm;
+        }
+        f = pl_len_factor(len, dm);
+        vmax = pl_min(m->feed, pl_scale31(p->prof.v_max[0], f));
+        amax = pl_min(SC_A_LIMIT, pl_scale31(p->prof.a_max[0], f));
+        jmax = pl_min(SC_J_LIMIT, pl_scale31(p->prof.j_max[0], f));
+        if (amax < SC_A_LIMIT && jmax < SC_J_LIMIT && p->aaj0 < ((int64_t)1 << 62)) {
+            aaj = pl_scale31(p->aaj0, f) - 7;
+        }
     } else {
         vmax = pl_min(m->feed, pl_axis_limit(p->prof.v_max, d, len));
         amax = pl_min(SC_A_LIMIT, pl_axis_limit(p->prof.a_max, d, len));
@@ -570,7 +773,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         vj = 0;
     } else {
         vj = pl_min(vmax, p->last_vmax);
-        vj = pl_min(vj, pl_corner(p, ratio, len, vj, &vc));
+        vj = pl_min(vj, pl_corner(p, u30, len, vj, &vc));
         /* smoothed corner: the previous move (the newest queued block, if
          * it has not been popped) now knows its exit corner; its speed is
          * capped by the larger of its two corner speeds. The cap is never
@@ -591,6 +794,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         b->ratio_q62[i] = ratio[i];
         p->pos[i] = m->target[i];
         p->last_ratio_q62[i] = ratio[i];
+        p->last_q30[i] = u30[i];
     }
     b->len = len;
     b->dwell_ns = 0;
@@ -598,7 +802,14 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     b->lim.a_max = amax;
     b->lim.j_max = jmax;
     b->lim.shape = p->prof.shape;
-    sc_limits_aaj(&b->lim, &b->aaj, &b->aaj_ceil);
+    if (aaj > 0) {
+        /* lower bound; the exact values when needed */
+        sc_reach_k_init(&b->rk, len, &b->lim, aaj, -1);
+    } else {
+        int64_t q, qc;
+        sc_limits_aaj(&b->lim, &q, &qc);
+        sc_reach_k_init(&b->rk, len, &b->lim, q, qc);
+    }
     b->v_junction = vj;
     b->v_corner_in = vc;
     b->v_entry = (p->count == 0) ? pl_min(p->next_entry, vj) : 0;
@@ -650,7 +861,16 @@ plan_result_t plan_pop(plan_t *p, plan_seg_t *out)
         out->prof.s_end_q16 = 0;
         out->total_ns = b->dwell_ns;
     } else {
-        sc_plan(&out->prof, b->len, b->v_entry, exit, &b->lim);
+        if (b->v_entry == exit && exit >= 1 && exit >= b->lim.v_max) {
+            /* cruise only: the reciprocal of its speed kept while it stays */
+            if (p->cruise_v != exit) {
+                p->cruise_v = exit;
+                p->cruise_rec = sc_cruise_recip(exit);
+            }
+            sc_plan_cruise_rec(&out->prof, b->len, exit, &b->lim, p->cruise_rec);
+        } else {
+            sc_plan(&out->prof, b->len, b->v_entry, exit, &b->lim);
+        }
         out->total_ns = out->prof.total_ns;
     }
     p->tail = (uint16_t)((p->tail + 1u) % p->depth);

@@ -14,7 +14,15 @@
  * Block limits. For a block with unit direction u (u_i = delta_i / len):
  *   v_max = min(feed, min_i v_i / |u_i|, throughput cap)
  *   a_max = min_i a_i / |u_i|,   j_max = min_i j_i / |u_i|
- * so every axis stays within its own limits inside the block.
+ * so every axis stays within its own limits inside the block. Different
+ * per-axis limits: the exact floor(lim_b len / |delta_b|) of the limiting
+ * axis b. Equal limits on every axis (one division per block instead of
+ * three): lim f / 2^31 with f = len / max_i |delta_i| in q31 rounded down,
+ * at most the exact floor and at most lim / 2^30 + 1 below it; the block
+ * then keeps a lower bound of floor(A^2/J) (within 32 of it) for the reach
+ * instead of the exact pair. Direction ratios ratio_q62[i] =
+ * floor(delta_i 2^62 / len) or one less (magnitude; delta_i = +-len gives
+ * +-2^62 exactly), from one reciprocal of len per block.
  *
  * Junction speed (entry speed limit of a block), profile.corner:
  *   PLAN_CORNER_JD (default)   junction deviation: with cos(t) = -u1.u2 and
@@ -186,13 +194,16 @@ typedef struct {
     int64_t ratio_q62[CORE_AXES]; /* delta_i / len * 2^62                    */
     int64_t len;                  /* nm (0 for a dwell)                      */
     int64_t dwell_ns;
-    sc_limits_t lim;       /* block limits (v_max includes the cap)   */
-    int64_t v_junction;    /* entry speed limit, nm/s                 */
-    int64_t v_entry;       /* planned entry speed, nm/s               */
-    int64_t v_corner_in;   /* smoothed-corner speed of the entry
-                            * junction (block cap), INT64_MAX: none   */
-    int64_t aaj, aaj_ceil; /* floor, ceil of a_max^2 / j_max (nm/s;
-                            * sc_limits_aaj), -1 for a dwell        */
+    sc_limits_t lim;     /* block limits (v_max includes the cap)   */
+    int64_t v_junction;  /* entry speed limit, nm/s                 */
+    int64_t v_entry;     /* planned entry speed, nm/s               */
+    int64_t v_corner_in; /* smoothed-corner speed of the entry
+                          * junction (block cap), INT64_MAX: none   */
+    sc_reach_k_t rk;     /* the reach's constants for the block's
+                          * length (sc_reach_k_init): q, qc floor
+                          * and ceil of a_max^2 / j_max (nm/s); or
+                          * qc -1 and q a lower bound of the floor
+                          * (equal axis limits); -1 for a dwell   */
     uint32_t tag;
     uint8_t flags;
 } plan_block_t;
@@ -222,6 +233,7 @@ typedef struct {
     bool deferred;                     /* passes deferred to plan_pop/update   */
     pos_nm_t pos[CORE_AXES];           /* end point of the last queued block */
     int64_t last_ratio_q62[CORE_AXES]; /* direction of the last move   */
+    int32_t last_q30[CORE_AXES];       /* the same in q1_30 (truncated)  */
     int64_t last_len;                  /* length of the last move (0: none)  */
     int64_t last_vmax;                 /* v_max of the last move            */
     bool last_stop;                    /* last block ends in an exact stop  */
@@ -230,6 +242,11 @@ typedef struct {
     int64_t win_len[PLAN_WINDOW_MAX];
     uint16_t win_pos, win_n;
     int64_t win_sum;
+    bool same_limits;    /* every axis has the same v, a and j limits      */
+    int64_t aaj0;        /* floor(a^2 / j) of axis 0's limits (plan_init)  */
+    int64_t jd_amin_dev; /* min_i a_i * junction_dev_nm, saturated (init) */
+    int64_t cruise_v;    /* speed of the last cruise-only block popped    */
+    uint64_t cruise_rec; /* its sc_cruise_recip                           */
 } plan_t;
 
 /* Validate the profile and initialise an empty planner at `start` (nm).
@@ -285,5 +302,12 @@ void plan_test_jd_fast(bool on);
  * floor(a 2^62 / len) (one 128/64 division); both equal sc_muldiv. */
 int64_t plan_test_muldiv(int64_t a, int64_t b, int64_t c);
 int64_t plan_test_ratio(int64_t a, int64_t len);
+/* Test hook: the direction ratio from the block's reciprocal (what
+ * plan_push uses): floor(a 2^62 / len) or one less, 0 <= a <= len <= 2^40. */
+int64_t plan_test_ratio_rec(int64_t a, int64_t len);
+/* Test hook: the equal-limits factor f = floor(l 2^31 / d) (l = len, d = dm
+ * when dm < 2^31; else both cut to 31 bits, l down and d up), 0 < dm <= len
+ * <= 2 dm, len <= 2^41. */
+uint32_t plan_test_len_factor(int64_t len, int64_t dm);
 
 #endif /* PLANNER_H */

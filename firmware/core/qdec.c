@@ -414,11 +414,12 @@ static QDEC_INLINE void qdec_velocity_edge(qdec_t *q, int64_t p_edge, int64_t t_
 {
     uint32_t rec = q->rec;
 
-    if (q->vel_fast && t_edge > q->ring_t[rec % QDEC_VEL_RING]) {
+    if (q->vel_fast && t_edge > q->t_rec) {
         unsigned head = (rec + 1u) % QDEC_VEL_RING;
 
         q->ring_p[head] = p_edge;
         q->ring_t[head] = t_edge;
+        q->t_rec = t_edge;
         q->rec = rec + 1u;
         if (head == 0u) {
             qdec_vel_fold(q); /* keeps rec - rec_norm <= QDEC_VEL_RING */
@@ -437,7 +438,7 @@ static QDEC_NOINLINE void qdec_velocity_edge_slow(qdec_t *q, int64_t p_edge, int
     qdec_vel_fold(q);
     n = q->ring_n;
     head = q->rec % QDEC_VEL_RING;
-    rising = n > 0u && t_edge > q->ring_t[head]; /* the newest recorded time */
+    rising = n > 0u && t_edge > q->t_rec; /* the newest recorded time */
     if (q->vel_lazy) {
         qdec_vel_resolve(q); /* before the ring changes (keeps the clamp) */
     }
@@ -445,6 +446,7 @@ static QDEC_NOINLINE void qdec_velocity_edge_slow(qdec_t *q, int64_t p_edge, int
     head = (head + 1u) % QDEC_VEL_RING;
     q->ring_p[head] = p_edge;
     q->ring_t[head] = t_edge;
+    q->t_rec = t_edge;
     if (n < QDEC_VEL_RING) {
         n++;
     }
@@ -479,7 +481,7 @@ static QDEC_INLINE void qdec_velocity_idle(qdec_t *q)
     if (q->rec != q->rec_norm) {
         qdec_vel_fold(q);
     }
-    since = q->now - q->ring_t[q->rec % QDEC_VEL_RING]; /* the newest recorded edge */
+    since = q->now - q->t_rec; /* the newest recorded edge */
 
     if (q->now - q->t_edge >= (int64_t)q->cfg.zero_timeout_ns) {
         q->out.vel = 0;
@@ -660,6 +662,19 @@ static QDEC_INLINE bool qdec_sample_fast(qdec_t *q, uint32_t now_ns)
     }
     q->now += dt;
     q->now_raw = now_ns;
+    if (nedge == q->last_nedge) {
+        /* no counted edge: the count (it changes only with nedge) and the
+         * direction are unchanged, so are the position and pos_nm_raw
+         * (scale and offset change only through qdec_set_offset_nm, which
+         * sends the next sample to the reference path); only the
+         * compensation is re-read (its table may change between samples) */
+        qdec_velocity_idle(q);
+        comp = q->cfg.comp;
+        q->out.pos_nm = (comp == NULL)
+                            ? q->out.pos_nm_raw
+                            : comp_correct(comp, q->out.pos_nm_raw, (comp_dir_t)q->out.dir);
+        return true;
+    }
 
     delta = (int32_t)(raw - q->last_raw);
     q->last_raw = raw;
@@ -671,7 +686,7 @@ static QDEC_INLINE bool qdec_sample_fast(qdec_t *q, uint32_t now_ns)
     if (dir != 0) {
         q->out.dir = dir;
     }
-    if (nedge != q->last_nedge) {
+    {
         /* the last counted edge: within 2^31 ns of this sample (see Timestamps) */
         int64_t t_edge = q->now + (int32_t)(t_last - now_ns);
 
@@ -680,8 +695,6 @@ static QDEC_INLINE bool qdec_sample_fast(qdec_t *q, uint32_t now_ns)
         q->t_edge = t_edge;
         q->out.stopped = false;
         qdec_velocity_edge(q, pos, t_edge);
-    } else {
-        qdec_velocity_idle(q);
     }
     /* out.illegal and out.glitches are unchanged (equal to e's: filter off) */
     comp = q->cfg.comp;
@@ -790,6 +803,7 @@ bool qdec_init(qdec_t *q, const qdec_config_t *cfg, uint32_t initial, uint32_t n
     q->t_edge = 0;
     q->ring_n = 0; /* the first counted edge gives no estimate yet */
     q->rec = 0;
+    q->t_rec = 0; /* ring_t[0] */
     q->rec_norm = 0;
     q->vel_fast = false;
     for (i = 0; i < QDEC_ILLEGAL_MAX; i++) {
@@ -821,6 +835,7 @@ void qdec_set_offset_nm(qdec_t *q, pos_nm_t offset_nm)
 {
     q->cfg.offset_nm = offset_nm;
     q->nm_fast = qdec_nm_fast(&q->cfg);
+    q->last_rare--; /* the next sample takes the reference path: pos_nm_raw again */
 }
 
 void qdec_set_comp(qdec_t *q, const comp_table_t *comp)

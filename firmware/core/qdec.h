@@ -164,7 +164,13 @@
  * last edge's time relative to the sample are 32-bit (|delta| < 2^31, edge
  * within 2^31 ns, as above); the 64-bit position and extended time take one
  * add each; pos_nm one 32x32->64 multiply (|pos| < 2^31, den 1). The
- * velocity record of such a sample stores the ring entry and counts it in
+ * sample without a counted edge (nedge unchanged, so count and direction
+ * unchanged) keeps the position, pos_nm_raw and the direction as they are
+ * and only advances the time, the velocity's idle bound and the
+ * compensation (pos_nm re-read through comp_correct: its table may change
+ * between samples); qdec_set_offset_nm sends the next sample to the
+ * reference path, which rescales. The velocity record of a sample with
+ * edges stores the ring entry and counts it in
  * `rec` (the ring rising, vel_fast); ring_n, ring_mono and the pending
  * estimate are brought up to date from the count when they are next read
  * (qdec_velocity, an idle sample, the general record) or every 16 records.
@@ -292,6 +298,7 @@ typedef struct {
     int64_t ring_p[QDEC_VEL_RING]; /* recorded last edges: position           */
     int64_t ring_t[QDEC_VEL_RING]; /* ... and extended time                   */
     uint32_t rec;                  /* edges recorded (wrapping): the newest at ring[rec % RING] */
+    int64_t t_rec;                 /* ring_t[rec % RING], the newest recorded time (with rec) */
     uint32_t rec_norm; /* rec when ring_n, ring_mono and vel_* were last brought up to date */
     uint8_t ring_n;
     bool vel_fast; /* ring_n > 0 and ring_mono + 1 >= ring_n: the short record applies */

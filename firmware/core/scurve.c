@@ -526,11 +526,253 @@ static int64_t sc_reach_fast(int64_t v, int64_t dq, int64_t q, int64_t qc, const
     return sc_dist_fits(v, r, dq, lim, qc) ? r : -1;
 }
 
+/* ---- S-curve reach without the acceleration limit: closed form ----------------
+ * Where sc_dist_fits decides by one comparison (df = floor(d) < 2^31 nm,
+ * lo + hi <= SC_SQRT_INT64_MAX, hi - lo below A^2/J), the speed hi is
+ * reachable from lo iff (lo + hi)^2 (hi - lo) <= K = df^2 J. With the start
+ * speed v and the gain x = hi - v: x (2v + x)^2 <= K. K is formed exactly
+ * (128 bits); the estimates below use its top 32 bits.
+ *   From rest: x = cbrt(K): a seed from a 56-entry table (within 2 %), one
+ *   Halley step (cubic convergence: within 5.4e-6), lowered by 2^-16 of
+ *   itself + 1 nm/s.
+ *   From v > 0: with c = K / (8 v^3), x = 2v t where t (1 + t)^2 = c, and
+ *   t = c R with R (1 + c R)^2 = 1. For c <= 3/8 (a gain up to about 0.29
+ *   of 2v) R is the Pade [2/2] approximant (11 + 54c + 26c^2) /
+ *   (11 + 76c + 101c^2) (within 5e-3 there) refined by one Newton step
+ *   (within 4e-6 in exact arithmetic), in 32-bit fixed point (c with a
+ *   32-bit mantissa, R in q30: about 1e-6 more); lowered by 2^-14 of itself
+ *   + 2 nm/s. v_max is tried first (one comparison).
+ * Either result, capped at v_max, is returned only if the exact comparison
+ * confirms it (otherwise, and for larger c, the paths below run): gain at
+ * least 1 - 2^-14 - 2e-5 of the exact root, minus 3 nm/s (test_scurve
+ * test_reach_closed_form against the exact reach). d below 8192 nm is left
+ * to the other paths: the comparison uses whole nm, and the fraction of d
+ * would cost up to 2/3 of 1/8192 of the gain. */
+
+static bool sc_closed_off; /* test hook: sc_test_reach_closed */
+
+void sc_test_reach_closed(bool on)
+{
+    sc_closed_off = !on;
+}
+
+/* bit length of x (0 for 0), with 32-bit CLZ only */
+static inline unsigned sc_bits32x2(uint64_t x)
+{
+    uint32_t h = (uint32_t)(x >> 32), l = (uint32_t)x;
+
+    if (h != 0u) {
+        return 64u - (unsigned)__builtin_clz(h);
+    }
+    return (l != 0u) ? 32u - (unsigned)__builtin_clz(l) : 0u;
+}
+
+/* 64 x 64 -> 128 bits with four 32 x 32 -> 64 multiplies, inline */
+static inline sc_u128_t sc_mul_in(uint64_t a, uint64_t b)
+{
+    uint32_t a0 = (uint32_t)a, a1 = (uint32_t)(a >> 32);
+    uint32_t b0 = (uint32_t)b, b1 = (uint32_t)(b >> 32);
+    uint64_t ll = (uint64_t)a0 * b0, lh = (uint64_t)a0 * b1, hl = (uint64_t)a1 * b0;
+    uint64_t mid = (ll >> 32) + (uint32_t)lh + (uint32_t)hl;
+    sc_u128_t r;
+
+    r.lo = (mid << 32) | (uint32_t)ll;
+    r.hi = (uint64_t)a1 * b1 + (lh >> 32) + (hl >> 32) + (mid >> 32);
+    return r;
+}
+
+/* (lo + hi)^2 (hi - lo) <= k for lo < hi, lo + hi <= SC_SQRT_INT64_MAX */
+static inline bool sc_fits_k(uint32_t lo, uint32_t hi, sc_u128_t k)
+{
+    uint32_t s = lo + hi, g = hi - lo;
+    uint64_t s2 = (uint64_t)s * s;
+    uint64_t p0 = (uint64_t)(uint32_t)s2 * g;
+    uint64_t p1 = (uint64_t)(uint32_t)(s2 >> 32) * g + (p0 >> 32);
+    sc_u128_t l;
+
+    l.lo = (p1 << 32) | (uint32_t)p0;
+    l.hi = p1 >> 32;
+    return sc_cmp128(l, k) <= 0;
+}
+
+/* shortest distance for the closed form: 8192 nm (it uses whole nm, the
+ * fraction of d costs up to 2/3 of 1/8192 of the gain) */
+#define SC_CLOSED_DMIN ((int64_t)8192)
+
+/* cbrt((i + 1/2) 2^57), i = 8..63: the seed of sc_cbrt_k (within 2 %) */
+static const uint32_t sc_cbrt_seed[56] = {
+    1069981u, 1110396u, 1148065u, 1183412u, 1216765u, 1248383u, 1278476u, 1307215u,
+    1334744u, 1361181u, 1386630u, 1411177u, 1434899u, 1457861u, 1480122u, 1501732u,
+    1522738u, 1543180u, 1563094u, 1582514u, 1601468u, 1619983u, 1638085u, 1655796u,
+    1673135u, 1690123u, 1706775u, 1723109u, 1739139u, 1754878u, 1770341u, 1785537u,
+    1800480u, 1815178u, 1829642u, 1843881u, 1857904u, 1871718u, 1885331u, 1898750u,
+    1911982u, 1925034u, 1937910u, 1950618u, 1963163u, 1975549u, 1987782u, 1999866u,
+    2011806u, 2023606u, 2035269u, 2046801u, 2058204u, 2069482u, 2080638u, 2091676u};
+
+/* cbrt(K) for K = mk 2^e, mk in [2^31, 2^32) (K's top 32 bits), within
+ * 6e-6 (not a bound: the caller confirms). With r = (e - 29) mod 3,
+ * m = mk 2^(29 + r) is in [2^60, 2^63) and K = m 2^(3s); the seed from m's
+ * top 6 bits (within 2 %), then one Halley step y (y^3 + 2m) / (2y^3 + m)
+ * (cubic convergence: 2 % -> 5.4e-6), the ratio in q31 from one 64/32
+ * division. */
+static int64_t sc_cbrt_k(uint32_t mk, int32_t e)
+{
+    int32_t r = (e - 29) % 3, s;
+    uint64_t m, y3, num, den;
+    uint32_t y, q;
+
+    r += (r < 0) ? 3 : 0;
+    s = (e - 29 - r) / 3;
+    m = (uint64_t)mk << (29 + r);
+    y = sc_cbrt_seed[(m >> 57) - 8u];
+    y3 = ((uint64_t)y * y) * y;                    /* below 2^63 */
+    num = (y3 >> 2) + (m >> 1);                    /* (y^3 + 2m) / 4, below 2^63 */
+    den = (y3 >> 1) + (m >> 2);                    /* (2y^3 + m) / 4 */
+    q = fx_udiv64by32(num, (uint32_t)(den >> 31)); /* about 2^31 */
+    y = (uint32_t)(((uint64_t)y * q) >> 31);
+    return (s >= 0) ? ((int64_t)y << s) : (int64_t)(y >> (unsigned)(-s));
+}
+
+/* c = X / (2v) above which the closed form gives way to the estimate: 3/8 */
+#define SC_CLOSED_CMAX_Q32 ((uint32_t)3 << 29)
+
+void sc_reach_k_init(sc_reach_k_t *rk, int64_t d, const sc_limits_t *lim, int64_t q, int64_t qc)
+{
+    sc_u128_t k;
+    unsigned bk;
+
+    rk->d = d;
+    rk->q = q;
+    rk->qc = qc;
+    rk->bk = 0;
+    if (lim->shape != SC_SHAPE_SCURVE || q <= 0 || d < SC_CLOSED_DMIN || d >= ((int64_t)1 << 31)) {
+        return; /* not the closed form's case */
+    }
+    k = sc_mul_in((uint64_t)(d * d), (uint64_t)lim->j_max); /* < 2^109 */
+    bk = (k.hi != 0u) ? 64u + sc_bits32x2(k.hi) : sc_bits32x2(k.lo);
+    if (bk >= 96u) {
+        rk->mk = (uint32_t)(k.hi >> (bk - 96u));
+    } else if (bk > 64u) {
+        rk->mk = (uint32_t)((k.hi << (96u - bk)) | (k.lo >> (bk - 32u)));
+    } else if (bk > 32u) {
+        rk->mk = (uint32_t)(k.lo >> (bk - 32u));
+    } else {
+        rk->mk = (uint32_t)(k.lo << (32u - bk));
+    }
+    rk->k_hi = k.hi;
+    rk->k_lo = k.lo;
+    rk->bk = (int32_t)bk;
+}
+
+/* the closed form with K prepared (rk->bk > 0); v >= 0 */
+static inline int64_t sc_reach_closed_k(int64_t v, const sc_reach_k_t *rk, int64_t q,
+                                        const sc_limits_t *lim)
+{
+    int64_t vmax = lim->v_max, x;
+    uint32_t mk = rk->mk, mv, m3, qc, c, c24, c2, num, den, r30, t30, u, u2, ru, hp;
+    int32_t h, corr, ec;
+    unsigned bk = (unsigned)rk->bk, bv, b3;
+    uint64_t n;
+    sc_u128_t k;
+
+    if (vmax > SC_SQRT_INT64_MAX - v || v >= vmax) {
+        return -1;
+    }
+    k.hi = rk->k_hi;
+    k.lo = rk->k_lo;
+    if (v == 0) {
+        x = sc_cbrt_k(mk, (int32_t)bk - 32);
+        x -= (x >> 16) + 1;
+        if (x <= 0 || x >= q) {
+            return -1;
+        }
+        x = (x >= vmax) ? vmax : x;
+        return sc_fits_k(0u, (uint32_t)x, k) ? x : -1;
+    }
+    if (vmax - v < q && sc_fits_k((uint32_t)v, (uint32_t)vmax, k)) {
+        return vmax; /* the cap itself is reachable: no root to find */
+    }
+    /* 32-bit mantissas: K ~ mk 2^(bk - 32) (above), v^3 ~ m3 2^e3 */
+    n = (uint64_t)(uint32_t)v * (uint32_t)v;
+    bv = sc_bits32x2(n);
+    mv = (bv > 32u) ? (uint32_t)(n >> (bv - 32u)) : (uint32_t)(n << (32u - bv));
+    n = (uint64_t)mv * (uint32_t)v; /* v^3 = n 2^(bv - 32) */
+    b3 = sc_bits32x2(n);
+    m3 = (b3 > 32u) ? (uint32_t)(n >> (b3 - 32u)) : (uint32_t)(n << (32u - b3));
+    /* c = K / (8 v^3) ~ qc 2^ec, qc = floor(mk 2^31 / m3) in [2^30, 2^32);
+     * c in q32 is qc 2^(ec + 32), so c <= 3/8 needs ec + 32 <= 0 */
+    qc = fx_udiv64by32((uint64_t)mk << 31, m3);
+    ec = (int32_t)bk - (int32_t)b3 - (int32_t)bv - 2;
+    if (ec + 32 > 0) {
+        return -1; /* c >= 1 */
+    }
+    c = (-(ec + 32) < 32) ? qc >> -(ec + 32) : 0u;
+    if (c > SC_CLOSED_CMAX_Q32 || -ec - 1 > 63) {
+        return -1;
+    }
+    /* Pade [2/2] of R(c) in q16 (c in q24), then one Newton step in q30 */
+    c24 = c >> 8;
+    c2 = (uint32_t)(((uint64_t)c24 * c24) >> 24);
+    num = (11u << 24) + 54u * c24 + 26u * c2;
+    den = (11u << 24) + 76u * c24 + 101u * c2;
+    r30 = ((num << 2) / (den >> 14)) << 14;
+    t30 = (uint32_t)(((uint64_t)c * r30) >> 32); /* t = c R */
+    u = (1u << 30) + t30;
+    u2 = (uint32_t)(((uint64_t)u * u) >> 30);
+    ru = (uint32_t)(((uint64_t)r30 * u2) >> 30);
+    h = (int32_t)(ru - (1u << 30));                                 /* R (1 + t)^2 - 1 */
+    hp = (uint32_t)(((uint64_t)u * ((1u << 30) + 3u * t30)) >> 30); /* (1 + t)(1 + 3t) */
+    if (h >= (1 << 24) || h <= -(1 << 24)) {
+        return -1;
+    }
+    corr = (h * 128) / (int32_t)(hp >> 16); /* q23 */
+    r30 = (uint32_t)((int32_t)r30 - corr * 128);
+    /* x = 2 v t = 2 v c R = v (qc R) 2^(ec + 1), qc R below 2^32 */
+    n = ((uint64_t)qc * r30) >> 30;
+    x = (int64_t)(((uint64_t)(uint32_t)v * (uint32_t)n) >> (-ec - 1));
+    if (x >= q) {
+        return -1; /* the acceleration limit applies */
+    }
+    if (x >= vmax - v) {
+        return -1; /* the cap was not reachable: an estimate error */
+    }
+    x -= (x >> 14) + 2;
+    if (x <= 0) {
+        return -1;
+    }
+    return sc_fits_k((uint32_t)v, (uint32_t)(v + x), k) ? v + x : -1;
+}
+
+/* The reach by the closed form, or -1 (the caller's other paths decide).
+ * q: floor(A^2/J) or any lower bound of it. */
+static int64_t sc_reach_closed(int64_t v, int64_t dq, int64_t q, const sc_limits_t *lim)
+{
+    sc_reach_k_t rk;
+
+    if (sc_closed_off || v < 0) {
+        return -1;
+    }
+    sc_reach_k_init(&rk, dq >> 16, lim, q, -1);
+    return (rk.bk > 0) ? sc_reach_closed_k(v, &rk, q, lim) : -1;
+}
+
+int64_t sc_test_reach_closed_only(int64_t v, int64_t d, const sc_limits_t *lim)
+{
+    int64_t q, qc;
+
+    sc_aaj(lim->a_max, lim->j_max, &q, &qc);
+    if (d <= 0 || d > INT64_MAX / 65536 || v >= lim->v_max) {
+        return -1;
+    }
+    return sc_reach_closed(v, d * 65536, q, lim);
+}
+
 /* sc_reach with the distance in nm * 2^16; q, qc: floor and ceil of A^2/J
  * (qc < 0: computed here) */
 static bool sc_fast_off; /* test hook: sc_reach_bracket */
 
-static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim, int64_t q, int64_t qc)
+static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim, int64_t q, int64_t qc,
+                            bool closed)
 {
     int64_t vmax = lim->v_max, a = lim->a_max, j = lim->j_max, dv;
     sc_limits_t tmp;
@@ -554,8 +796,15 @@ static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim, int64
     {
         int64_t dfull;
 
-        if (qc < 0) {
+        if (q < 0) {
             sc_aaj(a, j, &q, &qc); /* floor and ceil of A^2/J */
+        }
+        dv = (sc_fast_off || !closed) ? -1 : sc_reach_closed(v, dq, q, lim);
+        if (dv > 0) {
+            return dv; /* lower bound by construction or confirmed */
+        }
+        if (qc < 0) {
+            sc_aaj(a, j, &q, &qc); /* q was a lower bound: the exact values */
         }
         if (v > 0 && sc_dist_fits(v, vmax, dq, lim, qc)) {
             /* from rest the estimate below checks the cap itself */
@@ -637,10 +886,40 @@ void sc_limits_aaj(const sc_limits_t *lim, int64_t *q, int64_t *qc)
 
 int64_t sc_reach_pre(int64_t v, int64_t d, const sc_limits_t *lim, int64_t q, int64_t qc)
 {
+    bool tried = false;
+
     if (d > INT64_MAX / 65536) {
         d = INT64_MAX / 65536;
     }
-    return sc_reach_q16(v, d * 65536, lim, q, qc);
+    /* the planner's usual case first: the closed form, as sc_reach_q16
+     * would try it (the S-curve, 0 <= v < v_max, A^2/J supplied) */
+    if (lim->shape == SC_SHAPE_SCURVE && q > 0 && v >= 0 && v < lim->v_max && !sc_fast_off) {
+        int64_t r = sc_reach_closed(v, d * 65536, q, lim);
+        if (r > 0) {
+            return r;
+        }
+        tried = true; /* not again in sc_reach_q16 */
+    }
+    return sc_reach_q16(v, d * 65536, lim, q, qc, !tried);
+}
+
+/* sc_reach_k's other paths (closed: whether the closed form is still to
+ * be tried) */
+static int64_t sc_reach_k_rest(int64_t v, const sc_limits_t *lim, const sc_reach_k_t *rk,
+                               bool closed)
+{
+    int64_t d = (rk->d > INT64_MAX / 65536) ? INT64_MAX / 65536 : rk->d;
+
+    return sc_reach_q16(v, d * 65536, lim, rk->q, rk->qc, closed);
+}
+
+int64_t sc_reach_k(int64_t v, const sc_limits_t *lim, const sc_reach_k_t *rk)
+{
+    if (rk->bk > 0 && v >= 0 && !sc_closed_off && !sc_fast_off) {
+        int64_t r = sc_reach_closed_k(v, rk, rk->q, lim);
+        return (r > 0) ? r : sc_reach_k_rest(v, lim, rk, false);
+    }
+    return sc_reach_k_rest(v, lim, rk, true);
 }
 
 /* ---- one block ------------------------------------------------------------------ */
@@ -716,12 +995,25 @@ static void sc_chain(sc_profile_t *p, int first, int last, const int64_t *set_ac
     }
 }
 
+/* floor(x / 3) for any x < 2^64: the high word of x * ceil(2^65 / 3) over
+ * 2 (exact for every 64-bit x), four 32 x 32 multiplies instead of a
+ * 64-bit division call */
+static int64_t sc_third(uint64_t x)
+{
+    const uint32_t m0 = 0xAAAAAAABu, m1 = 0xAAAAAAAAu;
+    uint32_t x0 = (uint32_t)x, x1 = (uint32_t)(x >> 32);
+    uint64_t lh = (uint64_t)x0 * m1, hl = (uint64_t)x1 * m0;
+    uint64_t mid = (((uint64_t)x0 * m0) >> 32) + (uint32_t)lh + (uint32_t)hl;
+
+    return (int64_t)(((uint64_t)x1 * m1 + (lh >> 32) + (hl >> 32) + (mid >> 32)) >> 1);
+}
+
 /* jerk of each phase and its evaluation constant (the division truncates,
  * so -x / 6 = -(x / 6)) */
-static void sc_set_jerk(sc_profile_t *p, int64_t j)
+static inline void sc_set_jerk(sc_profile_t *p, int64_t j)
 {
     /* signs +, 0, -, 0, -, 0, + written out (no multiplies) */
-    int64_t j6 = (j * 65536) / 6;
+    int64_t j6 = sc_third((uint64_t)j * 32768u); /* (j 2^16) / 6, j >= 0 */
 
     p->jerk[0] = j;
     p->jerk[1] = 0;
@@ -739,35 +1031,115 @@ static void sc_set_jerk(sc_profile_t *p, int64_t j)
     p->j6_q16[6] = j6;
 }
 
-/* sc_plan of a block entered and left at its cruise speed v >= 1: only
- * phase 3 lasts; the same values the general path computes (every other
- * phase of zero duration is its start state; in trapezoidal mode phases 1
- * and 5 still carry their set acceleration) */
-static void sc_plan_cruise(sc_profile_t *p, int64_t len, int64_t v, int64_t a, int64_t j, bool trap)
+/* high word of a 64 x 64 product (four 32 x 32 multiplies) */
+static uint64_t sc_mulhi64(uint64_t a, uint64_t b)
 {
-    int64_t vq = v * 65536, t3 = 0, off = 0;
-    int ph;
+    uint32_t a0 = (uint32_t)a, a1 = (uint32_t)(a >> 32), b0 = (uint32_t)b, b1 = (uint32_t)(b >> 32);
+    uint64_t lh = (uint64_t)a0 * b1, hl = (uint64_t)a1 * b0;
+    uint64_t mid = (((uint64_t)a0 * b0) >> 32) + (uint32_t)lh + (uint32_t)hl;
 
+    return (uint64_t)a1 * b1 + (lh >> 32) + (hl >> 32) + (mid >> 32);
+}
+
+/* floor(x / 10^9) for x < 2^48: (x m) >> 78 with m = ceil(2^78 / 10^9),
+ * exact because x (m 10^9 - 2^78) < 2^48 10^9 < 2^78 (four 32 x 32
+ * multiplies, no division) */
+static uint64_t sc_div_ns48(uint64_t x)
+{
+    const uint32_t m0 = 0xBE826D6Au, m1 = 0x112E0u; /* m = 302231454903658 */
+    uint32_t x0 = (uint32_t)x, x1 = (uint32_t)(x >> 32);
+    uint64_t lh = (uint64_t)x0 * m1, hl = (uint64_t)x1 * m0;
+    uint64_t mid = (((uint64_t)x0 * m0) >> 32) + (uint32_t)lh + (uint32_t)hl;
+
+    return ((uint64_t)x1 * m1 + (lh >> 32) + (hl >> 32) + (mid >> 32)) >> 14;
+}
+
+static inline void sc_state_set(sc_state_t *st, int64_t s, int64_t v, int64_t a)
+{
+    st->s_q16 = s;
+    st->v_q16 = v;
+    st->a_q16 = a;
+}
+
+/* sc_plan of a block entered and left at its cruise speed v >= 1 (sc_plan
+ * comes here too): only phase 3 lasts, every other phase of zero duration
+ * is its start state (in trapezoidal mode phases 1 and 5 still carry their
+ * set acceleration) */
+
+void sc_plan_cruise_rec(sc_profile_t *p, int64_t len, int64_t v, const sc_limits_t *lim,
+                        uint64_t rec)
+{
+    int64_t vq = v * 65536, t3 = 0, off = 0, a = lim->a_max, j;
+    bool trap = lim->shape != SC_SHAPE_SCURVE; /* v > 0: the at-rest shape too */
+
+    if (v < 1 || v < lim->v_max) {
+        sc_plan(p, len, v, v, lim);
+        return;
+    }
+    j = trap ? 0 : lim->j_max;
+    len = sc_max(len, 0);
     sc_set_jerk(p, j);
-    if (len > 0) {
+    if (len > 0 && len < ((int64_t)1 << 32) && v <= (int64_t)UINT32_MAX) {
+        /* the same values without a 128-bit product: t3 = round(len NS / v)
+         * from one 64/32 division (2 len NS < 2^63), and with the exact
+         * residual e = v t3 - len NS (|e| <= v / 2 < 2^31),
+         * off = floor(vq t3 / NS) = len 2^16 + floor(e 2^16 / NS) */
+        uint64_t rem, n = 2u * (uint64_t)len * NS, q;
+        int64_t e;
+        if (rec != 0u) {
+            /* q = floor(n rec / 2^64) is floor(n / v) or one less (rec =
+             * floor((2^64 - 1) / v): n (2^64 / v - rec) / 2^64 < 1); the
+             * remainder decides */
+            q = sc_mulhi64(n, rec);
+            q += (n - q * (uint64_t)v >= (uint64_t)v) ? 1u : 0u;
+        } else {
+            uint32_t q32 = fx_udiv64by32(n, (uint32_t)v); /* UINT32_MAX: too long */
+            q = (q32 != UINT32_MAX) ? q32 : fx_udivmod64(n, (uint64_t)v, &rem);
+        }
+        t3 = (int64_t)((q + 1u) / 2u);
+        e = (int64_t)((uint64_t)v * (uint64_t)t3 - (uint64_t)len * NS);
+        if (e >= 0) {
+            off = len * 65536 + (int64_t)sc_div_ns48((uint64_t)e << 16);
+        } else {
+            off = len * 65536 - (int64_t)sc_div_ns48(((uint64_t)-e << 16) + (NS - 1u));
+        }
+    } else if (len > 0) {
         /* (2 len 2^16 NS / vq + 1) / 2 with the 2^16 cancelled (the same
          * floor; a one-word divisor v < 2^32) */
         t3 = (sc_muldiv(2 * len, (int64_t)NS, v) + 1) / 2;
         off = sc_muldiv(vq, t3, (int64_t)NS);
     }
     a = trap ? a * 65536 : 0;
-    for (ph = 0; ph < SC_PHASES; ph++) { /* one loop, no zero-fill calls */
-        p->t_ns[ph] = (ph == 3) ? t3 : 0;
-        p->start[ph].s_q16 = (ph >= 4) ? off : 0;
-        p->start[ph].v_q16 = vq;
-        p->start[ph].a_q16 = (ph == 1) ? a : ((ph == 5) ? -a : 0);
-    }
+    /* every field written once, straight-line (the values of the loop
+     * form: phase 3 lasts t3, phases 4..6 start at off, 1 and 5 carry the
+     * set acceleration) */
+    p->t_ns[0] = 0;
+    p->t_ns[1] = 0;
+    p->t_ns[2] = 0;
+    p->t_ns[3] = t3;
+    p->t_ns[4] = 0;
+    p->t_ns[5] = 0;
+    p->t_ns[6] = 0;
+    sc_state_set(&p->start[0], 0, vq, 0);
+    sc_state_set(&p->start[1], 0, vq, a);
+    sc_state_set(&p->start[2], 0, vq, 0);
+    sc_state_set(&p->start[3], 0, vq, 0);
+    sc_state_set(&p->start[4], off, vq, 0);
+    sc_state_set(&p->start[5], off, vq, -a);
+    sc_state_set(&p->start[6], off, vq, 0);
     p->s_end_q16 = off;
     p->total_ns = t3;
     p->len = len;
     p->v0 = v;
     p->v1 = v;
     p->vp = v;
+}
+
+uint64_t sc_cruise_recip(int64_t v)
+{
+    uint64_t rem;
+
+    return (v >= 1 && v <= (int64_t)UINT32_MAX) ? fx_udivmod64(UINT64_MAX, (uint64_t)v, &rem) : 0u;
 }
 
 void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limits_t *lim)
@@ -780,6 +1152,12 @@ void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limi
     sc_state_t e, dec5, dec6, dec_end;
     int ph;
 
+    if (v0 == v1 && v0 >= 1 && v0 >= lim->v_max) {
+        /* cruise only (the usual block of a path at its feed): only phase
+         * 3 lasts (v0 > 0: the at-rest S-curve is the trapezoid here) */
+        sc_plan_cruise_rec(p, len, v0, lim, 0u);
+        return;
+    }
     v0 = sc_max(v0, 0);
     v1 = sc_max(v1, 0);
     lim = sc_resolve(lim, sc_min(v0, v1), &tmp); /* at rest at either end */
@@ -789,10 +1167,6 @@ void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limi
     len = sc_max(len, 0);
     vc = sc_max(lim->v_max, sc_max(v0, v1));
 
-    if (v0 == vc && v1 == vc && vc >= 1) {
-        sc_plan_cruise(p, len, vc, a, j, trap);
-        return;
-    }
     /* peak speed */
     if (sc_sat_add(sc_dist(v0, vc, lim), sc_dist(vc, v1, lim)) <= len) {
         vp = vc;
@@ -806,7 +1180,7 @@ void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limi
         vp = sc_min(vc, sc_max((int64_t)sc_isqrt128(x), sc_max(v0, v1)));
     } else {
         int64_t vm = sc_max(v0, v1), rem = len - sc_dist(v0, v1, lim);
-        vp = (rem > 0) ? sc_reach_q16(vm, rem * 32768, lim, -1, -1) : vm; /* half of rem */
+        vp = (rem > 0) ? sc_reach_q16(vm, rem * 32768, lim, -1, -1, true) : vm; /* half of rem */
         vp = sc_min(vc, vp);
     }
     if (vp < 1) {

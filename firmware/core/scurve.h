@@ -33,7 +33,19 @@
  * acceleration limit reached: the quadratic in dv, solved in the stable form
  *     dv = 4 A (d - v A/J) / (sqrt((2v - A^2/J)^2 + 8 A d) + 2v + A^2/J).
  * S-curve without it: the depressed cubic J w^3 + 2 v w = d in w = sqrt(dv/J)
- * (a half segment time). First (v > 0) v_max itself is returned when
+ * (a half segment time). First, where sc_dist decides by one exact
+ * comparison (d >= 8192 nm and below 2^31 nm, v + v_max <= 3.04e9 nm/s, the
+ * gain below A^2/J), the closed form: with K = floor(d)^2 J, hi is
+ * reachable from v iff (v + hi)^2 (hi - v) <= K (exact 128-bit
+ * comparison). From rest the gain is cbrt(K) (a 56-entry seed and one
+ * Halley step, within 6e-6); from v > 0 and c = K / (8 v^3) <= 3/8 it is
+ * 2v t with t (1 + t)^2 = c, t = c R, R the Pade [2/2] approximant
+ * (11 + 54c + 26c^2) / (11 + 76c + 101c^2) refined by one Newton step
+ * (within 4e-6); v_max first when it passes the comparison. The gain is
+ * lowered by 2^-16 (rest) or 2^-14 + 2 nm/s (v > 0), capped at v_max and
+ * returned only if the comparison confirms it: gain >= 1 - 2^-14 - 2e-5 of
+ * the exact one, minus 3 nm/s (test_scurve test_reach_closed_form).
+ * Otherwise (v > 0) v_max itself is returned when
  * sc_dist(v, v_max) <= d. Then an estimate: from rest w = cbrt(d / J)
  * (20 significant bits), from v > 0 four Newton steps from w_u (below) in a
  * normalised 32-bit-mantissa format; the gain J w^2, lowered by 1/4096 +
@@ -142,6 +154,12 @@ int64_t sc_reach_bracket(int64_t v, int64_t d, const sc_limits_t *lim);
  * reduced S-curve case (on by default; off: sc_dist decides every check;
  * the results are identical). */
 void sc_test_dist_fits(bool on);
+/* Test hook: the reduced S-curve reach's closed form (on by default; off:
+ * the estimate-and-check path decides; both are lower bounds). */
+void sc_test_reach_closed(bool on);
+/* Test hook: the closed form alone (S-curve limits, exact A^2/J): its
+ * result, or -1 where it does not apply or its check fails. */
+int64_t sc_test_reach_closed_only(int64_t v, int64_t d, const sc_limits_t *lim);
 
 /* a * b saturated to INT64_MAX; 0 when a <= 0 or b <= 0 (= sc_muldiv(a, b, 1)). */
 int64_t sc_mul_sat(int64_t a, int64_t b);
@@ -167,14 +185,52 @@ int64_t sc_reach(int64_t v, int64_t d, const sc_limits_t *lim);
 void sc_limits_aaj(const sc_limits_t *lim, int64_t *q, int64_t *qc);
 
 /* sc_reach with floor and ceil of a_max^2 / j_max supplied (from
- * sc_limits_aaj on the same limits; qc < 0: computed). Same result. */
+ * sc_limits_aaj on the same limits; both < 0: computed; q >= 0 with
+ * qc < 0: q is a lower bound of the floor, used by the closed form, and the
+ * exact values are computed only if another path runs). Always a lower
+ * bound of the reach (sc_dist(v, result) <= d); with the exact values the
+ * same result as sc_reach. */
 int64_t sc_reach_pre(int64_t v, int64_t d, const sc_limits_t *lim, int64_t q, int64_t qc);
+
+/* The closed-form reach's constants for one distance d (nm) and limits
+ * (the planner keeps them per block: its passes always reach over the
+ * whole block): K = d^2 J (128 bits, exact) and its top 32 bits; bk = 0
+ * when the closed form does not apply to d and lim (then sc_reach_k is
+ * sc_reach_pre). */
+typedef struct {
+    uint64_t k_hi, k_lo;
+    int64_t d; /* the distance, nm                          */
+    int64_t q; /* q and qc as for sc_reach_pre               */
+    int64_t qc;
+    uint32_t mk; /* top 32 bits of K                          */
+    int32_t bk;  /* bit length of K, or 0                     */
+} sc_reach_k_t;
+
+/* q, qc: as for sc_reach_pre (floor and ceil of A^2/J; or a lower bound
+ * of the floor and qc < 0). */
+void sc_reach_k_init(sc_reach_k_t *rk, int64_t d, const sc_limits_t *lim, int64_t q, int64_t qc);
+
+/* sc_reach_pre(v, d, lim, q, qc) with rk from sc_reach_k_init(rk, d, lim, q,
+ * qc) on the same limits (v_max may have been lowered since): the same
+ * result. */
+int64_t sc_reach_k(int64_t v, const sc_limits_t *lim, const sc_reach_k_t *rk);
 
 /* Plan one block: fills *p (phases, realised states, total time). v0 and v1
  * must satisfy sc_dist(v0, v1) <= len (the planner guarantees it); if they
  * do not, the block still gets a valid profile whose realised distance falls
  * short and the interpolator scales it. */
 void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limits_t *lim);
+
+/* floor((2^64 - 1) / v) for 1 <= v < 2^32 (0 otherwise): the reciprocal
+ * sc_plan_cruise_rec takes (the planner keeps it while consecutive blocks
+ * cruise at the same speed). */
+uint64_t sc_cruise_recip(int64_t v);
+
+/* sc_plan(p, len, v, v, lim), the cruise time's division replaced by a
+ * multiply with rec = sc_cruise_recip(v) and an exact remainder correction
+ * (rec == 0: divided): the same profile. */
+void sc_plan_cruise_rec(sc_profile_t *p, int64_t len, int64_t v, const sc_limits_t *lim,
+                        uint64_t rec);
 
 /* State at time t_ns from the start of phase `ph` (0 <= t_ns <= t_ns[ph]). */
 void sc_eval_phase(const sc_profile_t *p, int ph, int64_t t_ns, sc_state_t *out);

@@ -8,6 +8,12 @@
 
 #define SI(x) ((q32_32_t)(x) << 32) /* integer SI value to q32_32 */
 
+#if defined(__GNUC__)
+#define SERVO_NOINLINE __attribute__((noinline))
+#else
+#define SERVO_NOINLINE
+#endif
+
 static int64_t abs64(int64_t v)
 {
     return (v < 0) ? -v : v;
@@ -142,6 +148,11 @@ servo_err_t servo_config(servo_t *s, const servo_params_t *p)
     }
     s->cec = cec;
     s->p = *p;
+    for (i = 0; i < CORE_AXES; i++) {
+        int32_t lim = (i < p->axes) ? p->ferr_limit_nm[i] : 0;
+        s->ferr_max[i] = (lim > 0) ? (uint32_t)lim : 0x7FFFFFFFu;
+    }
+    s->sat_max = (p->sat_limit_ticks > 0) ? p->sat_limit_ticks : UINT32_MAX;
     return SERVO_OK;
 }
 
@@ -163,6 +174,13 @@ servo_err_t servo_init(servo_t *s, const servo_params_t *p, const servo_io_t *io
         s->io = keep;
     }
     return err;
+}
+
+void servo_set_io_all(servo_t *s, servo_set_mv_all_fn set_mv_all,
+                      servo_amp_fault_mask_fn amp_fault_mask)
+{
+    s->set_mv_all = set_mv_all;
+    s->amp_fault_mask = amp_fault_mask;
 }
 
 static void set_line(servo_t *s, unsigned i, bool on)
@@ -285,7 +303,6 @@ servo_err_t servo_enable(servo_t *s, const servo_fb_t *fb)
         s->stop_pos[i] = fb->pos[i];
         s->ref_pos[i] = fb->pos[i];
         s->ref_vel[i] = 0;
-        s->ref_acc[i] = 0;
         pid_enable(&s->pid[i], 0);
         set_line(s, i, true);
     }
@@ -368,21 +385,21 @@ void servo_fb_from_qdec(servo_fb_t *fb, const qdec_t *const enc[CORE_AXES], unsi
 }
 
 /* Step 2 outside RUN (or RUN without a reference): hold, stop ramp or
- * track the feedback. */
-static void tick_reference(servo_t *s, const servo_fb_t *fb)
+ * track the feedback; acc: this tick's reference acceleration. */
+static SERVO_NOINLINE void tick_reference(servo_t *s, const servo_fb_t *fb, int64_t acc[CORE_AXES])
 {
     const unsigned n = s->p.axes;
     unsigned i;
 
     for (i = 0; i < n; i++) { /* the position holds unless set below */
         s->ref_vel[i] = 0;
-        s->ref_acc[i] = 0;
+        acc[i] = 0;
     }
     switch (s->state) {
     case SERVO_RUN: /* without a reference: hold the last one */
         break;
     case SERVO_STOPPING:
-        stop_advance(s, s->ref_pos, s->ref_vel, s->ref_acc);
+        stop_advance(s, s->ref_pos, s->ref_vel, acc);
         break;
     case SERVO_HOLD:
         for (i = 0; i < n; i++) {
@@ -398,9 +415,10 @@ static void tick_reference(servo_t *s, const servo_fb_t *fb)
 }
 
 /* Step 3's reactions, in axis order, for the axes whose following error
- * was over the limit (over: bit mask). Whether an axis is checked and
- * whether the fault escalates depend on the state left by the faults of
- * the axes before it, exactly as if each were raised as it was found. */
+ * may be over the limit (over: bit mask of candidates; an axis with the
+ * check off is skipped here). Whether an axis is checked and whether the
+ * fault escalates depend on the state left by the faults of the axes
+ * before it, exactly as if each were raised as it was found. */
 static void tick_ferr_faults(servo_t *s, uint32_t over)
 {
     unsigned i;
@@ -409,64 +427,155 @@ static void tick_ferr_faults(servo_t *s, uint32_t over)
         int32_t lim = s->p.ferr_limit_nm[i];
         int32_t fe = s->ferr_nm[i];
 
-        if ((over & (1u << i)) && s->state != SERVO_OFF && !(s->off_mask & (1u << i))) {
+        if ((over & (1u << i)) && lim > 0 && (fe > lim || fe < -lim) && s->state != SERVO_OFF &&
+            !(s->off_mask & (1u << i))) {
             bool esc = s->state != SERVO_RUN && (fe / 2 > lim || fe / 2 < -lim);
             raise_fault(s, SERVO_FAULT_FOLLOWING, i, esc);
         }
     }
 }
 
-void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
+/* Step 1: encoder and amplifier faults, each raised at once (the state they
+ * leave decides step 2). amp: the amplifier fault bits when the port reads
+ * them at once (io.amp_fault_mask), else the per-axis callback is asked. */
+static void tick_input_faults(servo_t *s, uint32_t enc_fault, uint32_t amp, bool per_axis)
+{
+    bool (*const amp_fault)(unsigned axis) = s->io.amp_fault;
+    unsigned i;
+
+    for (i = 0; i < s->p.axes; i++) {
+        if (enc_fault & (1u << i)) {
+            raise_fault(s, SERVO_FAULT_ENCODER, i, false);
+        }
+        if (per_axis ? (amp_fault != NULL && amp_fault(i)) : (amp & (1u << i)) != 0u) {
+            raise_fault(s, SERVO_FAULT_AMPLIFIER, i, false);
+        }
+    }
+}
+
+/* Step 5 for one axis outside the inline case (CEC active, or the loop not
+ * on its fast path). */
+static inline int32_t axis_step(servo_t *s, unsigned i, int32_t e, pos_nm_t meas, int64_t vel,
+                                int64_t acc, bool quiet)
+{
+    pid_loop_t *pid = &s->pid[i];
+    int64_t extra = 0;
+
+    if (!quiet && i < 3 && i < CORE_AXES) {
+        if (s->cec.handover_u[i] != 0) {
+            pid_add_integrator(pid, s->cec.handover_u[i]);
+        }
+        extra = s->cec.out_u[i];
+    }
+    return pid_step_e(pid, e, meas, vel, acc, extra);
+}
+
+/* Step 6's fault for axis i (its loop saturated longer than the limit). */
+static SERVO_NOINLINE void sat_fault(servo_t *s, unsigned i)
+{
+    bool esc = s->state != SERVO_RUN && s->pid[i].sat_ticks / 2 > s->p.sat_limit_ticks;
+    raise_fault(s, SERVO_FAULT_SATURATION, i, esc);
+}
+
+/* Steps 5 and 6 for the axes whose loop is ready (pid.h) while the CEC is
+ * quiet, in axis order, with the PID's fast step inline: returns the first
+ * axis not done (a loop not ready, or the axis after a saturation fault,
+ * whose reaction may change the loops after it). */
+static inline unsigned axes_fast(servo_t *s, const pos_nm_t *pos, unsigned n)
+{
+    const uint32_t sat_max = s->sat_max;
+    unsigned i;
+
+    for (i = 0; i < n && i < CORE_AXES; i++) {
+        pid_loop_t *pid = &s->pid[i];
+
+        if (!pid_fast_ready(pid)) {
+            return i;
+        }
+        s->out_mv[i] = pid_step_fast_inline(pid, s->ferr_nm[i], pos[i], 0, false);
+        if (pid->sat_ticks > sat_max) {
+            sat_fault(s, i);
+            return i + 1u;
+        }
+    }
+    return i;
+}
+
+static int32_t sat_diff32(pos_nm_t a, pos_nm_t b)
+{
+    return fx_sat_diff32(a, b);
+}
+
+/* Step 7: outputs (after every loop: a fault of a later axis may still
+ * zero an earlier one). */
+static inline void tick_outputs(servo_t *s)
 {
     const unsigned n = s->p.axes;
-    const bool run = s->state == SERVO_RUN && ref != NULL;
-    bool (*const amp_fault)(unsigned axis) = s->io.amp_fault;
-    const uint32_t enc_fault = fb->enc_fault;
+    unsigned i;
+
+    if (s->state == SERVO_OFF) {
+        for (i = 0; i < n; i++) {
+            s->out_mv[i] = 0;
+        }
+    } else if (s->off_mask != 0) {
+        for (i = 0; i < n; i++) {
+            if (s->off_mask & (1u << i)) {
+                s->out_mv[i] = 0;
+            }
+        }
+    }
+    if (s->set_mv_all != NULL) {
+        s->set_mv_all(s->out_mv, n);
+    } else if (s->io.set_mv != NULL) {
+        void (*const set_mv)(unsigned axis, int32_t mv) = s->io.set_mv;
+        for (i = 0; i < n; i++) {
+            set_mv(i, s->out_mv[i]);
+        }
+    }
+}
+
+/* Steps 2 to 7 (after the input faults of step 1): every case. run: RUN
+ * with a reference at the start of the tick. */
+static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb,
+                                        bool run)
+{
+    const unsigned n = s->p.axes;
+    const int64_t *vel, *acc;
+    int64_t acc_own[CORE_AXES];
     uint32_t over = 0;
     unsigned i;
     bool quiet;
 
-    s->ticks++;
-    /* 1. input faults (each raised at once: the state they leave decides
-     * step 2); fb and the callback are read once (neither changes during
-     * the tick) */
-    if (amp_fault != NULL || enc_fault != 0) {
-        for (i = 0; i < n; i++) {
-            if (enc_fault & (1u << i)) {
-                raise_fault(s, SERVO_FAULT_ENCODER, i, false);
-            }
-            if (amp_fault != NULL && amp_fault(i)) {
-                raise_fault(s, SERVO_FAULT_AMPLIFIER, i, false);
-            }
-        }
-    }
     /* 2. reference and 3. following error in one pass (the reactions after
-     * it: a controlled stop starts from this tick's reference of every axis) */
+     * it: a controlled stop starts from this tick's reference of every
+     * axis). In RUN only the position and velocity are kept (the stop ramp
+     * starts from them); the loops take vel/acc from ref. */
     if (run && s->state == SERVO_RUN) {
-        for (i = 0; i < n; i++) {
-            int32_t lim = s->p.ferr_limit_nm[i];
-            int32_t fe;
+        for (i = 0; i < n && i < CORE_AXES; i++) {
+            pos_nm_t rp = ref->pos[i];
+            int32_t fe = sat_diff32(rp, fb->pos[i]);
 
-            s->ref_pos[i] = ref->pos[i];
+            s->ref_pos[i] = rp;
             s->ref_vel[i] = ref->vel[i];
-            s->ref_acc[i] = ref->acc[i];
-            fe = fx_sat_diff32(ref->pos[i], fb->pos[i]);
             s->ferr_nm[i] = fe;
-            if (lim > 0 && (fe > lim || fe < -lim)) {
+            if (!pid_in_range(fe, s->ferr_max[i])) {
                 over |= 1u << i;
             }
         }
+        vel = ref->vel;
+        acc = ref->acc;
     } else {
-        tick_reference(s, fb);
-        for (i = 0; i < n; i++) {
-            int32_t lim = s->p.ferr_limit_nm[i];
-            int32_t fe = fx_sat_diff32(s->ref_pos[i], fb->pos[i]);
+        tick_reference(s, fb, acc_own);
+        for (i = 0; i < n && i < CORE_AXES; i++) {
+            int32_t fe = sat_diff32(s->ref_pos[i], fb->pos[i]);
 
             s->ferr_nm[i] = fe;
-            if (lim > 0 && (fe > lim || fe < -lim)) {
+            if (!pid_in_range(fe, s->ferr_max[i])) {
                 over |= 1u << i;
             }
         }
+        vel = s->ref_vel;
+        acc = acc_own;
     }
     if (over != 0) {
         tick_ferr_faults(s, over);
@@ -479,51 +588,116 @@ void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
     /* idle with outputs known to be 0 (cec.h): nothing to read */
     quiet = s->cec.idle && s->cec.out_zero;
     /* 5. axis loops and 6. saturation supervision, per axis (n <=
-     * CORE_AXES: servo_config; the second bound is for the compiler) */
-    for (i = 0; i < n && i < CORE_AXES; i++) {
+     * CORE_AXES: servo_config; the second bound is for the compiler).
+     * ferr_nm[i] is sat32(ref_pos[i] - fb->pos[i]) of this tick (step 3;
+     * nothing since changes either). The usual case, a ready loop with a
+     * quiet CEC, runs the PID's fast step inline. */
+    i = quiet ? axes_fast(s, fb->pos, n) : 0u;
+    for (; i < n && i < CORE_AXES; i++) {
         pid_loop_t *pid = &s->pid[i];
-        int64_t extra = 0;
-        bool cec_in = false;
 
-        if (i < 3 && i < CORE_AXES && !quiet) {
-            if (s->cec.handover_u[i] != 0) {
-                pid_add_integrator(pid, s->cec.handover_u[i]);
-            }
-            extra = s->cec.out_u[i];
-            cec_in = true;
+        s->out_mv[i] = axis_step(s, i, s->ferr_nm[i], fb->pos[i], vel[i], acc[i], quiet);
+        if (pid->sat_ticks > s->sat_max) {
+            sat_fault(s, i);
         }
-        /* ferr_nm[i] is sat32(ref_pos[i] - fb->pos[i]) of this tick (step 3;
-         * nothing since changes either); quiet CEC: extra is 0 */
-        if (!pid_fast_ready(pid)) {
+    }
+    tick_outputs(s);
+}
+
+/* tick_fast's pass 2 from axis i on, when axis i's loop is not ready or
+ * has just saturated beyond the limit (done: stepped, out_mv[i] written):
+ * the general step per axis, saturation supervision in axis order. */
+static SERVO_NOINLINE void tick_fast_rest(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb,
+                                          unsigned i, bool done)
+{
+    const unsigned n = s->p.axes;
+
+    for (; i < n && i < CORE_AXES; i++) {
+        if (!done) {
             s->out_mv[i] =
-                pid_step_e(pid, s->ferr_nm[i], fb->pos[i], s->ref_vel[i], s->ref_acc[i], extra);
-        } else if (cec_in) {
-            s->out_mv[i] = pid_step_fast(pid, s->ferr_nm[i], fb->pos[i], extra);
-        } else {
-            s->out_mv[i] = pid_step_fast0(pid, s->ferr_nm[i], fb->pos[i]);
+                pid_step_e(&s->pid[i], s->ferr_nm[i], fb->pos[i], ref->vel[i], ref->acc[i], 0);
         }
-        if (pid->sat_ticks > s->p.sat_limit_ticks && s->p.sat_limit_ticks > 0) {
-            bool esc = s->state != SERVO_RUN && pid->sat_ticks / 2 > s->p.sat_limit_ticks;
-            raise_fault(s, SERVO_FAULT_SATURATION, i, esc);
+        done = false;
+        if (s->pid[i].sat_ticks > s->sat_max) {
+            sat_fault(s, i);
         }
     }
-    /* 7. outputs (after every loop: a fault of a later axis may still zero
-     * an earlier one) */
-    if (s->state == SERVO_OFF) {
-        for (i = 0; i < n; i++) {
-            s->out_mv[i] = 0;
+}
+
+/* Steps 2 to 7 in the usual case: RUN with a reference, no input fault,
+ * the CEC off and quiet (cec_step would return at once). Pass 1: reference
+ * and following error; when an axis is over its limit it returns false
+ * having written only what tick_general writes again from the same inputs
+ * (ref_pos, ref_vel, ferr_nm). Pass 2: the loops (the PID's fast step inline
+ * while ready, else the general step with the reference's feed-forward),
+ * saturation supervision (after a saturation fault the remaining axes take
+ * the general step: the reaction may have disabled them), outputs. */
+static inline bool tick_fast(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
+{
+    const unsigned n = (s->p.axes < CORE_AXES) ? s->p.axes : CORE_AXES; /* (servo_config) */
+    const uint32_t sat_max = s->sat_max;
+    unsigned i;
+
+    for (i = 0; i < n; i++) {
+        pos_nm_t rp = ref->pos[i];
+        int32_t fe = sat_diff32(rp, fb->pos[i]);
+
+        s->ref_pos[i] = rp;
+        s->ref_vel[i] = ref->vel[i];
+        s->ferr_nm[i] = fe;
+        if (!pid_in_range(fe, s->ferr_max[i])) {
+            return false; /* tick_general writes all of it again */
         }
-    } else if (s->off_mask != 0) {
-        for (i = 0; i < n; i++) {
-            if (s->off_mask & (1u << i)) {
-                s->out_mv[i] = 0;
+    }
+    {
+        bool done = false;
+        pid_loop_t *pid = s->pid;
+        const pos_nm_t *pos = fb->pos;
+        const int32_t *fe = s->ferr_nm;
+        int32_t *out = s->out_mv;
+
+        for (i = 0; i < n; i++, pid++, pos++, fe++, out++) {
+            if (!pid_fast_ready(pid)) {
+                break;
             }
+            int32_t u = pid_step_fast_inline(pid, *fe, *pos, 0, false);
+
+            if (pid->sat_ticks > sat_max) { /* known 0 on the unsaturated path */
+                *out = u;
+                done = true;
+                break;
+            }
+            *out = u;
+        }
+        if (i < n) {
+            tick_fast_rest(s, ref, fb, i, done);
         }
     }
-    if (s->io.set_mv != NULL) {
-        void (*const set_mv)(unsigned axis, int32_t mv) = s->io.set_mv;
-        for (i = 0; i < n; i++) {
-            set_mv(i, s->out_mv[i]);
+    tick_outputs(s);
+    return true;
+}
+
+void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
+{
+    const unsigned n = s->p.axes;
+    const bool run = s->state == SERVO_RUN && ref != NULL;
+    const uint32_t enc_fault = fb->enc_fault;
+    uint32_t amp = 0;
+
+    s->ticks++;
+    /* 1. input faults; fb and the fault inputs are read once (neither
+     * changes during the tick) */
+    if (s->amp_fault_mask != NULL) {
+        amp = s->amp_fault_mask(n);
+        if ((amp | enc_fault) != 0u) {
+            tick_input_faults(s, enc_fault, amp, false);
         }
+    } else if (s->io.amp_fault != NULL || enc_fault != 0u) {
+        tick_input_faults(s, enc_fault, 0, true);
     }
+    if (run && s->state == SERVO_RUN && s->cec.p.mode == CEC_MODE_OFF && s->cec.idle &&
+        s->cec.out_zero && tick_fast(s, ref, fb)) {
+        return;
+    }
+    tick_general(s, ref, fb, run);
 }

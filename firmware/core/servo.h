@@ -22,12 +22,20 @@
  *      acceleration as feed-forward;
  *   6. counts consecutive saturated ticks per axis against sat_limit_ticks;
  *   7. writes the commands (mV, clamped by each PID's out_max_mv) with
- *      io.set_mv for every axis in use (0 for disabled axes); enable lines
+ *      io.set_mv for every axis in use (0 for disabled axes), or with one
+ *      set_mv_all call when servo_set_io_all installed it; enable lines
  *      change through io.enable only on state changes.
  * (Implementation: steps 2 and 3 run in one pass over the axes and the
  * following-error reactions follow it in axis order; steps 5 and 6 run in
  * one pass; each reaction still sees the state left by the faults before
- * it, and every fault takes effect in the tick that raised it.)
+ * it, and every fault takes effect in the tick that raised it. The usual
+ * tick - RUN with a reference, no fault input, the CEC off and quiet, no
+ * following error over its limit - takes a short path: amplifier faults
+ * read with one amp_fault_mask call when installed, reference position and
+ * velocity (the acceleration is not kept: the loops have no feed-forward
+ * there, the general path takes it from ref) and following errors in one
+ * pass, then the loops with the PID's fast step (pid.h) inline while they
+ * are ready; anything else takes the general path, with the same result.)
  *
  * States: OFF (outputs 0, enable lines off; the loops keep tracking the
  * feedback so enabling is bumpless) -> servo_enable -> HOLD (holds the
@@ -123,6 +131,13 @@ typedef struct {
     bool (*amp_fault)(unsigned axis);
 } servo_io_t;
 
+/* Optional one-call forms of set_mv and amp_fault (hal_motor_set_mv_all,
+ * hal_amp_fault_mask), installed by servo_set_io_all: when set, used
+ * instead of them (one call per tick for all axes, the same values in axis
+ * order). */
+typedef void (*servo_set_mv_all_fn)(const int32_t *millivolts, unsigned axes);
+typedef uint32_t (*servo_amp_fault_mask_fn)(unsigned axes);
+
 typedef struct {
     pos_nm_t pos[CORE_AXES]; /* measured position, nm                 */
     uint32_t enc_fault;      /* bit i: encoder of axis i is faulted   */
@@ -143,14 +158,19 @@ typedef struct {
 typedef struct {
     servo_params_t p;
     servo_io_t io;
+    servo_set_mv_all_fn set_mv_all;         /* servo_set_io_all; NULL: io.set_mv    */
+    servo_amp_fault_mask_fn amp_fault_mask; /* servo_set_io_all; NULL: io.amp_fault */
     pid_loop_t pid[CORE_AXES];
     cec_t cec;
     /* state (tick) */
     servo_state_t state;
     uint32_t off_mask;            /* axes whose outputs are disabled          */
     pos_nm_t ref_pos[CORE_AXES];  /* reference used in the last tick, nm      */
-    int64_t ref_vel[CORE_AXES];   /* ... nm/s                                 */
-    int64_t ref_acc[CORE_AXES];   /* ... nm/s^2                               */
+    int64_t ref_vel[CORE_AXES];   /* ... nm/s (the stop ramp starts from it;
+                                   * the acceleration is not kept: the loops
+                                   * take it from the tick's reference)      */
+    uint32_t ferr_max[CORE_AXES]; /* servo_config: ferr limit, 2^31 - 1 when off */
+    uint32_t sat_max;             /* servo_config: sat_limit_ticks, or UINT32_MAX when off */
     pos_nm_t stop_pos[CORE_AXES]; /* stop ramp / hold position, nm            */
     int64_t stop_v0[CORE_AXES];   /* velocity at the start of the stop, nm/s  */
     int64_t stop_rem[CORE_AXES];  /* position remainder, nm * N * f           */
@@ -184,6 +204,10 @@ const char *servo_strerror(servo_err_t err);
 
 /* Zero s, install io, configure; state OFF. */
 servo_err_t servo_init(servo_t *s, const servo_params_t *p, const servo_io_t *io);
+/* Install (or remove, NULL) the one-call output and fault-input forms
+ * (after servo_init, which clears them). Main context, tick not running. */
+void servo_set_io_all(servo_t *s, servo_set_mv_all_fn set_mv_all,
+                      servo_amp_fault_mask_fn amp_fault_mask);
 
 /* OFF -> HOLD at fb's positions, outputs on (bumpless from 0 mV).
  * SERVO_ERR_STATE when faults are latched or the state is not OFF. */

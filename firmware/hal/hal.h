@@ -43,6 +43,13 @@ void hal_motor_enable(unsigned axis, bool on);
 /* Amplifier fault input (true = fault). Tick context. */
 bool hal_amp_fault(unsigned axis);
 
+/* One call per tick for all axes (the servo's usual path): the commands of
+ * axes 0..n-1, exactly as hal_motor_set_mv(i, mv[i]) in axis order, and the
+ * fault inputs of axes 0..n-1 as bits (bit i = hal_amp_fault(i)). n <=
+ * HAL_MAX_AXES. Tick context. */
+void hal_motor_set_mv_all(const int32_t *mv, unsigned n);
+uint32_t hal_amp_fault_mask(unsigned n);
+
 /* ---- host link ----------------------------------------------------------- */
 
 /* Non-blocking UART: returns bytes accepted / read (0 when none). Main. */

@@ -525,7 +525,7 @@ static void test_ramp_skip_matches_stepping_every_tick(void)
         for (n = 0; n < (uint32_t)seq[k][1]; n++) {
             s.vel_ref[1] = seq[k][0];
             comp_ramp_step(&ref, seq[k][0]);
-            calib_tick(&s);
+            calib_tick(&s, s.vel_ref);
             TEST_ASSERT_EQUAL_INT32(ref.w_q30, act->dir_src->w_q30);
             TEST_ASSERT_EQUAL_INT8(ref.dir, act->dir_src->dir);
         }

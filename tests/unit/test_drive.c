@@ -16,6 +16,7 @@
  *   - parameter API: ranges, busy while moving, nothing half applied, and the
  *     new limits are what the planner uses.
  */
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -858,12 +859,141 @@ static void test_pos_only_reference_copy_equals_the_full_copy(void)
     fr_cec = false;
 }
 
+/* The arc overlay's cruise recurrence (drive.h, "Arc overlay on cruise
+ * ticks") against the exact overlay (drive_test_arc_exact, the oracle) on
+ * the same job: the reference of every tick (position, velocity,
+ * acceleration, tangent, radius of the two plane axes) within the bounds
+ * drive.h states. Two jobs: a helix like the firmware benchmark's (5 mm
+ * radius, short chords) and three chords of the maximum angle
+ * DRIVE_ARC_SEG_MAX_ANGLE at a radius near the fast path's 2^31 nm limit,
+ * each thousands of ticks long (re-anchoring every DRIVE_ARC_ROT_TICKS).
+ * Fails with a wrong step (e.g. without the interpolator's length
+ * correction or the remainder of the step), a drifting rotation, or when
+ * the recurrence is not in use at all. */
+#define RC_TICKS 40000u
+typedef struct {
+    int64_t pos[2], vel[2], acc[2], tan[2], rad;
+} rc_out_t;
+static rc_out_t rc_out[RC_TICKS];
+
+typedef struct {
+    int64_t pos, vel, acc, tan; /* largest differences                    */
+    double rel;                 /* largest difference / its bound         */
+    uint32_t differ, ticks;     /* ticks with some difference, arc ticks */
+} rc_diff_t;
+
+/* |x| / bound, kept in d->rel when larger */
+static void rc_rel(rc_diff_t *d, int64_t x, double bound)
+{
+    double q = (double)(x < 0 ? -x : x) / bound;
+    d->rel = q > d->rel ? q : d->rel;
+}
+
+static void rc_job(bool exact, int64_t radius, int64_t feed, int64_t chord_nm, uint32_t sweep_q16,
+                   uint32_t ticks, rc_diff_t *d)
+{
+    /* start at the origin, centre (-radius, 0); end after sweep_q16 / 2^16
+     * turns (0: a full circle), climbing 0.3 mm */
+    int64_t end[CORE_AXES] = {0, 0, 300000};
+    const motion_ref_t *r = drive_test_ref();
+    uint32_t k;
+    int res, i;
+
+    if (sweep_q16 != 0) {
+        double a = 6.283185307179586 * sweep_q16 / 65536.0;
+        end[0] = (int64_t)(radius * cos(a)) - radius;
+        end[1] = (int64_t)(radius * sin(a));
+    }
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 3));
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_ARC_CHORD, 0, chord_nm));
+    drive_test_arc_exact(exact);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_arc(end, feed, DRIVE_PLANE_XY, -radius, 0, 1, 2, &res));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, res);
+    for (k = 0; k < ticks; k++) {
+        rc_out_t *o = &rc_out[k];
+        TEST_ASSERT_TRUE(sim_run(1, NULL, 0, 0) >= 0);
+        if (exact) {
+            for (i = 0; i < 2; i++) {
+                o->pos[i] = r->pos[i];
+                o->vel[i] = r->vel[i];
+                o->acc[i] = r->acc[i];
+                o->tan[i] = r->geom.tangent[i];
+            }
+            o->rad = r->geom.kind == MOTION_GEOM_ARC ? r->geom.radius : -1;
+            continue;
+        }
+        if (o->rad != (r->geom.kind == MOTION_GEOM_ARC ? r->geom.radius : -1)) {
+            d->differ++; /* counted, and the radius must agree below */
+        }
+        TEST_ASSERT_INT64_WITHIN(1, o->rad, r->geom.kind == MOTION_GEOM_ARC ? r->geom.radius : -1);
+        if (o->rad < 0) {
+            continue;
+        }
+        d->ticks++;
+        {
+            bool diff = false;
+            /* drive.h's bounds: eps = (2 nm + r 2^-28) / r */
+            double eps = (2.0 + (double)o->rad / (1 << 28)) / (double)o->rad;
+            double vm = hypot((double)o->vel[0], (double)o->vel[1]);
+            double am = hypot((double)o->acc[0], (double)o->acc[1]);
+            for (i = 0; i < 2; i++) {
+                int64_t dp = o->pos[i] - r->pos[i], dv = o->vel[i] - r->vel[i];
+                int64_t da = o->acc[i] - r->acc[i], dt = o->tan[i] - r->geom.tangent[i];
+                rc_rel(d, dp, eps * (double)o->rad);
+                rc_rel(d, dv, 2.0 + eps * vm);
+                rc_rel(d, da, 2.0 + eps * am);
+                rc_rel(d, dt, 2.0 + eps * (double)(1 << 30));
+                diff = diff || dp != 0 || dv != 0 || da != 0 || dt != 0;
+                d->pos = dp < 0 && -dp > d->pos ? -dp : (dp > d->pos ? dp : d->pos);
+                d->vel = dv < 0 && -dv > d->vel ? -dv : (dv > d->vel ? dv : d->vel);
+                d->acc = da < 0 && -da > d->acc ? -da : (da > d->acc ? da : d->acc);
+                d->tan = dt < 0 && -dt > d->tan ? -dt : (dt > d->tan ? dt : d->tan);
+            }
+            d->differ += diff ? 1u : 0u;
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT32(0, st.faults);
+    drive_test_arc_exact(false);
+}
+
+static void rc_compare(int64_t radius, int64_t feed, int64_t chord_nm, uint32_t sweep_q16,
+                       uint32_t ticks, rc_diff_t *d)
+{
+    memset(d, 0, sizeof *d);
+    rc_job(true, radius, feed, chord_nm, sweep_q16, ticks, d);
+    rc_job(false, radius, feed, chord_nm, sweep_q16, ticks, d);
+    printf("arc recurrence r=%lld: %u arc ticks, %u differ; max |dpos| %lld nm, |dvel| %lld "
+           "nm/s, |dacc| %lld nm/s^2, |dtan| %lld q30; worst %.3f of the bound\n",
+           (long long)radius, d->ticks, d->differ, (long long)d->pos, (long long)d->vel,
+           (long long)d->acc, (long long)d->tan, d->rel);
+}
+
+static void test_arc_recurrence_stays_within_its_bound_of_the_exact_overlay(void)
+{
+    rc_diff_t d;
+
+    /* the benchmark's helix: 5 mm at 20 mm/s, chords of a few tens of ticks */
+    rc_compare(5000000, 20000000, 100, 0, 17000u, &d);
+    TEST_ASSERT_TRUE(d.ticks > 15000u);
+    TEST_ASSERT_TRUE(d.differ > d.ticks / 4u); /* the recurrence is in use */
+    TEST_ASSERT_TRUE(d.rel <= 1.0);
+    /* three chords of the maximum angle (the chord tolerance above the
+     * radius), 1.9e9 nm radius at 150 mm/s: about 12000 ticks each */
+    rc_compare(1900000000, 150000000, 1000000000, 3u * 65536u / 64u, RC_TICKS, &d);
+    TEST_ASSERT_TRUE(d.ticks > 35000u);
+    TEST_ASSERT_TRUE(d.differ > d.ticks / 4u);
+    TEST_ASSERT_TRUE(d.rel <= 1.0);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_block_queued_right_after_enable_runs);
     RUN_TEST(test_reciprocal_fraction_equals_the_division);
     RUN_TEST(test_reference_scale_samples_and_wrap_guard);
+    RUN_TEST(test_arc_recurrence_stays_within_its_bound_of_the_exact_overlay);
     RUN_TEST(test_pos_only_reference_copy_equals_the_full_copy);
     RUN_TEST(test_enable_queue_poll_before_the_first_tick);
     RUN_TEST(test_status_reports_planned_time_queued);

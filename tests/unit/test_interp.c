@@ -280,12 +280,72 @@ static void test_random_path_smooth_corner(void)
     TEST_ASSERT_TRUE(r.total_ticks_ok);
 }
 
+/* interp_t.fast_skip (the drive's arc recurrence rewrites the plane axes):
+ * set again after every tick, a fast-path tick leaves the skipped axis of
+ * the reference unwritten and gives the others exactly; every other tick
+ * clears it and writes every axis exactly, and the job ends exactly on its
+ * end point (the hold position is written where it is read). Fails when a
+ * skipped axis is written, or a general tick keeps skipping. */
+static void test_fast_skip_leaves_only_the_skipped_axes(void)
+{
+    static plan_block_t store[16];
+    plan_profile_t prof = pc_profile(SC_SHAPE_SCURVE);
+    plan_t p;
+    interp_t ip;
+    motion_ref_t ref, chk;
+    plan_move_t m;
+    const pos_nm_t o[CORE_AXES] = {-5, 7, 11};
+    static const int64_t tgt[][3] = {{40000000, 3, -1}, {400123, 25000007, 9999}};
+    uint32_t skipped = 0, general = 0;
+    int k, n = 0;
+
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&p, store, 16, &prof, o));
+    for (k = 0; k < 2; k++) {
+        memset(&m, 0, sizeof(m));
+        m.target[0] = tgt[k][0];
+        m.target[1] = tgt[k][1];
+        m.target[2] = tgt[k][2];
+        m.feed = 100000000;
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&p, &m));
+    }
+    interp_init(&ip, 100000, o);
+    while (interp_refill(&ip, &p) != 0) {
+    }
+    memset(&ref, 0, sizeof(ref));
+    do {
+        int64_t before = ref.pos[1];
+        n++;
+        interp_tick(&ip, &ref);
+        if (ip.busy && ip.fifo[ip.rd & (INTERP_FIFO - 1)].dwell_ns == 0) {
+            ref_closed_form(&ip, &chk);
+            TEST_ASSERT_EQUAL_INT64(chk.pos[0], ref.pos[0]);
+            TEST_ASSERT_EQUAL_INT64(chk.pos[2], ref.pos[2]);
+            if (ip.ref_pos_only) {
+                TEST_ASSERT_EQUAL_INT64(before, ref.pos[1]);
+                skipped += chk.pos[1] != before ? 1u : 0u;
+            } else {
+                TEST_ASSERT_EQUAL_INT64(chk.pos[1], ref.pos[1]);
+                general++;
+            }
+        }
+        ip.fast_skip = 2u; /* axis 1, for the next fast-path ticks */
+        TEST_ASSERT_TRUE(n < 1000000);
+    } while (!interp_idle(&ip));
+    interp_tick(&ip, &ref); /* idle: the hold position */
+    TEST_ASSERT_TRUE(skipped > 1000u);
+    TEST_ASSERT_TRUE(general > 10u);
+    for (k = 0; k < CORE_AXES; k++) {
+        TEST_ASSERT_EQUAL_INT64(tgt[1][k], ref.pos[k]);
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_single_block_lands_exactly);
     RUN_TEST(test_geometry_and_feed_forward);
     RUN_TEST(test_cruise_increments_equal_closed_form);
+    RUN_TEST(test_fast_skip_leaves_only_the_skipped_axes);
     RUN_TEST(test_random_path_100k);
     RUN_TEST(test_random_path_trapezoid);
     RUN_TEST(test_random_path_smooth_corner);

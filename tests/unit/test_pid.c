@@ -5,6 +5,7 @@
 #include "unity.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -19,6 +20,10 @@ void tearDown(void)
 #define Q32(x) ((q32_32_t)llround((double)(x)*4294967296.0))
 
 __extension__ typedef __int128 i128;
+
+/* The fast path's stated bound against the general path (pid.h): 4 F,
+ * F = 2^21 U (mV * 2^-11). */
+#define FAST_TOL_U ((int64_t)4 << 21)
 
 static double coef_value(pid_coef_t c)
 {
@@ -546,15 +551,18 @@ static int64_t rnd64(void)
 }
 
 /* The D filter's product round(x * alpha / 2^30) (two 32-bit products in
- * pid.c) against the exact 128-bit value, on both paths, with D inputs
+ * pid.c) against the exact 128-bit value on the general path, with D inputs
  * from 1 nm to the int32 limit per tick and filter factors from 2^30 / 1001
- * to 2^30 / 2 (so |x| reaches the 2^61 of its stated range). */
+ * to 2^30 / 2 (so |x| reaches the 2^61 of its stated range); the fast
+ * path's 32-bit filter against the same exact recurrence within its stated
+ * bound (4 F), the large inputs taking the general path. */
 static void test_d_filter_product_exact(void)
 {
     static const double kd[] = {1e-3, 5, 1e3, 2e5};
     static const uint32_t tau_us[] = {10, 100, 10000};
     size_t g, t;
-    int fast, k, fast_runs = 0;
+    int fast, k, fast_runs = 0, fast_steps = 0;
+    int64_t exact;
 
     for (g = 0; g < sizeof kd / sizeof kd[0]; g++) {
         for (t = 0; t < sizeof tau_us / sizeof tau_us[0]; t++) {
@@ -569,11 +577,10 @@ static void test_d_filter_product_exact(void)
                 if (fast && !a.fast) {
                     continue; /* shifts outside the short path's range */
                 }
-                a.fast = fast != 0;
-                pid_refresh_ready(&a);
-                TEST_ASSERT_TRUE(a.ready == (fast != 0));
+                TEST_ASSERT_TRUE(!fast || a.ready);
                 fast_runs += fast;
                 TEST_ASSERT_TRUE(a.alpha_q30 < FX_ONE_Q30);
+                exact = pid_dterm(&a);
                 for (k = 0; k < 300; k++) {
                     int64_t r = rnd64();
                     int sh = (int)((uint64_t)r >> 59); /* 0..31 */
@@ -582,15 +589,28 @@ static void test_d_filter_product_exact(void)
                     int64_t draw = pid_coef_apply(a.cd, de), prev = a.dterm;
                     i128 x = (i128)draw - prev;
                     int64_t want = prev + (int64_t)((x * a.alpha_q30 + ((i128)1 << 29)) >> 30);
-                    pid_step(&a, next, next, 0, 0, 0);
-                    TEST_ASSERT_TRUE(x <= ((i128)1 << 61) && x >= -((i128)1 << 61));
-                    TEST_ASSERT_EQUAL_INT64(want, a.dterm);
+                    i128 xe = (i128)draw - exact;
+                    exact += (int64_t)((xe * a.alpha_q30 + ((i128)1 << 29)) >> 30);
+                    if (fast) {
+                        pid_step(&a, next, next, 0, 0, 0);
+                    } else {
+                        pid_step_general(&a, fx_sat_diff32(next, next), next, 0, 0, 0);
+                    }
+                    TEST_ASSERT_TRUE(fast || (x <= ((i128)1 << 61) && x >= -((i128)1 << 61)));
+                    if (fast) { /* 32-bit D: the stated bound against the exact filter */
+                        TEST_ASSERT_INT64_WITHIN(FAST_TOL_U, exact, pid_dterm(&a));
+                        fast_steps += a.dq_live;
+                    } else {
+                        TEST_ASSERT_EQUAL_INT64(want, a.dterm);
+                        TEST_ASSERT_EQUAL_INT64(exact, a.dterm);
+                    }
                     meas = next;
                 }
             }
         }
     }
     TEST_ASSERT_TRUE(fast_runs >= 6);
+    TEST_ASSERT_TRUE(fast_steps >= 6 * 250); /* mostly on the fast path */
 }
 
 /* The cached pid->ready equals fast && primed && enabled && !bumpless after
@@ -655,8 +675,8 @@ static void test_ready_cache_follows_inputs(void)
 
 /* From feed-forward gains (general path, ff != 0) to a fast configuration
  * on a running loop: the short path does not write ff, so the general step
- * the bumpless change forces must leave it 0; the outputs then equal a loop
- * stepped on the general path only. */
+ * the bumpless change forces must leave it 0; the outputs then stay within
+ * the fast path's bound of a loop stepped on the general path only. */
 static void test_fast_after_feed_forward_config(void)
 {
     pid_params_t p = params(1.5e3, 8e3, 5, 10000);
@@ -673,18 +693,26 @@ static void test_fast_after_feed_forward_config(void)
     TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &p));
     TEST_ASSERT_TRUE(a.fast && !a.ready);
     b = a;
-    b.fast = false;
-    pid_refresh_ready(&b);
     for (k = 0; k < 5; k++) {
         pid_step(&a, 2000 + k * 7, k, 300000000, 0, 0);
-        pid_step(&b, 2000 + k * 7, k, 300000000, 0, 0);
+        pid_step_general(&b, 2000 + k * 7 - k, k, 300000000, 0, 0); /* e = ref - meas */
         TEST_ASSERT_TRUE(a.ready);
         TEST_ASSERT_EQUAL_INT64(0, a.ff);
-        TEST_ASSERT_EQUAL_INT64(b.out, a.out);
-        TEST_ASSERT_EQUAL_INT64(b.integ, a.integ);
+        /* the fast path's bound (pid.h): 4 F = 2^23 U */
+        TEST_ASSERT_INT64_WITHIN(FAST_TOL_U, b.out, a.out);
+        TEST_ASSERT_INT64_WITHIN(FAST_TOL_U, b.integ, a.integ);
     }
 }
 
+/* The fast path against the general (exact) path: two loops from the same
+ * start, one stepped through pid_step / pid_step_fast / pid_step_fast0 (the
+ * fast path wherever it applies), the other through pid_step_general only,
+ * over errors across int32, measurements far apart (D inputs beyond the
+ * fast range: the general fallback and the hand-back), extra inputs up to
+ * and beyond the term clamp (saturation, back-calculation), both D sources,
+ * with and without the D filter, and gains and tick rates whose shifts span
+ * the range. Every step: out_mv within 1 mV, u (U), the integrator and the
+ * D term within the stated 4 F (pid.h). */
 static void test_fast_path_matches_general(void)
 {
     /* Kp, Ki, Kd, tick rate: shifts from 2 (1e5, 1e7, 1e3 at 100 Hz) to
@@ -693,64 +721,77 @@ static void test_fast_path_matches_general(void)
         {1.5e3, 8e3, 5, 5000}, {1e-3, 0.1, 1e-3, 100}, {1e5, 1e7, 1e3, 100},
         {4e4, 2e6, 100, 100},  {10, 100, 0.1, 5000},   {1e3, 1e5, 1, 100000},
     };
-    int fast_seen = 0, shifts[33] = {0}, fast0_runs = 0;
+    int fast_seen = 0, shifts[33] = {0}, fast0_runs = 0, fast_steps = 0, general_steps = 0;
+    int64_t worst_u = 0, worst_i = 0, worst_d = 0;
+    int worst_mv = 0;
     size_t g;
     int d, k;
 
     for (g = 0; g < sizeof gains / sizeof gains[0]; g++) {
-        {
-            for (d = 0; d < 4; d++) {
-                pid_params_t p =
-                    params(gains[g][0], gains[g][1], gains[g][2], (uint32_t)gains[g][3]);
-                pid_loop_t a, b, c;
-                p.d_on_measurement = (d & 1) != 0;
-                p.d_tau_us = (d & 2) ? 100u : 0u;
-                p.kt = Q32(10);
-                memset(&a, 0, sizeof a);
-                TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &p));
-                if (!a.fast) {
-                    continue;
+        for (d = 0; d < 4; d++) {
+            pid_params_t p = params(gains[g][0], gains[g][1], gains[g][2], (uint32_t)gains[g][3]);
+            pid_loop_t a, b;
+            pos_nm_t meas = 0;
+            p.d_on_measurement = (d & 1) != 0;
+            p.d_tau_us = (d & 2) ? 100u : 0u;
+            p.kt = Q32(10);
+            memset(&a, 0, sizeof a);
+            TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &p));
+            if (!a.fast) {
+                continue;
+            }
+            fast_seen++;
+            shifts[a.cp.sh]++;
+            shifts[a.ci.sh]++;
+            shifts[a.cd.sh]++;
+            pid_enable(&a, 0);
+            b = a;
+            for (k = 0; k < 2000; k++) {
+                int64_t r = rnd64();
+                int sel = (int)((uint64_t)r >> 60);
+                /* mostly small moves (the fast range), some far jumps */
+                pos_nm_t ref = meas + ((sel < 12) ? (r >> 50) : (sel < 14) ? (r >> 34) : (r >> 8));
+                pos_nm_t next = (sel == 15) ? rnd64() >> (k % 40) : meas + (rnd64() >> 52);
+                int64_t extra = (sel < 6) ? 0 : rnd64() >> (40 - (sel % 6) * 5);
+                int32_t e = fx_sat_diff32(ref, next);
+                int32_t u, ub;
+                bool was_ready = a.ready;
+                if (was_ready && extra == 0 && (k & 1)) {
+                    u = pid_step_fast0(&a, e, next);
+                    fast0_runs++;
+                } else if (was_ready && (k & 2)) {
+                    u = pid_step_fast(&a, e, next, extra);
+                } else {
+                    u = pid_step(&a, ref, next, 0, 0, extra);
                 }
-                fast_seen++;
-                shifts[a.cp.sh]++;
-                shifts[a.ci.sh]++;
-                shifts[a.cd.sh]++;
-                pid_enable(&a, 0);
-                for (k = 0; k < 400; k++) {
-                    int64_t r = rnd64();
-                    int sel = (int)((uint64_t)r >> 60);
-                    pos_nm_t ref = (sel < 4) ? (r >> 40) : (sel < 8) ? (r >> 20) : r;
-                    pos_nm_t meas = (sel & 1) ? ref - (rnd64() >> 44) : rnd64() >> (sel * 4);
-                    int64_t extra = (sel == 3) ? 0 : rnd64() >> (sel + 1);
-                    b = a;
-                    c = a;
-                    b.fast = false;
-                    pid_refresh_ready(&b); /* b: the general path */
-                    pid_step(&a, ref, meas, 0, 0, extra);
-                    pid_step(&b, ref, meas, 0, 0, extra);
-                    if (c.ready) { /* the extra-free entry (servo, quiet CEC) */
-                        int32_t e = fx_sat_diff32(ref, meas);
-                        int32_t u = (extra == 0) ? pid_step_fast0(&c, e, meas)
-                                                 : pid_step_fast(&c, e, meas, extra);
-                        TEST_ASSERT_EQUAL_INT32(a.out_mv, u);
-                        TEST_ASSERT_EQUAL_MEMORY(&a, &c, sizeof a);
-                        fast0_runs += extra == 0;
-                    }
-                    TEST_ASSERT_FALSE(b.ready);
-                    b.fast = true;
-                    pid_refresh_ready(&b);
-                    TEST_ASSERT_TRUE(a.ready); /* enabled, primed, not bumpless */
-                    TEST_ASSERT_EQUAL_INT32(b.out_mv, a.out_mv);
-                    TEST_ASSERT_TRUE(a.out == b.out && a.integ == b.integ && a.dterm == b.dterm &&
-                                     a.extra == b.extra);
-                    TEST_ASSERT_EQUAL_MEMORY(&b, &a, sizeof a);
-                }
+                fast_steps += was_ready && a.dq_live;
+                general_steps += !was_ready;
+                ub = pid_step_general(&b, e, next, 0, 0, extra);
+                TEST_ASSERT_EQUAL_INT32(a.out_mv, u);
+                TEST_ASSERT_INT_WITHIN(1, ub, u);
+                TEST_ASSERT_INT64_WITHIN(FAST_TOL_U, b.out, a.out);
+                TEST_ASSERT_INT64_WITHIN(FAST_TOL_U, b.integ, a.integ);
+                TEST_ASSERT_INT64_WITHIN(FAST_TOL_U, pid_dterm(&b), pid_dterm(&a));
+                TEST_ASSERT_EQUAL(b.saturated || a.saturated, a.saturated || b.saturated);
+                worst_mv = abs(u - ub) > worst_mv ? abs(u - ub) : worst_mv;
+                worst_u = llabs(a.out - b.out) > worst_u ? llabs(a.out - b.out) : worst_u;
+                worst_i = llabs(a.integ - b.integ) > worst_i ? llabs(a.integ - b.integ) : worst_i;
+                worst_d = llabs(pid_dterm(&a) - pid_dterm(&b)) > worst_d
+                              ? llabs(pid_dterm(&a) - pid_dterm(&b))
+                              : worst_d;
+                meas = next;
             }
         }
     }
-    TEST_ASSERT_TRUE(fast0_runs >= 100);               /* extra = 0 (sel 3) was covered */
+    printf("fast vs general: out %d mV, u %.3f F, I %.3f F, D %.3f F; %d fast, %d general steps\n",
+           worst_mv, (double)worst_u / (1 << 21), (double)worst_i / (1 << 21),
+           (double)worst_d / (1 << 21), fast_steps, general_steps);
+    TEST_ASSERT_TRUE(fast0_runs >= 100);               /* extra = 0 was covered */
+    TEST_ASSERT_TRUE(fast_steps >= 10000);             /* mostly on the fast path */
+    TEST_ASSERT_TRUE(general_steps >= 50);             /* and the fallback */
     TEST_ASSERT_EQUAL_INT(24, fast_seen);              /* every set takes the short path */
     TEST_ASSERT_TRUE(shifts[2] > 0 && shifts[28] > 0); /* both ends of the range */
+    TEST_ASSERT_TRUE(worst_u > 0);                     /* the paths do differ (by rounding) */
 }
 
 int main(void)

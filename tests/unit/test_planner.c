@@ -13,6 +13,8 @@
 #include <stdio.h>
 #include <string.h>
 
+__extension__ typedef unsigned __int128 u128;
+
 #define MM  1000000LL /* nm */
 #define MMS 1000000LL /* nm/s per mm/s */
 
@@ -839,7 +841,7 @@ static void test_axis_limits_projected(void)
  * equal and with different per-axis limits */
 static void test_block_limits_are_axis_minimum(void)
 {
-    int run, k, i;
+    int run, k, i, aaj_lo = 0;
     for (run = 0; run < 2; run++) {
         plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
         pos_nm_t pos[CORE_AXES] = {0, 0, 0};
@@ -885,11 +887,28 @@ static void test_block_limits_are_axis_minimum(void)
                     ej = j < ej ? j : ej;
                 }
             }
-            TEST_ASSERT_EQUAL_INT64(ev, b->lim.v_max);
-            TEST_ASSERT_EQUAL_INT64(ea, b->lim.a_max);
-            TEST_ASSERT_EQUAL_INT64(ej, b->lim.j_max);
+            if (run == 0) {
+                /* equal limits: one factor len / dm in q31, rounded down:
+                 * at most the exact floor, at most lim / 2^30 + 1 below */
+                TEST_ASSERT_TRUE(b->lim.v_max <= ev && b->lim.v_max >= ev - (ev >> 30) - 1);
+                TEST_ASSERT_TRUE(b->lim.a_max <= ea && b->lim.a_max >= ea - (ea >> 30) - 1);
+                TEST_ASSERT_TRUE(b->lim.j_max <= ej && b->lim.j_max >= ej - (ej >> 30) - 1);
+                /* the A^2/J kept for the reach is a lower bound of its floor */
+                if (b->rk.qc < 0) {
+                    u128 aa = (u128)b->lim.a_max * (u128)b->lim.a_max;
+                    TEST_ASSERT_TRUE(b->rk.q > 0);
+                    TEST_ASSERT_TRUE((u128)b->rk.q <= aa / (u128)b->lim.j_max);
+                    TEST_ASSERT_TRUE((u128)b->rk.q + 32 >= aa / (u128)b->lim.j_max);
+                    aaj_lo++;
+                }
+            } else {
+                TEST_ASSERT_EQUAL_INT64(ev, b->lim.v_max);
+                TEST_ASSERT_EQUAL_INT64(ea, b->lim.a_max);
+                TEST_ASSERT_EQUAL_INT64(ej, b->lim.j_max);
+            }
         }
     }
+    TEST_ASSERT_TRUE(aaj_lo > 1000); /* the lower-bound path is exercised */
 }
 
 /* The junction-deviation early exit (pl_jd_above) must give exactly the
@@ -971,6 +990,56 @@ static void test_limit_and_ratio_divisions(void)
     TEST_ASSERT_TRUE(fast > 50000); /* the 64-bit path is exercised */
 }
 
+/* the direction ratio from one reciprocal per block (plan_push): the exact
+ * floor (plan_test_ratio, the oracle) or one less, for every length up to
+ * SC_LEN_MAX = 2^40 and 0 <= a <= len; a == len gives 2^62 exactly */
+static void test_ratio_reciprocal(void)
+{
+    int i, below = 0;
+    TEST_ASSERT_EQUAL_INT64((int64_t)1 << 62, plan_test_ratio_rec(12345, 12345));
+    TEST_ASSERT_EQUAL_INT64(0, plan_test_ratio_rec(0, 12345));
+    TEST_ASSERT_EQUAL_INT64((int64_t)1 << 62, plan_test_ratio_rec(1, 1));
+    for (i = 0; i < 300000; i++) {
+        int64_t len = (int64_t)(rnd() >> (24 + rnd() % 40)) + 1, x, e, r;
+        if (i % 7 == 0) {
+            len = (int64_t)1 << (rnd() % 41); /* powers of two, 2^40 included */
+        }
+        x = (int64_t)(rnd() % (uint64_t)(len + 1));
+        e = plan_test_ratio(x, len);
+        r = plan_test_ratio_rec(x, len);
+        TEST_ASSERT_TRUE(r == e || r == e - 1);
+        below += (r != e) ? 1 : 0;
+    }
+    printf("ratio from the reciprocal one below the exact floor: %d of 300000\n", below);
+}
+
+/* the equal-limits factor len / dm in q31 (one reciprocal step and an
+ * exact remainder correction, no division helper) is the exact floor of
+ * l 2^31 / d with the operands cut to 31 bits as specified */
+static void test_len_factor_exact(void)
+{
+    int i;
+    for (i = 0; i < 300000; i++) {
+        int64_t dm = (int64_t)(rnd() >> (23 + rnd() % 40)) + 1, len, l, d;
+        unsigned b = 0;
+        u128 e;
+        if (i % 11 == 0) {
+            dm = (int64_t)1 << (rnd() % 40); /* powers of two */
+        }
+        len = dm + (int64_t)(rnd() % (uint64_t)(dm * 3 / 4 + 1)); /* dm <= len < 1.75 dm */
+        if (i % 13 == 0) {
+            len = dm;
+        }
+        while ((dm >> b) >= ((int64_t)1 << 31)) {
+            b++;
+        }
+        l = len >> b;
+        d = (b > 0) ? (dm >> b) + 1 : dm;
+        e = ((u128)l << 31) / (u128)d;
+        TEST_ASSERT_EQUAL_UINT32((uint32_t)e, plan_test_len_factor(len, dm));
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -998,5 +1067,7 @@ int main(void)
     RUN_TEST(test_block_limits_are_axis_minimum);
     RUN_TEST(test_jd_early_exit_matches_full);
     RUN_TEST(test_limit_and_ratio_divisions);
+    RUN_TEST(test_ratio_reciprocal);
+    RUN_TEST(test_len_factor_exact);
     return UNITY_END();
 }

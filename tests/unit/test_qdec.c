@@ -1236,6 +1236,71 @@ static void test_time_fault(void)
     TEST_ASSERT_EQUAL_UINT32(0, d.out.faults);
 }
 
+/* Samples without a counted edge keep the position and skip the scaling
+ * (qdec.h): an offset set between them (qdec_set_offset_nm), a compensation
+ * table installed or removed, or a table whose values change, all show in
+ * pos_nm at the next sample without an edge, exactly as on the reference
+ * path (a twin decoder with fast cleared). */
+static void test_idle_sample_follows_offset_and_comp(void)
+{
+    static const uint8_t seq4[4] = {0, 1, 3, 2};
+    static comp_table_t tab;
+    qdec_config_t c = edge_cfg(QDEC_X4);
+    qdec_t a, b;
+    uint32_t t = 1000;
+    unsigned k;
+
+    tab.n = 2;
+    tab.pos[0] = 0;
+    tab.pos[1] = 1000000;
+    tab.fwd[0] = 40;
+    tab.fwd[1] = 80;
+    tab.rev[0] = -10;
+    tab.rev[1] = -20;
+    TEST_ASSERT_EQUAL(COMP_OK, comp_table_check(&tab));
+    c.nm_per_count_num = 250;
+    TEST_ASSERT_TRUE(qdec_init(&a, &c, 0, t));
+    TEST_ASSERT_TRUE(qdec_init(&b, &c, 0, t));
+    b.fast = false;
+    for (k = 1; k <= 9; k++) { /* 9 counts forward, then samples without edges */
+        t += 1000;
+        qdec_edge(&a, seq4[k % 4u], t);
+        qdec_edge(&b, seq4[k % 4u], t);
+    }
+    t += 100000;
+    qdec_sample(&a, t);
+    qdec_sample(&b, t);
+    assert_same_out(&a, &b);
+    TEST_ASSERT_EQUAL_INT64(2250, a.out.pos_nm);
+    for (k = 0; k < 6; k++) {
+        t += 100000;
+        switch (k) {
+        case 1:
+            qdec_set_offset_nm(&a, 5000);
+            qdec_set_offset_nm(&b, 5000);
+            break;
+        case 2:
+            qdec_set_comp(&a, &tab);
+            qdec_set_comp(&b, &tab);
+            break;
+        case 3:
+            tab.fwd[0] = 400; /* the table changes under the decoder */
+            break;
+        case 4:
+            qdec_set_comp(&a, NULL);
+            qdec_set_comp(&b, NULL);
+            break;
+        default:
+            break;
+        }
+        qdec_sample(&a, t);
+        qdec_sample(&b, t);
+        assert_same_out(&a, &b);
+    }
+    TEST_ASSERT_EQUAL_INT64(7250, a.out.pos_nm); /* offset kept, table removed */
+    TEST_ASSERT_EQUAL_INT64(9, a.out.pos);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -1263,6 +1328,7 @@ int main(void)
     RUN_TEST(test_config_rejected);
     RUN_TEST(test_time_fault);
     RUN_TEST(test_sample_fast_equals_reference);
+    RUN_TEST(test_idle_sample_follows_offset_and_comp);
     RUN_TEST(test_velocity_short_record_stays);
     return UNITY_END();
 }

@@ -18,6 +18,7 @@
  *   resolution shows) and at most 5 % otherwise (set
  *   SCURVE_REPORT=1 for the measured worst cases).
  */
+#include "fixmath.h"
 #include "scurve.h"
 #include "unity.h"
 
@@ -638,6 +639,129 @@ static void test_dist_fits_matches_dist(void)
     }
 }
 
+/* the reduced S-curve reach's closed form (cube root from rest, Pade and
+ * one Newton step from v > 0): where it applies, feasible by the exact
+ * distance (sc_dist <= d, no slack), never above the exact reach, its gain
+ * at least (1 - 2^-14 - 2e-5) of the exact gain minus 3 nm/s, and what
+ * sc_reach returns; the planner's bench chords (0.2 mm, J 1.2e12 nm/s^3)
+ * among the cases */
+static void test_reach_closed_form(void)
+{
+    int i, used = 0, used_v = 0;
+    double worst = 1;
+    for (i = 0; i < 200000; i++) {
+        sc_limits_t l = random_limits(SC_SHAPE_SCURVE);
+        int64_t v, d, rc;
+        double re;
+        if (i % 5 == 0) { /* the bench's chords */
+            l.v_max = 50000000;
+            l.a_max = 10000000000 + (int64_t)(rng() % 7320000000u);
+            l.j_max = l.a_max * 100;
+            d = 200000 + (int64_t)(rng() % 10000);
+        } else {
+            d = rlog(8192, 2147483647);
+        }
+        v = (i % 4 == 0) ? 0 : (int64_t)(rng() % (uint64_t)l.v_max);
+        {
+            /* the per-block constants give sc_reach_pre's result, with the
+             * exact A^2/J and with a lower bound of it */
+            int64_t q, qc, ql;
+            sc_reach_k_t rk;
+            sc_limits_aaj(&l, &q, &qc);
+            sc_reach_k_init(&rk, d, &l, q, qc);
+            TEST_ASSERT_EQUAL_INT64(sc_reach_pre(v, d, &l, q, qc), sc_reach_k(v, &l, &rk));
+            ql = q - (int64_t)(rng() % 33);
+            sc_reach_k_init(&rk, d, &l, ql, -1);
+            TEST_ASSERT_EQUAL_INT64(sc_reach_pre(v, d, &l, ql, -1), sc_reach_k(v, &l, &rk));
+        }
+        rc = sc_test_reach_closed_only(v, d, &l);
+        if (rc < 0) {
+            continue;
+        }
+        used++;
+        used_v += (v > 0) ? 1 : 0;
+        re = reach_exact((double)v, (double)d, &l);
+        TEST_ASSERT_TRUE(rc >= v && rc <= l.v_max);
+        TEST_ASSERT_TRUE_MESSAGE(sc_dist(v, rc, &l) <= d, "closed-form reach infeasible");
+        TEST_ASSERT_TRUE_MESSAGE((double)rc <= re + 1e-9 * re + 1, "closed-form reach above exact");
+        TEST_ASSERT_EQUAL_INT64(rc, sc_reach(v, d, &l));
+        if (re - (double)v > 1000) {
+            double gain = ((double)rc - (double)v) / (re - (double)v);
+            worst = fmin(worst, gain);
+            TEST_ASSERT_TRUE_MESSAGE((double)(rc - v) >=
+                                         (re - (double)v) * (1 - 1.0 / 16384 - 2e-5) - 3,
+                                     "closed-form reach loses more than its margin");
+        }
+    }
+    printf("closed-form reach used in %d of 200000 cases (%d from v > 0), worst gain %.7f\n", used,
+           used_v, worst);
+    TEST_ASSERT_TRUE(used > 40000 && used_v > 20000);
+}
+
+/* a cruise-only block (entered and left at its cap): cruise time and end
+ * distance without a 128-bit product (one 64/32 division, the exact
+ * residual, a multiply for the division by 10^9) equal the multiply-divide
+ * forms t3 = round(len NS / v), s_end = floor(v 2^16 t3 / NS) */
+static void test_cruise_block_time_and_distance(void)
+{
+    int i;
+    for (i = 0; i < 200000; i++) {
+        sc_limits_t l = random_limits((uint8_t)(i % 3));
+        int64_t len = rlog(1, (i % 4 == 0) ? ((int64_t)1 << 40) : 10000000000), t3;
+        sc_profile_t p;
+        l.v_max = (i % 7 == 0) ? SC_V_LIMIT - (int64_t)(rng() % 1000) : rlog(1000, SC_V_LIMIT);
+        sc_plan(&p, len, l.v_max, l.v_max, &l);
+        t3 = (sc_muldiv(2 * len, 1000000000, l.v_max) + 1) / 2;
+        TEST_ASSERT_EQUAL_INT64(t3, p.t_ns[3]);
+        TEST_ASSERT_EQUAL_INT64(t3, p.total_ns);
+        TEST_ASSERT_EQUAL_INT64(sc_muldiv(l.v_max * 65536, t3, 1000000000), p.s_end_q16);
+        TEST_ASSERT_EQUAL_INT64(p.s_end_q16, p.start[6].s_q16);
+        {
+            /* the planner's form with the kept reciprocal of the speed */
+            sc_profile_t r;
+            int ph;
+            sc_plan_cruise_rec(&r, len, l.v_max, &l, sc_cruise_recip(l.v_max));
+            TEST_ASSERT_EQUAL_INT64(p.total_ns, r.total_ns);
+            TEST_ASSERT_EQUAL_INT64(p.s_end_q16, r.s_end_q16);
+            TEST_ASSERT_EQUAL_INT64(p.vp, r.vp);
+            for (ph = 0; ph < SC_PHASES; ph++) {
+                TEST_ASSERT_EQUAL_INT64(p.t_ns[ph], r.t_ns[ph]);
+                TEST_ASSERT_EQUAL_INT64(p.jerk[ph], r.jerk[ph]);
+                TEST_ASSERT_EQUAL_INT64(p.j6_q16[ph], r.j6_q16[ph]);
+                TEST_ASSERT_EQUAL_INT64(p.start[ph].s_q16, r.start[ph].s_q16);
+                TEST_ASSERT_EQUAL_INT64(p.start[ph].v_q16, r.start[ph].v_q16);
+                TEST_ASSERT_EQUAL_INT64(p.start[ph].a_q16, r.start[ph].a_q16);
+            }
+        }
+    }
+}
+
+/* fixmath's fx_udiv64by32 (appended for the planner): floor(n / d) when it
+ * fits 32 bits, UINT32_MAX otherwise, against the host's division */
+static void test_udiv64by32(void)
+{
+    int i;
+    TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, fx_udiv64by32(5, 0));
+    TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, fx_udiv64by32((uint64_t)7 << 32, 7));
+    TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, fx_udiv64by32(UINT64_MAX, UINT32_MAX));
+    TEST_ASSERT_EQUAL_UINT32(4294967295u, fx_udiv64by32(UINT64_MAX - UINT32_MAX - 1u, UINT32_MAX));
+    TEST_ASSERT_EQUAL_UINT32(
+        4294967294u,
+        fx_udiv64by32(((uint64_t)UINT32_MAX << 32) - 2u * (uint64_t)UINT32_MAX, UINT32_MAX));
+    for (i = 0; i < 1000000; i++) {
+        uint32_t d = (uint32_t)(rng() >> (32 + rng() % 32));
+        uint64_t n = rng() >> (rng() % 64);
+        if (d == 0u) {
+            d = 1u;
+        }
+        if ((n >> 32) >= d) {
+            TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, fx_udiv64by32(n, d));
+            n %= (uint64_t)d << 32;
+        }
+        TEST_ASSERT_EQUAL_UINT32((uint32_t)(n / d), fx_udiv64by32(n, d));
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -651,5 +775,8 @@ int main(void)
     RUN_TEST(test_reach_paths_and_helpers);
     RUN_TEST(test_plan_states_chain);
     RUN_TEST(test_dist_fits_matches_dist);
+    RUN_TEST(test_reach_closed_form);
+    RUN_TEST(test_cruise_block_time_and_distance);
+    RUN_TEST(test_udiv64by32);
     return UNITY_END();
 }

@@ -714,12 +714,105 @@ static void test_input_faults_without_and_with_callback(void)
     }
 }
 
+static int32_t mv_all_log[CORE_AXES];
+static unsigned mv_all_calls, mask_calls;
+
+static void fake_set_mv_all(const int32_t *mv, unsigned n)
+{
+    unsigned i;
+    TEST_ASSERT_TRUE(n <= CORE_AXES);
+    for (i = 0; i < n; i++) {
+        mv_all_log[i] = mv[i];
+    }
+    mv_all_calls++;
+}
+
+static uint32_t fake_amp_fault_mask(unsigned n)
+{
+    uint32_t m = 0;
+    unsigned i;
+    for (i = 0; i < n; i++) {
+        m |= amp_bad[i] ? 1u << i : 0u;
+    }
+    mask_calls++;
+    return m;
+}
+
+/* The usual tick (fast loops: default gains, no feed-forward, CEC off):
+ * every output equals the same loops stepped on their own through pid_step
+ * (the PID's fast path inline in the tick is the same code), some ticks
+ * saturating; a second servo with the one-call outputs and fault inputs
+ * (servo_set_io_all) gives the same commands with one call of each per tick,
+ * and the same amplifier fault reaction. */
+static void test_fast_tick_and_one_call_io(void)
+{
+    static servo_t s2;
+    servo_params_t p;
+    servo_fb_t fb, fb0;
+    pid_loop_t ref_pid[CORE_AXES];
+    motion_ref_t ref;
+    const int64_t v[CORE_AXES] = {100000000, -50000000, 20000000};
+    unsigned k, i, ready_ticks = 0, sat_ticks = 0;
+
+    servo_params_default(&p, HZ);
+    p.sat_limit_ticks = 0; /* saturation supervised elsewhere */
+    for (i = 0; i < CORE_AXES; i++) {
+        p.ferr_limit_nm[i] = 0; /* lags that saturate the outputs */
+    }
+    start(&p, &fb);
+    fb0 = fb;
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_init(&s2, &p, &io));
+    servo_set_io_all(&s2, fake_set_mv_all, fake_amp_fault_mask);
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_enable(&s2, &fb));
+    for (i = 0; i < CORE_AXES; i++) {
+        memset(&ref_pid[i], 0, sizeof ref_pid[i]);
+        TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&ref_pid[i], &p.axis[i]));
+        pid_enable(&ref_pid[i], 0);
+    }
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s2));
+    mv_all_calls = 0;
+    mask_calls = 0;
+    for (k = 0; k < 600; k++) {
+        ramp_ref(&ref, &fb0, v, k);
+        for (i = 0; i < CORE_AXES; i++) {
+            /* lagging, with jumps that saturate the outputs now and then */
+            pos_nm_t lag = (k % 97 < 3) ? 150000000 : 2000 + (pos_nm_t)((k * 37 + i * 11) % 500);
+            fb.pos[i] = ref.pos[i] - lag;
+        }
+        if (k == 500) {
+            amp_bad[1] = true;
+        }
+        servo_tick(&s, &ref, &fb);
+        servo_tick(&s2, &ref, &fb);
+        TEST_ASSERT_EQUAL_UINT32(k + 1, mv_all_calls);
+        TEST_ASSERT_EQUAL_UINT32(k + 1, mask_calls);
+        TEST_ASSERT_EQUAL_UINT32(s.faults, s2.faults);
+        TEST_ASSERT_EQUAL_INT(s.state, s2.state);
+        for (i = 0; i < CORE_AXES; i++) {
+            TEST_ASSERT_EQUAL_INT32(mv_log[i], mv_all_log[i]);
+            TEST_ASSERT_EQUAL_INT32(s.out_mv[i], s2.out_mv[i]);
+            if (k < 500) {
+                int32_t want = pid_step(&ref_pid[i], ref.pos[i], fb.pos[i], 0, 0, 0);
+                TEST_ASSERT_EQUAL_INT32(want, mv_log[i]);
+                sat_ticks += s.pid[i].saturated;
+            }
+        }
+        ready_ticks += s.pid[0].ready && s.pid[1].ready && s.pid[2].ready;
+    }
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_AMPLIFIER, s.faults);
+    TEST_ASSERT_EQUAL_INT32(0, mv_all_log[1]);
+    TEST_ASSERT_TRUE(ready_ticks >= 450); /* the fast path ran (until the fault) */
+    TEST_ASSERT_TRUE(sat_ticks > 0);      /* and saturated */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_enable_hold_is_bumpless);
     RUN_TEST(test_input_faults_without_and_with_callback);
     RUN_TEST(test_run_equals_the_loops);
+    RUN_TEST(test_fast_tick_and_one_call_io);
     RUN_TEST(test_cec_in_the_tick_and_handover);
     RUN_TEST(test_following_error_disables_everything);
     RUN_TEST(test_encoder_fault_controlled_stop);

@@ -277,6 +277,28 @@ bool hal_amp_fault(unsigned axis)
     return axis < lx.cfg.axes && lx.fault[axis];
 }
 
+void hal_motor_set_mv_all(const int32_t *mv, unsigned n)
+{
+    unsigned i;
+
+    for (i = 0; i < n; i++) {
+        hal_motor_set_mv(i, mv[i]);
+    }
+}
+
+uint32_t hal_amp_fault_mask(unsigned n)
+{
+    uint32_t m = 0;
+    unsigned i;
+
+    for (i = 0; i < n; i++) {
+        if (hal_amp_fault(i)) {
+            m |= 1u << i;
+        }
+    }
+    return m;
+}
+
 bool hal_encoder_counter(unsigned ch, uint32_t *count)
 {
     (void)ch;

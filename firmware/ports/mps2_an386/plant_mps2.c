@@ -164,6 +164,27 @@ bool hal_amp_fault(unsigned axis)
     return false;
 }
 
+void hal_motor_set_mv_all(const int32_t *mv, unsigned n)
+{
+    const int32_t *end = mv + ((n < HAL_MAX_AXES) ? n : HAL_MAX_AXES);
+    int32_t *out = pl.mv;
+
+    while (mv != end) {
+        int32_t v = *mv++;
+
+        if ((uint32_t)v + PLANT_MV_LIMIT > 2u * PLANT_MV_LIMIT) { /* |v| above the limit */
+            v = (v > 0) ? PLANT_MV_LIMIT : -PLANT_MV_LIMIT;
+        }
+        *out++ = v;
+    }
+}
+
+uint32_t hal_amp_fault_mask(unsigned n)
+{
+    (void)n;
+    return 0;
+}
+
 bool hal_encoder_counter(unsigned ch, uint32_t *count)
 {
     if (count == NULL || ch < pl.axes || ch >= 2u * pl.axes) {

@@ -99,6 +99,28 @@ bool hal_amp_fault(unsigned axis)
     return axis < HAL_MAX_AXES && sim.amp_fault[axis];
 }
 
+void hal_motor_set_mv_all(const int32_t *mv, unsigned n)
+{
+    unsigned i;
+
+    for (i = 0; i < n; i++) {
+        hal_motor_set_mv(i, mv[i]);
+    }
+}
+
+uint32_t hal_amp_fault_mask(unsigned n)
+{
+    uint32_t m = 0;
+    unsigned i;
+
+    for (i = 0; i < n; i++) {
+        if (hal_amp_fault(i)) {
+            m |= 1u << i;
+        }
+    }
+    return m;
+}
+
 int32_t hal_sim_motor_mv(unsigned axis)
 {
     if (axis >= HAL_MAX_AXES || !sim.enabled[axis]) {

@@ -66,5 +66,6 @@ int main(void)
     f4_set_tick_hook(tick);
     for (;;) {
         port_app_poll();
+        cm4_wfi(); /* until the next tick, USART2 or CAN interrupt */
     }
 }

@@ -27,5 +27,6 @@ int main(void)
     }
     for (;;) {
         port_boot_poll();
+        cm4_wfi(); /* until the next SysTick (1 kHz), USART2 or CAN interrupt */
     }
 }

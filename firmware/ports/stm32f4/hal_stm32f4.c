@@ -158,6 +158,29 @@ bool hal_amp_fault(unsigned axis)
     return !clk.hse_ok || !(F4_GPIO_IDR(F4_GPIO(F4_PE)) & (1u << (axis + 3u)));
 }
 
+void hal_motor_set_mv_all(const int32_t *mv, unsigned n)
+{
+    unsigned i;
+
+    for (i = 0; i < n && i < AXES; i++) {
+        hal_motor_set_mv(i, mv[i]);
+    }
+}
+
+uint32_t hal_amp_fault_mask(unsigned n)
+{
+    uint32_t m;
+
+    if (n > AXES) {
+        n = AXES;
+    }
+    m = (1u << n) - 1u;
+    if (!clk.hse_ok) {
+        return m;
+    }
+    return ~(F4_GPIO_IDR(F4_GPIO(F4_PE)) >> 3u) & m; /* fault inputs active low, PE3.. */
+}
+
 bool f4_clock_ok(void)
 {
     return clk.hse_ok;
@@ -568,6 +591,12 @@ void f4_board_init(uint32_t tick_hz, void (*hook)(void))
     clocks();
     clk.pwm_arr = clk.tim1_hz / PWM_HZ / 2u; /* 4200 at 168 MHz */
     peripherals();
+    if (!clk.hse_ok && tick_hz > F4_HSI_TICK_HZ_MAX) {
+        /* 16 MHz cannot carry a 10 kHz tick (about 1600 cycles each), and
+         * the axes are held off (hal_amp_fault): keep the time base, the
+         * encoder counts and the links at a tick the CPU can afford */
+        tick_hz = F4_HSI_TICK_HZ_MAX;
+    }
     tb.period_us = 1000000u / tick_hz;
     tb.load = clk.sysclk_hz / tick_hz - 1u;
     tb.ticks = 0;

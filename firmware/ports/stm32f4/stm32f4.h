@@ -28,12 +28,13 @@
 
 #include "cm4.h"
 
-#define F4_HSE_HZ      8000000u
-#define F4_SYSCLK_HZ   168000000u
-#define F4_APB1_HZ     42000000u
-#define F4_APB2_HZ     84000000u
-#define F4_HSI_HZ      16000000u /* the fallback when HSE or the PLL fails */
-#define F4_CLOCK_POLLS 100000u   /* bounded waits on clock and CAN ready bits */
+#define F4_HSE_HZ          8000000u
+#define F4_SYSCLK_HZ       168000000u
+#define F4_APB1_HZ         42000000u
+#define F4_APB2_HZ         84000000u
+#define F4_HSI_HZ          16000000u /* the fallback when HSE or the PLL fails */
+#define F4_CLOCK_POLLS     100000u   /* bounded waits on clock and CAN ready bits */
+#define F4_HSI_TICK_HZ_MAX 250u      /* SysTick rate cap on the HSI fallback */
 
 /* RCC */
 #define F4_RCC         0x40023800u
