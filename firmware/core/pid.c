@@ -24,24 +24,12 @@ static inline int64_t rsh(int64_t v, unsigned s)
     return (v >> s) + ((v >> (s - 1)) & 1); /* round half up, s >= 1 */
 }
 
-/* An int32 value the compiler must treat as a plain 32-bit register, so
- * the widening products below stay single SMULL/UMULL instructions (GCC
- * otherwise keeps some sign-extended values as 64-bit pairs and emits a
- * 64x64 multiply). No effect on the value. */
-static inline int32_t opaque32(int32_t v)
-{
-#if defined(__GNUC__)
-    __asm__("" : "+r"(v));
-#endif
-    return v;
-}
-
 /* round(a * b / 2^30) for |a| <= 2^61 and 0 <= b <= 2^30, without a 128-bit
  * product: a = ah * 2^32 + al with al unsigned; a * b = ah * b * 2^32 + al * b
  * (ah * b: one SMULL, al * b: one UMULL). */
 static inline int64_t mul_q30_pos(int64_t a, q1_30_t b)
 {
-    int32_t ah = opaque32((int32_t)(a >> 32)); /* |ah| <= 2^29 */
+    int32_t ah = pid_opaque32((int32_t)(a >> 32)); /* |ah| <= 2^29 */
     uint32_t al = (uint32_t)a;
     int64_t h = (int64_t)ah * b;              /* |h| <= 2^59 */
     uint64_t lo = (uint64_t)al * (uint32_t)b; /* < 2^62 */
