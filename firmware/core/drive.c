@@ -1662,11 +1662,23 @@ drive_result_t drive_fault_reset(void)
     return DRIVE_OK;
 }
 
+/* Keeps the compiler from moving plain loads across the st_seq reads (a
+ * volatile access orders only other volatile accesses). Only main needs
+ * it: the tick is an interrupt (or the same thread), so main never sees
+ * the tick half way; the tick's own stores need no ordering. */
+static inline void snapshot_barrier(void)
+{
+#if defined(__GNUC__)
+    __asm__ volatile("" ::: "memory");
+#endif
+}
+
 static void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t *ip_rem)
 {
     uint32_t s;
     do {
         s = drv.st_seq;
+        snapshot_barrier();
         *out = drv.st;
         status_live(out);
         /* the interpolator's read index and the time left in its current
@@ -1681,6 +1693,7 @@ static void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t *ip_rem)
                 *ip_rem = 0;
             }
         }
+        snapshot_barrier();
     } while ((s & 1u) != 0 || s != drv.st_seq);
 }
 

@@ -639,8 +639,8 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     plan_block_t *b;
     int64_t d[CORE_AXES], ratio[CORE_AXES], len = 0, vmax, amax, jmax, vj, aaj;
     int32_t u30[CORE_AXES];
-    int64_t ad[CORE_AXES];  /* |d| */
-    int64_t vc = INT64_MAX; /* smoothed-corner speed of the entry junction */
+    int64_t ad[CORE_AXES], dm; /* |d|, the largest of them */
+    int64_t vc = INT64_MAX;    /* smoothed-corner speed of the entry junction */
     uint8_t flags = 0;
     int i;
 
@@ -718,19 +718,20 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         }
     }
     aaj = -1;
-    if (p->same_limits) {
+    dm = ad[0];
+    for (i = 1; i < CORE_AXES; i++) {
+        dm = (ad[i] > dm) ? ad[i] : dm;
+    }
+    if (p->same_limits && dm < ((int64_t)1 << 31)) {
         /* equal limits on every axis: the longest component limits all
          * three (what pl_axis_limit picks), by one factor f = len / dm in
          * q31 (rounded down: each limit at most its exact floor and at
          * most lim / 2^30 + 1 below it); a lower bound of A^2/J from the
          * profile's a^2/j: (a f - 1)^2 / (j f) > a^2 f / j - 2 a / j and
-         * a / j <= 3 s */
-        int64_t dm = ad[0];
-        uint32_t f;
-        for (i = 1; i < CORE_AXES; i++) {
-            dm = (ad[i] > dm) ? ad[i] : dm;
-        }
-        f = pl_len_factor(len, dm);
+         * a / j <= 3 s. Components of 2^31 nm (2.1 m) and more take the
+         * exact path below: pl_len_factor cuts them to 31 bits, which
+         * loosens that bound. */
+        uint32_t f = pl_len_factor(len, dm);
         vmax = pl_min(m->feed, pl_scale31(p->prof.v_max[0], f));
         amax = pl_min(SC_A_LIMIT, pl_scale31(p->prof.a_max[0], f));
         jmax = pl_min(SC_J_LIMIT, pl_scale31(p->prof.j_max[0], f));

@@ -17,8 +17,9 @@
  * so every axis stays within its own limits inside the block. Different
  * per-axis limits: the exact floor(lim_b len / |delta_b|) of the limiting
  * axis b. Equal limits on every axis (one division per block instead of
- * three): lim f / 2^31 with f = len / max_i |delta_i| in q31 rounded down,
- * at most the exact floor and at most lim / 2^30 + 1 below it; the block
+ * three; components below 2^31 nm): lim f / 2^31 with f = len / max_i
+ * |delta_i| in q31 rounded down, at most the exact floor and at most
+ * lim / 2^30 + 1 below it (longer components: the exact floor); the block
  * then keeps a lower bound of floor(A^2/J) (within 32 of it) for the reach
  * instead of the exact pair. Direction ratios ratio_q62[i] =
  * floor(delta_i 2^62 / len) or one less (magnitude; delta_i = +-len gives

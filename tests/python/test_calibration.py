@@ -333,17 +333,29 @@ def test_drive_refusals_are_clear():
     with pytest.raises(DriveError) as exc:
         client.request("comp_commit", axis=1, length=len(record), crc=zlib.crc32(record))
     assert exc.value.fields["arg"] == pg.CalibStatus.DRIVE_ENABLED
-    rec_ok = run.upload(client, 1, em, wait=t.wait)
+    said: list[str] = []
+    rec_ok = run.upload(client, 1, em, wait=t.wait, notify=said.append)
     assert rec_ok["n"] == 1
+    assert len(said) == 1 and "unpowered" in said[0]  # the user is told first
     t.wait(0.01)
     assert client.status()["state"] == pg.State.READY
+    # a drive the user disabled is written as it is and stays disabled
+    client.enable(False)
+    t.wait(0.01)
+    em.points[0].mean_err_pos_mm = 0.4
+    rec2 = run.upload(client, 1, em, wait=t.wait, notify=said.append)
+    assert rec2["version"] == rec_ok["version"] + 1 and len(said) == 1
+    t.wait(0.01)
+    assert client.status()["state"] == pg.State.DISABLED
+    client.enable(True)
+    t.wait(0.01)
     # a faulted drive: refused before anything is sent, the table unchanged
     client.request("estop")
     t.wait(0.01)
     em.points[0].mean_err_pos_mm = 0.25
     with pytest.raises(UserError, match="reset the fault"):
         run.upload(client, 1, em, wait=t.wait)
-    assert client.request("comp_get", axis=1).fields["data_crc"] == rec_ok["data_crc"]
+    assert client.request("comp_get", axis=1).fields["data_crc"] == rec2["data_crc"]
 
 
 # ---- the command ------------------------------------------------------------------------------

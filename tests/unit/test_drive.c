@@ -889,37 +889,44 @@ static void rc_rel(rc_diff_t *d, int64_t x, double bound)
     d->rel = q > d->rel ? q : d->rel;
 }
 
+/* The arc of rc_job: plane (u, v, w axes) and sense (+1 ccw, -1 cw). */
+static drive_plane_t rc_plane = DRIVE_PLANE_XY;
+static int rc_sense = 1;
+
 static void rc_job(bool exact, int64_t radius, int64_t feed, int64_t chord_nm, uint32_t sweep_q16,
                    uint32_t ticks, rc_diff_t *d)
 {
-    /* start at the origin, centre (-radius, 0); end after sweep_q16 / 2^16
-     * turns (0: a full circle), climbing 0.3 mm */
-    int64_t end[CORE_AXES] = {0, 0, 300000};
+    /* start at the origin, centre (-radius, 0) in the plane; end after
+     * sweep_q16 / 2^16 turns (0: a full circle), climbing 0.3 mm along w */
+    static const uint8_t uvw[3][3] = {{0, 1, 2}, {2, 0, 1}, {1, 2, 0}}; /* XY, ZX, YZ */
+    const uint8_t *ax = uvw[rc_plane];
+    int64_t end[CORE_AXES] = {0, 0, 0};
     const motion_ref_t *r = drive_test_ref();
     uint32_t k;
     int res, i;
 
+    end[ax[2]] = 300000;
     if (sweep_q16 != 0) {
         double a = 6.283185307179586 * sweep_q16 / 65536.0;
-        end[0] = (int64_t)(radius * cos(a)) - radius;
-        end[1] = (int64_t)(radius * sin(a));
+        end[ax[0]] = (int64_t)(radius * cos(a)) - radius;
+        end[ax[1]] = (int64_t)(rc_sense * radius * sin(a));
     }
     TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 3));
     TEST_ASSERT_EQUAL_INT(0, sim_start());
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_ARC_CHORD, 0, chord_nm));
     drive_test_arc_exact(exact);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
-    TEST_ASSERT_EQUAL_INT(0, sim_queue_arc(end, feed, DRIVE_PLANE_XY, -radius, 0, 1, 2, &res));
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_arc(end, feed, rc_plane, -radius, 0, rc_sense, 2, &res));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, res);
     for (k = 0; k < ticks; k++) {
         rc_out_t *o = &rc_out[k];
         TEST_ASSERT_TRUE(sim_run(1, NULL, 0, 0) >= 0);
         if (exact) {
             for (i = 0; i < 2; i++) {
-                o->pos[i] = r->pos[i];
-                o->vel[i] = r->vel[i];
-                o->acc[i] = r->acc[i];
-                o->tan[i] = r->geom.tangent[i];
+                o->pos[i] = r->pos[ax[i]];
+                o->vel[i] = r->vel[ax[i]];
+                o->acc[i] = r->acc[ax[i]];
+                o->tan[i] = r->geom.tangent[ax[i]];
             }
             o->rad = r->geom.kind == MOTION_GEOM_ARC ? r->geom.radius : -1;
             continue;
@@ -939,8 +946,8 @@ static void rc_job(bool exact, int64_t radius, int64_t feed, int64_t chord_nm, u
             double vm = hypot((double)o->vel[0], (double)o->vel[1]);
             double am = hypot((double)o->acc[0], (double)o->acc[1]);
             for (i = 0; i < 2; i++) {
-                int64_t dp = o->pos[i] - r->pos[i], dv = o->vel[i] - r->vel[i];
-                int64_t da = o->acc[i] - r->acc[i], dt = o->tan[i] - r->geom.tangent[i];
+                int64_t dp = o->pos[i] - r->pos[ax[i]], dv = o->vel[i] - r->vel[ax[i]];
+                int64_t da = o->acc[i] - r->acc[ax[i]], dt = o->tan[i] - r->geom.tangent[ax[i]];
                 rc_rel(d, dp, eps * (double)o->rad);
                 rc_rel(d, dv, 2.0 + eps * vm);
                 rc_rel(d, da, 2.0 + eps * am);
@@ -985,6 +992,19 @@ static void test_arc_recurrence_stays_within_its_bound_of_the_exact_overlay(void
     TEST_ASSERT_TRUE(d.ticks > 35000u);
     TEST_ASSERT_TRUE(d.differ > d.ticks / 4u);
     TEST_ASSERT_TRUE(d.rel <= 1.0);
+    /* clockwise, and the other two planes (the signs of the step and of the
+     * tangent, other axis mappings): a quarter of the helix each */
+    rc_sense = -1;
+    rc_compare(5000000, 20000000, 100, 65536u / 4u, 5000u, &d);
+    TEST_ASSERT_TRUE(d.ticks > 3500u && d.differ > d.ticks / 4u && d.rel <= 1.0);
+    rc_plane = DRIVE_PLANE_ZX;
+    rc_compare(5000000, 20000000, 100, 65536u / 4u, 5000u, &d);
+    TEST_ASSERT_TRUE(d.ticks > 3500u && d.differ > d.ticks / 4u && d.rel <= 1.0);
+    rc_sense = 1;
+    rc_plane = DRIVE_PLANE_YZ;
+    rc_compare(5000000, 20000000, 100, 65536u / 4u, 5000u, &d);
+    TEST_ASSERT_TRUE(d.ticks > 3500u && d.differ > d.ticks / 4u && d.rel <= 1.0);
+    rc_plane = DRIVE_PLANE_XY;
 }
 
 int main(void)

@@ -613,6 +613,52 @@ static void test_d_filter_product_exact(void)
     TEST_ASSERT_TRUE(fast_steps >= 6 * 250); /* mostly on the fast path */
 }
 
+/* The fast path's 32-bit D filter at the smallest filter factor (the
+ * longest time constant, PID_DFILT_US_MAX, at the fastest tick): its error
+ * accumulates over about 1 / alpha steps, the worst case of pid.h's bound.
+ * One million steps of a slowly wandering measurement against the exact
+ * recurrence: within 4 F at every step. */
+static void test_d_filter_bound_at_the_longest_time_constant(void)
+{
+    pid_params_t p = params(1e3, 1e4, 2e3, PID_TICK_HZ_MAX);
+    pid_loop_t a;
+    pos_nm_t meas = 0;
+    int64_t exact, worst = 0;
+    int32_t v = 0;
+    int k, live = 0;
+
+    p.d_on_measurement = true;
+    p.d_tau_us = PID_DFILT_US_MAX;
+    start(&a, &p);
+    pid_step(&a, 0, 0, 0, 0, 0);
+    TEST_ASSERT_TRUE(a.fast && a.alpha_q30 < 1200); /* about 2^30 / 1e6 */
+    exact = pid_dterm(&a);
+    for (k = 0; k < 1000000; k++) {
+        int64_t r = rnd64(), d;
+        pos_nm_t next;
+        int32_t de;
+        i128 xe;
+        v += (int32_t)(r % 7) - 3; /* nm per tick, a random walk */
+        if (v > 2000 || v < -2000) {
+            v = 0;
+        }
+        next = meas + v;
+        de = fx_sat_diff32(meas, next);
+        xe = (i128)pid_coef_apply(a.cd, de) - exact;
+        exact += (int64_t)((xe * a.alpha_q30 + ((i128)1 << 29)) >> 30);
+        pid_step(&a, next, next, 0, 0, 0);
+        live += a.dq_live;
+        d = pid_dterm(&a) - exact;
+        d = d < 0 ? -d : d;
+        worst = d > worst ? d : worst;
+        meas = next;
+    }
+    printf("D filter at alpha_q30 %d: worst %.3f F over 1e6 steps (bound 4 F)\n", (int)a.alpha_q30,
+           (double)worst / (double)((int64_t)1 << 21));
+    TEST_ASSERT_TRUE(live > 900000); /* on the fast path */
+    TEST_ASSERT_TRUE(worst <= FAST_TOL_U);
+}
+
 /* The cached pid->ready equals fast && primed && enabled && !bumpless after
  * every call that writes one of them (config on a new and on a running loop,
  * enable, steps, both resets, disable), for a fast and a deadband (not fast)
@@ -820,5 +866,6 @@ int main(void)
     RUN_TEST(test_fast_after_feed_forward_config);
     RUN_TEST(test_fast_path_matches_general);
     RUN_TEST(test_d_filter_product_exact);
+    RUN_TEST(test_d_filter_bound_at_the_longest_time_constant);
     return UNITY_END();
 }

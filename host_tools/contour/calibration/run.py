@@ -34,6 +34,7 @@ SAMPLE = struct.Struct("<IHBBiii")
 FLAG_NEG, FLAG_NO_REF, FLAG_FAULT = 1, 2, 4
 READ_MAX = 11
 CHUNK = 224
+COMMIT_TIMEOUT_S = 5.0  # comp_commit answers after the flash write (erase: up to 2 s)
 
 
 @dataclass
@@ -326,6 +327,7 @@ def upload(
     ramp_us: int = 20000,
     wait: Callable[[float], None] = time.sleep,
     timeout_s: float = 2.0,
+    notify: Optional[Callable[[str], None]] = None,
 ) -> dict:
     """Send the compensation table and make it active (comp_write chunks,
     comp_commit with the record's CRC-32); checks what the drive reports.
@@ -333,8 +335,8 @@ def upload(
     The drive writes tables to flash only while disabled (a flash write
     stalls a single-bank MCU's control tick): a drive enabled at rest is
     disabled for the commit and enabled again afterwards, also when the
-    commit is refused. A moving or faulted drive is refused before anything
-    is sent."""
+    commit is refused (``notify`` gets a line before the axes go off). A
+    moving or faulted drive is refused before anything is sent."""
     record = encode_record(corrections_nm(errmap), axis, ramp_us=ramp_us)
     state = _drive_state(client)
     if state in (pg.State.RUNNING, pg.State.STOPPING):
@@ -354,23 +356,43 @@ def upload(
                 f"drive staged {w['len']} bytes at {w['offset']}, sent {len(part)} at {off}"
             )
     was_enabled = state == pg.State.READY
+    if was_enabled and notify is not None:
+        notify(
+            "disabling the drive for the flash write: the axes are unpowered until it is"
+            " enabled again (up to a few seconds on a single-bank MCU)"
+        )
     try:
         if was_enabled:
             _disable_for_write(client, wait, timeout_s)
+        # the reply comes after the flash write (a sector erase takes up to 2 s)
         info = client.request(
-            "comp_commit", axis=axis, length=len(record), crc=zlib.crc32(record)
+            "comp_commit",
+            axis=axis,
+            length=len(record),
+            crc=zlib.crc32(record),
+            timeout=COMMIT_TIMEOUT_S,
         ).fields
-    except DriveError as exc:
-        f = exc.fields
-        if f.get("code") == pg.ErrorCode.CALIB:
-            raise UserError(
+    except (DriveError, UserError) as exc:
+        err = exc
+        if isinstance(exc, DriveError) and exc.fields.get("code") == pg.ErrorCode.CALIB:
+            f = exc.fields
+            err = UserError(
                 f"drive refused the compensation table: {reason_text(f['arg'])} (detail {f['lo']});"
                 " the previous table stays active"
-            ) from None
-        raise
-    finally:
+            )
         if was_enabled:
+            try:
+                client.enable(True)
+            except (DriveError, UserError) as exc2:
+                raise UserError(f"{err}; enabling the drive again failed too: {exc2}") from None
+        raise err from None
+    if was_enabled:
+        try:
             client.enable(True)
+        except (DriveError, UserError) as exc:
+            raise UserError(
+                f"the table was written and is active, but enabling the drive again failed: {exc}"
+            ) from None
     data_crc = zlib.crc32(record[32:])
     n = (len(record) - 32) // 16
     if info["n"] != n or info["data_crc"] != data_crc or info["ramp_us"] != ramp_us:

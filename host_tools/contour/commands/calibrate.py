@@ -204,6 +204,10 @@ def _outputs(args, em: analysis.ErrorMap, residual: Optional[analysis.ErrorMap])
         plot_error_map(args.plot, em, residual, title=f"axis {em.axis}")
 
 
+def _notify(msg: str) -> None:
+    print(f"contour: {msg}", file=sys.stderr)
+
+
 def cmd_calibrate(args) -> int:
     _check_numbers(args)
     report: dict = {}
@@ -222,7 +226,12 @@ def cmd_calibrate(args) -> int:
             sess = Session(args)
             try:
                 info = run.upload(
-                    sess.client, axis, em, ramp_us=round(args.ramp_ms * 1000), wait=sess.wait
+                    sess.client,
+                    axis,
+                    em,
+                    ramp_us=round(args.ramp_ms * 1000),
+                    wait=sess.wait,
+                    notify=_notify,
                 )
             finally:
                 sess.close()
@@ -258,7 +267,9 @@ def cmd_calibrate(args) -> int:
         report["measure"] = _run_report(res)
         residual = None
         if args.apply:
-            info = run.upload(client, axis, em, ramp_us=round(args.ramp_ms * 1000), wait=sess.wait)
+            info = run.upload(
+                client, axis, em, ramp_us=round(args.ramp_ms * 1000), wait=sess.wait, notify=_notify
+            )
             report["applied"] = info
             if host_ref:
                 report["residual"] = "not measured: the reference is a file (no reference scale)"
