@@ -94,16 +94,14 @@ static void qdec_index_eval(qdec_t *q, uint32_t t)
     e->gated = gated;
 }
 
-/* Decode one committed A/B state. */
-static void qdec_apply(qdec_t *q, uint32_t ab, uint32_t t)
+/* Count one decoded step d (QDEC_ILL or +-1, never 0) at time t: the
+ * edge fields both edge paths write. */
+static inline void qdec_count(const qdec_t *q, qdec_edge_state_t *e, int8_t d, uint32_t t)
 {
-    qdec_edge_state_t *e = &q->e;
-    int8_t d = q->table[((uint32_t)e->ab << 2) | ab];
-
     if (d == QDEC_ILL) {
         e->illegal = e->illegal + 1u;
         e->rare = e->rare + 1u;
-    } else if (d != 0) {
+    } else {
         uint32_t count = e->count + (uint32_t)(int32_t)d;
 
         e->count = count;
@@ -115,6 +113,17 @@ static void qdec_apply(qdec_t *q, uint32_t ab, uint32_t t)
             e->cyc_t = t;
             e->ncyc = e->ncyc + 1u;
         }
+    }
+}
+
+/* Decode one committed A/B state. */
+static void qdec_apply(qdec_t *q, uint32_t ab, uint32_t t)
+{
+    qdec_edge_state_t *e = &q->e;
+    int8_t d = q->table[((uint32_t)e->ab << 2) | ab];
+
+    if (d != 0) {
+        qdec_count(q, e, d, t);
     }
     e->ab = (uint8_t)ab;
     if (e->z) {
@@ -227,22 +236,7 @@ void qdec_edge(qdec_t *q, uint32_t lines, uint32_t t_ns)
     }
     seq = e->seq;
     e->seq = seq + 1u;
-    if (d == QDEC_ILL) {
-        e->illegal = e->illegal + 1u;
-        e->rare = e->rare + 1u;
-    } else {
-        uint32_t count = e->count + (uint32_t)(int32_t)d;
-
-        e->count = count;
-        e->nedge = e->nedge + 1u;
-        e->t_last = t_ns;
-        e->dir = d;
-        if ((count & q->cyc_mask) == 0u) {
-            e->cyc_count = count;
-            e->cyc_t = t_ns;
-            e->ncyc = e->ncyc + 1u;
-        }
-    }
+    qdec_count(q, e, d, t_ns);
     e->ab = (uint8_t)ab;
     e->seq = seq + 2u;
 }

@@ -50,6 +50,29 @@ bool hal_amp_fault(unsigned axis);
 void hal_motor_set_mv_all(const int32_t *mv, unsigned n);
 uint32_t hal_amp_fault_mask(unsigned n);
 
+/* The generic forms of the two above, over the per-axis calls, for ports
+ * whose hardware has nothing faster (a port's hal_motor_set_mv_all may
+ * simply return hal_generic_set_mv_all(mv, n)). */
+static inline void hal_generic_set_mv_all(const int32_t *mv, unsigned n)
+{
+    unsigned i;
+    for (i = 0; i < n; i++) {
+        hal_motor_set_mv(i, mv[i]);
+    }
+}
+
+static inline uint32_t hal_generic_amp_fault_mask(unsigned n)
+{
+    uint32_t m = 0;
+    unsigned i;
+    for (i = 0; i < n; i++) {
+        if (hal_amp_fault(i)) {
+            m |= 1u << i;
+        }
+    }
+    return m;
+}
+
 /* ---- host link ----------------------------------------------------------- */
 
 /* Non-blocking UART: returns bytes accepted / read (0 when none). Main. */

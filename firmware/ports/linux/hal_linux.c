@@ -279,24 +279,12 @@ bool hal_amp_fault(unsigned axis)
 
 void hal_motor_set_mv_all(const int32_t *mv, unsigned n)
 {
-    unsigned i;
-
-    for (i = 0; i < n; i++) {
-        hal_motor_set_mv(i, mv[i]);
-    }
+    hal_generic_set_mv_all(mv, n);
 }
 
 uint32_t hal_amp_fault_mask(unsigned n)
 {
-    uint32_t m = 0;
-    unsigned i;
-
-    for (i = 0; i < n; i++) {
-        if (hal_amp_fault(i)) {
-            m |= 1u << i;
-        }
-    }
-    return m;
+    return hal_generic_amp_fault_mask(n);
 }
 
 bool hal_encoder_counter(unsigned ch, uint32_t *count)

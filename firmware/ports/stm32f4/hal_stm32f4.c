@@ -160,11 +160,7 @@ bool hal_amp_fault(unsigned axis)
 
 void hal_motor_set_mv_all(const int32_t *mv, unsigned n)
 {
-    unsigned i;
-
-    for (i = 0; i < n && i < AXES; i++) {
-        hal_motor_set_mv(i, mv[i]);
-    }
+    hal_generic_set_mv_all(mv, n < AXES ? n : AXES);
 }
 
 uint32_t hal_amp_fault_mask(unsigned n)
