@@ -6,8 +6,11 @@
 #include <math.h>
 #include <string.h>
 
+#include "app.h"
+#include "boot_sim.h"
 #include "drive.h"
 #include "hal_sim.h"
+#include "proto_msgs.h"
 #include "qgen.h"
 
 #define PI_D 3.14159265358979323846
@@ -31,6 +34,8 @@ static struct {
     uint64_t ticks;
     uint64_t edges;
     uint64_t mismatches;
+    app_board_t board; /* the host link and identity (sim_set_link) */
+    int boot;          /* board.boot is the simulated bootloader's slot */
 } S;
 
 int sim_setup(double tick_hz, unsigned axes)
@@ -56,6 +61,9 @@ int sim_setup(double tick_hz, unsigned axes)
     }
     S.dcfg.servo.cec.pid.out_max_mv = 10000;
     S.dcfg.servo.cec.pid.i_max_mv = 10000;
+    S.board.board_id = BOOT_BOARD_SIM;
+    S.board.node_id = 1u;
+    S.board.capabilities = 1u << PROTO_CAPABILITY_SIMULATED;
     S.setup = 1;
     return 0;
 }
@@ -396,6 +404,25 @@ static qgen_pos_t to_qgen(double counts)
     return (qgen_pos_t)floor(counts * (double)QGEN_ONE);
 }
 
+int sim_set_link(unsigned node_id, int serial, int can, uint32_t capabilities, uint32_t fw_version,
+                 uint32_t build_id, int boot)
+{
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (node_id < 1u || node_id > PROTO_CAN_NODE_MAX) {
+        return SIM_E_ARG;
+    }
+    S.board.node_id = (uint8_t)node_id;
+    S.board.serial = serial != 0;
+    S.board.can = can != 0;
+    S.board.capabilities = capabilities | (1u << PROTO_CAPABILITY_SIMULATED);
+    S.board.fw_version = fw_version;
+    S.board.build_id = build_id;
+    S.boot = boot != 0;
+    return 0;
+}
+
 int sim_start(void)
 {
     drive_config_t cfg;
@@ -450,9 +477,13 @@ int sim_start(void)
             return SIM_E_MODEL;
         }
     }
-    if (drive_init(&cfg) != DRIVE_OK) {
+    S.board.drive = &cfg;
+    S.board.boot = S.boot ? boot_sim_config() : NULL;
+    if (app_init(&S.board) != APP_OK) {
+        S.board.drive = NULL;
         return SIM_E_DRIVE;
     }
+    S.board.drive = NULL; /* cfg is gone after this call */
     if (drive_set_cec_mode((drive_cec_mode_t)S.cec_mode) != DRIVE_OK) {
         return SIM_E_DRIVE;
     }
@@ -500,7 +531,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
             int64_t rc = axis_ref_reading(&S.ax[i]);
             hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
         }
-        drive_tick();
+        app_tick();
         for (i = 0; i < S.axes; i++) {
             if (drive_encoder_count(i) + S.count0[i] != S.gen[i].count) {
                 S.mismatches++;
@@ -515,7 +546,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
             row_in = every;
         }
         row_in--;
-        drive_poll();
+        app_poll();
         for (i = 0; i < S.axes; i++) {
             double u = (double)hal_sim_motor_mv(i) * 1e-3;
             for (s = 0; s < S.nsub; s++) {

@@ -101,6 +101,15 @@ int sim_servo_set(unsigned axis, const char *name, double value);
 int sim_plan_set(unsigned axis, const char *name, double value);
 int sim_cec_mode(int mode);
 
+/* The host link of the simulated drive, set up by sim_start through the
+ * composition root (app.h): CAN node id, serial and/or CAN served, extra
+ * capability bits (SIMULATED is always set), fw_version and build id
+ * reported without a flash image, and boot != 0 when the simulated
+ * bootloader's slot (boot_sim.h) holds this application (identity from its
+ * image, boot_enter served). sim_setup turns the link off (the simulator
+ * alone: circle tests, benchmarks). */
+int sim_set_link(unsigned node_id, int serial, int can, uint32_t capabilities, uint32_t fw_version,
+                 uint32_t build_id, int boot);
 int sim_start(void);
 /* drive_enable(on) of the running drive; returns the drive_result_t. */
 int sim_enable(int on);

@@ -123,7 +123,7 @@ build_linux() {
   local hflags=(-std=c99 -D_GNU_SOURCE -Wall -Wextra -Werror -pedantic -O2 -g
                 -Ifirmware/core -Ifirmware/hal -Ifirmware -Ifirmware/ports/common -I$p -I$g/usr/include
                 -DPORT_FW_VERSION="$(( ${v[0]} << 16 | ${v[1]} << 8 | ${v[2]} ))u")
-  local src=($core_src firmware/ports/common/port_app.c $p/hal_linux.c $p/main_linux.c)
+  local src=($core_src $p/hal_linux.c $p/main_linux.c)
   mkdir -p "$d"
   # up to date: both binaries newer than every source, header and this script
   if [ -x "$d/contour-drive" ] && [ -x "$d/contour-drive-fake" ] &&

@@ -5,6 +5,7 @@
 #include "calib.h"
 
 #include "comp_store.h"
+#include "proto_replay.h"
 #include "crc.h"
 #include "proto_msgs.h"
 #include "proto_reply.h"
@@ -71,12 +72,7 @@ static struct {
     int16_t stage_axis;
     /* protocol */
     calib_handler_fn next;
-    bool cache_valid;
-    uint8_t cache_id, cache_seq;
-    uint32_t cache_crc;
-    uint16_t cache_req_len;
-    uint16_t cache_len;
-    uint8_t cache[PROTO_MSG_MAX];
+    proto_replay_t replay; /* state-changing requests only */
 } cb;
 
 /* ---- helpers ---------------------------------------------------------------- */
@@ -145,7 +141,7 @@ void calib_init(void)
     cb.reason = 0u;
     cb.detail = 0;
     cb.stage_axis = -1;
-    cb.cache_valid = false;
+    proto_replay_reset(&cb.replay);
     cb.next = next;
     for (i = 0; i < CORE_AXES; i++) {
         cb.act[i] = 0xFFu;
@@ -893,7 +889,7 @@ size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *ou
 {
     size_t plen, n;
     uint8_t id;
-    uint32_t crc = 0u;
+    proto_replay_key_t key;
     bool cacheable;
 
     if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX) {
@@ -909,13 +905,10 @@ size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *ou
     plen = len - PROTO_MSG_HDR;
     cacheable = mutating(id);
     if (cacheable) {
-        crc = crc32_update(CRC32_INIT, msg + PROTO_MSG_HDR, plen);
-        if (cb.cache_valid && cb.cache_id == id && cb.cache_seq == msg[1] &&
-            cb.cache_req_len == plen && cb.cache_crc == crc) {
-            for (n = 0; n < cb.cache_len; n++) {
-                out[n] = cb.cache[n];
-            }
-            return cb.cache_len;
+        proto_replay_key(&key, msg, len);
+        n = proto_replay_lookup(&cb.replay, &key, out, cap);
+        if (n != 0u) {
+            return n;
         }
     }
     switch (id) {
@@ -958,16 +951,8 @@ size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *ou
         n = reply_error(out, id, msg[1], PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
         break;
     }
-    if (cacheable && n <= sizeof cb.cache) {
-        for (plen = 0; plen < n; plen++) {
-            cb.cache[plen] = out[plen];
-        }
-        cb.cache_len = (uint16_t)n;
-        cb.cache_id = id;
-        cb.cache_seq = msg[1];
-        cb.cache_req_len = (uint16_t)(len - PROTO_MSG_HDR);
-        cb.cache_crc = crc;
-        cb.cache_valid = true;
+    if (cacheable) {
+        proto_replay_store(&cb.replay, &key, out, n);
     }
     return n;
 }

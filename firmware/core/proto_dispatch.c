@@ -652,10 +652,7 @@ bool proto_dispatch_init(proto_dispatch_t *d, const proto_identity_t *ident, uin
     d->heartbeat_period_ms = (uint16_t)proto_param_find(PROTO_PARAM_HEARTBEAT_PERIOD_MS, NULL)->def;
     d->heartbeat_on = false;
     d->cec_mode = 0;
-    d->cache_valid = false;
-    d->cache_id = 0;
-    d->cache_seq = 0;
-    d->cache_len = 0;
+    proto_replay_reset(&d->replay);
     d->last_rx_us = now_us;
     d->wd_stopping = false;
     d->cycle_seq = 0;
@@ -675,7 +672,7 @@ size_t proto_dispatch_handle(proto_dispatch_t *d, const uint8_t *msg, size_t len
     uint8_t seq;
     size_t n;
     size_t rlen;
-    size_t i;
+    proto_replay_key_t key;
 
     if (len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX) {
         d->stats.ignored++;
@@ -686,12 +683,11 @@ size_t proto_dispatch_handle(proto_dispatch_t *d, const uint8_t *msg, size_t len
     n = len - PROTO_MSG_HDR;
     d->last_rx_us = now_us; /* a well-formed frame: the host is alive */
 
-    if (d->cache_valid && d->cache_id == id && d->cache_seq == seq) {
+    proto_replay_key(&key, msg, len);
+    rlen = proto_replay_lookup(&d->replay, &key, out, cap);
+    if (rlen != 0u) {
         d->stats.replayed++;
-        for (i = 0; i < d->cache_len; i++) {
-            out[i] = d->cache[i];
-        }
-        return d->cache_len;
+        return rlen;
     }
 
     info = proto_msg_info(id);
@@ -713,13 +709,7 @@ size_t proto_dispatch_handle(proto_dispatch_t *d, const uint8_t *msg, size_t len
         rlen = execute(d, id, seq, msg + PROTO_MSG_HDR, n, out);
     }
     d->stats.requests++;
-    d->cache_valid = true;
-    d->cache_id = id;
-    d->cache_seq = seq;
-    d->cache_len = (uint16_t)rlen;
-    for (i = 0; i < rlen; i++) {
-        d->cache[i] = out[i];
-    }
+    proto_replay_store(&d->replay, &key, out, rlen);
     return rlen;
 }
 

@@ -16,10 +16,12 @@
  *     the allowed lo/hi, read_only, queue_full, disabled, faulted, bad_axis).
  *   - Unknown ids and drive-to-host ids get error{unknown_message}; a
  *     message shorter than its header gets no reply (counted `ignored`).
- *   - Replays: the (msg_id, seq) and the reply of the last request are
- *     cached; the same pair again (a host retry after a lost reply, or a
- *     replayed frame) is answered with the cached reply and NOT executed
- *     again (counted `replayed`). Hosts therefore change seq every request.
+ *   - Replays: the last request (id, seq, payload length and CRC) and its
+ *     reply are cached (proto_replay.h); the same request again (a host
+ *     retry after a lost reply, or a replayed frame) is answered with the
+ *     cached reply and NOT executed again (counted `replayed`). Another
+ *     request under the same (id, seq) is executed. Hosts change seq every
+ *     request.
  *   - Rapid blocks are queued at PROTO_RAPID_FEED_NM_S; the planner's axis
  *     limits cap it. Target positions must lie within +-PROTO_POS_LIMIT_NM.
  *   - Parameters: the table in proto_msgs.c gives type, range and access;
@@ -49,6 +51,7 @@
 #include <stdint.h>
 
 #include "proto_msgs.h"
+#include "proto_replay.h"
 
 #define PROTO_RAPID_FEED_NM_S 4000000000u
 #define PROTO_POS_LIMIT_NM    ((int64_t)1000000000000000) /* 1000 km */
@@ -91,12 +94,7 @@ typedef struct {
     uint16_t heartbeat_period_ms;
     bool heartbeat_on; /* set by the link: true on CAN */
     uint8_t cec_mode;
-    /* replay cache */
-    bool cache_valid;
-    uint8_t cache_id;
-    uint8_t cache_seq;
-    uint16_t cache_len;
-    uint8_t cache[PROTO_MSG_MAX];
+    proto_replay_t replay; /* last request and its reply (proto_replay.h) */
     /* watchdog */
     uint32_t last_rx_us;
     bool wd_stopping;

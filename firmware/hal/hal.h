@@ -78,6 +78,9 @@ static inline uint32_t hal_generic_amp_fault_mask(unsigned n)
 /* Non-blocking UART: returns bytes accepted / read (0 when none). Main. */
 size_t hal_uart_write(const uint8_t *data, size_t len);
 size_t hal_uart_read(uint8_t *data, size_t cap);
+/* True when every byte given to hal_uart_write has left the transmitter
+ * (a reply must leave before a requested reset). Main context. */
+bool hal_uart_tx_idle(void);
 
 /* CAN frames (classic CAN, 11-bit ids). Return false when the transmit
  * mailbox is full / no frame is waiting. Main context. */
@@ -102,6 +105,9 @@ bool hal_flash_read(uint32_t addr, uint8_t *data, size_t len);
 
 /* ---- system --------------------------------------------------------------- */
 
+/* Start the watchdog (app_init, once the application is up; a no-op on a
+ * board that starts it earlier or has none), then kick it from main. */
+void hal_watchdog_start(void);
 void hal_watchdog_kick(void);
 /* Reset the processor (never returns on hardware; the simulator restarts). */
 void hal_system_reset(void);

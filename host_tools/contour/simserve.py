@@ -55,21 +55,6 @@ MAX_BACKLOG = 256 * 1024
 FLASH_FILE_BYTES = 256 * 1024  # FLASH_SIM_DEFAULT_SIZE (firmware/ports/sim/hal_flash_sim.h)
 
 
-class Identity(ctypes.Structure):
-    """proto_identity_t of firmware/core/proto_dispatch.h."""
-
-    _fields_ = [
-        ("fw_version", ctypes.c_uint32),
-        ("build_id", ctypes.c_uint32),
-        ("capabilities", ctypes.c_uint32),
-        ("tick_hz", ctypes.c_uint32),
-        ("board_id", ctypes.c_uint32),
-        ("planner_slots", ctypes.c_uint16),
-        ("node_id", ctypes.c_uint8),
-        ("axes", ctypes.c_uint8),
-    ]
-
-
 def fw_version() -> int:
     parts = [int(x) for x in __version__.split(".")[:3]]
     parts += [0] * (3 - len(parts))
@@ -82,11 +67,12 @@ def _bind(lib: ctypes.CDLL) -> None:
         "sim_setup": (c.c_int, [c.c_double, c.c_uint]),
         "sim_start": (c.c_int, []),
         "sim_run": (c.c_long, [c.c_uint64, c.c_void_p, c.c_size_t, c.c_uint]),
-        "proto_link_init": (c.c_bool, [c.POINTER(Identity), c.c_bool, c.c_bool]),
+        "sim_set_link": (
+            c.c_int,
+            [c.c_uint, c.c_int, c.c_int, c.c_uint32, c.c_uint32, c.c_uint32, c.c_int],
+        ),
         "proto_link_poll": (None, []),
-        "proto_link_set_ext_handler": (None, [c.c_void_p]),
-        "proto_link_set_ext_exclusive": (None, [c.c_bool]),
-        "calib_set_next_handler": (None, [c.c_void_p]),
+        "boot_sim_serve_link": (c.c_bool, []),
         "boot_sim_init": (c.c_bool, [c.c_char_p, c.c_uint8, c.c_uint32]),
         "boot_sim_reset": (c.c_int, []),
         "boot_sim_poll": (None, []),
@@ -266,35 +252,30 @@ class SimServer:
             raise UserError(f"--flash {flash}: cannot open or create it")
         if not flash:
             _install_factory_image(lib)
-        if machine is not None:  # a machine file (axes, tick, model options, gains)
-            from contour.sim import machine as mach
-
-            m = mach.load(machine)
-            mach.apply(m, tick_hz=tick_hz, feedforward=feedforward)
-            tick_hz = int(lib.sim_tick_hz())
-            axes = m.axes
-        else:
-            tick_hz = 10000 if tick_hz is None else tick_hz
-            if lib.sim_setup(float(tick_hz), axes) != 0 or lib.sim_start() != 0:
-                raise UserError(f"simulator refused tick {tick_hz} Hz with {axes} axes")
-        self.tick_hz = tick_hz
         try:
             build_id = zlib.crc32(native.library_path().read_bytes())
         except OSError:
             build_id = 0
-        caps = 0
-        for cap in ("SERIAL", "CAN", "TELEMETRY", "JOG", "CALIBRATION", "SIMULATED"):
-            caps |= 1 << pg.Capability[cap]
-        self.ident = Identity(
-            fw_version=fw_version(),
-            build_id=build_id,
-            capabilities=caps,
-            tick_hz=tick_hz,
-            board_id=BOARD_SIM,
-            planner_slots=0,  # the dispatcher reads it from the drive
-            node_id=node,
-            axes=axes,
+        from contour.sim import machine as mach
+
+        # the application and its link are built by the firmware's composition
+        # root (app_init, firmware/core/app.h) at every sim_start
+        link = mach.SimLink(
+            node=node, serial=True, can=True, fw_version=fw_version(), build_id=build_id, boot=True
         )
+        if machine is not None:  # a machine file (axes, tick, model options, gains)
+            m = mach.load(machine)
+            mach.apply(m, tick_hz=tick_hz, feedforward=feedforward, link=link)
+            tick_hz = int(lib.sim_tick_hz())
+            axes = m.axes
+        else:
+            tick_hz = 10000 if tick_hz is None else tick_hz
+            if lib.sim_setup(float(tick_hz), axes) != 0:
+                raise UserError(f"simulator refused tick {tick_hz} Hz with {axes} axes")
+            link.apply(lib)
+            if lib.sim_start() != 0:
+                raise UserError(f"simulator refused tick {tick_hz} Hz with {axes} axes")
+        self.tick_hz = tick_hz
         self.period_ns = round(1e9 / tick_hz)
         self.app_running = False
         self._boot_state: Optional[tuple[int, int]] = None
@@ -337,34 +318,21 @@ class SimServer:
         if out:
             self.slcan.write(out)
 
-    def _start_link(self, app: bool) -> None:
-        lib = self.lib
-        if app:
-            self.ident.fw_version = lib.boot_sim_app_version()
-            self.ident.build_id = lib.boot_sim_app_build_id()
-        if not lib.proto_link_init(ctypes.byref(self.ident), True, True):
-            raise UserError("proto_link_init refused the drive identity")
-        if app:
-            # calibration messages (0xA0..0xBF, firmware/core/calib.h); other
-            # ids >= 0x80 go on to the bootloader's application side
-            lib.proto_link_set_ext_handler(ctypes.cast(lib.calib_handle, ctypes.c_void_p))
-            lib.calib_set_next_handler(ctypes.cast(lib.boot_sim_app_handle, ctypes.c_void_p))
-        else:  # the bootloader answers everything, emits nothing
-            lib.proto_link_set_ext_handler(ctypes.cast(lib.boot_sim_link_handle, ctypes.c_void_p))
-            lib.proto_link_set_ext_exclusive(True)
-
     def _sync_boot(self) -> None:
-        """After a reset or a jump: start the firmware the bootloader chose."""
+        """After a reset or a jump: start the firmware the bootloader chose
+        (the application: app_init again through sim_start; the bootloader:
+        its own link, boot_sim_serve_link)."""
         state = (self.lib.boot_sim_resets(), self.lib.boot_sim_mode())
         if state == self._boot_state:
             return
         self._boot_state = state
         self.app_running = state[1] == 1  # BOOT_SIM_APP
         if self.app_running:
-            if not self._sim_fresh and self.lib.sim_start() != 0:  # drive_init again
+            if not self._sim_fresh and self.lib.sim_start() != 0:
                 raise UserError("simulator refused to restart the application")
-            self._sim_fresh = False
-        self._start_link(self.app_running)
+        elif not self.lib.boot_sim_serve_link():
+            raise UserError("the simulated bootloader refused its link")
+        self._sim_fresh = False
 
     def step(self, ticks: int) -> None:
         self._pump_in()

@@ -197,6 +197,36 @@ static void test_replayed_request_is_answered_not_executed(void)
     TEST_ASSERT_EQUAL_UINT32(9, s.last_block_seq);
 }
 
+/* A new host session whose first request repeats the last (id, seq) with
+ * another payload is a new request: executed, not answered from the cache
+ * (keying on (id, seq) alone once moved an axis the wrong way). */
+static void test_same_id_and_seq_with_another_payload_is_executed(void)
+{
+    uint8_t m[64];
+    proto_queue_block_t q1 = {9, PROTO_BLOCK_KIND_LINE, 0, 5000000, {1000000, 0, 0, 0}};
+    proto_queue_block_t q2 = {10, PROTO_BLOCK_KIND_LINE, 0, 5000000, {2000000, 0, 0, 0}};
+    proto_queue_reply_t r;
+    proto_drive_state_t s;
+    size_t n, rl;
+
+    enable();
+    m[0] = PROTO_MSG_QUEUE_BLOCK;
+    m[1] = 77;
+    n = 2 + proto_queue_block_encode(&q1, m + 2, sizeof m - 2);
+    TEST_ASSERT_TRUE(proto_dispatch_handle(&d, m, n, now_us, out, sizeof out) > 0);
+    /* the next session starts its seq where the last one stopped */
+    n = 2 + proto_queue_block_encode(&q2, m + 2, sizeof m - 2);
+    rl = proto_dispatch_handle(&d, m, n, now_us, out, sizeof out);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, out[0]);
+    TEST_ASSERT_TRUE(proto_queue_reply_decode(out + 2, rl - 2, &r));
+    TEST_ASSERT_EQUAL_UINT32(10, r.block_seq);
+    TEST_ASSERT_EQUAL_UINT32(0, d.stats.replayed);
+    run_ms(3000);
+    s = state();
+    TEST_ASSERT_EQUAL_UINT32(2, s.blocks_done);
+    TEST_ASSERT_EQUAL_UINT32(10, s.last_block_seq);
+}
+
 static void test_blocks_are_checked_before_queueing(void)
 {
     proto_queue_block_t q = {1, PROTO_BLOCK_KIND_LINE, 0, 0, {1000, 0, 0, 0}};
@@ -437,6 +467,7 @@ int main(void)
     RUN_TEST(test_parameters_are_range_checked_and_never_half_applied);
     RUN_TEST(test_unknown_short_and_wrong_length_messages);
     RUN_TEST(test_replayed_request_is_answered_not_executed);
+    RUN_TEST(test_same_id_and_seq_with_another_payload_is_executed);
     RUN_TEST(test_blocks_are_checked_before_queueing);
     RUN_TEST(test_queue_full_is_a_specific_refusal);
     RUN_TEST(test_telemetry_cycles_share_one_consecutive_seq);

@@ -174,7 +174,7 @@ bool boot_init(boot_t *b, const boot_config_t *cfg)
     b->session = BOOT_SESSION_IDLE;
     b->reboot_pending = false;
     b->window_start_us = 0u;
-    b->cache_valid = false;
+    proto_replay_reset(&b->replay);
     b->page_size = 0u;
     b->write_size = 0u;
     if (l == NULL) {
@@ -263,7 +263,7 @@ boot_reason_t boot_start(boot_t *b, uint32_t now_us)
 
     b->session = BOOT_SESSION_IDLE;
     b->reboot_pending = false;
-    b->cache_valid = false;
+    proto_replay_reset(&b->replay);
     if (b->cfg.request_word != NULL) {
         requested = *b->cfg.request_word == BOOT_REQUEST_MAGIC;
         *b->cfg.request_word = 0u;
@@ -644,9 +644,8 @@ size_t boot_handle(boot_t *b, const uint8_t *msg, size_t len, uint8_t *out, size
 {
     uint8_t id;
     uint8_t seq;
-    uint32_t crc;
+    proto_replay_key_t key;
     size_t n;
-    size_t i;
     const proto_msg_info_t *info;
 
     if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || len > PROTO_MSG_MAX ||
@@ -659,24 +658,13 @@ size_t boot_handle(boot_t *b, const uint8_t *msg, size_t len, uint8_t *out, size
     if (info != NULL && info->dir == PROTO_DIR_D2H) {
         return 0; /* a reply or cyclic frame echoed back: never answer it */
     }
-    crc = crc32_update(CRC32_INIT, msg + PROTO_MSG_HDR, len - PROTO_MSG_HDR);
-    if (b->cache_valid && b->cache_id == id && b->cache_seq == seq &&
-        b->cache_req_len == (uint16_t)len && b->cache_req_crc == crc) {
-        for (i = 0; i < b->cache_len; i++) {
-            out[i] = b->cache[i];
-        }
-        return b->cache_len;
+    proto_replay_key(&key, msg, len);
+    n = proto_replay_lookup(&b->replay, &key, out, cap);
+    if (n != 0u) {
+        return n;
     }
     n = dispatch(b, id, seq, msg + PROTO_MSG_HDR, len - PROTO_MSG_HDR, out);
-    b->cache_valid = n <= BOOT_REPLY_MAX;
-    b->cache_id = id;
-    b->cache_seq = seq;
-    b->cache_req_len = (uint16_t)len;
-    b->cache_req_crc = crc;
-    b->cache_len = (uint16_t)n;
-    for (i = 0; i < n && i < BOOT_REPLY_MAX; i++) {
-        b->cache[i] = out[i];
-    }
+    proto_replay_store(&b->replay, &key, out, n);
     return n;
 }
 

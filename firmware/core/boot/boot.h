@@ -78,6 +78,7 @@
 #include <stdint.h>
 
 #include "boot/image.h"
+#include "proto_replay.h"
 
 /* Largest reply message boot_handle produces (msg_id | seq | payload). */
 #define BOOT_REPLY_MAX 252u
@@ -207,14 +208,7 @@ typedef struct {
     uint32_t window_start_us;
     boot_image_header_t hdr;              /* session image header (valid in WRITING/DONE) */
     uint8_t hdr_raw[BOOT_IMAGE_HDR_SIZE]; /* its encoded form */
-    /* one-entry reply cache: last request (id, seq, length, crc) and reply */
-    bool cache_valid;
-    uint8_t cache_id;
-    uint8_t cache_seq;
-    uint16_t cache_req_len;
-    uint32_t cache_req_crc;
-    uint16_t cache_len;
-    uint8_t cache[BOOT_REPLY_MAX];
+    proto_replay_t replay;                /* last request and its reply (proto_replay.h) */
 } boot_t;
 
 /* Fill *cfg for this port's HAL flash region: the slot is the region minus

@@ -131,7 +131,7 @@ void port_boot_reset(void *ctx)
         if (pb.can) {
             proto_isotp_poll(&pb.tp, now, can_tx, NULL);
         }
-        if ((pb.tx_len == 0u && port_uart_tx_idle() && !proto_isotp_busy(&pb.tp)) ||
+        if ((pb.tx_len == 0u && hal_uart_tx_idle() && !proto_isotp_busy(&pb.tp)) ||
             now - t0 > PORT_RESET_DELAY_US) {
             break;
         }

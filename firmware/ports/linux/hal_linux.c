@@ -22,7 +22,7 @@
 
 #include "drive.h"
 #include "hal.h"
-#include "port.h"
+#include "app.h"
 #include "qdec.h"
 
 #define EDGE_BUF 256u
@@ -356,7 +356,7 @@ size_t hal_uart_read(uint8_t *data, size_t cap)
     return n > 0 ? (size_t)n : 0u;
 }
 
-bool port_uart_tx_idle(void)
+bool hal_uart_tx_idle(void)
 {
     int q = 0;
 
@@ -516,6 +516,10 @@ static bool flash_open(void)
 
 /* ---- system -------------------------------------------------------------------------------- */
 
+void hal_watchdog_start(void)
+{
+}
+
 void hal_watchdog_kick(void)
 {
     /* the process is supervised by the OS (systemd's WatchdogSec if wanted) */
@@ -620,10 +624,10 @@ void linux_run(volatile int *stop, uint64_t max_ticks)
         if (read(lx.tfd, &exp, sizeof exp) == (ssize_t)sizeof exp && exp > 0u) {
             lx.missed += exp - 1u;
             gpio_faults();
-            drive_tick();
+            app_tick();
             lx.ticks++;
         }
-        port_app_poll();
+        app_poll();
     }
 }
 

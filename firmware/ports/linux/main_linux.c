@@ -18,11 +18,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "app.h"
 #include "boot/boot.h"
-#include "drive.h"
 #include "hal.h"
 #include "hal_linux.h"
-#include "port.h"
 #include "proto_msgs.h"
 
 /* (major << 16) | (minor << 8) | patch, set by the build (mk/firmware.sh) */
@@ -67,7 +66,8 @@ int main(int argc, char **argv)
 {
     linux_hal_config_t hc;
     drive_config_t cfg;
-    port_app_config_t pc;
+    app_board_t board = {0};
+    app_result_t ar;
     uint32_t lines[CORE_AXES] = {0};
     unsigned long nm_per_count = 1250, node = 1, ticks = 0, v;
     unsigned i;
@@ -131,22 +131,18 @@ int main(int argc, char **argv)
     }
     cfg.servo.cec.pid.out_max_mv = 10000;
     cfg.servo.cec.pid.i_max_mv = 10000;
-    if (drive_init(&cfg) != DRIVE_OK) {
-        fprintf(stderr, "contour-drive: the drive refused its configuration\n");
-        linux_hal_close();
-        return 1;
-    }
-    pc.board_id = BOOT_BOARD_LINUX;
-    pc.node_id = (uint8_t)node;
-    pc.axes = (uint8_t)hc.axes;
-    pc.serial = hc.serial != NULL;
-    pc.can = hc.can != NULL;
-    pc.tick_hz = hc.tick_hz;
-    pc.capabilities = 0u;
-    pc.fw_version = PORT_FW_VERSION;
-    pc.boot = NULL; /* a process: updated by replacing its file, no bootloader */
-    if (!port_app_init(&pc)) {
-        fprintf(stderr, "contour-drive: protocol refused node %lu / %u axes\n", node, hc.axes);
+    board.board_id = BOOT_BOARD_LINUX;
+    board.node_id = (uint8_t)node;
+    board.serial = hc.serial != NULL;
+    board.can = hc.can != NULL;
+    board.fw_version = PORT_FW_VERSION;
+    board.boot = NULL; /* a process: updated by replacing its file, no bootloader */
+    board.drive = &cfg;
+    ar = app_init(&board);
+    if (ar != APP_OK) {
+        fprintf(stderr, "contour-drive: %s\n",
+                ar == APP_E_DRIVE ? "the drive refused its configuration"
+                                  : "the protocol refused the node id or axes");
         linux_hal_close();
         return 1;
     }

@@ -12,7 +12,7 @@
  *
  * Workloads (three axes, the QEMU machine of app_mps2.c, default servo and
  * planner parameters, CEC off):
- *   control tick  drive_tick() while the drive runs a helix (full circle of
+ *   control tick  app_tick() while the drive runs a helix (full circle of
  *                 radius 5 mm in XY at 20 mm/s, Z rising 2 mm), the axes
  *                 simulated between ticks (not measured); mean and maximum
  *                 over the RUNNING ticks.
@@ -23,6 +23,7 @@
  *                 fx_isqrt64 per call: where the tick and block costs go.
  * Prints `name: value unit` lines on UART0, then exits QEMU (semihosting).
  */
+#include "app.h"
 #include "drive.h"
 #include "hal.h"
 #include "mps2.h"
@@ -156,17 +157,22 @@ static void bench_tick(void)
     uint64_t sum = 0;
     uint32_t n = 0, worst = 0, k;
 
+    app_board_t board = {0};
+
     plant_drive_config(&cfg, MPS2_TICK_HZ, AXES);
-    if (!plant_init(MPS2_TICK_HZ, AXES, &cfg) || drive_init(&cfg) != DRIVE_OK ||
+    board.board_id = BOOT_BOARD_QEMU;
+    board.node_id = 1u;
+    board.drive = &cfg; /* no link: the tick and the planner alone */
+    if (!plant_init(MPS2_TICK_HZ, AXES, &cfg) || app_init(&board) != APP_OK ||
         drive_enable(true) != DRIVE_OK) {
         put("bench: drive refused its configuration\n");
         return;
     }
     for (k = 0; k < 10u; k++) { /* enable takes effect in the tick */
         mps2_clock_advance();
-        drive_tick();
+        app_tick();
         plant_step(mps2_ticks());
-        drive_poll();
+        app_poll();
     }
     b.kind = DRIVE_BLOCK_ARC;
     b.tag = 1;
@@ -187,10 +193,10 @@ static void bench_tick(void)
 
         mps2_clock_advance();
         c0 = mps2_counter();
-        drive_tick();
+        app_tick();
         c1 = mps2_counter();
         plant_step(mps2_ticks());
-        drive_poll();
+        app_poll();
         drive_snapshot(&st);
         if (st.state == DRIVE_RUNNING) {
             sum += c0 - c1;
@@ -316,7 +322,7 @@ int main(void)
         bench_tick();
         bench_helpers();
     }
-    while (!port_uart_tx_idle()) {
+    while (!hal_uart_tx_idle()) {
     }
     semihost_exit();
     for (;;) {

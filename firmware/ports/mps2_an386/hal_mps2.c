@@ -150,7 +150,7 @@ size_t hal_uart_read(uint8_t *data, size_t cap)
     return data == NULL ? 0 : port_ring_read(&uart.rx, data, cap);
 }
 
-bool port_uart_tx_idle(void)
+bool hal_uart_tx_idle(void)
 {
     return port_ring_empty(&uart.tx) && !uart.tx_busy &&
            !(MPS2_UART_STATE(MPS2_UART0) & MPS2_UART_STATE_TXFULL);
@@ -223,6 +223,11 @@ bool hal_flash_write(uint32_t addr, const uint8_t *data, size_t len)
 /* hal_flash_read: memory-mapped, common/cm4_hal.c */
 
 /* ---- system -------------------------------------------------------------------------- */
+
+void hal_watchdog_start(void)
+{
+    /* started by mps2_board_init: it also guards the start-up */
+}
 
 void hal_watchdog_kick(void)
 {

@@ -3,6 +3,7 @@
 
 #include "hal.h"
 #include "hal_flash_sim.h"
+#include "proto_link.h"
 #include "proto_msgs.h"
 #include "proto_reply.h"
 
@@ -187,6 +188,26 @@ size_t boot_sim_drive_handle(const uint8_t *msg, size_t len, uint8_t *out, size_
                                  0, 0);
     }
     return n;
+}
+
+bool boot_sim_serve_link(void)
+{
+    proto_identity_t id = {0};
+
+    if (!initialised) {
+        return false;
+    }
+    id.node_id = cfg.node_id;
+    id.axes = 1u;
+    id.tick_hz = 1000u;
+    id.board_id = cfg.board_id;
+    id.planner_slots = 1u;
+    if (!proto_link_init(&id, true, true)) {
+        return false;
+    }
+    proto_link_set_ext_handler(boot_sim_link_handle);
+    proto_link_set_ext_exclusive(true);
+    return true;
 }
 
 const boot_config_t *boot_sim_config(void)

@@ -35,6 +35,10 @@
  *   boot_sim_app_build_id  its build id's first 4 bytes, little-endian (the
  *                      identify build_id), 0 if none.
  *
+ *   boot_sim_serve_link  bootloader mode: the host link (serial and CAN)
+ *                      with boot_sim_link_handle answering every message
+ *                      (the application's link is app_init's, app.h).
+ *
  * For in-process tests of the host tool, boot_sim_drive_handle answers as a
  * whole drive would: boot_sim_handle, plus `identify` in application mode
  * (fw_version = boot_sim_app_version, axes = 3). Main context only.
@@ -64,6 +68,7 @@ size_t boot_sim_app_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint
 uint32_t boot_sim_app_version(void);
 uint32_t boot_sim_app_build_id(void);
 size_t boot_sim_drive_handle(const uint8_t *msg, size_t len, uint8_t *out, size_t cap);
+bool boot_sim_serve_link(void);
 const boot_config_t *boot_sim_config(void);
 /* Simulated resets done so far (power-on excluded). */
 uint32_t boot_sim_resets(void);

@@ -160,6 +160,11 @@ size_t hal_uart_write(const uint8_t *data, size_t len)
     return data == NULL ? 0 : ring_put(&sim.from_drive, data, len);
 }
 
+bool hal_uart_tx_idle(void)
+{
+    return sim.from_drive.tail == sim.from_drive.head;
+}
+
 size_t hal_uart_read(uint8_t *data, size_t cap)
 {
     return data == NULL ? 0 : ring_get(&sim.to_drive, data, cap);
@@ -225,6 +230,10 @@ bool hal_sim_can_drain(uint32_t *id, uint8_t *data, uint8_t *len)
 }
 
 /* ---- system ----------------------------------------------------------------- */
+
+void hal_watchdog_start(void)
+{
+}
 
 void hal_watchdog_kick(void)
 {

@@ -246,7 +246,7 @@ size_t hal_uart_read(uint8_t *data, size_t cap)
     return data == NULL ? 0 : port_ring_read(&uart.rx, data, cap);
 }
 
-bool port_uart_tx_idle(void)
+bool hal_uart_tx_idle(void)
 {
     return port_ring_empty(&uart.tx) && (F4_USART_SR(F4_USART2) & F4_USART_SR_TC);
 }
@@ -409,7 +409,7 @@ bool hal_flash_write(uint32_t addr, const uint8_t *data, size_t len)
 
 /* ---- system ---------------------------------------------------------------------------------- */
 
-void f4_watchdog_start(void)
+void hal_watchdog_start(void)
 {
     F4_IWDG_KR = 0xCCCCu; /* start (LSI ~32 kHz) */
     F4_IWDG_KR = 0x5555u; /* unlock PR / RLR */

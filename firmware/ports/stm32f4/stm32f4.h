@@ -160,10 +160,9 @@
 
 /* Board bring-up: clocks, GPIO, UART, CAN, encoder timers, PWM (outputs at
  * 0 V, amplifiers disabled), SysTick at tick_hz calling hook (NULL: time
- * base only). The watchdog is started separately (f4_watchdog_start). */
+ * base only). The watchdog is started separately (hal_watchdog_start). */
 void f4_board_init(uint32_t tick_hz, void (*hook)(void));
 void f4_set_tick_hook(void (*hook)(void));
-void f4_watchdog_start(void);
 /* False when the board runs on HSI because the crystal or the PLL did not
  * start: every axis then reports an amplifier fault (hal_amp_fault). */
 bool f4_clock_ok(void);

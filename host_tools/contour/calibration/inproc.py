@@ -31,10 +31,6 @@ def _bind(lib) -> None:
 
     simserve._bind(lib)
     c = ctypes
-    lib.proto_link_set_ext_handler.restype = None
-    lib.proto_link_set_ext_handler.argtypes = [c.c_void_p]
-    lib.calib_set_next_handler.restype = None
-    lib.calib_set_next_handler.argtypes = [c.c_void_p]
     lib.flash_sim_configure.restype = c.c_bool
     lib.flash_sim_configure.argtypes = [c.c_uint32, c.c_uint32, c.c_uint32, c.c_uint32]
     _BOUND = True
@@ -70,25 +66,11 @@ class SimDrive:
         if not keep_flash:
             erase_flash()
         self.machine = mach.load(machine)
-        mach.apply(self.machine, feedforward=feedforward)
+        # the drive and its serial link as every target builds them
+        # (firmware/core/app.h), at sim_start
+        link = mach.SimLink(node=node, serial=True, can=False, fw_version=simserve.fw_version())
+        mach.apply(self.machine, feedforward=feedforward, link=link)
         self.tick_hz = int(lib.sim_tick_hz())
-        caps = 0
-        for cap in ("SERIAL", "TELEMETRY", "JOG", "CALIBRATION", "SIMULATED"):
-            caps |= 1 << pg.Capability[cap]
-        self.ident = simserve.Identity(
-            fw_version=simserve.fw_version(),
-            build_id=0,
-            capabilities=caps,
-            tick_hz=self.tick_hz,
-            board_id=simserve.BOARD_SIM,
-            planner_slots=0,
-            node_id=node,
-            axes=self.machine.axes,
-        )
-        if not lib.proto_link_init(ctypes.byref(self.ident), True, False):
-            raise UserError("proto_link_init refused the drive identity")
-        lib.calib_set_next_handler(None)
-        lib.proto_link_set_ext_handler(ctypes.cast(lib.calib_handle, ctypes.c_void_p))
         self._core = core
         self._buf = ctypes.create_string_buffer(8192)
         self.seconds = 0.0

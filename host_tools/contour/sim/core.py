@@ -52,6 +52,10 @@ _PROTOS = {
     "sim_servo_set": (c.c_int, [c.c_uint, c.c_char_p, c.c_double]),
     "sim_plan_set": (c.c_int, [c.c_uint, c.c_char_p, c.c_double]),
     "sim_cec_mode": (c.c_int, [c.c_int]),
+    "sim_set_link": (
+        c.c_int,
+        [c.c_uint, c.c_int, c.c_int, c.c_uint32, c.c_uint32, c.c_uint32, c.c_int],
+    ),
     "sim_start": (c.c_int, []),
     "sim_enable": (c.c_int, [c.c_int]),
     "sim_run": (c.c_long, [c.c_uint64, c.c_void_p, c.c_size_t, c.c_uint]),

@@ -262,8 +262,10 @@ def apply(
     tick_hz: float | None = None,
     feedforward: str = "none",
     controller: str = "pid",
+    link: "SimLink | None" = None,
 ) -> None:
-    """Set up the simulator with machine `m` (sim_setup ... sim_start)."""
+    """Set up the simulator with machine `m` (sim_setup ... sim_start); with
+    `link`, the simulated drive also serves its host link (sim_set_link)."""
     from contour.sim import core
 
     so = core.lib()
@@ -326,7 +328,32 @@ def apply(
     if mode not in core.CEC_MODES:
         raise UserError(f"unknown controller {controller!r}")
     core.check(so.sim_cec_mode(core.CEC_MODES[mode]), "controller")
+    if link is not None:
+        link.apply(so)
     core.check(so.sim_start(), "start")
+
+
+@dataclass(frozen=True)
+class SimLink:
+    """The simulated drive's host link, built by the firmware's composition
+    root (firmware/core/app.h) at sim_start: which links it serves, its CAN
+    node id, the version it reports without a flash image, and whether the
+    simulated bootloader's slot holds the application."""
+
+    node: int = 1
+    serial: bool = True
+    can: bool = False
+    fw_version: int = 0
+    build_id: int = 0
+    boot: bool = False
+
+    def apply(self, so) -> None:
+        from contour.sim import core
+
+        rc = so.sim_set_link(
+            self.node, self.serial, self.can, 0, self.fw_version, self.build_id, self.boot
+        )
+        core.check(rc, "host link")
 
 
 def _gains(so, loop: int, g: dict, what: str) -> None:

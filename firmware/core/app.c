@@ -1,0 +1,122 @@
+/* app.c - the composition root (specification in app.h). */
+#include "app.h"
+
+#include "calib.h"
+#include "hal.h"
+#include "proto_link.h"
+#include "proto_msgs.h"
+#include "proto_reply.h"
+
+static struct {
+    /* main */
+    const boot_config_t *boot;
+    bool link;
+    bool can;
+    proto_identity_t ident;
+    bool reset_pending;
+    uint32_t reset_at_us;
+} app;
+
+size_t app_boot_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out, size_t cap)
+{
+    if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX) {
+        return 0;
+    }
+    if (msg[0] < 0x80u || msg[0] > 0x8Fu) {
+        return proto_reply_error(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u,
+                                 0, 0);
+    }
+    if (msg[0] != PROTO_MSG_BOOT_ENTER || app.boot == NULL) {
+        /* lo = 1: application running */
+        return proto_reply_error(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_BOOT,
+                                 (uint16_t)BOOT_ERR_STATE, 1, 0);
+    }
+    if (len != PROTO_MSG_HDR + PROTO_BOOT_ENTER_LEN) {
+        return proto_reply_error(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_BAD_LENGTH, 0u, 1,
+                                 0);
+    }
+    drive_estop(); /* outputs off before the processor resets */
+    boot_request_enter(app.boot);
+    app.reset_pending = true;
+    app.reset_at_us = now_us + APP_RESET_DELAY_US;
+    return proto_reply_ack(out, msg[1], msg[0]);
+}
+
+static void identity(const app_board_t *b)
+{
+    boot_image_header_t h;
+    uint32_t caps = (1u << PROTO_CAPABILITY_TELEMETRY) | (1u << PROTO_CAPABILITY_JOG) |
+                    (1u << PROTO_CAPABILITY_CALIBRATION);
+
+    app.ident.fw_version = b->fw_version;
+    app.ident.build_id = b->build_id;
+    if (b->boot != NULL && boot_check_app(b->boot, &h) == BOOT_REASON_APP_OK) {
+        app.ident.fw_version = h.fw_version;
+        app.ident.build_id = boot_image_get_u32(h.build_id);
+    }
+    if (b->serial) {
+        caps |= 1u << PROTO_CAPABILITY_SERIAL;
+    }
+    if (b->can) {
+        caps |= 1u << PROTO_CAPABILITY_CAN;
+    }
+    if (b->boot != NULL) {
+        caps |= 1u << PROTO_CAPABILITY_BOOTLOADER;
+    }
+    app.ident.capabilities = caps | b->capabilities;
+    app.ident.tick_hz = b->drive->tick_hz;
+    app.ident.board_id = b->board_id;
+    app.ident.planner_slots = 0u; /* the dispatcher reads it from the drive */
+    app.ident.node_id = b->node_id;
+    app.ident.axes = (uint8_t)b->drive->axes;
+}
+
+app_result_t app_init(const app_board_t *b)
+{
+    if (b == NULL || b->drive == NULL) {
+        return APP_E_ARG;
+    }
+    app.boot = b->boot;
+    app.link = b->serial || b->can;
+    app.can = b->can;
+    app.reset_pending = false;
+    if (drive_init(b->drive) != DRIVE_OK) {
+        return APP_E_DRIVE;
+    }
+    identity(b);
+    if (app.link) {
+        if (!proto_link_init(&app.ident, b->serial, b->can)) {
+            return APP_E_LINK;
+        }
+        proto_link_set_ext_handler(calib_handle);
+        calib_set_next_handler(app_boot_handle);
+    }
+    hal_watchdog_start();
+    return APP_OK;
+}
+
+uint32_t app_fw_version(void)
+{
+    return app.ident.fw_version;
+}
+
+void app_tick(void)
+{
+    drive_tick();
+}
+
+void app_poll(void)
+{
+    drive_poll();
+    if (app.link) {
+        proto_link_poll();
+    }
+    hal_watchdog_kick();
+    if (app.reset_pending) {
+        /* a CAN reply may need several polls: give it the whole delay */
+        if ((!app.can && hal_uart_tx_idle()) || (int32_t)(hal_time_us() - app.reset_at_us) >= 0) {
+            app.reset_pending = false;
+            hal_system_reset();
+        }
+    }
+}
