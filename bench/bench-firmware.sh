@@ -9,6 +9,7 @@
 #       time, read on the board's 25 MHz timer, calibrated in the image).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+mkdir -p build/bench
 ./mk/firmware.sh > build/bench/firmware-build.log
 read -r text data bss _ < <(arm-none-eabi-size build/fw/stm32f4/app.elf | tail -n 1)
 echo "firmware_flash_bytes: $((text + data)) bytes"

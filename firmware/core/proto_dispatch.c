@@ -526,6 +526,20 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
     uint32_t block_seq = 0;
 
     switch (id) {
+    case PROTO_MSG_SESSION_OPEN: {
+        proto_session_open_t o;
+        proto_session_reply_t rep;
+
+        (void)proto_session_open_decode(p, n, &o);
+        proto_replay_reset(&d->replay); /* nothing of an earlier session is replayed */
+        d->sessions++;
+        rep.nonce = o.nonce;
+        rep.sessions = d->sessions;
+        out[0] = PROTO_MSG_SESSION_REPLY;
+        out[1] = seq;
+        return PROTO_MSG_HDR +
+               proto_session_reply_encode(&rep, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+    }
     case PROTO_MSG_IDENTIFY:
         return put_identify(d, out, seq);
     case PROTO_MSG_STATUS_GET:
@@ -653,6 +667,7 @@ bool proto_dispatch_init(proto_dispatch_t *d, const proto_identity_t *ident, uin
     d->heartbeat_on = false;
     d->cec_mode = 0;
     proto_replay_reset(&d->replay);
+    d->sessions = 0;
     d->last_rx_us = now_us;
     d->wd_stopping = false;
     d->cycle_seq = 0;

@@ -22,6 +22,12 @@
  *     cached reply and NOT executed again (counted `replayed`). Another
  *     request under the same (id, seq) is executed. Hosts change seq every
  *     request.
+ *   - Sessions: session_open{nonce} forgets the replay cache and answers
+ *     session_reply{nonce, sessions}. A host opens every session with it and
+ *     discards everything that arrives before the reply carrying its nonce:
+ *     the drive's transmit backlog and replies to an earlier session's
+ *     requests can then never be taken for this session's (the link is
+ *     FIFO per direction).
  *   - Rapid blocks are queued at PROTO_RAPID_FEED_NM_S; the planner's axis
  *     limits cap it. Target positions must lie within +-PROTO_POS_LIMIT_NM.
  *   - Parameters: the table in proto_msgs.c gives type, range and access;
@@ -95,6 +101,7 @@ typedef struct {
     bool heartbeat_on; /* set by the link: true on CAN */
     uint8_t cec_mode;
     proto_replay_t replay; /* last request and its reply (proto_replay.h) */
+    uint16_t sessions;     /* session_open requests executed (wraps) */
     /* watchdog */
     uint32_t last_rx_us;
     bool wd_stopping;

@@ -186,6 +186,24 @@ bool proto_queue_arc_decode(const uint8_t *buf, size_t len, proto_queue_arc_t *m
     return true;
 }
 
+size_t proto_session_open_encode(const proto_session_open_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_SESSION_OPEN_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->nonce, 4u);
+    return PROTO_SESSION_OPEN_LEN;
+}
+
+bool proto_session_open_decode(const uint8_t *buf, size_t len, proto_session_open_t *m)
+{
+    if (len != PROTO_SESSION_OPEN_LEN) {
+        return false;
+    }
+    m->nonce = (uint32_t)proto_get_le(buf + 0, 4u);
+    return true;
+}
+
 size_t proto_heartbeat_encode(const proto_heartbeat_t *m, uint8_t *buf, size_t cap)
 {
     if (cap < PROTO_HEARTBEAT_LEN) {
@@ -439,6 +457,26 @@ bool proto_drive_state_decode(const uint8_t *buf, size_t len, proto_drive_state_
     m->pos[3] = (int64_t)proto_get_sle(buf + 42, 8u);
     m->rx_errors = (uint16_t)proto_get_le(buf + 50, 2u);
     m->replayed = (uint16_t)proto_get_le(buf + 52, 2u);
+    return true;
+}
+
+size_t proto_session_reply_encode(const proto_session_reply_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_SESSION_REPLY_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->nonce, 4u);
+    proto_put_le(buf + 4, (uint64_t)m->sessions, 2u);
+    return PROTO_SESSION_REPLY_LEN;
+}
+
+bool proto_session_reply_decode(const uint8_t *buf, size_t len, proto_session_reply_t *m)
+{
+    if (len != PROTO_SESSION_REPLY_LEN) {
+        return false;
+    }
+    m->nonce = (uint32_t)proto_get_le(buf + 0, 4u);
+    m->sessions = (uint16_t)proto_get_le(buf + 4, 2u);
     return true;
 }
 
@@ -1205,6 +1243,7 @@ const proto_msg_info_t proto_msg_table[] = {
     {0x09u, PROTO_DIR_H2D, 0x70u, 0u, 0u, 0u, "fault_reset"},
     {0x0Au, PROTO_DIR_H2D, 0x4Au, 0u, 0u, 0u, "status_get"},
     {0x0Bu, PROTO_DIR_H2D, 0x46u, 0u, 59u, 59u, "queue_arc"},
+    {0x0Cu, PROTO_DIR_H2D, 0x4Cu, 0u, 4u, 4u, "session_open"},
     {0x30u, PROTO_DIR_D2H, 0x00u, 31u, 8u, 8u, "heartbeat"},
     {0x31u, PROTO_DIR_D2H, 0x00u, 4u, 8u, 8u, "status"},
     {0x32u, PROTO_DIR_D2H, 0x00u, 5u, 8u, 8u, "progress"},
@@ -1221,6 +1260,7 @@ const proto_msg_info_t proto_msg_table[] = {
     {0x42u, PROTO_DIR_D2H, 0x00u, 0u, 10u, 10u, "param_value"},
     {0x46u, PROTO_DIR_D2H, 0x00u, 0u, 10u, 10u, "queue_reply"},
     {0x4Au, PROTO_DIR_D2H, 0x00u, 0u, 54u, 54u, "drive_state"},
+    {0x4Cu, PROTO_DIR_D2H, 0x00u, 0u, 6u, 6u, "session_reply"},
     {0x70u, PROTO_DIR_D2H, 0x00u, 0u, 1u, 1u, "ack"},
     {0x7Fu, PROTO_DIR_D2H, 0x00u, 0u, 20u, 20u, "error"},
     {0x80u, PROTO_DIR_H2D, 0x90u, 0u, 0u, 0u, "boot_connect"},

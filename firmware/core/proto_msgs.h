@@ -180,6 +180,7 @@
 #define PROTO_MSG_FAULT_RESET 0x09u
 #define PROTO_MSG_STATUS_GET 0x0Au
 #define PROTO_MSG_QUEUE_ARC 0x0Bu
+#define PROTO_MSG_SESSION_OPEN 0x0Cu
 #define PROTO_MSG_HEARTBEAT 0x30u
 #define PROTO_MSG_STATUS 0x31u
 #define PROTO_MSG_PROGRESS 0x32u
@@ -196,6 +197,7 @@
 #define PROTO_MSG_PARAM_VALUE 0x42u
 #define PROTO_MSG_QUEUE_REPLY 0x46u
 #define PROTO_MSG_DRIVE_STATE 0x4Au
+#define PROTO_MSG_SESSION_REPLY 0x4Cu
 #define PROTO_MSG_ACK 0x70u
 #define PROTO_MSG_ERROR 0x7Fu
 #define PROTO_MSG_BOOT_CONNECT 0x80u
@@ -334,6 +336,14 @@ typedef struct {
 size_t proto_queue_arc_encode(const proto_queue_arc_t *m, uint8_t *buf, size_t cap);
 bool proto_queue_arc_decode(const uint8_t *buf, size_t len, proto_queue_arc_t *m);
 
+/* session_open (h2d): A host starts a session: the drive forgets its replay cache and echoes the nonce. Everything the drive sent before this reply belongs to an earlier session: the host discards it. The bootloader answers it too. */
+#define PROTO_SESSION_OPEN_LEN 4u
+typedef struct {
+    uint32_t nonce; /* random, chosen by the host for this session */
+} proto_session_open_t;
+size_t proto_session_open_encode(const proto_session_open_t *m, uint8_t *buf, size_t cap);
+bool proto_session_open_decode(const uint8_t *buf, size_t len, proto_session_open_t *m);
+
 /* heartbeat (d2h): Sent every heartbeat_period_ms on CAN (lowest priority); contour scan listens for it. */
 #define PROTO_HEARTBEAT_LEN 8u
 typedef struct {
@@ -448,6 +458,15 @@ typedef struct {
 } proto_drive_state_t;
 size_t proto_drive_state_encode(const proto_drive_state_t *m, uint8_t *buf, size_t cap);
 bool proto_drive_state_decode(const uint8_t *buf, size_t len, proto_drive_state_t *m);
+
+/* session_reply (d2h): Reply to session_open. */
+#define PROTO_SESSION_REPLY_LEN 6u
+typedef struct {
+    uint32_t nonce; /* the nonce of the session_open answered */
+    uint16_t sessions; /* sessions opened since power-on (wraps) */
+} proto_session_reply_t;
+size_t proto_session_reply_encode(const proto_session_reply_t *m, uint8_t *buf, size_t cap);
+bool proto_session_reply_decode(const uint8_t *buf, size_t len, proto_session_reply_t *m);
 
 /* ack (d2h): Request done. */
 #define PROTO_ACK_LEN 1u

@@ -383,6 +383,19 @@ MESSAGES = (
         'Append one arc block (G2/G3) in a plane about an absolute centre.',
     ),
     Message(
+        "session_open",
+        0x0C,
+        "h2d",
+        'session_reply',
+        None,
+        (
+            Field("nonce", "u32", 4, 1, 0, 0, ""),
+        ),
+        4,
+        4,
+        'A host starts a session: the drive forgets its replay cache and echoes the nonce. Everything the drive sent before this reply belongs to an earlier session: the host discards it. The bootloader answers it too.',
+    ),
+    Message(
         "heartbeat",
         0x30,
         "d2h",
@@ -633,6 +646,20 @@ MESSAGES = (
         54,
         54,
         'Reply to status_get.',
+    ),
+    Message(
+        "session_reply",
+        0x4C,
+        "d2h",
+        None,
+        None,
+        (
+            Field("nonce", "u32", 4, 1, 0, 0, ""),
+            Field("sessions", "u16", 2, 1, 0, 4, ""),
+        ),
+        6,
+        6,
+        'Reply to session_open.',
     ),
     Message(
         "ack",

@@ -287,3 +287,31 @@ def test_scan_lists_the_drive_without_talking(server, capsys):
     assert found[0]["protocol_version"] == pg.PROTOCOL_VERSION
     rc, _, err = run_cli(["scan", "--port", server.serial], capsys)
     assert rc == 2 and "CAN bus" in err
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_two_sessions_in_a_row_never_mix_replies(server, transport):
+    """Session 1 turns fast telemetry on, fires requests without reading a
+    reply and vanishes (a host killed mid-request): the drive's answers and
+    telemetry wait in the link. Session 2, whose seq counter runs over the
+    same numbers, must get only its own answers."""
+    pid = pg.PARAM_BY_NAME["comm_timeout_ms"].id
+    c1 = client_for(server, transport)
+    fresh(c1)
+    c1.set_param("telem_period_ms", 10)
+    for k in range(40):
+        c1.t.send(codec.encode("param_get", k, param=pid))
+    c1.close()
+    c2 = client_for(server, transport)
+    try:
+        c2._seq = 0xFF  # session_open takes seq 0, then 1, 2, ... as session 1 did
+        assert c2.get_param("comm_timeout_ms") == 1000
+        assert c2.session is not None
+        for v in (111, 222, 333):
+            assert c2.set_param("comm_timeout_ms", v) == v
+            assert c2.get_param("comm_timeout_ms") == v
+        assert c2.set_param("telem_period_ms", 0) == 0
+        assert c2.status()["state"] in (pg.State.READY, pg.State.DISABLED)
+        c2.set_param("comm_timeout_ms", 1000)
+    finally:
+        c2.close()

@@ -13,12 +13,19 @@ from contour.link.transport import LinkError, open_transport, parse_can_spec
 
 
 class FakeTransport:
-    """Answers like a drive; drops the first `drop` replies."""
+    """Answers like a drive; drops the first `drop` replies. `backlog`:
+    messages of an earlier session delivered before the session_reply;
+    `legacy`: firmware without sessions (session_open is unknown)."""
 
-    def __init__(self, drop: int = 0, refuse: bool = False) -> None:
+    def __init__(
+        self, drop: int = 0, refuse: bool = False, backlog: tuple = (), legacy: bool = False
+    ) -> None:
         self.sent: list[bytes] = []
         self.drop = drop
         self.refuse = refuse
+        self.backlog = list(backlog)
+        self.legacy = legacy
+        self.wrong_first = False
         self.on = None
 
     def start(self, on):
@@ -30,11 +37,24 @@ class FakeTransport:
             self.drop -= 1
             return
         req = codec.decode(data)
-        if self.refuse and req.name == "param_set":
+        if req.name == "session_open":
+            for old in self.backlog:
+                self.on(old, 0.0)
+            self.backlog = []
+            if self.legacy:
+                reply = codec.encode("error", req.seq, req=req.id, code=1, arg=req.id, lo=0, hi=0)
+            else:
+                reply = codec.encode(
+                    "session_reply", req.seq, nonce=req.fields["nonce"], sessions=2
+                )
+        elif self.refuse and req.name == "param_set":
             reply = codec.encode("error", req.seq, req=req.id, code=4, arg=1, lo=0, hi=60000)
         elif req.name == "status_get":
             reply = codec.encode("drive_state", req.seq)
         else:
+            if self.wrong_first:
+                self.wrong_first = False
+                self.on(codec.encode("ack", req.seq, req=pg.MSG_BY_NAME["stop"].id), 0.0)
             reply = codec.encode("param_value", req.seq, param=req.fields["param"], value=5)
         self.on(reply, 0.0)
 
@@ -48,21 +68,60 @@ def test_lost_reply_is_retried_with_the_same_seq():
     c.status()
     t.drop = 2
     assert c.get_param("comm_timeout_ms") == 5
-    assert len(t.sent) == 4 and t.sent[1] == t.sent[2] == t.sent[3]
+    assert len(t.sent) == 5 and t.sent[2] == t.sent[3] == t.sent[4]
     assert c.retried == 2
 
 
-def test_first_command_of_a_session_is_preceded_by_a_harmless_request():
+def test_first_command_of_a_session_is_preceded_by_session_open():
     t = FakeTransport()
     c = Client(t, timeout=0.05)
     c.set_param("comm_timeout_ms", 5)
-    assert [codec.decode(m).name for m in t.sent] == ["status_get", "param_set"]
+    assert [codec.decode(m).name for m in t.sent] == ["session_open", "param_set"]
+    assert c.session == codec.decode(t.sent[0]).fields["nonce"]
+
+
+def test_firmware_without_sessions_gets_a_harmless_first_request():
+    t = FakeTransport(legacy=True)
+    c = Client(t, timeout=0.05)
+    c.set_param("comm_timeout_ms", 5)
+    names = [codec.decode(m).name for m in t.sent]
+    assert names == ["session_open", "status_get", "param_set"]
+    assert c.session is None
+
+
+def test_an_earlier_sessions_replies_are_never_taken_for_ours():
+    """The drive's transmit backlog of a killed session arrives first: replies
+    under every seq this session will use, and telemetry. None of it may
+    answer a request of this session."""
+    t0 = FakeTransport()
+    c0 = Client(t0, timeout=0.05)
+    c0.status()
+    seq0 = codec.decode(t0.sent[-1]).seq
+    stale = [codec.encode("param_value", (seq0 + k) & 0xFF, param=0, value=99) for k in range(1, 8)]
+    stale.append(codec.encode("ack", (seq0 + 2) & 0xFF, req=pg.MSG_BY_NAME["param_set"].id))
+    stale.append(codec.encode("session_reply", (seq0 + 1) & 0xFF, nonce=1234, sessions=1))
+    telemetry = codec.encode("status", 0, state=2)
+    t = FakeTransport(backlog=(*stale, telemetry))
+    c = Client(t, timeout=0.05, retries=0)
+    c._seq = seq0  # the next session happens to continue the same seq counter
+    assert c.get_param("comm_timeout_ms") == 5
+    assert c.stale_replies == len(stale)
+    assert c.unsolicited() is None
+
+
+def test_a_reply_of_another_request_under_the_same_seq_is_dropped():
+    t = FakeTransport()
+    c = Client(t, timeout=0.05, retries=1)
+    c.status()
+    t.wrong_first = True  # a stale ack under the param_get's seq comes first
+    assert c.get_param("comm_timeout_ms") == 5
+    assert c.stale_replies == 1 and c.retried == 0
 
 
 def test_no_reply_at_all_is_a_clear_link_error():
     t = FakeTransport(drop=100)
     c = Client(t, timeout=0.01, retries=1)
-    with pytest.raises(LinkError, match="no reply from the drive to status_get after 2 tries"):
+    with pytest.raises(LinkError, match="no reply from the drive to session_open after 2 tries"):
         c.status()
 
 
@@ -123,7 +182,11 @@ def test_virtual_can_bus_round_trip_through_isotp():
             data = stack.recv()
             if data:
                 req = codec.decode(bytes(data))
-                stack.send(codec.encode("drive_state", req.seq, state=1, pos=[1, 2, 3, 0]))
+                if req.name == "session_open":
+                    n = req.fields["nonce"]
+                    stack.send(codec.encode("session_reply", req.seq, nonce=n, sessions=1))
+                else:
+                    stack.send(codec.encode("drive_state", req.seq, state=1, pos=[1, 2, 3, 0]))
             stop.wait(0.001)
 
     th = threading.Thread(target=drive, daemon=True)

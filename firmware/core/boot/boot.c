@@ -175,6 +175,7 @@ bool boot_init(boot_t *b, const boot_config_t *cfg)
     b->reboot_pending = false;
     b->window_start_us = 0u;
     proto_replay_reset(&b->replay);
+    b->link_sessions = 0u;
     b->page_size = 0u;
     b->write_size = 0u;
     if (l == NULL) {
@@ -511,6 +512,19 @@ static size_t dispatch(boot_t *b, uint8_t id, uint8_t seq, const uint8_t *p, siz
     boot_status_t st;
 
     switch (id) {
+    case PROTO_MSG_SESSION_OPEN: {
+        proto_session_open_t so;
+        proto_session_reply_t r;
+        if (!proto_session_open_decode(p, n, &so)) {
+            break;
+        }
+        proto_replay_reset(&b->replay);
+        b->link_sessions++;
+        r.nonce = so.nonce;
+        r.sessions = b->link_sessions;
+        return reply_head(out, PROTO_MSG_SESSION_REPLY, seq) +
+               proto_session_reply_encode(&r, o, ocap);
+    }
     case PROTO_MSG_IDENTIFY: {
         proto_identify_reply_t r;
         if (n != PROTO_IDENTIFY_LEN) {

@@ -209,6 +209,7 @@ typedef struct {
     boot_image_header_t hdr;              /* session image header (valid in WRITING/DONE) */
     uint8_t hdr_raw[BOOT_IMAGE_HDR_SIZE]; /* its encoded form */
     proto_replay_t replay;                /* last request and its reply (proto_replay.h) */
+    uint16_t link_sessions;               /* host link sessions opened (session_open; wraps) */
 } boot_t;
 
 /* Fill *cfg for this port's HAL flash region: the slot is the region minus

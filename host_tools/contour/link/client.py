@@ -1,9 +1,13 @@
 """One client interface for the drive on either transport.
 
-:class:`Client` sends requests and waits for their replies (matched by the
-sequence number), retries a request whose reply was lost with the *same*
-sequence number (the drive answers a repeated request from its replay cache
-and does not execute it twice), turns ``error`` replies into
+:class:`Client` opens a session (``session_open`` with a random nonce; every
+message that arrives before the ``session_reply`` carrying that nonce is an
+earlier session's and is discarded), sends requests and waits for their
+replies (matched by sequence number *and* request: a reply of another type,
+or an ack/error naming another request, is stale and dropped), retries a
+request whose reply was lost with the *same* sequence number (the drive
+answers a repeated request from its replay cache and does not execute it
+twice), turns ``error`` replies into
 :class:`DriveError` with a specific message, and queues unsolicited messages
 (status, telemetry, heartbeat) for :meth:`Client.unsolicited`.
 """
@@ -24,6 +28,15 @@ from contour.link.transport import LinkError, open_transport
 AXIS_NAMES = "xyza"
 
 _REPLY_NAMES = {m.reply for m in pg.MESSAGES if m.reply} | {"ack", "error"}
+_SESSION_OPEN_ID = pg.MSG_BY_NAME["session_open"].id
+
+
+def _answers(reply: codec.Decoded, request: pg.Message) -> bool:
+    """True when `reply` (same seq) is an answer to `request`: its reply type,
+    or an ack / error that names it."""
+    if reply.name in ("ack", "error"):
+        return reply.fields["req"] == request.id
+    return reply.name == request.reply
 
 
 class DriveError(UserError):
@@ -117,6 +130,9 @@ class Client:
         self.unsolicited_dropped = 0
         self.bad_messages = 0
         self.retried = 0
+        self.stale_replies = 0  # replies of an earlier session or request, dropped
+        self.session: Optional[int] = None  # the nonce of the open session
+        self._opening: Optional[tuple[int, int, threading.Event, list]] = None
         self._synced = False
         self.t.start(self._on_message)
 
@@ -128,12 +144,25 @@ class Client:
         except codec.ProtocolError:
             self.bad_messages += 1
             return
+        with self._lock:
+            opening = self._opening
+            slot = self._pending.get(m.seq) if opening is None else None
+        if opening is not None:  # before our session_reply: an earlier session's
+            nonce, seq, ev, box = opening
+            if (m.name == "session_reply" and m.fields["nonce"] == nonce) or (
+                m.name == "error" and m.seq == seq and m.fields["req"] == _SESSION_OPEN_ID
+            ):
+                box.append(m)
+                ev.set()
+            elif m.name in _REPLY_NAMES:
+                self.stale_replies += 1
+            return
         if m.name in _REPLY_NAMES:
-            with self._lock:
-                slot = self._pending.get(m.seq)
-            if slot is not None:
+            if slot is not None and _answers(m, slot[2]):
                 slot[1].append(m)
                 slot[0].set()
+            else:
+                self.stale_replies += 1
             return
         try:
             self._unsol.put_nowait((ts, m))
@@ -147,19 +176,14 @@ class Client:
         if msg is None or msg.dir != "h2d":
             raise UserError(f"{name!r} is not a request")
         if not self._synced:
-            # The drive answers a request equal to its last one (id and seq)
-            # from its replay cache. A new session could by chance repeat the
-            # previous session's last pair: open with a harmless request so
-            # that no command of this session can be mistaken for a replay.
             self._synced = True
-            if name not in ("identify", "status_get"):
-                self.request("status_get", timeout=timeout, retries=retries)
+            self._open_session(timeout, retries)
         with self._lock:
             self._seq = (self._seq + 1) & 0xFF
             seq = self._seq
             ev: threading.Event = threading.Event()
             box: list = []
-            self._pending[seq] = (ev, box)
+            self._pending[seq] = (ev, box, msg)
         data = codec.encode(name, seq, **fields)
         tries = 1 + (self.retries if retries is None else retries)
         wait = self.timeout if timeout is None else timeout
@@ -184,6 +208,48 @@ class Client:
         if msg.reply and reply.name != msg.reply:
             raise codec.ProtocolError(f"{name}: drive answered {reply.name}, expected {msg.reply}")
         return reply
+
+    def _open_session(self, timeout: Optional[float], retries: Optional[int]) -> None:
+        """session_open with a fresh nonce; until its reply arrives every
+        message is an earlier session's (dropped, also unsolicited ones)."""
+        nonce = random.getrandbits(32)
+        with self._lock:
+            self._seq = (self._seq + 1) & 0xFF
+            seq = self._seq
+            ev: threading.Event = threading.Event()
+            box: list = []
+            self._opening = (nonce, seq, ev, box)
+        data = codec.encode("session_open", seq, nonce=nonce)
+        tries = 1 + (self.retries if retries is None else retries)
+        wait = self.timeout if timeout is None else timeout
+        try:
+            for attempt in range(tries):
+                if attempt:
+                    self.retried += 1
+                self.t.send(data)
+                if ev.wait(wait):
+                    break
+            else:
+                raise LinkError(
+                    f"no reply from the drive to session_open after {tries} tries "
+                    f"({wait:g} s each): is it connected and powered?"
+                )
+        finally:
+            with self._lock:
+                self._opening = None
+        self.drain_unsolicited()  # queued before the session: none of ours
+        reply = box[0]
+        if reply.name == "error":
+            code = reply.fields["code"]
+            if code != pg.ErrorCode.UNKNOWN_MESSAGE:
+                raise DriveError(
+                    "session_open", reply.fields, describe_error("session_open", reply.fields)
+                )
+            # firmware older than sessions: at least no command of this
+            # session can be taken for a replay of the last one
+            self.request("status_get", timeout=timeout, retries=retries)
+            return
+        self.session = nonce
 
     def unsolicited(self, timeout: float = 0.0):
         """Next (timestamp, Decoded) status/telemetry message, or None."""
