@@ -15,7 +15,6 @@ from __future__ import annotations
 import ctypes
 from typing import Callable, Optional
 
-from contour import protocol_gen as pg
 from contour.calibration.faults import FrameFaults, StreamFaults
 from contour.errors import UserError
 from contour.link import codec

@@ -262,7 +262,7 @@ def apply(
     tick_hz: float | None = None,
     feedforward: str = "none",
     controller: str = "pid",
-    link: "SimLink | None" = None,
+    link: SimLink | None = None,
 ) -> None:
     """Set up the simulator with machine `m` (sim_setup ... sim_start); with
     `link`, the simulated drive also serves its host link (sim_set_link)."""
