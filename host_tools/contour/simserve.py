@@ -53,6 +53,7 @@ from contour.errors import UserError
 BOARD_SIM = 1  # BOOT_BOARD_SIM in firmware/core/boot/boot.h
 MAX_BACKLOG = 256 * 1024
 FLASH_FILE_BYTES = 256 * 1024  # FLASH_SIM_DEFAULT_SIZE (firmware/ports/sim/hal_flash_sim.h)
+DEFAULT_MACHINE = "tuned"  # hil_sim/machines/tuned.toml: the machine without --machine
 
 
 def fw_version() -> int:
@@ -221,10 +222,10 @@ class SimServer:
     def __init__(
         self,
         node: int = 1,
-        tick_hz: Optional[int] = 10000,
-        axes: int = 3,
+        tick_hz: Optional[int] = None,
+        axes: Optional[int] = None,
         machine: Optional[str] = None,
-        feedforward: str = "none",
+        feedforward: Optional[str] = None,
         flash: Optional[str] = None,
         boot_window_ms: Optional[int] = None,
     ) -> None:
@@ -263,18 +264,16 @@ class SimServer:
         link = mach.SimLink(
             node=node, serial=True, can=True, fw_version=fw_version(), build_id=build_id, boot=True
         )
-        if machine is not None:  # a machine file (axes, tick, model options, gains)
-            m = mach.load(machine)
-            mach.apply(m, tick_hz=tick_hz, feedforward=feedforward, link=link)
-            tick_hz = int(lib.sim_tick_hz())
-            axes = m.axes
-        else:
-            tick_hz = 10000 if tick_hz is None else tick_hz
-            if lib.sim_setup(float(tick_hz), axes) != 0:
-                raise UserError(f"simulator refused tick {tick_hz} Hz with {axes} axes")
-            link.apply(lib)
-            if lib.sim_start() != 0:
-                raise UserError(f"simulator refused tick {tick_hz} Hz with {axes} axes")
+        # a machine file (axes, tick, model options, limits, gains, feed-forward);
+        # without --machine hil_sim/machines/tuned.toml (docs/simulator.md,
+        # "The default machine")
+        m = mach.load(DEFAULT_MACHINE if machine is None else machine)
+        if axes is not None:
+            if not 1 <= axes <= m.axes:
+                raise UserError(f"--axes {axes}: machine {m.name} has {m.axes} axes")
+            m.axes = axes
+        mach.apply(m, tick_hz=tick_hz, feedforward=feedforward, link=link)
+        tick_hz = int(lib.sim_tick_hz())
         self.tick_hz = tick_hz
         self.period_ns = round(1e9 / tick_hz)
         self.app_running = False
@@ -470,9 +469,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--tick-hz",
         type=int,
         default=None,
-        help="control tick rate, Hz (default 10000, or the machine file's)",
+        help="control tick rate, Hz (default: the machine file's)",
     )
-    parser.add_argument("--axes", type=int, default=3, choices=(1, 2, 3), help="axes (default 3)")
+    parser.add_argument(
+        "--axes", type=int, default=None, choices=(1, 2, 3), help="axes (default: the machine's)"
+    )
     parser.add_argument(
         "--flash",
         metavar="FILE",
@@ -489,13 +490,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--machine",
         metavar="NAME|FILE.toml",
-        help="machine file (hil_sim/machines/NAME.toml): model options, axes, tick, gains",
+        help="machine file (hil_sim/machines/NAME.toml): model options, axes, tick, limits, "
+        f"gains, feed-forward (default {DEFAULT_MACHINE})",
     )
     parser.add_argument(
         "--feedforward",
         choices=("none", "velocity", "full"),
-        default="none",
-        help="feed-forward of the axis loops with --machine (default none)",
+        default=None,
+        help="feed-forward of the axis loops (default: the machine file's, none if it says none)",
     )
 
 
@@ -505,7 +507,7 @@ def main(args: argparse.Namespace) -> int:
         tick_hz=args.tick_hz,
         axes=args.axes,
         machine=getattr(args, "machine", None),
-        feedforward=getattr(args, "feedforward", "none"),
+        feedforward=getattr(args, "feedforward", None),
         flash=getattr(args, "flash", None),
         boot_window_ms=getattr(args, "boot_window_ms", None),
     )

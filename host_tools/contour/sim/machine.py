@@ -41,6 +41,8 @@ optional except where noted; units SI unless the name says otherwise)::
     kp = 0.0  ki = 0.0  kd = 0.0  d_tau = 0.0
 
     [feedforward]                   # used by --feedforward velocity|full
+    mode = "none"                   # none|velocity|full: used when the caller
+                                    # gives none (sim serve without --feedforward)
     # model values when absent: kvff = kb / (kx l), kaff = Ra (I1 + I2) / (kt kx l)
     scale = 1.0                     # all feed-forward gains times this
     scale_x = 1.0                   # per-axis factor on top (scale_y, scale_z)
@@ -99,7 +101,8 @@ AXIS_KEYS = {
 }
 GAIN_KEYS = {"kp", "ki", "kd", "d_tau", "d_on_measurement", "kt", "i_max", "out_max"}
 PLAN_KEYS = {"v_max", "a_max", "j_max", "junction_dev", "arc_chord"}
-FF_KEYS = {"kvff", "kaff", "scale", "scale_x", "scale_y", "scale_z", "friction"}
+FF_KEYS = {"kvff", "kaff", "scale", "scale_x", "scale_y", "scale_z", "friction", "mode"}
+FF_MODES = ("none", "velocity", "full")
 SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel"}
 TOP_KEYS = {
     "name",
@@ -125,6 +128,7 @@ class Machine:
     servo: dict = field(default_factory=dict)
     gains: dict = field(default_factory=dict)  # "x"/"y"/"z"/"cec" -> gains
     feedforward: dict = field(default_factory=dict)
+    ff_mode: str = "none"  # [feedforward] mode: apply()'s default
     description: str = ""
 
     def l(self, ax: str) -> float:  # noqa: E743 - the model's name for it
@@ -253,6 +257,13 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
     }
     ff = data.get("feedforward", {})
     _check_keys(ff, FF_KEYS, "[feedforward]", path)
+    ff = dict(ff)
+    mode = ff.pop("mode", "none")
+    if mode not in FF_MODES:
+        raise UserError(
+            f"{path}: feedforward.mode must be one of {', '.join(FF_MODES)}, got {mode!r}"
+        )
+    m.ff_mode = mode
     m.feedforward = {k: _num(v, f"feedforward.{k}", path, 0) for k, v in ff.items()}
     return m
 
@@ -260,13 +271,17 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
 def apply(
     m: Machine,
     tick_hz: float | None = None,
-    feedforward: str = "none",
+    feedforward: str | None = "none",
     controller: str = "pid",
     link: SimLink | None = None,
 ) -> None:
     """Set up the simulator with machine `m` (sim_setup ... sim_start); with
-    `link`, the simulated drive also serves its host link (sim_set_link)."""
+    `link`, the simulated drive also serves its host link (sim_set_link).
+    `feedforward` None: the machine file's [feedforward] mode."""
     from contour.sim import core
+
+    if feedforward is None:
+        feedforward = m.ff_mode
 
     so = core.lib()
     hz = float(tick_hz if tick_hz is not None else m.tick_hz)
