@@ -14,6 +14,7 @@ import time
 
 import pytest
 from contour import protocol_gen as pg
+from contour.errors import UserError
 from contour.link import connect
 from contour.link.stream import Streamer, blocks_from_gcode
 from contour.sim import machine
@@ -173,3 +174,12 @@ def test_rapids_and_feeds_at_the_limits(server, tuned, tmp_path):
     assert worst < FERR_FRACTION * limit_nm, (
         f"peak following error {[p / 1e3 for p in peak]} um; limit {limit_nm / 1e3:g} um"
     )
+
+
+def test_feedforward_mode_of_a_machine_file():
+    """[feedforward] mode is the feed-forward when the caller names none;
+    the thesis set-up (default.toml) keeps none; a wrong mode is refused."""
+    assert machine.load("default").ff_mode == "none"
+    assert machine.from_dict({"feedforward": {"mode": "velocity"}}).ff_mode == "velocity"
+    with pytest.raises(UserError, match="feedforward.mode"):
+        machine.from_dict({"feedforward": {"mode": "fast"}})
