@@ -457,3 +457,17 @@ def test_can_transmit_buffer_full_is_waited_out(files, capsys, monkeypatch):
         monkeypatch.undo()
         assert calls["full"] > 100  # every frame of the transfer went out in the end
         assert time.monotonic() - t0 < 20
+
+
+def test_scan_finds_a_drive_in_its_bootloader(tmp_path, capsys):
+    """An erased flash keeps the drive in its bootloader, which sends a CAN
+    heartbeat: the passive scan lists it with state bootloader."""
+    with serve(tmp_path / "erased.bin") as server:
+        assert drive_state(server) == ("bootloader", 0)
+        rc, out, err = run_cli(
+            ["scan", "--can", f"slcan:{server.slcan}@500000", "--time", "2.5", "--json"], capsys
+        )
+        assert rc == 0, err
+        nodes = json.loads(out)
+        assert [n["node"] for n in nodes] == [1]
+        assert nodes[0]["state"] == "bootloader" and nodes[0]["axes"] == 0

@@ -117,8 +117,8 @@ static void test_boot_enter_acks_then_resets(void)
 
     TEST_ASSERT_TRUE(boot_sim_init(NULL, 4u, 0u));
     start(1);
-    TEST_ASSERT_TRUE(request(PROTO_MSG_BOOT_ENTER, (const uint8_t *)"\0\0\0\0",
-                             PROTO_BOOT_ENTER_LEN, r) > 0u);
+    TEST_ASSERT_TRUE(
+        request(PROTO_MSG_BOOT_ENTER, (const uint8_t *)"\0\0\0\0", PROTO_BOOT_ENTER_LEN, r) > 0u);
     TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_ACK, r[0]);
     TEST_ASSERT_TRUE(sim_run(2, NULL, 0, 0) >= 0); /* the ack has left: reset */
     TEST_ASSERT_TRUE(hal_sim_take_reset_request());

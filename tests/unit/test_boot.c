@@ -742,6 +742,26 @@ static void test_init_rejects_bad_config(void)
     TEST_ASSERT_TRUE(boot_init(&boot, &c));
 }
 
+/* The bootloader's CAN heartbeat: due at once, then every BOOT_HEARTBEAT_MS
+ * (also across the wrap of the microsecond clock), state bootloader. */
+static void test_heartbeat_period_and_content(void)
+{
+    uint8_t hb[8];
+    proto_heartbeat_t h;
+    uint32_t t0 = 0xFFFFFF00u; /* 256 us before the wrap */
+
+    TEST_ASSERT_TRUE(boot_heartbeat(&boot, t0, hb));
+    TEST_ASSERT_TRUE(proto_heartbeat_decode(hb, sizeof hb, &h));
+    TEST_ASSERT_EQUAL_UINT8(PROTO_STATE_BOOTLOADER, h.state);
+    TEST_ASSERT_EQUAL_UINT8(0, h.axes);
+    TEST_ASSERT_EQUAL_UINT16(PROTO_VERSION, h.protocol_version);
+    TEST_ASSERT_EQUAL_HEX32(BOOT_VERSION, h.fw_version);
+    TEST_ASSERT_FALSE(boot_heartbeat(&boot, t0 + 1000u, hb));
+    TEST_ASSERT_FALSE(boot_heartbeat(&boot, t0 + BOOT_HEARTBEAT_MS * 1000u - 1u, hb));
+    TEST_ASSERT_TRUE(boot_heartbeat(&boot, t0 + BOOT_HEARTBEAT_MS * 1000u, hb));
+    TEST_ASSERT_FALSE(boot_heartbeat(&boot, t0 + BOOT_HEARTBEAT_MS * 1000u + 5u, hb));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -752,6 +772,7 @@ int main(void)
     RUN_TEST(test_connect_reports_layout);
     RUN_TEST(test_identify_in_bootloader_and_unknown_ids);
     RUN_TEST(test_repeated_request_is_answered_from_cache_not_executed);
+    RUN_TEST(test_heartbeat_period_and_content);
     RUN_TEST(test_window_then_jump_and_host_connect_cancels_it);
     RUN_TEST(test_host_request_word_is_honoured_once);
     RUN_TEST(test_application_marked_bad_stays);

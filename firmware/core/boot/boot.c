@@ -174,6 +174,8 @@ bool boot_init(boot_t *b, const boot_config_t *cfg)
     b->session = BOOT_SESSION_IDLE;
     b->reboot_pending = false;
     b->window_start_us = 0u;
+    b->hb_sent = false;
+    b->hb_last_us = 0u;
     proto_replay_reset(&b->replay);
     b->link_sessions = 0u;
     b->page_size = 0u;
@@ -680,6 +682,22 @@ size_t boot_handle(boot_t *b, const uint8_t *msg, size_t len, uint8_t *out, size
     n = dispatch(b, id, seq, msg + PROTO_MSG_HDR, len - PROTO_MSG_HDR, out);
     proto_replay_store(&b->replay, &key, out, n);
     return n;
+}
+
+bool boot_heartbeat(boot_t *b, uint32_t now_us, uint8_t out[8])
+{
+    proto_heartbeat_t h;
+
+    if (b->hb_sent && (uint32_t)(now_us - b->hb_last_us) < BOOT_HEARTBEAT_MS * 1000u) {
+        return false;
+    }
+    b->hb_sent = true;
+    b->hb_last_us = now_us;
+    h.state = (uint8_t)PROTO_STATE_BOOTLOADER;
+    h.axes = 0u;
+    h.protocol_version = PROTO_VERSION;
+    h.fw_version = BOOT_VERSION;
+    return proto_heartbeat_encode(&h, out, 8u) == 8u;
 }
 
 void boot_request_enter(const boot_config_t *cfg)

@@ -84,7 +84,8 @@
 #define BOOT_REPLY_MAX 252u
 
 /* Bootloader version reported by CONNECT: (major << 16) | (minor << 8) | patch. */
-#define BOOT_VERSION 0x00010000u
+#define BOOT_VERSION      0x00010000u
+#define BOOT_HEARTBEAT_MS 1000u
 
 /* Largest data block of one WRITE / READ (bytes; fits one protocol message). */
 #define BOOT_BLOCK_MAX 224u
@@ -206,6 +207,8 @@ typedef struct {
     boot_session_t session;
     bool reboot_pending;
     uint32_t window_start_us;
+    uint32_t hb_last_us;                  /* last heartbeat (boot_heartbeat) */
+    bool hb_sent;                         /* one was sent since boot_init */
     boot_image_header_t hdr;              /* session image header (valid in WRITING/DONE) */
     uint8_t hdr_raw[BOOT_IMAGE_HDR_SIZE]; /* its encoded form */
     proto_replay_t replay;                /* last request and its reply (proto_replay.h) */
@@ -229,6 +232,13 @@ boot_reason_t boot_start(boot_t *b, uint32_t now_us);
 /* Background step: jumps when the window has expired, resets when a REBOOT
  * reply has gone out. Call after sending each response. */
 boot_action_t boot_poll(boot_t *b, uint32_t now_us);
+
+/* CAN heartbeat of the bootloader (contour scan finds a board in its
+ * bootloader): true every BOOT_HEARTBEAT_MS, with the 8-byte heartbeat
+ * payload in out (state bootloader, 0 axes, PROTO_VERSION, BOOT_VERSION);
+ * the caller sends it on PROTO_CAN_ID(PROTO_CAN_FUNC_HEARTBEAT, node). The
+ * first one is due at once. */
+bool boot_heartbeat(boot_t *b, uint32_t now_us, uint8_t out[8]);
 
 /* Execute one protocol message msg = msg_id | seq | payload (len >= 2) and
  * write its reply message into out (cap >= BOOT_REPLY_MAX). Returns the

@@ -111,7 +111,12 @@ void port_boot_poll(void)
         serve_serial();
     }
     if (pb.can) {
+        uint8_t hb[8];
+
         serve_can(now);
+        if (boot_heartbeat(&pb.b, now, hb)) {
+            (void)hal_can_send(PROTO_CAN_ID(PROTO_CAN_FUNC_HEARTBEAT, pb.b.cfg.node_id), hb, 8u);
+        }
     }
     hal_watchdog_kick();
     (void)boot_poll(&pb.b, hal_time_us());

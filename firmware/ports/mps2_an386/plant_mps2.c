@@ -12,6 +12,14 @@
 #define PLANT_MV_LIMIT 160000
 #define PLANT_SUB_MAX  8u
 
+/* X's pitch error map (plant_mps2.h): table position minus l th2, um, at
+ * every PLANT_PITCH_STEP_MM from PLANT_PITCH_FROM_MM, both directions. */
+#define PLANT_PITCH_AXIS    0u
+#define PLANT_PITCH_FROM_MM (-20)
+#define PLANT_PITCH_STEP_MM 10
+#define PLANT_PITCH_N       8u
+static const int8_t plant_pitch_um[PLANT_PITCH_N] = {-4, -2, 0, 12, 8, 15, 18, 14};
+
 static struct {
     unsigned axes;
     unsigned nsub;
@@ -59,6 +67,18 @@ static void encoder_move(unsigned i, double r, uint64_t t0, uint64_t t1)
     pl.reading[i] = r;
 }
 
+static void plant_pitch_map(axis_params_t *p)
+{
+    unsigned k;
+
+    p->pitch_n = PLANT_PITCH_N;
+    for (k = 0; k < PLANT_PITCH_N; k++) {
+        p->pitch_pos[k] = (PLANT_PITCH_FROM_MM + (int)k * PLANT_PITCH_STEP_MM) * 1e-3;
+        p->pitch_err_fwd[k] = plant_pitch_um[k] * 1e-6;
+        p->pitch_err_rev[k] = p->pitch_err_fwd[k];
+    }
+}
+
 void plant_drive_config(drive_config_t *cfg, uint32_t tick_hz, unsigned axes)
 {
     unsigned i;
@@ -92,6 +112,9 @@ bool plant_init(uint32_t tick_hz, unsigned axes, drive_config_t *cfg)
 
         axis_params_lacerda(&p, i == 1u);
         p.l = PLANT_LEAD_M / (2.0 * PLANT_PI);
+        if (i == PLANT_PITCH_AXIS) {
+            plant_pitch_map(&p);
+        }
         if (!axis_init(&pl.ax[i], &p, period / (double)pl.nsub)) {
             return false;
         }

@@ -10,6 +10,18 @@
  *                                         axes..2*axes-1 (32-bit counts);
  *                                         axis encoders are edge mode (false)
  *
+ * Pitch error (what `contour calibrate` measures on this board): axis X's
+ * table position is l th2 + e(x), e piecewise linear between
+ *     x mm        -20  -10    0   10   20   30   40   50
+ *     e um         -4   -2    0  +12   +8  +15  +18  +14   (held beyond)
+ * in both directions (no hysteresis: the servo overshoots a stop and comes
+ * back, so a direction-dependent map would be read on the flank opposite
+ * to the approach). The reference scale reads the table, the motor
+ * encoder l th1, so the calibration error (encoder - reference) is -e:
+ * 0, -12, -8 um at 0, 10, 20 mm (tests/python/test_ports_qemu.py). Y and
+ * Z have none. The map lives in the plant (doubles, like the rest of the
+ * model); the drive's code sees only counts.
+ *
  * plant_init  prepares the models for `axes` axes at tick_hz (substeps of at
  *             most 100 us) and fills the encoder part of the drive's
  *             configuration (scales, initial line levels). Main context,

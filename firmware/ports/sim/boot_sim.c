@@ -82,7 +82,12 @@ void boot_sim_poll(void)
         return;
     }
     if (mode == BOOT_SIM_BOOTLOADER) {
+        uint8_t hb[8];
+
         (void)boot_poll(&boot, hal_time_us());
+        if (mode == BOOT_SIM_BOOTLOADER && boot_heartbeat(&boot, hal_time_us(), hb)) {
+            (void)hal_can_send(PROTO_CAN_ID(PROTO_CAN_FUNC_HEARTBEAT, cfg.node_id), hb, 8u);
+        }
     }
     if (reset_pending) {
         (void)boot_sim_reset();
