@@ -25,7 +25,7 @@ import zlib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from contour.errors import UserError
+from contour.errors import UsageError, UserError
 
 MAGIC = 0x57465443  # b"CTFW" little-endian
 FORMAT_VERSION = 1
@@ -59,7 +59,7 @@ def parse_version(text: str) -> int:
     except ValueError:
         nums = []
     if len(nums) != 3 or not (0 <= nums[0] < 65536 and 0 <= nums[1] < 256 and 0 <= nums[2] < 256):
-        raise UserError(f"version {text!r}: expected MAJOR.MINOR.PATCH (0..65535.0..255.0..255)")
+        raise UsageError(f"version {text!r}: expected MAJOR.MINOR.PATCH (0..65535.0..255.0..255)")
     return (nums[0] << 16) | (nums[1] << 8) | nums[2]
 
 
@@ -67,7 +67,7 @@ def parse_int(text: str, what: str) -> int:
     try:
         return int(text, 0)
     except ValueError:
-        raise UserError(f"{what} {text!r} is not a number") from None
+        raise UsageError(f"{what} {text!r} is not a number") from None
 
 
 def parse_board(text: str) -> int:
@@ -345,19 +345,19 @@ def cmd_build(args: argparse.Namespace) -> int:
     if data[:4] == b"\x7fELF":
         load_addr, payload = elf_payload(data)
         if args.load_addr is not None and parse_int(args.load_addr, "load address") != load_addr:
-            raise UserError(
+            raise UsageError(
                 f"{src}: linked at 0x{load_addr:08X}, not at the requested {args.load_addr}"
             )
     else:
         if args.load_addr is None:
-            raise UserError(f"{src}: a raw binary needs --load-addr")
+            raise UsageError(f"{src}: a raw binary needs --load-addr")
         load_addr, payload = parse_int(args.load_addr, "load address"), data
     build_id = None
     if args.build_id:
         try:
             build_id = bytes.fromhex(args.build_id)[:BUILD_ID_LEN]
         except ValueError:
-            raise UserError(f"build id {args.build_id!r} is not hexadecimal") from None
+            raise UsageError(f"build id {args.build_id!r} is not hexadecimal") from None
     img = build(
         payload,
         board_id=parse_board(args.board),

@@ -1,7 +1,15 @@
+import json
+import signal
 import subprocess
 import sys
+import textwrap
 
+import pytest
 from contour import cli
+from contour.errors import UsageError, UserError
+from contour.image import ImageError
+from contour.link.client import DriveError
+from contour.link.transport import LinkError
 
 
 def test_help_lists_program(capsys):
@@ -46,3 +54,172 @@ def test_link_timeout_is_checked_before_the_port_is_opened(capsys):
         assert cli.main(["info", "--port", "/nonexistent", "--timeout", value]) == 2
         err = capsys.readouterr().err
         assert err.startswith("contour: error: --timeout must be in (0, 60] s"), err
+
+
+# ---- exit codes and --json errors (docs/conventions.md) -------------------------------
+
+
+def _drive_error() -> DriveError:
+    from contour import protocol_gen as pg
+
+    f = {"code": int(pg.ErrorCode.FAULTED), "arg": 1, "lo": 0, "hi": 0}
+    return DriveError("queue_block", f, "drive refused queue_block: a fault is latched")
+
+
+@pytest.mark.parametrize(
+    "exc, code, kind",
+    [
+        (UsageError("--x must be 1..2"), 2, "usage"),
+        (LinkError("no reply"), 1, "link"),
+        (_drive_error(), 1, "drive"),
+        (ImageError("image is for board 2"), 1, "image"),
+        (UserError("job.nc:3: malformed number"), 1, "input"),
+        (FileNotFoundError(2, "No such file or directory", "a.nc"), 1, "file"),
+        (OSError(28, "No space left on device", "/dev/full"), 1, "file"),
+        (KeyboardInterrupt(), 130, "interrupted"),
+    ],
+)
+def test_every_error_class_ends_with_its_exit_code(monkeypatch, capsys, exc, code, kind):
+    """One table maps the error classes to exit codes; each class is raised
+    from inside a command, and reported as one line or, with --json, as one
+    JSON object on stdout."""
+    import contour.commands.info as info
+
+    def boom(args):
+        raise exc
+
+    monkeypatch.setattr(info, "run", boom)
+    assert cli.main(["info", "--port", "x"]) == code
+    out = capsys.readouterr()
+    assert out.out == "" and out.err.count("\n") == 1 and "Traceback" not in out.err
+    assert cli.main(["info", "--port", "x", "--json"]) == code
+    out = capsys.readouterr()
+    assert out.err == ""
+    assert json.loads(out.out) == {
+        "error": {"kind": kind, "message": cli._message(exc), "exit_code": code}
+    }
+
+
+def test_link_failure_is_exit_1_and_json(capsys):
+    assert cli.main(["info", "--port", "/nonexistent/tty"]) == 1
+    assert "cannot open serial port /nonexistent/tty" in capsys.readouterr().err
+    assert cli.main(["get", "comm_timeout_ms", "--port", "/nonexistent/tty", "--json"]) == 1
+    err = json.loads(capsys.readouterr().out)["error"]
+    assert err["kind"] == "link" and err["exit_code"] == 1
+
+
+def test_usage_errors_under_json_are_json(capsys):
+    for argv in (
+        ["info", "--json", "--bogus"],  # argparse's own
+        ["info", "--json", "--port", "x", "--timeout", "-1"],  # our validation
+        ["scan", "--json", "--can", "socketcan:can0@500000"],  # '@' is not a bitrate
+    ):
+        assert cli.main(argv) == 2, argv
+        out = capsys.readouterr()
+        err = json.loads(out.out)["error"]
+        assert err["kind"] == "usage" and err["exit_code"] == 2 and out.err == "", argv
+
+
+def test_sigterm_runs_the_command_clean_up_and_exits_143(tmp_path):
+    """SIGTERM raises into the command (as Ctrl-C does) so that its finally
+    blocks run; the exit code is 128 + 15."""
+    marker = tmp_path / "cleaned"
+    script = textwrap.dedent(
+        f"""
+        import sys, time
+        from contour import cli
+        import contour.commands.info as info
+        def run(args):
+            try:
+                print("ready", flush=True)
+                time.sleep(30)
+            finally:
+                open({str(marker)!r}, "w").close()
+        info.run = run
+        sys.exit(cli.main(["info", "--port", "x"]))
+        """
+    )
+    p = subprocess.Popen(
+        [sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    assert p.stdout.readline().strip() == "ready"
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=20)
+    assert p.returncode == 143, err
+    assert marker.exists()
+    assert err.strip() == "contour: error: terminated (signal 15)"
+
+
+# ---- the drive-link options: the same on every command, python-can's naming ------------
+
+LINK_OPTIONS = {"--port", "--can", "--interface", "--channel", "--bitrate", "--node", "--timeout"}
+
+
+def _subparsers(parser):
+    import argparse
+
+    for a in parser._actions:
+        if isinstance(a, argparse._SubParsersAction):
+            yield from a.choices.items()
+
+
+def test_every_link_command_has_the_same_link_options():
+    parser = cli.build_parser()
+    cmds = dict(_subparsers(parser))
+    for name in ("info", "get", "set", "run", "monitor", "calibrate", "flash", "scan"):
+        opts = {o for a in cmds[name]._actions for o in a.option_strings}
+        assert opts >= LINK_OPTIONS, (name, LINK_OPTIONS - opts)
+
+
+def _target(argv, monkeypatch, env=None):
+    from contour.link.options import target_from_args
+
+    for k in ("CAN_INTERFACE", "CAN_CHANNEL", "CAN_BITRATE", "CAN_CONFIG"):
+        monkeypatch.delenv(k, raising=False)
+    for k, v in (env or {}).items():
+        monkeypatch.setenv(k, v)
+    args = cli.build_parser().parse_args(["info", *argv])
+    return target_from_args(args)
+
+
+def test_can_bus_named_as_python_can_does(monkeypatch, tmp_path):
+    monkeypatch.setenv("HOME", str(tmp_path))  # no python-can config file
+    # short form: the channel verbatim, slcan's @N is python-can's serial baud
+    t = _target(["--can", "slcan:/dev/pts/1@115200", "--bitrate", "500000"], monkeypatch)
+    assert t.can["interface"] == "slcan" and t.can["channel"] == "/dev/pts/1@115200"
+    assert t.can["bitrate"] == 500000
+    t = _target(["--interface", "virtual", "--channel", "bus7", "--node", "3"], monkeypatch)
+    assert (t.can["interface"], t.can["channel"], t.node) == ("virtual", "bus7", 3)
+    # python-can's environment fills in what the command line does not say
+    t = _target([], monkeypatch, {"CAN_INTERFACE": "virtual", "CAN_CHANNEL": "envbus"})
+    assert (t.can["interface"], t.can["channel"]) == ("virtual", "envbus")
+    t = _target(["--channel", "mine"], monkeypatch, {"CAN_INTERFACE": "virtual"})
+    assert t.can["channel"] == "mine"
+    # and so does its config file
+    (tmp_path / ".canrc").write_text("[default]\ninterface = virtual\nchannel = filebus\n")
+    t = _target([], monkeypatch)
+    assert (t.can["interface"], t.can["channel"]) == ("virtual", "filebus")
+    # --port wins over nothing else: with a CAN option it is a usage error
+    assert _target(["--port", "/dev/x"], monkeypatch).port == "/dev/x"
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        ([], "choose the drive"),
+        (["--port", "/dev/x", "--can", "virtual:a"], "not both"),
+        (["--can", "virtual:a", "--channel", "b"], "short form"),
+        (["--can", "socketcan:can0@500000"], "--bitrate"),
+        (["--can", "slcan:/dev/x@fast"], "serial baud"),
+        (["--interface", "nosuchbus", "--channel", "a"], "nosuchbus"),
+        (["--interface", "virtual"], "no channel"),
+        (["--can", "virtual:a", "--bitrate", "0"], "--bitrate 0"),
+        (["--can", "virtual:a", "--node", "0"], "--node 0"),
+    ],
+)
+def test_link_option_mistakes_are_usage_errors(monkeypatch, tmp_path, capsys, argv, message):
+    monkeypatch.setenv("HOME", str(tmp_path))
+    with pytest.raises(UsageError, match=message.replace("(", r"\(")):
+        _target(argv, monkeypatch)
+    assert cli.main(["info", *argv]) == 2
+    assert message in capsys.readouterr().err

@@ -163,7 +163,7 @@ def test_flash_serial_and_slcan_then_info(files, capsys):
         rc, _, err = run_cli(
             ["flash", str(files["new"]), "--port", server.serial, "--verify-only"], capsys
         )
-        assert rc == 2 and "drive does not hold this image" in err
+        assert rc == 1 and "drive does not hold this image" in err
     assert slot_payload(flash, OLD.header.length) == OLD.payload
 
 
@@ -214,7 +214,7 @@ def test_bad_images_refused_before_erase(files, transport, capsys):
             p = d / f"{name}.img"
             p.write_bytes(image.to_bytes())
             rc, _, err = run_cli(["flash", str(p), *link_args(server, transport)], capsys)
-            assert rc == 2 and message in err, (name, err)
+            assert rc == 1 and message in err, (name, err)
             assert "Traceback" not in err
             assert flash.read_bytes() == before, name  # not one page erased
             assert drive_state(server) == ("app", OLD.header.fw_version), name
@@ -222,7 +222,7 @@ def test_bad_images_refused_before_erase(files, transport, capsys):
             p = d / f"bad-{name}.img"
             p.write_bytes(data)
             rc, _, err = run_cli(["flash", str(p), *link_args(server, transport)], capsys)
-            assert rc == 2 and message in err, (name, err)
+            assert rc == 1 and message in err, (name, err)
             assert flash.read_bytes() == before, name
         assert drive_state(server) == ("app", OLD.header.fw_version)
 

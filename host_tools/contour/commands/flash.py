@@ -26,8 +26,9 @@ from typing import Callable, Optional, Protocol
 
 from contour import image as img
 from contour import protocol_gen as pg
-from contour.errors import UserError
+from contour.errors import UsageError, UserError
 from contour.link import codec
+from contour.link.options import check_timeout, link_options, target_from_args
 from contour.link.transport import tx_buffer_full  # python-can's transmit buffer full
 
 # ---- link and client ------------------------------------------------------------
@@ -435,19 +436,18 @@ class TransportLink:
 def open_link(args) -> Link:
     if args.sim_flash is not None:
         return SimDriveLink(args.sim_flash)
-    from contour.link.transport import open_transport
+    from contour.link.options import transport_from_args
 
-    return TransportLink(open_transport(port=args.port, can=args.can, node=args.node))
+    return TransportLink(transport_from_args(args))
 
 
 def cmd_flash(args) -> int:
     image = img.load(args.image)  # refused here, before any link is opened
-    if not args.port and not args.can and args.sim_flash is None:
-        raise UserError("give --port PATH or --can INTERFACE:CHANNEL[@BITRATE]")
     if not 1 <= args.attempts <= 100:
-        raise UserError(f"--attempts must be 1..100, got {args.attempts}")
-    if not 0 < args.timeout <= 60:  # also refuses nan
-        raise UserError(f"--timeout must be in (0, 60] s, got {args.timeout:g}")
+        raise UsageError(f"--attempts must be 1..100, got {args.attempts}")
+    check_timeout(args)
+    if args.sim_flash is None:
+        target_from_args(args)  # every link option checked before the image is sent
     link = open_link(args)
     client = BootClient(link, timeout=args.timeout)
     try:
@@ -466,16 +466,15 @@ def cmd_flash(args) -> int:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("flash", help="flash a firmware image over serial or CAN (never bricks)")
+    p = sub.add_parser(
+        "flash",
+        help="flash a firmware image over serial or CAN (never bricks)",
+        parents=[link_options()],
+    )
     p.add_argument("image", help="image file built by `contour image build` (or make firmware)")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--port", help="serial port path or pyserial URL")
-    g.add_argument("--can", help="INTERFACE:CHANNEL[@BITRATE], e.g. slcan:/dev/pts/3@500000")
-    g.add_argument("--sim-flash", help=argparse_suppress(), default=None)
-    p.add_argument("--node", type=int, default=1, help="CAN node id (default 1)")
+    p.add_argument("--sim-flash", help=argparse_suppress(), default=None)
     p.add_argument("--verify-only", action="store_true", help="compare, do not write")
     p.add_argument("--attempts", type=int, default=3, help="whole-session attempts (default 3)")
-    p.add_argument("--timeout", type=float, default=0.5, help="reply timeout per request, s")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_flash)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from contour import protocol_gen as pg
-from contour.link.client import add_link_arguments, connect_from_args
+from contour.link.options import connect_from_args, link_options
 
 
 def _bits(value: int, enum) -> list[str]:
@@ -67,7 +67,8 @@ def run(args) -> int:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("info", help="identify the drive (versions, axes, state)")
-    add_link_arguments(p)
+    p = sub.add_parser(
+        "info", help="identify the drive (versions, axes, state)", parents=[link_options()]
+    )
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=run)

@@ -17,8 +17,8 @@ import time
 from pathlib import Path
 
 from contour import protocol_gen as pg
-from contour.errors import UserError
-from contour.link.client import add_link_arguments, connect_from_args
+from contour.errors import UsageError
+from contour.link.options import connect_from_args, link_options
 from contour.link.telemetry import Assembler
 
 CAN_LOG_SUFFIXES = {".asc", ".blf", ".log", ".trc", ".mf4", ".csv.can"}
@@ -107,20 +107,23 @@ def record(client, out: Path, period_ms: int, duration: float, node: int, quiet=
 
 def run(args) -> int:
     if not 1 <= args.period_ms <= 60000:
-        raise UserError("--period-ms must be 1..60000")
+        raise UsageError("--period-ms must be 1..60000")
     if args.duration < 0:
-        raise UserError("--duration must be >= 0 (0: until Ctrl-C)")
+        raise UsageError("--duration must be >= 0 (0: until Ctrl-C)")
     out = Path(args.out)
     if out.parent and not out.parent.exists():
-        raise UserError(f"{out.parent}: no such directory")
+        raise UsageError(f"{out.parent}: no such directory")
     with connect_from_args(args) as client:
         s = record(client, out, args.period_ms, args.duration, args.node)
     return 0 if s["gaps"] == 0 else 1
 
 
 def register(sub) -> None:
-    p = sub.add_parser("monitor", help="record drive telemetry to CSV or a CAN log (ASC/BLF)")
-    add_link_arguments(p)
+    p = sub.add_parser(
+        "monitor",
+        help="record drive telemetry to CSV or a CAN log (ASC/BLF)",
+        parents=[link_options()],
+    )
     p.add_argument("--out", required=True, help="output file: .csv, .asc or .blf")
     p.add_argument("--period-ms", type=int, default=10, help="telemetry period (default 10 ms)")
     p.add_argument(

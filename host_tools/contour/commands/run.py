@@ -10,14 +10,14 @@ from __future__ import annotations
 import json
 import sys
 
-from contour.errors import UserError
-from contour.link.client import add_link_arguments, connect_from_args
+from contour.errors import UsageError, UserError
+from contour.link.options import connect_from_args, link_options
 from contour.link.stream import Streamer, blocks_from_gcode
 
 
 def run(args) -> int:
     if not 0.05 <= args.queue_s <= 60:
-        raise UserError("--queue-s must be 0.05..60 s")
+        raise UsageError("--queue-s must be 0.05..60 s")
     with connect_from_args(args) as client:
         st = client.status()
         start = [p / 1e6 for p in st["pos"][:3]]
@@ -77,9 +77,8 @@ def run(args) -> int:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("run", help="stream a G-code job to the drive")
+    p = sub.add_parser("run", help="stream a G-code job to the drive", parents=[link_options()])
     p.add_argument("file", help="G-code file (.nc)")
-    add_link_arguments(p)
     p.add_argument(
         "--queue-s",
         type=float,
