@@ -223,3 +223,35 @@ def test_link_option_mistakes_are_usage_errors(monkeypatch, tmp_path, capsys, ar
         _target(argv, monkeypatch)
     assert cli.main(["info", *argv]) == 2
     assert message in capsys.readouterr().err
+
+
+# ---- one unit convention in JSON output (docs/conventions.md) ---------------------------
+
+UNIT_SUFFIXES = ("_mm", "_um", "_nm", "_s", "_ms", "_us", "_hz", "_mm_min", "_mm_s", "_um_s")
+UNITLESS = {"blocks", "edges", "edge_mismatch_ticks", "planner_blocks", "ticks"}
+
+
+def _check_units(obj: dict, where: str) -> None:
+    for k, v in obj.items():
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and k not in UNITLESS:
+            assert k.endswith(UNIT_SUFFIXES), f"{where}: field {k!r} does not name its unit"
+
+
+def test_sim_json_fields_name_their_unit_and_agree(tmp_path, capsys):
+    """`sim circle` and `sim run` report the contour error under the same
+    name in the same unit (um); every number names its unit."""
+    argv = ["sim", "circle", "--radius", "2", "--feed", "6000", "--controller", "pid", "--json"]
+    assert cli.main(argv) == 0
+    circle = json.loads(capsys.readouterr().out)
+    job = tmp_path / "l.nc"
+    job.write_text("G1 X1 F3000\nG1 Y1\n")
+    assert cli.main(["sim", "run", str(job), "--json"]) == 0
+    run = json.loads(capsys.readouterr().out)
+    _check_units(circle, "sim circle")
+    _check_units(run, "sim run")
+    assert circle["max_contour_error_um"] == pytest.approx(circle["max_contour_error_mm"] * 1e3)
+    assert circle["circular_deviation_um"] > 0 and run["max_contour_error_um"] > 0
+    # the field names other tools read are kept
+    for k in ("max_contour_error_mm", "revolution_s", "circular_deviation_mm"):
+        assert k in circle
+    assert "max_following_error_um" in run

@@ -57,7 +57,14 @@ class CircleResult:
     faults: list
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        """JSON fields (docs/conventions.md: errors in um as in `sim run`; the
+        `_mm` error fields are kept for readers of earlier output)."""
+        d = asdict(self)
+        d["iae_um_s"] = self.iae_mm_s * 1e3
+        d["max_contour_error_um"] = self.max_contour_error_mm * 1e3
+        d["circular_deviation_um"] = self.circular_deviation_mm * 1e3
+        d["mean_radial_error_um"] = self.mean_radial_error_mm * 1e3
+        return d
 
 
 @dataclass
