@@ -432,3 +432,38 @@ def test_transmit_buffer_full_is_waited_out(drive):
     assert c.stats.retries == 0
     assert fl.tx_buffer_full(OSError(105, "No buffer space available"))
     assert not fl.tx_buffer_full(can.CanOperationError("bus off"))
+
+
+# ---- progress only on a terminal ------------------------------------------------------
+
+
+def test_flash_draws_no_progress_bar_into_a_pipe(drive, tmp_path, capsys):
+    """stderr is not a terminal here: the summary line only, no bar redraws."""
+    p = tmp_path / "new.img"
+    p.write_bytes(NEW.to_bytes())
+    assert cli_main(["flash", str(p), "--sim-flash", str(tmp_path / "f.bin")]) == 0
+    err = capsys.readouterr().err
+    assert err == "flashed 16001 bytes; drive runs version 2.0.1\n", err
+
+
+def test_progress_bar_draws_on_a_terminal_only():
+    import os
+
+    from contour.progress import Bar
+
+    master, slave = os.openpty()
+    with os.fdopen(slave, "w") as tty:
+        with Bar(total=10, unit="B", desc="flash", file=tty) as bar:
+            assert bar.active
+            bar.update(10)
+        tty.flush()
+        assert b"flash" in os.read(master, 4096)
+    os.close(master)
+    r, w = os.pipe()
+    with os.fdopen(w, "w") as pipe, Bar(total=10, file=pipe) as bar:
+        assert not bar.active
+        bar.update(5)
+        bar.to(10, 10)
+        bar.note("x")
+    with os.fdopen(r) as f:
+        assert f.read() == ""

@@ -34,6 +34,7 @@ from typing import Optional
 
 from contour.calibration import analysis, faults, run, tables
 from contour.errors import UsageError, UserError
+from contour.progress import Bar
 
 AXES = "XYZA"
 
@@ -95,26 +96,14 @@ def _print_map(em: analysis.ErrorMap, title: str, out=None) -> None:
     )
 
 
-class _Bar:
-    def __init__(self, enabled: bool, desc: str) -> None:
-        self.bar = None
-        if enabled:
-            from tqdm import tqdm
+class _Bar(Bar):
+    """The calibrator's progress callback (legs done, legs in all)."""
 
-            self.bar = tqdm(total=0, unit="leg", desc=desc, file=sys.stderr, leave=True)
+    def __init__(self, enabled: bool, desc: str) -> None:
+        super().__init__(total=0, unit="leg", desc=desc, enabled=enabled)
 
     def __call__(self, done: int, total: int) -> None:
-        if self.bar is None:
-            return
-        if self.bar.total != total:
-            self.bar.total = total
-            self.bar.refresh()
-        if done > self.bar.n:
-            self.bar.update(done - self.bar.n)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+        self.to(done, total)
 
 
 class Session:
@@ -400,7 +389,9 @@ def register(sub) -> None:
         "--run-timeout", type=float, default=900.0, help="give up a run after this long, s (900)"
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress", action="store_true", help="no progress bar (none unless stderr is a TTY)"
+    )
     g = p.add_argument_group("testing")
     g.add_argument(
         "--sim",

@@ -30,6 +30,7 @@ from contour.errors import UsageError, UserError
 from contour.link import codec
 from contour.link.options import check_timeout, link_options, target_from_args
 from contour.link.transport import tx_buffer_full  # python-can's transmit buffer full
+from contour.progress import Bar
 
 # ---- link and client ------------------------------------------------------------
 
@@ -295,11 +296,7 @@ def flash(
             )
         log(f"verified: drive holds version {img.version_str(hdr.fw_version)}")
         return {"verified": True, "version": img.version_str(hdr.fw_version)}
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=hdr.length, unit="B", unit_scale=True, desc="flash", file=sys.stderr)
+    bar = Bar(total=hdr.length, unit="B", desc="flash", enabled=progress, unit_scale=True)
     try:
         for attempt in range(1, attempts + 1):
             client.stats.sessions += 1
@@ -315,8 +312,7 @@ def flash(
                 log(f"session lost (attempt {attempt}); starting over")
                 info = enter_bootloader(client, enter_wait)
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     client.request("boot_reboot")
     r = confirm_application(client, hdr.fw_version, confirm_wait)
     log(f"flashed {hdr.length} bytes; drive runs version {img.version_str(r['fw_version'])}")
@@ -475,7 +471,9 @@ def register(sub) -> None:
     p.add_argument("--sim-flash", help=argparse_suppress(), default=None)
     p.add_argument("--verify-only", action="store_true", help="compare, do not write")
     p.add_argument("--attempts", type=int, default=3, help="whole-session attempts (default 3)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress", action="store_true", help="no progress bar (none unless stderr is a TTY)"
+    )
     p.set_defaults(func=cmd_flash)
 
     i = sub.add_parser("image", help="build or inspect firmware images")

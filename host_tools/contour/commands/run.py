@@ -13,6 +13,7 @@ import sys
 from contour.errors import UsageError, UserError
 from contour.link.options import connect_from_args, link_options
 from contour.link.stream import Streamer, blocks_from_gcode
+from contour.progress import Bar
 
 
 def run(args) -> int:
@@ -25,35 +26,25 @@ def run(args) -> int:
         if not blocks:
             raise UserError(f"{args.file}: no motion blocks")
         total = sum(b.est_s for b in blocks)
-        bar = None
-        if not args.json and not args.quiet:
-            from tqdm import tqdm
-
-            bar = tqdm(
-                total=round(total, 2),
-                unit="s",
-                desc="job",
-                file=sys.stderr,
-                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s est {postfix}",
-            )
+        bar = Bar(
+            total=round(total, 2),
+            unit="s",
+            desc="job",
+            enabled=not args.json and not args.quiet,
+            bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s est {postfix}",
+        )
 
         def progress(p) -> None:
-            if bar is None:
-                return
-            bar.n = round(p.est_done_s, 2)
-            bar.set_postfix_str(
-                f"feed {p.feed_mm_min:7.0f} mm/min  ETA {p.eta_s:6.1f} s  "
-                f"blocks {p.done}/{p.total}",
-                refresh=False,
+            bar.note(
+                f"feed {p.feed_mm_min:7.0f} mm/min  ETA {p.eta_s:6.1f} s  blocks {p.done}/{p.total}"
             )
-            bar.refresh()
+            bar.to(round(p.est_done_s, 2))
 
         streamer = Streamer(client, blocks, queue_s=args.queue_s, on_progress=progress)
         try:
             result = streamer.run()
         except KeyboardInterrupt:
-            if bar is not None:
-                bar.close()
+            bar.close()
             st = client.status()
             print(
                 f"contour run: stopped by Ctrl-C at {[p / 1e6 for p in st['pos'][:3]]} mm",
@@ -61,8 +52,7 @@ def run(args) -> int:
             )
             return 130
         finally:
-            if bar is not None:
-                bar.close()
+            bar.close()
     result["position_mm"] = [p / 1e6 for p in result.pop("position_nm")]
     if args.json:
         print(json.dumps(result, indent=2))
@@ -89,5 +79,7 @@ def register(sub) -> None:
         "--chord-mm", type=float, default=0.001, help="arc chord tolerance, mm (default 0.001)"
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--quiet", action="store_true", help="no progress bar (none unless stderr is a TTY)"
+    )
     p.set_defaults(func=run)
