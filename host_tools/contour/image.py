@@ -52,6 +52,17 @@ def version_str(v: int) -> str:
     return f"{(v >> 16) & 0xFFFF}.{(v >> 8) & 0xFF}.{v & 0xFF}"
 
 
+def build_id_prefix(ident_build_id: int) -> str:
+    """The `identify` reply's build_id as hex in the image's byte order.
+
+    The drive reports the first 4 bytes of its image's build id as a
+    little-endian u32 (firmware/ports/common/port_app.c); printed as that
+    integer it would read byte-reversed. This gives the bytes in header order,
+    the prefix of what `contour image info` prints and of the git commit
+    `make firmware` puts there."""
+    return (ident_build_id & 0xFFFFFFFF).to_bytes(4, "little").hex()
+
+
 def parse_version(text: str) -> int:
     parts = text.split(".")
     try:

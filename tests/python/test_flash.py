@@ -467,3 +467,43 @@ def test_progress_bar_draws_on_a_terminal_only():
         bar.note("x")
     with os.fdopen(r) as f:
         assert f.read() == ""
+
+
+def test_info_prints_the_build_id_in_the_image_byte_order():
+    """`contour info` shows the first bytes of the build id exactly as
+    `contour image info` (and the git commit of `make firmware`) does."""
+    from contour.commands import info
+
+    image = make_image(100, "1.0.0", 3, build_id=bytes.fromhex("0123456789abcdef"))
+
+    class Fake:
+        def identify(self):
+            return {
+                "fw_version": image.header.fw_version,
+                # what the drive sends: the first 4 build-id bytes as a little-endian u32
+                "build_id": int.from_bytes(image.header.build_id[:4], "little"),
+                "protocol_version": pg.PROTOCOL_VERSION,
+                "board_id": SIM_BOARD,
+                "node_id": 1,
+                "axes": 1,
+                "capabilities": 0,
+                "tick_hz": 10000,
+                "planner_slots": 8,
+                "max_payload": 224,
+            }
+
+        def status(self):
+            return {
+                "state": 0,
+                "faults": 0,
+                "free_slots": 8,
+                "queued_us": 0,
+                "blocks_done": 0,
+                "pos": [0, 0, 0, 0],
+                "rx_errors": 0,
+                "replayed": 0,
+            }
+
+    shown = info.gather(Fake())["build_id"]
+    assert shown == "01234567"
+    assert image.header.describe()["build_id"].startswith(shown)
