@@ -20,7 +20,6 @@ import argparse
 import hashlib
 import json
 import struct
-import sys
 import zlib
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -347,6 +346,43 @@ def from_hex(text: str) -> dict[int, int]:
 # ---- command line -------------------------------------------------------------
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
+    except OSError:
+        return False
+
+
+def build_outputs(
+    src: Path, output: str | None, hex_name: str | None, elf: bool
+) -> tuple[Path, Path | None, Path]:
+    """The files `image build` writes: the image (.img), from an ELF the raw
+    payload (.bin) and the Intel HEX file (.hex). Refused (UsageError, before
+    anything is written): a name whose extension is not what is written
+    there, and any output that is the input or another output."""
+    out = Path(output) if output else src.with_suffix(".img")
+    if out.suffix.lower() != ".img":
+        raise UsageError(
+            f"-o {out}: the image is written with extension .img "
+            "(the raw payload goes to .bin, Intel HEX to .hex beside it)"
+        )
+    hex_out = Path(hex_name) if hex_name else out.with_suffix(".hex")
+    if hex_out.suffix.lower() != ".hex":
+        raise UsageError(f"--hex {hex_out}: Intel HEX is written with extension .hex")
+    bin_out = out.with_suffix(".bin") if elf else None
+    named = [("image", out), ("Intel HEX", hex_out)]
+    if bin_out is not None:
+        named.append(("raw payload", bin_out))
+    for what, path in named:
+        if _same_file(path, src):
+            raise UsageError(f"{path}: is the input file; the {what} would overwrite it (use -o)")
+    for i, (what, path) in enumerate(named):
+        for what2, path2 in named[i + 1 :]:
+            if _same_file(path, path2):
+                raise UsageError(f"{path}: both the {what} and the {what2} would be written there")
+    return out, bin_out, hex_out
+
+
 def cmd_build(args: argparse.Namespace) -> int:
     src = Path(args.input)
     try:
@@ -376,11 +412,10 @@ def cmd_build(args: argparse.Namespace) -> int:
         load_addr=load_addr,
         build_id=build_id,
     )
-    out = Path(args.output) if args.output else src.with_suffix(".img")
+    out, bin_out, hex_out = build_outputs(src, args.output, args.hex, data[:4] == b"\x7fELF")
     out.write_bytes(img.to_bytes())
-    if data[:4] == b"\x7fELF":
-        out.with_suffix(".bin").write_bytes(img.payload)  # the raw payload, as objcopy -O binary
-    hex_out = Path(args.hex) if args.hex else out.with_suffix(".hex")
+    if bin_out is not None:
+        bin_out.write_bytes(img.payload)  # the raw payload, as objcopy -O binary
     hex_out.write_text(to_hex(img.flash_records()))
     print(
         f"{out}: {img.header.length} bytes at 0x{img.header.load_addr:08X}, board "
@@ -419,9 +454,11 @@ def add_parsers(sub) -> None:
     b.add_argument("--load-addr", help="payload flash address (required for a raw binary)")
     b.add_argument("--build-id", help="build id as hex (default: SHA-256 of the payload)")
     b.add_argument(
-        "-o", "--output", help="image file (default: INPUT with .img; from an ELF also .bin)"
+        "-o",
+        "--output",
+        help="image file, .img (default: INPUT with .img; from an ELF also the payload as .bin)",
     )
-    b.add_argument("--hex", help="Intel HEX file (default: OUTPUT with .hex)")
+    b.add_argument("--hex", help="Intel HEX file, .hex (default: OUTPUT with .hex)")
     b.set_defaults(func=cmd_build)
     i = sub.add_parser("info", help="validate an image and print its header")
     i.add_argument("image")
@@ -440,9 +477,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     try:
         return args.func(args)
-    except UserError as exc:
-        print(f"contour image: error: {exc}", file=sys.stderr)
-        return 2
+    except (UserError, OSError) as exc:
+        from contour.cli import report_error  # the exit codes of `contour image`
+
+        return report_error(exc, as_json=False)
 
 
 if __name__ == "__main__":

@@ -507,3 +507,54 @@ def test_info_prints_the_build_id_in_the_image_byte_order():
     shown = info.gather(Fake())["build_id"]
     assert shown == "01234567"
     assert image.header.describe()["build_id"].startswith(shown)
+
+
+# ---- image build never overwrites its input, and names what it writes ---------------
+
+
+def _build(argv):
+    return cli_main(["image", "build", *argv, "--board", "1", "--version", "1.0.0"])
+
+
+@pytest.mark.parametrize(
+    "inp, opts, message",
+    [
+        ("app.img", [], "is the input file"),  # default output INPUT.img is the input
+        ("app.bin", ["-o", "app.bin"], "extension .img"),  # would hold an image, not raw
+        ("app.bin", ["-o", "app"], "extension .img"),
+        ("app.bin", ["-o", "out.img", "--hex", "out.img"], "extension .hex"),
+        ("app.hex", ["-o", "out.img", "--hex", "app.hex"], "is the input file"),
+        ("app.bin", ["-o", "sub/../app.bin.img", "--hex", "app.bin"], "extension .hex"),
+    ],
+)
+def test_image_build_refuses_outputs_that_overwrite_or_mislabel(
+    tmp_path, capsys, monkeypatch, inp, opts, message
+):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sub").mkdir()
+    (tmp_path / inp).write_bytes(b"payload bytes")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    assert _build([inp, "--load-addr", hex(SIM_LOAD), *opts]) == 2
+    assert message in capsys.readouterr().err
+    after = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    assert after == before  # nothing written
+
+
+def test_image_build_refuses_an_output_linked_to_its_input(tmp_path, capsys):
+    (tmp_path / "app.raw").write_bytes(b"payload bytes")
+    (tmp_path / "link.img").symlink_to(tmp_path / "app.raw")
+    argv = [
+        str(tmp_path / "app.raw"),
+        "--load-addr",
+        hex(SIM_LOAD),
+        "-o",
+        str(tmp_path / "link.img"),
+    ]
+    assert _build(argv) == 2
+    assert "is the input file" in capsys.readouterr().err
+    assert (tmp_path / "app.raw").read_bytes() == b"payload bytes"
+    # a good name builds
+    argv[-1] = str(tmp_path / "good.img")
+    assert _build(argv) == 0
+    assert img.load(tmp_path / "good.img").payload == b"payload bytes"
+    assert (tmp_path / "good.hex").exists() and not (tmp_path / "good.bin").exists()
