@@ -45,8 +45,15 @@ class SerialTransport:
 
         self.url = url
         try:
-            self.ser = serial.serial_for_url(url, baudrate=baudrate, timeout=0.005)
+            # exclusive: a second contour command on the same port is told
+            # that it is busy instead of stealing half of the replies
+            self.ser = serial.serial_for_url(url, baudrate=baudrate, timeout=0.005, exclusive=True)
         except (serial.SerialException, ValueError, OSError) as exc:
+            if "exclusively lock" in str(exc):
+                raise LinkError(
+                    f"serial port {url} is busy: another process holds it "
+                    "(another contour command, or a terminal program)"
+                ) from None
             raise LinkError(f"cannot open serial port {url}: {exc}") from None
         self.decoder = codec.FrameDecoder()
         self._on: Optional[OnMessage] = None
