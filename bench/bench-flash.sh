@@ -17,11 +17,12 @@ $py -m contour.image build "$out/app64k.bin" --board sim --version 1.0.0 \
 $py - "$out" <<'PY'
 import sys, time
 from contour import image as img
-from contour.commands import flash as fl
+from contour.link import boot as fl
+from contour.sim.bootsim import SimDriveLink
 
 out = sys.argv[1]
 image = img.load(f"{out}/app64k.img")
-link = fl.SimDriveLink(f"{out}/inprocess.flash")
+link = SimDriveLink(f"{out}/inprocess.flash")
 t0 = time.perf_counter()
 fl.flash(fl.BootClient(link), image, log=lambda s: None)
 print(f"flash_seconds_64k_inprocess: {time.perf_counter() - t0:.3f} s")

@@ -255,3 +255,19 @@ def test_sim_json_fields_name_their_unit_and_agree(tmp_path, capsys):
     for k in ("max_contour_error_mm", "revolution_s", "circular_deviation_mm"):
         assert k in circle
     assert "max_following_error_um" in run
+
+
+def test_the_boot_client_is_library_code():
+    """commands/flash.py parses and prints; the procedure lives in
+    contour.link.boot, which knows nothing of the command line."""
+    import ast
+    from pathlib import Path
+
+    import contour.commands.flash as cmd
+    import contour.link.boot as boot
+
+    tree = ast.parse(Path(cmd.__file__).read_text())
+    assert not [n.name for n in tree.body if isinstance(n, ast.ClassDef)]
+    src = Path(boot.__file__).read_text()
+    assert "argparse" not in src and "contour.commands" not in src
+    assert hasattr(boot, "BootClient") and hasattr(boot, "flash")

@@ -19,9 +19,10 @@ from contour import image as img
 from contour import native
 from contour import protocol_gen as pg
 from contour.cli import main as cli_main
-from contour.commands import flash as fl
 from contour.errors import UserError
+from contour.link import boot as fl
 from contour.link import codec
+from contour.sim.bootsim import SimDriveLink
 
 SIM_LOAD = 0x08010000 + img.HDR_AREA
 SIM_BOARD = img.BOARDS["sim"]
@@ -49,7 +50,7 @@ def drive(tmp_path):
         assert native.load().boot_sim_init
     except (UserError, AttributeError):
         pytest.skip("build/host/libcontour.so without the simulated bootloader: run make")
-    d = fl.SimDriveLink(str(tmp_path / "flash.bin"))
+    d = SimDriveLink(str(tmp_path / "flash.bin"))
     d.sent = []
     inner = d.exchange
 
@@ -183,7 +184,7 @@ def test_flash_reboots_into_new_version_and_verify_only(drive):
 
 def test_flash_file_survives_a_simulator_restart(drive, tmp_path):
     do_flash(drive, NEW)
-    again = fl.SimDriveLink(str(tmp_path / "flash.bin"))  # new process, same flash file
+    again = SimDriveLink(str(tmp_path / "flash.bin"))  # new process, same flash file
     assert again.mode() == "app"
     assert again.lib.boot_sim_app_version() == NEW.header.fw_version
 
@@ -363,7 +364,7 @@ def test_bit_flips_in_transit_are_caught_by_frame_crc(drive):
     lib.proto_frame_rx_init(rx)
     rnd = random.Random(3)
     flips = {"sent": 0, "dropped": 0}
-    inner = fl.SimDriveLink.exchange
+    inner = SimDriveLink.exchange
 
     def framed(msg, timeout):
         wire = bytearray(codec.frame(msg))

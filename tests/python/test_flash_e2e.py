@@ -38,8 +38,8 @@ from pathlib import Path
 import pytest
 from contour import image as img
 from contour import protocol_gen as pg
-from contour.commands import flash as fl
 from contour.errors import UserError
+from contour.link import boot as fl
 from contour.link import connect
 from contour.link.transport import open_transport
 from contour.simserve import spawn
@@ -238,7 +238,7 @@ RUNNER = r"""
 import os, signal, sys, time
 from contour import cli
 from contour import protocol_gen as pg
-from contour.commands import flash as fl
+from contour.link import boot as fl
 
 name, nth, when = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 if nth <= 0:  # counted from the last block of the image being flashed

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 from contour import image as img
 from contour import protocol_gen as pg
-from contour.commands import flash as flashcmd
+from contour.link import boot as flashcmd
 from contour.link.client import DriveError, connect
 from contour.link.transport import open_transport
 
