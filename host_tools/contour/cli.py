@@ -20,6 +20,7 @@ import argparse
 import contextlib
 import importlib
 import json
+import os
 import pkgutil
 import signal
 import sys
@@ -154,6 +155,12 @@ def main(argv: list[str] | None = None) -> int:
                 parser.print_help(sys.stderr)
                 return EXIT_USAGE
             return int(args.func(args) or 0)
+    except BrokenPipeError:
+        # the reader of stdout went away (`contour info | head -1`): nothing
+        # left to tell it; no error line, no traceback at exit
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_FAILURE
     except (ContourError, OSError, KeyboardInterrupt) as exc:
         return report_error(exc, as_json)
 

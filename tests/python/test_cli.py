@@ -276,3 +276,18 @@ def test_the_boot_client_is_library_code():
             imported |= {a.name for a in n.names}
     assert not {m for m in imported if m == "argparse" or m.startswith("contour.commands")}
     assert hasattr(boot, "BootClient") and hasattr(boot, "flash")
+
+
+def test_a_closed_stdout_is_no_error_line(tmp_path):
+    """`contour ... | head -0`: the reader went away; exit 1 without an
+    error line or a traceback."""
+    import os
+
+    r, w = os.pipe()
+    os.close(r)
+    argv = ["sim", "circle", "--radius", "2", "--feed", "6000", "--controller", "pid"]
+    p = subprocess.run(
+        [sys.executable, "-m", "contour", *argv], stdout=w, stderr=subprocess.PIPE, text=True
+    )
+    os.close(w)
+    assert p.returncode == 1 and p.stderr == "", p.stderr
