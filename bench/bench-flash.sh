@@ -47,7 +47,7 @@ if [ -z "$serial" ] || [ -z "$slcan" ]; then
   echo "bench-flash: contour sim serve printed no serial/slcan path" >&2
   exit 1
 fi
-$py - "$out/app64k.img" "$serial" "slcan:$slcan@500000" <<'PY'
+$py - "$out/app64k.img" "$serial" "slcan:$slcan" <<'PY'
 import subprocess, sys, time
 image, serial, can = sys.argv[1:4]
 
@@ -60,6 +60,6 @@ def run(opt):
     return time.perf_counter() - t0
 
 run(["--port", serial])  # untimed: the drive now runs an application
-for name, opt in (("serial", ["--port", serial]), ("slcan", ["--can", can])):
+for name, opt in (("serial", ["--port", serial]), ("slcan", ["--can", can, "--bitrate", "500000"])):
     print(f"flash_seconds_64k_{name}: {min(run(opt) for _ in range(2)):.2f} s")
 PY

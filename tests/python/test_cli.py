@@ -291,3 +291,23 @@ def test_a_closed_stdout_is_no_error_line(tmp_path):
     )
     os.close(w)
     assert p.returncode == 1 and p.stderr == "", p.stderr
+
+
+def test_readme_examples_ship_and_run_on_the_simulated_drive(capsys):
+    """Every job the README names is in examples/ and runs on the simulated
+    drive without a fault; the headline figure names its options."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    readme = (root / "README.md").read_text()
+    named = set(re.findall(r"examples/([\w-]+\.nc)", readme))
+    assert {"square.nc", "circle.nc", "pocket.nc"} <= named
+    assert "job.nc" not in readme
+    assert "--feedforward full" in readme
+    for name in sorted(named):
+        path = root / "examples" / name
+        assert path.is_file(), name
+        assert cli.main(["sim", "run", str(path), "--feedforward", "full", "--json"]) == 0
+        rep = json.loads(capsys.readouterr().out)
+        assert rep["faults"] == [] and rep["blocks"] >= 4 and not rep["skipped"], (name, rep)
