@@ -123,7 +123,8 @@ def test_flash_reboot_info_and_job(board: str, firmware: Path, tmp_path: Path) -
         [*CONTOUR, "info", "--port", board, "--json"],
         capture_output=True, text=True, timeout=30, cwd=ROOT,
     )  # fmt: skip
-    assert r.returncode != 0 and "unknown_message" in r.stderr
+    err = json.loads(r.stdout)["error"]  # --json: the error is JSON on stdout
+    assert r.returncode == 1 and err["kind"] == "drive" and "unknown_message" in err["message"]
 
     # an image for another board is refused before anything is erased
     other = tmp_path / "other.img"
