@@ -417,6 +417,10 @@ def cmd_build(args: argparse.Namespace) -> int:
     if bin_out is not None:
         bin_out.write_bytes(img.payload)  # the raw payload, as objcopy -O binary
     hex_out.write_text(to_hex(img.flash_records()))
+    if getattr(args, "json", False):
+        files = {"image": str(out), "hex": str(hex_out), "bin": str(bin_out) if bin_out else None}
+        print(json.dumps({**files, "header": img.header.describe()}, indent=2))
+        return 0
     print(
         f"{out}: {img.header.length} bytes at 0x{img.header.load_addr:08X}, board "
         f"{img.header.board_id}, version {version_str(img.header.fw_version)}, "
@@ -459,6 +463,7 @@ def add_parsers(sub) -> None:
         help="image file, .img (default: INPUT with .img; from an ELF also the payload as .bin)",
     )
     b.add_argument("--hex", help="Intel HEX file, .hex (default: OUTPUT with .hex)")
+    b.add_argument("--json", action="store_true", help="print the files and the header as JSON")
     b.set_defaults(func=cmd_build)
     i = sub.add_parser("info", help="validate an image and print its header")
     i.add_argument("image")

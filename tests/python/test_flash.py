@@ -559,3 +559,27 @@ def test_image_build_refuses_an_output_linked_to_its_input(tmp_path, capsys):
     assert _build(argv) == 0
     assert img.load(tmp_path / "good.img").payload == b"payload bytes"
     assert (tmp_path / "good.hex").exists() and not (tmp_path / "good.bin").exists()
+
+
+def test_flash_and_image_build_json(drive, tmp_path, capsys):
+    import json
+
+    p = tmp_path / "new.img"
+    p.write_bytes(NEW.to_bytes())
+    argv = ["flash", str(p), "--sim-flash", str(tmp_path / "f.bin"), "--json"]
+    assert cli_main(argv) == 0
+    out = capsys.readouterr()
+    r = json.loads(out.out)
+    assert r["version"] == "2.0.1" and r["link"]["requests"] > 0 and out.err == ""
+    # a corrupt file under --json: one error object, exit 1
+    data = bytearray(NEW.to_bytes())
+    data[200] ^= 0x40
+    p.write_bytes(bytes(data))
+    assert cli_main(argv) == 1
+    err = json.loads(capsys.readouterr().out)["error"]
+    assert err["kind"] == "image" and "payload CRC mismatch" in err["message"]
+    (tmp_path / "a.raw").write_bytes(b"abc")
+    argv = [str(tmp_path / "a.raw"), "--load-addr", hex(SIM_LOAD), "-o", str(tmp_path / "a.img")]
+    assert _build([*argv, "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["image"] == str(tmp_path / "a.img") and r["header"]["length"] == 3

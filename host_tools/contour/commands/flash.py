@@ -9,6 +9,9 @@ contour.link.boot (docs/bootloader.md). Also `contour image build|info`
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
+import sys
 
 from contour import image as img
 from contour.errors import UsageError
@@ -39,18 +42,28 @@ def cmd_flash(args) -> int:
     link = open_link(args)
     client = BootClient(link, timeout=args.timeout)
     try:
-        flash(
+        result = flash(
             client,
             image,
             verify_only=args.verify_only,
             attempts=args.attempts,
-            progress=not args.no_progress,
+            progress=not args.no_progress and not args.json,
+            log=(lambda s: None) if args.json else _log,
         )
     finally:
         close = getattr(link, "close", None)
         if close is not None:
             close()
+    if args.json:
+        stats = result.pop("stats", None)
+        if stats is not None:
+            result["link"] = dataclasses.asdict(stats)
+        print(json.dumps(result, indent=2))
     return 0
+
+
+def _log(text: str) -> None:
+    print(text, file=sys.stderr)
 
 
 def register(sub) -> None:
@@ -62,6 +75,7 @@ def register(sub) -> None:
     p.add_argument("image", help="image file built by `contour image build` (or make firmware)")
     p.add_argument("--sim-flash", help=argparse.SUPPRESS, default=None)  # tests: in-process
     p.add_argument("--verify-only", action="store_true", help="compare, do not write")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--attempts", type=int, default=3, help="whole-session attempts (default 3)")
     p.add_argument(
         "--no-progress", action="store_true", help="no progress bar (none unless stderr is a TTY)"

@@ -17,6 +17,7 @@ drive is touched; a port another process holds is reported as busy.
 from __future__ import annotations
 
 import csv
+import json
 import sys
 import time
 from pathlib import Path
@@ -210,7 +211,11 @@ def run(args) -> int:
         raise UsageError(f"{out.parent}: no such directory")
     with connect_from_args(args) as client:
         where = args.port or "the CAN bus"
-        s = record(client, out, args.period_ms, args.duration, args.node, where=where)
+        s = record(
+            client, out, args.period_ms, args.duration, args.node, quiet=args.json, where=where
+        )
+    if args.json:
+        print(json.dumps(s, indent=2))
     return 0 if s["gaps"] == 0 else 1
 
 
@@ -224,6 +229,7 @@ def register(sub) -> None:
         "--out", required=True, help=f"output file: {', '.join(SUFFIXES)} (by its extension)"
     )
     p.add_argument("--period-ms", type=int, default=10, help="telemetry period (default 10 ms)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument(
         "--duration", type=float, default=0.0, help="seconds to record (default: until Ctrl-C)"
     )

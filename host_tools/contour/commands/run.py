@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import sys
 
-from contour.errors import UsageError, UserError
+from contour.errors import Terminated, UsageError, UserError
 from contour.link.options import connect_from_args, link_options
 from contour.link.stream import Streamer, blocks_from_gcode
 from contour.progress import Bar
@@ -43,14 +43,15 @@ def run(args) -> int:
         streamer = Streamer(client, blocks, queue_s=args.queue_s, on_progress=progress)
         try:
             result = streamer.run()
-        except KeyboardInterrupt:
+        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated)
             bar.close()
             st = client.status()
+            what = f"signal {exc.signum}" if isinstance(exc, Terminated) else "Ctrl-C"
             print(
-                f"contour run: stopped by Ctrl-C at {[p / 1e6 for p in st['pos'][:3]]} mm",
+                f"contour run: stopped by {what} at {[p / 1e6 for p in st['pos'][:3]]} mm",
                 file=sys.stderr,
             )
-            return 130
+            return 128 + exc.signum if isinstance(exc, Terminated) else 130
         finally:
             bar.close()
     result["position_mm"] = [p / 1e6 for p in result.pop("position_nm")]

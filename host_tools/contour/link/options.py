@@ -53,10 +53,13 @@ def link_options(timeout: float = DEFAULT_TIMEOUT_S) -> argparse.ArgumentParser:
     g.add_argument("--interface", metavar="NAME", help="python-can interface, e.g. socketcan")
     g.add_argument("--channel", metavar="NAME", help="python-can channel, e.g. can0")
     g.add_argument("--bitrate", type=int, metavar="N", help="CAN bitrate, bit/s")
-    g.add_argument("--node", type=int, default=1, help="CAN node id of the drive (default 1)")
+    g.add_argument(
+        "--node", type=int, default=1, metavar="N", help="CAN node id of the drive (default 1)"
+    )
     g.add_argument(
         "--timeout",
         type=float,
+        metavar="S",
         default=timeout,
         help=f"reply timeout per try, s (default {timeout:g})",
     )
@@ -70,11 +73,6 @@ class LinkTarget:
     port: Optional[str] = None
     can: Optional[dict] = None
     node: int = 1
-
-    def describe(self) -> str:
-        if self.port:
-            return self.port
-        return f"{self.can['interface']}:{self.can['channel']} node {self.node}"
 
 
 def can_bus_from_args(args) -> Optional[CanBus]:
