@@ -3,6 +3,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 from contour import cli
@@ -10,6 +11,8 @@ from contour.errors import UsageError, UserError
 from contour.image import ImageError
 from contour.link.client import DriveError
 from contour.link.transport import LinkError
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_help_lists_program(capsys):
@@ -228,7 +231,10 @@ def test_link_option_mistakes_are_usage_errors(monkeypatch, tmp_path, capsys, ar
 # ---- one unit convention in JSON output (docs/conventions.md) ---------------------------
 
 UNIT_SUFFIXES = ("_mm", "_um", "_nm", "_s", "_ms", "_us", "_hz", "_mm_min", "_mm_s", "_um_s")
-UNITLESS = {"blocks", "edges", "edge_mismatch_ticks", "planner_blocks", "ticks"}
+UNITLESS = {
+    "blocks", "edges", "edge_mismatch_ticks", "planner_blocks", "ticks",  # counts
+    "segments", "lines", "program_blocks", "lookahead_blocks",
+}  # fmt: skip
 
 
 def _check_units(obj: dict, where: str) -> None:
@@ -255,13 +261,18 @@ def test_sim_json_fields_name_their_unit_and_agree(tmp_path, capsys):
     for k in ("max_contour_error_mm", "revolution_s", "circular_deviation_mm"):
         assert k in circle
     assert "max_following_error_um" in run
+    prof = str(ROOT / "profiles" / "hermle_c1200v_itnc530.toml")
+    assert cli.main(["estimate", str(job), "--profile", prof, "--json"]) == 0
+    est = json.loads(capsys.readouterr().out)
+    _check_units(est, "estimate")
+    _check_units(est["options"], "estimate options")
+    assert "min_feed_mm_min" in est
 
 
 def test_the_boot_client_is_library_code():
     """commands/flash.py parses and prints; the procedure lives in
     contour.link.boot, which knows nothing of the command line."""
     import ast
-    from pathlib import Path
 
     import contour.commands.flash as cmd
     import contour.link.boot as boot
@@ -297,9 +308,8 @@ def test_readme_examples_ship_and_run_on_the_simulated_drive(capsys):
     """Every job the README names is in examples/ and runs on the simulated
     drive without a fault; the headline figure names its options."""
     import re
-    from pathlib import Path
 
-    root = Path(__file__).resolve().parents[2]
+    root = ROOT
     readme = (root / "README.md").read_text()
     named = set(re.findall(r"examples/([\w-]+\.nc)", readme))
     assert {"square.nc", "circle.nc", "pocket.nc"} <= named
