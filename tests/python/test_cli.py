@@ -172,6 +172,14 @@ def test_every_link_command_has_the_same_link_options():
     for name in ("info", "get", "set", "run", "monitor", "calibrate", "flash", "scan"):
         opts = {o for a in cmds[name]._actions for o in a.option_strings}
         assert opts >= LINK_OPTIONS, (name, LINK_OPTIONS - opts)
+    # the older helper for commands not yet on the parent adds the same options
+    import argparse
+
+    from contour.link.client import add_link_arguments
+
+    p = argparse.ArgumentParser()
+    add_link_arguments(p)
+    assert {o for a in p._actions for o in a.option_strings} >= LINK_OPTIONS
 
 
 def _target(argv, monkeypatch, env=None):

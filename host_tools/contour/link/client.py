@@ -238,6 +238,21 @@ def connect(
     return Client(open_transport(port=port, can=can, node=node, **kw), timeout, retries)
 
 
+def add_link_arguments(parser) -> None:
+    """The shared drive-link options (contour.link.options) on a sub-command;
+    new commands take them with ``parents=[link_options()]``."""
+    from contour.link.options import add_link_options
+
+    add_link_options(parser)
+
+
+def connect_from_args(args, **kw: Any) -> Client:
+    """A client on the drive the link options name (contour.link.options)."""
+    from contour.link.options import connect_from_args as connect_with_options
+
+    return connect_with_options(args, **kw)
+
+
 def wait_until(pred, timeout: float, poll: float = 0.01) -> bool:
     end = time.monotonic() + timeout
     while time.monotonic() < end:

@@ -38,7 +38,13 @@ DEFAULT_TIMEOUT_S = 0.5
 def link_options(timeout: float = DEFAULT_TIMEOUT_S) -> argparse.ArgumentParser:
     """The argparse parent with the drive-link options."""
     parent = argparse.ArgumentParser(add_help=False)
-    g = parent.add_argument_group(
+    add_link_options(parent, timeout)
+    return parent
+
+
+def add_link_options(parser, timeout: float = DEFAULT_TIMEOUT_S) -> None:
+    """The drive-link options on an existing parser (what the parent holds)."""
+    g = parser.add_argument_group(
         "drive link",
         "a serial port, or a CAN bus as python-can names it (its CAN_* environment and "
         "config file fill in what is not given)",
@@ -63,7 +69,6 @@ def link_options(timeout: float = DEFAULT_TIMEOUT_S) -> argparse.ArgumentParser:
         default=timeout,
         help=f"reply timeout per try, s (default {timeout:g})",
     )
-    return parent
 
 
 @dataclass(frozen=True)
