@@ -17,11 +17,12 @@ $py -m contour.image build "$out/app64k.bin" --board sim --version 1.0.0 \
 $py - "$out" <<'PY'
 import sys, time
 from contour import image as img
-from contour.commands import flash as fl
+from contour.link import boot as fl
+from contour.sim.bootsim import SimDriveLink
 
 out = sys.argv[1]
 image = img.load(f"{out}/app64k.img")
-link = fl.SimDriveLink(f"{out}/inprocess.flash")
+link = SimDriveLink(f"{out}/inprocess.flash")
 t0 = time.perf_counter()
 fl.flash(fl.BootClient(link), image, log=lambda s: None)
 print(f"flash_seconds_64k_inprocess: {time.perf_counter() - t0:.3f} s")
@@ -46,7 +47,7 @@ if [ -z "$serial" ] || [ -z "$slcan" ]; then
   echo "bench-flash: contour sim serve printed no serial/slcan path" >&2
   exit 1
 fi
-$py - "$out/app64k.img" "$serial" "slcan:$slcan@500000" <<'PY'
+$py - "$out/app64k.img" "$serial" "slcan:$slcan" <<'PY'
 import subprocess, sys, time
 image, serial, can = sys.argv[1:4]
 
@@ -59,6 +60,6 @@ def run(opt):
     return time.perf_counter() - t0
 
 run(["--port", serial])  # untimed: the drive now runs an application
-for name, opt in (("serial", ["--port", serial]), ("slcan", ["--can", can])):
+for name, opt in (("serial", ["--port", serial]), ("slcan", ["--can", can, "--bitrate", "500000"])):
     print(f"flash_seconds_64k_{name}: {min(run(opt) for _ in range(2)):.2f} s")
 PY

@@ -20,12 +20,11 @@ import argparse
 import hashlib
 import json
 import struct
-import sys
 import zlib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from contour.errors import UserError
+from contour.errors import UsageError, UserError
 
 MAGIC = 0x57465443  # b"CTFW" little-endian
 FORMAT_VERSION = 1
@@ -52,6 +51,17 @@ def version_str(v: int) -> str:
     return f"{(v >> 16) & 0xFFFF}.{(v >> 8) & 0xFF}.{v & 0xFF}"
 
 
+def build_id_prefix(ident_build_id: int) -> str:
+    """The `identify` reply's build_id as hex in the image's byte order.
+
+    The drive reports the first 4 bytes of its image's build id as a
+    little-endian u32 (firmware/ports/common/port_app.c); printed as that
+    integer it would read byte-reversed. This gives the bytes in header order,
+    the prefix of what `contour image info` prints and of the git commit
+    `make firmware` puts there."""
+    return (ident_build_id & 0xFFFFFFFF).to_bytes(4, "little").hex()
+
+
 def parse_version(text: str) -> int:
     parts = text.split(".")
     try:
@@ -59,7 +69,7 @@ def parse_version(text: str) -> int:
     except ValueError:
         nums = []
     if len(nums) != 3 or not (0 <= nums[0] < 65536 and 0 <= nums[1] < 256 and 0 <= nums[2] < 256):
-        raise UserError(f"version {text!r}: expected MAJOR.MINOR.PATCH (0..65535.0..255.0..255)")
+        raise UsageError(f"version {text!r}: expected MAJOR.MINOR.PATCH (0..65535.0..255.0..255)")
     return (nums[0] << 16) | (nums[1] << 8) | nums[2]
 
 
@@ -67,7 +77,7 @@ def parse_int(text: str, what: str) -> int:
     try:
         return int(text, 0)
     except ValueError:
-        raise UserError(f"{what} {text!r} is not a number") from None
+        raise UsageError(f"{what} {text!r} is not a number") from None
 
 
 def parse_board(text: str) -> int:
@@ -336,6 +346,43 @@ def from_hex(text: str) -> dict[int, int]:
 # ---- command line -------------------------------------------------------------
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
+    except OSError:
+        return False
+
+
+def build_outputs(
+    src: Path, output: str | None, hex_name: str | None, elf: bool
+) -> tuple[Path, Path | None, Path]:
+    """The files `image build` writes: the image (.img), from an ELF the raw
+    payload (.bin) and the Intel HEX file (.hex). Refused (UsageError, before
+    anything is written): a name whose extension is not what is written
+    there, and any output that is the input or another output."""
+    out = Path(output) if output else src.with_suffix(".img")
+    if out.suffix.lower() != ".img":
+        raise UsageError(
+            f"-o {out}: the image is written with extension .img "
+            "(the raw payload goes to .bin, Intel HEX to .hex beside it)"
+        )
+    hex_out = Path(hex_name) if hex_name else out.with_suffix(".hex")
+    if hex_out.suffix.lower() != ".hex":
+        raise UsageError(f"--hex {hex_out}: Intel HEX is written with extension .hex")
+    bin_out = out.with_suffix(".bin") if elf else None
+    named = [("image", out), ("Intel HEX", hex_out)]
+    if bin_out is not None:
+        named.append(("raw payload", bin_out))
+    for what, path in named:
+        if _same_file(path, src):
+            raise UsageError(f"{path}: is the input file; the {what} would overwrite it (use -o)")
+    for i, (what, path) in enumerate(named):
+        for what2, path2 in named[i + 1 :]:
+            if _same_file(path, path2):
+                raise UsageError(f"{path}: both the {what} and the {what2} would be written there")
+    return out, bin_out, hex_out
+
+
 def cmd_build(args: argparse.Namespace) -> int:
     src = Path(args.input)
     try:
@@ -345,19 +392,19 @@ def cmd_build(args: argparse.Namespace) -> int:
     if data[:4] == b"\x7fELF":
         load_addr, payload = elf_payload(data)
         if args.load_addr is not None and parse_int(args.load_addr, "load address") != load_addr:
-            raise UserError(
+            raise UsageError(
                 f"{src}: linked at 0x{load_addr:08X}, not at the requested {args.load_addr}"
             )
     else:
         if args.load_addr is None:
-            raise UserError(f"{src}: a raw binary needs --load-addr")
+            raise UsageError(f"{src}: a raw binary needs --load-addr")
         load_addr, payload = parse_int(args.load_addr, "load address"), data
     build_id = None
     if args.build_id:
         try:
             build_id = bytes.fromhex(args.build_id)[:BUILD_ID_LEN]
         except ValueError:
-            raise UserError(f"build id {args.build_id!r} is not hexadecimal") from None
+            raise UsageError(f"build id {args.build_id!r} is not hexadecimal") from None
     img = build(
         payload,
         board_id=parse_board(args.board),
@@ -365,12 +412,15 @@ def cmd_build(args: argparse.Namespace) -> int:
         load_addr=load_addr,
         build_id=build_id,
     )
-    out = Path(args.output) if args.output else src.with_suffix(".img")
+    out, bin_out, hex_out = build_outputs(src, args.output, args.hex, data[:4] == b"\x7fELF")
     out.write_bytes(img.to_bytes())
-    if data[:4] == b"\x7fELF":
-        out.with_suffix(".bin").write_bytes(img.payload)  # the raw payload, as objcopy -O binary
-    hex_out = Path(args.hex) if args.hex else out.with_suffix(".hex")
+    if bin_out is not None:
+        bin_out.write_bytes(img.payload)  # the raw payload, as objcopy -O binary
     hex_out.write_text(to_hex(img.flash_records()))
+    if getattr(args, "json", False):
+        files = {"image": str(out), "hex": str(hex_out), "bin": str(bin_out) if bin_out else None}
+        print(json.dumps({**files, "header": img.header.describe()}, indent=2))
+        return 0
     print(
         f"{out}: {img.header.length} bytes at 0x{img.header.load_addr:08X}, board "
         f"{img.header.board_id}, version {version_str(img.header.fw_version)}, "
@@ -408,9 +458,12 @@ def add_parsers(sub) -> None:
     b.add_argument("--load-addr", help="payload flash address (required for a raw binary)")
     b.add_argument("--build-id", help="build id as hex (default: SHA-256 of the payload)")
     b.add_argument(
-        "-o", "--output", help="image file (default: INPUT with .img; from an ELF also .bin)"
+        "-o",
+        "--output",
+        help="image file, .img (default: INPUT with .img; from an ELF also the payload as .bin)",
     )
-    b.add_argument("--hex", help="Intel HEX file (default: OUTPUT with .hex)")
+    b.add_argument("--hex", help="Intel HEX file, .hex (default: OUTPUT with .hex)")
+    b.add_argument("--json", action="store_true", help="print the files and the header as JSON")
     b.set_defaults(func=cmd_build)
     i = sub.add_parser("info", help="validate an image and print its header")
     i.add_argument("image")
@@ -429,9 +482,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     try:
         return args.func(args)
-    except UserError as exc:
-        print(f"contour image: error: {exc}", file=sys.stderr)
-        return 2
+    except (UserError, OSError) as exc:
+        from contour.cli import report_error  # the exit codes of `contour image`
+
+        return report_error(exc, as_json=False)
 
 
 if __name__ == "__main__":

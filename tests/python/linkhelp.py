@@ -12,7 +12,7 @@ def link_args(server, transport: str) -> list[str]:
     """Command-line options that reach `server` over "serial" or "slcan" (node 1)."""
     if transport == "serial":
         return ["--port", server.serial]
-    return ["--can", f"slcan:{server.slcan}@500000", "--node", "1"]
+    return ["--can", f"slcan:{server.slcan}", "--bitrate", "500000", "--node", "1"]
 
 
 def run_cli(argv: list[str], capsys) -> tuple[int, str, str]:

@@ -391,8 +391,10 @@ def test_cli_import_and_errors(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "max |systematic|" in text
     assert (tmp_path / "o.csv").exists()
+    # a file that cannot be read is a runtime failure (1), the rest usage errors (2)
+    assert cli.main(["calibrate", "--import", str(tmp_path / "none.csv")]) == 1
+    assert "cannot read" in capsys.readouterr().err
     for argv, msg in (
-        (["calibrate", "--import", str(tmp_path / "none.csv")], "cannot read"),
         (["calibrate", "--axis", "Q", "--sim", MACHINE], "--axis 'Q'"),
         (["calibrate", "--axis", "Y", "--from", "0", "--to", "10", "--step", "0"], "--step 0"),
         (["calibrate", "--axis", "Y", "--from", "0", "--to", "1000", "--step", "1"], "at most 126"),

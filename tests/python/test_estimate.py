@@ -318,13 +318,13 @@ def test_cli_estimate_text_report_and_per_block_csv(capsys, tmp_path):
     assert sum(float(r["time_s"]) for r in rows) == pytest.approx(total, rel=1e-3)
 
 
-def test_cli_estimate_errors_exit_2(capsys, tmp_path):
+def test_cli_estimate_errors_exit_1_and_usage_2(capsys, tmp_path):
     prog = tmp_path / "a.nc"
     prog.write_text("G1 X1.2.3 F600\n")
-    assert cli.main(["estimate", str(prog), "--profile", str(GENERIC)]) == 2
+    assert cli.main(["estimate", str(prog), "--profile", str(GENERIC)]) == 1
     assert f"{prog}:1: malformed number" in capsys.readouterr().err
     prog.write_text("G1 X1 F600\n")
-    assert cli.main(["estimate", str(prog), "--profile", str(tmp_path / "none.toml")]) == 2
+    assert cli.main(["estimate", str(prog), "--profile", str(tmp_path / "none.toml")]) == 1
     assert "cannot read profile" in capsys.readouterr().err
     assert cli.main(["estimate", str(prog), "--profile", str(GENERIC), "--feed", "-5"]) == 2
 
@@ -353,7 +353,7 @@ def test_all_nine_siemens_programs_estimate_with_generic_profile(capsys, model):
 
 def test_siemens_program_without_feed_is_refused(capsys):
     path = next(p for p in ANTONIO if p.name == "cycle832_3p2_x5.mpf")
-    assert cli.main(["estimate", str(path), "--profile", str(GENERIC)]) == 2
+    assert cli.main(["estimate", str(path), "--profile", str(GENERIC)]) == 1
     err = capsys.readouterr().err
     assert f"{path}:22: cannot evaluate F=R0" in err and "--feed" in err
 

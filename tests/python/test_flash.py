@@ -19,9 +19,10 @@ from contour import image as img
 from contour import native
 from contour import protocol_gen as pg
 from contour.cli import main as cli_main
-from contour.commands import flash as fl
 from contour.errors import UserError
+from contour.link import boot as fl
 from contour.link import codec
+from contour.sim.bootsim import SimDriveLink
 
 SIM_LOAD = 0x08010000 + img.HDR_AREA
 SIM_BOARD = img.BOARDS["sim"]
@@ -49,7 +50,7 @@ def drive(tmp_path):
         assert native.load().boot_sim_init
     except (UserError, AttributeError):
         pytest.skip("build/host/libcontour.so without the simulated bootloader: run make")
-    d = fl.SimDriveLink(str(tmp_path / "flash.bin"))
+    d = SimDriveLink(str(tmp_path / "flash.bin"))
     d.sent = []
     inner = d.exchange
 
@@ -183,7 +184,7 @@ def test_flash_reboots_into_new_version_and_verify_only(drive):
 
 def test_flash_file_survives_a_simulator_restart(drive, tmp_path):
     do_flash(drive, NEW)
-    again = fl.SimDriveLink(str(tmp_path / "flash.bin"))  # new process, same flash file
+    again = SimDriveLink(str(tmp_path / "flash.bin"))  # new process, same flash file
     assert again.mode() == "app"
     assert again.lib.boot_sim_app_version() == NEW.header.fw_version
 
@@ -226,7 +227,7 @@ def test_cli_refuses_corrupt_file_with_one_line(tmp_path, capsys):
     data = bytearray(NEW.to_bytes())
     data[200] ^= 0x40
     p.write_bytes(bytes(data))
-    assert cli_main(["flash", str(p), "--port", "/nonexistent"]) == 2
+    assert cli_main(["flash", str(p), "--port", "/nonexistent"]) == 1  # a file error
     err = capsys.readouterr().err
     assert "payload CRC mismatch" in err and "Traceback" not in err
 
@@ -363,7 +364,7 @@ def test_bit_flips_in_transit_are_caught_by_frame_crc(drive):
     lib.proto_frame_rx_init(rx)
     rnd = random.Random(3)
     flips = {"sent": 0, "dropped": 0}
-    inner = fl.SimDriveLink.exchange
+    inner = SimDriveLink.exchange
 
     def framed(msg, timeout):
         wire = bytearray(codec.frame(msg))
@@ -432,3 +433,153 @@ def test_transmit_buffer_full_is_waited_out(drive):
     assert c.stats.retries == 0
     assert fl.tx_buffer_full(OSError(105, "No buffer space available"))
     assert not fl.tx_buffer_full(can.CanOperationError("bus off"))
+
+
+# ---- progress only on a terminal ------------------------------------------------------
+
+
+def test_flash_draws_no_progress_bar_into_a_pipe(drive, tmp_path, capsys):
+    """stderr is not a terminal here: the summary line only, no bar redraws."""
+    p = tmp_path / "new.img"
+    p.write_bytes(NEW.to_bytes())
+    assert cli_main(["flash", str(p), "--sim-flash", str(tmp_path / "f.bin")]) == 0
+    err = capsys.readouterr().err
+    assert err == "flashed 16001 bytes; drive runs version 2.0.1\n", err
+
+
+def test_progress_bar_draws_on_a_terminal_only():
+    import os
+
+    from contour.progress import Bar
+
+    master, slave = os.openpty()
+    with os.fdopen(slave, "w") as tty:
+        with Bar(total=10, unit="B", desc="flash", file=tty) as bar:
+            assert bar.active
+            bar.update(10)
+        tty.flush()
+        assert b"flash" in os.read(master, 4096)
+    os.close(master)
+    r, w = os.pipe()
+    with os.fdopen(w, "w") as pipe, Bar(total=10, file=pipe) as bar:
+        assert not bar.active
+        bar.update(5)
+        bar.to(10, 10)
+        bar.note("x")
+    with os.fdopen(r) as f:
+        assert f.read() == ""
+
+
+def test_info_prints_the_build_id_in_the_image_byte_order():
+    """`contour info` shows the first bytes of the build id exactly as
+    `contour image info` (and the git commit of `make firmware`) does."""
+    from contour.commands import info
+
+    image = make_image(100, "1.0.0", 3, build_id=bytes.fromhex("0123456789abcdef"))
+
+    class Fake:
+        def identify(self):
+            return {
+                "fw_version": image.header.fw_version,
+                # what the drive sends: the first 4 build-id bytes as a little-endian u32
+                "build_id": int.from_bytes(image.header.build_id[:4], "little"),
+                "protocol_version": pg.PROTOCOL_VERSION,
+                "board_id": SIM_BOARD,
+                "node_id": 1,
+                "axes": 1,
+                "capabilities": 0,
+                "tick_hz": 10000,
+                "planner_slots": 8,
+                "max_payload": 224,
+            }
+
+        def status(self):
+            return {
+                "state": 0,
+                "faults": 0,
+                "free_slots": 8,
+                "queued_us": 0,
+                "blocks_done": 0,
+                "pos": [0, 0, 0, 0],
+                "rx_errors": 0,
+                "replayed": 0,
+            }
+
+    shown = info.gather(Fake())["build_id"]
+    assert shown == "01234567"
+    assert image.header.describe()["build_id"].startswith(shown)
+
+
+# ---- image build never overwrites its input, and names what it writes ---------------
+
+
+def _build(argv):
+    return cli_main(["image", "build", *argv, "--board", "1", "--version", "1.0.0"])
+
+
+@pytest.mark.parametrize(
+    "inp, opts, message",
+    [
+        ("app.img", [], "is the input file"),  # default output INPUT.img is the input
+        ("app.bin", ["-o", "app.bin"], "extension .img"),  # would hold an image, not raw
+        ("app.bin", ["-o", "app"], "extension .img"),
+        ("app.bin", ["-o", "out.img", "--hex", "out.img"], "extension .hex"),
+        ("app.hex", ["-o", "out.img", "--hex", "app.hex"], "is the input file"),
+        ("app.bin", ["-o", "sub/../app.bin.img", "--hex", "app.bin"], "extension .hex"),
+    ],
+)
+def test_image_build_refuses_outputs_that_overwrite_or_mislabel(
+    tmp_path, capsys, monkeypatch, inp, opts, message
+):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sub").mkdir()
+    (tmp_path / inp).write_bytes(b"payload bytes")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    assert _build([inp, "--load-addr", hex(SIM_LOAD), *opts]) == 2
+    assert message in capsys.readouterr().err
+    after = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    assert after == before  # nothing written
+
+
+def test_image_build_refuses_an_output_linked_to_its_input(tmp_path, capsys):
+    (tmp_path / "app.raw").write_bytes(b"payload bytes")
+    (tmp_path / "link.img").symlink_to(tmp_path / "app.raw")
+    argv = [
+        str(tmp_path / "app.raw"),
+        "--load-addr",
+        hex(SIM_LOAD),
+        "-o",
+        str(tmp_path / "link.img"),
+    ]
+    assert _build(argv) == 2
+    assert "is the input file" in capsys.readouterr().err
+    assert (tmp_path / "app.raw").read_bytes() == b"payload bytes"
+    # a good name builds
+    argv[-1] = str(tmp_path / "good.img")
+    assert _build(argv) == 0
+    assert img.load(tmp_path / "good.img").payload == b"payload bytes"
+    assert (tmp_path / "good.hex").exists() and not (tmp_path / "good.bin").exists()
+
+
+def test_flash_and_image_build_json(drive, tmp_path, capsys):
+    import json
+
+    p = tmp_path / "new.img"
+    p.write_bytes(NEW.to_bytes())
+    argv = ["flash", str(p), "--sim-flash", str(tmp_path / "f.bin"), "--json"]
+    assert cli_main(argv) == 0
+    out = capsys.readouterr()
+    r = json.loads(out.out)
+    assert r["version"] == "2.0.1" and r["link"]["requests"] > 0 and out.err == ""
+    # a corrupt file under --json: one error object, exit 1
+    data = bytearray(NEW.to_bytes())
+    data[200] ^= 0x40
+    p.write_bytes(bytes(data))
+    assert cli_main(argv) == 1
+    err = json.loads(capsys.readouterr().out)["error"]
+    assert err["kind"] == "image" and "payload CRC mismatch" in err["message"]
+    (tmp_path / "a.raw").write_bytes(b"abc")
+    argv = [str(tmp_path / "a.raw"), "--load-addr", hex(SIM_LOAD), "-o", str(tmp_path / "a.img")]
+    assert _build([*argv, "--json"]) == 0
+    r = json.loads(capsys.readouterr().out)
+    assert r["image"] == str(tmp_path / "a.img") and r["header"]["length"] == 3

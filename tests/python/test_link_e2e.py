@@ -315,3 +315,68 @@ def test_two_sessions_in_a_row_never_mix_replies(server, transport):
         c2.set_param("comm_timeout_ms", 1000)
     finally:
         c2.close()
+
+
+# ---- monitor: busy port, output kinds, write errors, SIGTERM ---------------------------
+
+
+def test_monitor_refuses_an_output_it_does_not_write(tmp_path, capsys):
+    out = tmp_path / "t.parquet"
+    # refused before the port is opened: the port does not even exist
+    rc, _, err = run_cli(["monitor", "--port", "/nonexistent", "--out", str(out)], capsys)
+    assert rc == 2 and "not .parquet" in err and not out.exists()
+
+
+def test_monitor_says_the_port_is_busy(server, tmp_path, capsys):
+    with client_for(server, "serial") as c:
+        c.identify()
+        rc, _, err = run_cli(
+            ["monitor", "--port", server.serial, "--out", str(tmp_path / "t.csv")], capsys
+        )
+    assert rc == 1 and "is busy: another process holds it" in err, err
+
+
+def test_monitor_write_error_is_one_line_and_restores_telemetry(server, tmp_path, capsys):
+    with client_for(server, "serial") as c:
+        fresh(c)
+        c.set_param("telem_period_ms", 250)
+    full = tmp_path / "full.csv"
+    full.symlink_to("/dev/full")
+    rc, _, err = run_cli(
+        ["monitor", "--port", server.serial, "--out", str(full), "--duration", "0.5"], capsys
+    )
+    assert rc == 1 and "No space left on device" in err and "Traceback" not in err, err
+    with client_for(server, "serial") as c:
+        assert c.get_param("telem_period_ms") == 250  # as it was before, not off
+        c.set_param("telem_period_ms", 0)
+
+
+def test_monitor_restores_telemetry_on_sigterm(server, tmp_path):
+    import signal
+    import subprocess
+    import sys
+
+    with client_for(server, "serial") as c:
+        fresh(c)
+        c.set_param("telem_period_ms", 250)
+    out = tmp_path / "t.csv"
+    argv = ["monitor", "--port", server.serial, "--out", str(out), "--period-ms", "10"]
+    p = subprocess.Popen(
+        [sys.executable, "-m", "contour", *argv], stderr=subprocess.PIPE, text=True
+    )
+    try:
+        end = time.monotonic() + 10
+        while time.monotonic() < end and (not out.exists() or out.stat().st_size < 2000):
+            time.sleep(0.05)  # rows are flushed in blocks: several hundred cycles in
+        p.send_signal(signal.SIGTERM)
+        _, err = p.communicate(timeout=10)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 128 + signal.SIGTERM, err
+    assert "monitor:" in err and "rows written" in err
+    with client_for(server, "serial") as c:
+        assert c.get_param("telem_period_ms") == 250
+        c.set_param("telem_period_ms", 0)
+    with open(out) as fh:
+        assert len(list(csv.DictReader(fh))) > 10

@@ -30,7 +30,7 @@ import pytest
 from contour import image as img
 from contour import protocol_gen as pg
 from contour.calibration import run
-from contour.commands import flash as flashcmd
+from contour.link import boot as flashcmd
 from contour.link.client import DriveError, connect
 from contour.link.transport import open_transport
 
@@ -161,7 +161,8 @@ def test_flash_reboot_and_info(board: Board, firmware: Path, tmp_path: Path) -> 
         [*CONTOUR, "info", "--port", board.url, "--json"],
         capture_output=True, text=True, timeout=30, cwd=ROOT,
     )  # fmt: skip
-    assert r.returncode != 0 and "unknown_message" in r.stderr
+    err = json.loads(r.stdout)["error"]  # --json: the error is JSON on stdout
+    assert r.returncode == 1 and err["kind"] == "drive" and "unknown_message" in err["message"]
 
     # an image for another board is refused before anything is erased
     other = tmp_path / "other.img"

@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import pytest
 from contour import protocol_gen as pg
-from contour.errors import UserError
+from contour.errors import UsageError, UserError
 from contour.link import codec
 from contour.link.client import Client, DriveError, parse_param, parse_value
-from contour.link.transport import LinkError, open_transport, parse_can_spec
+from contour.link.transport import CanBus, LinkError, open_transport, parse_can_spec
 
 
 class FakeTransport:
@@ -148,16 +148,17 @@ def test_parameter_names_and_values_are_checked():
 
 
 def test_link_selection_strings():
-    assert parse_can_spec("slcan:/dev/pts/3@500000") == ("slcan", "/dev/pts/3", 500000)
-    assert parse_can_spec("socketcan:can0") == ("socketcan", "can0", None)
-    for bad in ("can0", "slcan:", ":x", "slcan:/dev/x@fast"):
-        with pytest.raises(LinkError):
+    # the channel is python-can's text verbatim: slcan's @N is the serial baud
+    assert parse_can_spec("slcan:/dev/pts/3@115200") == CanBus("slcan", "/dev/pts/3@115200")
+    assert parse_can_spec("socketcan:can0") == CanBus("socketcan", "can0")
+    for bad in ("can0", "slcan:", ":x", "slcan:/dev/x@fast", "socketcan:can0@500000"):
+        with pytest.raises(UsageError):
             parse_can_spec(bad)
-    with pytest.raises(LinkError, match="exactly one"):
+    with pytest.raises(UsageError, match="exactly one"):
         open_transport()
     with pytest.raises(LinkError, match="cannot open serial port"):
         open_transport(port="/nonexistent/tty")
-    with pytest.raises(LinkError, match="node"):
+    with pytest.raises(UsageError, match="node"):
         open_transport(can="virtual:x", node=99)
 
 

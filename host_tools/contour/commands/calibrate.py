@@ -33,7 +33,8 @@ import time
 from typing import Optional
 
 from contour.calibration import analysis, faults, run, tables
-from contour.errors import UserError
+from contour.errors import UsageError, UserError
+from contour.progress import Bar
 
 AXES = "XYZA"
 
@@ -44,23 +45,25 @@ def parse_axis(text: str) -> int:
         return AXES.index(t)
     if t.isdigit() and int(t) < len(AXES):
         return int(t)
-    raise UserError(f"--axis {text!r}: expected X, Y, Z, A or 0..3")
+    raise UsageError(f"--axis {text!r}: expected X, Y, Z, A or 0..3")
 
 
 def targets_mm(start: float, stop: float, step: float) -> list:
     for name, v in (("--from", start), ("--to", stop), ("--step", step)):
         if v is None:
-            raise UserError(f"{name} is required (or use --import FILE.csv)")
+            raise UsageError(f"{name} is required (or use --import FILE.csv)")
         if not math.isfinite(v):
-            raise UserError(f"{name} {v}: not a number")
+            raise UsageError(f"{name} {v}: not a number")
     if step <= 0:
-        raise UserError(f"--step {step:g}: must be positive")
+        raise UsageError(f"--step {step:g}: must be positive")
     lo, hi = min(start, stop), max(start, stop)
     n = int(math.floor((hi - lo) / step + 1e-9)) + 1
     if n < 2:
-        raise UserError(f"--from {start:g} --to {stop:g} --step {step:g} gives fewer than 2 points")
+        raise UsageError(
+            f"--from {start:g} --to {stop:g} --step {step:g} gives fewer than 2 points"
+        )
     if n > tables.POINTS_MAX:
-        raise UserError(
+        raise UsageError(
             f"{n} points: the drive's compensation table holds at most {tables.POINTS_MAX}; "
             "use a larger --step"
         )
@@ -93,26 +96,14 @@ def _print_map(em: analysis.ErrorMap, title: str, out=None) -> None:
     )
 
 
-class _Bar:
-    def __init__(self, enabled: bool, desc: str) -> None:
-        self.bar = None
-        if enabled:
-            from tqdm import tqdm
+class _Bar(Bar):
+    """The calibrator's progress callback (legs done, legs in all)."""
 
-            self.bar = tqdm(total=0, unit="leg", desc=desc, file=sys.stderr, leave=True)
+    def __init__(self, enabled: bool, desc: str) -> None:
+        super().__init__(total=0, unit="leg", desc=desc, enabled=enabled)
 
     def __call__(self, done: int, total: int) -> None:
-        if self.bar is None:
-            return
-        if self.bar.total != total:
-            self.bar.total = total
-            self.bar.refresh()
-        if done > self.bar.n:
-            self.bar.update(done - self.bar.n)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+        self.to(done, total)
 
 
 class Session:
@@ -133,13 +124,9 @@ class Session:
             self.wait = t.wait
         else:
             from contour.link.client import Client
-            from contour.link.transport import open_transport
+            from contour.link.options import transport_from_args
 
-            if not args.port and not args.can:
-                raise UserError(
-                    "name the drive: --port PATH or --can IFACE:CHANNEL (or --sim MACHINE)"
-                )
-            t = open_transport(port=args.port, can=args.can, node=args.node)
+            t = transport_from_args(args)
             if self.faults is not None:
                 faults.make_lossy(t, self.faults)
             self.client = Client(t, timeout=args.timeout, retries=args.retries)
@@ -165,32 +152,32 @@ def _run_cfg(args, axis: int, pts_mm: list, host_ref: bool) -> run.RunConfig:
 
 def _check_numbers(args) -> None:
     if not 0 <= args.overrun <= 1000:
-        raise UserError(f"--overrun {args.overrun:g} mm: must be 0..1000")
+        raise UsageError(f"--overrun {args.overrun:g} mm: must be 0..1000")
     if not 0 < args.feed <= 240000:
-        raise UserError(f"--feed {args.feed:g} mm/min: must be in (0, 240000]")
+        raise UsageError(f"--feed {args.feed:g} mm/min: must be in (0, 240000]")
     if not 0 <= args.dwell_ms <= 60000:
-        raise UserError(f"--dwell-ms {args.dwell_ms}: must be 0..60000")
+        raise UsageError(f"--dwell-ms {args.dwell_ms}: must be 0..60000")
     if not 1 <= args.sample_ticks <= 65535:
-        raise UserError(f"--sample-ticks {args.sample_ticks}: must be 1..65535")
+        raise UsageError(f"--sample-ticks {args.sample_ticks}: must be 1..65535")
     if not 0 <= args.ramp_ms <= 1000:
-        raise UserError(f"--ramp-ms {args.ramp_ms:g}: must be 0..1000")
+        raise UsageError(f"--ramp-ms {args.ramp_ms:g}: must be 0..1000")
     if args.comp_type is not None and args.comp_type not in (0, 1):
-        raise UserError(f"--comp-type {args.comp_type}: LinuxCNC knows types 0 and 1")
+        raise UsageError(f"--comp-type {args.comp_type}: LinuxCNC knows types 0 and 1")
     # the drive-side limits of run.RunConfig, checked before anything moves
     if not 1 <= args.samples <= 512:
-        raise UserError(f"--samples {args.samples}: must be 1..512")
+        raise UsageError(f"--samples {args.samples}: must be 1..512")
     if not 1 <= args.cycles <= 20:
-        raise UserError(f"--cycles {args.cycles}: must be 1..20")
+        raise UsageError(f"--cycles {args.cycles}: must be 1..20")
     if not 0 < args.timeout <= 60:  # also refuses nan
-        raise UserError(f"--timeout {args.timeout:g} s: must be in (0, 60]")
+        raise UsageError(f"--timeout {args.timeout:g} s: must be in (0, 60]")
     if not 0 <= args.retries <= 100:
-        raise UserError(f"--retries {args.retries}: must be 0..100")
+        raise UsageError(f"--retries {args.retries}: must be 0..100")
     if not 0 < args.run_timeout <= 86400:
-        raise UserError(f"--run-timeout {args.run_timeout:g} s: must be in (0, 86400]")
+        raise UsageError(f"--run-timeout {args.run_timeout:g} s: must be in (0, 86400]")
     # outputs are written after a run that may take minutes: refuse a bad path now
     for opt, path in (("--out", args.out), ("--comp-file", args.comp_file), ("--plot", args.plot)):
         if path and not os.path.isdir(os.path.dirname(os.path.abspath(path))):
-            raise UserError(f"{opt} {path}: no such directory")
+            raise UsageError(f"{opt} {path}: no such directory")
 
 
 def _outputs(args, em: analysis.ErrorMap, residual: Optional[analysis.ErrorMap]) -> None:
@@ -213,7 +200,7 @@ def cmd_calibrate(args) -> int:
     report: dict = {}
     if args.import_file:
         if args.reference != "scale":
-            raise UserError(
+            raise UsageError(
                 "--import and --reference are exclusive (the import file is the reference)"
             )
         axis = parse_axis(args.axis) if args.axis else None
@@ -222,7 +209,7 @@ def cmd_calibrate(args) -> int:
         residual = None
         if args.apply:
             if axis is None:
-                raise UserError("--apply needs --axis")
+                raise UsageError("--apply needs --axis")
             sess = Session(args)
             try:
                 info = run.upload(
@@ -240,7 +227,7 @@ def cmd_calibrate(args) -> int:
         return _report(args, em, None, report)
 
     if not args.axis:
-        raise UserError("--axis is required (X, Y, Z or A)")
+        raise UsageError("--axis is required (X, Y, Z or A)")
     axis = parse_axis(args.axis)
     pts = targets_mm(args.from_mm, args.to_mm, args.step)
     host_ref = args.reference != "scale"
@@ -347,10 +334,11 @@ def _report(args, em, residual, report: dict) -> int:
 
 
 def register(sub) -> None:
-    from contour.link.client import add_link_arguments
+    from contour.link.options import link_options
 
     p = sub.add_parser(
         "calibrate",
+        parents=[link_options()],
         help="measure an axis against a reference, write and apply its compensation table",
         description=__doc__.split("\n\n")[0],
     )
@@ -401,7 +389,9 @@ def register(sub) -> None:
         "--run-timeout", type=float, default=900.0, help="give up a run after this long, s (900)"
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress", action="store_true", help="no progress bar (none unless stderr is a TTY)"
+    )
     g = p.add_argument_group("testing")
     g.add_argument(
         "--sim",
@@ -422,5 +412,4 @@ def register(sub) -> None:
         help="drop or corrupt this fraction of the frames in transit (both directions)",
     )
     g.add_argument("--seed", type=int, default=1, help="seed of --inject-loss (1)")
-    add_link_arguments(p)
     p.set_defaults(func=cmd_calibrate)

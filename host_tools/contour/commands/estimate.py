@@ -6,7 +6,7 @@ import json
 import math
 
 from contour import gcode
-from contour.errors import UserError
+from contour.errors import UsageError
 from contour.estimation import DEFAULT_MODEL, MODELS, estimate_program, parse_options
 from contour.estimation import profile as profiles
 
@@ -55,7 +55,7 @@ def _fmt_s(t) -> str:
 
 def run(args) -> int:
     if args.feed is not None and not (args.feed > 0 and math.isfinite(args.feed)):
-        raise UserError(f"--feed must be a positive number (mm/min), got {args.feed}")
+        raise UsageError(f"--feed must be a positive number (mm/min), got {args.feed}")
     profile = profiles.load(args.profile)
     options = parse_options(args.model, args.option)
     program = gcode.read(args.file, default_feed=args.feed)

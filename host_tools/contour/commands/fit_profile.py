@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from contour.errors import UserError
+from contour.errors import UsageError, UserError
 from contour.estimation import MODELS, estimate_program
 from contour.estimation import experiments as xp
 from contour.estimation import fit as fitting
@@ -110,11 +110,11 @@ def _parse_set(pairs, profile):
         key, sep, text = pair.partition("=")
         key = key.strip()
         if not sep:
-            raise UserError(f"--set '{pair}' is not FIELD=VALUE")
+            raise UsageError(f"--set '{pair}' is not FIELD=VALUE")
         parts = key.split(".")
         if len(parts) == 3 and parts[0] == "axes":
             if not parts[1] or any(a not in profiles.AXIS_NAMES for a in parts[1]):
-                raise UserError(f"--set {key}: '{parts[1]}' is not a set of axes")
+                raise UsageError(f"--set {key}: '{parts[1]}' is not a set of axes")
             paths = [f"axes.{a}.{parts[2]}" for a in parts[1]]
             fields = {f.name: f for f in AXIS_FIELDS}
             name = parts[2]
@@ -127,24 +127,24 @@ def _parse_set(pairs, profile):
             }
             name = parts[1]
         else:
-            raise UserError(
+            raise UsageError(
                 f"--set {key}: use motion.<field>, axes.<AXES>.<field> or camargo2017.<option>"
             )
         f = fields.get(name)
         if f is None:
-            raise UserError(f"--set {key}: unknown field '{name}'")
+            raise UsageError(f"--set {key}: unknown field '{name}'")
         text = text.strip()
         if f.choices:
             value = text
         elif isinstance(f.default, bool):
             value = text.lower() == "true"
             if text.lower() not in ("true", "false"):
-                raise UserError(f"--set {key}: must be true or false")
+                raise UsageError(f"--set {key}: must be true or false")
         else:
             try:
                 value = float(text)
             except ValueError:
-                raise UserError(f"--set {key}: '{text}' is not a number") from None
+                raise UsageError(f"--set {key}: '{text}' is not a number") from None
             if isinstance(f.default, int) and value == int(value):
                 value = int(value)
         for path in paths:
@@ -226,7 +226,7 @@ def run(args) -> int:
     compare = [m.strip() for m in args.compare.split(",") if m.strip()]
     for m in compare:
         if m not in MODELS:
-            raise UserError(f"--compare: unknown model '{m}' (models: {', '.join(MODELS)})")
+            raise UsageError(f"--compare: unknown model '{m}' (models: {', '.join(MODELS)})")
     ev = _Evaluator(experiments, args.full)
     fit_mask = np.array([args.include_suspect or not e.suspect for e in experiments])
     log = (lambda s: print(s, file=sys.stderr)) if args.json else print
@@ -236,7 +236,7 @@ def run(args) -> int:
     if not args.no_fit:
         specs = DEFAULT_FIT[args.model] if args.fit is None else tuple(args.fit)
         if not specs:
-            raise UserError(f"nothing to fit: model {args.model} has no parameters; use --fit")
+            raise UsageError(f"nothing to fit: model {args.model} has no parameters; use --fit")
         params = [fitting.parse_param(s, base) for s in specs]
         log(
             f"fitting {len(params)} parameter(s) of model {args.model} on "
@@ -264,7 +264,7 @@ def run(args) -> int:
         _write_per_test(args.per_test, experiments, ev.meas, preds)
     if args.out:
         if result is None:
-            raise UserError("--out needs a fit (drop --no-fit)")
+            raise UsageError("--out needs a fit (drop --no-fit)")
         header = _header(args, result, reports.get(args.model))
         profiles.save(profile, args.out, header)
     out = {

@@ -1,489 +1,86 @@
 """`contour flash IMAGE`: update a drive's firmware so that the worst case is "try again".
 
-Procedure (docs/bootloader.md): validate the image file; reach the bootloader
-(`boot_connect`, or `boot_enter` to the running application, then reconnect);
-check the image header against the drive's board id, load address and slot
-size BEFORE anything is erased; erase; write blocks (address echo checked,
-failed blocks retried with exponential back-off under the same sequence
-number, so the drive answers a repeat from its reply cache instead of
-executing it twice; python-can's transmit-buffer-full is waited out); verify
-the whole payload by a read-back CRC; `boot_finish` (the drive checks the CRC
-itself and only then marks the image valid); reboot; confirm the running
-application's version with `identify`. If the drive lost the session (it was
-reset), the whole session is repeated, up to --attempts times.
-
-Also `contour image build|info` (contour.image).
+The image file is checked first (refused here, before any link is opened),
+then every option; the procedure itself is the boot client,
+contour.link.boot (docs/bootloader.md). Also `contour image build|info`
+(contour.image).
 """
 
 from __future__ import annotations
 
-import contextlib
-import ctypes
+import argparse
+import dataclasses
+import json
 import sys
-import time
-from dataclasses import dataclass, field
-from typing import Callable, Optional, Protocol
 
 from contour import image as img
-from contour import protocol_gen as pg
-from contour.errors import UserError
-from contour.link import codec
-from contour.link.transport import tx_buffer_full  # python-can's transmit buffer full
-
-# ---- link and client ------------------------------------------------------------
-
-
-class Link(Protocol):
-    """One request/reply exchange of whole messages (msg_id | seq | payload).
-    Returns the reply, or None when none came within `timeout` seconds."""
-
-    def exchange(self, msg: bytes, timeout: float) -> Optional[bytes]: ...
-
-
-class LinkLost(UserError):
-    """No reply after every retry."""
-
-
-class Refused(UserError):
-    """The drive answered `error`."""
-
-    def __init__(self, msg: str, code: int, arg: int, lo: int):
-        super().__init__(msg)
-        self.code = code
-        self.arg = arg
-        self.lo = lo
-
-
-def _status_name(arg: int) -> str:
-    try:
-        return pg.BootStatus(arg).name.lower().replace("_", " ")
-    except ValueError:
-        return f"status {arg}"
-
-
-def _reason_name(arg: int) -> str:
-    try:
-        return pg.BootReason(arg).name.lower().replace("_", " ")
-    except ValueError:
-        return f"reason {arg}"
-
-
-@dataclass
-class Stats:
-    requests: int = 0
-    retries: int = 0
-    timeouts: int = 0
-    tx_full_waits: int = 0
-    sessions: int = 0
-
-
-@dataclass
-class BootClient:
-    link: Link
-    timeout: float = 0.5
-    retries: int = 6
-    backoff: float = 0.02
-    backoff_max: float = 1.0
-    sleep: Callable[[float], None] = time.sleep
-    stats: Stats = field(default_factory=Stats)
-    seq: int = 0
-
-    def request(
-        self,
-        name: str,
-        fields: Optional[dict] = None,
-        timeout: Optional[float] = None,
-        retries: Optional[int] = None,
-    ) -> tuple[str, dict]:
-        import can  # python-can: its CanOperationError is the transmit-buffer-full carrier
-
-        m = pg.MSG_BY_NAME[name]
-        self.seq = (self.seq + 1) & 0xFF
-        msg = codec.encode(name, self.seq, **(fields or {}))
-        delay = self.backoff
-        tries = self.retries if retries is None else retries
-        attempt = 0
-        full_waits = 0
-        self.stats.requests += 1
-        while True:
-            try:
-                reply = self.link.exchange(msg, timeout or self.timeout)
-            except (can.CanOperationError, OSError, UserError) as exc:
-                if not tx_buffer_full(exc) or full_waits >= 200:
-                    raise LinkLost(f"{name}: link error: {exc}") from None
-                full_waits += 1
-                self.stats.tx_full_waits += 1
-                self.sleep(min(0.001 * (1 << min(full_waits, 6)), 0.05))
-                continue
-            if reply is not None:
-                try:
-                    d = codec.decode(reply)
-                    rname, rseq, rf = d.name, d.seq, d.fields
-                except UserError:
-                    rname, rseq, rf = "", -1, {}
-                if rseq == self.seq and rname in (m.reply, "error"):
-                    if rname == "error":
-                        raise self._refusal(name, rf)
-                    return rname, rf
-            self.stats.timeouts += 1
-            if attempt >= tries:
-                raise LinkLost(f"{name}: no reply from the drive after {attempt + 1} attempts")
-            attempt += 1
-            self.stats.retries += 1
-            self.sleep(delay)
-            delay = min(delay * 2, self.backoff_max)
-
-    @staticmethod
-    def _refusal(name: str, rf: dict) -> Refused:
-        code, arg, lo = rf["code"], rf["arg"], rf["lo"]
-        if code == pg.ErrorCode.BOOT:
-            text = f"{name} refused by the drive: {_status_name(arg)}"
-            if arg == pg.BootStatus.PAYLOAD_CRC:
-                text += f" (CRC in flash 0x{lo & 0xFFFFFFFF:08X})"
-        else:
-            try:
-                cname = pg.ErrorCode(code).name.lower().replace("_", " ")
-            except ValueError:
-                cname = f"code {code}"
-            text = f"{name} refused by the drive: {cname}"
-        return Refused(text, code, arg, lo)
-
-
-# ---- the procedure ---------------------------------------------------------------
-
-
-class SessionLost(Exception):
-    """The drive no longer holds our session (it was reset): start over."""
-
-
-def enter_bootloader(client: BootClient, wait: float = 5.0) -> dict:
-    """boot_info of the drive, asking a running application to reset into its
-    bootloader (boot_enter) whenever it answers as an application."""
-    deadline = time.monotonic() + wait
-    answered = False
-    while True:
-        try:
-            return client.request("boot_connect", retries=2)[1]
-        except Refused:
-            # an application answers boot_connect with an error: ask it to reset
-            answered = True
-            with contextlib.suppress(Refused, LinkLost):
-                client.request("boot_enter", retries=2)
-        except LinkLost:
-            pass
-        if time.monotonic() > deadline:
-            if not answered:
-                raise LinkLost(
-                    f"no reply from the drive in {wait:g} s: is it connected and powered, "
-                    "and is --node right?"
-                )
-            raise LinkLost("the drive did not come back in its bootloader")
-        client.sleep(0.05)
-
-
-def _blocks(length: int, block: int):
-    for off in range(0, length, block):
-        yield off, min(block, length - off)
-
-
-def transfer(client: BootClient, info: dict, image: img.Image, progress=None) -> None:
-    hdr = image.header
-    ws = max(1, info["write_size"])
-    block = min(info["block_max"], 224) // ws * ws
-    if block <= 0:
-        raise UserError(f"drive reports block size {info['block_max']} < write unit {ws}")
-    client.request("boot_erase", {"header": list(hdr.encode())}, timeout=10.0)
-    if progress is not None:
-        progress.reset(total=hdr.length)
-    for off, n in _blocks(hdr.length, block):
-        addr = hdr.load_addr + off
-        try:
-            _, r = client.request(
-                "boot_write", {"addr": addr, "data": image.payload[off : off + n]}
-            )
-        except Refused as exc:
-            if exc.code == pg.ErrorCode.BOOT and exc.arg == pg.BootStatus.BAD_STATE:
-                raise SessionLost() from None
-            raise
-        if r["addr"] != addr or r["len"] != n:
-            raise UserError(
-                f"drive echoed block 0x{r['addr']:08X}+{r['len']}, sent 0x{addr:08X}+{n}"
-            )
-        if progress is not None:
-            progress.update(n)
-    _, r = client.request("boot_crc", {"addr": hdr.load_addr, "len": hdr.length}, timeout=5.0)
-    if r["crc"] != hdr.payload_crc:
-        raise SessionLost()  # corrupted in transit or lost blocks: erase and write again
-    try:
-        _, r = client.request("boot_finish", timeout=5.0)
-    except Refused as exc:
-        if exc.code == pg.ErrorCode.BOOT and exc.arg in (
-            pg.BootStatus.BAD_STATE,
-            pg.BootStatus.PAYLOAD_CRC,
-        ):
-            raise SessionLost() from None
-        raise
-
-
-def confirm_application(client: BootClient, version: int, wait: float) -> dict:
-    deadline = time.monotonic() + wait
-    last = None
-    while time.monotonic() <= deadline:
-        try:
-            _, r = client.request("identify", retries=1)
-        except LinkLost:
-            client.sleep(0.05)
-            continue
-        last = r
-        if r["axes"] > 0:  # an application (the bootloader reports no axes)
-            if r["fw_version"] != version:
-                raise UserError(
-                    f"drive runs version {img.version_str(r['fw_version'])} after the update, "
-                    f"expected {img.version_str(version)}"
-                )
-            return r
-        client.sleep(0.05)
-    reason = ""
-    with contextlib.suppress(UserError):
-        reason = _reason_name(client.request("boot_connect", retries=1)[1]["app_state"])
-    raise UserError(
-        f"drive did not start the new application (still in its bootloader: {reason or last})"
-    )
-
-
-def flash(
-    client: BootClient,
-    image: img.Image,
-    *,
-    verify_only: bool = False,
-    attempts: int = 3,
-    progress: bool = False,
-    confirm_wait: float = 5.0,
-    enter_wait: float = 5.0,
-    log: Callable[[str], None] = lambda s: print(s, file=sys.stderr),
-) -> dict:
-    """Flash (or verify) `image`; returns a summary dict."""
-    hdr = image.header
-    info = enter_bootloader(client, enter_wait)
-    try:
-        img.check_target(
-            hdr,
-            board_id=info["board_id"],
-            load_addr=info["load_addr"],
-            max_length=info["max_length"],
-        )
-    except img.ImageError:
-        # nothing was erased; a drive with a valid application goes back to it
-        if info["app_state"] == pg.BootReason.APP_OK:
-            with contextlib.suppress(UserError):
-                client.request("boot_reboot", retries=1)
-        raise
-    if verify_only:
-        _, r = client.request("boot_crc", {"addr": hdr.load_addr, "len": hdr.length}, timeout=5.0)
-        ok = (
-            r["crc"] == hdr.payload_crc
-            and info["app_state"] == pg.BootReason.APP_OK
-            and info["app_version"] == hdr.fw_version
-            and info["app_length"] == hdr.length
-        )
-        if not ok:
-            raise UserError(
-                f"drive does not hold this image (flash CRC 0x{r['crc']:08X}, image "
-                f"0x{hdr.payload_crc:08X}; slot: {_reason_name(info['app_state'])}, version "
-                f"{img.version_str(info['app_version'])})"
-            )
-        log(f"verified: drive holds version {img.version_str(hdr.fw_version)}")
-        return {"verified": True, "version": img.version_str(hdr.fw_version)}
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=hdr.length, unit="B", unit_scale=True, desc="flash", file=sys.stderr)
-    try:
-        for attempt in range(1, attempts + 1):
-            client.stats.sessions += 1
-            try:
-                transfer(client, info, image, bar)
-                break
-            except SessionLost:
-                if attempt == attempts:
-                    raise UserError(
-                        f"flashing failed {attempts} times (drive reset or data corrupted); "
-                        "the drive stays in its bootloader: run contour flash again"
-                    ) from None
-                log(f"session lost (attempt {attempt}); starting over")
-                info = enter_bootloader(client, enter_wait)
-    finally:
-        if bar is not None:
-            bar.close()
-    client.request("boot_reboot")
-    r = confirm_application(client, hdr.fw_version, confirm_wait)
-    log(f"flashed {hdr.length} bytes; drive runs version {img.version_str(r['fw_version'])}")
-    return {"verified": True, "version": img.version_str(r["fw_version"]), "stats": client.stats}
-
-
-# ---- in-process simulated drive (tests, bench) -------------------------------------
-
-
-class SimDriveLink:
-    """The simulated drive's bootloader in this process (libcontour.so,
-    firmware/ports/sim/boot_sim.c), reached without a transport: each
-    exchange hands the message to boot_sim_drive_handle. Fault hooks:
-    `before(n, msg)` may return "drop" (request lost), "reset" (drive reset
-    before delivery), or raise (host killed); `after(n, reply)` may return
-    "drop" (reply lost) or a replacement reply."""
-
-    def __init__(self, flash_path: Optional[str] = None, window_us: int = 0, node: int = 1):
-        from contour import native
-
-        self.lib = native.load()
-        lib = self.lib
-        lib.boot_sim_init.argtypes = [ctypes.c_char_p, ctypes.c_uint8, ctypes.c_uint32]
-        lib.boot_sim_init.restype = ctypes.c_bool
-        lib.boot_sim_drive_handle.argtypes = [
-            ctypes.c_char_p,
-            ctypes.c_size_t,
-            ctypes.c_char_p,
-            ctypes.c_size_t,
-        ]
-        lib.boot_sim_drive_handle.restype = ctypes.c_size_t
-        lib.flash_sim_power_cut_after.argtypes = [ctypes.c_long]
-        lib.flash_sim_powered.restype = ctypes.c_bool
-        lib.hal_sim_set_time_ns.argtypes = [ctypes.c_uint64]
-        path = flash_path.encode() if flash_path else None
-        if not lib.boot_sim_init(path, node, window_us):
-            raise UserError(f"simulated flash {flash_path}: cannot open")
-        self.count = 0
-        self.before: Optional[Callable[[int, bytes], Optional[str]]] = None
-        self.after: Optional[Callable[[int, bytes], object]] = None
-
-    def reset(self) -> int:
-        """Simulated reset (power back on, boot decision re-run); returns the mode."""
-        return self.lib.boot_sim_reset()
-
-    def mode(self) -> str:
-        return "app" if self.lib.boot_sim_mode() == 1 else "bootloader"
-
-    def reason(self) -> int:
-        return self.lib.boot_sim_reason()
-
-    def power_cut_after(self, n: int) -> None:
-        self.lib.flash_sim_power_cut_after(n)
-
-    def exchange(self, msg: bytes, timeout: float) -> Optional[bytes]:
-        self.count += 1
-        if self.before is not None:
-            act = self.before(self.count, msg)
-            if act == "drop":
-                return None
-            if act == "reset":
-                self.reset()
-        if not self.lib.flash_sim_powered():
-            return None  # drive dead until reset
-        out = ctypes.create_string_buffer(256)
-        n = self.lib.boot_sim_drive_handle(msg, len(msg), out, 256)
-        self.lib.boot_sim_poll()
-        reply = out.raw[:n] if n else None
-        if self.after is not None and reply is not None:
-            act = self.after(self.count, reply)
-            if act == "drop":
-                return None
-            if isinstance(act, bytes):
-                reply = act
-        return reply
-
-
-# ---- command line -------------------------------------------------------------------
-
-
-class TransportLink:
-    """Exchange over the protocol's transports (contour.link.transport: serial
-    framing or CAN ISO-TP); replies are matched by id-echo and sequence number."""
-
-    def __init__(self, transport) -> None:
-        import queue
-
-        self.t = transport
-        self.q: queue.Queue = queue.Queue()
-        self.t.start(self._on)
-
-    def _on(self, data: bytes, ts: float) -> None:
-        self.q.put(bytes(data))
-
-    def exchange(self, msg: bytes, timeout: float) -> Optional[bytes]:
-        import queue
-
-        while not self.q.empty():  # late replies of earlier attempts
-            self.q.get_nowait()
-        self.t.send(msg)
-        deadline = time.monotonic() + timeout
-        while True:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                return None
-            try:
-                data = self.q.get(timeout=left)
-            except queue.Empty:
-                return None
-            if len(data) >= 2 and data[1] == msg[1] and data[0] >= 0x40:
-                return data
-
-    def close(self) -> None:
-        self.t.close()
+from contour.errors import UsageError
+from contour.link.boot import BootClient, Link, TransportLink, flash
+from contour.link.options import (
+    check_timeout,
+    link_options,
+    target_from_args,
+    transport_from_args,
+)
 
 
 def open_link(args) -> Link:
     if args.sim_flash is not None:
-        return SimDriveLink(args.sim_flash)
-    from contour.link.transport import open_transport
+        from contour.sim.bootsim import SimDriveLink
 
-    return TransportLink(open_transport(port=args.port, can=args.can, node=args.node))
+        return SimDriveLink(args.sim_flash)
+    return TransportLink(transport_from_args(args))
 
 
 def cmd_flash(args) -> int:
     image = img.load(args.image)  # refused here, before any link is opened
-    if not args.port and not args.can and args.sim_flash is None:
-        raise UserError("give --port PATH or --can INTERFACE:CHANNEL[@BITRATE]")
     if not 1 <= args.attempts <= 100:
-        raise UserError(f"--attempts must be 1..100, got {args.attempts}")
-    if not 0 < args.timeout <= 60:  # also refuses nan
-        raise UserError(f"--timeout must be in (0, 60] s, got {args.timeout:g}")
+        raise UsageError(f"--attempts must be 1..100, got {args.attempts}")
+    check_timeout(args)
+    if args.sim_flash is None:
+        target_from_args(args)  # every link option checked before the image is sent
     link = open_link(args)
     client = BootClient(link, timeout=args.timeout)
     try:
-        flash(
+        result = flash(
             client,
             image,
             verify_only=args.verify_only,
             attempts=args.attempts,
-            progress=not args.no_progress,
+            progress=not args.no_progress and not args.json,
+            log=(lambda s: None) if args.json else _log,
         )
     finally:
         close = getattr(link, "close", None)
         if close is not None:
             close()
+    if args.json:
+        stats = result.pop("stats", None)
+        if stats is not None:
+            result["link"] = dataclasses.asdict(stats)
+        print(json.dumps(result, indent=2))
     return 0
 
 
+def _log(text: str) -> None:
+    print(text, file=sys.stderr)
+
+
 def register(sub) -> None:
-    p = sub.add_parser("flash", help="flash a firmware image over serial or CAN (never bricks)")
+    p = sub.add_parser(
+        "flash",
+        help="flash a firmware image over serial or CAN (never bricks)",
+        parents=[link_options()],
+    )
     p.add_argument("image", help="image file built by `contour image build` (or make firmware)")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--port", help="serial port path or pyserial URL")
-    g.add_argument("--can", help="INTERFACE:CHANNEL[@BITRATE], e.g. slcan:/dev/pts/3@500000")
-    g.add_argument("--sim-flash", help=argparse_suppress(), default=None)
-    p.add_argument("--node", type=int, default=1, help="CAN node id (default 1)")
+    p.add_argument("--sim-flash", help=argparse.SUPPRESS, default=None)  # tests: in-process
     p.add_argument("--verify-only", action="store_true", help="compare, do not write")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--attempts", type=int, default=3, help="whole-session attempts (default 3)")
-    p.add_argument("--timeout", type=float, default=0.5, help="reply timeout per request, s")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress", action="store_true", help="no progress bar (none unless stderr is a TTY)"
+    )
     p.set_defaults(func=cmd_flash)
 
     i = sub.add_parser("image", help="build or inspect firmware images")
     img.add_parsers(i.add_subparsers(dest="image_cmd", required=True))
-
-
-def argparse_suppress() -> str:
-    import argparse
-
-    return argparse.SUPPRESS

@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 
 from contour import protocol_gen as pg
-from contour.link.client import add_link_arguments, connect_from_args
+from contour.image import build_id_prefix
+from contour.link.options import connect_from_args, link_options
 
 
 def _bits(value: int, enum) -> list[str]:
@@ -26,7 +27,7 @@ def gather(client) -> dict:
     fw = ident["fw_version"]
     return {
         "firmware_version": f"{fw >> 16}.{(fw >> 8) & 0xFF}.{fw & 0xFF}",
-        "build_id": f"{ident['build_id']:08x}",
+        "build_id": build_id_prefix(ident["build_id"]),
         "protocol_version": ident["protocol_version"],
         "host_protocol_version": pg.PROTOCOL_VERSION,
         "board_id": ident["board_id"],
@@ -67,7 +68,8 @@ def run(args) -> int:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("info", help="identify the drive (versions, axes, state)")
-    add_link_arguments(p)
+    p = sub.add_parser(
+        "info", help="identify the drive (versions, axes, state)", parents=[link_options()]
+    )
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=run)

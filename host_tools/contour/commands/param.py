@@ -10,8 +10,9 @@ from __future__ import annotations
 import json
 
 from contour import protocol_gen as pg
-from contour.errors import UserError
-from contour.link.client import DriveError, add_link_arguments, connect_from_args, parse_param
+from contour.errors import UsageError, usage_errors
+from contour.link.client import DriveError, parse_param
+from contour.link.options import connect_from_args, link_options
 
 
 def _names(axes: int) -> list[str]:
@@ -26,9 +27,10 @@ def _names(axes: int) -> list[str]:
 
 def run_get(args) -> int:
     if not args.param and not args.all:
-        raise UserError("name a parameter (contour get comm_timeout_ms) or use --all")
+        raise UsageError("name a parameter (contour get comm_timeout_ms) or use --all")
     if args.param:
-        parse_param(args.param)  # a clear error before touching the link
+        with usage_errors():
+            parse_param(args.param)  # a clear error before touching the link
     with connect_from_args(args) as client:
         names = _names(client.identify()["axes"]) if args.all else [args.param]
         values = {}
@@ -53,10 +55,11 @@ def run_get(args) -> int:
 def run_set(args) -> int:
     from contour.link.client import parse_value
 
-    p, _ = parse_param(args.param)
-    if p.access == "ro":
-        raise UserError(f"parameter {p.name} is read-only")
-    value = parse_value(p, args.value)
+    with usage_errors():
+        p, _ = parse_param(args.param)
+        if p.access == "ro":
+            raise UsageError(f"parameter {p.name} is read-only")
+        value = parse_value(p, args.value)
     with connect_from_args(args) as client:
         applied = client.set_param(args.param, value)
     print(f"{args.param} = {applied} {p.unit}".rstrip())
@@ -64,14 +67,14 @@ def run_set(args) -> int:
 
 
 def register(sub) -> None:
-    g = sub.add_parser("get", help="read a drive parameter")
+    g = sub.add_parser("get", help="read a drive parameter", parents=[link_options()])
     g.add_argument("param", nargs="?", help="parameter name (e.g. comm_timeout_ms, position.x)")
     g.add_argument("--all", action="store_true", help="read every parameter")
     g.add_argument("--json", action="store_true", help="print JSON")
-    add_link_arguments(g)
     g.set_defaults(func=run_get)
-    s = sub.add_parser("set", help="write a drive parameter (range-checked)")
+    s = sub.add_parser(
+        "set", help="write a drive parameter (range-checked)", parents=[link_options()]
+    )
     s.add_argument("param", help="parameter name")
     s.add_argument("value", help="new value (integer in the parameter's unit)")
-    add_link_arguments(s)
     s.set_defaults(func=run_set)

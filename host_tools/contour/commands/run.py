@@ -10,14 +10,15 @@ from __future__ import annotations
 import json
 import sys
 
-from contour.errors import UserError
-from contour.link.client import add_link_arguments, connect_from_args
+from contour.errors import Terminated, UsageError, UserError
+from contour.link.options import connect_from_args, link_options
 from contour.link.stream import Streamer, blocks_from_gcode
+from contour.progress import Bar
 
 
 def run(args) -> int:
     if not 0.05 <= args.queue_s <= 60:
-        raise UserError("--queue-s must be 0.05..60 s")
+        raise UsageError("--queue-s must be 0.05..60 s")
     with connect_from_args(args) as client:
         st = client.status()
         start = [p / 1e6 for p in st["pos"][:3]]
@@ -25,44 +26,34 @@ def run(args) -> int:
         if not blocks:
             raise UserError(f"{args.file}: no motion blocks")
         total = sum(b.est_s for b in blocks)
-        bar = None
-        if not args.json and not args.quiet:
-            from tqdm import tqdm
-
-            bar = tqdm(
-                total=round(total, 2),
-                unit="s",
-                desc="job",
-                file=sys.stderr,
-                bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s est {postfix}",
-            )
+        bar = Bar(
+            total=round(total, 2),
+            unit="s",
+            desc="job",
+            enabled=not args.json and not args.quiet,
+            bar_format="{l_bar}{bar}| {n:.1f}/{total:.1f} s est {postfix}",
+        )
 
         def progress(p) -> None:
-            if bar is None:
-                return
-            bar.n = round(p.est_done_s, 2)
-            bar.set_postfix_str(
-                f"feed {p.feed_mm_min:7.0f} mm/min  ETA {p.eta_s:6.1f} s  "
-                f"blocks {p.done}/{p.total}",
-                refresh=False,
+            bar.note(
+                f"feed {p.feed_mm_min:7.0f} mm/min  ETA {p.eta_s:6.1f} s  blocks {p.done}/{p.total}"
             )
-            bar.refresh()
+            bar.to(round(p.est_done_s, 2))
 
         streamer = Streamer(client, blocks, queue_s=args.queue_s, on_progress=progress)
         try:
             result = streamer.run()
-        except KeyboardInterrupt:
-            if bar is not None:
-                bar.close()
+        except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated)
+            bar.close()
             st = client.status()
+            what = f"signal {exc.signum}" if isinstance(exc, Terminated) else "Ctrl-C"
             print(
-                f"contour run: stopped by Ctrl-C at {[p / 1e6 for p in st['pos'][:3]]} mm",
+                f"contour run: stopped by {what} at {[p / 1e6 for p in st['pos'][:3]]} mm",
                 file=sys.stderr,
             )
-            return 130
+            return 128 + exc.signum if isinstance(exc, Terminated) else 130
         finally:
-            if bar is not None:
-                bar.close()
+            bar.close()
     result["position_mm"] = [p / 1e6 for p in result.pop("position_nm")]
     if args.json:
         print(json.dumps(result, indent=2))
@@ -77,9 +68,8 @@ def run(args) -> int:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("run", help="stream a G-code job to the drive")
+    p = sub.add_parser("run", help="stream a G-code job to the drive", parents=[link_options()])
     p.add_argument("file", help="G-code file (.nc)")
-    add_link_arguments(p)
     p.add_argument(
         "--queue-s",
         type=float,
@@ -90,5 +80,7 @@ def register(sub) -> None:
         "--chord-mm", type=float, default=0.001, help="arc chord tolerance, mm (default 0.001)"
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--quiet", action="store_true", help="no progress bar (none unless stderr is a TTY)"
+    )
     p.set_defaults(func=run)

@@ -11,13 +11,16 @@ import json
 import time
 
 from contour import protocol_gen as pg
-from contour.errors import UserError
+from contour.errors import UsageError
 from contour.link import codec
+from contour.link.options import link_options, target_from_args
 from contour.link.transport import open_can_bus
 
 
-def scan(spec: str, seconds: float) -> dict[int, dict]:
-    bus = open_can_bus(spec)
+def scan(bus_config, seconds: float) -> dict[int, dict]:
+    """Drives heard on the bus (python-can config dict, CanBus or
+    ``INTERFACE:CHANNEL``) in `seconds`, by node."""
+    bus = open_can_bus(bus_config)
     found: dict[int, dict] = {}
     hb = pg.CAN_FUNC["heartbeat"]
     try:
@@ -51,18 +54,16 @@ def scan(spec: str, seconds: float) -> dict[int, dict]:
 
 
 def run(args) -> int:
-    if args.port:
-        raise UserError("scan lists drives on a CAN bus: use --can IFACE:CHANNEL")
-    if not args.can:
-        raise UserError("scan needs --can IFACE:CHANNEL[@BITRATE]")
     if not 0 < args.time <= 60:
-        raise UserError("--time must be in (0, 60] seconds")
-    found = scan(args.can, args.time)
+        raise UsageError("--time must be in (0, 60] seconds")
+    target = target_from_args(args, can_only=True)
+    found = scan(target.can, args.time)
     if args.json:
         print(json.dumps(list(found.values()), indent=2))
         return 0
     if not found:
-        print(f"no drives heard on {args.can} in {args.time:g} s")
+        bus = f"{target.can['interface']}:{target.can['channel']}"
+        print(f"no drives heard on {bus} in {args.time:g} s")
         return 1
     print(f"{'node':>4}  {'state':<10} {'axes':>4}  {'firmware':<9} {'protocol':>8}")
     for e in found.values():
@@ -74,15 +75,9 @@ def run(args) -> int:
 
 
 def register(sub) -> None:
-    p = sub.add_parser("scan", help="list the drives on a CAN bus (listen only)")
-    p.add_argument("--can", metavar="IFACE:CHANNEL[@BITRATE]", help="python-can bus")
-    p.add_argument("--port", help=argparse_suppress())
+    p = sub.add_parser(
+        "scan", help="list the drives on a CAN bus (listen only)", parents=[link_options()]
+    )
     p.add_argument("--time", type=float, default=2.5, help="listen time, s (default 2.5)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=run)
-
-
-def argparse_suppress():
-    import argparse
-
-    return argparse.SUPPRESS

@@ -15,7 +15,7 @@ import argparse
 import json
 import sys
 
-from contour.errors import UserError
+from contour.errors import UserError, usage_errors
 
 
 def _common(p: argparse.ArgumentParser, controller_required: bool = False) -> None:
@@ -83,6 +83,8 @@ def register(sub) -> None:
 def cmd_circle(args) -> int:
     from contour.sim import circle, plots
 
+    with usage_errors():  # --radius, --feed ... out of the test's range
+        circle.check_args(args.radius, args.feed, args.direction, args.controller, args.feedforward)
     run = circle.run_circle(
         args.radius,
         args.feed,

@@ -5,7 +5,8 @@ with connect(port="/dev/pts/3") as drive:        # or can="slcan:/dev/pts/4", no
     print(drive.identify())
 """
 
-from contour.link.client import Client, DriveError, connect, connect_from_args
+from contour.link.client import Client, DriveError, connect
+from contour.link.options import connect_from_args, link_options
 from contour.link.transport import LinkError
 
-__all__ = ["Client", "DriveError", "LinkError", "connect", "connect_from_args"]
+__all__ = ["Client", "DriveError", "LinkError", "connect", "connect_from_args", "link_options"]

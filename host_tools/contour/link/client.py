@@ -305,24 +305,18 @@ def connect(
 
 
 def add_link_arguments(parser) -> None:
-    """--port / --can / --node / --timeout on a sub-command."""
-    g = parser.add_argument_group("drive link")
-    g.add_argument("--port", metavar="PATH", help="serial device or pyserial URL")
-    g.add_argument(
-        "--can",
-        metavar="IFACE:CHANNEL[@BITRATE]",
-        help="python-can interface and channel, e.g. slcan:/dev/pts/3@500000, socketcan:can0",
-    )
-    g.add_argument("--node", type=int, default=1, help="CAN node id of the drive (default 1)")
-    g.add_argument(
-        "--timeout", type=float, default=0.5, help="reply timeout per try, s (default 0.5)"
-    )
+    """The shared drive-link options (contour.link.options) on a sub-command;
+    new commands take them with ``parents=[link_options()]``."""
+    from contour.link.options import add_link_options
+
+    add_link_options(parser)
 
 
 def connect_from_args(args, **kw: Any) -> Client:
-    if not 0 < args.timeout <= 60:  # also refuses nan
-        raise UserError(f"--timeout must be in (0, 60] s, got {args.timeout:g}")
-    return connect(port=args.port, can=args.can, node=args.node, timeout=args.timeout, **kw)
+    """A client on the drive the link options name (contour.link.options)."""
+    from contour.link.options import connect_from_args as connect_with_options
+
+    return connect_with_options(args, **kw)
 
 
 def wait_until(pred, timeout: float, poll: float = 0.01) -> bool:

@@ -10,9 +10,11 @@ Selection strings (see :func:`open_transport`):
 
 - ``--port PATH`` : a device or any pyserial URL (``/dev/ttyUSB0``,
   ``/dev/pts/3``, ``socket://host:port``, ``loop://``);
-- ``--can INTERFACE:CHANNEL[@BITRATE]`` with ``--node N``: a python-can
-  interface name and channel (``slcan:/dev/pts/4@500000``, ``socketcan:can0``,
-  ``virtual:bus0``).
+- a CAN bus named as python-can names it (:class:`CanBus`: interface,
+  channel, bitrate; completed from python-can's environment and config
+  file) with ``--node N``; the short form ``INTERFACE:CHANNEL``
+  (``slcan:/dev/pts/4``, ``socketcan:can0``, ``virtual:bus0``).
+  contour.link.options turns the command-line options into these.
 """
 
 from __future__ import annotations
@@ -21,10 +23,11 @@ import contextlib
 import errno
 import threading
 import time
+from dataclasses import dataclass
 from typing import Callable, Optional
 
 from contour import protocol_gen as pg
-from contour.errors import UserError
+from contour.errors import UsageError, UserError
 from contour.link import codec
 
 OnMessage = Callable[[bytes, float], None]
@@ -42,8 +45,15 @@ class SerialTransport:
 
         self.url = url
         try:
-            self.ser = serial.serial_for_url(url, baudrate=baudrate, timeout=0.005)
+            # exclusive: a second contour command on the same port is told
+            # that it is busy instead of stealing half of the replies
+            self.ser = serial.serial_for_url(url, baudrate=baudrate, timeout=0.005, exclusive=True)
         except (serial.SerialException, ValueError, OSError) as exc:
+            if "exclusively lock" in str(exc):
+                raise LinkError(
+                    f"serial port {url} is busy: another process holds it "
+                    "(another contour command, or a terminal program)"
+                ) from None
             raise LinkError(f"cannot open serial port {url}: {exc}") from None
         self.decoder = codec.FrameDecoder()
         self._on: Optional[OnMessage] = None
@@ -111,41 +121,94 @@ def tx_buffer_full(exc: BaseException) -> bool:
 TX_FULL_WAIT_S = 2.0
 
 
-def parse_can_spec(spec: str) -> tuple[str, str, Optional[int]]:
-    """``INTERFACE:CHANNEL[@BITRATE]`` -> (interface, channel, bitrate)."""
+@dataclass(frozen=True)
+class CanBus:
+    """A CAN bus the way python-can names one: an interface, a channel (its
+    text exactly as python-can reads it) and an optional CAN bitrate."""
+
+    interface: Optional[str] = None
+    channel: Optional[str] = None
+    bitrate: Optional[int] = None
+
+    def __str__(self) -> str:
+        text = f"{self.interface or '?'}:{self.channel or '?'}"
+        return text + (f" at {self.bitrate} bit/s" if self.bitrate else "")
+
+
+def parse_can_spec(spec: str) -> CanBus:
+    """The short form ``INTERFACE:CHANNEL`` -> CanBus.
+
+    The channel is python-can's channel text, verbatim: for ``slcan`` a
+    trailing ``@N`` is the serial baud of the adapter, as python-can reads
+    it (``slcan:/dev/ttyACM0@115200``). Any other interface refuses an
+    ``@``, which used to mean the CAN bitrate here: that is ``--bitrate``."""
     if ":" not in spec:
-        raise LinkError(
-            f"--can {spec!r}: expected INTERFACE:CHANNEL[@BITRATE], e.g. slcan:/dev/pts/3@500000"
+        raise UsageError(
+            f"--can {spec!r}: expected INTERFACE:CHANNEL, e.g. slcan:/dev/ttyACM0 or "
+            "socketcan:can0 (or --interface and --channel)"
         )
-    iface, rest = spec.split(":", 1)
-    bitrate = None
-    if "@" in rest:
-        rest, b = rest.rsplit("@", 1)
-        try:
-            bitrate = int(b)
-        except ValueError:
-            raise LinkError(f"--can {spec!r}: bitrate {b!r} is not an integer") from None
-        if bitrate <= 0:
-            raise LinkError(f"--can {spec!r}: bitrate must be positive")
-    if not iface or not rest:
-        raise LinkError(f"--can {spec!r}: interface and channel must not be empty")
-    return iface, rest, bitrate
+    iface, channel = spec.split(":", 1)
+    if not iface or not channel:
+        raise UsageError(f"--can {spec!r}: interface and channel must not be empty")
+    if "@" in channel:
+        if iface != "slcan":
+            raise UsageError(
+                f"--can {spec!r}: '@' is python-can's serial baud of slcan only; "
+                "give the CAN bitrate with --bitrate"
+            )
+        baud = channel.rsplit("@", 1)[1]
+        if not baud.isdigit() or int(baud) <= 0:
+            raise UsageError(f"--can {spec!r}: serial baud {baud!r} is not a positive integer")
+    return CanBus(iface, channel)
 
 
-def open_can_bus(spec: str):
-    """A python-can bus from ``INTERFACE:CHANNEL[@BITRATE]``."""
+def can_bus_config(bus: Optional[CanBus] = None) -> dict:
+    """python-can's configuration of `bus`: what `bus` names, completed from
+    python-can's own sources in its order (``CAN_INTERFACE``, ``CAN_CHANNEL``,
+    ``CAN_BITRATE``, ``CAN_CONFIG`` in the environment, then its config files
+    ``~/can.conf``, ``/etc/can.conf``, ``~/.can``, ``~/.canrc``) by
+    ``can.util.load_config``. A bus named by none of them is a UsageError."""
     import can
 
-    iface, channel, bitrate = parse_can_spec(spec)
-    kwargs: dict = {}
-    if bitrate is not None:
-        kwargs["bitrate"] = bitrate
-    if iface == "slcan":
-        kwargs["sleep_after_open"] = 0.05  # a pseudo-terminal needs no settling
+    given: dict = {}
+    if bus is not None:
+        given = {k: v for k, v in vars(bus).items() if v is not None}
     try:
-        return can.Bus(interface=iface, channel=channel, **kwargs)
+        cfg = dict(can.util.load_config(config=given))
+    except NotImplementedError as exc:  # CanInterfaceNotImplementedError
+        if not given.get("interface"):
+            raise UsageError(
+                "choose the drive: --port PATH, or a CAN bus with --can INTERFACE:CHANNEL or "
+                "--interface/--channel (or python-can's CAN_INTERFACE/CAN_CHANNEL environment "
+                "or its config file)"
+            ) from None
+        raise UsageError(f"CAN interface {given['interface']!r}: {exc}") from None
+    except ValueError as exc:  # e.g. CAN_CONFIG that is not JSON
+        raise UsageError(f"python-can configuration: {exc}") from None
+    if cfg.get("channel") is None:
+        raise UsageError(
+            f"CAN interface {cfg['interface']}: no channel (--channel, --can "
+            f"{cfg['interface']}:CHANNEL or CAN_CHANNEL)"
+        )
+    return cfg
+
+
+def open_can_bus(bus):
+    """A python-can bus from a CanBus, an ``INTERFACE:CHANNEL`` text or a
+    python-can config dict (see :func:`can_bus_config`)."""
+    import can
+
+    if isinstance(bus, str):
+        bus = parse_can_spec(bus)
+    cfg = bus if isinstance(bus, dict) else can_bus_config(bus)
+    cfg = dict(cfg)
+    if cfg.get("interface") == "slcan":
+        cfg.setdefault("sleep_after_open", 0.05)  # a pseudo-terminal needs no settling
+    name = f"{cfg.get('interface')}:{cfg.get('channel')}"
+    try:
+        return can.Bus(**cfg)
     except (can.CanError, ValueError, OSError, ImportError, NotImplementedError) as exc:
-        raise LinkError(f"cannot open CAN bus {spec}: {exc}") from None
+        raise LinkError(f"cannot open CAN bus {name}: {exc}") from None
 
 
 class CanTransport:
@@ -153,15 +216,14 @@ class CanTransport:
 
     kind = "can"
 
-    def __init__(self, spec: str, node: int, log_file: Optional[str] = None) -> None:
+    def __init__(self, bus, node: int, log_file: Optional[str] = None) -> None:
         import can
         import isotp
 
         if not 1 <= node <= pg.CAN_NODE_MAX:
-            raise LinkError(f"--node {node}: must be 1..{pg.CAN_NODE_MAX}")
-        self.spec = spec
+            raise UsageError(f"--node {node}: must be 1..{pg.CAN_NODE_MAX}")
         self.node = node
-        self.bus = open_can_bus(spec)
+        self.bus = open_can_bus(bus)
         self._on: Optional[OnMessage] = None
         self.notifier = can.Notifier(self.bus, [], timeout=0.01)
         self.logger = None
@@ -276,9 +338,17 @@ class CanTransport:
         self.bus.shutdown()
 
 
-def open_transport(port: Optional[str] = None, can: Optional[str] = None, node: int = 1, **kw):
+def open_transport(
+    port: Optional[str] = None,
+    can=None,
+    node: int = 1,
+    **kw,
+):
+    """The transport to a drive: `port` (serial device or pyserial URL) or
+    `can` (a CanBus, ``INTERFACE:CHANNEL`` text or python-can config dict),
+    exactly one of them. Keywords: ``baudrate`` (serial), ``log_file`` (CAN)."""
     if bool(port) == bool(can):
-        raise LinkError("choose the drive with exactly one of --port PATH or --can IFACE:CHANNEL")
+        raise UsageError("choose the drive with exactly one of --port PATH or a CAN bus (--can)")
     if port:
         return SerialTransport(port, **{k: v for k, v in kw.items() if k == "baudrate"})
     return CanTransport(can, node, log_file=kw.get("log_file"))

@@ -57,7 +57,14 @@ class CircleResult:
     faults: list
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        """JSON fields (docs/conventions.md: errors in um as in `sim run`; the
+        `_mm` error fields are kept for readers of earlier output)."""
+        d = asdict(self)
+        d["iae_um_s"] = self.iae_mm_s * 1e3
+        d["max_contour_error_um"] = self.max_contour_error_mm * 1e3
+        d["circular_deviation_um"] = self.circular_deviation_mm * 1e3
+        d["mean_radial_error_um"] = self.mean_radial_error_mm * 1e3
+        return d
 
 
 @dataclass
@@ -65,6 +72,22 @@ class CircleRun:
     result: CircleResult
     trace: np.ndarray  # rows of the scored revolution: t, x, y (table), ex (m)
     full: np.ndarray  # every tick of the run (sim trace rows)
+
+
+def check_args(
+    radius_mm: float, feed_mm_min: float, direction: str, controller: str, feedforward: str
+) -> None:
+    """The circle test's own limits (UserError), before anything runs."""
+    if not (radius_mm > 0 and math.isfinite(radius_mm)) or radius_mm > 1000:
+        raise UserError(f"radius must be in (0, 1000] mm, got {radius_mm}")
+    if not (feed_mm_min > 0 and math.isfinite(feed_mm_min)) or feed_mm_min > 60000:
+        raise UserError(f"feed must be in (0, 60000] mm/min, got {feed_mm_min}")
+    if direction not in ("cw", "ccw"):
+        raise UserError(f"direction must be cw or ccw, got {direction!r}")
+    if controller not in CONTROLLERS:
+        raise UserError(f"controller must be one of {', '.join(CONTROLLERS)}")
+    if feedforward not in FEEDFORWARD:
+        raise UserError(f"feedforward must be one of {', '.join(FEEDFORWARD)}")
 
 
 def run_circle(
@@ -78,16 +101,7 @@ def run_circle(
     settle_s: float = 0.5,
     mach: machine.Machine | None = None,
 ) -> CircleRun:
-    if not (radius_mm > 0 and math.isfinite(radius_mm)) or radius_mm > 1000:
-        raise UserError(f"radius must be in (0, 1000] mm, got {radius_mm}")
-    if not (feed_mm_min > 0 and math.isfinite(feed_mm_min)) or feed_mm_min > 60000:
-        raise UserError(f"feed must be in (0, 60000] mm/min, got {feed_mm_min}")
-    if direction not in ("cw", "ccw"):
-        raise UserError(f"direction must be cw or ccw, got {direction!r}")
-    if controller not in CONTROLLERS:
-        raise UserError(f"controller must be one of {', '.join(CONTROLLERS)}")
-    if feedforward not in FEEDFORWARD:
-        raise UserError(f"feedforward must be one of {', '.join(FEEDFORWARD)}")
+    check_args(radius_mm, feed_mm_min, direction, controller, feedforward)
     m = mach if mach is not None else machine.load(machine_file)
     if m.axes < 2:
         raise UserError(f"{m.path}: the circle test needs 2 axes")
