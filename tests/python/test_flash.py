@@ -200,10 +200,13 @@ def test_wrong_target_refused_before_anything_is_erased(drive, kw, message):
     do_flash(drive, OLD)
     bad = make_image(2000, "9.9.9", 5, **kw)
     drive.sent.clear()
-    with pytest.raises(img.ImageError, match=message):
+    with pytest.raises(img.ImageError, match=message) as exc_info:
         do_flash(drive, bad)
     assert pg.MSG_BY_NAME["boot_erase"].id not in drive.sent
     assert state(drive) == ("app", OLD.header.fw_version)
+    if "board_id" in kw:  # known from the application itself: it is never reset
+        assert pg.MSG_BY_NAME["boot_enter"].id not in drive.sent
+        assert "keeps running its application" in str(exc_info.value)
 
 
 def test_oversize_refused_before_anything_is_erased(drive):

@@ -466,7 +466,7 @@ def test_can_transmit_buffer_full_is_waited_out(files, capsys, monkeypatch):
         assert time.monotonic() - t0 < 20
 
 
-def test_scan_finds_a_drive_in_its_bootloader(tmp_path, capsys):
+def test_scan_and_info_find_a_drive_in_its_bootloader(tmp_path, capsys):
     """An erased flash keeps the drive in its bootloader, which sends a CAN
     heartbeat: the passive scan lists it with state bootloader."""
     with serve(tmp_path / "erased.bin") as server:
@@ -478,3 +478,8 @@ def test_scan_finds_a_drive_in_its_bootloader(tmp_path, capsys):
         nodes = json.loads(out)
         assert [n["node"] for n in nodes] == [1]
         assert nodes[0]["state"] == "bootloader" and nodes[0]["axes"] == 0
+        for transport in ("serial", "slcan"):
+            rc, out, err = run_cli(["info", "--json", *link_args(server, transport)], capsys)
+            assert rc == 0, err
+            info = json.loads(out)
+            assert info["state"] == "bootloader" and info["board_id"] == 1, info

@@ -20,11 +20,27 @@ def _state_name(v: int) -> str:
         return f"unknown({v})"
 
 
+def in_bootloader(ident: dict) -> bool:
+    """A bootloader identifies itself with no axes and only the bootloader
+    capability (firmware/core/boot/boot.c)."""
+    return ident["axes"] == 0 and ident["capabilities"] == 1 << pg.Capability.BOOTLOADER
+
+
 def gather(client) -> dict:
     ident = client.identify()
+    fw = ident["fw_version"]
+    if in_bootloader(ident):  # no status to ask for: say so, disturb nothing
+        return {
+            "state": "bootloader",
+            "bootloader_version": f"{fw >> 16}.{(fw >> 8) & 0xFF}.{fw & 0xFF}",
+            "protocol_version": ident["protocol_version"],
+            "host_protocol_version": pg.PROTOCOL_VERSION,
+            "board_id": ident["board_id"],
+            "node_id": ident["node_id"],
+            "capabilities": _bits(ident["capabilities"], pg.Capability),
+        }
     st = client.status()
     axes = ident["axes"]
-    fw = ident["fw_version"]
     return {
         "firmware_version": f"{fw >> 16}.{(fw >> 8) & 0xFF}.{fw & 0xFF}",
         "build_id": build_id_prefix(ident["build_id"]),
@@ -59,6 +75,8 @@ def run(args) -> int:
         if isinstance(v, list):
             v = ", ".join(f"{x:.6f}" if isinstance(x, float) else str(x) for x in v) or "-"
         print(f"{k:<{width}}  {v}")
+    if info["state"] == "bootloader":
+        print("the drive runs its bootloader: flash an application with `contour flash`")
     if info["protocol_version"] != pg.PROTOCOL_VERSION:
         print(
             f"warning: drive speaks protocol {info['protocol_version']}, "

@@ -185,6 +185,22 @@ def enter_bootloader(client: BootClient, wait: float = 5.0) -> dict:
         client.sleep(0.05)
 
 
+def check_running_application(client: BootClient, hdr: img.Header) -> None:
+    """A running application is asked who it is before it is sent to its
+    bootloader: an image for another board is refused while the drive keeps
+    running (and its position). A drive already in its bootloader (no axes)
+    or that does not answer is checked there."""
+    try:
+        _, r = client.request("identify", retries=1)
+    except (Refused, LinkLost):
+        return
+    if r["axes"] > 0 and r["board_id"] != hdr.board_id:
+        raise img.ImageError(
+            f"image is for board {hdr.board_id}, the drive is board {r['board_id']}: "
+            "refusing to flash (the drive keeps running its application)"
+        )
+
+
 def _blocks(length: int, block: int):
     for off in range(0, length, block):
         yield off, min(block, length - off)
@@ -268,6 +284,7 @@ def flash(
 ) -> dict:
     """Flash (or verify) `image`; returns a summary dict."""
     hdr = image.header
+    check_running_application(client, hdr)
     info = enter_bootloader(client, enter_wait)
     try:
         img.check_target(
@@ -315,7 +332,13 @@ def flash(
                 info = enter_bootloader(client, enter_wait)
     finally:
         bar.close()
-    client.request("boot_reboot")
+    try:
+        client.request("boot_reboot")
+    except Refused as exc:
+        # its reply was lost and the retry reached the new application, which
+        # refuses bootloader requests: confirm_application says what runs
+        if not (exc.code == pg.ErrorCode.BOOT and exc.arg == pg.BootStatus.BAD_STATE):
+            raise
     r = confirm_application(client, hdr.fw_version, confirm_wait)
     log(f"flashed {hdr.length} bytes; drive runs version {img.version_str(r['fw_version'])}")
     return {"verified": True, "version": img.version_str(r["fw_version"]), "stats": client.stats}
