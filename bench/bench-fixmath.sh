@@ -8,7 +8,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=build/bench/bench_fixmath
 mkdir -p build/bench
-cc -std=c99 -O2 -g -Ifirmware/core -o "$bin" bench/bench_fixmath.c firmware/core/fixmath.c
+cc -std=c99 -O2 -g -Ifirmware/core -o "$bin" bench/bench_fixmath.c firmware/core/fixmath.c firmware/core/fixmath_div.c
 n=10000
 # case:function measured
 for spec in \

@@ -6,7 +6,7 @@ bin=build/bench/bench_quadrature
 mkdir -p build/bench
 cc -std=c99 -O2 -g -D_DEFAULT_SOURCE -Ifirmware/core -Ifirmware/hal -Ihil_sim -o "$bin" \
   bench/bench_quadrature.c firmware/core/qdec.c firmware/core/comp.c firmware/core/crc.c \
-  firmware/core/fixmath.c hil_sim/qgen.c -lm
+  firmware/core/fixmath.c firmware/core/fixmath_div.c hil_sim/qgen.c -lm
 n=100000
 bash bench/callgrind.sh quadrature_edge_instructions "$bin" qdec_edge "$n" edge "$n"
 bash bench/callgrind.sh quadrature_sample_instructions "$bin" qdec_sample_counter "$n" sample "$n"
