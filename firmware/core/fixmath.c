@@ -63,16 +63,6 @@ int64_t fx_sat_sub64(int64_t a, int64_t b)
     return a - b;
 }
 
-int64_t fx_sat_neg64(int64_t a)
-{
-    return (a == INT64_MIN) ? INT64_MAX : -a;
-}
-
-int64_t fx_sat_abs64(int64_t a)
-{
-    return (a < 0) ? fx_sat_neg64(a) : a;
-}
-
 int32_t fx_clamp32(int32_t v, int32_t lo, int32_t hi)
 {
     if (v < lo) {

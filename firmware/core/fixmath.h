@@ -102,8 +102,18 @@ int32_t fx_sat_neg32(int32_t a); /* -INT32_MIN gives INT32_MAX */
 int32_t fx_sat_abs32(int32_t a); /* |INT32_MIN| gives INT32_MAX */
 int64_t fx_sat_add64(int64_t a, int64_t b);
 int64_t fx_sat_sub64(int64_t a, int64_t b);
-int64_t fx_sat_neg64(int64_t a); /* -INT64_MIN gives INT64_MAX */
-int64_t fx_sat_abs64(int64_t a); /* |INT64_MIN| gives INT64_MAX */
+
+/* -a and |a|; -INT64_MIN and |INT64_MIN| give INT64_MAX. Inline (the tick's
+ * estimators use them). */
+static inline int64_t fx_sat_neg64(int64_t a)
+{
+    return (a == INT64_MIN) ? INT64_MAX : -a;
+}
+
+static inline int64_t fx_sat_abs64(int64_t a)
+{
+    return (a < 0) ? fx_sat_neg64(a) : a;
+}
 
 /* Inline forms for the per-tick loops (pid.c, cec.c, servo.c).
  * fx_sat32_fast(v) == fx_sat32(v); fx_sat_diff32(a, b) == fx_sat32(a - b)
@@ -127,6 +137,17 @@ static inline int32_t fx_sat_diff32(int64_t a, int64_t b)
         return (int32_t)d;
     }
     return (d < 0) ? INT32_MIN : INT32_MAX;
+}
+
+/* the smaller and the larger of a and b */
+static inline int64_t fx_min64(int64_t a, int64_t b)
+{
+    return (a < b) ? a : b;
+}
+
+static inline int64_t fx_max64(int64_t a, int64_t b)
+{
+    return (a > b) ? a : b;
 }
 
 /* v limited to [-lim, lim] for lim >= 0 (== fx_clamp64(v, -lim, lim)),
@@ -240,11 +261,11 @@ static inline uint64_t fx_umulhi64(uint64_t a, uint64_t b)
 static inline fx_u128_t fx_umul64x32(uint64_t a, uint32_t b)
 {
     uint64_t lo = (uint64_t)(uint32_t)a * b;
-    uint64_t hi = (a >> 32) * b;
+    uint64_t hi = (a >> 32) * b + (lo >> 32); /* < 2^64: one UMLAL */
     fx_u128_t r;
 
-    r.lo = lo + (hi << 32);
-    r.hi = (hi >> 32) + (r.lo < lo ? 1u : 0u);
+    r.lo = (hi << 32) | (uint32_t)lo;
+    r.hi = hi >> 32;
     return r;
 }
 
@@ -297,6 +318,30 @@ static inline unsigned fx_clz64(uint64_t v)
 static inline unsigned fx_bitlen64(uint64_t v)
 {
     return (v == 0u) ? 0u : 64u - fx_clz64(v);
+}
+
+/* An int32 the compiler must keep as a plain 32-bit register (so that a
+ * widening product stays one SMULL/SMLAL instead of a 64 x 64 multiply); no
+ * effect on the value. */
+static inline int32_t fx_opaque32(int32_t v)
+{
+#if defined(__GNUC__)
+    __asm__("" : "+r"(v));
+#endif
+    return v;
+}
+
+/* round(a * b / 2^30) (shift rule) == fx_mul64x32_shift(a, b, 30) for
+ * |a| <= 2^61 and 0 <= b <= 2^30, without a 96-bit product: a = ah * 2^32 +
+ * al with al unsigned; a * b = ah * b * 2^32 + al * b (one SMULL, one
+ * UMULL). The PID's filter and back-calculation gains. */
+static inline int64_t fx_mul_q30_pos(int64_t a, q1_30_t b)
+{
+    int32_t ah = fx_opaque32((int32_t)(a >> 32)); /* |ah| <= 2^29 */
+    uint32_t al = (uint32_t)a;
+    int64_t h = (int64_t)ah * b;              /* |h| <= 2^59 */
+    uint64_t lo = (uint64_t)al * (uint32_t)b; /* < 2^62 */
+    return (int64_t)((uint64_t)h << 2) + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
 }
 
 /* ---- conversions between the named formats -------------------------------- */
