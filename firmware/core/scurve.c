@@ -8,8 +8,10 @@
  * so that test_scurve compares the two).
  */
 #include "scurve.h"
+#include "scurve_test.h"
 
 #include "fixmath.h"
+#include "fixmath_test.h"
 
 #include <stddef.h>
 
@@ -110,14 +112,6 @@ int64_t sc_muldiv_portable(int64_t a, int64_t b, int64_t c)
     }
     q = sc_div_portable(fx_umul64((uint64_t)a, (uint64_t)b), (uint64_t)c, &rem, &ovf);
     return sc_sat(q, ovf);
-}
-
-uint64_t sc_isqrt_wide(uint64_t hi, uint64_t lo)
-{
-    fx_u128_t x;
-    x.hi = hi;
-    x.lo = lo;
-    return fx_isqrt128(x);
 }
 
 int sc_cmp_products(uint64_t a, uint64_t b, uint64_t c, uint64_t d)

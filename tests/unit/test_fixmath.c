@@ -12,6 +12,7 @@
  * maxima (the figures quoted in fixmath.h).
  */
 #include "fixmath.h"
+#include "fixmath_test.h"
 #include "unity.h"
 
 #include <inttypes.h>
