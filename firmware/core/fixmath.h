@@ -390,7 +390,6 @@ uint64_t fx_udivmod64(uint64_t n, uint64_t d, uint64_t *rem);
  * *rem = 0. */
 uint64_t fx_udiv128(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem);
 
-
 /* Reciprocal 1/x in q16_16 of a q16_16 value: round(2^32 / x), saturated
  * to int32 (x = 0, 1, 2 give INT32_MAX, x = -1 gives INT32_MIN; x = -2 gives
  * INT32_MIN exactly). */
