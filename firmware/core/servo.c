@@ -548,7 +548,7 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
             s->ref_pos[i] = rp;
             s->ref_vel[i] = ref->vel[i];
             s->ferr_nm[i] = fe;
-            if (!pid_in_range(fe, s->ferr_max[i])) {
+            if (!fx_in_range32(fe, s->ferr_max[i])) {
                 over |= 1u << i;
             }
         }
@@ -560,7 +560,7 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
             int32_t fe = sat_diff32(s->ref_pos[i], fb->pos[i]);
 
             s->ferr_nm[i] = fe;
-            if (!pid_in_range(fe, s->ferr_max[i])) {
+            if (!fx_in_range32(fe, s->ferr_max[i])) {
                 over |= 1u << i;
             }
         }
@@ -635,7 +635,7 @@ static inline bool tick_fast(servo_t *s, const motion_ref_t *ref, const servo_fb
         s->ref_pos[i] = rp;
         s->ref_vel[i] = ref->vel[i];
         s->ferr_nm[i] = fe;
-        if (!pid_in_range(fe, s->ferr_max[i])) {
+        if (!fx_in_range32(fe, s->ferr_max[i])) {
             return false; /* tick_general writes all of it again */
         }
     }
