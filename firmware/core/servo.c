@@ -491,11 +491,6 @@ static inline unsigned axes_fast(servo_t *s, const pos_nm_t *pos, unsigned n)
     return i;
 }
 
-static int32_t sat_diff32(pos_nm_t a, pos_nm_t b)
-{
-    return fx_sat_diff32(a, b);
-}
-
 /* Step 7: outputs (after every loop: a fault of a later axis may still
  * zero an earlier one). */
 static inline void tick_outputs(servo_t *s)
@@ -543,7 +538,7 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
     if (run && s->state == SERVO_RUN) {
         for (i = 0; i < n && i < CORE_AXES; i++) {
             pos_nm_t rp = ref->pos[i];
-            int32_t fe = sat_diff32(rp, fb->pos[i]);
+            int32_t fe = fx_sat_diff32(rp, fb->pos[i]);
 
             s->ref_pos[i] = rp;
             s->ref_vel[i] = ref->vel[i];
@@ -557,7 +552,7 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
     } else {
         tick_reference(s, fb, acc_own);
         for (i = 0; i < n && i < CORE_AXES; i++) {
-            int32_t fe = sat_diff32(s->ref_pos[i], fb->pos[i]);
+            int32_t fe = fx_sat_diff32(s->ref_pos[i], fb->pos[i]);
 
             s->ferr_nm[i] = fe;
             if (!fx_in_range32(fe, s->ferr_max[i])) {
@@ -630,7 +625,7 @@ static inline bool tick_fast(servo_t *s, const motion_ref_t *ref, const servo_fb
 
     for (i = 0; i < n; i++) {
         pos_nm_t rp = ref->pos[i];
-        int32_t fe = sat_diff32(rp, fb->pos[i]);
+        int32_t fe = fx_sat_diff32(rp, fb->pos[i]);
 
         s->ref_pos[i] = rp;
         s->ref_vel[i] = ref->vel[i];
