@@ -705,4 +705,3 @@ bool boot_app_mark_bad(const boot_config_t *cfg)
     n = marker_make(cell, BOOT_MARK_BAD, h.header_crc, ws);
     return program_checked(cfg->slot_base + BOOT_MARK_BAD_OFF, cell, n) == BOOT_OK;
 }
-

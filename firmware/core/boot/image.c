@@ -110,4 +110,3 @@ boot_image_status_t boot_image_check(const boot_image_header_t *h, uint32_t boar
     }
     return BOOT_IMAGE_OK;
 }
-
