@@ -291,6 +291,37 @@ static inline int fx_cmp128(fx_u128_t a, fx_u128_t b)
     return 0;
 }
 
+/* round(+-ua * ub / 2^(64 + t)) (shift rule; negative when neg) for
+ * magnitudes ua, ub <= 2^63 and 1 <= t <= 63: fx_mul64_shift(+-ua, ub,
+ * 64 + t) in inline form from the product's high word (the low word only
+ * decides ties of negative values). For callers that keep a magnitude and a
+ * sign per axis (the interpolator's q62 direction ratios, t = 14). */
+static inline int64_t fx_umul_shift_hi(uint64_t ua, uint64_t ub, bool neg, unsigned t)
+{
+    fx_u128_t p = fx_umul64(ua, ub);
+    uint64_t half = (uint64_t)1 << (t - 1u);
+
+    if (neg) { /* -floor((|p| + 2^(63 + t) - 1) / 2^(64 + t)) */
+        return -(int64_t)((p.hi + half - (p.lo == 0u ? 1u : 0u)) >> t);
+    }
+    return (int64_t)((p.hi + half) >> t);
+}
+
+/* round(a * b / 2^32) (shift rule) == fx_mul64x32_shift(a, b, 32) for every
+ * int64 a and int32 b (|a * b| <= 2^94: never saturates), inline: two
+ * 32 x 32 -> 64 products. */
+static inline int64_t fx_mul64x32_shift32(int64_t a, int32_t b)
+{
+    fx_u128_t p = fx_umul64x32(fx_uabs64(a), (uint32_t)fx_uabs64(b));
+    uint64_t hi = (p.hi << 32) | (p.lo >> 32); /* |a * b| >> 32 */
+    uint32_t l32 = (uint32_t)p.lo;
+
+    if ((a < 0) != (b < 0)) { /* -floor((|p| + 2^31 - 1) / 2^32) */
+        return -(int64_t)(hi + (((uint64_t)l32 + 0x7FFFFFFFu) >> 32));
+    }
+    return (int64_t)(hi + (((uint64_t)l32 + 0x80000000u) >> 32));
+}
+
 /* Number of leading zero bits of v != 0 (32-bit CLZ only: Cortex-M4 has no
  * 64-bit one). fx_bitlen64(v) is the bit length, 0 for v == 0. */
 static inline unsigned fx_clz32(uint32_t v)
