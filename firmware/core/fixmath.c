@@ -469,6 +469,33 @@ fx_angle_t fx_atan2(int64_t y, int64_t x)
     return a;
 }
 
+/* Small-angle sine and versine in q62 (see fixmath.h): the angle in rad
+ * q64, then the Taylor series to x^5 and x^6 in q64 by high products (each
+ * within 2 units of q64 of the exact floor). */
+#define FX_PI_HALF_Q61  3622009729038561421ll  /* round(pi / 2 * 2^61) */
+#define FX_RECIP6_Q64   3074457345618258602ull /* floor(2^64 / 6) */
+#define FX_RECIP24_Q64  768614336404564650ull  /* floor(2^64 / 24) */
+#define FX_RECIP120_Q64 153722867280912930ull  /* floor(2^64 / 120) */
+#define FX_RECIP720_Q64 25620477880152155ull   /* floor(2^64 / 720) */
+
+void fx_sin_vers_small(uint64_t a, uint64_t *sn, uint64_t *vs)
+{
+    uint64_t x, x2, x3, x4;
+
+    if (a > FX_SMALL_ANGLE_MAX) {
+        a = FX_SMALL_ANGLE_MAX;
+    }
+    x = (uint64_t)fx_mul64_shift((int64_t)a, FX_PI_HALF_Q61, 61) << 2; /* rad, q64 */
+    x2 = fx_umulhi64(x, x);
+    x3 = fx_umulhi64(x2, x);
+    x4 = fx_umulhi64(x2, x2);
+    *sn = (x - fx_umulhi64(x3, FX_RECIP6_Q64) + fx_umulhi64(fx_umulhi64(x4, x), FX_RECIP120_Q64)) >>
+          2;
+    *vs = ((x2 >> 1) - fx_umulhi64(x4, FX_RECIP24_Q64) +
+           fx_umulhi64(fx_umulhi64(x4, x2), FX_RECIP720_Q64)) >>
+          2;
+}
+
 /* ---- vector length -------------------------------------------------------------- */
 
 static int64_t fx_sat_u64(uint64_t v)

@@ -471,6 +471,16 @@ q1_30_t fx_sin(fx_angle_t a);
 q1_30_t fx_cos(fx_angle_t a);
 void fx_sincos(fx_angle_t a, q1_30_t *s, q1_30_t *c);
 
+/* sin(x) and 1 - cos(x) in q62 (2^62 = 1.0) of a small angle, for rotation
+ * recurrences that advance an angle by a constant step: a = |angle| as a
+ * 64-bit binary angle (a full turn is 2^64, an fx_angle_t times 2^32),
+ * a <= FX_SMALL_ANGLE_MAX (1/64 turn, pi/32 rad; larger values are
+ * clamped). Taylor series to x^5 and x^6: |error| <= x^7 / 5040 (sine) and
+ * x^8 / 40320 (versine) plus 2^-59, i.e. below 2e-11 and 2^-58 at pi/32
+ * (tests/unit/test_fixmath.c checks both against long double). */
+#define FX_SMALL_ANGLE_MAX ((uint64_t)1 << 58)
+void fx_sin_vers_small(uint64_t a, uint64_t *sn, uint64_t *vs);
+
 /* Angle of the vector (x, y), counter-clockwise from +x, in [0, 2^32): so
  * (0, -1) gives FX_ANGLE_270. (0, 0) gives 0. Any int64 inputs, including
  * INT64_MIN. Symmetric: atan2(-y, x) == -atan2(y, x) (mod 2^32),

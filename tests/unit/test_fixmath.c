@@ -1580,6 +1580,49 @@ static void test_umul_shift_hi_and_mul64x32_shift32(void)
     }
 }
 
+/* small-angle sine and versine (q62) against long double (64-bit mantissa:
+ * absolute error below 2^-66 here) within the stated series bounds */
+static void check_sin_vers_small(uint64_t a)
+{
+    long double pi = 3.14159265358979323846264338327950288L;
+    long double x = (long double)a * (2.0L * pi) / 18446744073709551616.0L; /* rad */
+    long double two62 = 4611686018427387904.0L;
+    long double s_ref = sinl(x) * two62, v_ref = 2.0L * sinl(x / 2.0L) * sinl(x / 2.0L) * two62;
+    long double x2 = x * x, x7 = x2 * x2 * x2 * x, x8 = x7 * x;
+    long double s_tol = x7 / 5040.0L * two62 + 8.0L, v_tol = x8 / 40320.0L * two62 + 8.0L;
+    uint64_t sn, vs;
+
+    fx_sin_vers_small(a, &sn, &vs);
+    TEST_ASSERT_TRUE(fabsl((long double)sn - s_ref) <= s_tol);
+    TEST_ASSERT_TRUE(fabsl((long double)vs - v_ref) <= v_tol);
+}
+
+static void test_sin_vers_small(void)
+{
+    unsigned i;
+    uint64_t sn, vs, sn2, vs2;
+
+    fx_sin_vers_small(0, &sn, &vs);
+    TEST_ASSERT_EQUAL_UINT64(0, sn);
+    TEST_ASSERT_EQUAL_UINT64(0, vs);
+    check_sin_vers_small(1);
+    check_sin_vers_small((uint64_t)1 << 32); /* one fx_angle_t LSB */
+    check_sin_vers_small(FX_SMALL_ANGLE_MAX);
+    for (i = 0; i < 58; i++) {
+        check_sin_vers_small((uint64_t)1 << i);
+        check_sin_vers_small(((uint64_t)1 << i) * 3u / 2u);
+    }
+    rng_seed(0x5199);
+    for (i = 0; i < 100000; i++) {
+        check_sin_vers_small(rng() >> 6); /* [0, 2^58) */
+    }
+    /* clamped above the maximum */
+    fx_sin_vers_small(FX_SMALL_ANGLE_MAX, &sn, &vs);
+    fx_sin_vers_small(UINT64_MAX, &sn2, &vs2);
+    TEST_ASSERT_EQUAL_UINT64(sn, sn2);
+    TEST_ASSERT_EQUAL_UINT64(vs, vs2);
+}
+
 int main(void)
 {
     report_on = getenv("FIXMATH_REPORT") != NULL;
@@ -1621,5 +1664,6 @@ int main(void)
     RUN_TEST(test_in_range_min_max);
     RUN_TEST(test_mul_rsh_and_mul_q30_pos);
     RUN_TEST(test_umul_shift_hi_and_mul64x32_shift32);
+    RUN_TEST(test_sin_vers_small);
     return UNITY_END();
 }
