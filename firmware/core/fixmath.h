@@ -221,6 +221,25 @@ int64_t fx_mul64x32_shift(int64_t a, int32_t b, unsigned s);
  * saturated to int64. Any s is accepted; s >= 128 gives 0. */
 int64_t fx_mul64_shift(int64_t a, int64_t b, unsigned s);
 
+/* Inline forms for the tick, with a one-multiply path when the operands fit
+ * 32 bits: fx_mul64_sat(a, b) == fx_mul64_shift(a, b, 0) (a * b saturated
+ * to int64), fx_mul64x32_shift30(a, b) == fx_mul64x32_shift(a, b, 30). */
+static inline int64_t fx_mul64_sat(int64_t a, int64_t b)
+{
+    if (a == (int32_t)a && b == (int32_t)b) {
+        return (int64_t)(int32_t)a * (int32_t)b;
+    }
+    return fx_mul64_shift(a, b, 0);
+}
+
+static inline int64_t fx_mul64x32_shift30(int64_t a, int32_t b)
+{
+    if (a == (int32_t)a) { /* |a * b| <= 2^62: exact in int64 */
+        return ((int64_t)(int32_t)a * b + ((int64_t)1 << 29)) >> 30;
+    }
+    return fx_mul64x32_shift(a, b, 30);
+}
+
 /* Position times a ratio, rounded and saturated to int64:
  * round(p * r / 2^16) and round(p * r / 2^30). */
 pos_nm_t fx_pos_scale_q16(pos_nm_t p, q16_16_t r);

@@ -1623,6 +1623,47 @@ static void test_sin_vers_small(void)
     TEST_ASSERT_EQUAL_UINT64(vs, vs2);
 }
 
+/* the inline one-multiply forms against the general functions */
+static void test_mul64_sat_and_shift30_inline(void)
+{
+    static const int64_t e[] = {INT64_MIN,
+                                INT64_MIN + 1,
+                                -((int64_t)1 << 32),
+                                (int64_t)INT32_MIN - 1,
+                                INT32_MIN,
+                                -3,
+                                -1,
+                                0,
+                                1,
+                                3,
+                                INT32_MAX,
+                                (int64_t)INT32_MAX + 1,
+                                (int64_t)1 << 32,
+                                INT64_MAX};
+    static const int32_t b32[] = {INT32_MIN, -65536, -1, 0, 1, 65536, (int32_t)1 << 29, INT32_MAX};
+    unsigned i, j;
+
+    for (i = 0; i < sizeof e / sizeof e[0]; i++) {
+        for (j = 0; j < sizeof e / sizeof e[0]; j++) {
+            TEST_ASSERT_EQUAL_INT64(fx_mul64_shift(e[i], e[j], 0), fx_mul64_sat(e[i], e[j]));
+        }
+        for (j = 0; j < sizeof b32 / sizeof b32[0]; j++) {
+            TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(e[i], b32[j], 30),
+                                    fx_mul64x32_shift30(e[i], b32[j]));
+        }
+    }
+    rng_seed(0x3030);
+    for (i = 0; i < 200000; i++) {
+        int64_t a = (int64_t)rnd_u64(), b = (int64_t)rnd_u64();
+        TEST_ASSERT_EQUAL_INT64(fx_mul64_shift(a, b, 0), fx_mul64_sat(a, b));
+        TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(a, (int32_t)b, 30),
+                                fx_mul64x32_shift30(a, (int32_t)b));
+        a = (int64_t)(int32_t)rng(); /* the one-multiply path, ties included */
+        TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(a, (int32_t)1 << 29, 30),
+                                fx_mul64x32_shift30(a, (int32_t)1 << 29));
+    }
+}
+
 int main(void)
 {
     report_on = getenv("FIXMATH_REPORT") != NULL;
@@ -1665,5 +1706,6 @@ int main(void)
     RUN_TEST(test_mul_rsh_and_mul_q30_pos);
     RUN_TEST(test_umul_shift_hi_and_mul64x32_shift32);
     RUN_TEST(test_sin_vers_small);
+    RUN_TEST(test_mul64_sat_and_shift30_inline);
     return UNITY_END();
 }
