@@ -16,8 +16,8 @@
  * Everything runs in ONE thread (linux_run): poll() on the tick timerfd, the
  * GPIO edge-event fd, the serial fd and the CAN socket. Edge events are
  * delivered (drive_encoder_edge) as they arrive and always before a tick,
- * so edge and tick context never overlap; the tick runs drive_tick(), the
- * rest of each iteration port_app_poll() (main context). SCHED_FIFO is
+ * so edge and tick context never overlap; the tick runs app_tick(), the
+ * rest of each iteration app_poll() (main context). SCHED_FIFO is
  * requested when cfg.realtime is set and the process may (else a warning).
  */
 #ifndef HAL_LINUX_H
