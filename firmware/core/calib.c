@@ -6,6 +6,7 @@
 
 #include "comp_store.h"
 #include "crc.h"
+#include "preempt.h"
 #include "proto_msgs.h"
 #include "proto_reply.h"
 
@@ -317,6 +318,7 @@ static bool start_move(pos_nm_t pos)
     unsigned i;
 
     drive_snapshot(&st);
+    PREEMPT_POINT();
     for (i = 0; i < CORE_AXES; i++) {
         b.target[i] = st.ref[i];
     }
@@ -331,6 +333,7 @@ static bool start_move(pos_nm_t pos)
     b.sense = 1;
     b.dwell_ms = 0u;
     r = drive_queue_block(&b);
+    PREEMPT_POINT();
     if (r == DRIVE_E_FULL) {
         return false; /* try again at the next poll */
     }
@@ -372,6 +375,7 @@ void calib_poll(void)
         return;
     }
     drive_snapshot(&st);
+    PREEMPT_POINT();
     if (st.state == DRIVE_FAULT) {
         drive_stop();
         fail(PROTO_CALIB_STATUS_DRIVE_FAULT, (int32_t)st.faults);
@@ -415,6 +419,7 @@ void calib_poll(void)
             cb.s_left = cb.samples;
             cb.s_phase = 0u;
             cb.phase = PH_SAMPLE;
+            PREEMPT_POINT();
             cb.s_active = true; /* hand over to the tick (last store) */
         }
         break;
@@ -654,6 +659,7 @@ static size_t h_start(const uint8_t *msg, size_t plen, uint8_t *out)
         }
     }
     drive_snapshot(&st);
+    PREEMPT_POINT();
     if (st.state != DRIVE_IDLE) {
         return refuse(out, msg, PROTO_CALIB_STATUS_DRIVE_DISABLED, st.state);
     }
@@ -700,6 +706,7 @@ static size_t h_abort(const uint8_t *msg, size_t plen, uint8_t *out)
     }
     if (run_busy()) {
         drive_stop();
+        PREEMPT_POINT();
         fail(PROTO_CALIB_STATUS_ABORTED, 0);
     }
     return reply_state(out, msg[1]);

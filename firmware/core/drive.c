@@ -16,6 +16,7 @@
 #include "hal.h"
 #include "interp.h"
 #include "motion_ref.h"
+#include "preempt.h"
 #include "qdec.h"
 
 #define SEG_RING 128u /* > planner depth + interpolator FIFO + 1 */
@@ -1404,16 +1405,21 @@ void drive_poll(void)
         return;
     }
     calib_poll();
+    PREEMPT_POINT();
     if (drv.state == DRIVE_DISABLED || drv.state == DRIVE_FAULT) {
         if (drv.hq_count > 0 || plan_count(&drv.plan) > 0 || !interp_idle(&drv.ip)) {
+            PREEMPT_POINT();
             flush_all(drv.ref.pos);
         }
         return;
     }
     if (drv.state == DRIVE_STOPPING) {
         if (drv.halted) {
+            PREEMPT_POINT();
             flush_all(drv.ref.pos);
+            PREEMPT_POINT();
             drv.halted = false;
+            PREEMPT_POINT();
             drv.state = DRIVE_IDLE;
         }
         return;
@@ -1424,7 +1430,9 @@ void drive_poll(void)
      * oldest block's plan is final, or the interpolator runs short. */
     for (;;) {
         while (drv.hq_count > 0 && feed_one()) {
+            PREEMPT_POINT();
         }
+        PREEMPT_POINT();
         if (interp_room(&drv.ip) == 0 || plan_count(&drv.plan) == 0 ||
             !(plan_free_slots(&drv.plan) == 0 || oldest_final() || interp_needs_block())) {
             break;
@@ -1432,6 +1440,7 @@ void drive_poll(void)
         if (interp_refill(&drv.ip, &drv.plan) == 0) {
             break;
         }
+        PREEMPT_POINT();
     }
 }
 
@@ -1544,6 +1553,7 @@ drive_result_t drive_queue_block(const drive_block_t *b)
     if (r != DRIVE_OK) {
         return r;
     }
+    PREEMPT_POINT();
     h = zero;
     h.b = *b;
     for (i = drv.cfg.axes; i < CORE_AXES; i++) {
@@ -1577,17 +1587,21 @@ drive_result_t drive_queue_block(const drive_block_t *b)
         return DRIVE_E_FULL;
     }
     drv.hq[(drv.hq_head + drv.hq_count) % DRIVE_QUEUE_DEPTH] = h;
+    PREEMPT_POINT();
     drv.hq_count++;
+    PREEMPT_POINT();
     drv.queued_at = drv.tick_lo;
     /* plan it now (main context, like drive_poll): the caller's status then
      * counts its planned time; drive_poll decides when it is frozen */
     while (drv.hq_count > 0 && feed_one()) {
+        PREEMPT_POINT();
     }
     if (b->kind != DRIVE_BLOCK_DWELL) {
         for (i = 0; i < CORE_AXES; i++) {
             drv.q_end[i] = h.b.target[i];
         }
     }
+    PREEMPT_POINT();
     if (drv.state == DRIVE_IDLE) {
         drv.state = DRIVE_RUNNING;
     }
@@ -1605,21 +1619,28 @@ drive_result_t drive_enable(bool on)
     }
     if (!on) {
         drv.req_disable = true;
+        PREEMPT_POINT();
         drv.req_any = true;
         return DRIVE_OK;
     }
+    PREEMPT_POINT();
     if (drv.state == DRIVE_DISABLED) {
         pos_nm_t pos[CORE_AXES] = {0};
         for (i = 0; i < drv.cfg.axes; i++) {
             pos[i] = drv.enc[i].out.pos_nm;
         }
+        PREEMPT_POINT();
         flush_all(pos);
+        PREEMPT_POINT();
         for (i = 0; i < CORE_AXES; i++) {
             drv.ref.pos[i] = pos[i];
         }
+        PREEMPT_POINT();
         drv.req_disable = false;
         drv.req_enable = true;
+        PREEMPT_POINT();
         drv.req_any = true;
+        PREEMPT_POINT();
         drv.state = DRIVE_IDLE;
     }
     return DRIVE_OK;
@@ -1628,18 +1649,21 @@ drive_result_t drive_enable(bool on)
 void drive_stop(void)
 {
     drv.req_stop = true;
+    PREEMPT_POINT();
     drv.req_any = true;
 }
 
 void drive_estop(void)
 {
     drv.req_estop = true;
+    PREEMPT_POINT();
     drv.req_any = true;
 }
 
 void drive_raise_fault(uint32_t fault_bits)
 {
     drv.req_fault |= fault_bits;
+    PREEMPT_POINT();
     drv.req_any = true;
 }
 
@@ -1657,7 +1681,9 @@ drive_result_t drive_fault_reset(void)
             return DRIVE_E_CAUSE;
         }
     }
+    PREEMPT_POINT();
     drv.req_reset = true;
+    PREEMPT_POINT();
     drv.req_any = true;
     return DRIVE_OK;
 }
@@ -1680,7 +1706,9 @@ static void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t *ip_rem)
         s = drv.st_seq;
         snapshot_barrier();
         *out = drv.st;
+        PREEMPT_POINT();
         status_live(out);
+        PREEMPT_POINT();
         /* the interpolator's read index and the time left in its current
          * segment (-1: none): the tick changes them only inside its odd
          * st_seq window; main, which runs this, is the only writer of the
@@ -1716,6 +1744,7 @@ void drive_status(drive_status_t *out)
     }
     snapshot(out, &rd, &rem);
     drv.req_ref = true; /* the next tick samples the reference scales */
+    PREEMPT_POINT();
     out->queue_free = (uint32_t)(DRIVE_QUEUE_DEPTH - drv.hq_count);
     /* planner, then the interpolator's FIFO from the published read index
      * (segments loaded since are counted; a current one by its remainder) */
@@ -1762,6 +1791,7 @@ drive_result_t drive_set_cec_mode(drive_cec_mode_t mode)
     drv.pend_mode = map[mode];
     drv.cec_mode = mode;
     drv.req_cec = true;
+    PREEMPT_POINT();
     drv.req_any = true;
     return DRIVE_OK;
 }
@@ -1785,6 +1815,7 @@ drive_result_t drive_set_servo_params(const servo_params_t *p)
     }
     drv.pend = q;
     drv.req_gains = true;
+    PREEMPT_POINT();
     drv.req_any = true;
     return DRIVE_OK;
 }
@@ -1960,6 +1991,7 @@ static drive_result_t apply_config(const drive_config_t *c)
     if (!planner_idle()) {
         return DRIVE_E_BUSY;
     }
+    PREEMPT_POINT();
     drv.cfg.plan = c->plan;
     drv.cfg.stop_decel_nm_s2 = c->stop_decel_nm_s2;
     drv.cfg.arc_chord_nm = c->arc_chord_nm;
