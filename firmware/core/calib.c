@@ -20,8 +20,14 @@ typedef enum {
     PH_SAMPLE
 } phase_t;
 
+/* Contexts (docs/tick-main.md): main runs the run's state machine and the
+ * handlers; the tick samples while s_active. Main writes the sampling order
+ * (s_target, s_left, s_phase and the leg fields the sample carries),
+ * CORE_BARRIER(), then sets s_active; the tick clears it after the last
+ * sample (main may clear it to cancel). */
 static struct {
-    /* run (main) */
+    /* run (main; axis, flags, sample_ticks and leg_point / leg_dir /
+     * leg_cycle are read by the tick while s_active) */
     calib_state_t state;
     uint8_t axis;
     uint8_t flags;
@@ -47,20 +53,21 @@ static struct {
     uint16_t legs_done;
     uint8_t reason;
     int32_t detail;
-    /* sample ring: oldest written by main, next by the tick */
+    /* sample ring: a slot is written by the tick before seq_next covers
+     * it, read by main below seq_next */
     calib_sample_t ring[CALIB_RING];
-    volatile uint32_t seq_next;
-    uint32_t seq_oldest;
-    /* tick-side sampling order (armed by main) */
-    volatile bool s_active;
-    uint16_t s_left;
-    uint16_t s_phase;
-    pos_nm_t s_target;
+    CORE_SHARED uint32_t seq_next; /* tick (main: calib_setup, tick idle) */
+    uint32_t seq_oldest;           /* main                                 */
+    /* sampling order: main writes it before s_active, the tick counts */
+    CORE_SHARED bool s_active; /* main sets (and may clear), tick clears */
+    uint16_t s_left;           /* tick while s_active                    */
+    uint16_t s_phase;          /* tick while s_active                    */
+    pos_nm_t s_target;         /* main                                   */
     /* compensation */
     comp_table_t tab[CORE_AXES][2];
     uint8_t act[CORE_AXES]; /* index of the active buffer, 0xFF: none */
     uint8_t slot[CORE_AXES];
-    comp_ramp_t ramp[CORE_AXES];
+    comp_ramp_t ramp[CORE_AXES]; /* tick (calib_init: main, before the tick) */
     /* bit i: ramp[i] has a direction and w has not reached its end (tick;
      * calib_init clears it with the ramps) */
     uint8_t ramp_busy;
@@ -420,6 +427,7 @@ void calib_poll(void)
             cb.s_phase = 0u;
             cb.phase = PH_SAMPLE;
             PREEMPT_POINT();
+            CORE_BARRIER();
             cb.s_active = true; /* hand over to the tick (last store) */
         }
         break;

@@ -1,14 +1,20 @@
 /*
  * drive.c - the drive application (specification in drive.h).
  *
- * Ownership of the state:
+ * Ownership of the state (docs/tick-main.md): every field of drv says which
+ * context writes it.
  *   main  host-block FIFO (hq_*), planner, arc segmentation, seg[] entries of
  *         segments not yet handed to the interpolator, the interpolator's
- *         producer side, requests (req_*).
- *   tick  decoders, servo loops, motion reference, state, status snapshot,
- *         interpolator consumer side.
- * Main requests changes through the volatile req_* flags that the tick
- * applies; the tick never waits for main.
+ *         producer side, requests (req_* and their payload).
+ *   tick  decoders, servo loops, motion reference, the state (state, halted,
+ *         faults), status snapshot, interpolator consumer side.
+ *   init  set by drive_init before the tick runs (ready gates the tick).
+ * Main requests changes through the req_* flags (main sets a flag, the tick
+ * clears it when it applies it) and reads the state from the snapshot; the
+ * tick never waits for main. Main resets the interpolator (both sides) only
+ * while the tick is parked: DISABLED or FAULT with no enable pending, or
+ * STOPPING at rest (halted) with no resume pending; the tick leaves those
+ * states only on a request from main.
  */
 #include "drive.h"
 
@@ -106,33 +112,48 @@ typedef struct {
 static plan_block_t plan_store[PLAN_DEPTH_DEFAULT];
 
 static struct {
-    bool ready;
+    CORE_SHARED bool ready; /* init */
+    /* init; main changes the planner fields, stop_decel, arc_chord and
+     * start_delay only with the planner idle and no stop pending, and servo
+     * with a gains request (the tick reads tick_hz, axes, enc_counter,
+     * friction, and stop_decel when it applies a stop) */
     drive_config_t cfg;
-    /* main */
+    /* main only */
     plan_t plan;
     host_block_t hq[DRIVE_QUEUE_DEPTH];
-    volatile uint16_t hq_head, hq_count;
+    uint16_t hq_head, hq_count;
     pos_nm_t q_end[CORE_AXES]; /* end point of the last accepted block */
     uint32_t seq_next;         /* internal tag of the next planner block */
     uint32_t queued_at;        /* tick_lo when the last block was accepted */
-    seg_info_t seg[SEG_RING];
-    uint32_t blocks_done_main;
-    /* shared */
-    interp_t ip;
-    volatile bool req_enable, req_disable, req_stop, req_estop, req_reset, req_gains;
-    volatile bool req_ref; /* main (drive_status): sample the reference scales */
-    volatile uint32_t req_fault;
+    drive_cec_mode_t cec_mode;
+    /* main, read by the tick */
+    seg_info_t seg[SEG_RING];              /* written before the segment's interp slot */
+    CORE_SHARED uint32_t blocks_done_main; /* blocks skipped by the planner */
+    /* host blocks and planner blocks not yet in the interpolator (hq_count +
+     * plan_count), updated after the interpolator's wr: the tick derives
+     * RUNNING from it and the interpolator, with no IDLE gap in between */
+    CORE_SHARED uint32_t main_queued;
+    interp_t ip; /* producer side main, consumer side tick (interp.h) */
+    /* Requests: main writes the payload, CORE_BARRIER(), sets the flag, then
+     * req_any; the tick clears a flag when it applies it. */
+    CORE_SHARED bool req_enable; /* main flushed (DISABLED): switch on    */
+    CORE_SHARED bool req_resume; /* main flushed (halted): STOPPING->IDLE */
+    CORE_SHARED bool req_disable, req_stop, req_estop, req_reset, req_gains, req_cec;
+    CORE_SHARED bool req_ref; /* main (drive_status): sample the reference scales */
+    CORE_SHARED uint32_t req_fault;
     /* some req_* above (except req_ref) may be set: main sets it after the
      * flag itself, the tick clears it before it reads the flags (and sets it
      * again while a request stays pending), so the tick skips
      * apply_requests on the usual tick */
-    volatile bool req_any;
-    volatile bool halted; /* tick: controlled stop reached rest      */
-    drive_cec_mode_t cec_mode;
-    servo_params_t pend;
-    bool req_cec;
-    cec_mode_t pend_mode;
-    /* tick */
+    CORE_SHARED bool req_any;
+    uint32_t rs_seq;      /* main, payload of req_enable / req_resume:
+                           * seq_next at the flush */
+    servo_params_t pend;  /* main, payload of req_gains */
+    cec_mode_t pend_mode; /* main, payload of req_cec   */
+    /* tick, read by main (the snapshot, or the state as main_state() reads it) */
+    CORE_SHARED drive_state_t state;
+    CORE_SHARED bool halted; /* controlled stop reached rest: reference held */
+    /* tick only (main reads some inside the snapshot's sequence count) */
     qdec_t enc[CORE_AXES];
     qdec_t refs[CORE_AXES]; /* configuration and scaling only (see ref_*) */
     bool ref_on[CORE_AXES];
@@ -144,7 +165,6 @@ static struct {
     pos_nm_t ref_nm[CORE_AXES];  /* position, nm (published)            */
     servo_t servo;
     motion_ref_t ref;
-    drive_state_t state;
     uint32_t faults;
     int64_t stop_v;  /* stopping: path speed cap, nm/s               */
     int64_t stop_dv; /* stopping: cap decrease per tick, nm/s        */
@@ -160,23 +180,23 @@ static struct {
      * tangent, the geometry's arc fields): nothing else changed it since the
      * last full copy. A fast-path tick then copies only pos. */
     bool ref_synced;
-    bool ref_full;             /* test hook (drive_test_full_ref): no pos-only copy */
-    int64_t v_act;             /* path speed of the reference last tick, nm/s  */
-    q1_30_t hyp_tu, hyp_tv;    /* arc overlay: last in-plane chord tangent ... */
-    q1_30_t hyp_m;             /* ... and its length (constant per segment)   */
-    arc_fast_t arc;            /* arc overlay: per-segment constants (tick)    */
-    arc_rot_t rot;             /* arc overlay: cruise recurrence (tick)        */
-    bool arc_exact;            /* test hook: no recurrence (drive_test_arc_exact) */
-    bool ff_on;                /* some cfg.friction_ff_mv[] != 0 (drive_init)  */
-    bool enc_any_counter;      /* some axis in use has enc_counter (drive_init) */
-    volatile uint32_t tick_lo; /* low word of tick (main reads it) */
-    uint32_t seen_done;        /* interpolator segments accounted */
-    uint32_t seq_done;         /* internal tag of the next segment to complete */
+    bool ref_full;                /* test hook (drive_test_full_ref): no pos-only copy */
+    int64_t v_act;                /* path speed of the reference last tick, nm/s  */
+    q1_30_t hyp_tu, hyp_tv;       /* arc overlay: last in-plane chord tangent ... */
+    q1_30_t hyp_m;                /* ... and its length (constant per segment)   */
+    arc_fast_t arc;               /* arc overlay: per-segment constants (tick)    */
+    arc_rot_t rot;                /* arc overlay: cruise recurrence (tick)        */
+    bool arc_exact;               /* test hook: no recurrence (drive_test_arc_exact) */
+    bool ff_on;                   /* some cfg.friction_ff_mv[] != 0 (drive_init)  */
+    bool enc_any_counter;         /* some axis in use has enc_counter (drive_init) */
+    CORE_SHARED uint32_t tick_lo; /* low word of tick (main reads it) */
+    uint32_t seen_done;           /* interpolator segments accounted */
+    uint32_t seq_done;            /* internal tag of the next segment to complete */
     uint32_t blocks_done;
     uint32_t cur_tag;
     uint64_t tick;
-    /* published snapshot */
-    volatile uint32_t st_seq;
+    /* published snapshot (tick; main reads it under st_seq) */
+    CORE_SHARED uint32_t st_seq;
     drive_status_t st;
 } drv;
 
@@ -233,7 +253,7 @@ static void plane_axes(drive_plane_t p, uint8_t *u, uint8_t *v, uint8_t *w)
  * reference scales, the CEC estimate, blocks done and tag; drive_init
  * publishes after setting them) plus main's count of blocks it completed
  * (blocks_done_main: the snapshot runs in main). */
-static void status_live(drive_status_t *s)
+static CORE_NO_TSAN void status_live(drive_status_t *s)
 {
     unsigned i;
     for (i = 0; i < drv.cfg.axes; i++) {
@@ -414,6 +434,10 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.req_enable = drv.req_disable = drv.req_stop = false;
     drv.req_estop = drv.req_reset = drv.req_gains = drv.req_cec = false;
     drv.req_fault = 0;
+    drv.req_resume = false;
+    drv.rs_seq = 0;
+    drv.main_queued = 0;
+    drv.blocks_done_main = 0;
     drv.req_any = false;
     drv.req_ref = false;
     drv.halted = false;
@@ -1045,6 +1069,16 @@ static void friction_ff(void)
     }
 }
 
+/* Main flushed its queues and the interpolator (req_enable, req_resume):
+ * account segments from the flush on, nominal time, reference not held. */
+static void restart(void)
+{
+    drv.halted = false;
+    drv.seen_done = drv.ip.blocks_done;
+    drv.seq_done = drv.rs_seq;
+    drv.ip.tick_ns = (int64_t)(1000000000u / drv.cfg.tick_hz);
+}
+
 static void apply_requests(const servo_fb_t *fb)
 {
     unsigned i;
@@ -1053,12 +1087,11 @@ static void apply_requests(const servo_fb_t *fb)
     }
     drv.req_any = false;
     if (drv.req_gains) {
-        drv.pend.axes = drv.cfg.axes;
-        drv.pend.tick_hz = drv.cfg.tick_hz;
-        drv.pend.cec.mode = drv.servo.p.cec.mode;
-        if (servo_config(&drv.servo, &drv.pend) == SERVO_OK) {
-            drv.cfg.servo = drv.pend;
-        }
+        servo_params_t q = drv.pend;
+        q.axes = drv.cfg.axes;
+        q.tick_hz = drv.cfg.tick_hz;
+        q.cec.mode = drv.servo.p.cec.mode;
+        (void)servo_config(&drv.servo, &q); /* main checked them */
         drv.req_gains = false;
     }
     if (drv.req_cec) {
@@ -1099,13 +1132,21 @@ static void apply_requests(const servo_fb_t *fb)
     }
     if (drv.req_enable) {
         drv.req_enable = false;
-        /* drive_enable set IDLE; a block queued before this tick has already
-         * made it RUNNING: the servo is switched on in either state */
         /* never after a fault latched in this same tick (e.g. an e-stop
-         * that arrived together with the enable) */
-        if (drv.faults == 0 && (drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING) &&
-            drv.servo.state == SERVO_OFF && servo_enable(&drv.servo, fb) == SERVO_OK) {
+         * that arrived together with the enable); a refused enable leaves
+         * the drive DISABLED (main then drops what was queued) */
+        if (drv.faults == 0 && drv.state == DRIVE_DISABLED && drv.servo.state == SERVO_OFF &&
+            servo_enable(&drv.servo, fb) == SERVO_OK) {
             servo_run(&drv.servo);
+            restart();
+            drv.state = DRIVE_IDLE; /* RUNNING below if blocks are queued */
+        }
+    }
+    if (drv.req_resume) {
+        drv.req_resume = false;
+        if (drv.state == DRIVE_STOPPING && drv.halted) {
+            restart();
+            drv.state = DRIVE_IDLE;
         }
     }
     if (drv.req_stop) {
@@ -1205,8 +1246,8 @@ void drive_tick(void)
     if (drv.faults != 0) {
         drv.state = DRIVE_FAULT;
     } else if (drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING) {
-        bool busy = drv.ip.busy || drv.ip.wr != drv.ip.rd || /* !interp_idle() */
-                    plan_count(&drv.plan) > 0 || drv.hq_count > 0;
+        /* !interp_idle(), busy first: the usual tick has a segment */
+        bool busy = drv.ip.busy || drv.ip.wr != drv.ip.rd || drv.main_queued != 0u;
         drv.state = busy ? DRIVE_RUNNING : DRIVE_IDLE;
     }
     drv.tick++;
@@ -1217,6 +1258,9 @@ void drive_tick(void)
 
 /* ---- main -------------------------------------------------------------------- */
 
+/* Drop every queued block and hold pos. Only while the tick is parked
+ * (tick_parked()): interp_reset writes the consumer side too. The tick
+ * takes over the segment count (rs_seq) with req_enable / req_resume. */
 static void flush_all(const pos_nm_t pos[CORE_AXES])
 {
     unsigned i;
@@ -1224,9 +1268,8 @@ static void flush_all(const pos_nm_t pos[CORE_AXES])
     drv.hq_head = 0;
     plan_reset(&drv.plan, pos);
     interp_reset(&drv.ip, pos);
-    drv.ip.tick_ns = (int64_t)(1000000000u / drv.cfg.tick_hz);
-    drv.seen_done = drv.ip.blocks_done;
-    drv.seq_done = drv.seq_next;
+    drv.rs_seq = drv.seq_next;
+    drv.main_queued = 0;
     for (i = 0; i < CORE_AXES; i++) {
         drv.q_end[i] = pos[i];
     }
@@ -1399,28 +1442,82 @@ static bool interp_needs_block(void)
     return (uint32_t)(drv.tick_lo - drv.queued_at) >= delay;
 }
 
+/* The state as main acts on it: the tick's, with the requests main posted
+ * and the tick has not applied yet counted as applied (a pending disable:
+ * DISABLED; a pending enable of a DISABLED drive: IDLE). The flags are read
+ * before the state: a tick between the reads has applied them. */
+static drive_state_t main_view(drive_state_t s, bool en, bool dis)
+{
+    if (s == DRIVE_FAULT) {
+        return s;
+    }
+    if (dis) {
+        return DRIVE_DISABLED;
+    }
+    return (en && s == DRIVE_DISABLED) ? DRIVE_IDLE : s;
+}
+
+static drive_state_t main_state(void)
+{
+    bool en = drv.req_enable, dis = drv.req_disable;
+    return main_view(drv.state, en, dis);
+}
+
+/* The tick does not touch the interpolator and leaves this state only on a
+ * request from main: DISABLED or FAULT with no enable pending, or STOPPING
+ * at rest with no resume pending (flags read before the state). */
+static bool tick_parked(void)
+{
+    bool en = drv.req_enable, rs = drv.req_resume;
+    drive_state_t s = drv.state;
+    if (s == DRIVE_DISABLED || s == DRIVE_FAULT) {
+        return !en;
+    }
+    return s == DRIVE_STOPPING && !rs && drv.halted;
+}
+
+/* Blocks not yet handed to the interpolator, for the tick (see main_queued). */
+static void publish_queued(void)
+{
+    drv.main_queued = (uint32_t)drv.hq_count + plan_count(&drv.plan);
+}
+
+/* The reference the tick holds (published). */
+static void held_ref(pos_nm_t pos[CORE_AXES])
+{
+    drive_status_t st;
+    unsigned i;
+    drive_snapshot(&st);
+    for (i = 0; i < CORE_AXES; i++) {
+        pos[i] = st.ref[i];
+    }
+}
+
 void drive_poll(void)
 {
+    drive_state_t s;
     if (!drv.ready) {
         return;
     }
     calib_poll();
     PREEMPT_POINT();
-    if (drv.state == DRIVE_DISABLED || drv.state == DRIVE_FAULT) {
-        if (drv.hq_count > 0 || plan_count(&drv.plan) > 0 || !interp_idle(&drv.ip)) {
+    s = main_state();
+    if (s == DRIVE_DISABLED || s == DRIVE_FAULT || s == DRIVE_STOPPING) {
+        PREEMPT_POINT();
+        if (tick_parked() && (drv.hq_count > 0 || plan_count(&drv.plan) > 0 ||
+                              !interp_idle(&drv.ip) || drv.state == DRIVE_STOPPING)) {
+            pos_nm_t pos[CORE_AXES];
+            held_ref(pos);
             PREEMPT_POINT();
-            flush_all(drv.ref.pos);
-        }
-        return;
-    }
-    if (drv.state == DRIVE_STOPPING) {
-        if (drv.halted) {
+            flush_all(pos);
             PREEMPT_POINT();
-            flush_all(drv.ref.pos);
-            PREEMPT_POINT();
-            drv.halted = false;
-            PREEMPT_POINT();
-            drv.state = DRIVE_IDLE;
+            if (drv.state == DRIVE_STOPPING) {
+                /* at rest: the tick goes IDLE when it sees the request */
+                CORE_BARRIER();
+                drv.req_resume = true;
+                PREEMPT_POINT();
+                drv.req_any = true;
+            }
         }
         return;
     }
@@ -1442,6 +1539,7 @@ void drive_poll(void)
         }
         PREEMPT_POINT();
     }
+    publish_queued();
 }
 
 /* Validate an arc (h->b, with the targets of unused axes already set) from
@@ -1525,16 +1623,18 @@ uint32_t drive_queue_free(void)
 
 static drive_result_t accept_check(void)
 {
+    drive_state_t s;
     if (!drv.ready) {
         return DRIVE_E_DISABLED;
     }
-    if (drv.state == DRIVE_FAULT) {
+    s = main_state();
+    if (s == DRIVE_FAULT) {
         return DRIVE_E_FAULTED;
     }
-    if (drv.state == DRIVE_DISABLED || drv.req_disable) {
+    if (s == DRIVE_DISABLED) {
         return DRIVE_E_DISABLED;
     }
-    if (drv.state == DRIVE_STOPPING) {
+    if (s == DRIVE_STOPPING) {
         return DRIVE_E_BUSY;
     }
     return DRIVE_OK;
@@ -1602,19 +1702,19 @@ drive_result_t drive_queue_block(const drive_block_t *b)
         }
     }
     PREEMPT_POINT();
-    if (drv.state == DRIVE_IDLE) {
-        drv.state = DRIVE_RUNNING;
-    }
+    publish_queued(); /* the tick makes the drive RUNNING */
     return DRIVE_OK;
 }
 
 drive_result_t drive_enable(bool on)
 {
-    unsigned i;
+    drive_status_t st;
+    drive_state_t s;
     if (!drv.ready) {
         return DRIVE_E_DISABLED;
     }
-    if (drv.state == DRIVE_FAULT) {
+    s = main_state();
+    if (s == DRIVE_FAULT) {
         return DRIVE_E_FAULTED;
     }
     if (!on) {
@@ -1624,25 +1724,21 @@ drive_result_t drive_enable(bool on)
         return DRIVE_OK;
     }
     PREEMPT_POINT();
-    if (drv.state == DRIVE_DISABLED) {
-        pos_nm_t pos[CORE_AXES] = {0};
-        for (i = 0; i < drv.cfg.axes; i++) {
-            pos[i] = drv.enc[i].out.pos_nm;
-        }
-        PREEMPT_POINT();
-        flush_all(pos);
-        PREEMPT_POINT();
-        for (i = 0; i < CORE_AXES; i++) {
-            drv.ref.pos[i] = pos[i];
-        }
-        PREEMPT_POINT();
-        drv.req_disable = false;
-        drv.req_enable = true;
-        PREEMPT_POINT();
-        drv.req_any = true;
-        PREEMPT_POINT();
-        drv.state = DRIVE_IDLE;
+    if (s != DRIVE_DISABLED) {
+        return DRIVE_OK; /* enabled, or an enable is pending */
     }
+    if (!tick_parked()) {
+        return DRIVE_E_BUSY; /* a disable the tick has not applied yet */
+    }
+    /* parked DISABLED: start from the measured position */
+    drive_snapshot(&st);
+    PREEMPT_POINT();
+    flush_all(st.pos);
+    PREEMPT_POINT();
+    CORE_BARRIER();
+    drv.req_enable = true;
+    PREEMPT_POINT();
+    drv.req_any = true;
     return DRIVE_OK;
 }
 
@@ -1673,7 +1769,7 @@ drive_result_t drive_fault_reset(void)
     if (!drv.ready) {
         return DRIVE_E_DISABLED;
     }
-    if (drv.state != DRIVE_FAULT) {
+    if (main_state() != DRIVE_FAULT) {
         return DRIVE_OK;
     }
     for (i = 0; i < drv.cfg.axes; i++) {
@@ -1699,7 +1795,7 @@ static inline void snapshot_barrier(void)
 #endif
 }
 
-static void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t *ip_rem)
+static CORE_NO_TSAN void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t *ip_rem)
 {
     uint32_t s;
     do {
@@ -1739,12 +1835,21 @@ void drive_status(drive_status_t *out)
 {
     uint16_t rd, wr, i;
     int64_t rem, sum;
+    bool en, dis;
     if (out == NULL) {
         return;
     }
+    en = drv.req_enable; /* before the snapshot: see main_state() */
+    dis = drv.req_disable;
     snapshot(out, &rd, &rem);
     drv.req_ref = true; /* the next tick samples the reference scales */
     PREEMPT_POINT();
+    /* main's view: requests not yet applied count as applied, blocks
+     * queued since the tick's last state update as RUNNING */
+    out->state = main_view(out->state, en, dis);
+    if (out->state == DRIVE_IDLE && (drv.main_queued != 0u || !interp_idle(&drv.ip))) {
+        out->state = DRIVE_RUNNING;
+    }
     out->queue_free = (uint32_t)(DRIVE_QUEUE_DEPTH - drv.hq_count);
     /* planner, then the interpolator's FIFO from the published read index
      * (segments loaded since are counted; a current one by its remainder) */
@@ -1775,7 +1880,8 @@ int64_t drive_encoder_count(unsigned ch)
 
 static bool moving(void)
 {
-    return drv.state == DRIVE_RUNNING || drv.state == DRIVE_STOPPING;
+    drive_state_t s = main_state();
+    return s == DRIVE_RUNNING || s == DRIVE_STOPPING;
 }
 
 drive_result_t drive_set_cec_mode(drive_cec_mode_t mode)
@@ -1790,6 +1896,7 @@ drive_result_t drive_set_cec_mode(drive_cec_mode_t mode)
     }
     drv.pend_mode = map[mode];
     drv.cec_mode = mode;
+    CORE_BARRIER();
     drv.req_cec = true;
     PREEMPT_POINT();
     drv.req_any = true;
@@ -1814,6 +1921,8 @@ drive_result_t drive_set_servo_params(const servo_params_t *p)
         return DRIVE_E_BUSY;
     }
     drv.pend = q;
+    drv.cfg.servo = q; /* main's copy; the tick applies pend */
+    CORE_BARRIER();
     drv.req_gains = true;
     PREEMPT_POINT();
     drv.req_any = true;

@@ -21,7 +21,12 @@
  *                                         publishes under a sequence count).
  *   drive_status()                        main (the snapshot plus queue_free
  *                                         and queued_time_ns from main-owned
- *                                         queues).
+ *                                         queues; its state is main's view:
+ *                                         an enable or disable not yet
+ *                                         applied counts as applied, IDLE
+ *                                         with blocks queued as RUNNING).
+ * The tick owns the state (docs/tick-main.md): the main-context commands
+ * post requests that the next tick applies and never write the state.
  *   drive_param_*(), drive_queue_free()   main.
  *   drive_arc_chords()                    any (pure).
  *   drive_encoder_edge()                  edge interrupt / simulator, between
@@ -113,9 +118,9 @@
  * the reference holds and the drive is IDLE: the rest of the job is dropped
  * and new blocks start from the stop point.
  *
- * State machine
+ * State machine (every transition made by the tick)
  *   DISABLED --enable--> IDLE <--> RUNNING (blocks queued / executing)
- *   RUNNING --stop--> STOPPING --(axes at rest)--> IDLE (queue flushed)
+ *   RUNNING --stop--> STOPPING --(axes at rest, main flushed)--> IDLE
  *   any --estop / fault--> FAULT (outputs zero and disabled, queue flushed)
  *   FAULT --fault_reset (cause gone)--> DISABLED
  *   IDLE/RUNNING --disable--> DISABLED (outputs zero, queue flushed)
@@ -315,6 +320,9 @@ uint32_t drive_queue_free(void);
  * host's estimator plans exactly the drive's chords). Any. */
 uint32_t drive_arc_chords(const drive_block_t *b, const pos_nm_t start[CORE_AXES], unsigned axes,
                           uint32_t tick_hz, int64_t chord_nm, pos_nm_t *out, uint32_t cap);
+/* Enable (the next tick switches the servo on at the measured position) or
+ * disable. DRIVE_E_BUSY: enable while a disable is not yet applied (retry
+ * after a tick); DRIVE_E_FAULTED: a fault is latched. Main. */
 drive_result_t drive_enable(bool on);
 /* Controlled stop: decelerate on the path, flush the queue, stay enabled. */
 void drive_stop(void);

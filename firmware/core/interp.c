@@ -79,7 +79,9 @@ unsigned interp_refill(interp_t *ip, plan_t *p)
 
 bool interp_idle(const interp_t *ip)
 {
-    return !ip->busy && ip_queued(ip) == 0;
+    /* busy implies rd != wr: the current segment stays in the FIFO until
+     * it ends, so the indices alone say it (and main may call this) */
+    return ip_queued(ip) == 0;
 }
 
 /* round(sign * ua * ur / 2^78), ties toward +inf, for magnitudes ua, ur

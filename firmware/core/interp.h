@@ -61,17 +61,20 @@
 #include "core_config.h"
 #include "motion_ref.h"
 #include "planner.h"
+#include "preempt.h"
 
 #ifndef INTERP_FIFO
 #define INTERP_FIFO 8 /* a power of two */
 #endif
 
 typedef struct {
-    /* shared FIFO (main writes slots and wr; tick writes rd) */
-    plan_seg_t fifo[INTERP_FIFO];
-    volatile uint16_t wr;
-    volatile uint16_t rd;
-    /* tick state */
+    /* shared FIFO: main writes a slot, then wr; the tick reads the slot
+     * after wr, then advances rd */
+    plan_seg_t fifo[INTERP_FIFO]; /* main                                    */
+    CORE_SHARED uint16_t wr;      /* main                                    */
+    CORE_SHARED uint16_t rd;      /* tick                                    */
+    /* tick state (every field below: tick; interp_init / interp_reset write
+     * them from main only while the tick does not run the interpolator) */
     int64_t tick_ns;
     bool busy;               /* a segment is current                   */
     int64_t t_ns;            /* time into the current segment, ns      */
@@ -129,7 +132,8 @@ typedef struct {
     uint8_t fast_skip;
 } interp_t;
 
-/* Initialise idle at `start` with a tick period of tick_ns (> 0). Main. */
+/* Initialise idle at `start` with a tick period of tick_ns (> 0). Main,
+ * with the tick not running the interpolator. */
 void interp_init(interp_t *ip, int64_t tick_ns, const pos_nm_t start[CORE_AXES]);
 
 /* Free FIFO slots. Main. */
@@ -153,11 +157,11 @@ unsigned interp_refill(interp_t *ip, plan_t *p);
  * drive does). Every other tick writes every field. Tick. */
 void interp_tick(interp_t *ip, motion_ref_t *ref);
 
-/* True when no segment is current or queued. Any (snapshot). */
+/* True when no segment is current or queued (reads wr and rd only). Any. */
 bool interp_idle(const interp_t *ip);
 
 /* Drop everything (after a stop or a fault) and hold `pos`. Main, with the
- * tick stopped. */
+ * tick not running the interpolator (the drive: tick parked, drive.c). */
 void interp_reset(interp_t *ip, const pos_nm_t pos[CORE_AXES]);
 
 #endif /* INTERP_H */
