@@ -1444,9 +1444,11 @@ static bool interp_needs_block(void)
 
 /* The state as main acts on it: the tick's, with the requests main posted
  * and the tick has not applied yet counted as applied (a pending disable:
- * DISABLED; a pending enable of a DISABLED drive: IDLE). The flags are read
- * before the state: a tick between the reads has applied them. */
-static drive_state_t main_view(drive_state_t s, bool en, bool dis)
+ * DISABLED; a pending enable of a DISABLED drive: IDLE; a pending stop of
+ * an IDLE or RUNNING drive: STOPPING, so no block is accepted that the stop
+ * would drop). The flags are read before the state: a tick between the
+ * reads has applied them. */
+static drive_state_t main_view(drive_state_t s, bool en, bool dis, bool stop)
 {
     if (s == DRIVE_FAULT) {
         return s;
@@ -1454,13 +1456,16 @@ static drive_state_t main_view(drive_state_t s, bool en, bool dis)
     if (dis) {
         return DRIVE_DISABLED;
     }
+    if (stop && (s == DRIVE_IDLE || s == DRIVE_RUNNING)) {
+        return DRIVE_STOPPING;
+    }
     return (en && s == DRIVE_DISABLED) ? DRIVE_IDLE : s;
 }
 
 static drive_state_t main_state(void)
 {
-    bool en = drv.req_enable, dis = drv.req_disable;
-    return main_view(drv.state, en, dis);
+    bool en = drv.req_enable, dis = drv.req_disable, stop = drv.req_stop;
+    return main_view(drv.state, en, dis, stop);
 }
 
 /* The tick does not touch the interpolator and leaves this state only on a
@@ -1835,18 +1840,19 @@ void drive_status(drive_status_t *out)
 {
     uint16_t rd, wr, i;
     int64_t rem, sum;
-    bool en, dis;
+    bool en, dis, stop;
     if (out == NULL) {
         return;
     }
     en = drv.req_enable; /* before the snapshot: see main_state() */
     dis = drv.req_disable;
+    stop = drv.req_stop;
     snapshot(out, &rd, &rem);
     drv.req_ref = true; /* the next tick samples the reference scales */
     PREEMPT_POINT();
     /* main's view: requests not yet applied count as applied, blocks
      * queued since the tick's last state update as RUNNING */
-    out->state = main_view(out->state, en, dis);
+    out->state = main_view(out->state, en, dis, stop);
     if (out->state == DRIVE_IDLE && (drv.main_queued != 0u || !interp_idle(&drv.ip))) {
         out->state = DRIVE_RUNNING;
     }
