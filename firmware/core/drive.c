@@ -12,6 +12,8 @@
  */
 #include "drive.h"
 
+#include "arc_ref.h"
+#include "arc_seg.h"
 #include "calib.h"
 #include "hal.h"
 #include "interp.h"
@@ -22,85 +24,18 @@
 /* Keep at least this much planned time in the interpolator's FIFO beyond the
  * current segment when no block is waiting and the planner is not full. */
 #define DRIVE_FEED_AHEAD_NS ((int64_t)5000000)
-#define ANGLE_K             683565276ll /* 2^32 / (2 pi): binary angle per radian */
-#define Q30                 ((int64_t)1 << 30)
 
 typedef struct {
     uint32_t host_tag;
     bool last; /* last segment of its host block */
     bool arc;
-    uint8_t u, v;
-    int8_t sense;
-    pos_nm_t cu, cv;
-    pos_nm_t r_a, r_b; /* radius at the chord's ends   */
-    fx_angle_t th_a;   /* angle of the chord's start   */
-    int64_t dth;       /* signed sweep of the chord    */
-    pos_nm_t au, av;   /* chord start in the plane     */
-    pos_nm_t bu, bv;   /* chord end in the plane       */
-    q1_30_t k_arc;     /* arc length / chord length    */
+    arc_chord_t c; /* arc: the chord (arc_ref.h) */
 } seg_info_t;
 
 typedef struct {
     drive_block_t b;
-    /* arc generation state */
-    uint32_t n_seg;
-    uint32_t done_seg;
-    pos_nm_t start[CORE_AXES];
-    fx_angle_t th_s;
-    int64_t sweep;
-    pos_nm_t r_s, r_e;
-    uint8_t u, v, w;
+    arc_seg_t arc; /* ARC: the chords */
 } host_block_t;
-
-/* Per-chord constants and per-value caches of the arc overlay (tick
- * context). arc_fast() gives bit for bit the result of arc_overlay()
- * (the exact formulas) with 32-bit products where the ranges allow, the
- * chord fraction's division by a per-chord reciprocal with an exact
- * remainder correction, and the square roots and the division of the
- * speed terms only when their inputs change (constant while cruising). */
-typedef struct {
-    bool valid;     /* the chord fields are those of segment `tag`        */
-    bool fast;      /* chord within the fast ranges (see arc_fast_setup)  */
-    uint32_t tag;   /* interpolator segment tag (seq number)              */
-    int32_t du, dv; /* chord vector in the plane, nm                       */
-    uint8_t den_sh; /* ratio_q30's normalising shift of num and den       */
-    uint32_t den_s; /* (du^2 + dv^2) >> den_sh, in [1, 2^32)              */
-    int64_t den;    /* du^2 + dv^2                                        */
-    uint64_t rec;   /* floor(2^62 / den_s)                                */
-    /* value caches: v_uv of (vel_u, vel_v); a_c of (v_uv, rad) */
-    bool v_ok, ac_ok;
-    int64_t v_key_u, v_key_v, v_uv;
-    int64_t ac_key_v, ac_key_r, a_c;
-} arc_fast_t;
-
-/* Rotation recurrence of the arc overlay on cruise ticks (see drive.h,
- * "Arc overlay on cruise ticks"). Tick context. The angle's cosine and sine
- * (C, S, q62) are rotated each tick by the phase's constant step delta:
- *     C' = C - c (1 - cos delta) - s sin delta
- *     S' = S - s (1 - cos delta) + c sin delta
- * where c, s are C, S rounded to q30 (the outputs' values) and the two
- * constants are q62 split as h 2^31 + l (0 <= l < 2^31): two SMULL/SMLAL
- * pairs per component, constant shifts. */
-typedef struct {
-    bool on;       /* C, S hold the last tick's arc point          */
-    uint32_t left; /* steps before the next exact anchor          */
-    int64_t C, S;  /* cos and sin of the angle, q62               */
-    q1_30_t c, s;  /* ... rounded to q30                           */
-    int64_t R;     /* radius, q32 nm                               */
-    int32_t rad;   /* radius, nm (circle: constant)                */
-    int32_t v_uv;  /* path speed in the plane, nm/s                */
-    /* output factors (q30 products with c or s): velocity -+v_uv,
-     * acceleration -v_uv^2 / rad (circle: constant), tangent -+m */
-    int32_t kvu, kvv, ka, kmu, kmv;
-    uint8_t u, v;    /* the plane's axes                        */
-    pos_nm_t cu, cv; /* the centre                              */
-    /* step constants of a phase, and their key */
-    bool k_ok;
-    int64_t k_dth, k_ds, k_len, k_dr;
-    int32_t dh, dl; /* sin delta, q62: dh 2^31 + dl             */
-    int32_t eh, el; /* 1 - cos delta, q62: eh 2^31 + el         */
-    int64_t dR;     /* radius change per tick, q32 nm (0: circle) */
-} arc_rot_t;
 
 static plan_block_t plan_store[PLAN_DEPTH_DEFAULT];
 
@@ -161,11 +96,7 @@ static struct {
     bool ref_synced;
     bool ref_full;             /* test hook (drive_test_full_ref): no pos-only copy */
     int64_t v_act;             /* path speed of the reference last tick, nm/s  */
-    q1_30_t hyp_tu, hyp_tv;    /* arc overlay: last in-plane chord tangent ... */
-    q1_30_t hyp_m;             /* ... and its length (constant per segment)   */
-    arc_fast_t arc;            /* arc overlay: per-segment constants (tick)    */
-    arc_rot_t rot;             /* arc overlay: cruise recurrence (tick)        */
-    bool arc_exact;            /* test hook: no recurrence (drive_test_arc_exact) */
+    arc_ref_t arc;             /* arc overlay (tick)                           */
     bool ff_on;                /* some cfg.friction_ff_mv[] != 0 (drive_init)  */
     bool enc_any_counter;      /* some axis in use has enc_counter (drive_init) */
     volatile uint32_t tick_lo; /* low word of tick (main reads it) */
@@ -180,51 +111,6 @@ static struct {
 } drv;
 
 /* ---- helpers ------------------------------------------------------------- */
-
-static int64_t abs64(int64_t v)
-{
-    return v < 0 ? -v : v;
-}
-
-/* round(num / den * 2^30) for 0 <= num, 0 < den; saturates at 2^30. */
-static int64_t ratio_q30(int64_t num, int64_t den)
-{
-    if (den <= 0 || num <= 0) {
-        return 0;
-    }
-    if (num >= den) {
-        return Q30;
-    }
-    while (den >= ((int64_t)1 << 32)) {
-        num >>= 1;
-        den >>= 1;
-    }
-    if (den == 0) {
-        return 0;
-    }
-    return fx_div_round64(num << 30, den);
-}
-
-static void plane_axes(drive_plane_t p, uint8_t *u, uint8_t *v, uint8_t *w)
-{
-    switch (p) {
-    case DRIVE_PLANE_ZX:
-        *u = 2;
-        *v = 0;
-        *w = 1;
-        break;
-    case DRIVE_PLANE_YZ:
-        *u = 1;
-        *v = 2;
-        *w = 0;
-        break;
-    default:
-        *u = 0;
-        *v = 1;
-        *w = 2;
-        break;
-    }
-}
 
 /* The encoder, motor, reference, reference-scale, contour-error and block
  * fields of the status, from the state the tick owns (nothing else writes
@@ -402,10 +288,8 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.queued_at = 0;
     drv.tick_lo = 0;
     drv.stop_v = drv.stop_dv = drv.v_plan = drv.a_plan = drv.v_act = 0;
-    drv.hyp_tu = drv.hyp_tv = drv.hyp_m = 0; /* fx_hypot2(0, 0) == 0 */
-    drv.arc.valid = drv.arc.v_ok = drv.arc.ac_ok = false;
-    drv.rot.on = drv.rot.k_ok = false;
-    drv.arc_exact = false;
+    arc_ref_reset(&drv.arc);
+    drv.arc.exact = false;
     drv.seq_done = 0;
     drv.seen_done = 0;
     drv.blocks_done = 0;
@@ -439,440 +323,10 @@ const drive_config_t *drive_config(void)
 
 /* ---- tick ------------------------------------------------------------------ */
 
-/* fx_mul64_shift(a, b, 0) (a * b saturated to int64), one SMULL when both
- * fit 32 bits (the product is then below 2^62: exact, no saturation). */
-static inline int64_t mul_sat64(int64_t a, int64_t b)
-{
-    if (a == (int32_t)a && b == (int32_t)b) {
-        return (int64_t)(int32_t)a * (int32_t)b;
-    }
-    return fx_mul64_shift(a, b, 0);
-}
-
-/* round(a * b / 2^30) (shift rule): fx_mul64x32_shift(a, b, 30), one SMULL
- * when a fits 32 bits (the product is then below 2^62: exact). */
-static inline int64_t mul_q30(int64_t a, int32_t b)
-{
-    if (a == (int32_t)a) {
-        return ((int64_t)(int32_t)a * b + ((int64_t)1 << 29)) >> 30;
-    }
-    return fx_mul64x32_shift(a, b, 30);
-}
-
-/* mul_q30 for an int32 a: one SMLAL. */
-static inline int64_t mul32_q30(int32_t a, int32_t b)
-{
-    return ((int64_t)a * b + ((int64_t)1 << 29)) >> 30;
-}
-
-/* Per-chord constants of the fast arc overlay. The fast path needs the
- * chord start, end and vector in the plane and the radius within int32
- * (|.| < 2.1 m), a non-degenerate chord and |dth| <= the maximum chord
- * angle; other chords take arc_overlay() every tick. */
-static void arc_fast_setup(arc_fast_t *a, const seg_info_t *g)
-{
-    int64_t du = g->bu - g->au, dv = g->bv - g->av, den;
-    unsigned sh = 0;
-
-    a->valid = true;
-    a->tag = drv.ip.tag;
-    a->fast = false;
-    if (du != (int32_t)du || dv != (int32_t)dv || g->au != (int32_t)g->au ||
-        g->av != (int32_t)g->av || g->r_a != (int32_t)g->r_a || g->r_b != (int32_t)g->r_b ||
-        (g->r_b - g->r_a) != (int32_t)(g->r_b - g->r_a) ||
-        abs64(g->dth) > (int64_t)DRIVE_ARC_SEG_MAX_ANGLE) {
-        return;
-    }
-    den = (int64_t)du * du + (int64_t)dv * dv; /* < 2^63: exact, as mul_sat64 */
-    if (den <= 0) {
-        return;
-    }
-    a->du = (int32_t)du;
-    a->dv = (int32_t)dv;
-    a->den = den;
-    while ((den >> sh) >= ((int64_t)1 << 32)) {
-        sh++;
-    }
-    a->den_sh = (uint8_t)sh;
-    a->den_s = (uint32_t)(den >> sh);
-    a->rec = fx_recip62(a->den_s);
-    a->fast = true;
-}
-
-/* The reference's geometry: the arc of chord g at radius rad. */
-static inline void arc_geom(motion_ref_t *r, const seg_info_t *g, int64_t rad)
-{
-    r->geom.kind = MOTION_GEOM_ARC;
-    r->geom.plane_u = g->u;
-    r->geom.plane_v = g->v;
-    r->geom.centre_u = g->cu;
-    r->geom.centre_v = g->cv;
-    r->geom.radius = rad;
-    r->geom.sense = g->sense;
-}
-
-/* Length of the chord tangent's in-plane part (q30), recomputed only when
- * the tangent changes (once per segment). */
-static inline q1_30_t chord_tangent_len(const motion_ref_t *ch, uint8_t u, uint8_t v)
-{
-    if (ch->geom.tangent[u] != drv.hyp_tu || ch->geom.tangent[v] != drv.hyp_tv) {
-        drv.hyp_tu = ch->geom.tangent[u];
-        drv.hyp_tv = ch->geom.tangent[v];
-        drv.hyp_m = (q1_30_t)fx_hypot2(drv.hyp_tu, drv.hyp_tv);
-    }
-    return drv.hyp_m;
-}
-
-/* v^2 / rad (nm/s^2, division rule; 0 for rad <= 0) as arc_overlay()
- * computes it, cached while v and rad are unchanged. */
-static inline int64_t arc_centripetal(arc_fast_t *a, int64_t v_uv, int64_t rad)
-{
-    if (rad <= 0) {
-        return 0;
-    }
-    if (!a->ac_ok || a->ac_key_v != v_uv || a->ac_key_r != rad) {
-        a->ac_key_v = v_uv;
-        a->ac_key_r = rad;
-        if (v_uv < ((int64_t)1 << 31)) {
-            a->a_c = fx_div_round64(v_uv * v_uv, rad);
-        } else {
-            a->a_c = fx_div_round64(fx_mul64_shift(v_uv, v_uv, 16), rad) << 16;
-        }
-        a->ac_ok = true;
-    }
-    return a->a_c;
-}
-
-/* arc_overlay() for a chord with arc_fast_t.fast: the same result, bit for
- * bit (see arc_fast_t). False (nothing written) when a value leaves the
- * fast ranges; the caller then runs arc_overlay(). geom_kept: r->geom holds
- * what the arc code wrote for chord g last tick (a pos-only reference copy
- * of the same segment): only the radius can differ. */
-static bool arc_fast(motion_ref_t *r, const motion_ref_t *ch, const seg_info_t *g, arc_fast_t *a,
-                     bool geom_kept, q1_30_t *so, q1_30_t *co, int64_t *rado)
-{
-    uint8_t u = g->u, v = g->v;
-    int64_t pu = ch->pos[u] - g->au, pv = ch->pos[v] - g->av;
-    int64_t num, f, p, rad, v_uv, a_t, a_c;
-    fx_angle_t th;
-    q1_30_t s, c, m, tu, tv;
-
-    if (pu != (int32_t)pu || pv != (int32_t)pv) {
-        return false;
-    }
-    /* f = ratio_q30(num, den): round(num_s * 2^30 / den_s) after the same
-     * normalising shift, by the reciprocal and an exact remainder */
-    num = (int64_t)(int32_t)pu * a->du + (int64_t)(int32_t)pv * a->dv;
-    if (num <= 0) {
-        f = 0;
-    } else if (num >= a->den) {
-        f = Q30;
-    } else {
-        /* num < den: num >> den_sh <= den_s < 2^32 */
-        f = fx_div_q30_rec((uint32_t)(num >> a->den_sh), a->den_s, a->rec);
-    }
-    p = (int64_t)(int32_t)g->dth * f; /* |.| < 2^57 */
-    th = g->th_a + (fx_angle_t)(uint64_t)((p >> 30) + ((p >> 29) & 1));
-    if (g->r_b == g->r_a) {
-        rad = g->r_a; /* a circle: round(0 * f / 2^30) == 0 */
-    } else {
-        p = (int64_t)(int32_t)(g->r_b - g->r_a) * f;
-        rad = g->r_a + ((p >> 30) + ((p >> 29) & 1));
-    }
-    fx_sincos(th, &s, &c);
-    /* rad lies between r_a and r_b, both int32 (arc_fast_setup) */
-    r->pos[u] = g->cu + mul32_q30((int32_t)rad, c);
-    r->pos[v] = g->cv + mul32_q30((int32_t)rad, s);
-    /* unit tangent in the plane, scaled by the chord tangent's in-plane part */
-    m = chord_tangent_len(ch, u, v);
-    tu = (q1_30_t)(g->sense > 0 ? -s : s);
-    tv = (q1_30_t)(g->sense > 0 ? c : -c);
-    /* path speed and tangential acceleration in the plane (arc / chord) */
-    if (!a->v_ok || a->v_key_u != ch->vel[u] || a->v_key_v != ch->vel[v]) {
-        a->v_key_u = ch->vel[u];
-        a->v_key_v = ch->vel[v];
-        a->v_uv = fx_mul64x32_shift(fx_hypot2(ch->vel[u], ch->vel[v]), g->k_arc, 30);
-        a->v_ok = true;
-    }
-    v_uv = a->v_uv;
-    if (ch->acc[u] == 0 && ch->acc[v] == 0) {
-        a_t = 0; /* fx_hypot2(0, 0) */
-    } else {
-        int64_t dot = fx_sat_add64(fx_mul64x32_shift(ch->acc[u], ch->geom.tangent[u], 30),
-                                   fx_mul64x32_shift(ch->acc[v], ch->geom.tangent[v], 30));
-        a_t = fx_mul64x32_shift(fx_hypot2(ch->acc[u], ch->acc[v]), g->k_arc, 30);
-        if (dot < 0) {
-            a_t = -a_t;
-        }
-    }
-    a_c = arc_centripetal(a, v_uv, rad);
-    *so = s;
-    *co = c;
-    *rado = rad;
-    r->vel[u] = mul_q30(v_uv, tu);
-    r->vel[v] = mul_q30(v_uv, tv);
-    if (a_t == 0) { /* cruising: mul_q30(0, x) == 0 */
-        r->acc[u] = -mul_q30(a_c, c);
-        r->acc[v] = -mul_q30(a_c, s);
-    } else {
-        r->acc[u] = mul_q30(a_t, tu) - mul_q30(a_c, c);
-        r->acc[v] = mul_q30(a_t, tv) - mul_q30(a_c, s);
-    }
-    r->geom.tangent[u] = (q1_30_t)mul32_q30(tu, m);
-    r->geom.tangent[v] = (q1_30_t)mul32_q30(tv, m);
-    if (geom_kept) {
-        r->geom.radius = rad;
-    } else {
-        arc_geom(r, g, rad);
-    }
-    return true;
-}
-
-/* Replace the interpolator's chord reference by the exact arc. */
-static void arc_overlay(motion_ref_t *r, const motion_ref_t *ch, const seg_info_t *g)
-{
-    uint8_t u = g->u, v = g->v;
-    int64_t du = g->bu - g->au, dv = g->bv - g->av;
-    int64_t pu = ch->pos[u] - g->au, pv = ch->pos[v] - g->av;
-    int64_t num = fx_sat_add64(mul_sat64(pu, du), mul_sat64(pv, dv));
-    int64_t den = fx_sat_add64(mul_sat64(du, du), mul_sat64(dv, dv));
-    int64_t f = ratio_q30(num, den);
-    fx_angle_t th = g->th_a + (fx_angle_t)(uint64_t)fx_round_shift64(g->dth * f, 30);
-    int64_t rad = g->r_a + fx_round_shift64((g->r_b - g->r_a) * f, 30);
-    q1_30_t s, c, m, tu, tv;
-    int64_t v_uv, a_t, a_c, dot;
-
-    fx_sincos(th, &s, &c);
-    r->pos[u] = g->cu + fx_mul64x32_shift(rad, c, 30);
-    r->pos[v] = g->cv + fx_mul64x32_shift(rad, s, 30);
-    /* unit tangent in the plane, scaled by the chord tangent's in-plane part */
-    m = chord_tangent_len(ch, u, v);
-    tu = (q1_30_t)(g->sense > 0 ? -s : s);
-    tv = (q1_30_t)(g->sense > 0 ? c : -c);
-    /* path speed and tangential acceleration in the plane (arc / chord) */
-    v_uv = fx_mul64x32_shift(fx_hypot2(ch->vel[u], ch->vel[v]), g->k_arc, 30);
-    dot = fx_sat_add64(fx_mul64x32_shift(ch->acc[u], ch->geom.tangent[u], 30),
-                       fx_mul64x32_shift(ch->acc[v], ch->geom.tangent[v], 30));
-    a_t = fx_mul64x32_shift(fx_hypot2(ch->acc[u], ch->acc[v]), g->k_arc, 30);
-    if (dot < 0) {
-        a_t = -a_t;
-    }
-    if (rad > 0) {
-        if (v_uv < ((int64_t)1 << 31)) {
-            a_c = fx_div_round64(v_uv * v_uv, rad);
-        } else {
-            a_c = fx_div_round64(fx_mul64_shift(v_uv, v_uv, 16), rad) << 16;
-        }
-    } else {
-        a_c = 0;
-    }
-    r->vel[u] = fx_mul64x32_shift(v_uv, tu, 30);
-    r->vel[v] = fx_mul64x32_shift(v_uv, tv, 30);
-    r->acc[u] = fx_mul64x32_shift(a_t, tu, 30) - fx_mul64x32_shift(a_c, c, 30);
-    r->acc[v] = fx_mul64x32_shift(a_t, tv, 30) - fx_mul64x32_shift(a_c, s, 30);
-    r->geom.tangent[u] = (q1_30_t)fx_mul64x32_shift(tu, m, 30);
-    r->geom.tangent[v] = (q1_30_t)fx_mul64x32_shift(tv, m, 30);
-    arc_geom(r, g, rad);
-}
-
-/* ---- arc overlay: rotation recurrence on cruise ticks ----------------------- */
-
-#define PI_HALF_Q61   3622009729038561421ll  /* round(pi / 2 * 2^61) */
-#define RECIP_1E9_Q64 18446744073ull         /* floor(2^64 / 1e9) */
-#define RECIP_6_Q64   3074457345618258602ull /* floor(2^64 / 6) */
-#define RECIP_24_Q64  768614336404564650ull  /* floor(2^64 / 24) */
-#define RECIP_120_Q64 153722867280912930ull  /* floor(2^64 / 120) */
-#define RECIP_720_Q64 25620477880152155ull   /* floor(2^64 / 720) */
-
-/* floor(a * b / 2^64), exact (four 32 x 32 -> 64 products). */
-static uint64_t umulhi64(uint64_t a, uint64_t b)
-{
-    uint64_t al = (uint32_t)a, ah = a >> 32, bl = (uint32_t)b, bh = b >> 32;
-    uint64_t p0 = al * bl, p1 = al * bh, p2 = ah * bl, p3 = ah * bh;
-    uint64_t mid = (p0 >> 32) + (uint32_t)p1 + (uint32_t)p2;
-
-    return p3 + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
-}
-
-/* v (q62, |v| < 2^61) as h 2^31 + l with 0 <= l < 2^31. */
-static void rot_split(int64_t v, int32_t *h, int32_t *l)
-{
-    *h = (int32_t)(v >> 31);
-    *l = (int32_t)(v & 0x7FFFFFFF);
-}
-
-/* floor((x (h 2^31 + l) + y (h2 2^31 + l2)) / 2^30) to within 1: the sum of
- * two q30 values (|x|, |y| <= 2^30) times split q62 constants (|h|, |h2|
- * <= 2^30), in q62. */
-static inline int64_t rot_mul2(int32_t x, int32_t h, int32_t l, int32_t y, int32_t h2, int32_t l2)
-{
-    int64_t hi = (int64_t)x * h + (int64_t)y * h2; /* |.| <= 2^61 */
-    int64_t lo = (int64_t)x * l + (int64_t)y * l2; /* |.| < 2^62  */
-
-    return hi * 2 + (lo >> 30);
-}
-
-/* Step constants of the interpolator's cruise phase on chord g (segment
- * length len, nm): the path advances by ds = (cr_dq + cr_dr / 1e9) * 2^16
- * * (1 + corr / 2^32) q32 nm per fast-path tick (to within 2 q16 units,
- * not accumulated: see interp.h), the chord fraction by ds / (len 2^32),
- * the angle by delta = dth ds / len (binary angle * 2^32, rounded) and the
- * radius by dR = (r_b - r_a) ds / len (q32 nm). sin and 1 - cos of delta
- * (|delta| <= pi/32 rad) by their Taylor series to x^5 and x^6 (remainders
- * below x^7 / 5040 and x^8 / 40320: 2e-11 and 3e-13 at pi/32), in q62.
- * Cached while the key (dth, ds, len, r_b - r_a) is unchanged. False when
- * out of range (no recurrence). */
-static bool arc_rot_consts(arc_rot_t *t, const seg_info_t *g, int64_t len)
-{
-    const interp_t *ip = &drv.ip;
-    int64_t ds, d;
-    uint64_t x, x2, x3, x4, sn, e;
-    int64_t dr = g->r_b - g->r_a;
-
-    if (ip->cr_dq >= ((uint64_t)1 << 46) || len <= 0) {
-        return false;
-    }
-    /* cr_dr / 1e9 * 2^16 (< 2^16) by the reciprocal: within 1 of the exact
-     * floor, 2.3e-10 nm */
-    ds = (int64_t)(ip->cr_dq << 16) + (int64_t)umulhi64((uint64_t)ip->cr_dr << 16, RECIP_1E9_Q64);
-    ds += fx_mul64x32_shift(ds, (int32_t)ip->corr_q32, 32);
-    if (t->k_ok && t->k_dth == g->dth && t->k_ds == ds && t->k_len == len && t->k_dr == dr) {
-        return true;
-    }
-    t->k_ok = false;
-    d = fx_muldiv64(g->dth, ds, len);
-    if (abs64(d) > ((int64_t)DRIVE_ARC_SEG_MAX_ANGLE << 32)) {
-        return false;
-    }
-    /* |delta| in rad, q64 (< 2^61), and the series in q64 by high products
-     * (each within 2 units of q64 of the exact floor: 1e-19) */
-    x = (uint64_t)fx_mul64_shift(abs64(d), PI_HALF_Q61, 61) << 2;
-    x2 = umulhi64(x, x);
-    x3 = umulhi64(x2, x);
-    x4 = umulhi64(x2, x2);
-    sn = x - umulhi64(x3, RECIP_6_Q64) + umulhi64(umulhi64(x4, x), RECIP_120_Q64);
-    e = (x2 >> 1) - umulhi64(x4, RECIP_24_Q64) + umulhi64(umulhi64(x4, x2), RECIP_720_Q64);
-    sn >>= 2; /* q62 */
-    e >>= 2;
-    rot_split(d < 0 ? -(int64_t)sn : (int64_t)sn, &t->dh, &t->dl);
-    rot_split((int64_t)e, &t->eh, &t->el);
-    t->dR = dr == 0 ? 0 : fx_muldiv64(dr, ds, len);
-    t->k_dth = g->dth;
-    t->k_ds = ds;
-    t->k_len = len;
-    t->k_dr = dr;
-    t->k_ok = true;
-    return true;
-}
-
-/* Anchor the recurrence on this tick's exact arc point (sine s, cosine c,
- * radius rad from arc_fast) when the interpolator's next ticks may take
- * its cruise fast path (interp_t.cr_fast). */
-static void arc_rot_anchor(arc_rot_t *t, const seg_info_t *g, q1_30_t s, q1_30_t c, int64_t rad)
-{
-    int64_t v_uv = drv.arc.v_uv, a_c = drv.arc.a_c;
-
-    t->on = false;
-    /* arc_fast filled the caches for this v_uv and rad; 32-bit products
-     * below need v_uv and v_uv^2 / r (here and along the chord) < 2^31 */
-    if (drv.arc_exact || !drv.ip.cr_fast || g->r_a >= INT32_MAX - 1 || g->r_b >= INT32_MAX - 1 ||
-        rad <= 0 || rad >= INT32_MAX - 1 || v_uv < 0 || v_uv >= ((int64_t)1 << 30) ||
-        !drv.arc.ac_ok || a_c < 0 || a_c >= ((int64_t)1 << 29) ||
-        !arc_rot_consts(t, g, drv.ip.fifo[drv.ip.rd & (INTERP_FIFO - 1)].len)) {
-        return;
-    }
-    if (t->dR != 0 && (v_uv * v_uv) / (g->r_a < g->r_b ? g->r_a : g->r_b) >= ((int64_t)1 << 30)) {
-        return; /* a spiral: v^2 / r along the chord must stay < 2^31 */
-    }
-    t->C = (int64_t)c * ((int64_t)1 << 32);
-    t->S = (int64_t)s * ((int64_t)1 << 32);
-    t->c = c;
-    t->s = s;
-    t->R = rad * ((int64_t)1 << 32);
-    t->rad = (int32_t)rad;
-    t->v_uv = (int32_t)v_uv;
-    /* tu = -s, tv = c counter-clockwise (s, -c clockwise), as arc_fast */
-    t->kvu = g->sense > 0 ? -(int32_t)v_uv : (int32_t)v_uv;
-    t->kvv = -t->kvu;
-    t->ka = -(int32_t)a_c;
-    t->kmu = g->sense > 0 ? -drv.hyp_m : drv.hyp_m;
-    t->kmv = -t->kmu;
-    t->u = g->u;
-    t->v = g->v;
-    t->cu = g->cu;
-    t->cv = g->cv;
-    t->left = DRIVE_ARC_ROT_TICKS;
-    t->on = true;
-    /* the recurrence rewrites the plane axes' positions without reading
-     * them: the interpolator's fast path may skip them */
-    drv.ip.fast_skip = (uint8_t)((1u << g->u) | (1u << g->v));
-}
-
-/* A cruise fast-path tick of an anchored chord: rotate (C, S) by delta and
- * write what arc_fast() writes, from the rotated point (see drive.h for
- * the error bound against arc_fast). The path speed v_uv, the chord
- * tangent's in-plane length and v^2 / r come from the caches arc_fast
- * filled at the anchor (the chord reference's velocity and tangent are
- * constant in the phase, its acceleration 0). */
-#if defined(__GNUC__)
-#define DRV_NOINLINE __attribute__((noinline))
-#else
-#define DRV_NOINLINE
-#endif
-
-/* Out of line: a small frame of its own (inlined into drive_tick, its
- * values spill to the stack). */
-static DRV_NOINLINE void arc_rot_step(motion_ref_t *r, arc_rot_t *t, bool geom_kept)
-{
-    uint8_t u = t->u, v = t->v;
-    q1_30_t c = t->c, s = t->s;
-    int64_t C = t->C - rot_mul2(c, t->eh, t->el, s, t->dh, t->dl);
-    int64_t S = t->S - rot_mul2(s, t->eh, t->el, -c, t->dh, t->dl);
-    int32_t rad = t->rad;
-
-    t->C = C;
-    t->S = S;
-    /* round(C / 2^32) from the two words (32-bit values for SMULL below) */
-    c = (q1_30_t)((int32_t)(C >> 32) + (int32_t)((uint32_t)C >> 31));
-    s = (q1_30_t)((int32_t)(S >> 32) + (int32_t)((uint32_t)S >> 31));
-    t->c = c;
-    t->s = s;
-    if (--t->left == 0u) {
-        drv.ip.fast_skip = 0; /* the next tick is exact: it reads them */
-    }
-    if (t->dR != 0) { /* a spiral */
-        t->R += t->dR;
-        rad = (int32_t)((t->R + ((int64_t)1 << 31)) >> 32);
-        t->rad = rad;
-        t->ka = -(int32_t)arc_centripetal(&drv.arc, t->v_uv, rad);
-    }
-#if defined(__GNUC__)
-    /* re-read c and s as 32-bit fields: GCC then multiplies them with one
-     * SMULL each (it widens the registers' values to 64 x 64 otherwise) */
-    __asm__ volatile("" ::: "memory");
-    c = t->c;
-    s = t->s;
-    rad = t->rad;
-#endif
-    r->pos[u] = t->cu + mul32_q30(rad, c);
-    r->pos[v] = t->cv + mul32_q30(rad, s);
-    r->vel[u] = mul32_q30(t->kvu, s);
-    r->vel[v] = mul32_q30(t->kvv, c);
-    r->acc[u] = mul32_q30(t->ka, c);
-    r->acc[v] = mul32_q30(t->ka, s);
-    r->geom.tangent[u] = (q1_30_t)mul32_q30(t->kmu, s);
-    r->geom.tangent[v] = (q1_30_t)mul32_q30(t->kmv, c);
-    if (geom_kept) {
-        r->geom.radius = rad;
-    } else {
-        arc_geom(r, &drv.seg[drv.ip.tag % SEG_RING], rad);
-    }
-}
-
 /* Account completed interpolator segments (host blocks done, current tag). */
 static void track_segments(void)
 {
-    uint32_t done = drv.ip.blocks_done;
+    uint32_t done = interp_blocks_done(&drv.ip);
     while (drv.seen_done != done) {
         const seg_info_t *g = &drv.seg[drv.seq_done % SEG_RING];
         if (g->last) {
@@ -881,8 +335,8 @@ static void track_segments(void)
         drv.seq_done++;
         drv.seen_done++;
     }
-    if (drv.ip.busy) {
-        drv.cur_tag = drv.seg[drv.ip.tag % SEG_RING].host_tag;
+    if (interp_busy(&drv.ip)) {
+        drv.cur_tag = drv.seg[interp_tag(&drv.ip) % SEG_RING].host_tag;
     }
 }
 
@@ -920,19 +374,20 @@ static int64_t stop_scale(void)
     }
     den = drv.v_plan + drv.a_plan / (int64_t)drv.cfg.tick_hz;
     if (den <= drv.stop_v) {
-        return Q30;
+        return FX_ONE_Q30;
     }
-    return ratio_q30(drv.stop_v, den);
+    return fx_ratio_q30(drv.stop_v, den);
 }
 
 static void reference_step(void)
 {
     unsigned i;
-    int64_t k = Q30;
+    int64_t k = FX_ONE_Q30;
     bool pos_only, stepped;
     if (drv.state == DRIVE_STOPPING && !drv.halted) {
         k = stop_scale();
-        drv.ip.tick_ns = fx_round_shift64((int64_t)(1000000000u / drv.cfg.tick_hz) * k, 30);
+        interp_set_tick_ns(&drv.ip,
+                           fx_round_shift64((int64_t)(1000000000u / drv.cfg.tick_hz) * k, 30));
     }
     if (drv.halted) {
         drv.v_act = 0;
@@ -946,18 +401,18 @@ static void reference_step(void)
         return;
     }
     interp_tick(&drv.ip, &drv.ch);
-    if (!drv.ip.ref_pos_only) {
+    if (!interp_pos_only(&drv.ip)) {
         /* a fast-path tick ends no segment and keeps the tag */
         track_segments();
-        drv.rot.on = false; /* anchored again below if on an arc */
+        arc_ref_stop(&drv.arc); /* anchored again below if on an arc */
     }
-    pos_only = drv.ip.ref_pos_only && drv.ref_synced && !drv.ref_full;
-    stepped = drv.rot.on && drv.rot.left != 0u;
+    pos_only = interp_pos_only(&drv.ip) && drv.ref_synced && !drv.ref_full;
+    stepped = arc_ref_stepping(&drv.arc);
     if (stepped) {
         /* a cruise fast-path tick of the anchored arc phase (rot.on: every
          * tick since the anchor was one, in the same segment) */
         if (pos_only) {
-            unsigned skip = drv.ip.fast_skip; /* the plane axes */
+            unsigned skip = interp_fast_skip(&drv.ip); /* the plane axes */
             for (i = 0; i < CORE_AXES; i++) {
                 if ((skip & (1u << i)) == 0u) {
                     drv.ref.pos[i] = drv.ch.pos[i];
@@ -967,7 +422,9 @@ static void reference_step(void)
             drv.ref = drv.ch;
             drv.ref_synced = true;
         }
-        arc_rot_step(&drv.ref, &drv.rot, pos_only);
+        if (!arc_ref_step(&drv.arc, &drv.ref, pos_only)) {
+            interp_set_fast_skip(&drv.ip, 0); /* the next tick is exact: it reads them */
+        }
     } else if (pos_only) {
         /* same segment and phase as the last tick: only pos changed in ch,
          * and the arc overlay (if any) rewrites its fields below */
@@ -978,25 +435,15 @@ static void reference_step(void)
         drv.ref = drv.ch;
         drv.ref_synced = true;
     }
-    if (!stepped && drv.ref.active && drv.ip.busy) {
-        const seg_info_t *g = &drv.seg[drv.ip.tag % SEG_RING];
+    if (!stepped && drv.ref.active && interp_busy(&drv.ip)) {
+        uint32_t tag = interp_tag(&drv.ip);
+        const seg_info_t *g = &drv.seg[tag % SEG_RING];
         if (g->arc) {
-            if (!drv.arc.valid || drv.arc.tag != drv.ip.tag) {
-                arc_fast_setup(&drv.arc, g);
-                drv.rot.on = false;
-            }
-            {
-                q1_30_t s, c;
-                int64_t rad;
-                drv.rot.on = false;
-                drv.ip.fast_skip = 0;
-                if (drv.arc.fast &&
-                    arc_fast(&drv.ref, &drv.ch, g, &drv.arc, pos_only, &s, &c, &rad)) {
-                    arc_rot_anchor(&drv.rot, g, s, c, rad);
-                } else {
-                    arc_overlay(&drv.ref, &drv.ch, g);
-                }
-            }
+            /* the recurrence rewrites the plane axes' positions without
+             * reading them: the interpolator's fast path may skip them */
+            bool anchored =
+                arc_ref_tick(&drv.arc, &drv.ref, &drv.ch, &g->c, tag, pos_only, &drv.ip);
+            interp_set_fast_skip(&drv.ip, anchored ? arc_ref_plane_mask(&g->c) : 0u);
         }
     }
     if (drv.state == DRIVE_STOPPING) {
@@ -1223,56 +670,12 @@ static void flush_all(const pos_nm_t pos[CORE_AXES])
     drv.hq_head = 0;
     plan_reset(&drv.plan, pos);
     interp_reset(&drv.ip, pos);
-    drv.ip.tick_ns = (int64_t)(1000000000u / drv.cfg.tick_hz);
-    drv.seen_done = drv.ip.blocks_done;
+    interp_set_tick_ns(&drv.ip, (int64_t)(1000000000u / drv.cfg.tick_hz));
+    drv.seen_done = interp_blocks_done(&drv.ip);
     drv.seq_done = drv.seq_next;
     for (i = 0; i < CORE_AXES; i++) {
         drv.q_end[i] = pos[i];
     }
-}
-
-/* Chord angle for an arc of radius r at the programmed feed. */
-static int64_t arc_seg_angle(int64_t r, int64_t feed, int64_t tol, uint32_t tick_hz)
-{
-    int64_t a_tol, a_tick, x, dist;
-    if (r <= tol) {
-        return DRIVE_ARC_SEG_MAX_ANGLE;
-    }
-    /* sagitta r (1 - cos(a/2)) ~ r a^2 / 8 = tol: a = sqrt(8 tol / r) rad */
-    x = fx_div_shift64(8 * tol, r, 40); /* exact 128-bit numerator (tol up to 1e9) */
-    a_tol = (int64_t)fx_isqrt64((uint64_t)x) * 651899 / 1000; /* * 2^32/(2 pi) / 2^20 */
-    dist = feed * DRIVE_ARC_SEG_TICKS / (int64_t)tick_hz;
-    a_tick = fx_mul64_shift(dist, ANGLE_K, 0) / r;
-    if (a_tick > a_tol) {
-        a_tol = a_tick;
-    }
-    if (a_tol > (int64_t)DRIVE_ARC_SEG_MAX_ANGLE) {
-        a_tol = DRIVE_ARC_SEG_MAX_ANGLE;
-    }
-    return a_tol < 1 ? 1 : a_tol;
-}
-
-/* Point of the arc at segment k of n. */
-static void arc_point(const host_block_t *h, uint32_t k, pos_nm_t out[CORE_AXES], fx_angle_t *th,
-                      pos_nm_t *rad)
-{
-    unsigned i;
-    int64_t n = h->n_seg;
-    q1_30_t s, c;
-    for (i = 0; i < CORE_AXES; i++) {
-        out[i] = h->start[i] + (h->b.target[i] - h->start[i]) * (int64_t)k / n;
-    }
-    *th = h->th_s + (fx_angle_t)(uint64_t)(h->sweep * (int64_t)k / n);
-    *rad = h->r_s + (h->r_e - h->r_s) * (int64_t)k / n;
-    if (k == h->n_seg) {
-        for (i = 0; i < CORE_AXES; i++) {
-            out[i] = h->b.target[i];
-        }
-        return;
-    }
-    fx_sincos(*th, &s, &c);
-    out[h->u] = h->b.centre_u + fx_mul64x32_shift(*rad, c, 30);
-    out[h->v] = h->b.centre_v + fx_mul64x32_shift(*rad, s, 30);
 }
 
 /* Push the next planner block of the oldest host block. False when the
@@ -1300,36 +703,10 @@ static bool feed_one(void)
         }
         m.flags = h->b.exact_stop ? PLAN_MOVE_EXACT_STOP : 0;
     } else {
-        pos_nm_t a[CORE_AXES], b[CORE_AXES];
-        fx_angle_t tha, thb;
-        pos_nm_t ra, rb;
-        int64_t chord, arclen;
-        arc_point(h, h->done_seg, a, &tha, &ra);
-        arc_point(h, h->done_seg + 1, b, &thb, &rb);
-        for (i = 0; i < CORE_AXES; i++) {
-            m.target[i] = b[i];
-        }
-        last = h->done_seg + 1 == h->n_seg;
+        arc_seg_chord(&h->arc, &h->b, h->arc.done_seg, m.target, &g.c);
+        last = h->arc.done_seg + 1 == h->arc.n_seg;
         m.flags = (last && h->b.exact_stop) ? PLAN_MOVE_EXACT_STOP : 0;
         g.arc = true;
-        g.u = h->u;
-        g.v = h->v;
-        g.sense = h->b.sense;
-        g.cu = h->b.centre_u;
-        g.cv = h->b.centre_v;
-        g.r_a = ra;
-        g.r_b = rb;
-        g.th_a = tha;
-        g.dth = h->sweep / (int64_t)h->n_seg;
-        g.au = a[h->u];
-        g.av = a[h->v];
-        g.bu = b[h->u];
-        g.bv = b[h->v];
-        chord = fx_hypot2(b[h->u] - a[h->u], b[h->v] - a[h->v]);
-        /* arc length = r * |dth| * 2 pi / 2^32 = r * (|dth| * pi/2 * 2^30) >> 30 */
-        arclen = fx_mul64_shift((ra + rb) / 2, fx_round_shift64(abs64(g.dth) * 1686629713, 30), 30);
-        g.k_arc = chord > 0 ? (q1_30_t)fx_div_round64(fx_mul64_shift(arclen, Q30, 0), chord)
-                            : (q1_30_t)Q30;
     }
     r = plan_push(&drv.plan, &m);
     if (r == PLAN_E_FULL) {
@@ -1344,7 +721,7 @@ static bool feed_one(void)
         drv.blocks_done_main++;
     }
     if (h->b.kind == DRIVE_BLOCK_ARC) {
-        h->done_seg++;
+        h->arc.done_seg++;
     }
     if (last) {
         drv.hq_head = (uint16_t)((drv.hq_head + 1u) % DRIVE_QUEUE_DEPTH);
@@ -1368,21 +745,6 @@ static bool oldest_final(void)
     return (b->flags & (PLAN_BF_EXACT_STOP | PLAN_BF_DWELL)) != 0;
 }
 
-/* Planned time in the interpolator's FIFO after the oldest segment, ns
- * (slots rd+1 .. wr-1: main wrote them; the tick only reads them). */
-static int64_t interp_ahead_ns(void)
-{
-    uint16_t rd = drv.ip.rd, wr = drv.ip.wr, i;
-    int64_t sum = 0;
-    if ((uint16_t)(wr - rd) > INTERP_FIFO) {
-        return 0;
-    }
-    for (i = (uint16_t)(rd + 1u); i != wr && rd != wr; i++) {
-        sum += drv.ip.fifo[i & (INTERP_FIFO - 1)].total_ns;
-    }
-    return sum;
-}
-
 /* No input is waiting and the planner is not full: freeze a block anyway
  * only when the interpolator would otherwise run short (less than
  * DRIVE_FEED_AHEAD_NS beyond its current segment), or, with nothing in the
@@ -1392,7 +754,7 @@ static bool interp_needs_block(void)
 {
     uint32_t delay;
     if (!interp_idle(&drv.ip)) {
-        return interp_ahead_ns() < DRIVE_FEED_AHEAD_NS;
+        return interp_ahead_ns(&drv.ip) < DRIVE_FEED_AHEAD_NS;
     }
     delay = (uint32_t)(((uint64_t)drv.cfg.start_delay_ms * drv.cfg.tick_hz + 999u) / 1000u);
     return (uint32_t)(drv.tick_lo - drv.queued_at) >= delay;
@@ -1433,80 +795,6 @@ void drive_poll(void)
             break;
         }
     }
-}
-
-/* Validate an arc (h->b, with the targets of unused axes already set) from
- * start and set up its segmentation. False when invalid. */
-static bool arc_setup(host_block_t *h, const pos_nm_t start[CORE_AXES], unsigned axes,
-                      uint32_t tick_hz, int64_t chord_nm)
-{
-    const drive_block_t *b = &h->b;
-    int64_t su, sv, eu, ev, sw, seg;
-    fx_angle_t the;
-    uint32_t d;
-    unsigned i;
-    if (b->feed_nm_s <= 0 || b->feed_nm_s > SC_V_LIMIT || (b->sense != 1 && b->sense != -1) ||
-        (unsigned)b->plane > DRIVE_PLANE_YZ || tick_hz == 0 || chord_nm <= 0) {
-        return false;
-    }
-    plane_axes(b->plane, &h->u, &h->v, &h->w);
-    if (h->u >= axes || h->v >= axes) {
-        return false;
-    }
-    for (i = 0; i < CORE_AXES; i++) {
-        h->start[i] = start[i];
-    }
-    su = h->start[h->u] - b->centre_u;
-    sv = h->start[h->v] - b->centre_v;
-    eu = b->target[h->u] - b->centre_u;
-    ev = b->target[h->v] - b->centre_v;
-    if (abs64(su) >= SC_LEN_MAX || abs64(sv) >= SC_LEN_MAX || abs64(eu) >= SC_LEN_MAX ||
-        abs64(ev) >= SC_LEN_MAX) {
-        return false;
-    }
-    h->r_s = fx_hypot2(su, sv);
-    h->r_e = fx_hypot2(eu, ev);
-    if (h->r_s <= 0 || h->r_e <= 0 || abs64(h->r_s - h->r_e) > DRIVE_ARC_RADIUS_TOL_NM) {
-        return false;
-    }
-    h->th_s = fx_atan2(sv, su);
-    the = fx_atan2(ev, eu);
-    d = b->sense > 0 ? (uint32_t)(the - h->th_s) : (uint32_t)(h->th_s - the);
-    sw = d == 0 ? ((int64_t)1 << 32) : (int64_t)d;
-    h->sweep = b->sense > 0 ? sw : -sw;
-    seg = arc_seg_angle((h->r_s + h->r_e) / 2, b->feed_nm_s, chord_nm, tick_hz);
-    h->n_seg = (uint32_t)((sw + seg - 1) / seg);
-    if (h->n_seg < 1) {
-        h->n_seg = 1;
-    }
-    h->done_seg = 0;
-    return true;
-}
-
-uint32_t drive_arc_chords(const drive_block_t *b, const pos_nm_t start[CORE_AXES], unsigned axes,
-                          uint32_t tick_hz, int64_t chord_nm, pos_nm_t *out, uint32_t cap)
-{
-    static host_block_t h; /* static: no large stack frame */
-    host_block_t zero = {0};
-    uint32_t k;
-    unsigned i;
-    if (b == NULL || start == NULL || b->kind != DRIVE_BLOCK_ARC || axes < 1 || axes > CORE_AXES) {
-        return 0;
-    }
-    h = zero;
-    h.b = *b;
-    for (i = axes; i < CORE_AXES; i++) {
-        h.b.target[i] = start[i];
-    }
-    if (!arc_setup(&h, start, axes, tick_hz, chord_nm == 0 ? DRIVE_ARC_CHORD_NM : chord_nm)) {
-        return 0;
-    }
-    for (k = 1; k <= h.n_seg && k <= cap && out != NULL; k++) {
-        fx_angle_t th;
-        pos_nm_t rad;
-        arc_point(&h, k, &out[(k - 1) * CORE_AXES], &th, &rad);
-    }
-    return h.n_seg;
 }
 
 uint32_t drive_queue_free(void)
@@ -1560,13 +848,14 @@ drive_result_t drive_queue_block(const drive_block_t *b)
             return DRIVE_E_INVALID;
         }
         for (i = 0; i < CORE_AXES; i++) {
-            if (abs64(h.b.target[i] - drv.q_end[i]) >= SC_LEN_MAX) {
+            if (fx_sat_abs64(h.b.target[i] - drv.q_end[i]) >= SC_LEN_MAX) {
                 return DRIVE_E_INVALID;
             }
         }
         break;
     case DRIVE_BLOCK_ARC:
-        if (!arc_setup(&h, drv.q_end, drv.cfg.axes, drv.cfg.tick_hz, drv.cfg.arc_chord_nm)) {
+        if (!arc_seg_setup(&h.arc, &h.b, drv.q_end, drv.cfg.axes, drv.cfg.tick_hz,
+                           drv.cfg.arc_chord_nm)) {
             return DRIVE_E_INVALID;
         }
         break;
@@ -1803,9 +1092,9 @@ void drive_test_full_ref(bool on)
 
 void drive_test_arc_exact(bool on)
 {
-    drv.arc_exact = on;
-    drv.rot.on = false;
-    drv.ip.fast_skip = 0;
+    drv.arc.exact = on;
+    arc_ref_stop(&drv.arc);
+    interp_set_fast_skip(&drv.ip, 0);
 }
 
 const motion_ref_t *drive_test_ref(void)

@@ -54,36 +54,9 @@
  *          motion_ref_t geometry is MOTION_GEOM_ARC (centre, current radius,
  *          sense) for the contour-error controller.
  *
- * Arc overlay on cruise ticks. The exact overlay above (projection of the
- * chord point, fx_sincos, the products) runs on every tick on which the
- * interpolator leaves its cruise fast path (chord and phase starts,
- * accelerations, stops) and re-anchors a recurrence used on its fast-path
- * ticks (interp_t.ref_pos_only), whose chord advance per tick ds is
- * constant: the angle then advances by delta = dth ds / len per tick, and
- * the drive rotates the point's cosine and sine (q62) by delta (sin delta
- * and 1 - cos delta once per phase: 4 SMULL/SMLAL pairs per tick), advances
- * the radius by a constant step (spiral arcs) and writes position, velocity
- * v (-s, c), acceleration -v^2/r (c, s) and tangent from the rotated point
- * (no projection, no division, no sine). It is re-anchored exactly at least
- * every DRIVE_ARC_ROT_TICKS ticks. Used on chords with plane coordinates,
- * chord and radius below 2^31 nm, |dth| <= DRIVE_ARC_SEG_MAX_ANGLE, path
- * speed below 2^30 nm/s and v^2/r below 2^29 nm/s^2 (the exact overlay
- * otherwise). Error bound against the exact overlay of the same tick, per
- * plane axis, for any chord angle up to DRIVE_ARC_SEG_MAX_ANGLE and radius
- * r < 2^31 nm, with eps = (2 nm + r 2^-28) / r:
- *     position <= 2 nm + r 2^-28 (2 nm at 5 mm, 10 nm at 2.1 m),
- *     velocity <= 2 + eps |v| nm/s, acceleration <= 2 + eps |a| nm/s^2,
- *     tangent <= 2 + eps 2^30 (q30).
- * Its sources are the exact overlay's own rounding, not the recurrence: its
- * angle comes from the projection of the 1-nm-rounded chord point (up to
- * 0.71 nm of arc, times arc / chord), is rounded to one binary-angle unit
- * (r 1.5e-9) and fx_sincos has < 1 LSB of q30 (r 2^-30), against the
- * recurrence's exact linear angle (step within 2^-62 rad, rounding of the
- * rotation below 2^-61 per step: < 2^-52 r over DRIVE_ARC_ROT_TICKS steps;
- * the anchor takes fx_sincos's values). Measured by test_drive (every tick
- * against the exact overlay, drive_test_arc_exact): 1 nm, 5 nm/s at r =
- * 5 mm, 20 mm/s (a helix like the firmware benchmark's); 6 nm at r = 1.9e9
- * nm over three chords of the maximum angle, 12000 ticks each.
+ * The arc reference (the exact overlay and the recurrence that replaces it
+ * on the interpolator's cruise fast-path ticks, with its error bound) is
+ * specified in arc_ref.h, the chord segmentation in arc_seg.h.
  * A block is accepted only when the drive is enabled and not faulted; it is
  * validated before anything is queued (all or nothing). Blocks may be queued
  * right after drive_enable(true), before the tick has applied it.
@@ -145,9 +118,6 @@
 #define DRIVE_ARC_SEG_MAX_ANGLE ((uint32_t)1 << 26)
 /* Largest difference of start and end radius of an arc, nm. */
 #define DRIVE_ARC_RADIUS_TOL_NM 5000
-/* Arc overlay: the cruise recurrence is re-anchored on the exact overlay at
- * least every DRIVE_ARC_ROT_TICKS ticks (see "Arc overlay on cruise ticks"). */
-#define DRIVE_ARC_ROT_TICKS 256u
 /* Host blocks queued ahead of the planner. */
 #define DRIVE_QUEUE_DEPTH 16
 /* The reference scales are sampled at least every DRIVE_REF_SAMPLE_TICKS
@@ -356,7 +326,7 @@ bool drive_has_refscale(unsigned axis);
 void drive_test_full_ref(bool on);
 
 /* Test hook: when on, every arc tick takes the exact overlay (the oracle of
- * the cruise recurrence, see "Arc overlay on cruise ticks"). drive_init
+ * the cruise recurrence, see arc_ref.h). drive_init
  * turns it off. Main, with the tick stopped. */
 void drive_test_arc_exact(bool on);
 /* Test hook: the reference the last tick handed the servo. */

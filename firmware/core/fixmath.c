@@ -1128,6 +1128,53 @@ int64_t fx_hypot3(int64_t x, int64_t y, int64_t z)
     return fx_sat_u64(fx_isqrt128(fx_add128(n, fx_umul64(az, az))));
 }
 
+int64_t fx_ratio_q30(int64_t num, int64_t den)
+{
+    if (den <= 0 || num <= 0) {
+        return 0;
+    }
+    if (num >= den) {
+        return FX_ONE_Q30;
+    }
+    while (den >= ((int64_t)1 << 32)) {
+        num >>= 1;
+        den >>= 1;
+    }
+    if (den == 0) {
+        return 0;
+    }
+    return fx_div_round64(num << 30, den);
+}
+
+#define FX_PI_HALF_Q61   3622009729038561421ll  /* round(pi / 2 * 2^61) */
+#define FX_RECIP_6_Q64   3074457345618258602ull /* floor(2^64 / 6) */
+#define FX_RECIP_24_Q64  768614336404564650ull  /* floor(2^64 / 24) */
+#define FX_RECIP_120_Q64 153722867280912930ull  /* floor(2^64 / 120) */
+#define FX_RECIP_720_Q64 25620477880152155ull   /* floor(2^64 / 720) */
+
+void fx_sin_1mcos_small_q62(int64_t d, int64_t *sin_q62, int64_t *omc_q62)
+{
+    uint64_t x, x2, x3, x4, sn, e;
+
+    if (d > ((int64_t)1 << 58) || d < -((int64_t)1 << 58)) {
+        *sin_q62 = 0;
+        *omc_q62 = 0;
+        return;
+    }
+    /* |d| in rad, q64 (< 2^61): |d| * 2 pi / 2^64 * 2^64 = |d| * pi/2 * 4 */
+    x = (uint64_t)fx_mul64_shift(fx_sat_abs64(d), FX_PI_HALF_Q61, 61) << 2;
+    x2 = fx_umulhi64(x, x);
+    x3 = fx_umulhi64(x2, x);
+    x4 = fx_umulhi64(x2, x2);
+    sn = x - fx_umulhi64(x3, FX_RECIP_6_Q64) + fx_umulhi64(fx_umulhi64(x4, x), FX_RECIP_120_Q64);
+    e = (x2 >> 1) - fx_umulhi64(x4, FX_RECIP_24_Q64) +
+        fx_umulhi64(fx_umulhi64(x4, x2), FX_RECIP_720_Q64);
+    sn >>= 2; /* q62 */
+    e >>= 2;
+    *sin_q62 = d < 0 ? -(int64_t)sn : (int64_t)sn;
+    *omc_q62 = (int64_t)e;
+}
+
 uint64_t fx_recip62(uint32_t d)
 {
     return d == 0u ? 0u : ((uint64_t)1 << 62) / d;

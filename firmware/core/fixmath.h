@@ -155,6 +155,47 @@ int64_t fx_mul64x32_shift(int64_t a, int32_t b, unsigned s);
  * saturated to int64. Any s is accepted; s >= 128 gives 0. */
 int64_t fx_mul64_shift(int64_t a, int64_t b, unsigned s);
 
+/* Inline fast paths of the tick (the arc reference, the drive): the same
+ * results as the general functions named, for every argument, with one
+ * 32 x 32 -> 64 product when the operands fit (tests/unit/test_fixmath_fast.c
+ * checks each against its general function). */
+
+/* fx_mul32_shift(a, b, 30): one SMULL (SMLAL) and the rounding. */
+static inline int64_t fx_mul32_q30(int32_t a, int32_t b)
+{
+    return ((int64_t)a * b + ((int64_t)1 << 29)) >> 30;
+}
+
+/* fx_mul64x32_shift(a, b, 30); one SMULL when a fits 32 bits (the product
+ * is then below 2^62: exact). */
+static inline int64_t fx_mul64x32_q30(int64_t a, int32_t b)
+{
+    if (a == (int32_t)a) {
+        return fx_mul32_q30((int32_t)a, b);
+    }
+    return fx_mul64x32_shift(a, b, 30);
+}
+
+/* fx_mul64_shift(a, b, 0) (a * b saturated to int64); one SMULL when both
+ * fit 32 bits (the product is then below 2^62: exact). */
+static inline int64_t fx_mul64_sat(int64_t a, int64_t b)
+{
+    if (a == (int32_t)a && b == (int32_t)b) {
+        return (int64_t)(int32_t)a * (int32_t)b;
+    }
+    return fx_mul64_shift(a, b, 0);
+}
+
+/* floor(a * b / 2^64), exact: four 32 x 32 -> 64 products. */
+static inline uint64_t fx_umulhi64(uint64_t a, uint64_t b)
+{
+    uint64_t al = (uint32_t)a, ah = a >> 32, bl = (uint32_t)b, bh = b >> 32;
+    uint64_t p0 = al * bl, p1 = al * bh, p2 = ah * bl, p3 = ah * bh;
+    uint64_t mid = (p0 >> 32) + (uint32_t)p1 + (uint32_t)p2;
+
+    return p3 + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
+}
+
 /* Position times a ratio, rounded and saturated to int64:
  * round(p * r / 2^16) and round(p * r / 2^30). */
 pos_nm_t fx_pos_scale_q16(pos_nm_t p, q16_16_t r);
@@ -237,6 +278,15 @@ void fx_sincos(fx_angle_t a, q1_30_t *s, q1_30_t *c);
  * atan2(y, x) for x, y >= 0. */
 fx_angle_t fx_atan2(int64_t y, int64_t x);
 
+/* sin d and 1 - cos d in q62 for a small angle d given in binary-angle units
+ * times 2^32 (2^64 per turn), |d| <= 2^58 (pi/32 rad): Taylor series to d^5
+ * and d^6 (remainders below d^7 / 5040 and d^8 / 40320: 2e-11 and 3e-13 at
+ * pi/32) evaluated in q64 with exact high products (each within 2 units of
+ * q64 of the exact floor); sin has the sign of d, 1 - cos >= 0. For the
+ * rotation steps of the arc reference (arc_ref.h), where fx_sincos's q30 is
+ * too coarse. Outside the domain both are 0. */
+void fx_sin_1mcos_small_q62(int64_t d, int64_t *sin_q62, int64_t *omc_q62);
+
 /* floor(sqrt(x^2 + y^2)) and floor(sqrt(x^2 + y^2 + z^2)), exact for every
  * input (128-bit sum of squares), saturated to INT64_MAX. Components below
  * 2^31 in magnitude (2.1 m in nm) take the fast path (one 64-bit root);
@@ -245,6 +295,13 @@ int64_t fx_hypot2(int64_t x, int64_t y);
 int64_t fx_hypot3(int64_t x, int64_t y, int64_t z);
 
 /* ---- division by a constant with its reciprocal ---------------------------- */
+
+/* round(num * 2^30 / den) (division rule) for 0 < num < den, after num and
+ * den are shifted right together until den < 2^32 (the quotient of the
+ * shifted values: within 2^30 / den_shifted of the exact one); 0 when num
+ * <= 0 or den <= 0 (or den shifts to 0), 2^30 when num >= den. A chord
+ * fraction or a speed ratio in q30. */
+int64_t fx_ratio_q30(int64_t num, int64_t den);
 
 /* floor(2^62 / d) for 1 <= d < 2^32 (d == 0 gives 0): the reciprocal that
  * fx_div_q30_rec uses, computed once per divisor (a 64-bit division). */

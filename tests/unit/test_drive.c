@@ -859,14 +859,14 @@ static void test_pos_only_reference_copy_equals_the_full_copy(void)
     fr_cec = false;
 }
 
-/* The arc overlay's cruise recurrence (drive.h, "Arc overlay on cruise
+/* The arc overlay's cruise recurrence (arc_ref.h, "Arc overlay on cruise
  * ticks") against the exact overlay (drive_test_arc_exact, the oracle) on
  * the same job: the reference of every tick (position, velocity,
  * acceleration, tangent, radius of the two plane axes) within the bounds
  * drive.h states. Two jobs: a helix like the firmware benchmark's (5 mm
  * radius, short chords) and three chords of the maximum angle
  * DRIVE_ARC_SEG_MAX_ANGLE at a radius near the fast path's 2^31 nm limit,
- * each thousands of ticks long (re-anchoring every DRIVE_ARC_ROT_TICKS).
+ * each thousands of ticks long (re-anchoring every ARC_REF_ROT_TICKS).
  * Fails with a wrong step (e.g. without the interpolator's length
  * correction or the remainder of the step), a drifting rotation, or when
  * the recurrence is not in use at all. */
@@ -941,7 +941,7 @@ static void rc_job(bool exact, int64_t radius, int64_t feed, int64_t chord_nm, u
         d->ticks++;
         {
             bool diff = false;
-            /* drive.h's bounds: eps = (2 nm + r 2^-28) / r */
+            /* arc_ref.h's bounds: eps = (2 nm + r 2^-28) / r */
             double eps = (2.0 + (double)o->rad / (1 << 28)) / (double)o->rad;
             double vm = hypot((double)o->vel[0], (double)o->vel[1]);
             double am = hypot((double)o->acc[0], (double)o->acc[1]);
