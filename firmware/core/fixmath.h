@@ -102,8 +102,18 @@ int32_t fx_sat_neg32(int32_t a); /* -INT32_MIN gives INT32_MAX */
 int32_t fx_sat_abs32(int32_t a); /* |INT32_MIN| gives INT32_MAX */
 int64_t fx_sat_add64(int64_t a, int64_t b);
 int64_t fx_sat_sub64(int64_t a, int64_t b);
-int64_t fx_sat_neg64(int64_t a); /* -INT64_MIN gives INT64_MAX */
-int64_t fx_sat_abs64(int64_t a); /* |INT64_MIN| gives INT64_MAX */
+
+/* -a and |a|; -INT64_MIN and |INT64_MIN| give INT64_MAX. Inline (the tick's
+ * estimators use them). */
+static inline int64_t fx_sat_neg64(int64_t a)
+{
+    return (a == INT64_MIN) ? INT64_MAX : -a;
+}
+
+static inline int64_t fx_sat_abs64(int64_t a)
+{
+    return (a < 0) ? fx_sat_neg64(a) : a;
+}
 
 /* Inline forms for the per-tick loops (pid.c, cec.c, servo.c).
  * fx_sat32_fast(v) == fx_sat32(v); fx_sat_diff32(a, b) == fx_sat32(a - b)
@@ -129,6 +139,47 @@ static inline int32_t fx_sat_diff32(int64_t a, int64_t b)
     return (d < 0) ? INT32_MIN : INT32_MAX;
 }
 
+/* the smaller and the larger of a and b */
+static inline int64_t fx_min64(int64_t a, int64_t b)
+{
+    return (a < b) ? a : b;
+}
+
+static inline int64_t fx_max64(int64_t a, int64_t b)
+{
+    return (a > b) ? a : b;
+}
+
+/* v limited to [-lim, lim] for lim >= 0 (== fx_clamp64(v, -lim, lim)),
+ * inline for the tick. */
+static inline int64_t fx_clamp_sym64(int64_t v, int64_t lim)
+{
+    return (v > lim) ? lim : (v < -lim) ? -lim : v;
+}
+
+/* |v| as uint64_t, exact for every v (|INT64_MIN| is 2^63). */
+static inline uint64_t fx_uabs64(int64_t v)
+{
+    return (v < 0) ? (uint64_t)0 - (uint64_t)v : (uint64_t)v;
+}
+
+/* The int64 of magnitude m and sign neg (negative when neg), saturated to
+ * [INT64_MIN, INT64_MAX]; ok == false means the magnitude exceeded 64 bits
+ * (saturates too). */
+static inline int64_t fx_signed_sat(bool ok, uint64_t m, bool neg)
+{
+    if (neg) {
+        if (!ok || m > (uint64_t)INT64_MAX + 1u) {
+            return INT64_MIN;
+        }
+        return (int64_t)((uint64_t)0 - m);
+    }
+    if (!ok || m > (uint64_t)INT64_MAX) {
+        return INT64_MAX;
+    }
+    return (int64_t)m;
+}
+
 /* min(max(v, lo), hi): v limited to [lo, hi]. lo <= hi is expected; if
  * lo > hi the result is hi (the upper limit wins). */
 int32_t fx_clamp32(int32_t v, int32_t lo, int32_t hi);
@@ -136,12 +187,27 @@ int64_t fx_clamp64(int64_t v, int64_t lo, int64_t hi);
 
 /* ---- shifts and multiplications (rounding: shift rule) ------------------- */
 
-/* round(v / 2^s). Exact for s = 0; any s >= 64 gives 0. Never overflows. */
-int64_t fx_round_shift64(int64_t v, unsigned s);
+/* round(v / 2^s). Exact for s = 0; any s >= 64 gives 0. Never overflows.
+ * Inline: with a constant s (the tick's use) it is two instructions. */
+static inline int64_t fx_round_shift64(int64_t v, unsigned s)
+{
+    if (s == 0) {
+        return v;
+    }
+    if (s >= 64) {
+        return 0; /* |v / 2^s| <= 1/2, and -1/2 rounds up to 0 */
+    }
+    /* floor(v / 2^s) plus the first dropped bit: round half up, no overflow */
+    return (v >> s) + ((v >> (s - 1)) & 1);
+}
 
 /* round(a * b / 2^s) from the exact 64-bit product. Never overflows; s >= 64
- * gives 0 (s = 0..62 is the useful range). */
-int64_t fx_mul32_shift(int32_t a, int32_t b, unsigned s);
+ * gives 0 (s = 0..62 is the useful range). Inline (one SMULL and the shift
+ * for a constant s). */
+static inline int64_t fx_mul32_shift(int32_t a, int32_t b, unsigned s)
+{
+    return fx_round_shift64((int64_t)a * b, s);
+}
 
 /* round(a * b / 2^s), saturated to int32 (e.g. q16 * q16 with s = 16). */
 int32_t fx_sat_mul32(int32_t a, int32_t b, unsigned s);
@@ -157,10 +223,13 @@ int64_t fx_mul64_shift(int64_t a, int64_t b, unsigned s);
 
 /* Inline fast paths of the tick (the arc reference, the drive): the same
  * results as the general functions named, for every argument, with one
- * 32 x 32 -> 64 product when the operands fit (tests/unit/test_fixmath_fast.c
- * checks each against its general function). */
+ * 32 x 32 -> 64 product when the operands fit (test_fixmath checks each
+ * against its general function). */
 
-/* fx_mul32_shift(a, b, 30): one SMULL (SMLAL) and the rounding. */
+/* fx_mul32_shift(a, b, 30) as one SMLAL of the product and half an LSB and
+ * a shift (|a * b| <= 2^62: the sum cannot overflow); fx_mul32_shift's
+ * overflow-free rounding of any int64 costs the arc reference's cruise
+ * tick 11 more instructions on the M4. */
 static inline int64_t fx_mul32_q30(int32_t a, int32_t b)
 {
     return ((int64_t)a * b + ((int64_t)1 << 29)) >> 30;
@@ -186,20 +255,128 @@ static inline int64_t fx_mul64_sat(int64_t a, int64_t b)
     return fx_mul64_shift(a, b, 0);
 }
 
-/* floor(a * b / 2^64), exact: four 32 x 32 -> 64 products. */
-static inline uint64_t fx_umulhi64(uint64_t a, uint64_t b)
-{
-    uint64_t al = (uint32_t)a, ah = a >> 32, bl = (uint32_t)b, bh = b >> 32;
-    uint64_t p0 = al * bl, p1 = al * bh, p2 = ah * bl, p3 = ah * bh;
-    uint64_t mid = (p0 >> 32) + (uint32_t)p1 + (uint32_t)p2;
-
-    return p3 + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
-}
-
 /* Position times a ratio, rounded and saturated to int64:
  * round(p * r / 2^16) and round(p * r / 2^30). */
 pos_nm_t fx_pos_scale_q16(pos_nm_t p, q16_16_t r);
 pos_nm_t fx_pos_scale_q30(pos_nm_t p, q1_30_t r);
+
+/* ---- 128-bit products and bit lengths (inline, exact) ----------------------
+ * The only 64 x 64 -> 128 product of the firmware: four 32 x 32 -> 64
+ * multiplies on every target (the host tests run the code the Cortex-M4
+ * runs). fx_umulhi64 is its high word (inlined, the compiler drops the low
+ * word's carries it does not need). */
+typedef struct {
+    uint64_t hi;
+    uint64_t lo;
+} fx_u128_t;
+
+static inline fx_u128_t fx_umul64(uint64_t a, uint64_t b)
+{
+    uint64_t a_lo = (uint32_t)a, a_hi = a >> 32;
+    uint64_t b_lo = (uint32_t)b, b_hi = b >> 32;
+    uint64_t ll = a_lo * b_lo;
+    uint64_t lh = a_lo * b_hi;
+    uint64_t hl = a_hi * b_lo;
+    uint64_t mid = (ll >> 32) + (uint32_t)lh + (uint32_t)hl;
+    fx_u128_t r;
+
+    r.lo = (mid << 32) | (uint32_t)ll;
+    r.hi = a_hi * b_hi + (lh >> 32) + (hl >> 32) + (mid >> 32);
+    return r;
+}
+
+/* floor(a * b / 2^64) */
+static inline uint64_t fx_umulhi64(uint64_t a, uint64_t b)
+{
+    return fx_umul64(a, b).hi;
+}
+
+/* a * b for b < 2^32 (a 96-bit product) from two 32 x 32 -> 64 multiplies */
+static inline fx_u128_t fx_umul64x32(uint64_t a, uint32_t b)
+{
+    uint64_t lo = (uint64_t)(uint32_t)a * b;
+    uint64_t hi = (a >> 32) * b + (lo >> 32); /* < 2^64: one UMLAL */
+    fx_u128_t r;
+
+    r.lo = (hi << 32) | (uint32_t)lo;
+    r.hi = hi >> 32;
+    return r;
+}
+
+/* a + b mod 2^128 */
+static inline fx_u128_t fx_add128(fx_u128_t a, fx_u128_t b)
+{
+    fx_u128_t r;
+
+    r.lo = a.lo + b.lo;
+    r.hi = a.hi + b.hi + (r.lo < a.lo ? 1u : 0u);
+    return r;
+}
+
+/* -1, 0 or 1 as a <, == or > b */
+static inline int fx_cmp128(fx_u128_t a, fx_u128_t b)
+{
+    if (a.hi != b.hi) {
+        return (a.hi < b.hi) ? -1 : 1;
+    }
+    if (a.lo != b.lo) {
+        return (a.lo < b.lo) ? -1 : 1;
+    }
+    return 0;
+}
+
+/* Number of leading zero bits of v != 0 (32-bit CLZ only: Cortex-M4 has no
+ * 64-bit one). fx_bitlen64(v) is the bit length, 0 for v == 0. */
+static inline unsigned fx_clz32(uint32_t v)
+{
+#if defined(__GNUC__)
+    return (unsigned)__builtin_clz(v);
+#else
+    unsigned n = 0;
+
+    while (!(v & 0x80000000u)) {
+        v <<= 1;
+        n++;
+    }
+    return n;
+#endif
+}
+
+static inline unsigned fx_clz64(uint64_t v)
+{
+    uint32_t hi = (uint32_t)(v >> 32);
+
+    return (hi != 0u) ? fx_clz32(hi) : 32u + fx_clz32((uint32_t)v);
+}
+
+static inline unsigned fx_bitlen64(uint64_t v)
+{
+    return (v == 0u) ? 0u : 64u - fx_clz64(v);
+}
+
+/* An int32 the compiler must keep as a plain 32-bit register (so that a
+ * widening product stays one SMULL/SMLAL instead of a 64 x 64 multiply); no
+ * effect on the value. */
+static inline int32_t fx_opaque32(int32_t v)
+{
+#if defined(__GNUC__)
+    __asm__("" : "+r"(v));
+#endif
+    return v;
+}
+
+/* round(a * b / 2^30) (shift rule) == fx_mul64x32_shift(a, b, 30) for
+ * |a| <= 2^61 and 0 <= b <= 2^30, without a 96-bit product: a = ah * 2^32 +
+ * al with al unsigned; a * b = ah * b * 2^32 + al * b (one SMULL, one
+ * UMULL). The PID's filter and back-calculation gains. */
+static inline int64_t fx_mul_q30_pos(int64_t a, q1_30_t b)
+{
+    int32_t ah = fx_opaque32((int32_t)(a >> 32)); /* |ah| <= 2^29 */
+    uint32_t al = (uint32_t)a;
+    int64_t h = (int64_t)ah * b;              /* |h| <= 2^59 */
+    uint64_t lo = (uint64_t)al * (uint32_t)b; /* < 2^62 */
+    return (int64_t)((uint64_t)h << 2) + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
+}
 
 /* ---- conversions between the named formats -------------------------------- */
 
@@ -259,9 +436,10 @@ q16_16_t fx_recip_q16(q16_16_t x);
 
 /* ---- roots (floor, exact) --------------------------------------------------- */
 
-uint32_t fx_isqrt32(uint32_t v); /* floor(sqrt(v)) */
-uint32_t fx_isqrt64(uint64_t v); /* floor(sqrt(v)) */
-uint32_t fx_icbrt64(uint64_t v); /* floor(cbrt(v)) */
+uint32_t fx_isqrt32(uint32_t v);   /* floor(sqrt(v)) */
+uint32_t fx_isqrt64(uint64_t v);   /* floor(sqrt(v)) */
+uint32_t fx_icbrt64(uint64_t v);   /* floor(cbrt(v)) */
+uint64_t fx_isqrt128(fx_u128_t v); /* floor(sqrt(v)), every 128-bit v */
 
 /* ---- trigonometry and vector length ---------------------------------------- */
 

@@ -112,14 +112,12 @@ int64_t interp_cruise_ds_q32(const interp_t *ip)
 
 /* round(sign * ua * ur / 2^78), ties toward +inf, for magnitudes ua, ur
  * < 2^63 and the sign negative when `neg`: four 32 x 32 -> 64 products and
- * the high word. */
+ * the high word of fx_umul64. */
 static inline int64_t ip_scale_mag(uint64_t ua, uint64_t ur, bool neg)
 {
-    uint64_t al = (uint32_t)ua, ah = ua >> 32, bl = (uint32_t)ur, bh = ur >> 32;
-    uint64_t p0 = al * bl, p1 = al * bh, p2 = ah * bl, p3 = ah * bh;
-    uint64_t mid = (p0 >> 32) + (uint32_t)p1 + (uint32_t)p2;
-    uint64_t hi = p3 + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
-    uint32_t lo_zero = ((uint32_t)p0 | (uint32_t)mid) == 0u;
+    fx_u128_t p = fx_umul64(ua, ur);
+    uint64_t hi = p.hi;
+    uint32_t lo_zero = p.lo == 0u;
 
     if (neg) { /* -floor((|p| + 2^77 - 1) / 2^78) */
         return -(int64_t)((hi + ((uint64_t)1 << 13) - lo_zero) >> 14);
@@ -132,8 +130,7 @@ static inline int64_t ip_scale_mag(uint64_t ua, uint64_t ur, bool neg)
  * saturates), inline. */
 static inline int64_t ip_scale(int64_t a, int64_t r)
 {
-    uint64_t ua = (a < 0) ? (uint64_t)0 - (uint64_t)a : (uint64_t)a;
-    uint64_t ur = (r < 0) ? (uint64_t)0 - (uint64_t)r : (uint64_t)r;
+    uint64_t ua = fx_uabs64(a), ur = fx_uabs64(r);
 
     return ip_scale_mag(ua, ur, (a < 0) != (r < 0));
 }
@@ -143,8 +140,7 @@ static inline int64_t ip_scale(int64_t a, int64_t r)
  * inline: two 32 x 32 -> 64 products. */
 static inline int64_t ip_mul_q32(int64_t a, int32_t b)
 {
-    uint64_t ua = (a < 0) ? (uint64_t)0 - (uint64_t)a : (uint64_t)a;
-    uint64_t ub = (b < 0) ? (uint64_t)0 - (uint64_t)(int64_t)b : (uint64_t)(int64_t)b;
+    uint64_t ua = fx_uabs64(a), ub = fx_uabs64(b);
     uint64_t lo = (uint32_t)ua * ub;
     uint64_t hi = (ua >> 32) * ub + (lo >> 32); /* |a * b| >> 32 */
     uint32_t l32 = (uint32_t)lo;

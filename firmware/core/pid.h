@@ -273,10 +273,7 @@ static inline bool pid_fast_ready(const pid_loop_t *pid)
  * the value. */
 static inline int32_t pid_opaque32(int32_t v)
 {
-#if defined(__GNUC__)
-    __asm__("" : "+r"(v));
-#endif
-    return v;
+    return fx_opaque32(v);
 }
 
 /* |v| <= max for max <= 2^31 - 1, one add and one compare (qdec.h's trick) */

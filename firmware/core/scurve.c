@@ -1,11 +1,11 @@
 /*
  * scurve.c - closed-form single-block profiles; see scurve.h.
  *
- * Wide arithmetic: products of two 63-bit values are formed in 128 bits
- * (compiler __int128 where the target has it, a portable two-word version
- * otherwise; both give identical results, test_scurve checks the portable
- * one against the native one). The portable division is fixmath's digit
- * division (fx_udiv128_digits), the code 32-bit targets run.
+ * Wide arithmetic: products of two 63-bit values are fixmath's 128-bit
+ * product (fx_umul64), quotients its 128/64 division (fx_udiv128: the host's
+ * 64-bit divider where it has one, the 32-bit-digit long division of 32-bit
+ * targets otherwise; sc_muldiv_portable runs the digit code on every host
+ * so that test_scurve compares the two).
  */
 #include "scurve.h"
 
@@ -19,127 +19,38 @@
 /* 2^72 / 1e9 rounded: ns -> seconds * 2^40 with one multiply (>> 32) */
 #define SC_NS_TO_Q40 ((int64_t)4722366482870)
 
-typedef struct {
-    uint64_t hi;
-    uint64_t lo;
-} sc_u128_t;
-
-#if defined(__SIZEOF_INT128__) && !defined(SC_PORTABLE_ONLY)
-__extension__ typedef unsigned __int128 sc_native_u128;
-#define SC_HAVE_NATIVE 1
-#endif
-
-static sc_u128_t sc_mul_portable(uint64_t a, uint64_t b)
-{
-    uint64_t a_lo = a & 0xFFFFFFFFu, a_hi = a >> 32;
-    uint64_t b_lo = b & 0xFFFFFFFFu, b_hi = b >> 32;
-    uint64_t ll, lh, hl, hh, mid;
-    sc_u128_t r;
-
-    if ((a_hi | b_hi) == 0) { /* one 32 x 32 -> 64 multiply */
-        r.hi = 0;
-        r.lo = a * b;
-        return r;
-    }
-    ll = a_lo * b_lo;
-    lh = a_lo * b_hi;
-    hl = a_hi * b_lo;
-    hh = a_hi * b_hi;
-    mid = (ll >> 32) + (lh & 0xFFFFFFFFu) + (hl & 0xFFFFFFFFu);
-    r.lo = (mid << 32) | (ll & 0xFFFFFFFFu);
-    r.hi = hh + (lh >> 32) + (hl >> 32) + (mid >> 32);
-    return r;
-}
-
 /* floor(n / d) and the remainder; *ovf when the quotient needs > 64 bits.
  * Knuth long division with 32-bit digits (fixmath's fx_udiv128_digits):
  * about 100 Cortex-M4 instructions where a bit-serial loop took 1300. */
-static uint64_t sc_div_portable(sc_u128_t n, uint64_t d, uint64_t *rem, bool *ovf)
+static uint64_t sc_div_portable(fx_u128_t n, uint64_t d, uint64_t *rem, bool *ovf)
 {
     *ovf = n.hi >= d;
     return fx_udiv128_digits(n.hi, n.lo, d, rem);
 }
 
-static sc_u128_t sc_mul(uint64_t a, uint64_t b)
+/* a * b; factors below 2^32 take one 32 x 32 -> 64 multiply */
+static fx_u128_t sc_mul(uint64_t a, uint64_t b)
 {
-#ifdef SC_HAVE_NATIVE
-    sc_native_u128 p = (sc_native_u128)a * b;
-    sc_u128_t r;
-    r.hi = (uint64_t)(p >> 64);
-    r.lo = (uint64_t)p;
-    return r;
-#else
-    return sc_mul_portable(a, b);
-#endif
+    fx_u128_t r;
+
+    if (((a | b) >> 32) == 0) {
+        r.hi = 0;
+        r.lo = a * b;
+        return r;
+    }
+    return fx_umul64(a, b);
 }
 
-static uint64_t sc_div(sc_u128_t n, uint64_t d, uint64_t *rem, bool *ovf)
+static uint64_t sc_div(fx_u128_t n, uint64_t d, uint64_t *rem, bool *ovf)
 {
-#ifdef SC_HAVE_NATIVE
-    sc_native_u128 nn = ((sc_native_u128)n.hi << 64) | n.lo;
     *ovf = n.hi >= d;
-    if (*ovf) {
-        *rem = 0;
-        return UINT64_MAX;
-    }
-    *rem = (uint64_t)(nn % d);
-    return (uint64_t)(nn / d);
-#else
-    return sc_div_portable(n, d, rem, ovf);
-#endif
+    return fx_udiv128(n.hi, n.lo, d, rem);
 }
 
-static sc_u128_t sc_add128(sc_u128_t a, sc_u128_t b)
+static uint64_t sc_isqrt128_ceil(fx_u128_t x)
 {
-    sc_u128_t r;
-    r.lo = a.lo + b.lo;
-    r.hi = a.hi + b.hi + (r.lo < a.lo ? 1u : 0u);
-    return r;
-}
-
-static int sc_cmp128(sc_u128_t a, sc_u128_t b)
-{
-    if (a.hi != b.hi) {
-        return a.hi < b.hi ? -1 : 1;
-    }
-    if (a.lo != b.lo) {
-        return a.lo < b.lo ? -1 : 1;
-    }
-    return 0;
-}
-
-/* floor(sqrt(x)) of a 128-bit value (result < 2^64) */
-static uint64_t sc_isqrt128(sc_u128_t x)
-{
-    uint64_t r, rem;
-    unsigned k = 0;
-    bool ovf;
-    sc_u128_t t = x;
-
-    if (x.hi == 0) {
-        return fx_isqrt64(x.lo);
-    }
-    /* scaled estimate from below, one Newton step (from above), then fix */
-    while (t.hi != 0) {
-        t.lo = (t.lo >> 2) | (t.hi << 62);
-        t.hi >>= 2;
-        k++;
-    }
-    r = ((uint64_t)fx_isqrt64(t.lo) + 1u) << k;
-    r = (r >> 1) + (sc_div(x, r, &rem, &ovf) >> 1) + 1u;
-    while (sc_cmp128(sc_mul(r, r), x) > 0) {
-        r--;
-    }
-    while (r != UINT64_MAX && sc_cmp128(sc_mul(r + 1u, r + 1u), x) <= 0) {
-        r++;
-    }
-    return r;
-}
-
-static uint64_t sc_isqrt128_ceil(sc_u128_t x)
-{
-    uint64_t r = sc_isqrt128(x);
-    return (sc_cmp128(sc_mul(r, r), x) < 0) ? r + 1u : r;
+    uint64_t r = fx_isqrt128(x);
+    return (fx_cmp128(sc_mul(r, r), x) < 0) ? r + 1u : r;
 }
 
 static int64_t sc_sat(uint64_t q, bool ovf)
@@ -197,36 +108,21 @@ int64_t sc_muldiv_portable(int64_t a, int64_t b, int64_t c)
     if (c <= 0) {
         return INT64_MAX;
     }
-    q = sc_div_portable(sc_mul_portable((uint64_t)a, (uint64_t)b), (uint64_t)c, &rem, &ovf);
+    q = sc_div_portable(fx_umul64((uint64_t)a, (uint64_t)b), (uint64_t)c, &rem, &ovf);
     return sc_sat(q, ovf);
 }
 
 uint64_t sc_isqrt_wide(uint64_t hi, uint64_t lo)
 {
-    sc_u128_t x;
+    fx_u128_t x;
     x.hi = hi;
     x.lo = lo;
-    return sc_isqrt128(x);
+    return fx_isqrt128(x);
 }
 
 int sc_cmp_products(uint64_t a, uint64_t b, uint64_t c, uint64_t d)
 {
-    return sc_cmp128(sc_mul(a, b), sc_mul(c, d));
-}
-
-static int64_t sc_min(int64_t a, int64_t b)
-{
-    return a < b ? a : b;
-}
-
-static int64_t sc_max(int64_t a, int64_t b)
-{
-    return a > b ? a : b;
-}
-
-static int64_t sc_sat_add(int64_t a, int64_t b)
-{
-    return fx_sat_add64(a, b);
+    return fx_cmp128(sc_mul(a, b), sc_mul(c, d));
 }
 
 /* ceil(sqrt(v)) for 0 <= v < 2^63 */
@@ -276,7 +172,7 @@ static void sc_aaj(int64_t a, int64_t j, int64_t *qf, int64_t *qc)
 /* sc_dist with qc = ceil(A^2/J) supplied (< 0: computed here) */
 static int64_t sc_dist_q(int64_t va, int64_t vb, const sc_limits_t *lim, int64_t qc)
 {
-    int64_t lo = sc_min(va, vb), hi = sc_max(va, vb), d = hi - lo;
+    int64_t lo = fx_min64(va, vb), hi = fx_max64(va, vb), d = hi - lo;
     int64_t a = lim->a_max, j = lim->j_max, w;
     sc_limits_t tmp;
 
@@ -291,7 +187,7 @@ static int64_t sc_dist_q(int64_t va, int64_t vb, const sc_limits_t *lim, int64_t
         qc = sc_muldiv_ceil(a, a, j); /* A^2/J: speed change that reaches A */
     }
     if (d >= qc) {
-        return sc_sat_add(sc_muldiv_ceil(lo + hi, d, 2 * a), sc_muldiv_ceil(lo + hi, a, 2 * j));
+        return fx_sat_add64(sc_muldiv_ceil(lo + hi, d, 2 * a), sc_muldiv_ceil(lo + hi, a, 2 * j));
     }
     if (lo + hi <= SC_SQRT_INT64_MAX) {
         /* (lo + hi) sqrt(d / J) = sqrt(X), X = (lo + hi)^2 d / J: one
@@ -349,7 +245,7 @@ static bool sc_dist_fits(int64_t lo, int64_t hi, int64_t dq, const sc_limits_t *
 
 int64_t sc_mul_sat(int64_t a, int64_t b)
 {
-    sc_u128_t x;
+    fx_u128_t x;
 
     if (a <= 0 || b <= 0) {
         return 0;
@@ -365,12 +261,6 @@ static int64_t sc_jw2(int64_t j, int64_t w, bool up)
         return sc_muldiv_ceil(sc_muldiv_ceil(j * 65536, w, (int64_t)NS), w, (int64_t)NS);
     }
     return sc_muldiv(sc_muldiv(j * 65536, w, (int64_t)NS), w, (int64_t)NS);
-}
-
-/* bit length of v > 0 */
-static unsigned sc_bits(uint64_t v)
-{
-    return 64u - (unsigned)__builtin_clzll(v);
 }
 
 /* ---- S-curve reach without the acceleration limit: estimate and check --------
@@ -396,7 +286,7 @@ static sc_mf_t sc_mf(uint64_t x, int32_t e0)
         r.e = 0;
         return r;
     }
-    s = 32 - (int32_t)__builtin_clzll(x); /* bits above the 32-bit mantissa */
+    s = (int32_t)fx_bitlen64(x) - 32; /* bits above the 32-bit mantissa */
     r.m = (uint32_t)((s >= 0) ? (x >> s) : (x << -s));
     r.e = e0 + s;
     return r;
@@ -483,8 +373,8 @@ static int64_t sc_reach_fast(int64_t v, int64_t dq, int64_t q, int64_t qc, const
     if (j < 32 || dq <= 0) { /* j >= 32: the exponent m below stays >= 1 */
         return -1;
     }
-    sh = 63u - sc_bits((uint64_t)dq);
-    bj = sc_bits((uint64_t)j);
+    sh = 63u - fx_bitlen64((uint64_t)dq);
+    bj = fx_bitlen64((uint64_t)j);
     /* x = (dq << sh) * 2^m / J, about 2^60; 16 + sh + m = 3 e */
     m = bj - 3u;
     m -= (16u + sh + m) % 3u;
@@ -556,43 +446,12 @@ void sc_test_reach_closed(bool on)
     sc_closed_off = !on;
 }
 
-/* bit length of x (0 for 0), with 32-bit CLZ only */
-static inline unsigned sc_bits32x2(uint64_t x)
-{
-    uint32_t h = (uint32_t)(x >> 32), l = (uint32_t)x;
-
-    if (h != 0u) {
-        return 64u - (unsigned)__builtin_clz(h);
-    }
-    return (l != 0u) ? 32u - (unsigned)__builtin_clz(l) : 0u;
-}
-
-/* 64 x 64 -> 128 bits with four 32 x 32 -> 64 multiplies, inline */
-static inline sc_u128_t sc_mul_in(uint64_t a, uint64_t b)
-{
-    uint32_t a0 = (uint32_t)a, a1 = (uint32_t)(a >> 32);
-    uint32_t b0 = (uint32_t)b, b1 = (uint32_t)(b >> 32);
-    uint64_t ll = (uint64_t)a0 * b0, lh = (uint64_t)a0 * b1, hl = (uint64_t)a1 * b0;
-    uint64_t mid = (ll >> 32) + (uint32_t)lh + (uint32_t)hl;
-    sc_u128_t r;
-
-    r.lo = (mid << 32) | (uint32_t)ll;
-    r.hi = (uint64_t)a1 * b1 + (lh >> 32) + (hl >> 32) + (mid >> 32);
-    return r;
-}
-
 /* (lo + hi)^2 (hi - lo) <= k for lo < hi, lo + hi <= SC_SQRT_INT64_MAX */
-static inline bool sc_fits_k(uint32_t lo, uint32_t hi, sc_u128_t k)
+static inline bool sc_fits_k(uint32_t lo, uint32_t hi, fx_u128_t k)
 {
     uint32_t s = lo + hi, g = hi - lo;
-    uint64_t s2 = (uint64_t)s * s;
-    uint64_t p0 = (uint64_t)(uint32_t)s2 * g;
-    uint64_t p1 = (uint64_t)(uint32_t)(s2 >> 32) * g + (p0 >> 32);
-    sc_u128_t l;
 
-    l.lo = (p1 << 32) | (uint32_t)p0;
-    l.hi = p1 >> 32;
-    return sc_cmp128(l, k) <= 0;
+    return fx_cmp128(fx_umul64x32((uint64_t)s * s, g), k) <= 0;
 }
 
 /* shortest distance for the closed form: 8192 nm (it uses whole nm, the
@@ -638,7 +497,7 @@ static int64_t sc_cbrt_k(uint32_t mk, int32_t e)
 
 void sc_reach_k_init(sc_reach_k_t *rk, int64_t d, const sc_limits_t *lim, int64_t q, int64_t qc)
 {
-    sc_u128_t k;
+    fx_u128_t k;
     unsigned bk;
 
     rk->d = d;
@@ -648,8 +507,8 @@ void sc_reach_k_init(sc_reach_k_t *rk, int64_t d, const sc_limits_t *lim, int64_
     if (lim->shape != SC_SHAPE_SCURVE || q <= 0 || d < SC_CLOSED_DMIN || d >= ((int64_t)1 << 31)) {
         return; /* not the closed form's case */
     }
-    k = sc_mul_in((uint64_t)(d * d), (uint64_t)lim->j_max); /* < 2^109 */
-    bk = (k.hi != 0u) ? 64u + sc_bits32x2(k.hi) : sc_bits32x2(k.lo);
+    k = fx_umul64((uint64_t)(d * d), (uint64_t)lim->j_max); /* < 2^109 */
+    bk = (k.hi != 0u) ? 64u + fx_bitlen64(k.hi) : fx_bitlen64(k.lo);
     if (bk >= 96u) {
         rk->mk = (uint32_t)(k.hi >> (bk - 96u));
     } else if (bk > 64u) {
@@ -673,7 +532,7 @@ static inline int64_t sc_reach_closed_k(int64_t v, const sc_reach_k_t *rk, int64
     int32_t h, corr, ec;
     unsigned bk = (unsigned)rk->bk, bv, b3;
     uint64_t n;
-    sc_u128_t k;
+    fx_u128_t k;
 
     if (vmax > SC_SQRT_INT64_MAX - v || v >= vmax) {
         return -1;
@@ -694,10 +553,10 @@ static inline int64_t sc_reach_closed_k(int64_t v, const sc_reach_k_t *rk, int64
     }
     /* 32-bit mantissas: K ~ mk 2^(bk - 32) (above), v^3 ~ m3 2^e3 */
     n = (uint64_t)(uint32_t)v * (uint32_t)v;
-    bv = sc_bits32x2(n);
+    bv = fx_bitlen64(n);
     mv = (bv > 32u) ? (uint32_t)(n >> (bv - 32u)) : (uint32_t)(n << (32u - bv));
     n = (uint64_t)mv * (uint32_t)v; /* v^3 = n 2^(bv - 32) */
-    b3 = sc_bits32x2(n);
+    b3 = fx_bitlen64(n);
     m3 = (b3 > 32u) ? (uint32_t)(n >> (b3 - 32u)) : (uint32_t)(n << (32u - b3));
     /* c = K / (8 v^3) ~ qc 2^ec, qc = floor(mk 2^31 / m3) in [2^30, 2^32);
      * c in q32 is qc 2^(ec + 32), so c <= 3/8 needs ec + 32 <= 0 */
@@ -786,12 +645,12 @@ static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim, int64
     }
     if (lim->shape == SC_SHAPE_TRAPEZOID) {
         /* v^2 + 2 A d */
-        sc_u128_t x = sc_mul((uint64_t)(2 * a), (uint64_t)dq);
+        fx_u128_t x = sc_mul((uint64_t)(2 * a), (uint64_t)dq);
         uint64_t r;
         x.lo = (x.lo >> 16) | (x.hi << 48);
         x.hi >>= 16;
-        r = sc_isqrt128(sc_add128(sc_mul((uint64_t)v, (uint64_t)v), x));
-        return (r >= (uint64_t)vmax) ? vmax : sc_max(v, (int64_t)r);
+        r = fx_isqrt128(fx_add128(sc_mul((uint64_t)v, (uint64_t)v), x));
+        return (r >= (uint64_t)vmax) ? vmax : fx_max64(v, (int64_t)r);
     }
     {
         int64_t dfull;
@@ -820,19 +679,19 @@ static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim, int64
             /* acceleration limit reached: stable root of the quadratic */
             int64_t vaj = sc_muldiv_ceil(v * 65536, a, j); /* v A / J, nm * 2^16 */
             int64_t num = dq - vaj, t1 = 2 * v - q, t2 = 2 * v - qc, t, den;
-            sc_u128_t y, ad = sc_mul((uint64_t)(8 * a), (uint64_t)dq);
-            sc_u128_t one = {0u, 1u};
+            fx_u128_t y, ad = sc_mul((uint64_t)(8 * a), (uint64_t)dq);
+            fx_u128_t one = {0u, 1u};
             ad.lo = (ad.lo >> 16) | (ad.hi << 48);
             ad.hi >>= 16;
-            ad = sc_add128(ad, one); /* 8 A d, rounded up */
+            ad = fx_add128(ad, one); /* 8 A d, rounded up */
             if (t1 < 0) {
                 t1 = -t1;
             }
             if (t2 < 0) {
                 t2 = -t2;
             }
-            t = sc_max(t1, t2);
-            y = sc_add128(sc_mul((uint64_t)t, (uint64_t)t), ad);
+            t = fx_max64(t1, t2);
+            y = fx_add128(sc_mul((uint64_t)t, (uint64_t)t), ad);
             den = (int64_t)sc_isqrt128_ceil(y) + 2 * v + qc;
             dv = (num > 0) ? sc_muldiv(4 * a, num, den * 65536) : q;
         } else {
@@ -844,24 +703,25 @@ static int64_t sc_reach_q16(int64_t v, int64_t dq, const sc_limits_t *lim, int64
             }
             x = sc_muldiv_ceil(dq, (int64_t)1000000000000000, j * 65536); /* (10 us)^3 */
             if (x < INT64_MAX) {
-                w = sc_min(w, ((int64_t)fx_icbrt64((uint64_t)x) + 1) * 10000);
+                w = fx_min64(w, ((int64_t)fx_icbrt64((uint64_t)x) + 1) * 10000);
             }
             for (k = 0; k < 3; k++) { /* Newton from above: stays above the root */
                 /* f(w) = (2 v + J w^2) w - d and f'(w) = 2 v + 3 J w^2, * 2^16 */
                 int64_t f =
-                    sc_muldiv(sc_sat_add(2 * v * 65536, sc_jw2(j, w, false)), w, (int64_t)NS) - dq;
-                int64_t fp = sc_sat_add(2 * v * 65536, 3 * sc_jw2(j, w, true));
+                    sc_muldiv(fx_sat_add64(2 * v * 65536, sc_jw2(j, w, false)), w, (int64_t)NS) -
+                    dq;
+                int64_t fp = fx_sat_add64(2 * v * 65536, 3 * sc_jw2(j, w, true));
                 if (f <= 0) {
                     break;
                 }
                 w -= sc_muldiv(f, (int64_t)NS, fp);
             }
             /* chord through the origin: a lower bound of the root */
-            w = sc_muldiv(dq, (int64_t)NS, sc_sat_add(2 * v * 65536, sc_jw2(j, w, true)));
-            dv = sc_min(sc_jw2(j, w, false) / 65536, q);
+            w = sc_muldiv(dq, (int64_t)NS, fx_sat_add64(2 * v * 65536, sc_jw2(j, w, true)));
+            dv = fx_min64(sc_jw2(j, w, false) / 65536, q);
         }
     }
-    return sc_min(vmax, sc_max(v, sc_sat_add(v, dv)));
+    return fx_min64(vmax, fx_max64(v, fx_sat_add64(v, dv)));
 }
 
 int64_t sc_reach(int64_t v, int64_t d, const sc_limits_t *lim)
@@ -940,7 +800,7 @@ static void sc_seg_times(int64_t dv, const sc_limits_t *lim, int64_t *tj, int64_
     }
     if (dv >= sc_muldiv_ceil(a, a, j)) {
         *tj = sc_muldiv(a, (int64_t)NS, j);
-        *ta = sc_max(0, sc_muldiv(dv, (int64_t)NS, a) - *tj);
+        *ta = fx_max64(0, sc_muldiv(dv, (int64_t)NS, a) - *tj);
     } else {
         *tj = (int64_t)fx_isqrt64((uint64_t)sc_muldiv(dv, (int64_t)NS * (int64_t)NS, j));
     }
@@ -1000,12 +860,7 @@ static void sc_chain(sc_profile_t *p, int first, int last, const int64_t *set_ac
  * 64-bit division call */
 static int64_t sc_third(uint64_t x)
 {
-    const uint32_t m0 = 0xAAAAAAABu, m1 = 0xAAAAAAAAu;
-    uint32_t x0 = (uint32_t)x, x1 = (uint32_t)(x >> 32);
-    uint64_t lh = (uint64_t)x0 * m1, hl = (uint64_t)x1 * m0;
-    uint64_t mid = (((uint64_t)x0 * m0) >> 32) + (uint32_t)lh + (uint32_t)hl;
-
-    return (int64_t)(((uint64_t)x1 * m1 + (lh >> 32) + (hl >> 32) + (mid >> 32)) >> 1);
+    return (int64_t)(fx_umulhi64(x, 0xAAAAAAAAAAAAAAABu) >> 1);
 }
 
 /* jerk of each phase and its evaluation constant (the division truncates,
@@ -1031,27 +886,12 @@ static inline void sc_set_jerk(sc_profile_t *p, int64_t j)
     p->j6_q16[6] = j6;
 }
 
-/* high word of a 64 x 64 product (four 32 x 32 multiplies) */
-static uint64_t sc_mulhi64(uint64_t a, uint64_t b)
-{
-    uint32_t a0 = (uint32_t)a, a1 = (uint32_t)(a >> 32), b0 = (uint32_t)b, b1 = (uint32_t)(b >> 32);
-    uint64_t lh = (uint64_t)a0 * b1, hl = (uint64_t)a1 * b0;
-    uint64_t mid = (((uint64_t)a0 * b0) >> 32) + (uint32_t)lh + (uint32_t)hl;
-
-    return (uint64_t)a1 * b1 + (lh >> 32) + (hl >> 32) + (mid >> 32);
-}
-
 /* floor(x / 10^9) for x < 2^48: (x m) >> 78 with m = ceil(2^78 / 10^9),
  * exact because x (m 10^9 - 2^78) < 2^48 10^9 < 2^78 (four 32 x 32
  * multiplies, no division) */
 static uint64_t sc_div_ns48(uint64_t x)
 {
-    const uint32_t m0 = 0xBE826D6Au, m1 = 0x112E0u; /* m = 302231454903658 */
-    uint32_t x0 = (uint32_t)x, x1 = (uint32_t)(x >> 32);
-    uint64_t lh = (uint64_t)x0 * m1, hl = (uint64_t)x1 * m0;
-    uint64_t mid = (((uint64_t)x0 * m0) >> 32) + (uint32_t)lh + (uint32_t)hl;
-
-    return ((uint64_t)x1 * m1 + (lh >> 32) + (hl >> 32) + (mid >> 32)) >> 14;
+    return fx_umulhi64(x, 302231454903658u) >> 14; /* m = 0x112E0BE826D6A */
 }
 
 static inline void sc_state_set(sc_state_t *st, int64_t s, int64_t v, int64_t a)
@@ -1077,7 +917,7 @@ void sc_plan_cruise_rec(sc_profile_t *p, int64_t len, int64_t v, const sc_limits
         return;
     }
     j = trap ? 0 : lim->j_max;
-    len = sc_max(len, 0);
+    len = fx_max64(len, 0);
     sc_set_jerk(p, j);
     if (len > 0 && len < ((int64_t)1 << 32) && v <= (int64_t)UINT32_MAX) {
         /* the same values without a 128-bit product: t3 = round(len NS / v)
@@ -1090,7 +930,7 @@ void sc_plan_cruise_rec(sc_profile_t *p, int64_t len, int64_t v, const sc_limits
             /* q = floor(n rec / 2^64) is floor(n / v) or one less (rec =
              * floor((2^64 - 1) / v): n (2^64 / v - rec) / 2^64 < 1); the
              * remainder decides */
-            q = sc_mulhi64(n, rec);
+            q = fx_umulhi64(n, rec);
             q += (n - q * (uint64_t)v >= (uint64_t)v) ? 1u : 0u;
         } else {
             uint32_t q32 = fx_udiv64by32(n, (uint32_t)v); /* UINT32_MAX: too long */
@@ -1158,30 +998,30 @@ void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limi
         sc_plan_cruise_rec(p, len, v0, lim, 0u);
         return;
     }
-    v0 = sc_max(v0, 0);
-    v1 = sc_max(v1, 0);
-    lim = sc_resolve(lim, sc_min(v0, v1), &tmp); /* at rest at either end */
+    v0 = fx_max64(v0, 0);
+    v1 = fx_max64(v1, 0);
+    lim = sc_resolve(lim, fx_min64(v0, v1), &tmp); /* at rest at either end */
     trap = lim->shape == SC_SHAPE_TRAPEZOID;
     a = lim->a_max;
     j = trap ? 0 : lim->j_max;
-    len = sc_max(len, 0);
-    vc = sc_max(lim->v_max, sc_max(v0, v1));
+    len = fx_max64(len, 0);
+    vc = fx_max64(lim->v_max, fx_max64(v0, v1));
 
     /* peak speed */
-    if (sc_sat_add(sc_dist(v0, vc, lim), sc_dist(vc, v1, lim)) <= len) {
+    if (fx_sat_add64(sc_dist(v0, vc, lim), sc_dist(vc, v1, lim)) <= len) {
         vp = vc;
     } else if (trap) {
         /* vp^2 = (2 A len + v0^2 + v1^2) / 2, exact */
-        sc_u128_t x = sc_add128(
-            sc_add128(sc_mul((uint64_t)(2 * a), (uint64_t)len), sc_mul((uint64_t)v0, (uint64_t)v0)),
+        fx_u128_t x = fx_add128(
+            fx_add128(sc_mul((uint64_t)(2 * a), (uint64_t)len), sc_mul((uint64_t)v0, (uint64_t)v0)),
             sc_mul((uint64_t)v1, (uint64_t)v1));
         x.lo = (x.lo >> 1) | (x.hi << 63);
         x.hi >>= 1;
-        vp = sc_min(vc, sc_max((int64_t)sc_isqrt128(x), sc_max(v0, v1)));
+        vp = fx_min64(vc, fx_max64((int64_t)fx_isqrt128(x), fx_max64(v0, v1)));
     } else {
-        int64_t vm = sc_max(v0, v1), rem = len - sc_dist(v0, v1, lim);
+        int64_t vm = fx_max64(v0, v1), rem = len - sc_dist(v0, v1, lim);
         vp = (rem > 0) ? sc_reach_q16(vm, rem * 32768, lim, -1, -1, true) : vm; /* half of rem */
-        vp = sc_min(vc, vp);
+        vp = fx_min64(vc, vp);
     }
     if (vp < 1) {
         vp = 1;

@@ -14,16 +14,6 @@
 #define SERVO_NOINLINE
 #endif
 
-static int64_t abs64(int64_t v)
-{
-    return (v < 0) ? -v : v;
-}
-
-static int64_t clamp64(int64_t v, int64_t lim)
-{
-    return (v > lim) ? lim : (v < -lim) ? -lim : v;
-}
-
 void servo_params_default(servo_params_t *p, uint32_t tick_hz)
 {
     unsigned i;
@@ -219,8 +209,8 @@ static void start_stop(servo_t *s)
         if (!(s->off_mask & (1u << i))) {
             uint64_t f = s->p.tick_hz, a = (uint64_t)s->p.stop_decel_nm_s2[i];
             uint64_t ni;
-            v = clamp64(s->ref_vel[i], SERVO_VEL_MAX);
-            ni = ((uint64_t)abs64(v) * f + a - 1u) / a;
+            v = fx_clamp_sym64(s->ref_vel[i], SERVO_VEL_MAX);
+            ni = (fx_uabs64(v) * f + a - 1u) / a;
             n = (ni > n) ? ni : n;
         }
         s->stop_v0[i] = v;
