@@ -12,6 +12,7 @@
  */
 #include "drive.h"
 #include "drive_int.h"
+#include "drive_test.h"
 
 #include "arc_ref.h"
 #include "arc_seg.h"

@@ -319,19 +319,6 @@ int64_t drive_encoder_count(unsigned ch);
 void drive_set_comp(unsigned axis, const comp_table_t *table);
 /* True when the axis has a reference-scale input in use. Any. */
 bool drive_has_refscale(unsigned axis);
-/* Test hook: when on, every tick rebuilds the reference from the
- * interpolator's in full (no pos-only copy on its fast-path ticks); the
- * outputs are the same. drive_init turns it off. Main, with the tick
- * stopped. */
-void drive_test_full_ref(bool on);
-
-/* Test hook: when on, every arc tick takes the exact overlay (the oracle of
- * the cruise recurrence, see arc_ref.h). drive_init
- * turns it off. Main, with the tick stopped. */
-void drive_test_arc_exact(bool on);
-/* Test hook: the reference the last tick handed the servo. */
-const motion_ref_t *drive_test_ref(void);
-
 /* Select the contour-error controller (refused while moving). Main. */
 drive_result_t drive_set_cec_mode(drive_cec_mode_t mode);
 

@@ -21,6 +21,7 @@
 #include <string.h>
 
 #include "drive.h"
+#include "drive_test.h"
 #include "estimator.h"
 #include "hal_sim.h"
 #include "sim.h"
