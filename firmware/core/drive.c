@@ -2,9 +2,9 @@
  * drive.c - the drive application (specification in drive.h).
  *
  * Ownership of the state:
- *   main  host-block FIFO (hq_*), planner, arc segmentation, seg[] entries of
- *         segments not yet handed to the interpolator, the interpolator's
- *         producer side, requests (req_*).
+ *   main  the feed path (feed.h: host-block FIFO, planner, arc segmentation,
+ *         segment records not yet handed to the interpolator, the
+ *         interpolator's producer side), requests (req_*).
  *   tick  decoders, servo loops, motion reference, state, status snapshot,
  *         interpolator consumer side.
  * Main requests changes through the volatile req_* flags that the tick
@@ -15,44 +15,20 @@
 #include "drive_test.h"
 
 #include "arc_ref.h"
-#include "arc_seg.h"
 #include "calib.h"
+#include "feed.h"
 #include "hal.h"
 #include "interp.h"
 #include "motion_ref.h"
 #include "qdec.h"
-
-#define SEG_RING 128u /* > planner depth + interpolator FIFO + 1 */
-/* Keep at least this much planned time in the interpolator's FIFO beyond the
- * current segment when no block is waiting and the planner is not full. */
-#define DRIVE_FEED_AHEAD_NS ((int64_t)5000000)
-
-typedef struct {
-    uint32_t host_tag;
-    bool last; /* last segment of its host block */
-    bool arc;
-    arc_chord_t c; /* arc: the chord (arc_ref.h) */
-} seg_info_t;
-
-typedef struct {
-    drive_block_t b;
-    arc_seg_t arc; /* ARC: the chords */
-} host_block_t;
 
 static plan_block_t plan_store[PLAN_DEPTH_DEFAULT];
 
 static struct {
     bool ready;
     drive_config_t cfg;
-    /* main */
-    plan_t plan;
-    host_block_t hq[DRIVE_QUEUE_DEPTH];
-    volatile uint16_t hq_head, hq_count;
-    pos_nm_t q_end[CORE_AXES]; /* end point of the last accepted block */
-    uint32_t seq_next;         /* internal tag of the next planner block */
-    uint32_t queued_at;        /* tick_lo when the last block was accepted */
-    seg_info_t seg[SEG_RING];
-    uint32_t blocks_done_main;
+    /* main: host FIFO, planner, producer side of the interpolator */
+    feed_t feed;
     /* shared */
     interp_t ip;
     volatile bool req_enable, req_disable, req_stop, req_estop, req_reset, req_gains;
@@ -119,7 +95,7 @@ static struct {
  * it: qdec outputs, servo outputs, the reference handed to the servo, the
  * reference scales, the CEC estimate, blocks done and tag; drive_init
  * publishes after setting them) plus main's count of blocks it completed
- * (blocks_done_main: the snapshot runs in main). */
+ * (feed_skipped: the snapshot runs in main). */
 static void status_live(drive_status_t *s)
 {
     unsigned i;
@@ -136,7 +112,7 @@ static void status_live(drive_status_t *s)
         s->refscale[i] = drv.ref_on[i] ? drv.ref_nm[i] : 0;
     }
     s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
-    s->blocks_done = drv.blocks_done + drv.blocks_done_main;
+    s->blocks_done = drv.blocks_done + feed_skipped(&drv.feed);
     s->tag = drv.cur_tag;
 }
 
@@ -273,21 +249,13 @@ drive_result_t drive_init(const drive_config_t *cfg)
     }
     /* one HAL call per tick for all outputs and all fault inputs */
     servo_set_io_all(&drv.servo, hal_motor_set_mv_all, hal_amp_fault_mask);
-    if (plan_init(&drv.plan, plan_store, PLAN_DEPTH_DEFAULT, &cfg->plan, origin) != PLAN_OK) {
+    if (!feed_init(&drv.feed, &drv.cfg, &drv.ip, plan_store, PLAN_DEPTH_DEFAULT, origin)) {
         return DRIVE_E_INVALID;
     }
-    interp_init(&drv.ip, (int64_t)(1000000000u / cfg->tick_hz), origin);
     drv.ref = zero_ref;
     drv.ch = zero_ref;
     drv.ref_synced = false;
     drv.ref_full = false;
-    drv.hq_head = 0;
-    drv.hq_count = 0;
-    for (i = 0; i < CORE_AXES; i++) {
-        drv.q_end[i] = 0;
-    }
-    drv.seq_next = 0;
-    drv.queued_at = 0;
     drv.tick_lo = 0;
     drv.stop_v = drv.stop_dv = drv.v_plan = drv.a_plan = drv.v_act = 0;
     arc_ref_reset(&drv.arc);
@@ -330,7 +298,7 @@ static void track_segments(void)
 {
     uint32_t done = interp_blocks_done(&drv.ip);
     while (drv.seen_done != done) {
-        const seg_info_t *g = &drv.seg[drv.seq_done % SEG_RING];
+        const feed_seg_t *g = feed_seg(&drv.feed, drv.seq_done);
         if (g->last) {
             drv.blocks_done++;
         }
@@ -338,7 +306,7 @@ static void track_segments(void)
         drv.seen_done++;
     }
     if (interp_busy(&drv.ip)) {
-        drv.cur_tag = drv.seg[interp_tag(&drv.ip) % SEG_RING].host_tag;
+        drv.cur_tag = feed_seg(&drv.feed, interp_tag(&drv.ip))->host_tag;
     }
 }
 
@@ -439,7 +407,7 @@ static void reference_step(void)
     }
     if (!stepped && drv.ref.active && interp_busy(&drv.ip)) {
         uint32_t tag = interp_tag(&drv.ip);
-        const seg_info_t *g = &drv.seg[tag % SEG_RING];
+        const feed_seg_t *g = feed_seg(&drv.feed, tag);
         if (g->arc) {
             /* the recurrence rewrites the plane axes' positions without
              * reading them: the interpolator's fast path may skip them */
@@ -653,9 +621,7 @@ void drive_tick(void)
     if (drv.faults != 0) {
         drv.state = DRIVE_FAULT;
     } else if (drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING) {
-        bool busy = drv.ip.busy || drv.ip.wr != drv.ip.rd || /* !interp_idle() */
-                    plan_count(&drv.plan) > 0 || drv.hq_count > 0;
-        drv.state = busy ? DRIVE_RUNNING : DRIVE_IDLE;
+        drv.state = feed_busy(&drv.feed) ? DRIVE_RUNNING : DRIVE_IDLE;
     }
     drv.tick++;
     drv.tick_lo = (uint32_t)drv.tick;
@@ -665,101 +631,14 @@ void drive_tick(void)
 
 /* ---- main -------------------------------------------------------------------- */
 
+/* Drop the queued job and hold pos (the tick is not running the
+ * interpolator: DISABLED, FAULT or halted); the tick's segment accounting
+ * restarts at the next planner block. */
 static void flush_all(const pos_nm_t pos[CORE_AXES])
 {
-    unsigned i;
-    drv.hq_count = 0;
-    drv.hq_head = 0;
-    plan_reset(&drv.plan, pos);
-    interp_reset(&drv.ip, pos);
-    interp_set_tick_ns(&drv.ip, (int64_t)(1000000000u / drv.cfg.tick_hz));
+    feed_flush(&drv.feed, pos);
     drv.seen_done = interp_blocks_done(&drv.ip);
-    drv.seq_done = drv.seq_next;
-    for (i = 0; i < CORE_AXES; i++) {
-        drv.q_end[i] = pos[i];
-    }
-}
-
-/* Push the next planner block of the oldest host block. False when the
- * planner is full. */
-static bool feed_one(void)
-{
-    host_block_t *h = &drv.hq[drv.hq_head];
-    plan_move_t m = {0};
-    seg_info_t g = {0};
-    plan_result_t r;
-    unsigned i;
-    bool last = true;
-
-    if (plan_free_slots(&drv.plan) == 0) {
-        return false;
-    }
-    m.tag = drv.seq_next;
-    m.feed = h->b.feed_nm_s;
-    g.host_tag = h->b.tag;
-    if (h->b.kind == DRIVE_BLOCK_DWELL) {
-        m.dwell_ns = (int64_t)h->b.dwell_ms * 1000000;
-    } else if (h->b.kind == DRIVE_BLOCK_LINE) {
-        for (i = 0; i < CORE_AXES; i++) {
-            m.target[i] = h->b.target[i];
-        }
-        m.flags = h->b.exact_stop ? PLAN_MOVE_EXACT_STOP : 0;
-    } else {
-        arc_seg_chord(&h->arc, &h->b, h->arc.done_seg, m.target, &g.c);
-        last = h->arc.done_seg + 1 == h->arc.n_seg;
-        m.flags = (last && h->b.exact_stop) ? PLAN_MOVE_EXACT_STOP : 0;
-        g.arc = true;
-    }
-    r = plan_push(&drv.plan, &m);
-    if (r == PLAN_E_FULL) {
-        return false;
-    }
-    if (r == PLAN_OK) {
-        g.last = last;
-        drv.seg[drv.seq_next % SEG_RING] = g;
-        drv.seq_next++;
-    } else if (last && h->b.kind != DRIVE_BLOCK_ARC) {
-        /* skipped (zero length) or refused: the block counts as done */
-        drv.blocks_done_main++;
-    }
-    if (h->b.kind == DRIVE_BLOCK_ARC) {
-        h->arc.done_seg++;
-    }
-    if (last) {
-        drv.hq_head = (uint16_t)((drv.hq_head + 1u) % DRIVE_QUEUE_DEPTH);
-        drv.hq_count--;
-    }
-    return true;
-}
-
-/* True when the oldest planner block's exit speed is final (the next
- * block's entry can no longer change, or it ends in a stop): freezing it now
- * gives the plan it would get with any later look-ahead. */
-static bool oldest_final(void)
-{
-    const plan_block_t *b = plan_peek(&drv.plan, 0);
-    if (b == NULL) {
-        return false;
-    }
-    if (plan_count(&drv.plan) >= 2) {
-        return drv.plan.planned >= 2;
-    }
-    return (b->flags & (PLAN_BF_EXACT_STOP | PLAN_BF_DWELL)) != 0;
-}
-
-/* No input is waiting and the planner is not full: freeze a block anyway
- * only when the interpolator would otherwise run short (less than
- * DRIVE_FEED_AHEAD_NS beyond its current segment), or, with nothing in the
- * interpolator, when no block arrived for cfg.start_delay_ms (a job starts
- * once its look-ahead has filled or the host has paused). */
-static bool interp_needs_block(void)
-{
-    uint32_t delay;
-    if (!interp_idle(&drv.ip)) {
-        return interp_ahead_ns(&drv.ip) < DRIVE_FEED_AHEAD_NS;
-    }
-    delay = (uint32_t)(((uint64_t)drv.cfg.start_delay_ms * drv.cfg.tick_hz + 999u) / 1000u);
-    return (uint32_t)(drv.tick_lo - drv.queued_at) >= delay;
+    drv.seq_done = feed_seq_next(&drv.feed);
 }
 
 void drive_poll(void)
@@ -769,7 +648,7 @@ void drive_poll(void)
     }
     calib_poll();
     if (drv.state == DRIVE_DISABLED || drv.state == DRIVE_FAULT) {
-        if (drv.hq_count > 0 || plan_count(&drv.plan) > 0 || !interp_idle(&drv.ip)) {
+        if (!feed_idle(&drv.feed)) {
             flush_all(drv.ref.pos);
         }
         return;
@@ -782,26 +661,12 @@ void drive_poll(void)
         }
         return;
     }
-    /* Push every waiting block before each pop (interp_refill pops one), so
-     * that a block is frozen with the look-ahead plan_estimate() gives it;
-     * pop while the interpolator has room and the planner is full, or the
-     * oldest block's plan is final, or the interpolator runs short. */
-    for (;;) {
-        while (drv.hq_count > 0 && feed_one()) {
-        }
-        if (interp_room(&drv.ip) == 0 || plan_count(&drv.plan) == 0 ||
-            !(plan_free_slots(&drv.plan) == 0 || oldest_final() || interp_needs_block())) {
-            break;
-        }
-        if (interp_refill(&drv.ip, &drv.plan) == 0) {
-            break;
-        }
-    }
+    feed_poll(&drv.feed, drv.tick_lo);
 }
 
 uint32_t drive_queue_free(void)
 {
-    return (uint32_t)(DRIVE_QUEUE_DEPTH - drv.hq_count);
+    return feed_free(&drv.feed);
 }
 
 static drive_result_t accept_check(void)
@@ -823,10 +688,7 @@ static drive_result_t accept_check(void)
 
 drive_result_t drive_queue_block(const drive_block_t *b)
 {
-    host_block_t h;
-    host_block_t zero = {0};
     drive_result_t r;
-    unsigned i;
     if (b == NULL) {
         return DRIVE_E_INVALID;
     }
@@ -834,50 +696,9 @@ drive_result_t drive_queue_block(const drive_block_t *b)
     if (r != DRIVE_OK) {
         return r;
     }
-    h = zero;
-    h.b = *b;
-    for (i = drv.cfg.axes; i < CORE_AXES; i++) {
-        h.b.target[i] = drv.q_end[i];
-    }
-    switch (b->kind) {
-    case DRIVE_BLOCK_DWELL:
-        if (b->dwell_ms == 0 || b->dwell_ms > 86400000u) {
-            return DRIVE_E_INVALID;
-        }
-        break;
-    case DRIVE_BLOCK_LINE:
-        if (b->feed_nm_s <= 0 || b->feed_nm_s > SC_V_LIMIT) {
-            return DRIVE_E_INVALID;
-        }
-        for (i = 0; i < CORE_AXES; i++) {
-            if (fx_sat_abs64(h.b.target[i] - drv.q_end[i]) >= SC_LEN_MAX) {
-                return DRIVE_E_INVALID;
-            }
-        }
-        break;
-    case DRIVE_BLOCK_ARC:
-        if (!arc_seg_setup(&h.arc, &h.b, drv.q_end, drv.cfg.axes, drv.cfg.tick_hz,
-                           drv.cfg.arc_chord_nm)) {
-            return DRIVE_E_INVALID;
-        }
-        break;
-    default:
-        return DRIVE_E_INVALID;
-    }
-    if (drv.hq_count >= DRIVE_QUEUE_DEPTH) {
-        return DRIVE_E_FULL;
-    }
-    drv.hq[(drv.hq_head + drv.hq_count) % DRIVE_QUEUE_DEPTH] = h;
-    drv.hq_count++;
-    drv.queued_at = drv.tick_lo;
-    /* plan it now (main context, like drive_poll): the caller's status then
-     * counts its planned time; drive_poll decides when it is frozen */
-    while (drv.hq_count > 0 && feed_one()) {
-    }
-    if (b->kind != DRIVE_BLOCK_DWELL) {
-        for (i = 0; i < CORE_AXES; i++) {
-            drv.q_end[i] = h.b.target[i];
-        }
+    r = feed_queue(&drv.feed, b, drv.tick_lo);
+    if (r != DRIVE_OK) {
+        return r;
     }
     if (drv.state == DRIVE_IDLE) {
         drv.state = DRIVE_RUNNING;
@@ -976,14 +797,8 @@ static void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t *ip_rem)
          * segment (-1: none): the tick changes them only inside its odd
          * st_seq window; main, which runs this, is the only writer of the
          * FIFO slots and does not write the current one */
-        *ip_rd = drv.ip.rd;
-        *ip_rem = -1;
-        if (drv.ip.busy) {
-            *ip_rem = drv.ip.fifo[*ip_rd & (INTERP_FIFO - 1)].total_ns - drv.ip.t_ns;
-            if (*ip_rem < 0) {
-                *ip_rem = 0;
-            }
-        }
+        *ip_rd = interp_rd(&drv.ip);
+        *ip_rem = interp_left_ns(&drv.ip);
         snapshot_barrier();
     } while ((s & 1u) != 0 || s != drv.st_seq);
 }
@@ -1000,24 +815,17 @@ void drive_snapshot(drive_status_t *out)
 
 void drive_status(drive_status_t *out)
 {
-    uint16_t rd, wr, i;
-    int64_t rem, sum;
+    uint16_t rd;
+    int64_t rem;
     if (out == NULL) {
         return;
     }
     snapshot(out, &rd, &rem);
     drv.req_ref = true; /* the next tick samples the reference scales */
-    out->queue_free = (uint32_t)(DRIVE_QUEUE_DEPTH - drv.hq_count);
+    out->queue_free = feed_free(&drv.feed);
     /* planner, then the interpolator's FIFO from the published read index
      * (segments loaded since are counted; a current one by its remainder) */
-    sum = plan_queued_ns(&drv.plan);
-    wr = drv.ip.wr;
-    if ((uint16_t)(wr - rd) <= INTERP_FIFO) {
-        for (i = rd; i != wr; i++) {
-            sum += (i == rd && rem >= 0) ? rem : drv.ip.fifo[i & (INTERP_FIFO - 1)].total_ns;
-        }
-    }
-    out->queued_time_ns = sum;
+    out->queued_time_ns = feed_queued_ns(&drv.feed, rd, rem);
 }
 
 void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns)
@@ -1119,8 +927,7 @@ bool drive_ready(void)
 /* Nothing queued, executing or stopping (parameters may change). */
 static bool planner_idle(void)
 {
-    return !moving() && !drv.req_stop && drv.hq_count == 0 && plan_count(&drv.plan) == 0 &&
-           interp_idle(&drv.ip);
+    return !moving() && !drv.req_stop && feed_idle(&drv.feed);
 }
 
 drive_result_t drive_apply_config(const drive_config_t *c)
@@ -1135,7 +942,6 @@ drive_result_t drive_apply_config(const drive_config_t *c)
     drv.cfg.stop_decel_nm_s2 = c->stop_decel_nm_s2;
     drv.cfg.arc_chord_nm = c->arc_chord_nm;
     drv.cfg.start_delay_ms = c->start_delay_ms;
-    drv.plan.prof = c->plan;
-    plan_reset(&drv.plan, drv.plan.pos);
+    feed_set_profile(&drv.feed, &c->plan);
     return DRIVE_OK;
 }
