@@ -15,7 +15,6 @@
 #include "drive_test.h"
 
 #include "arc_ref.h"
-#include "calib.h"
 #include "feed.h"
 #include "hal.h"
 #include "interp.h"
@@ -119,8 +118,9 @@ static void status_live(drive_status_t *s)
 /* End of the tick's status update (drive_tick made st_seq odd at its
  * start). The fields status_live() gives are read by the snapshot from the
  * live state (the tick changes them only inside its odd st_seq window), and
- * copied here only while calibration samples them (calib_tick reads pos,
- * pos_raw and refscale); the rest is published every tick. Axes beyond
+ * copied here only while the caller samples them (drive_tick's
+ * ref_sampling: calib_tick reads pos, pos_raw and refscale of the
+ * published status); the rest is published every tick. Axes beyond
  * cfg.axes: all zero (drive_init zeroes st; cfg.axes is set only there). */
 static void publish(bool sampling)
 {
@@ -281,8 +281,7 @@ drive_result_t drive_init(const drive_config_t *cfg)
         hal_motor_set_mv(i, 0);
     }
     drv.ready = true;
-    publish(calib_sampling());
-    calib_init();
+    publish(false); /* the next tick's ref_sampling decides what is copied */
     return DRIVE_OK;
 }
 
@@ -558,16 +557,19 @@ static void ref_scales_sample(void)
     }
 }
 
-void drive_tick(void)
+/* drive_tick's result: constant pointers into drv */
+static const drive_tick_out_t tick_out = {&drv.st, drv.ref.vel};
+
+const drive_tick_out_t *drive_tick(bool ref_sampling)
 {
     unsigned i;
     uint32_t now_ns;
     servo_fb_t fb;
     uint32_t enc_fault = 0;
-    bool moving_ok, sampling;
+    bool moving_ok;
 
     if (!drv.ready) {
-        return;
+        return NULL;
     }
     drv.st_seq++; /* odd: the status is being updated (publish ends it) */
     now_ns = hal_time_us() * 1000u;
@@ -594,9 +596,7 @@ void drive_tick(void)
         }
     }
     fb.enc_fault = enc_fault;
-    /* calib_tick (the end of this tick) is the only writer besides main */
-    sampling = calib_sampling();
-    if (sampling || drv.req_ref || ((uint32_t)drv.tick & (DRIVE_REF_SAMPLE_TICKS - 1u)) == 0u) {
+    if (ref_sampling || drv.req_ref || ((uint32_t)drv.tick & (DRIVE_REF_SAMPLE_TICKS - 1u)) == 0u) {
         ref_scales_sample();
     }
     apply_requests(&fb);
@@ -625,8 +625,8 @@ void drive_tick(void)
     }
     drv.tick++;
     drv.tick_lo = (uint32_t)drv.tick;
-    publish(sampling);
-    calib_tick(&drv.st, drv.ref.vel);
+    publish(ref_sampling);
+    return &tick_out;
 }
 
 /* ---- main -------------------------------------------------------------------- */
@@ -646,7 +646,6 @@ void drive_poll(void)
     if (!drv.ready) {
         return;
     }
-    calib_poll();
     if (drv.state == DRIVE_DISABLED || drv.state == DRIVE_FAULT) {
         if (!feed_idle(&drv.feed)) {
             flush_all(drv.ref.pos);

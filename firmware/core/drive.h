@@ -210,7 +210,8 @@ typedef struct {
     uint32_t blocks_done;     /* blocks completed since init            */
     uint32_t tag;             /* tag of the block executing (or last)   */
     /* Reference-scale positions, nm (0 without a scale), as of the last
-     * sample: every tick while calibration samples (calib_sampling()), the
+     * sample: every tick while calibration samples (drive_tick's
+     * ref_sampling), the
      * tick after each drive_status() call, and otherwise every
      * DRIVE_REF_SAMPLE_TICKS ticks (the counters are read by the tick only:
      * a status reply reports the sample of the tick after the previous
@@ -266,8 +267,21 @@ void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes);
  * Returns DRIVE_E_INVALID (and stays uninitialised) on bad values. Main. */
 drive_result_t drive_init(const drive_config_t *cfg);
 
-/* One control tick: decode, interpolate, servo, motor commands. Tick. */
-void drive_tick(void);
+/* What drive_tick publishes for the tick-context consumer that runs right
+ * after it (calib_tick); valid until the next drive_tick. */
+typedef struct {
+    const drive_status_t *st; /* the status; its live fields (pos, pos_raw,
+                               * refscale ...) only when ref_sampling    */
+    const int64_t *vel_ref;   /* reference velocities handed to the servo,
+                               * nm/s, CORE_AXES                         */
+} drive_tick_out_t;
+
+/* One control tick: decode, interpolate, servo, motor commands, then the
+ * status is published. ref_sampling: the caller's calibration samples this
+ * tick (calib_sampling()): the reference scales are read and the live
+ * fields copied into the published status. NULL (nothing done) before a
+ * successful drive_init. Tick. */
+const drive_tick_out_t *drive_tick(bool ref_sampling);
 
 /* Background work: re-planning, state housekeeping. Main. */
 void drive_poll(void);
@@ -308,9 +322,13 @@ void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns);
 /* Decoded position of channel ch in counts (0 for a channel not in use). */
 int64_t drive_encoder_count(unsigned ch);
 
-/* Calibration (calib.h). drive_tick ends with calib_tick(published status,
- * reference velocities),
- * drive_poll starts with calib_poll(), drive_init ends with calib_init().
+/* Calibration (calib.h) is not called by the drive: the composition root
+ * runs, per tick,
+ *     const drive_tick_out_t *t = drive_tick(calib_sampling());
+ *     if (t != NULL)
+ *         calib_tick(t->st, t->vel_ref);
+ * and in the main loop calib_poll() then drive_poll(); calib_init() after
+ * a successful drive_init().
  * The reference-scale decoders read the absolute counter value at init
  * (position = counter * scale), like the encoder counts from 0 = position 0.
  *

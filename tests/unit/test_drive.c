@@ -20,6 +20,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "calib.h"
 #include "drive.h"
 #include "drive_test.h"
 #include "estimator.h"
@@ -128,8 +129,10 @@ static void test_enable_queue_poll_before_the_first_tick(void)
     /* the main loop may poll before the tick applied the enable */
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(500000, 500000, 10000000, false, 1));
+    calib_poll();
     drive_poll();
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 500000, 10000000, true, 2));
+    calib_poll();
     drive_poll();
     run(20000);
     TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
@@ -155,6 +158,7 @@ static void test_status_reports_planned_time_queued(void)
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 0, 20000000, true, 1));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 2000000, 20000000, true, 2));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 0, 30000000, true, 3));
+    calib_poll();
     drive_poll(); /* hands the blocks to the planner and the interpolator */
     drive_status(&st);
     TEST_ASSERT_EQUAL_INT64(total, st.queued_time_ns);
@@ -183,6 +187,7 @@ static void test_planned_time_counts_blocks_waiting_in_the_planner(void)
     for (i = 0; i < 20; i++) {
         TEST_ASSERT_EQUAL_INT(DRIVE_OK,
                               queue_line(m[i].target[0], m[i].target[1], m[i].feed, false, i));
+        calib_poll();
         drive_poll();
     }
     drive_status(&st);
@@ -658,6 +663,7 @@ static void test_new_limits_are_what_the_planner_uses(void)
     run(1);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 0, 50000000, false, 1));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 5000, 50000000, true, 2));
+    calib_poll();
     drive_poll();
     drive_status(&st);
     TEST_ASSERT_EQUAL_INT64(total, st.queued_time_ns);
@@ -748,6 +754,7 @@ static void test_reference_scale_samples_and_wrap_guard(void)
     hal_sim_set_time_ns(t);
     hal_sim_set_counter(1, raw0, true);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_init(&cfg));
+    calib_init();
     TEST_ASSERT_TRUE(drive_has_refscale(0));
     sampled = 5 * cnt; /* set by the first tick (k = 0) */
     for (k = 0; k < 12u * DRIVE_REF_SAMPLE_TICKS; k++) {
@@ -757,7 +764,13 @@ static void test_reference_scale_samples_and_wrap_guard(void)
         t += TICK_NS;
         hal_sim_set_time_ns(t);
         hal_sim_set_counter(1, raw, true);
-        drive_tick(); /* tick number k since drive_init */
+        /* tick number k since drive_init */
+        {
+            const drive_tick_out_t *t = drive_tick(calib_sampling());
+            if (t != NULL) {
+                calib_tick(t->st, t->vel_ref);
+            }
+        }
         if (k % DRIVE_REF_SAMPLE_TICKS == 0u || (status && k > 6u * DRIVE_REF_SAMPLE_TICKS)) {
             sampled = 5 * cnt;
         }
