@@ -32,6 +32,14 @@
  * Units (docs/conventions.md): positions nm (pos_nm_t), velocities nm/s,
  * times ns or ticks, motor command mV at the amplifier input.
  *
+ * Modules: drive.c is the state machine (request mailbox, the tick, the
+ * status snapshot); feed.c the feed path (host-block FIFO -> planner ->
+ * interpolator, main context); arc_seg.c the chord segmentation (and
+ * drive_arc_chords); arc_ref.c the arc reference of the tick; drive_param.c
+ * the parameter table. drive_int.h is their internal interface,
+ * drive_test.h holds the test hooks. The drive calls no other subsystem's
+ * main or tick functions: calibration runs beside it (see drive_tick).
+ *
  * Motion: blocks are absolute end points with a programmed feed, queued in
  * a host-block FIFO of DRIVE_QUEUE_DEPTH entries (queue_free in the status)
  * that drive_poll() feeds into the planner (planner.h, straight blocks only):

@@ -176,6 +176,12 @@ static inline uint32_t interp_blocks_done(const interp_t *ip)
     return ip->blocks_done;
 }
 
+/* Segments that ended moving on an empty FIFO since interp_init. Any. */
+static inline uint32_t interp_underruns(const interp_t *ip)
+{
+    return ip->underruns;
+}
+
 /* The time step of the following ticks, ns (>= 0; 0 holds the time): the
  * drive's controlled stop slows the interpolator's time down. Tick (or main
  * with the tick stopped). */
