@@ -595,15 +595,6 @@ unsigned sim_substeps(void)
     return S.nsub;
 }
 
-int sim_axis_state(unsigned axis, double *z5)
-{
-    if (!S.started || axis >= S.axes || z5 == NULL) {
-        return SIM_E_ARG;
-    }
-    memcpy(z5, S.ax[axis].z, sizeof(double) * AXIS_NSTATE);
-    return 0;
-}
-
 double sim_table_pos(unsigned axis)
 {
     if (!S.started || axis >= S.axes) {

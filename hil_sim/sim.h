@@ -122,8 +122,6 @@ double sim_time_s(void);
 uint64_t sim_edges(void);
 uint64_t sim_edge_mismatches(void);
 unsigned sim_substeps(void);
-/* Model state of one axis: z[0..4] (th1, w1, th2, w2, ia). */
-int sim_axis_state(unsigned axis, double *z5);
 double sim_table_pos(unsigned axis);
 
 /* The drive's status in a fixed layout for the host (ctypes). */

@@ -431,20 +431,6 @@ calib_state_t calib_state(void)
     return cb.state;
 }
 
-uint32_t calib_seq_next(void)
-{
-    return cb.seq_next;
-}
-
-bool calib_sample(uint32_t seq, calib_sample_t *out)
-{
-    if (out == NULL || (uint32_t)(seq - cb.seq_oldest) >= ring_used()) {
-        return false;
-    }
-    *out = cb.ring[seq % CALIB_RING];
-    return true;
-}
-
 void calib_sample_encode(const calib_sample_t *s, uint8_t *b)
 {
     proto_put_le(b, s->seq, 4u);

@@ -146,9 +146,6 @@ void calib_set_next_handler(calib_handler_fn fn);
 
 /* Read-outs (tests, simulator). */
 calib_state_t calib_state(void);
-uint32_t calib_seq_next(void);
-/* The sample with sequence number seq if still held. */
-bool calib_sample(uint32_t seq, calib_sample_t *out);
 /* Active table of an axis (NULL: none). */
 const comp_table_t *calib_comp_active(unsigned axis);
 /* Encode one sample in the wire format (CALIB_SAMPLE_BYTES). */

@@ -378,6 +378,36 @@ static inline int64_t fx_mul_q30_pos(int64_t a, q1_30_t b)
     return (int64_t)((uint64_t)h << 2) + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
 }
 
+/* |v| <= max for max <= 2^31 - 1, with one add and one unsigned compare:
+ * v + max (mod 2^32) lies in [0, 2 max] exactly when |v| <= max (above:
+ * v + max <= 2^31 - 1 + max < 2^32; below: v + max >= 2^31 + max > 2 max
+ * mod 2^32). */
+static inline bool fx_in_range32(int32_t v, uint32_t max)
+{
+    return (uint32_t)v + max <= 2u * max;
+}
+
+/* round(x * m / 2^sh) for sh in 1..31 with rnd = 2^(sh - 1) preloaded (the
+ * caller keeps it with m and sh): one multiply-accumulate and a funnel
+ * shift. fx_mul_rsh32 for a result known to fit 32 bits, fx_mul_rsh64 for
+ * any (== fx_mul32_shift(x, m, sh)). The PID's fast-path products. */
+static inline int32_t fx_mul_rsh32(int32_t x, int32_t m, unsigned sh, uint32_t rnd)
+{
+    uint64_t u = (uint64_t)rnd + (uint64_t)((int64_t)x * m);
+
+    return (int32_t)(((uint32_t)u >> sh) | ((uint32_t)(u >> 32) << (32u - sh)));
+}
+
+static inline int64_t fx_mul_rsh64(int32_t x, int32_t m, unsigned sh, uint32_t rnd)
+{
+    uint64_t u = (uint64_t)rnd + (uint64_t)((int64_t)x * m);
+    uint32_t lo = (uint32_t)u, hi = (uint32_t)(u >> 32);
+    uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
+    uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
+
+    return (int64_t)(((uint64_t)rhi << 32) | rlo);
+}
+
 /* ---- conversions between the named formats -------------------------------- */
 
 /* Widening conversions are exact; narrowing ones round (shift rule) and
@@ -423,11 +453,6 @@ uint64_t fx_udivmod64(uint64_t n, uint64_t d, uint64_t *rem);
  * quotient fits 64 bits); hi >= d (d == 0 included) gives UINT64_MAX and
  * *rem = 0. */
 uint64_t fx_udiv128(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem);
-
-/* Test hooks: the same two through the 32-bit-digit code that 32-bit
- * targets run (hosts with a 64-bit divider use it in the two above). */
-uint64_t fx_udivmod64_digits(uint64_t n, uint64_t d, uint64_t *rem);
-uint64_t fx_udiv128_digits(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem);
 
 /* Reciprocal 1/x in q16_16 of a q16_16 value: round(2^32 / x), saturated
  * to int32 (x = 0, 1, 2 give INT32_MAX, x = -1 gives INT32_MIN; x = -2 gives

@@ -6,6 +6,7 @@
  * iterations that divide).
  */
 #include "fixmath.h"
+#include "fixmath_test.h"
 
 /* v * 2^s for any s; false when the result needs more than 128 bits */
 static bool fx_shl128(uint64_t v, unsigned s, fx_u128_t *r)

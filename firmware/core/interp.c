@@ -140,10 +140,9 @@ static inline int64_t ip_scale(int64_t a, int64_t r)
  * inline: two 32 x 32 -> 64 products. */
 static inline int64_t ip_mul_q32(int64_t a, int32_t b)
 {
-    uint64_t ua = fx_uabs64(a), ub = fx_uabs64(b);
-    uint64_t lo = (uint32_t)ua * ub;
-    uint64_t hi = (ua >> 32) * ub + (lo >> 32); /* |a * b| >> 32 */
-    uint32_t l32 = (uint32_t)lo;
+    fx_u128_t p = fx_umul64x32(fx_uabs64(a), (uint32_t)fx_uabs64(b));
+    uint64_t hi = (p.hi << 32) | (p.lo >> 32); /* |a * b| >> 32 */
+    uint32_t l32 = (uint32_t)p.lo;
 
     if ((a < 0) != (b < 0)) { /* -floor((|p| + 2^31 - 1) / 2^32) */
         return -(int64_t)(hi + (((uint64_t)l32 + 0x7FFFFFFFu) >> 32));

@@ -2,6 +2,7 @@
  * planner.c - look-ahead planner; see planner.h for the rules.
  */
 #include "planner.h"
+#include "planner_test.h"
 
 #define NS_PER_S ((int64_t)1000000000)
 
@@ -121,6 +122,7 @@ plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
     p->ring = storage;
     p->depth = depth;
     p->deferred = false;
+    p->jd_fast_off = false;
     plan_reset(p, start);
     return PLAN_OK;
 }
@@ -380,11 +382,9 @@ static bool pl_same(const int64_t *lim)
     return true;
 }
 
-static bool pl_jd_fast_off; /* test hook: plan_test_jd_fast */
-
-void plan_test_jd_fast(bool on)
+void plan_test_jd_fast(plan_t *p, bool on)
 {
-    pl_jd_fast_off = !on;
+    p->jd_fast_off = !on;
 }
 
 /* Junction deviation: true when the corner speed cannot be below vcap, so
@@ -401,7 +401,7 @@ static bool pl_jd_above(const plan_t *p, int64_t c1, int64_t vcap)
     uint32_t h = (uint32_t)(c1 / 2);
 
     /* (jd_amin_dev > 0 iff dev > 0; vcap - 1 wraps for vcap <= 0) */
-    if (pl_jd_fast_off || p->jd_amin_dev <= 0 || (uint64_t)vcap - 1u >= (uint64_t)SC_V_LIMIT ||
+    if (p->jd_fast_off || p->jd_amin_dev <= 0 || (uint64_t)vcap - 1u >= (uint64_t)SC_V_LIMIT ||
         c1 > ((int64_t)1 << 31) + 1) {
         return false;
     }

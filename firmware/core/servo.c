@@ -491,11 +491,6 @@ static inline unsigned axes_fast(servo_t *s, const pos_nm_t *pos, unsigned n)
     return i;
 }
 
-static int32_t sat_diff32(pos_nm_t a, pos_nm_t b)
-{
-    return fx_sat_diff32(a, b);
-}
-
 /* Step 7: outputs (after every loop: a fault of a later axis may still
  * zero an earlier one). */
 static inline void tick_outputs(servo_t *s)
@@ -543,12 +538,12 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
     if (run && s->state == SERVO_RUN) {
         for (i = 0; i < n && i < CORE_AXES; i++) {
             pos_nm_t rp = ref->pos[i];
-            int32_t fe = sat_diff32(rp, fb->pos[i]);
+            int32_t fe = fx_sat_diff32(rp, fb->pos[i]);
 
             s->ref_pos[i] = rp;
             s->ref_vel[i] = ref->vel[i];
             s->ferr_nm[i] = fe;
-            if (!pid_in_range(fe, s->ferr_max[i])) {
+            if (!fx_in_range32(fe, s->ferr_max[i])) {
                 over |= 1u << i;
             }
         }
@@ -557,10 +552,10 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
     } else {
         tick_reference(s, fb, acc_own);
         for (i = 0; i < n && i < CORE_AXES; i++) {
-            int32_t fe = sat_diff32(s->ref_pos[i], fb->pos[i]);
+            int32_t fe = fx_sat_diff32(s->ref_pos[i], fb->pos[i]);
 
             s->ferr_nm[i] = fe;
-            if (!pid_in_range(fe, s->ferr_max[i])) {
+            if (!fx_in_range32(fe, s->ferr_max[i])) {
                 over |= 1u << i;
             }
         }
@@ -630,12 +625,12 @@ static inline bool tick_fast(servo_t *s, const motion_ref_t *ref, const servo_fb
 
     for (i = 0; i < n; i++) {
         pos_nm_t rp = ref->pos[i];
-        int32_t fe = sat_diff32(rp, fb->pos[i]);
+        int32_t fe = fx_sat_diff32(rp, fb->pos[i]);
 
         s->ref_pos[i] = rp;
         s->ref_vel[i] = ref->vel[i];
         s->ferr_nm[i] = fe;
-        if (!pid_in_range(fe, s->ferr_max[i])) {
+        if (!fx_in_range32(fe, s->ferr_max[i])) {
             return false; /* tick_general writes all of it again */
         }
     }

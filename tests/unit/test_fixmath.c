@@ -12,6 +12,7 @@
  * maxima (the figures quoted in fixmath.h).
  */
 #include "fixmath.h"
+#include "fixmath_test.h"
 #include "unity.h"
 
 #include <inttypes.h>
@@ -1464,6 +1465,59 @@ static void test_isqrt128_boundaries_and_random(void)
     }
 }
 
+static void test_in_range_min_max(void)
+{
+    static const uint32_t mx[] = {0, 1, 2, 1000, 0x3FFFFFFFu, 0x7FFFFFFEu, 0x7FFFFFFFu};
+    static const int32_t v[] = {
+        INT32_MIN, INT32_MIN + 1, -0x7FFFFFFE, -1001,      -1000,    -2, -1, 0, 1,
+        2,         1000,          1001,        0x7FFFFFFE, INT32_MAX};
+    unsigned i, j;
+
+    for (i = 0; i < sizeof mx / sizeof mx[0]; i++) {
+        for (j = 0; j < sizeof v / sizeof v[0]; j++) {
+            int64_t a = (v[j] < 0) ? -(int64_t)v[j] : v[j];
+            TEST_ASSERT_EQUAL_INT(a <= (int64_t)mx[i], fx_in_range32(v[j], mx[i]));
+        }
+    }
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_min64(INT64_MIN, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_max64(INT64_MIN, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(-1, fx_min64(-1, 0));
+    TEST_ASSERT_EQUAL_INT64(0, fx_max64(-1, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_sat_neg64(INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(-INT64_MAX, fx_sat_neg64(INT64_MAX));
+}
+
+/* the PID's preloaded-rounding products against fx_mul32_shift, at every
+ * shift and the operand extremes */
+static void test_mul_rsh_and_mul_q30_pos(void)
+{
+    static const int32_t x[] = {INT32_MIN, INT32_MIN + 1, -65536,   -3, -1, 0, 1,
+                                3,         65535,         INT32_MAX};
+    unsigned sh, i, j;
+
+    for (sh = 1; sh < 32; sh++) {
+        uint32_t rnd = (uint32_t)1 << (sh - 1);
+        for (i = 0; i < sizeof x / sizeof x[0]; i++) {
+            for (j = 0; j < sizeof x / sizeof x[0]; j++) {
+                int64_t ref = fx_mul32_shift(x[i], x[j], sh);
+                TEST_ASSERT_EQUAL_INT64(ref, fx_mul_rsh64(x[i], x[j], sh, rnd));
+                if (ref == (int32_t)ref) {
+                    TEST_ASSERT_EQUAL_INT32((int32_t)ref, fx_mul_rsh32(x[i], x[j], sh, rnd));
+                }
+            }
+        }
+    }
+    rng_seed(0x30);
+    for (i = 0; i < 200000; i++) {
+        int64_t a = (int64_t)(rng() >> 2) - ((int64_t)1 << 61); /* |a| <= 2^61 */
+        q1_30_t b = (q1_30_t)(rng() % ((uint64_t)FX_ONE_Q30 + 1u));
+        TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(a, b, 30), fx_mul_q30_pos(a, b));
+    }
+    TEST_ASSERT_EQUAL_INT64(((int64_t)1 << 61), fx_mul_q30_pos((int64_t)1 << 61, FX_ONE_Q30));
+    TEST_ASSERT_EQUAL_INT64(-((int64_t)1 << 61), fx_mul_q30_pos(-((int64_t)1 << 61), FX_ONE_Q30));
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul_q30_pos(-((int64_t)1 << 61), 0));
+}
+
 int main(void)
 {
     report_on = getenv("FIXMATH_REPORT") != NULL;
@@ -1502,5 +1556,7 @@ int main(void)
     RUN_TEST(test_umul64_extremes_and_random);
     RUN_TEST(test_add_cmp128_and_bit_lengths);
     RUN_TEST(test_isqrt128_boundaries_and_random);
+    RUN_TEST(test_in_range_min_max);
+    RUN_TEST(test_mul_rsh_and_mul_q30_pos);
     return UNITY_END();
 }
