@@ -37,7 +37,7 @@ M4_CFLAGS  := $(WARN) -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -O2 -ffreestandin
               -ffunction-sections -fdata-sections $(INC)
 
 .SECONDARY:
-.PHONY: all deps venv host test unit m4-check pytest run bench lint fuzz firmware clean distclean proto \
+.PHONY: all deps venv host test unit m4-check pytest run bench lint fuzz fuzz-short firmware clean distclean proto \
         test-socketcan test-tsan
 
 all: deps venv host
@@ -119,7 +119,7 @@ m4-check: deps
 pytest: venv host
 	$(PY) -m pytest -q tests/python
 
-test: deps unit test-tsan m4-check pytest test-socketcan
+test: deps lint unit test-tsan fuzz-short m4-check pytest test-socketcan
 
 # ---- real targets: STM32F4 and QEMU mps2-an386 images (docs/ports.md) --------
 firmware: deps venv
@@ -130,9 +130,15 @@ test-socketcan: deps venv
 	./tests/ports/socketcan/run.sh
 
 # ---- fuzzing: libFuzzer harnesses (clang) of the frame decoder and dispatcher ----
+# `make fuzz` is the long run; `make test` runs the short one (FUZZ_SHORT_RUNS
+# executions per harness from the kept corpus, about 20 s in all).
 FUZZ_RUNS ?= 1000000
+FUZZ_SHORT_RUNS ?= 5000
 fuzz: deps
 	./tests/fuzz/run.sh $(FUZZ_RUNS)
+
+fuzz-short: deps
+	./tests/fuzz/run.sh $(FUZZ_SHORT_RUNS)
 
 # ---- demo, benchmarks, lint ------------------------------------------------
 run: all

@@ -32,7 +32,6 @@ static int64_t s64(uint64_t i, unsigned bits) /* signed, |v| < 2^bits */
     }
 
 BENCH(sat_mul32, fx_sat_mul32((int32_t)s64(i, 31), (int32_t)s64(i + 1, 31), 16))
-BENCH(mul32_shift, fx_mul32_shift((int32_t)s64(i, 31), (int32_t)s64(i + 1, 31), 30))
 BENCH(mul64_shift, fx_mul64_shift(s64(i, 63), s64(i + 3, 40), 40))
 BENCH(mul64x32_shift, fx_mul64x32_shift(s64(i, 63), (int32_t)s64(i + 3, 31), 30))
 BENCH(div_sat32, fx_div_sat32(s64(i, 24), (int32_t)s64(i + 5, 24) | 1, 16))
@@ -64,7 +63,6 @@ static const struct {
     void (*run)(uint64_t i);
 } cases[] = {
     {"sat_mul32", bench_sat_mul32},
-    {"mul32_shift", bench_mul32_shift},
     {"mul64_shift", bench_mul64_shift},
     {"mul64x32_shift", bench_mul64x32_shift},
     {"div_sat32", bench_div_sat32},

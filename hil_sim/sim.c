@@ -6,6 +6,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "calib.h"
 #include "drive.h"
 #include "hal_sim.h"
 #include "qgen.h"
@@ -453,6 +454,7 @@ int sim_start(void)
     if (drive_init(&cfg) != DRIVE_OK) {
         return SIM_E_DRIVE;
     }
+    calib_init();
     if (drive_set_cec_mode((drive_cec_mode_t)S.cec_mode) != DRIVE_OK) {
         return SIM_E_DRIVE;
     }
@@ -500,7 +502,12 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
             int64_t rc = axis_ref_reading(&S.ax[i]);
             hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
         }
-        drive_tick();
+        {
+            const drive_tick_out_t *t = drive_tick(calib_sampling());
+            if (t != NULL) {
+                calib_tick(t->st, t->vel_ref);
+            }
+        }
         for (i = 0; i < S.axes; i++) {
             if (drive_encoder_count(i) + S.count0[i] != S.gen[i].count) {
                 S.mismatches++;
@@ -515,6 +522,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
             row_in = every;
         }
         row_in--;
+        calib_poll();
         drive_poll();
         for (i = 0; i < S.axes; i++) {
             double u = (double)hal_sim_motor_mv(i) * 1e-3;
@@ -585,15 +593,6 @@ uint64_t sim_edge_mismatches(void)
 unsigned sim_substeps(void)
 {
     return S.nsub;
-}
-
-int sim_axis_state(unsigned axis, double *z5)
-{
-    if (!S.started || axis >= S.axes || z5 == NULL) {
-        return SIM_E_ARG;
-    }
-    memcpy(z5, S.ax[axis].z, sizeof(double) * AXIS_NSTATE);
-    return 0;
 }
 
 double sim_table_pos(unsigned axis)

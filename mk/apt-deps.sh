@@ -2,7 +2,9 @@
 # Installs the Debian packages the build needs, only those missing.
 # Uses the machine's own apt configuration; run as root (CI and dev machines are).
 set -euo pipefail
-pkgs=(build-essential clang clang-format cppcheck valgrind
+# libclang-rt-dev: compiler-rt of the default clang (libFuzzer and the
+# sanitizer runtimes `make fuzz` and the short fuzz run of `make test` link).
+pkgs=(build-essential clang libclang-rt-dev clang-format cppcheck valgrind
       gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi
       qemu-system-arm qemu-system-x86 python3-venv socat cpio)
 missing=()

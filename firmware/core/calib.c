@@ -89,11 +89,6 @@ static struct {
 
 /* ---- helpers ---------------------------------------------------------------- */
 
-static int32_t sat_diff(pos_nm_t a, pos_nm_t b)
-{
-    return fx_sat32(fx_sat_sub64(a, b));
-}
-
 static uint32_t ring_used(void)
 {
     return cb.seq_next - cb.seq_oldest;
@@ -276,10 +271,11 @@ static void calib_tick_work(const drive_status_t *st, const int64_t vel_ref[CORE
         s->flags = (uint8_t)((cb.leg_dir < 0 ? CALIB_SAMPLE_NEG : 0u) |
                              ((cb.flags & CALIB_FLAG_HOST_REFERENCE) ? CALIB_SAMPLE_NO_REF : 0u) |
                              (st->faults != 0u ? CALIB_SAMPLE_FAULT : 0u));
-        s->enc = sat_diff(st->pos_raw[a], cb.s_target);
-        s->comp = sat_diff(st->pos[a], cb.s_target);
-        s->ref =
-            (cb.flags & CALIB_FLAG_HOST_REFERENCE) ? 0 : sat_diff(st->refscale[a], cb.s_target);
+        s->enc = fx_sat_diff32(st->pos_raw[a], cb.s_target);
+        s->comp = fx_sat_diff32(st->pos[a], cb.s_target);
+        s->ref = (cb.flags & CALIB_FLAG_HOST_REFERENCE)
+                     ? 0
+                     : fx_sat_diff32(st->refscale[a], cb.s_target);
         cb.seq_next = seq + 1u;
     }
     if (--cb.s_left == 0u) {
@@ -446,20 +442,6 @@ void calib_poll(void)
 calib_state_t calib_state(void)
 {
     return cb.state;
-}
-
-uint32_t calib_seq_next(void)
-{
-    return cb.seq_next;
-}
-
-bool calib_sample(uint32_t seq, calib_sample_t *out)
-{
-    if (out == NULL || (uint32_t)(seq - cb.seq_oldest) >= ring_used()) {
-        return false;
-    }
-    *out = cb.ring[seq % CALIB_RING];
-    return true;
 }
 
 void calib_sample_encode(const calib_sample_t *s, uint8_t *b)

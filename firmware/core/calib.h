@@ -72,11 +72,11 @@
  * executed.
  *
  * Contexts
- *   calib_init()      main, from drive_init (drive stopped).
- *   calib_tick(st, v) tick, at the end of drive_tick with the snapshot the
- *                     tick just published and its reference velocities:
- *                     direction ramps, sampling.
- *   calib_poll()      main, from drive_poll: the run's state machine.
+ *   calib_init()      main, after drive_init (drive stopped).
+ *   calib_tick(st, v) tick, right after drive_tick(calib_sampling()) with
+ *                     what it published (drive_tick_status(),
+ *                     drive_tick_vel_ref()): direction ramps, sampling.
+ *   calib_poll()      main, before drive_poll: the run's state machine.
  *   calib_handle()    main (the link's extension handler).
  *   Tick writes: ring entries, seq_next, the sampling flag, ramps. Main
  *   writes everything else; it arms sampling only while the tick is not
@@ -146,9 +146,6 @@ void calib_set_next_handler(calib_handler_fn fn);
 
 /* Read-outs (tests, simulator). */
 calib_state_t calib_state(void);
-uint32_t calib_seq_next(void);
-/* The sample with sequence number seq if still held. */
-bool calib_sample(uint32_t seq, calib_sample_t *out);
 /* Active table of an axis (NULL: none). */
 const comp_table_t *calib_comp_active(unsigned axis);
 /* Encode one sample in the wire format (CALIB_SAMPLE_BYTES). */

@@ -19,27 +19,6 @@
 #define UNIT_TOL2     ((int64_t)1 << 33) /* |len^2 - 1| tolerated without normalising */
 #define OFFPLANE_Q30  1024               /* |t_w| above 2^-20: second channel on */
 
-/* Inline forms of the fixmath helpers for the tick path (same results). */
-static inline int64_t rsh(int64_t v, unsigned s)
-{
-    return (v >> s) + ((v >> (s - 1)) & 1); /* round half up, s >= 1 */
-}
-
-static int64_t mul_q30(int64_t a, q1_30_t n)
-{
-    return fx_mul64x32_shift(a, n, 30);
-}
-
-static int32_t q30_mul32(int32_t a, int32_t b)
-{
-    return (int32_t)rsh((int64_t)a * b, 30);
-}
-
-static int64_t abs64(int64_t v)
-{
-    return (v < 0) ? -v : v;
-}
-
 /* ---- estimators ------------------------------------------------------------ */
 
 bool cec_normals(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3])
@@ -69,19 +48,19 @@ bool cec_normals(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3])
         /* travel along the plane normal: n1 = e_u made orthogonal to t */
         unsigned u = (w + 1u) % 3u;
         for (k = 0; k < 3; k++) {
-            c[k] = -(int64_t)q30_mul32(t[u], t[k]);
+            c[k] = -(int64_t)(int32_t)fx_mul32_shift(t[u], t[k], 30);
         }
         c[u] += FX_ONE_Q30;
         len2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
     }
-    if (abs64(len2 - ((int64_t)1 << 60)) > UNIT_TOL2) {
+    if (fx_sat_abs64(len2 - ((int64_t)1 << 60)) > UNIT_TOL2) {
         int32_t len;
         if (len2 == 0) {
             return false;
         }
         /* scale short vectors up first so that the root keeps 30 bits */
-        while (abs64(c[0]) < ((int64_t)1 << 29) && abs64(c[1]) < ((int64_t)1 << 29) &&
-               abs64(c[2]) < ((int64_t)1 << 29)) {
+        while (fx_sat_abs64(c[0]) < ((int64_t)1 << 29) && fx_sat_abs64(c[1]) < ((int64_t)1 << 29) &&
+               fx_sat_abs64(c[2]) < ((int64_t)1 << 29)) {
             c[0] *= 2;
             c[1] *= 2;
             c[2] *= 2;
@@ -97,22 +76,22 @@ bool cec_normals(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3])
         }
     }
     /* n2 = n1 x t */
-    n2[0] = (q1_30_t)rsh((int64_t)n1[1] * t[2] - (int64_t)n1[2] * t[1], 30);
-    n2[1] = (q1_30_t)rsh((int64_t)n1[2] * t[0] - (int64_t)n1[0] * t[2], 30);
-    n2[2] = (q1_30_t)rsh((int64_t)n1[0] * t[1] - (int64_t)n1[1] * t[0], 30);
+    n2[0] = (q1_30_t)fx_round_shift64((int64_t)n1[1] * t[2] - (int64_t)n1[2] * t[1], 30);
+    n2[1] = (q1_30_t)fx_round_shift64((int64_t)n1[2] * t[0] - (int64_t)n1[0] * t[2], 30);
+    n2[2] = (q1_30_t)fx_round_shift64((int64_t)n1[0] * t[1] - (int64_t)n1[1] * t[0], 30);
     return true;
 }
 
 int32_t cec_dot(const int32_t e[3], const q1_30_t n[3])
 {
     int64_t s = (int64_t)e[0] * n[0] + (int64_t)e[1] * n[1] + (int64_t)e[2] * n[2];
-    return fx_sat32_fast(rsh(s, 30));
+    return fx_sat32_fast(fx_round_shift64(s, 30));
 }
 
 int32_t cec_est_koren(int32_t ex, int32_t ey, int64_t rx, int64_t ry)
 {
     int64_t num, den;
-    while (abs64(rx) >= ((int64_t)1 << 30) || abs64(ry) >= ((int64_t)1 << 30)) {
+    while (fx_sat_abs64(rx) >= ((int64_t)1 << 30) || fx_sat_abs64(ry) >= ((int64_t)1 << 30)) {
         rx /= 2;
         ry /= 2;
     }
@@ -135,14 +114,14 @@ static int32_t curv_corr(int32_t e_abs, pos_nm_t r, pid_coef_t inv_r)
         x = GAMMA_MAX_Q30;
         e_eff = (r / 2 < e_abs) ? r / 2 : e_abs;
     }
-    x2 = rsh(x * x, 30);
+    x2 = fx_round_shift64(x * x, 30);
     h = SEC_C4;
-    h = SEC_C3 + rsh(x2 * h, 30);
-    h = SEC_C2 + rsh(x2 * h, 30);
-    h = SEC_C1 + rsh(x2 * h, 30);
-    h = SEC_C0 + rsh(x2 * h, 30);
-    xh = rsh(x * h, 30); /* r (sec g - 1) / e, q1_30 */
-    return (int32_t)rsh(e_eff * xh, 30);
+    h = SEC_C3 + fx_round_shift64(x2 * h, 30);
+    h = SEC_C2 + fx_round_shift64(x2 * h, 30);
+    h = SEC_C1 + fx_round_shift64(x2 * h, 30);
+    h = SEC_C0 + fx_round_shift64(x2 * h, 30);
+    xh = fx_round_shift64(x * h, 30); /* r (sec g - 1) / e, q1_30 */
+    return (int32_t)fx_round_shift64(e_eff * xh, 30);
 }
 
 int32_t cec_curv_correction(int32_t e_abs, pos_nm_t radius)
@@ -176,7 +155,7 @@ int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30
         return cec_dot(d32, n);
     }
     for (k = 0; k < 3; k++) {
-        sum = fx_sat_add64(sum, mul_q30(d[k], n[k]));
+        sum = fx_sat_add64(sum, fx_mul64x32_shift(d[k], n[k], 30));
     }
     return fx_sat32_fast(sum);
 }
@@ -260,9 +239,9 @@ static void integral_vector(const cec_t *c, int64_t iv[3])
 {
     int k;
     for (k = 0; k < 3; k++) {
-        iv[k] = mul_q30(c->ch[0].integ, c->n[0][k]);
+        iv[k] = fx_mul64x32_shift(c->ch[0].integ, c->n[0][k], 30);
         if (c->ch2_on) {
-            iv[k] += mul_q30(c->ch[1].integ, c->n[1][k]);
+            iv[k] += fx_mul64x32_shift(c->ch[1].integ, c->n[1][k], 30);
         }
     }
 }
@@ -344,13 +323,13 @@ static void new_segment(cec_t *c, const motion_ref_t *ref, unsigned w, const q1_
         int64_t iv[3], rem[3];
         integral_vector(c, iv);
         for (k = 0; k < 3; k++) {
-            i1 += mul_q30(iv[k], n1[k]);
+            i1 += fx_mul64x32_shift(iv[k], n1[k], 30);
             if (ch2) {
-                i2 += mul_q30(iv[k], n2[k]);
+                i2 += fx_mul64x32_shift(iv[k], n2[k], 30);
             }
         }
         for (k = 0; k < 3; k++) {
-            rem[k] = iv[k] - mul_q30(i1, n1[k]) - mul_q30(i2, n2[k]);
+            rem[k] = iv[k] - fx_mul64x32_shift(i1, n1[k], 30) - fx_mul64x32_shift(i2, n2[k], 30);
         }
         hand_over(c, rem);
     }
@@ -377,7 +356,7 @@ static void new_segment(cec_t *c, const motion_ref_t *ref, unsigned w, const q1_
         c->key_p[2] = 0;
         c->key_r = g->radius;
         c->key_sense = g->sense;
-        while (abs64(du) >= ((int64_t)1 << 31) || abs64(dv) >= ((int64_t)1 << 31)) {
+        while (fx_sat_abs64(du) >= ((int64_t)1 << 31) || fx_sat_abs64(dv) >= ((int64_t)1 << 31)) {
             du /= 2;
             dv /= 2;
         }
@@ -465,7 +444,7 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     case CEC_MODE_CURVATURE:
         ec1 = cec_dot(e, n1);
         if (g->kind == MOTION_GEOM_ARC) {
-            int64_t eabs = c->p.lag_from_tangent ? abs64(cec_dot(e, t))
+            int64_t eabs = c->p.lag_from_tangent ? fx_sat_abs64(cec_dot(e, t))
                                                  : fx_hypot2(e[g->plane_u], e[g->plane_v]);
             int32_t corr = curv_corr(fx_sat32_fast(eabs), g->radius, c->inv_r);
             ec1 = fx_sat_add32(ec1, (c->s > 0) ? corr : -corr);
@@ -500,11 +479,11 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     }
     c->saturated = c->ch[0].saturated || c->ch[1].saturated;
     {
-        int32_t u1 = (int32_t)rsh(c->ch[0].out, 22); /* mV q10 */
-        int32_t u2 = (int32_t)rsh(c->ch[1].out, 22);
+        int32_t u1 = (int32_t)fx_round_shift64(c->ch[0].out, 22); /* mV q10 */
+        int32_t u2 = (int32_t)fx_round_shift64(c->ch[1].out, 22);
         for (k = 0; k < 3 && k < CORE_AXES; k++) {
             int64_t a = (int64_t)u1 * n1[k] + (ch2 ? (int64_t)u2 * n2[k] : 0);
-            c->out_u[k] = rsh(a, 8); /* q10 * q30 = q40 -> U (q32) */
+            c->out_u[k] = fx_round_shift64(a, 8); /* q10 * q30 = q40 -> U (q32) */
         }
     }
 }

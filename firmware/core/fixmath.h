@@ -102,8 +102,18 @@ int32_t fx_sat_neg32(int32_t a); /* -INT32_MIN gives INT32_MAX */
 int32_t fx_sat_abs32(int32_t a); /* |INT32_MIN| gives INT32_MAX */
 int64_t fx_sat_add64(int64_t a, int64_t b);
 int64_t fx_sat_sub64(int64_t a, int64_t b);
-int64_t fx_sat_neg64(int64_t a); /* -INT64_MIN gives INT64_MAX */
-int64_t fx_sat_abs64(int64_t a); /* |INT64_MIN| gives INT64_MAX */
+
+/* -a and |a|; -INT64_MIN and |INT64_MIN| give INT64_MAX. Inline (the tick's
+ * estimators use them). */
+static inline int64_t fx_sat_neg64(int64_t a)
+{
+    return (a == INT64_MIN) ? INT64_MAX : -a;
+}
+
+static inline int64_t fx_sat_abs64(int64_t a)
+{
+    return (a < 0) ? fx_sat_neg64(a) : a;
+}
 
 /* Inline forms for the per-tick loops (pid.c, cec.c, servo.c).
  * fx_sat32_fast(v) == fx_sat32(v); fx_sat_diff32(a, b) == fx_sat32(a - b)
@@ -129,6 +139,47 @@ static inline int32_t fx_sat_diff32(int64_t a, int64_t b)
     return (d < 0) ? INT32_MIN : INT32_MAX;
 }
 
+/* the smaller and the larger of a and b */
+static inline int64_t fx_min64(int64_t a, int64_t b)
+{
+    return (a < b) ? a : b;
+}
+
+static inline int64_t fx_max64(int64_t a, int64_t b)
+{
+    return (a > b) ? a : b;
+}
+
+/* v limited to [-lim, lim] for lim >= 0 (== fx_clamp64(v, -lim, lim)),
+ * inline for the tick. */
+static inline int64_t fx_clamp_sym64(int64_t v, int64_t lim)
+{
+    return (v > lim) ? lim : (v < -lim) ? -lim : v;
+}
+
+/* |v| as uint64_t, exact for every v (|INT64_MIN| is 2^63). */
+static inline uint64_t fx_uabs64(int64_t v)
+{
+    return (v < 0) ? (uint64_t)0 - (uint64_t)v : (uint64_t)v;
+}
+
+/* The int64 of magnitude m and sign neg (negative when neg), saturated to
+ * [INT64_MIN, INT64_MAX]; ok == false means the magnitude exceeded 64 bits
+ * (saturates too). */
+static inline int64_t fx_signed_sat(bool ok, uint64_t m, bool neg)
+{
+    if (neg) {
+        if (!ok || m > (uint64_t)INT64_MAX + 1u) {
+            return INT64_MIN;
+        }
+        return (int64_t)((uint64_t)0 - m);
+    }
+    if (!ok || m > (uint64_t)INT64_MAX) {
+        return INT64_MAX;
+    }
+    return (int64_t)m;
+}
+
 /* min(max(v, lo), hi): v limited to [lo, hi]. lo <= hi is expected; if
  * lo > hi the result is hi (the upper limit wins). */
 int32_t fx_clamp32(int32_t v, int32_t lo, int32_t hi);
@@ -136,12 +187,27 @@ int64_t fx_clamp64(int64_t v, int64_t lo, int64_t hi);
 
 /* ---- shifts and multiplications (rounding: shift rule) ------------------- */
 
-/* round(v / 2^s). Exact for s = 0; any s >= 64 gives 0. Never overflows. */
-int64_t fx_round_shift64(int64_t v, unsigned s);
+/* round(v / 2^s). Exact for s = 0; any s >= 64 gives 0. Never overflows.
+ * Inline: with a constant s (the tick's use) it is two instructions. */
+static inline int64_t fx_round_shift64(int64_t v, unsigned s)
+{
+    if (s == 0) {
+        return v;
+    }
+    if (s >= 64) {
+        return 0; /* |v / 2^s| <= 1/2, and -1/2 rounds up to 0 */
+    }
+    /* floor(v / 2^s) plus the first dropped bit: round half up, no overflow */
+    return (v >> s) + ((v >> (s - 1)) & 1);
+}
 
 /* round(a * b / 2^s) from the exact 64-bit product. Never overflows; s >= 64
- * gives 0 (s = 0..62 is the useful range). */
-int64_t fx_mul32_shift(int32_t a, int32_t b, unsigned s);
+ * gives 0 (s = 0..62 is the useful range). Inline (one SMULL and the shift
+ * for a constant s). */
+static inline int64_t fx_mul32_shift(int32_t a, int32_t b, unsigned s)
+{
+    return fx_round_shift64((int64_t)a * b, s);
+}
 
 /* round(a * b / 2^s), saturated to int32 (e.g. q16 * q16 with s = 16). */
 int32_t fx_sat_mul32(int32_t a, int32_t b, unsigned s);
@@ -155,10 +221,192 @@ int64_t fx_mul64x32_shift(int64_t a, int32_t b, unsigned s);
  * saturated to int64. Any s is accepted; s >= 128 gives 0. */
 int64_t fx_mul64_shift(int64_t a, int64_t b, unsigned s);
 
+/* Inline fast paths of the tick (the arc reference, the drive): the same
+ * results as the general functions named, for every argument, with one
+ * 32 x 32 -> 64 product when the operands fit (test_fixmath checks each
+ * against its general function). */
+
+/* fx_mul32_shift(a, b, 30) as one SMLAL of the product and half an LSB and
+ * a shift (|a * b| <= 2^62: the sum cannot overflow); fx_mul32_shift's
+ * overflow-free rounding of any int64 costs the arc reference's cruise
+ * tick 11 more instructions on the M4. */
+static inline int64_t fx_mul32_q30(int32_t a, int32_t b)
+{
+    return ((int64_t)a * b + ((int64_t)1 << 29)) >> 30;
+}
+
+/* fx_mul64x32_shift(a, b, 30); one SMULL when a fits 32 bits (the product
+ * is then below 2^62: exact). */
+static inline int64_t fx_mul64x32_q30(int64_t a, int32_t b)
+{
+    if (a == (int32_t)a) {
+        return fx_mul32_q30((int32_t)a, b);
+    }
+    return fx_mul64x32_shift(a, b, 30);
+}
+
+/* fx_mul64_shift(a, b, 0) (a * b saturated to int64); one SMULL when both
+ * fit 32 bits (the product is then below 2^62: exact). */
+static inline int64_t fx_mul64_sat(int64_t a, int64_t b)
+{
+    if (a == (int32_t)a && b == (int32_t)b) {
+        return (int64_t)(int32_t)a * (int32_t)b;
+    }
+    return fx_mul64_shift(a, b, 0);
+}
+
 /* Position times a ratio, rounded and saturated to int64:
  * round(p * r / 2^16) and round(p * r / 2^30). */
 pos_nm_t fx_pos_scale_q16(pos_nm_t p, q16_16_t r);
 pos_nm_t fx_pos_scale_q30(pos_nm_t p, q1_30_t r);
+
+/* ---- 128-bit products and bit lengths (inline, exact) ----------------------
+ * The only 64 x 64 -> 128 product of the firmware: four 32 x 32 -> 64
+ * multiplies on every target (the host tests run the code the Cortex-M4
+ * runs). fx_umulhi64 is its high word (inlined, the compiler drops the low
+ * word's carries it does not need). */
+typedef struct {
+    uint64_t hi;
+    uint64_t lo;
+} fx_u128_t;
+
+static inline fx_u128_t fx_umul64(uint64_t a, uint64_t b)
+{
+    uint64_t a_lo = (uint32_t)a, a_hi = a >> 32;
+    uint64_t b_lo = (uint32_t)b, b_hi = b >> 32;
+    uint64_t ll = a_lo * b_lo;
+    uint64_t lh = a_lo * b_hi;
+    uint64_t hl = a_hi * b_lo;
+    uint64_t mid = (ll >> 32) + (uint32_t)lh + (uint32_t)hl;
+    fx_u128_t r;
+
+    r.lo = (mid << 32) | (uint32_t)ll;
+    r.hi = a_hi * b_hi + (lh >> 32) + (hl >> 32) + (mid >> 32);
+    return r;
+}
+
+/* floor(a * b / 2^64) */
+static inline uint64_t fx_umulhi64(uint64_t a, uint64_t b)
+{
+    return fx_umul64(a, b).hi;
+}
+
+/* a * b for b < 2^32 (a 96-bit product) from two 32 x 32 -> 64 multiplies */
+static inline fx_u128_t fx_umul64x32(uint64_t a, uint32_t b)
+{
+    uint64_t lo = (uint64_t)(uint32_t)a * b;
+    uint64_t hi = (a >> 32) * b + (lo >> 32); /* < 2^64: one UMLAL */
+    fx_u128_t r;
+
+    r.lo = (hi << 32) | (uint32_t)lo;
+    r.hi = hi >> 32;
+    return r;
+}
+
+/* a + b mod 2^128 */
+static inline fx_u128_t fx_add128(fx_u128_t a, fx_u128_t b)
+{
+    fx_u128_t r;
+
+    r.lo = a.lo + b.lo;
+    r.hi = a.hi + b.hi + (r.lo < a.lo ? 1u : 0u);
+    return r;
+}
+
+/* -1, 0 or 1 as a <, == or > b */
+static inline int fx_cmp128(fx_u128_t a, fx_u128_t b)
+{
+    if (a.hi != b.hi) {
+        return (a.hi < b.hi) ? -1 : 1;
+    }
+    if (a.lo != b.lo) {
+        return (a.lo < b.lo) ? -1 : 1;
+    }
+    return 0;
+}
+
+/* Number of leading zero bits of v != 0 (32-bit CLZ only: Cortex-M4 has no
+ * 64-bit one). fx_bitlen64(v) is the bit length, 0 for v == 0. */
+static inline unsigned fx_clz32(uint32_t v)
+{
+#if defined(__GNUC__)
+    return (unsigned)__builtin_clz(v);
+#else
+    unsigned n = 0;
+
+    while (!(v & 0x80000000u)) {
+        v <<= 1;
+        n++;
+    }
+    return n;
+#endif
+}
+
+static inline unsigned fx_clz64(uint64_t v)
+{
+    uint32_t hi = (uint32_t)(v >> 32);
+
+    return (hi != 0u) ? fx_clz32(hi) : 32u + fx_clz32((uint32_t)v);
+}
+
+static inline unsigned fx_bitlen64(uint64_t v)
+{
+    return (v == 0u) ? 0u : 64u - fx_clz64(v);
+}
+
+/* An int32 the compiler must keep as a plain 32-bit register (so that a
+ * widening product stays one SMULL/SMLAL instead of a 64 x 64 multiply); no
+ * effect on the value. */
+static inline int32_t fx_opaque32(int32_t v)
+{
+#if defined(__GNUC__)
+    __asm__("" : "+r"(v));
+#endif
+    return v;
+}
+
+/* round(a * b / 2^30) (shift rule) == fx_mul64x32_shift(a, b, 30) for
+ * |a| <= 2^61 and 0 <= b <= 2^30, without a 96-bit product: a = ah * 2^32 +
+ * al with al unsigned; a * b = ah * b * 2^32 + al * b (one SMULL, one
+ * UMULL). The PID's filter and back-calculation gains. */
+static inline int64_t fx_mul_q30_pos(int64_t a, q1_30_t b)
+{
+    int32_t ah = fx_opaque32((int32_t)(a >> 32)); /* |ah| <= 2^29 */
+    uint32_t al = (uint32_t)a;
+    int64_t h = (int64_t)ah * b;              /* |h| <= 2^59 */
+    uint64_t lo = (uint64_t)al * (uint32_t)b; /* < 2^62 */
+    return (int64_t)((uint64_t)h << 2) + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
+}
+
+/* |v| <= max for max <= 2^31 - 1, with one add and one unsigned compare:
+ * v + max (mod 2^32) lies in [0, 2 max] exactly when |v| <= max (above:
+ * v + max <= 2^31 - 1 + max < 2^32; below: v + max >= 2^31 + max > 2 max
+ * mod 2^32). */
+static inline bool fx_in_range32(int32_t v, uint32_t max)
+{
+    return (uint32_t)v + max <= 2u * max;
+}
+
+/* round(x * m / 2^sh) for sh in 1..31 with rnd = 2^(sh - 1) preloaded (the
+ * caller keeps it with m and sh): one multiply-accumulate and a funnel
+ * shift. fx_mul_rsh32 for a result known to fit 32 bits, fx_mul_rsh64 for
+ * any (== fx_mul32_shift(x, m, sh)). The PID's fast-path products. */
+static inline int32_t fx_mul_rsh32(int32_t x, int32_t m, unsigned sh, uint32_t rnd)
+{
+    uint64_t u = (uint64_t)rnd + (uint64_t)((int64_t)x * m);
+
+    return (int32_t)(((uint32_t)u >> sh) | ((uint32_t)(u >> 32) << (32u - sh)));
+}
+
+static inline int64_t fx_mul_rsh64(int32_t x, int32_t m, unsigned sh, uint32_t rnd)
+{
+    uint64_t u = (uint64_t)rnd + (uint64_t)((int64_t)x * m);
+    uint32_t lo = (uint32_t)u, hi = (uint32_t)(u >> 32);
+    uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
+    uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
+
+    return (int64_t)(((uint64_t)rhi << 32) | rlo);
+}
 
 /* ---- conversions between the named formats -------------------------------- */
 
@@ -206,11 +454,6 @@ uint64_t fx_udivmod64(uint64_t n, uint64_t d, uint64_t *rem);
  * *rem = 0. */
 uint64_t fx_udiv128(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem);
 
-/* Test hooks: the same two through the 32-bit-digit code that 32-bit
- * targets run (hosts with a 64-bit divider use it in the two above). */
-uint64_t fx_udivmod64_digits(uint64_t n, uint64_t d, uint64_t *rem);
-uint64_t fx_udiv128_digits(uint64_t hi, uint64_t lo, uint64_t d, uint64_t *rem);
-
 /* Reciprocal 1/x in q16_16 of a q16_16 value: round(2^32 / x), saturated
  * to int32 (x = 0, 1, 2 give INT32_MAX, x = -1 gives INT32_MIN; x = -2 gives
  * INT32_MIN exactly). */
@@ -218,9 +461,10 @@ q16_16_t fx_recip_q16(q16_16_t x);
 
 /* ---- roots (floor, exact) --------------------------------------------------- */
 
-uint32_t fx_isqrt32(uint32_t v); /* floor(sqrt(v)) */
-uint32_t fx_isqrt64(uint64_t v); /* floor(sqrt(v)) */
-uint32_t fx_icbrt64(uint64_t v); /* floor(cbrt(v)) */
+uint32_t fx_isqrt32(uint32_t v);   /* floor(sqrt(v)) */
+uint32_t fx_isqrt64(uint64_t v);   /* floor(sqrt(v)) */
+uint32_t fx_icbrt64(uint64_t v);   /* floor(cbrt(v)) */
+uint64_t fx_isqrt128(fx_u128_t v); /* floor(sqrt(v)), every 128-bit v */
 
 /* ---- trigonometry and vector length ---------------------------------------- */
 
@@ -237,6 +481,15 @@ void fx_sincos(fx_angle_t a, q1_30_t *s, q1_30_t *c);
  * atan2(y, x) for x, y >= 0. */
 fx_angle_t fx_atan2(int64_t y, int64_t x);
 
+/* sin d and 1 - cos d in q62 for a small angle d given in binary-angle units
+ * times 2^32 (2^64 per turn), |d| <= 2^58 (pi/32 rad): Taylor series to d^5
+ * and d^6 (remainders below d^7 / 5040 and d^8 / 40320: 2e-11 and 3e-13 at
+ * pi/32) evaluated in q64 with exact high products (each within 2 units of
+ * q64 of the exact floor); sin has the sign of d, 1 - cos >= 0. For the
+ * rotation steps of the arc reference (arc_ref.h), where fx_sincos's q30 is
+ * too coarse. Outside the domain both are 0. */
+void fx_sin_1mcos_small_q62(int64_t d, int64_t *sin_q62, int64_t *omc_q62);
+
 /* floor(sqrt(x^2 + y^2)) and floor(sqrt(x^2 + y^2 + z^2)), exact for every
  * input (128-bit sum of squares), saturated to INT64_MAX. Components below
  * 2^31 in magnitude (2.1 m in nm) take the fast path (one 64-bit root);
@@ -245,6 +498,13 @@ int64_t fx_hypot2(int64_t x, int64_t y);
 int64_t fx_hypot3(int64_t x, int64_t y, int64_t z);
 
 /* ---- division by a constant with its reciprocal ---------------------------- */
+
+/* round(num * 2^30 / den) (division rule) for 0 < num < den, after num and
+ * den are shifted right together until den < 2^32 (the quotient of the
+ * shifted values: within 2^30 / den_shifted of the exact one); 0 when num
+ * <= 0 or den <= 0 (or den shifts to 0), 2^30 when num >= den. A chord
+ * fraction or a speed ratio in q30. */
+int64_t fx_ratio_q30(int64_t num, int64_t den);
 
 /* floor(2^62 / d) for 1 <= d < 2^32 (d == 0 gives 0): the reciprocal that
  * fx_div_q30_rec uses, computed once per divisor (a 64-bit division). */

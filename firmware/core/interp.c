@@ -52,16 +52,6 @@ uint16_t interp_room(const interp_t *ip)
     return (uint16_t)(INTERP_FIFO - ip_queued(ip));
 }
 
-bool interp_load(interp_t *ip, const plan_seg_t *seg)
-{
-    if (interp_room(ip) == 0) {
-        return false;
-    }
-    ip->fifo[ip->wr & (INTERP_FIFO - 1)] = *seg;
-    ip->wr = (uint16_t)(ip->wr + 1u); /* publish after the slot is written */
-    return true;
-}
-
 unsigned interp_refill(interp_t *ip, plan_t *p)
 {
     unsigned n = 0;
@@ -77,23 +67,57 @@ unsigned interp_refill(interp_t *ip, plan_t *p)
     return n;
 }
 
-bool interp_idle(const interp_t *ip)
+int64_t interp_ahead_ns(const interp_t *ip)
 {
-    /* busy implies rd != wr: the current segment stays in the FIFO until
-     * it ends, so the indices alone say it (and main may call this) */
-    return ip_queued(ip) == 0;
+    uint16_t rd = ip->rd, wr = ip->wr, i;
+    int64_t sum = 0;
+
+    if ((uint16_t)(wr - rd) > INTERP_FIFO) {
+        return 0;
+    }
+    for (i = (uint16_t)(rd + 1u); i != wr && rd != wr; i++) {
+        sum += ip->fifo[i & (INTERP_FIFO - 1)].total_ns;
+    }
+    return sum;
+}
+
+int64_t interp_queued_ns(const interp_t *ip, uint16_t rd, int64_t rem_rd)
+{
+    uint16_t wr = ip->wr, i;
+    int64_t sum = 0;
+
+    if ((uint16_t)(wr - rd) <= INTERP_FIFO) {
+        for (i = rd; i != wr; i++) {
+            sum += (i == rd && rem_rd >= 0) ? rem_rd : ip->fifo[i & (INTERP_FIFO - 1)].total_ns;
+        }
+    }
+    return sum;
+}
+
+#define IP_RECIP_1E9_Q64 18446744073ull /* floor(2^64 / 1e9) */
+
+int64_t interp_cruise_ds_q32(const interp_t *ip)
+{
+    int64_t ds;
+
+    if (ip->cr_dq >= ((uint64_t)1 << 46)) {
+        return -1;
+    }
+    /* cr_dr / 1e9 * 2^16 (< 2^16) by the reciprocal: within 1 of the exact
+     * floor, 2.3e-10 nm */
+    ds = (int64_t)(ip->cr_dq << 16) +
+         (int64_t)fx_umulhi64((uint64_t)ip->cr_dr << 16, IP_RECIP_1E9_Q64);
+    return ds + fx_mul64x32_shift(ds, (int32_t)ip->corr_q32, 32);
 }
 
 /* round(sign * ua * ur / 2^78), ties toward +inf, for magnitudes ua, ur
  * < 2^63 and the sign negative when `neg`: four 32 x 32 -> 64 products and
- * the high word. */
+ * the high word of fx_umul64. */
 static inline int64_t ip_scale_mag(uint64_t ua, uint64_t ur, bool neg)
 {
-    uint64_t al = (uint32_t)ua, ah = ua >> 32, bl = (uint32_t)ur, bh = ur >> 32;
-    uint64_t p0 = al * bl, p1 = al * bh, p2 = ah * bl, p3 = ah * bh;
-    uint64_t mid = (p0 >> 32) + (uint32_t)p1 + (uint32_t)p2;
-    uint64_t hi = p3 + (p1 >> 32) + (p2 >> 32) + (mid >> 32);
-    uint32_t lo_zero = ((uint32_t)p0 | (uint32_t)mid) == 0u;
+    fx_u128_t p = fx_umul64(ua, ur);
+    uint64_t hi = p.hi;
+    uint32_t lo_zero = p.lo == 0u;
 
     if (neg) { /* -floor((|p| + 2^77 - 1) / 2^78) */
         return -(int64_t)((hi + ((uint64_t)1 << 13) - lo_zero) >> 14);
@@ -106,8 +130,7 @@ static inline int64_t ip_scale_mag(uint64_t ua, uint64_t ur, bool neg)
  * saturates), inline. */
 static inline int64_t ip_scale(int64_t a, int64_t r)
 {
-    uint64_t ua = (a < 0) ? (uint64_t)0 - (uint64_t)a : (uint64_t)a;
-    uint64_t ur = (r < 0) ? (uint64_t)0 - (uint64_t)r : (uint64_t)r;
+    uint64_t ua = fx_uabs64(a), ur = fx_uabs64(r);
 
     return ip_scale_mag(ua, ur, (a < 0) != (r < 0));
 }
@@ -117,11 +140,9 @@ static inline int64_t ip_scale(int64_t a, int64_t r)
  * inline: two 32 x 32 -> 64 products. */
 static inline int64_t ip_mul_q32(int64_t a, int32_t b)
 {
-    uint64_t ua = (a < 0) ? (uint64_t)0 - (uint64_t)a : (uint64_t)a;
-    uint64_t ub = (b < 0) ? (uint64_t)0 - (uint64_t)(int64_t)b : (uint64_t)(int64_t)b;
-    uint64_t lo = (uint32_t)ua * ub;
-    uint64_t hi = (ua >> 32) * ub + (lo >> 32); /* |a * b| >> 32 */
-    uint32_t l32 = (uint32_t)lo;
+    fx_u128_t p = fx_umul64x32(fx_uabs64(a), (uint32_t)fx_uabs64(b));
+    uint64_t hi = (p.hi << 32) | (p.lo >> 32); /* |a * b| >> 32 */
+    uint32_t l32 = (uint32_t)p.lo;
 
     if ((a < 0) != (b < 0)) { /* -floor((|p| + 2^31 - 1) / 2^32) */
         return -(int64_t)(hi + (((uint64_t)l32 + 0x7FFFFFFFu) >> 32));

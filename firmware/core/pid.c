@@ -7,35 +7,6 @@
 
 #define U_PER_MV ((int64_t)1 << 32)
 
-static int64_t clamp64(int64_t v, int64_t lim)
-{
-    if (v > lim) {
-        return lim;
-    }
-    if (v < -lim) {
-        return -lim;
-    }
-    return v;
-}
-
-/* Inline forms of the fixmath helpers for the tick path (same results). */
-static inline int64_t rsh(int64_t v, unsigned s)
-{
-    return (v >> s) + ((v >> (s - 1)) & 1); /* round half up, s >= 1 */
-}
-
-/* round(a * b / 2^30) for |a| <= 2^61 and 0 <= b <= 2^30, without a 128-bit
- * product: a = ah * 2^32 + al with al unsigned; a * b = ah * b * 2^32 + al * b
- * (ah * b: one SMULL, al * b: one UMULL). */
-static inline int64_t mul_q30_pos(int64_t a, q1_30_t b)
-{
-    int32_t ah = pid_opaque32((int32_t)(a >> 32)); /* |ah| <= 2^29 */
-    uint32_t al = (uint32_t)a;
-    int64_t h = (int64_t)ah * b;              /* |h| <= 2^59 */
-    uint64_t lo = (uint64_t)al * (uint32_t)b; /* < 2^62 */
-    return (int64_t)((uint64_t)h << 2) + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
-}
-
 bool pid_coef_make(pid_coef_t *c, int64_t num, uint32_t mul, uint64_t den)
 {
     uint64_t a = (num < 0) ? (uint64_t)0 - (uint64_t)num : (uint64_t)num;
@@ -114,15 +85,15 @@ static inline int64_t coef_apply(pid_coef_t c, int32_t x)
         uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
         uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
         int64_t v = (int64_t)(((uint64_t)rhi << 32) | rlo);
-        return (sh >= 2u) ? v : clamp64(v, PID_TERM_LIM);
+        return (sh >= 2u) ? v : fx_clamp_sym64(v, PID_TERM_LIM);
     }
     if (c.sh > 0) {
-        /* round half up, as rsh(): |p| + 2^(sh-1) < 2^63 never overflows */
+        /* round half up, as fx_round_shift64(): |p| + 2^(sh-1) < 2^63 never overflows */
         int64_t v = (p + ((int64_t)1 << (unsigned)(c.sh - 1))) >> (unsigned)c.sh;
         if (c.sh >= 2) {
             return v; /* |v| <= 2^62 / 4 = PID_TERM_LIM: inside the clamp */
         }
-        return clamp64(v, PID_TERM_LIM);
+        return fx_clamp_sym64(v, PID_TERM_LIM);
     }
     if (c.sh < 0) {
         int64_t lim = PID_TERM_LIM >> (unsigned)(-c.sh);
@@ -134,7 +105,7 @@ static inline int64_t coef_apply(pid_coef_t c, int32_t x)
         }
         return p * ((int64_t)1 << (unsigned)(-c.sh));
     }
-    return clamp64(p, PID_TERM_LIM);
+    return fx_clamp_sym64(p, PID_TERM_LIM);
 }
 
 /* coef_apply for a shift in 2..31 (coef_mid): the rounding with 32-bit
@@ -267,7 +238,7 @@ pid_err_t pid_config(pid_loop_t *pid, const pid_params_t *p)
         pid->hold_mv = pid->out_mv;
         pid->bumpless = true;
     }
-    pid->integ = clamp64(pid->integ, pid->i_lim);
+    pid->integ = fx_clamp_sym64(pid->integ, pid->i_lim);
     pid_refresh_ready(pid);
     return PID_OK;
 }
@@ -298,7 +269,7 @@ const char *pid_strerror(pid_err_t err)
 void pid_enable(pid_loop_t *pid, int32_t u_hold_mv)
 {
     int64_t lim = (pid->out_lim > 0) ? pid->out_lim : 0;
-    pid->hold_mv = (int32_t)(clamp64((int64_t)u_hold_mv * U_PER_MV, lim) / U_PER_MV);
+    pid->hold_mv = (int32_t)(fx_clamp_sym64((int64_t)u_hold_mv * U_PER_MV, lim) / U_PER_MV);
     pid->bumpless = true;
     pid->enabled = true;
     pid->sat_ticks = 0;
@@ -346,7 +317,7 @@ void pid_rebase(pid_loop_t *pid, pos_nm_t offset_nm)
 
 void pid_add_integrator(pid_loop_t *pid, int64_t delta_u)
 {
-    pid->integ = clamp64(pid->integ + clamp64(delta_u, PID_TERM_LIM), pid->i_lim);
+    pid->integ = fx_clamp_sym64(pid->integ + fx_clamp_sym64(delta_u, PID_TERM_LIM), pid->i_lim);
 }
 
 static int32_t deadband(int32_t e, int32_t db)
@@ -370,15 +341,16 @@ int32_t pid_step(pid_loop_t *pid, pos_nm_t ref, pos_nm_t meas, int64_t vel, int6
  * count, back-calculation, integrator clamp, outputs. */
 static inline int32_t pid_finish_raw(pid_loop_t *pid, int64_t raw, int64_t integ)
 {
-    int64_t u = clamp64(raw, pid->out_lim);
+    int64_t u = fx_clamp_sym64(raw, pid->out_lim);
 
     if (u != raw) {
         pid->saturated = true;
         pid->sat_ticks++;
         pid->sat_total++;
         if (pid->kt_q30 != 0) {
-            integ = clamp64(integ + mul_q30_pos(clamp64(u - raw, (int64_t)1 << 61), pid->kt_q30),
-                            pid->i_lim);
+            integ = fx_clamp_sym64(
+                integ + fx_mul_q30_pos(fx_clamp_sym64(u - raw, (int64_t)1 << 61), pid->kt_q30),
+                pid->i_lim);
         }
     } else {
         pid->saturated = false;
@@ -386,7 +358,7 @@ static inline int32_t pid_finish_raw(pid_loop_t *pid, int64_t raw, int64_t integ
     } /* the integrator is within its clamp on every path */
     pid->integ = integ;
     pid->out = u;
-    pid->out_mv = (int32_t)rsh(u, 32);
+    pid->out_mv = (int32_t)fx_round_shift64(u, 32);
     return pid->out_mv;
 }
 
@@ -457,7 +429,7 @@ int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel,
         int64_t draw = coef_apply(pid->cd, de);
         dterm = draw;
         if (pid->alpha_q30 < FX_ONE_Q30) {
-            dterm = pid->dterm + mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
+            dterm = pid->dterm + fx_mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
         }
     }
     pid->dterm = dterm;
@@ -466,22 +438,22 @@ int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel,
     /* feed-forward from the interpolator's velocity and acceleration */
     ff = 0;
     if (pid->cv.m != 0) {
-        ff += coef_apply(pid->cv, fx_sat32_fast(rsh(vel, 2)));
+        ff += coef_apply(pid->cv, fx_sat32_fast(fx_round_shift64(vel, 2)));
     }
     if (pid->ca.m != 0) {
-        ff += coef_apply(pid->ca, fx_sat32_fast(rsh(acc, 10)));
+        ff += coef_apply(pid->ca, fx_sat32_fast(fx_round_shift64(acc, 10)));
     }
     pid->ff = ff;
-    ex = (extra == 0) ? 0 : clamp64(extra, PID_TERM_LIM);
+    ex = (extra == 0) ? 0 : fx_clamp_sym64(extra, PID_TERM_LIM);
     pid->extra = ex;
 
     if (pid->bumpless) {
         /* continue from hold_mv: the integrator takes the difference */
         int64_t hold = (int64_t)pid->hold_mv * U_PER_MV;
-        integ = clamp64(hold - (pterm + dterm + ff + ex), pid->i_lim);
+        integ = fx_clamp_sym64(hold - (pterm + dterm + ff + ex), pid->i_lim);
         pid->bumpless = false;
     } else {
-        integ = clamp64(pid->integ + coef_apply(pid->ci, edb), pid->i_lim);
+        integ = fx_clamp_sym64(pid->integ + coef_apply(pid->ci, edb), pid->i_lim);
     }
     /* hand the D state over to the fast path when it can take it */
     if (pid->fast && dterm >= -PID_FAST_DTERM_MAX && dterm <= PID_FAST_DTERM_MAX) {

@@ -273,37 +273,7 @@ static inline bool pid_fast_ready(const pid_loop_t *pid)
  * the value. */
 static inline int32_t pid_opaque32(int32_t v)
 {
-#if defined(__GNUC__)
-    __asm__("" : "+r"(v));
-#endif
-    return v;
-}
-
-/* |v| <= max for max <= 2^31 - 1, one add and one compare (qdec.h's trick) */
-static inline bool pid_in_range(int32_t v, uint32_t max)
-{
-    return (uint32_t)v + max <= 2u * max;
-}
-
-/* round(x * m * 2^-sh) to 32 bits for sh in 1..31 and a result known to fit:
- * one multiply-accumulate (rnd = 2^(sh - 1) preloaded) and a funnel shift. */
-static inline int32_t pid_mul_shift32(int32_t x, int32_t m, unsigned sh, uint32_t rnd)
-{
-    uint64_t u = (uint64_t)rnd + (uint64_t)((int64_t)x * m);
-
-    return (int32_t)(((uint32_t)u >> sh) | ((uint32_t)(u >> 32) << (32u - sh)));
-}
-
-/* round(x * m * 2^-sh) to 64 bits for sh in 1..31 (the integrator increment,
- * as the general path's coefficient product: the same value) */
-static inline int64_t pid_mul_shift64(int32_t x, int32_t m, unsigned sh, uint32_t rnd)
-{
-    uint64_t u = (uint64_t)rnd + (uint64_t)((int64_t)x * m);
-    uint32_t lo = (uint32_t)u, hi = (uint32_t)(u >> 32);
-    uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
-    uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
-
-    return (int64_t)(((uint64_t)rhi << 32) | rlo);
+    return fx_opaque32(v);
 }
 
 /* The fast step (see Fast path) for the servo's inline use: the same as
@@ -337,10 +307,10 @@ static PID_ALWAYS_INLINE int32_t pid_step_fast_inline(pid_loop_t *pid, int32_t e
         }
         de = (int32_t)d;
     }
-    if (!pid_in_range(de, pid->de_max)) {
+    if (!fx_in_range32(de, pid->de_max)) {
         return pid_step_general(pid, e, meas, 0, 0, extra);
     }
-    dn = pid_mul_shift32(de, pid->fd_m, pid->fd_sh, pid->fd_rnd);
+    dn = fx_mul_rsh32(de, pid->fd_m, pid->fd_sh, pid->fd_rnd);
     dq = pid->dq;
     if (pid->dfilt) {
         df = (int32_t)(dq >> 31);
@@ -352,14 +322,14 @@ static PID_ALWAYS_INLINE int32_t pid_step_fast_inline(pid_loop_t *pid, int32_t e
     pid->dq = dq;
     pid->meas_prev = meas;
     pid->err_nm = e;
-    integ = pid->integ + pid_mul_shift64(e, pid->fi_m, pid->fi_sh, pid->fi_rnd);
+    integ = pid->integ + fx_mul_rsh64(e, pid->fi_m, pid->fi_sh, pid->fi_rnd);
     ih = (int32_t)(integ >> 32);
     if (!((uint32_t)ih + (uint32_t)pid->i_max < 2u * (uint32_t)pid->i_max)) {
         /* |I| may exceed i_max: the exact clamp */
         int64_t lim = pid->i_lim;
         integ = (integ > lim) ? lim : (integ < -lim) ? -lim : integ;
     }
-    raw = integ + pid_mul_shift64(e, pid->fp_m, pid->fp_sh, pid->fp_rnd);
+    raw = integ + fx_mul_rsh64(e, pid->fp_m, pid->fp_sh, pid->fp_rnd);
     raw += (int64_t)df * pid_opaque32((int32_t)1 << 21); /* floor(D) in U: one SMLAL */
     if (has_extra) {
         int64_t ex = extra;

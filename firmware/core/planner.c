@@ -2,18 +2,9 @@
  * planner.c - look-ahead planner; see planner.h for the rules.
  */
 #include "planner.h"
+#include "planner_test.h"
 
 #define NS_PER_S ((int64_t)1000000000)
-
-static int64_t pl_min(int64_t a, int64_t b)
-{
-    return a < b ? a : b;
-}
-
-static int64_t pl_abs(int64_t a)
-{
-    return a < 0 ? -a : a;
-}
 
 static bool pl_same(const int64_t *lim);
 
@@ -115,7 +106,7 @@ plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
         int64_t amin = prof->a_max[0];
         int i;
         for (i = 1; i < CORE_AXES; i++) {
-            amin = pl_min(amin, prof->a_max[i]);
+            amin = fx_min64(amin, prof->a_max[i]);
         }
         p->jd_amin_dev = sc_mul_sat(amin, prof->junction_dev_nm); /* saturated */
     }
@@ -131,6 +122,7 @@ plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
     p->ring = storage;
     p->depth = depth;
     p->deferred = false;
+    p->jd_fast_off = false;
     plan_reset(p, start);
     return PLAN_OK;
 }
@@ -206,15 +198,6 @@ int64_t plan_test_ratio(int64_t a, int64_t len)
  * ad 2^62 / len by ad (1 / len + theta) / 2^(b+1) < 1 (theta < 1, ad <=
  * len < 2^b), so each ratio is floor(ad 2^62 / len) or one less (test:
  * test_ratio_reciprocal against pl_ratio); ad == len gives 2^62 exactly. */
-/* bit length of x > 0 (32-bit CLZ only) */
-static unsigned pl_bits(uint64_t x)
-{
-    uint32_t h = (uint32_t)(x >> 32);
-
-    return (h != 0u) ? 64u - (unsigned)__builtin_clz(h)
-                     : 32u - (unsigned)__builtin_clz((uint32_t)x);
-}
-
 typedef struct {
     uint64_t inv;
     uint64_t pow; /* 2^(63 - b) */
@@ -224,7 +207,7 @@ static inline pl_recip_t pl_recip(int64_t len)
 {
     pl_recip_t r;
     uint64_t rem;
-    unsigned b = pl_bits((uint64_t)len);
+    unsigned b = 64u - fx_clz64((uint64_t)len);
 
     r.pow = (uint64_t)1 << (63u - b);
     if (b <= 31u) {
@@ -283,7 +266,7 @@ int64_t plan_test_ratio_rec(int64_t a, int64_t len)
  * q up to the floor (a few steps at most). */
 static uint32_t pl_len_factor(int64_t len, int64_t dm)
 {
-    unsigned b = pl_bits((uint64_t)dm), s;
+    unsigned b = 64u - fx_clz64((uint64_t)dm), s;
     uint64_t l = (uint64_t)len, d = (uint64_t)dm, e, rem;
     uint32_t y, q, dn, ln;
 
@@ -367,23 +350,23 @@ static int64_t pl_axis_limit(const int64_t *lim, const int64_t *d, int64_t len)
         same = same && lim[i] == lim[0];
     }
     for (i = 0; i < CORE_AXES; i++) {
-        uint64_t ad = (uint64_t)pl_abs(d[i]);
+        uint64_t ad = fx_uabs64(d[i]);
         if (ad == 0u) {
             continue;
         }
         if (best < 0) {
             best = i;
         } else if (same) {
-            if (ad > (uint64_t)pl_abs(d[best])) {
+            if (ad > fx_uabs64(d[best])) {
                 best = i;
             }
-        } else if (sc_cmp_products((uint64_t)lim[i], (uint64_t)pl_abs(d[best]), (uint64_t)lim[best],
-                                   ad) < 0) {
+        } else if (sc_cmp_products((uint64_t)lim[i], fx_uabs64(d[best]), (uint64_t)lim[best], ad) <
+                   0) {
             /* lim_i / ad_i < lim_b / ad_b  <=>  lim_i * ad_b < lim_b * ad_i */
             best = i;
         }
     }
-    return (best < 0) ? INT64_MAX : pl_muldiv(lim[best], len, pl_abs(d[best]));
+    return (best < 0) ? INT64_MAX : pl_muldiv(lim[best], len, (int64_t)fx_uabs64(d[best]));
 }
 
 /* every axis has the same limit */
@@ -399,11 +382,9 @@ static bool pl_same(const int64_t *lim)
     return true;
 }
 
-static bool pl_jd_fast_off; /* test hook: plan_test_jd_fast */
-
-void plan_test_jd_fast(bool on)
+void plan_test_jd_fast(plan_t *p, bool on)
 {
-    pl_jd_fast_off = !on;
+    p->jd_fast_off = !on;
 }
 
 /* Junction deviation: true when the corner speed cannot be below vcap, so
@@ -413,33 +394,22 @@ void plan_test_jd_fast(bool on)
  * K = ceil(vcap^2 / dev) whenever a_min h dev >= (vcap^2 + dev) (2^30 - h);
  * then t dev >= vcap^2 and v = isqrt(t dev) >= vcap. The left product is
  * saturated down, the right one up (both exact 128-bit products). */
-/* x y (x < 2^64, y < 2^32) as 96 bits: *hi the top 32 */
-static uint64_t pl_mul64x32(uint64_t x, uint32_t y, uint32_t *hi)
-{
-    uint64_t lo = (uint64_t)(uint32_t)x * y;
-    uint64_t up = (uint64_t)(uint32_t)(x >> 32) * y + (lo >> 32);
-
-    *hi = (uint32_t)(up >> 32);
-    return (up << 32) | (uint32_t)lo;
-}
-
 static bool pl_jd_above(const plan_t *p, int64_t c1, int64_t vcap)
 {
     int64_t dev = p->prof.junction_dev_nm;
-    uint64_t vv, l, r;
-    uint32_t h = (uint32_t)(c1 / 2), lh, rh;
+    uint64_t vv;
+    uint32_t h = (uint32_t)(c1 / 2);
 
     /* (jd_amin_dev > 0 iff dev > 0; vcap - 1 wraps for vcap <= 0) */
-    if (pl_jd_fast_off || p->jd_amin_dev <= 0 || (uint64_t)vcap - 1u >= (uint64_t)SC_V_LIMIT ||
+    if (p->jd_fast_off || p->jd_amin_dev <= 0 || (uint64_t)vcap - 1u >= (uint64_t)SC_V_LIMIT ||
         c1 > ((int64_t)1 << 31) + 1) {
         return false;
     }
     vv = (uint64_t)(uint32_t)vcap * (uint32_t)vcap; /* vcap < 2^32 */
     vv = (vv > UINT64_MAX - (uint64_t)dev) ? UINT64_MAX : vv + (uint64_t)dev;
     /* the exact comparison of the two 96-bit products */
-    l = pl_mul64x32((uint64_t)p->jd_amin_dev, h, &lh);
-    r = pl_mul64x32(vv, ((uint32_t)1 << 30) - h, &rh);
-    return lh != rh ? lh > rh : l >= r;
+    return fx_cmp128(fx_umul64x32((uint64_t)p->jd_amin_dev, h),
+                     fx_umul64x32(vv, ((uint32_t)1 << 30) - h)) >= 0;
 }
 
 /* Junction speed limit between the last queued move and a new one (nm/s,
@@ -478,14 +448,14 @@ static int64_t pl_corner(const plan_t *p, const int32_t *w2, int64_t len2, int64
     }
     if (pr->corner != PLAN_CORNER_JD) {
         for (i = 0; i < CORE_AXES; i++) {
-            du[i] = pl_abs((int64_t)w2[i] - w1[i]); /* |u2 - u1| per axis, q30 */
+            du[i] = (int64_t)fx_uabs64((int64_t)w2[i] - w1[i]); /* |u2 - u1| per axis, q30 */
         }
     }
     switch (pr->corner) {
     case PLAN_CORNER_VSTEP:
         for (i = 0; i < CORE_AXES; i++) {
             if (du[i] != 0) {
-                v = pl_min(v, sc_muldiv(pr->corner_dv[i], (int64_t)1 << 30, du[i]));
+                v = fx_min64(v, sc_muldiv(pr->corner_dv[i], (int64_t)1 << 30, du[i]));
             }
         }
         break;
@@ -496,7 +466,7 @@ static int64_t pl_corner(const plan_t *p, const int32_t *w2, int64_t len2, int64
                 int64_t m = sc_muldiv(pr->corner_acc[i], (int64_t)1 << 30, du[i]);
                 int64_t v2 = sc_mul_sat(m, l);
                 if (v2 < INT64_MAX) {
-                    v = pl_min(v, (int64_t)fx_isqrt64((uint64_t)v2));
+                    v = fx_min64(v, (int64_t)fx_isqrt64((uint64_t)v2));
                 }
             }
         }
@@ -574,7 +544,7 @@ static void pl_replan(plan_t *p)
         k = (k == 0u) ? depth - 1u : k - 1u;
         /* sc_reach returns its start speed from v_max on: no call */
         e = (exit >= b->lim.v_max && b->len > 0) ? exit : sc_reach_k(exit, &b->lim, &b->rk);
-        e = pl_min(b->v_junction, e);
+        e = fx_min64(b->v_junction, e);
         if (e == b->v_entry && i < fresh) {
             from = i;
             break;
@@ -664,7 +634,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
             if ((uint64_t)d[i] + (uint64_t)SC_LEN_MAX > 2u * (uint64_t)SC_LEN_MAX) {
                 return PLAN_E_RANGE;
             }
-            ad[i] = pl_abs(d[i]);
+            ad[i] = (int64_t)fx_uabs64(d[i]);
         }
         len = pl_length(ad);
         if (len == 0) {
@@ -732,16 +702,16 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
          * exact path below: pl_len_factor cuts them to 31 bits, which
          * loosens that bound. */
         uint32_t f = pl_len_factor(len, dm);
-        vmax = pl_min(m->feed, pl_scale31(p->prof.v_max[0], f));
-        amax = pl_min(SC_A_LIMIT, pl_scale31(p->prof.a_max[0], f));
-        jmax = pl_min(SC_J_LIMIT, pl_scale31(p->prof.j_max[0], f));
+        vmax = fx_min64(m->feed, pl_scale31(p->prof.v_max[0], f));
+        amax = fx_min64(SC_A_LIMIT, pl_scale31(p->prof.a_max[0], f));
+        jmax = fx_min64(SC_J_LIMIT, pl_scale31(p->prof.j_max[0], f));
         if (amax < SC_A_LIMIT && jmax < SC_J_LIMIT && p->aaj0 < ((int64_t)1 << 62)) {
             aaj = pl_scale31(p->aaj0, f) - 7;
         }
     } else {
-        vmax = pl_min(m->feed, pl_axis_limit(p->prof.v_max, d, len));
-        amax = pl_min(SC_A_LIMIT, pl_axis_limit(p->prof.a_max, d, len));
-        jmax = pl_min(SC_J_LIMIT, pl_axis_limit(p->prof.j_max, d, len));
+        vmax = fx_min64(m->feed, pl_axis_limit(p->prof.v_max, d, len));
+        amax = fx_min64(SC_A_LIMIT, pl_axis_limit(p->prof.a_max, d, len));
+        jmax = fx_min64(SC_J_LIMIT, pl_axis_limit(p->prof.j_max, d, len));
     }
     /* minimum block time: throughput window over this block and the W-1
      * before it */
@@ -773,8 +743,8 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     if (p->last_stop || p->last_len == 0) {
         vj = 0;
     } else {
-        vj = pl_min(vmax, p->last_vmax);
-        vj = pl_min(vj, pl_corner(p, u30, len, vj, &vc));
+        vj = fx_min64(vmax, p->last_vmax);
+        vj = fx_min64(vj, pl_corner(p, u30, len, vj, &vc));
         /* smoothed corner: the previous move (the newest queued block, if
          * it has not been popped) now knows its exit corner; its speed is
          * capped by the larger of its two corner speeds. The cap is never
@@ -813,7 +783,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     }
     b->v_junction = vj;
     b->v_corner_in = vc;
-    b->v_entry = (p->count == 0) ? pl_min(p->next_entry, vj) : 0;
+    b->v_entry = (p->count == 0) ? fx_min64(p->next_entry, vj) : 0;
     b->flags = flags;
     p->last_len = len;
     p->last_vmax = vmax;

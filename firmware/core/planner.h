@@ -248,6 +248,9 @@ typedef struct {
     int64_t jd_amin_dev; /* min_i a_i * junction_dev_nm, saturated (init) */
     int64_t cruise_v;    /* speed of the last cruise-only block popped    */
     uint64_t cruise_rec; /* its sc_cruise_recip                           */
+    bool jd_fast_off;    /* tests only (planner_test.h): false after
+                          * plan_init; true skips this planner's
+                          * junction-deviation early exit              */
 } plan_t;
 
 /* Validate the profile and initialise an empty planner at `start` (nm).
@@ -293,22 +296,5 @@ int64_t plan_queued_ns(const plan_t *p);
 
 /* Read access for tests and the estimator: i-th queued block from the oldest. */
 const plan_block_t *plan_peek(const plan_t *p, uint16_t i);
-
-/* Test hook: the junction-deviation early exit (on by default; off: the
- * full computation always runs; the junction speeds are identical). */
-void plan_test_jd_fast(bool on);
-
-/* Test hooks: the block limits' multiply-divide (sc_muldiv with one 64/64
- * division when the product fits 64 bits) and the direction ratio
- * floor(a 2^62 / len) (one 128/64 division); both equal sc_muldiv. */
-int64_t plan_test_muldiv(int64_t a, int64_t b, int64_t c);
-int64_t plan_test_ratio(int64_t a, int64_t len);
-/* Test hook: the direction ratio from the block's reciprocal (what
- * plan_push uses): floor(a 2^62 / len) or one less, 0 <= a <= len <= 2^40. */
-int64_t plan_test_ratio_rec(int64_t a, int64_t len);
-/* Test hook: the equal-limits factor f = floor(l 2^31 / d) (l = len, d = dm
- * when dm < 2^31; else both cut to 31 bits, l down and d up), 0 < dm <= len
- * <= 2 dm, len <= 2^41. */
-uint32_t plan_test_len_factor(int64_t len, int64_t dm);
 
 #endif /* PLANNER_H */

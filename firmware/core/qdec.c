@@ -47,16 +47,11 @@ static inline int32_t qdec_sx(const qdec_t *q, uint32_t d)
     return (q->bits == 32u) ? (int32_t)d : qdec_sext32(d, q->bits);
 }
 
-static uint64_t qdec_uabs(int64_t v)
-{
-    return (v < 0) ? (uint64_t)0 - (uint64_t)v : (uint64_t)v;
-}
-
 /* dp counts in dt ns (dt > 0) as q32_32 counts/s, truncated toward zero,
  * saturated at +-2^31 counts/s. */
 static q32_32_t qdec_rate(int64_t dp, int64_t dt)
 {
-    uint64_t n = qdec_uabs(dp);
+    uint64_t n = fx_uabs64(dp);
     uint64_t d = (uint64_t)dt;
     uint64_t num, ip, r, v;
 
@@ -846,14 +841,14 @@ pos_nm_t qdec_counts_to_nm_any(const qdec_t *q, int64_t counts)
     int64_t nm;
 
     if (den != 1) { /* C division (toward zero), without the 64-bit divider */
-        uw = fx_udivmod64(qdec_uabs(counts), (uint64_t)den, &ur);
+        uw = fx_udivmod64(fx_uabs64(counts), (uint64_t)den, &ur);
         whole = (int64_t)((counts < 0) ? (uint64_t)0 - uw : uw);
         rem = (int64_t)((counts < 0) ? (uint64_t)0 - ur : ur);
     }
-    uw = qdec_uabs(whole);
+    uw = fx_uabs64(whole);
     /* |whole| * |num| > INT64_MAX; both below 2^31 never is */
-    if (whole != 0 && ((uw | qdec_uabs(num)) >> 31) != 0 &&
-        uw > (uint64_t)INT64_MAX / qdec_uabs(num)) {
+    if (whole != 0 && ((uw | fx_uabs64(num)) >> 31) != 0 &&
+        uw > (uint64_t)INT64_MAX / fx_uabs64(num)) {
         return ((whole < 0) != (num < 0)) ? INT64_MIN : INT64_MAX;
     }
     nm = whole * num;

@@ -363,14 +363,11 @@ void qdec_set_comp(qdec_t *q, const comp_table_t *comp);
  * 2^62, so the sum cannot overflow): the same result. */
 pos_nm_t qdec_counts_to_nm_any(const qdec_t *q, int64_t counts);
 
-/* |delta| > max_delta, for max_delta <= 2^31 - 1 (2 * max_delta < 2^32),
- * with one add and one unsigned compare: delta + max_delta
- * (mod 2^32) lies in [0, 2 * max_delta] exactly when |delta| <= max_delta
- * (above: delta + max_delta <= 2^31 - 1 + max_delta < 2^32; below:
- * delta + max_delta >= 2^31 + max_delta > 2 * max_delta mod 2^32). */
+/* |delta| > max_delta, for max_delta <= 2^31 - 1 (fx_in_range32's one add
+ * and one unsigned compare). */
 static inline bool qdec_overspeed(int32_t delta, uint32_t max_delta)
 {
-    return (uint32_t)delta + max_delta > 2u * max_delta;
+    return !fx_in_range32(delta, max_delta);
 }
 
 static inline pos_nm_t qdec_counts_to_nm(const qdec_t *q, int64_t counts)

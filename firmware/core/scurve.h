@@ -143,24 +143,6 @@ int64_t sc_muldiv(int64_t a, int64_t b, int64_t c);
 /* ceil(a * b / c), same rules. */
 int64_t sc_muldiv_ceil(int64_t a, int64_t b, int64_t c);
 
-/* Test hooks: sc_muldiv through the portable two-word path (what targets
- * without __int128 run), and floor(sqrt(hi:lo)) of a 128-bit value. */
-int64_t sc_muldiv_portable(int64_t a, int64_t b, int64_t c);
-uint64_t sc_isqrt_wide(uint64_t hi, uint64_t lo);
-/* Test hook: sc_reach without the estimate-and-check path (the bracketing
- * Newton steps and chord it falls back to). Not reentrant. */
-int64_t sc_reach_bracket(int64_t v, int64_t d, const sc_limits_t *lim);
-/* Test hook: the reach's exact one-comparison distance checks in the
- * reduced S-curve case (on by default; off: sc_dist decides every check;
- * the results are identical). */
-void sc_test_dist_fits(bool on);
-/* Test hook: the reduced S-curve reach's closed form (on by default; off:
- * the estimate-and-check path decides; both are lower bounds). */
-void sc_test_reach_closed(bool on);
-/* Test hook: the closed form alone (S-curve limits, exact A^2/J): its
- * result, or -1 where it does not apply or its check fails. */
-int64_t sc_test_reach_closed_only(int64_t v, int64_t d, const sc_limits_t *lim);
-
 /* a * b saturated to INT64_MAX; 0 when a <= 0 or b <= 0 (= sc_muldiv(a, b, 1)). */
 int64_t sc_mul_sat(int64_t a, int64_t b);
 

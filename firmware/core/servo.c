@@ -14,16 +14,6 @@
 #define SERVO_NOINLINE
 #endif
 
-static int64_t abs64(int64_t v)
-{
-    return (v < 0) ? -v : v;
-}
-
-static int64_t clamp64(int64_t v, int64_t lim)
-{
-    return (v > lim) ? lim : (v < -lim) ? -lim : v;
-}
-
 void servo_params_default(servo_params_t *p, uint32_t tick_hz)
 {
     unsigned i;
@@ -219,8 +209,8 @@ static void start_stop(servo_t *s)
         if (!(s->off_mask & (1u << i))) {
             uint64_t f = s->p.tick_hz, a = (uint64_t)s->p.stop_decel_nm_s2[i];
             uint64_t ni;
-            v = clamp64(s->ref_vel[i], SERVO_VEL_MAX);
-            ni = ((uint64_t)abs64(v) * f + a - 1u) / a;
+            v = fx_clamp_sym64(s->ref_vel[i], SERVO_VEL_MAX);
+            ni = (fx_uabs64(v) * f + a - 1u) / a;
             n = (ni > n) ? ni : n;
         }
         s->stop_v0[i] = v;
@@ -501,11 +491,6 @@ static inline unsigned axes_fast(servo_t *s, const pos_nm_t *pos, unsigned n)
     return i;
 }
 
-static int32_t sat_diff32(pos_nm_t a, pos_nm_t b)
-{
-    return fx_sat_diff32(a, b);
-}
-
 /* Step 7: outputs (after every loop: a fault of a later axis may still
  * zero an earlier one). */
 static inline void tick_outputs(servo_t *s)
@@ -553,12 +538,12 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
     if (run && s->state == SERVO_RUN) {
         for (i = 0; i < n && i < CORE_AXES; i++) {
             pos_nm_t rp = ref->pos[i];
-            int32_t fe = sat_diff32(rp, fb->pos[i]);
+            int32_t fe = fx_sat_diff32(rp, fb->pos[i]);
 
             s->ref_pos[i] = rp;
             s->ref_vel[i] = ref->vel[i];
             s->ferr_nm[i] = fe;
-            if (!pid_in_range(fe, s->ferr_max[i])) {
+            if (!fx_in_range32(fe, s->ferr_max[i])) {
                 over |= 1u << i;
             }
         }
@@ -567,10 +552,10 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
     } else {
         tick_reference(s, fb, acc_own);
         for (i = 0; i < n && i < CORE_AXES; i++) {
-            int32_t fe = sat_diff32(s->ref_pos[i], fb->pos[i]);
+            int32_t fe = fx_sat_diff32(s->ref_pos[i], fb->pos[i]);
 
             s->ferr_nm[i] = fe;
-            if (!pid_in_range(fe, s->ferr_max[i])) {
+            if (!fx_in_range32(fe, s->ferr_max[i])) {
                 over |= 1u << i;
             }
         }
@@ -640,12 +625,12 @@ static inline bool tick_fast(servo_t *s, const motion_ref_t *ref, const servo_fb
 
     for (i = 0; i < n; i++) {
         pos_nm_t rp = ref->pos[i];
-        int32_t fe = sat_diff32(rp, fb->pos[i]);
+        int32_t fe = fx_sat_diff32(rp, fb->pos[i]);
 
         s->ref_pos[i] = rp;
         s->ref_vel[i] = ref->vel[i];
         s->ferr_nm[i] = fe;
-        if (!pid_in_range(fe, s->ferr_max[i])) {
+        if (!fx_in_range32(fe, s->ferr_max[i])) {
             return false; /* tick_general writes all of it again */
         }
     }

@@ -12,6 +12,7 @@
  * maxima (the figures quoted in fixmath.h).
  */
 #include "fixmath.h"
+#include "fixmath_test.h"
 #include "unity.h"
 
 #include <inttypes.h>
@@ -1321,6 +1322,202 @@ static void test_hypot_random_full_domain(void)
     }
 }
 
+/* ---- inline helpers shared by the tick and the planner -------------------- */
+
+static void test_clamp_sym_uabs_signed_sat(void)
+{
+    static const int64_t v[] = {INT64_MIN, INT64_MIN + 1, -5,       -1, 0, 1,
+                                5,         INT64_MAX - 1, INT64_MAX};
+    static const int64_t lim[] = {0, 1, 4, 5, 6, INT64_MAX};
+    unsigned i, j;
+
+    for (i = 0; i < sizeof v / sizeof v[0]; i++) {
+        for (j = 0; j < sizeof lim / sizeof lim[0]; j++) {
+            TEST_ASSERT_EQUAL_INT64(fx_clamp64(v[i], -lim[j], lim[j]),
+                                    fx_clamp_sym64(v[i], lim[j]));
+        }
+        TEST_ASSERT_EQUAL_UINT64((uint64_t)(v[i] < 0 ? -(i128)v[i] : (i128)v[i]), fx_uabs64(v[i]));
+    }
+    TEST_ASSERT_EQUAL_UINT64((uint64_t)1 << 63, fx_uabs64(INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_signed_sat(true, (uint64_t)1 << 63, true));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_signed_sat(true, ((uint64_t)1 << 63) + 1u, true));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_signed_sat(true, (uint64_t)1 << 63, false));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_signed_sat(true, (uint64_t)INT64_MAX, false));
+    TEST_ASSERT_EQUAL_INT64(-INT64_MAX, fx_signed_sat(true, (uint64_t)INT64_MAX, true));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_signed_sat(false, 0, false));
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_signed_sat(false, 0, true));
+    TEST_ASSERT_EQUAL_INT64(0, fx_signed_sat(true, 0, true));
+    TEST_ASSERT_EQUAL_INT64(-7, fx_signed_sat(true, 7, true));
+}
+
+static void check_umul(uint64_t a, uint64_t b)
+{
+    u128 p = (u128)a * b;
+    fx_u128_t r = fx_umul64(a, b);
+
+    TEST_ASSERT_EQUAL_UINT64((uint64_t)(p >> 64), r.hi);
+    TEST_ASSERT_EQUAL_UINT64((uint64_t)p, r.lo);
+    TEST_ASSERT_EQUAL_UINT64((uint64_t)(p >> 64), fx_umulhi64(a, b));
+    p = (u128)a * (uint32_t)b;
+    r = fx_umul64x32(a, (uint32_t)b);
+    TEST_ASSERT_EQUAL_UINT64((uint64_t)(p >> 64), r.hi);
+    TEST_ASSERT_EQUAL_UINT64((uint64_t)p, r.lo);
+}
+
+static void test_umul64_extremes_and_random(void)
+{
+    static const uint64_t e[] = {0,
+                                 1,
+                                 2,
+                                 0xFFFFFFFFu,
+                                 (uint64_t)1 << 32,
+                                 ((uint64_t)1 << 32) + 1u,
+                                 (uint64_t)1 << 63,
+                                 UINT64_MAX - 1u,
+                                 UINT64_MAX};
+    unsigned i, j;
+
+    for (i = 0; i < sizeof e / sizeof e[0]; i++) {
+        for (j = 0; j < sizeof e / sizeof e[0]; j++) {
+            check_umul(e[i], e[j]);
+        }
+    }
+    rng_seed(0x128);
+    for (i = 0; i < 200000; i++) {
+        check_umul(rnd_u64(), rnd_u64());
+    }
+}
+
+static fx_u128_t mk128(u128 v)
+{
+    fx_u128_t r;
+
+    r.hi = (uint64_t)(v >> 64);
+    r.lo = (uint64_t)v;
+    return r;
+}
+
+static void test_add_cmp128_and_bit_lengths(void)
+{
+    static const u128 e[] = {0,
+                             1,
+                             ((u128)1 << 64) - 1u,
+                             (u128)1 << 64,
+                             ((u128)1 << 64) + 1u,
+                             (u128)UINT64_MAX << 64,
+                             ~(u128)0};
+    unsigned i, j;
+    fx_u128_t s;
+
+    for (i = 0; i < sizeof e / sizeof e[0]; i++) {
+        for (j = 0; j < sizeof e / sizeof e[0]; j++) {
+            s = fx_add128(mk128(e[i]), mk128(e[j]));
+            TEST_ASSERT_TRUE(s.hi == (uint64_t)((e[i] + e[j]) >> 64) &&
+                             s.lo == (uint64_t)(e[i] + e[j]));
+            TEST_ASSERT_EQUAL_INT((e[i] > e[j]) - (e[i] < e[j]),
+                                  fx_cmp128(mk128(e[i]), mk128(e[j])));
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT(0, fx_bitlen64(0));
+    for (i = 0; i < 64; i++) {
+        uint64_t p = (uint64_t)1 << i;
+        TEST_ASSERT_EQUAL_UINT(i + 1u, fx_bitlen64(p));
+        TEST_ASSERT_EQUAL_UINT(i + 1u, fx_bitlen64(p | (p - 1u)));
+        TEST_ASSERT_EQUAL_UINT(63u - i, fx_clz64(p));
+        if (i < 32) {
+            TEST_ASSERT_EQUAL_UINT(31u - i, fx_clz32((uint32_t)p));
+        }
+    }
+}
+
+static void check_isqrt128(u128 n)
+{
+    uint64_t r = fx_isqrt128(mk128(n));
+
+    TEST_ASSERT_TRUE((u128)r * r <= n);
+    TEST_ASSERT_TRUE(r == UINT64_MAX || (u128)(r + 1u) * (r + 1u) > n);
+}
+
+static void test_isqrt128_boundaries_and_random(void)
+{
+    unsigned b, i;
+
+    check_isqrt128(0);
+    check_isqrt128(~(u128)0);
+    TEST_ASSERT_EQUAL_UINT64(UINT64_MAX, fx_isqrt128(mk128(~(u128)0)));
+    for (b = 32; b < 64; b++) { /* roots around every power of two, both paths */
+        uint64_t r = (uint64_t)1 << b;
+        uint64_t rs[] = {r - 1u, r, r + 1u, r | (r - 1u)};
+        for (i = 0; i < 4; i++) {
+            u128 sq = (u128)rs[i] * rs[i];
+            check_isqrt128(sq - 1u);
+            check_isqrt128(sq);
+            check_isqrt128(sq + 1u);
+            TEST_ASSERT_EQUAL_UINT64(rs[i], fx_isqrt128(mk128(sq)));
+            TEST_ASSERT_EQUAL_UINT64(rs[i] - 1u, fx_isqrt128(mk128(sq - 1u)));
+        }
+    }
+    check_isqrt128(((u128)1 << 126) - 1u); /* last value of the Newton path */
+    check_isqrt128((u128)1 << 126);
+    rng_seed(0x5127);
+    for (i = 0; i < 100000; i++) {
+        check_isqrt128(((u128)rnd_u64() << 64) | rng());
+    }
+}
+
+static void test_in_range_min_max(void)
+{
+    static const uint32_t mx[] = {0, 1, 2, 1000, 0x3FFFFFFFu, 0x7FFFFFFEu, 0x7FFFFFFFu};
+    static const int32_t v[] = {
+        INT32_MIN, INT32_MIN + 1, -0x7FFFFFFE, -1001,      -1000,    -2, -1, 0, 1,
+        2,         1000,          1001,        0x7FFFFFFE, INT32_MAX};
+    unsigned i, j;
+
+    for (i = 0; i < sizeof mx / sizeof mx[0]; i++) {
+        for (j = 0; j < sizeof v / sizeof v[0]; j++) {
+            int64_t a = (v[j] < 0) ? -(int64_t)v[j] : v[j];
+            TEST_ASSERT_EQUAL_INT(a <= (int64_t)mx[i], fx_in_range32(v[j], mx[i]));
+        }
+    }
+    TEST_ASSERT_EQUAL_INT64(INT64_MIN, fx_min64(INT64_MIN, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_max64(INT64_MIN, INT64_MAX));
+    TEST_ASSERT_EQUAL_INT64(-1, fx_min64(-1, 0));
+    TEST_ASSERT_EQUAL_INT64(0, fx_max64(-1, 0));
+    TEST_ASSERT_EQUAL_INT64(INT64_MAX, fx_sat_neg64(INT64_MIN));
+    TEST_ASSERT_EQUAL_INT64(-INT64_MAX, fx_sat_neg64(INT64_MAX));
+}
+
+/* the PID's preloaded-rounding products against fx_mul32_shift, at every
+ * shift and the operand extremes */
+static void test_mul_rsh_and_mul_q30_pos(void)
+{
+    static const int32_t x[] = {INT32_MIN, INT32_MIN + 1, -65536,   -3, -1, 0, 1,
+                                3,         65535,         INT32_MAX};
+    unsigned sh, i, j;
+
+    for (sh = 1; sh < 32; sh++) {
+        uint32_t rnd = (uint32_t)1 << (sh - 1);
+        for (i = 0; i < sizeof x / sizeof x[0]; i++) {
+            for (j = 0; j < sizeof x / sizeof x[0]; j++) {
+                int64_t ref = fx_mul32_shift(x[i], x[j], sh);
+                TEST_ASSERT_EQUAL_INT64(ref, fx_mul_rsh64(x[i], x[j], sh, rnd));
+                if (ref == (int32_t)ref) {
+                    TEST_ASSERT_EQUAL_INT32((int32_t)ref, fx_mul_rsh32(x[i], x[j], sh, rnd));
+                }
+            }
+        }
+    }
+    rng_seed(0x30);
+    for (i = 0; i < 200000; i++) {
+        int64_t a = (int64_t)(rng() >> 2) - ((int64_t)1 << 61); /* |a| <= 2^61 */
+        q1_30_t b = (q1_30_t)(rng() % ((uint64_t)FX_ONE_Q30 + 1u));
+        TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(a, b, 30), fx_mul_q30_pos(a, b));
+    }
+    TEST_ASSERT_EQUAL_INT64(((int64_t)1 << 61), fx_mul_q30_pos((int64_t)1 << 61, FX_ONE_Q30));
+    TEST_ASSERT_EQUAL_INT64(-((int64_t)1 << 61), fx_mul_q30_pos(-((int64_t)1 << 61), FX_ONE_Q30));
+    TEST_ASSERT_EQUAL_INT64(0, fx_mul_q30_pos(-((int64_t)1 << 61), 0));
+}
+
 int main(void)
 {
     report_on = getenv("FIXMATH_REPORT") != NULL;
@@ -1355,5 +1552,11 @@ int main(void)
     RUN_TEST(test_atan2_of_sincos_round_trip);
     RUN_TEST(test_hypot_exact_small_and_extremes);
     RUN_TEST(test_hypot_random_full_domain);
+    RUN_TEST(test_clamp_sym_uabs_signed_sat);
+    RUN_TEST(test_umul64_extremes_and_random);
+    RUN_TEST(test_add_cmp128_and_bit_lengths);
+    RUN_TEST(test_isqrt128_boundaries_and_random);
+    RUN_TEST(test_in_range_min_max);
+    RUN_TEST(test_mul_rsh_and_mul_q30_pos);
     return UNITY_END();
 }

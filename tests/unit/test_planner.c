@@ -7,6 +7,7 @@
  */
 #include "estimator.h"
 #include "planner.h"
+#include "planner_test.h"
 #include "unity.h"
 
 #include <math.h>
@@ -938,13 +939,12 @@ static void test_jd_early_exit_matches_full(void)
                 (rnd() % 2) ? (int64_t)(rnd() % (uint64_t)len1) >> (rnd() % 20) : 0,
                 1 + (int64_t)(rnd() % 2000));
         for (k = 0; k < 2; k++) {
-            plan_test_jd_fast(k == 0);
             TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 8, &s, origin));
+            plan_test_jd_fast(&pl, k == 0);
             TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pl, &m1));
             TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pl, &m2));
             vj[k] = plan_peek(&pl, 1)->v_junction;
         }
-        plan_test_jd_fast(true);
         TEST_ASSERT_EQUAL_INT64(vj[1], vj[0]);
         {
             int64_t cap = plan_peek(&pl, 0)->lim.v_max;

@@ -61,6 +61,16 @@ static uint8_t next_seq;
 static char where[160];
 static const char *phase;
 
+/* One control tick as a port runs it: the drive, then the calibration
+ * with what the drive published. */
+static void tick(void)
+{
+    const drive_tick_out_t *t = drive_tick(calib_sampling());
+    if (t != NULL) {
+        calib_tick(t->st, t->vel_ref);
+    }
+}
+
 static void hook(const char *file, int line)
 {
     unsigned i;
@@ -86,7 +96,7 @@ static void hook(const char *file, int line)
         /* 1 us after the last tick (the clock's unit): sample times must
          * advance; the next regular tick is 100 us after the last one */
         hal_sim_set_time_ns(hal_sim_time_ns() + 1000u);
-        drive_tick(); /* the tick preempts main here */
+        tick(); /* the tick preempts main here */
         in_tick = false;
     }
 }

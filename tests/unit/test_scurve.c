@@ -20,6 +20,7 @@
  */
 #include "fixmath.h"
 #include "scurve.h"
+#include "scurve_test.h"
 #include "unity.h"
 
 #include <math.h>
@@ -182,7 +183,8 @@ static void test_muldiv_and_sqrt(void)
         u128 q = (u128)(uint64_t)a * (uint64_t)b / (uint64_t)c;
         int64_t ref = q > (u128)INT64_MAX ? INT64_MAX : (int64_t)q;
         u128 x = ((u128)rng() << 64 | rng()) >> (rng() % 128);
-        uint64_t r = sc_isqrt_wide((uint64_t)(x >> 64), (uint64_t)x);
+        fx_u128_t xw = {(uint64_t)(x >> 64), (uint64_t)x};
+        uint64_t r = fx_isqrt128(xw);
         TEST_ASSERT_EQUAL_INT64(ref, sc_muldiv(a, b, c));
         TEST_ASSERT_EQUAL_INT64(ref, sc_muldiv_portable(a, b, c));
         /* the ceiling (both the 64-bit and the 128-bit path) */

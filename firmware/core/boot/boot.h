@@ -263,8 +263,4 @@ void boot_request_enter(const boot_config_t *cfg);
  * from the next boot on. False if no image header or the flash write failed. */
 bool boot_app_mark_bad(const boot_config_t *cfg);
 
-/* Short constant names, for logs and tests. */
-const char *boot_status_name(boot_status_t s);
-const char *boot_reason_name(boot_reason_t r);
-
 #endif /* BOOT_BOOT_H */

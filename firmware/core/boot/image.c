@@ -110,28 +110,3 @@ boot_image_status_t boot_image_check(const boot_image_header_t *h, uint32_t boar
     }
     return BOOT_IMAGE_OK;
 }
-
-const char *boot_image_status_name(boot_image_status_t s)
-{
-    switch (s) {
-    case BOOT_IMAGE_OK:
-        return "ok";
-    case BOOT_IMAGE_ERR_MAGIC:
-        return "bad magic";
-    case BOOT_IMAGE_ERR_VERSION:
-        return "unknown format version";
-    case BOOT_IMAGE_ERR_HDR_CRC:
-        return "header CRC mismatch";
-    case BOOT_IMAGE_ERR_BOARD:
-        return "wrong board id";
-    case BOOT_IMAGE_ERR_LOAD_ADDR:
-        return "wrong load address";
-    case BOOT_IMAGE_ERR_LENGTH:
-        return "bad length";
-    case BOOT_IMAGE_ERR_RESERVED:
-        return "reserved bytes not zero";
-    case BOOT_IMAGE_ERR_PAYLOAD_CRC:
-        return "payload CRC mismatch";
-    }
-    return "unknown";
-}

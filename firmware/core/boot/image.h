@@ -79,9 +79,6 @@ void boot_image_encode(boot_image_header_t *h, uint8_t raw[BOOT_IMAGE_HDR_SIZE])
 boot_image_status_t boot_image_check(const boot_image_header_t *h, uint32_t board_id,
                                      uint32_t load_addr, uint32_t max_length);
 
-/* Short constant name of a status ("ok", "bad magic", ...). */
-const char *boot_image_status_name(boot_image_status_t s);
-
 /* Little-endian helpers shared with the bootloader. */
 uint32_t boot_image_get_u32(const uint8_t *p);
 uint16_t boot_image_get_u16(const uint8_t *p);

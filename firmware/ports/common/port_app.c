@@ -1,6 +1,7 @@
 /* port_app.c - application background loop of the real-target ports (see port.h). */
 #include "port.h"
 
+#include "calib.h"
 #include "drive.h"
 #include "hal.h"
 #include "proto_link.h"
@@ -87,6 +88,7 @@ uint32_t port_app_fw_version(void)
 
 void port_app_poll(void)
 {
+    calib_poll();
     drive_poll();
     proto_link_poll();
     hal_watchdog_kick();

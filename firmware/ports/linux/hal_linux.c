@@ -20,6 +20,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "calib.h"
 #include "drive.h"
 #include "hal.h"
 #include "port.h"
@@ -620,7 +621,12 @@ void linux_run(volatile int *stop, uint64_t max_ticks)
         if (read(lx.tfd, &exp, sizeof exp) == (ssize_t)sizeof exp && exp > 0u) {
             lx.missed += exp - 1u;
             gpio_faults();
-            drive_tick();
+            {
+                const drive_tick_out_t *t = drive_tick(calib_sampling());
+                if (t != NULL) {
+                    calib_tick(t->st, t->vel_ref);
+                }
+            }
             lx.ticks++;
         }
         port_app_poll();

@@ -19,6 +19,7 @@
 #include <string.h>
 
 #include "boot/boot.h"
+#include "calib.h"
 #include "drive.h"
 #include "hal.h"
 #include "hal_linux.h"
@@ -136,6 +137,7 @@ int main(int argc, char **argv)
         linux_hal_close();
         return 1;
     }
+    calib_init();
     pc.board_id = BOOT_BOARD_LINUX;
     pc.node_id = (uint8_t)node;
     pc.axes = (uint8_t)hc.axes;

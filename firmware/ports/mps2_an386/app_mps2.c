@@ -7,6 +7,7 @@
  * input +-10 V (as the simulator's machine), encoder scales from the plant.
  */
 #include "boot/boot.h"
+#include "calib.h"
 #include "drive.h"
 #include "hal.h"
 #include "mps2.h"
@@ -19,7 +20,11 @@ static boot_config_t boot_cfg;
 
 static void tick(void)
 {
-    drive_tick();
+    const drive_tick_out_t *t = drive_tick(calib_sampling());
+
+    if (t != NULL) {
+        calib_tick(t->st, t->vel_ref);
+    }
     plant_step(mps2_ticks());
 }
 
@@ -33,6 +38,7 @@ int main(void)
     if (!plant_init(MPS2_TICK_HZ, APP_AXES, &cfg) || drive_init(&cfg) != DRIVE_OK) {
         hal_system_reset();
     }
+    calib_init();
     boot_config_default(&boot_cfg, BOOT_BOARD_QEMU);
     boot_cfg.request_word = &mps2_boot_request_word;
     pc.board_id = BOOT_BOARD_QEMU;

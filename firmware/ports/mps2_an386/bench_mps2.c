@@ -12,7 +12,7 @@
  *
  * Workloads (three axes, the QEMU machine of app_mps2.c, default servo and
  * planner parameters, CEC off):
- *   control tick  drive_tick() while the drive runs a helix (full circle of
+ *   control tick  drive_tick() + calib_tick() while the drive runs a helix (full circle of
  *                 radius 5 mm in XY at 20 mm/s, Z rising 2 mm), the axes
  *                 simulated between ticks (not measured); mean and maximum
  *                 over the RUNNING ticks.
@@ -23,6 +23,7 @@
  *                 fx_isqrt64 per call: where the tick and block costs go.
  * Prints `name: value unit` lines on UART0, then exits QEMU (semihosting).
  */
+#include "calib.h"
 #include "drive.h"
 #include "hal.h"
 #include "mps2.h"
@@ -148,6 +149,17 @@ static uint32_t instr(uint64_t counts, uint32_t calls)
                       ((uint64_t)counts_per_cal * calls));
 }
 
+/* The control tick as the ports run it: the drive, then the calibration
+ * with what the drive published (what drive_tick did before the split). */
+static void bench_app_tick(void)
+{
+    const drive_tick_out_t *t = drive_tick(calib_sampling());
+
+    if (t != NULL) {
+        calib_tick(t->st, t->vel_ref);
+    }
+}
+
 static void bench_tick(void)
 {
     drive_config_t cfg;
@@ -162,10 +174,12 @@ static void bench_tick(void)
         put("bench: drive refused its configuration\n");
         return;
     }
+    calib_init();
     for (k = 0; k < 10u; k++) { /* enable takes effect in the tick */
         mps2_clock_advance();
-        drive_tick();
+        bench_app_tick();
         plant_step(mps2_ticks());
+        calib_poll();
         drive_poll();
     }
     b.kind = DRIVE_BLOCK_ARC;
@@ -187,9 +201,10 @@ static void bench_tick(void)
 
         mps2_clock_advance();
         c0 = mps2_counter();
-        drive_tick();
+        bench_app_tick();
         c1 = mps2_counter();
         plant_step(mps2_ticks());
+        calib_poll();
         drive_poll();
         drive_snapshot(&st);
         if (st.state == DRIVE_RUNNING) {

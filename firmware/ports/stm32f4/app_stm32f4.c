@@ -10,6 +10,7 @@
  * amplifier input is limited to +-10 V (the PWM stage's range).
  */
 #include "boot/boot.h"
+#include "calib.h"
 #include "drive.h"
 #include "hal.h"
 #include "port.h"
@@ -21,7 +22,11 @@ static boot_config_t boot_cfg;
 
 static void tick(void)
 {
-    drive_tick();
+    const drive_tick_out_t *t = drive_tick(calib_sampling());
+
+    if (t != NULL) {
+        calib_tick(t->st, t->vel_ref);
+    }
 }
 
 int main(void)
@@ -46,6 +51,7 @@ int main(void)
     if (drive_init(&cfg) != DRIVE_OK) {
         hal_system_reset();
     }
+    calib_init();
     boot_config_default(&boot_cfg, BOOT_BOARD_STM32F4);
     boot_cfg.slot_size = F4_APP_SLOT_SIZE; /* sectors 10, 11: the store */
     boot_cfg.node_id = 1u;
