@@ -22,17 +22,19 @@
  *   drive_status()                        main (the snapshot plus queue_free
  *                                         and queued_time_ns from main-owned
  *                                         queues; its state is main's view:
- *                                         an enable or disable not yet
- *                                         applied counts as applied, IDLE
- *                                         with blocks queued as RUNNING).
- * The tick owns the state (docs/tick-main.md): the main-context commands
- * post requests that the next tick applies and never write the state.
+ *                                         an enable, disable or stop not
+ *                                         yet applied counts as applied,
+ *                                         IDLE with blocks queued as
+ *                                         RUNNING).
  *   drive_param_*(), drive_queue_free()   main.
  *   drive_arc_chords()                    any (pure).
  *   drive_encoder_edge()                  edge interrupt / simulator, between
  *                                         ticks (never concurrently with tick
  *                                         on the simulator; on hardware the
  *                                         decoder's own rules apply).
+ *
+ * The tick owns the state (docs/tick-main.md): the main-context commands
+ * post requests that a following tick applies and never write the state.
  *
  * Units (docs/conventions.md): positions nm (pos_nm_t), velocities nm/s,
  * times ns or ticks, motor command mV at the amplifier input.
