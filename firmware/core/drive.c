@@ -22,12 +22,13 @@
 #include "qdec.h"
 
 static plan_block_t plan_store[PLAN_DEPTH_DEFAULT];
+/* The feed path (main: host FIFO, planner, producer side of the
+ * interpolator), outside drv so that the tick's fields keep short offsets. */
+static feed_t feed;
 
 static struct {
     bool ready;
     drive_config_t cfg;
-    /* main: host FIFO, planner, producer side of the interpolator */
-    feed_t feed;
     /* shared */
     interp_t ip;
     volatile bool req_enable, req_disable, req_stop, req_estop, req_reset, req_gains;
@@ -111,7 +112,7 @@ static void status_live(drive_status_t *s)
         s->refscale[i] = drv.ref_on[i] ? drv.ref_nm[i] : 0;
     }
     s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
-    s->blocks_done = drv.blocks_done + feed_skipped(&drv.feed);
+    s->blocks_done = drv.blocks_done + feed_skipped(&feed);
     s->tag = drv.cur_tag;
 }
 
@@ -249,7 +250,7 @@ drive_result_t drive_init(const drive_config_t *cfg)
     }
     /* one HAL call per tick for all outputs and all fault inputs */
     servo_set_io_all(&drv.servo, hal_motor_set_mv_all, hal_amp_fault_mask);
-    if (!feed_init(&drv.feed, &drv.cfg, &drv.ip, plan_store, PLAN_DEPTH_DEFAULT, origin)) {
+    if (!feed_init(&feed, &drv.cfg, &drv.ip, plan_store, PLAN_DEPTH_DEFAULT, origin)) {
         return DRIVE_E_INVALID;
     }
     drv.ref = zero_ref;
@@ -297,7 +298,7 @@ static void track_segments(void)
 {
     uint32_t done = interp_blocks_done(&drv.ip);
     while (drv.seen_done != done) {
-        const feed_seg_t *g = feed_seg(&drv.feed, drv.seq_done);
+        const feed_seg_t *g = feed_seg(&feed, drv.seq_done);
         if (g->last) {
             drv.blocks_done++;
         }
@@ -305,7 +306,7 @@ static void track_segments(void)
         drv.seen_done++;
     }
     if (interp_busy(&drv.ip)) {
-        drv.cur_tag = feed_seg(&drv.feed, interp_tag(&drv.ip))->host_tag;
+        drv.cur_tag = feed_seg(&feed, interp_tag(&drv.ip))->host_tag;
     }
 }
 
@@ -406,7 +407,7 @@ static void reference_step(void)
     }
     if (!stepped && drv.ref.active && interp_busy(&drv.ip)) {
         uint32_t tag = interp_tag(&drv.ip);
-        const feed_seg_t *g = feed_seg(&drv.feed, tag);
+        const feed_seg_t *g = feed_seg(&feed, tag);
         if (g->arc) {
             /* the recurrence rewrites the plane axes' positions without
              * reading them: the interpolator's fast path may skip them */
@@ -621,7 +622,7 @@ const drive_tick_out_t *drive_tick(bool ref_sampling)
     if (drv.faults != 0) {
         drv.state = DRIVE_FAULT;
     } else if (drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING) {
-        drv.state = feed_busy(&drv.feed) ? DRIVE_RUNNING : DRIVE_IDLE;
+        drv.state = feed_busy(&feed) ? DRIVE_RUNNING : DRIVE_IDLE;
     }
     drv.tick++;
     drv.tick_lo = (uint32_t)drv.tick;
@@ -636,9 +637,9 @@ const drive_tick_out_t *drive_tick(bool ref_sampling)
  * restarts at the next planner block. */
 static void flush_all(const pos_nm_t pos[CORE_AXES])
 {
-    feed_flush(&drv.feed, pos);
+    feed_flush(&feed, pos);
     drv.seen_done = interp_blocks_done(&drv.ip);
-    drv.seq_done = feed_seq_next(&drv.feed);
+    drv.seq_done = feed_seq_next(&feed);
 }
 
 void drive_poll(void)
@@ -647,7 +648,7 @@ void drive_poll(void)
         return;
     }
     if (drv.state == DRIVE_DISABLED || drv.state == DRIVE_FAULT) {
-        if (!feed_idle(&drv.feed)) {
+        if (!feed_idle(&feed)) {
             flush_all(drv.ref.pos);
         }
         return;
@@ -660,12 +661,12 @@ void drive_poll(void)
         }
         return;
     }
-    feed_poll(&drv.feed, drv.tick_lo);
+    feed_poll(&feed, drv.tick_lo);
 }
 
 uint32_t drive_queue_free(void)
 {
-    return feed_free(&drv.feed);
+    return feed_free(&feed);
 }
 
 static drive_result_t accept_check(void)
@@ -695,7 +696,7 @@ drive_result_t drive_queue_block(const drive_block_t *b)
     if (r != DRIVE_OK) {
         return r;
     }
-    r = feed_queue(&drv.feed, b, drv.tick_lo);
+    r = feed_queue(&feed, b, drv.tick_lo);
     if (r != DRIVE_OK) {
         return r;
     }
@@ -821,10 +822,10 @@ void drive_status(drive_status_t *out)
     }
     snapshot(out, &rd, &rem);
     drv.req_ref = true; /* the next tick samples the reference scales */
-    out->queue_free = feed_free(&drv.feed);
+    out->queue_free = feed_free(&feed);
     /* planner, then the interpolator's FIFO from the published read index
      * (segments loaded since are counted; a current one by its remainder) */
-    out->queued_time_ns = feed_queued_ns(&drv.feed, rd, rem);
+    out->queued_time_ns = feed_queued_ns(&feed, rd, rem);
 }
 
 void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns)
@@ -926,7 +927,7 @@ bool drive_ready(void)
 /* Nothing queued, executing or stopping (parameters may change). */
 static bool planner_idle(void)
 {
-    return !moving() && !drv.req_stop && feed_idle(&drv.feed);
+    return !moving() && !drv.req_stop && feed_idle(&feed);
 }
 
 drive_result_t drive_apply_config(const drive_config_t *c)
@@ -941,6 +942,6 @@ drive_result_t drive_apply_config(const drive_config_t *c)
     drv.cfg.stop_decel_nm_s2 = c->stop_decel_nm_s2;
     drv.cfg.arc_chord_nm = c->arc_chord_nm;
     drv.cfg.start_delay_ms = c->start_delay_ms;
-    feed_set_profile(&drv.feed, &c->plan);
+    feed_set_profile(&feed, &c->plan);
     return DRIVE_OK;
 }
