@@ -333,6 +333,14 @@ bool arc_ref_tick(arc_ref_t *a, motion_ref_t *r, const motion_ref_t *ch, const a
     return false;
 }
 
+/* Keeps GCC from loading every output factor before the first store (it
+ * then runs out of registers and spills): outputs in pairs. */
+#if defined(__GNUC__)
+#define ARC_REF_SEQ() __asm__ volatile("" ::: "memory")
+#else
+#define ARC_REF_SEQ()
+#endif
+
 /* A cruise fast-path tick of an anchored chord: rotate (C, S) by delta and
  * write what arc_fast() writes, from the rotated point. The path speed
  * v_uv, the chord tangent's in-plane length and v^2 / r come from the
@@ -341,12 +349,11 @@ bool arc_ref_tick(arc_ref_t *a, motion_ref_t *r, const motion_ref_t *ch, const a
 bool arc_ref_step(arc_ref_t *a, motion_ref_t *r, bool geom_kept)
 {
     arc_rot_t *t = &a->rot;
-    uint8_t u = t->u, v = t->v;
+    uint8_t u, v;
     q1_30_t c = t->c, s = t->s;
     int64_t C = t->C - rot_mul2(c, t->eh, t->el, s, t->dh, t->dl);
     int64_t S = t->S - rot_mul2(s, t->eh, t->el, -c, t->dh, t->dl);
     int32_t rad = t->rad;
-    bool more;
 
     t->C = C;
     t->S = S;
@@ -355,7 +362,7 @@ bool arc_ref_step(arc_ref_t *a, motion_ref_t *r, bool geom_kept)
     s = (q1_30_t)((int32_t)(S >> 32) + (int32_t)((uint32_t)S >> 31));
     t->c = c;
     t->s = s;
-    more = --t->left != 0u;
+    t->left--;
     if (t->dR != 0) { /* a spiral */
         t->R += t->dR;
         rad = (int32_t)((t->R + ((int64_t)1 << 31)) >> 32);
@@ -370,12 +377,17 @@ bool arc_ref_step(arc_ref_t *a, motion_ref_t *r, bool geom_kept)
     s = t->s;
     rad = t->rad;
 #endif
+    u = t->u;
+    v = t->v;
     r->pos[u] = t->cu + fx_mul32_q30(rad, c);
     r->pos[v] = t->cv + fx_mul32_q30(rad, s);
+    ARC_REF_SEQ();
     r->vel[u] = fx_mul32_q30(t->kvu, s);
     r->vel[v] = fx_mul32_q30(t->kvv, c);
+    ARC_REF_SEQ();
     r->acc[u] = fx_mul32_q30(t->ka, c);
     r->acc[v] = fx_mul32_q30(t->ka, s);
+    ARC_REF_SEQ();
     r->geom.tangent[u] = (q1_30_t)fx_mul32_q30(t->kmu, s);
     r->geom.tangent[v] = (q1_30_t)fx_mul32_q30(t->kmv, c);
     if (geom_kept) {
@@ -383,5 +395,5 @@ bool arc_ref_step(arc_ref_t *a, motion_ref_t *r, bool geom_kept)
     } else {
         arc_geom(r, u, v, t->cu, t->cv, rad, t->sense);
     }
-    return more;
+    return t->left != 0u;
 }

@@ -29,6 +29,11 @@
 #include "qdec.h"
 
 static plan_block_t plan_store[PLAN_DEPTH_DEFAULT];
+/* The feed path (main: host FIFO, planner, producer side of the
+ * interpolator; the tick reads the segment records it was handed and
+ * feed.queued, feed.h), outside drv so that the tick's fields keep short
+ * offsets. */
+static feed_t feed;
 
 static struct {
     bool ready; /* init (drive_init runs before the tick is started) */
@@ -37,9 +42,6 @@ static struct {
      * with a gains request (the tick reads tick_hz, axes, enc_counter,
      * friction, and stop_decel when it applies a stop) */
     drive_config_t cfg;
-    /* main: host FIFO, planner, producer side of the interpolator; the tick
-     * reads the segment records it was handed and feed.queued (feed.h) */
-    feed_t feed;
     drive_cec_mode_t cec_mode; /* main */
     interp_t ip;               /* producer side main, consumer side tick (interp.h) */
     /* Requests: main writes the payload, CORE_BARRIER(), sets the flag, then
@@ -129,7 +131,7 @@ static CORE_NO_TSAN void status_live(drive_status_t *s)
         s->refscale[i] = drv.ref_on[i] ? drv.ref_nm[i] : 0;
     }
     s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
-    s->blocks_done = drv.blocks_done + feed_skipped(&drv.feed);
+    s->blocks_done = drv.blocks_done + feed_skipped(&feed);
     s->tag = drv.cur_tag;
 }
 
@@ -267,7 +269,7 @@ drive_result_t drive_init(const drive_config_t *cfg)
     }
     /* one HAL call per tick for all outputs and all fault inputs */
     servo_set_io_all(&drv.servo, hal_motor_set_mv_all, hal_amp_fault_mask);
-    if (!feed_init(&drv.feed, &drv.cfg, &drv.ip, plan_store, PLAN_DEPTH_DEFAULT, origin)) {
+    if (!feed_init(&feed, &drv.cfg, &drv.ip, plan_store, PLAN_DEPTH_DEFAULT, origin)) {
         return DRIVE_E_INVALID;
     }
     drv.ref = zero_ref;
@@ -318,7 +320,7 @@ static void track_segments(void)
 {
     uint32_t done = interp_blocks_done(&drv.ip);
     while (drv.seen_done != done) {
-        const feed_seg_t *g = feed_seg(&drv.feed, drv.seq_done);
+        const feed_seg_t *g = feed_seg(&feed, drv.seq_done);
         if (g->last) {
             drv.blocks_done++;
         }
@@ -326,7 +328,7 @@ static void track_segments(void)
         drv.seen_done++;
     }
     if (interp_busy(&drv.ip)) {
-        drv.cur_tag = feed_seg(&drv.feed, interp_tag(&drv.ip))->host_tag;
+        drv.cur_tag = feed_seg(&feed, interp_tag(&drv.ip))->host_tag;
     }
 }
 
@@ -427,7 +429,7 @@ static void reference_step(void)
     }
     if (!stepped && drv.ref.active && interp_busy(&drv.ip)) {
         uint32_t tag = interp_tag(&drv.ip);
-        const feed_seg_t *g = feed_seg(&drv.feed, tag);
+        const feed_seg_t *g = feed_seg(&feed, tag);
         if (g->arc) {
             /* the recurrence rewrites the plane axes' positions without
              * reading them: the interpolator's fast path may skip them */
@@ -677,7 +679,7 @@ const drive_tick_out_t *drive_tick(bool ref_sampling)
     if (drv.faults != 0) {
         drv.state = DRIVE_FAULT;
     } else if (drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING) {
-        drv.state = feed_busy(&drv.feed) ? DRIVE_RUNNING : DRIVE_IDLE;
+        drv.state = feed_busy(&feed) ? DRIVE_RUNNING : DRIVE_IDLE;
     }
     drv.state_pub = drv.state;
     drv.tick++;
@@ -693,8 +695,8 @@ const drive_tick_out_t *drive_tick(bool ref_sampling)
  * over the segment count (rs_seq) with req_enable / req_resume. */
 static void flush_all(const pos_nm_t pos[CORE_AXES])
 {
-    feed_flush(&drv.feed, pos);
-    drv.rs_seq = feed_seq_next(&drv.feed);
+    feed_flush(&feed, pos);
+    drv.rs_seq = feed_seq_next(&feed);
 }
 
 /* The state as main acts on it: the tick's, with the requests main posted
@@ -746,7 +748,7 @@ void drive_poll(void)
     s = main_state();
     if (s == DRIVE_DISABLED || s == DRIVE_FAULT || s == DRIVE_STOPPING) {
         PREEMPT_POINT();
-        if (tick_parked() && (!feed_idle(&drv.feed) || drv.state_pub == DRIVE_STOPPING)) {
+        if (tick_parked() && (!feed_idle(&feed) || drv.state_pub == DRIVE_STOPPING)) {
             drive_status_t st;
             drive_snapshot(&st); /* hold the published reference */
             PREEMPT_POINT();
@@ -762,12 +764,12 @@ void drive_poll(void)
         }
         return;
     }
-    feed_poll(&drv.feed, drv.tick_lo);
+    feed_poll(&feed, drv.tick_lo);
 }
 
 uint32_t drive_queue_free(void)
 {
-    return feed_free(&drv.feed);
+    return feed_free(&feed);
 }
 
 static drive_result_t accept_check(void)
@@ -801,7 +803,7 @@ drive_result_t drive_queue_block(const drive_block_t *b)
     }
     PREEMPT_POINT();
     /* the tick makes the drive RUNNING (feed.queued) */
-    return feed_queue(&drv.feed, b, drv.tick_lo);
+    return feed_queue(&feed, b, drv.tick_lo);
 }
 
 drive_result_t drive_enable(bool on)
@@ -942,13 +944,13 @@ void drive_status(drive_status_t *out)
     /* main's view: requests not yet applied count as applied, blocks
      * queued since the tick's last state update as RUNNING */
     out->state = main_view(out->state, en, dis, stop);
-    if (out->state == DRIVE_IDLE && !feed_idle(&drv.feed)) {
+    if (out->state == DRIVE_IDLE && !feed_idle(&feed)) {
         out->state = DRIVE_RUNNING;
     }
-    out->queue_free = feed_free(&drv.feed);
+    out->queue_free = feed_free(&feed);
     /* planner, then the interpolator's FIFO from the published read index
      * (segments loaded since are counted; a current one by its remainder) */
-    out->queued_time_ns = feed_queued_ns(&drv.feed, rd, rem);
+    out->queued_time_ns = feed_queued_ns(&feed, rd, rem);
 }
 
 void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns)
@@ -1056,7 +1058,7 @@ bool drive_ready(void)
 /* Nothing queued, executing or stopping (parameters may change). */
 static bool planner_idle(void)
 {
-    return !moving() && !drv.req_stop && feed_idle(&drv.feed);
+    return !moving() && !drv.req_stop && feed_idle(&feed);
 }
 
 drive_result_t drive_apply_config(const drive_config_t *c)
@@ -1072,6 +1074,6 @@ drive_result_t drive_apply_config(const drive_config_t *c)
     drv.cfg.stop_decel_nm_s2 = c->stop_decel_nm_s2;
     drv.cfg.arc_chord_nm = c->arc_chord_nm;
     drv.cfg.start_delay_ms = c->start_delay_ms;
-    feed_set_profile(&drv.feed, &c->plan);
+    feed_set_profile(&feed, &c->plan);
     return DRIVE_OK;
 }
