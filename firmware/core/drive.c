@@ -18,6 +18,7 @@
  */
 #include "drive.h"
 #include "drive_int.h"
+#include "drive_inputs.h"
 #include "drive_test.h"
 
 #include "arc_ref.h"
@@ -64,15 +65,7 @@ static struct {
     CORE_SHARED drive_state_t state_pub; /* `state` as the tick wrote it */
     CORE_SHARED bool halted;             /* controlled stop reached rest: reference held */
     /* tick only (main reads some inside the snapshot's sequence count) */
-    qdec_t enc[CORE_AXES];
-    qdec_t refs[CORE_AXES]; /* configuration and scaling only (see ref_*) */
-    bool ref_on[CORE_AXES];
-    /* Reference scales: only their position is ever read (published as
-     * refscale), so the tick keeps just the counter's unwrapped count
-     * (what qdec_sample_counter accumulates) and scales it. */
-    uint32_t ref_raw[CORE_AXES]; /* counter value at the last sample   */
-    int64_t ref_cnt[CORE_AXES];  /* counts since init                   */
-    pos_nm_t ref_nm[CORE_AXES];  /* position, nm (published)            */
+    drive_inputs_t in; /* encoders and reference scales (drive_inputs.h) */
     servo_t servo;
     motion_ref_t ref;
     drive_state_t state; /* the tick's copy (plain: read often per tick) */
@@ -95,7 +88,6 @@ static struct {
     int64_t v_act;                /* path speed of the reference last tick, nm/s  */
     arc_ref_t arc;                /* arc overlay (tick)                           */
     bool ff_on;                   /* some cfg.friction_ff_mv[] != 0 (drive_init)  */
-    bool enc_any_counter;         /* some axis in use has enc_counter (drive_init) */
     CORE_SHARED uint32_t tick_lo; /* low word of tick (main reads it) */
     uint32_t seen_done;           /* interpolator segments accounted */
     uint32_t seq_done;            /* internal tag of the next segment to complete */
@@ -119,7 +111,7 @@ static CORE_NO_TSAN void status_live(drive_status_t *s)
 {
     unsigned i;
     for (i = 0; i < drv.cfg.axes; i++) {
-        const qdec_t *e = &drv.enc[i];
+        const qdec_t *e = &drv.in.enc[i];
         s->ref[i] = drv.ref.pos[i];
         s->vel_ref[i] = drv.ref.vel[i];
         s->pos[i] = e->out.pos_nm;
@@ -128,7 +120,7 @@ static CORE_NO_TSAN void status_live(drive_status_t *s)
         s->motor_mv[i] = drv.servo.out_mv[i];
     }
     for (i = 0; i < CORE_AXES; i++) {
-        s->refscale[i] = drv.ref_on[i] ? drv.ref_nm[i] : 0;
+        s->refscale[i] = drv.in.ref_on[i] ? drv.in.ref_nm[i] : 0;
     }
     s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
     s->blocks_done = drv.blocks_done + feed_skipped(&feed);
@@ -156,35 +148,6 @@ static void publish(bool sampling)
 
 /* ---- configuration --------------------------------------------------------- */
 
-void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes)
-{
-    drive_config_t zero = {0};
-    unsigned i;
-    *cfg = zero;
-    cfg->tick_hz = tick_hz;
-    cfg->axes = axes;
-    for (i = 0; i < CORE_AXES; i++) {
-        cfg->nm_per_count_num[i] = 1;
-        cfg->nm_per_count_den[i] = 1;
-        cfg->ref_nm_per_count_den[i] = 1;
-        cfg->plan.v_max[i] = 1000000000;      /* 1 m/s      */
-        cfg->plan.a_max[i] = 10000000000;     /* 10 m/s^2   */
-        cfg->plan.j_max[i] = 1000000000000;   /* 1000 m/s^3 */
-        cfg->plan.corner_dv[i] = 10000000;    /* 10 mm/s    */
-        cfg->plan.corner_acc[i] = 1000000000; /* 1 m/s^2    */
-    }
-    cfg->plan.junction_dev_nm = 10000;
-    cfg->plan.mbt_window = 1;
-    cfg->plan.corner = PLAN_CORNER_JD;
-    cfg->plan.shape = SC_SHAPE_SCURVE;
-    servo_params_default(&cfg->servo, tick_hz);
-    cfg->servo.axes = axes;
-    cfg->stop_decel_nm_s2 = 1000000000;   /* 1 m/s^2 */
-    cfg->friction_ff_band_nm_s = 1000000; /* 1 mm/s */
-    cfg->arc_chord_nm = DRIVE_ARC_CHORD_NM;
-    cfg->start_delay_ms = DRIVE_START_DELAY_MS;
-}
-
 static const servo_io_t drive_io = {hal_motor_set_mv, hal_motor_enable, hal_amp_fault};
 
 drive_result_t drive_init(const drive_config_t *cfg)
@@ -193,7 +156,6 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drive_status_t zero_st = {0};
     motion_ref_t zero_ref = {0};
     pos_nm_t origin[CORE_AXES] = {0};
-    uint32_t now_ns;
 
     if (cfg == NULL || cfg->axes < 1 || cfg->axes > CORE_AXES || cfg->tick_hz < PID_TICK_HZ_MIN ||
         cfg->tick_hz > PID_TICK_HZ_MAX || cfg->stop_decel_nm_s2 <= 0 || cfg->arc_chord_nm < 0 ||
@@ -203,63 +165,15 @@ drive_result_t drive_init(const drive_config_t *cfg)
     }
     drv.ready = false;
     drv.cfg = *cfg;
-    drv.ff_on = false; /* friction_ff_mv and enc_counter are set only here */
-    drv.enc_any_counter = false;
+    drv.ff_on = false; /* friction_ff_mv is set only here */
     for (i = 0; i < CORE_AXES; i++) {
         drv.ff_on = drv.ff_on || drv.cfg.friction_ff_mv[i] != 0;
-        drv.enc_any_counter = drv.enc_any_counter || (i < cfg->axes && cfg->enc_counter[i]);
     }
     if (drv.cfg.arc_chord_nm == 0) {
         drv.cfg.arc_chord_nm = DRIVE_ARC_CHORD_NM;
     }
-    now_ns = hal_time_us() * 1000u;
-    for (i = 0; i < CORE_AXES; i++) {
-        drv.ref_on[i] = false;
-        if (i >= cfg->axes) {
-            continue;
-        }
-        {
-            qdec_config_t qc;
-            uint32_t init;
-            qdec_config_default(&qc);
-            qc.nm_per_count_num = cfg->nm_per_count_num[i];
-            qc.nm_per_count_den = cfg->nm_per_count_den[i];
-            qc.illegal_limit = 1;
-            qc.illegal_window_ns = 1000000000ull;
-            init = cfg->enc_initial_lines[i];
-            if (cfg->enc_counter[i]) {
-                /* counter input: the port must have the counter */
-                qc.input = QDEC_INPUT_COUNTER;
-                qc.counter_bits = 32;
-                if (!hal_encoder_counter(i, &init)) {
-                    return DRIVE_E_INVALID;
-                }
-            }
-            if (!qdec_init(&drv.enc[i], &qc, init, now_ns)) {
-                return DRIVE_E_INVALID;
-            }
-        }
-        if (cfg->ref_nm_per_count_num[i] != 0) {
-            qdec_config_t qc;
-            uint32_t raw;
-            if (hal_encoder_counter(cfg->axes + i, &raw)) {
-                qdec_config_default(&qc);
-                qc.input = QDEC_INPUT_COUNTER;
-                qc.counter_bits = 32;
-                qc.nm_per_count_num = cfg->ref_nm_per_count_num[i];
-                qc.nm_per_count_den = cfg->ref_nm_per_count_den[i];
-                if (!qdec_init(&drv.refs[i], &qc, raw, now_ns)) {
-                    return DRIVE_E_INVALID;
-                }
-                /* absolute: the counter's value is the scale's position */
-                qdec_set_offset_nm(&drv.refs[i],
-                                   qdec_counts_to_nm(&drv.refs[i], (int64_t)(int32_t)raw));
-                drv.ref_raw[i] = raw;
-                drv.ref_cnt[i] = 0;
-                drv.ref_nm[i] = drv.refs[i].out.pos_nm; /* until the first sample */
-                drv.ref_on[i] = true;
-            }
-        }
+    if (!drive_inputs_init(&drv.in, cfg, hal_time_us() * 1000u)) {
+        return DRIVE_E_INVALID;
     }
     drv.cfg.servo.axes = cfg->axes;
     drv.cfg.servo.tick_hz = cfg->tick_hz;
@@ -542,7 +456,7 @@ static DRV_NOINLINE void apply_requests(const servo_fb_t *fb)
     if (drv.req_reset) {
         if (drv.servo.state != SERVO_STOPPING) {
             for (i = 0; i < drv.cfg.axes; i++) {
-                qdec_clear_faults(&drv.enc[i]);
+                qdec_clear_faults(&drv.in.enc[i]);
             }
             servo_clear_faults(&drv.servo);
             servo_disable(&drv.servo);
@@ -593,67 +507,25 @@ static DRV_NOINLINE void apply_requests(const servo_fb_t *fb)
     }
 }
 
-/* Sample the reference scales (see drive_status_t.refscale): the counter's
- * change since the last sample, taken as int32, is added to the count, so
- * samples must come while the scale moves less than 2^31 counts between
- * them (DRIVE_REF_SAMPLE_TICKS). A drive_status() request (req_ref) is
- * cleared before the counters are read: a request set after that gets the
- * next tick. */
-static void ref_scales_sample(void)
-{
-    unsigned i;
-    drv.req_ref = false;
-    for (i = 0; i < drv.cfg.axes; i++) {
-        uint32_t raw;
-        if (drv.ref_on[i] && hal_encoder_counter(drv.cfg.axes + i, &raw)) {
-            drv.ref_cnt[i] += (int32_t)(raw - drv.ref_raw[i]);
-            drv.ref_raw[i] = raw;
-            drv.ref_nm[i] = qdec_counts_to_nm(&drv.refs[i], drv.ref_cnt[i]);
-        }
-    }
-}
-
 /* drive_tick's result: constant pointers into drv */
 static const drive_tick_out_t tick_out = {&drv.st, drv.ref.vel};
 
 const drive_tick_out_t *drive_tick(bool ref_sampling)
 {
     unsigned i;
-    uint32_t now_ns;
     servo_fb_t fb;
-    uint32_t enc_fault = 0;
     bool moving_ok;
 
     if (!drv.ready) {
         return NULL;
     }
     drv.st_seq++; /* odd: the status is being updated (publish ends it) */
-    now_ns = hal_time_us() * 1000u;
-    /* sample the encoders and fill fb in the same pass (what
-     * servo_fb_from_qdec gives: pos_nm, fault bit, 0 beyond the axes) */
-    for (i = 0; i < CORE_AXES; i++) {
-        qdec_t *q = &drv.enc[i];
-        if (i >= drv.cfg.axes) {
-            fb.pos[i] = 0;
-            continue;
-        }
-        if (!drv.enc_any_counter) { /* the usual configuration */
-            qdec_sample(q, now_ns);
-        } else if (drv.cfg.enc_counter[i]) {
-            uint32_t raw = q->last_raw; /* no snapshot: no change */
-            (void)hal_encoder_counter(i, &raw);
-            qdec_sample_counter(q, raw, now_ns);
-        } else {
-            qdec_sample(q, now_ns);
-        }
-        fb.pos[i] = q->out.pos_nm;
-        if (q->out.faults != 0) {
-            enc_fault |= 1u << i;
-        }
-    }
-    fb.enc_fault = enc_fault;
+    drive_inputs_sample(&drv.in, &drv.cfg, hal_time_us() * 1000u, &fb);
     if (ref_sampling || drv.req_ref || ((uint32_t)drv.tick & (DRIVE_REF_SAMPLE_TICKS - 1u)) == 0u) {
-        ref_scales_sample();
+        /* a drive_status() request (req_ref) is cleared before the counters
+         * are read: a request set after that gets the next tick */
+        drv.req_ref = false;
+        drive_inputs_ref_sample(&drv.in, drv.cfg.axes);
     }
     if (drv.req_any) {
         apply_requests(&fb);
@@ -956,7 +828,7 @@ void drive_status(drive_status_t *out)
 void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns)
 {
     if (drv.ready && ch < drv.cfg.axes && !drv.cfg.enc_counter[ch]) {
-        qdec_edge(&drv.enc[ch], lines, t_ns);
+        qdec_edge(&drv.in.enc[ch], lines, t_ns);
     }
 }
 
@@ -965,7 +837,7 @@ int64_t drive_encoder_count(unsigned ch)
     if (!drv.ready || ch >= drv.cfg.axes) {
         return 0;
     }
-    return drv.enc[ch].out.pos;
+    return drv.in.enc[ch].out.pos;
 }
 
 static bool moving(void)
@@ -1022,7 +894,7 @@ drive_result_t drive_set_servo_params(const servo_params_t *p)
 void drive_set_comp(unsigned axis, const comp_table_t *table)
 {
     if (drv.ready && axis < drv.cfg.axes) {
-        qdec_set_comp(&drv.enc[axis], table);
+        qdec_set_comp(&drv.in.enc[axis], table);
     }
 }
 
@@ -1045,7 +917,7 @@ const motion_ref_t *drive_test_ref(void)
 
 bool drive_has_refscale(unsigned axis)
 {
-    return drv.ready && axis < drv.cfg.axes && drv.ref_on[axis];
+    return drv.ready && axis < drv.cfg.axes && drv.in.ref_on[axis];
 }
 
 /* ---- parameters (the table: drive_param.c) ----------------------------------- */

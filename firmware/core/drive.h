@@ -42,10 +42,12 @@
  * Modules: drive.c is the state machine (request mailbox, the tick, the
  * status snapshot); feed.c the feed path (host-block FIFO -> planner ->
  * interpolator, main context); arc_seg.c the chord segmentation (and
- * drive_arc_chords); arc_ref.c the arc reference of the tick; drive_param.c
- * the parameter table. drive_int.h is their internal interface,
- * drive_test.h holds the test hooks. The drive calls no other subsystem's
- * main or tick functions: calibration runs beside it (see drive_tick).
+ * drive_arc_chords); arc_ref.c the arc reference of the tick;
+ * drive_inputs.c the encoders and reference scales; drive_param.c the
+ * configuration defaults and the parameter table. drive_int.h is their
+ * internal interface, drive_test.h holds the test hooks. The drive calls no
+ * other subsystem's main or tick functions: calibration runs beside it (see
+ * drive_tick).
  *
  * Motion: blocks are absolute end points with a programmed feed, queued in
  * a host-block FIFO of DRIVE_QUEUE_DEPTH entries (queue_free in the status)
