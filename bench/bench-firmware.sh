@@ -22,4 +22,11 @@ if ! grep -q '^control_tick_instructions_m4:' <<< "$out" ||
   echo "$out" >&2
   exit 1
 fi
+# a count of 0 means the measurement failed (no call measured, or the
+# calibration failed): no figure then, and a failed bench
+if grep -qE '^[a-z0-9_]+: 0 (instr|ticks)$' <<< "$out"; then
+  echo "bench-firmware: a measurement counted nothing:" >&2
+  grep -E '^[a-z0-9_]+: 0 (instr|ticks)$' <<< "$out" >&2
+  exit 1
+fi
 grep -E '^[a-z0-9_]+: [0-9]+ [a-z]+$' <<< "$out"

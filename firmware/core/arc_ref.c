@@ -159,14 +159,14 @@ static bool arc_fast(arc_ref_t *ar, motion_ref_t *r, const motion_ref_t *ch, con
     *so = s;
     *co = c;
     *rado = rad;
-    r->vel[u] = fx_mul64x32_q30(v_uv, tu);
-    r->vel[v] = fx_mul64x32_q30(v_uv, tv);
-    if (a_t == 0) { /* cruising: fx_mul64x32_q30(0, x) == 0 */
-        r->acc[u] = -fx_mul64x32_q30(a_c, c);
-        r->acc[v] = -fx_mul64x32_q30(a_c, s);
+    r->vel[u] = fx_mul64x32_shift30(v_uv, tu);
+    r->vel[v] = fx_mul64x32_shift30(v_uv, tv);
+    if (a_t == 0) { /* cruising: fx_mul64x32_shift30(0, x) == 0 */
+        r->acc[u] = -fx_mul64x32_shift30(a_c, c);
+        r->acc[v] = -fx_mul64x32_shift30(a_c, s);
     } else {
-        r->acc[u] = fx_mul64x32_q30(a_t, tu) - fx_mul64x32_q30(a_c, c);
-        r->acc[v] = fx_mul64x32_q30(a_t, tv) - fx_mul64x32_q30(a_c, s);
+        r->acc[u] = fx_mul64x32_shift30(a_t, tu) - fx_mul64x32_shift30(a_c, c);
+        r->acc[v] = fx_mul64x32_shift30(a_t, tv) - fx_mul64x32_shift30(a_c, s);
     }
     r->geom.tangent[u] = (q1_30_t)fx_mul32_q30(tu, m);
     r->geom.tangent[v] = (q1_30_t)fx_mul32_q30(tv, m);
@@ -241,13 +241,14 @@ static inline int64_t rot_mul2(int32_t x, int32_t h, int32_t l, int32_t y, int32
  * (interp_cruise_ds_q32), the chord fraction by ds / (len 2^32), the angle
  * by delta = dth ds / len (binary angle * 2^32, rounded) and the radius by
  * dR = (r_b - r_a) ds / len (q32 nm); sin and 1 - cos of delta
- * (fx_sin_1mcos_small_q62). Cached while the key (dth, ds, len, r_b - r_a)
+ * (fx_sin_vers_small). Cached while the key (dth, ds, len, r_b - r_a)
  * is unchanged. False when out of range (no recurrence). */
 static bool arc_rot_consts(arc_rot_t *t, const arc_chord_t *g, const interp_t *ip)
 {
     int64_t len = interp_seg_len(ip);
     int64_t ds = interp_cruise_ds_q32(ip);
-    int64_t d, sn, e;
+    int64_t d;
+    uint64_t sn, e;
     int64_t dr = g->r_b - g->r_a;
 
     if (ds < 0 || len <= 0) {
@@ -261,9 +262,9 @@ static bool arc_rot_consts(arc_rot_t *t, const arc_chord_t *g, const interp_t *i
     if (fx_sat_abs64(d) > ((int64_t)ARC_REF_DTH_MAX << 32)) {
         return false;
     }
-    fx_sin_1mcos_small_q62(d, &sn, &e);
-    rot_split(sn, &t->dh, &t->dl);
-    rot_split(e, &t->eh, &t->el);
+    fx_sin_vers_small(fx_uabs64(d), &sn, &e);
+    rot_split(d < 0 ? -(int64_t)sn : (int64_t)sn, &t->dh, &t->dl);
+    rot_split((int64_t)e, &t->eh, &t->el);
     t->dR = dr == 0 ? 0 : fx_muldiv64(dr, ds, len);
     t->k_dth = g->dth;
     t->k_ds = ds;

@@ -162,25 +162,6 @@ int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30
 
 /* ---- controller -------------------------------------------------------------- */
 
-const char *cec_mode_name(cec_mode_t mode)
-{
-    switch (mode) {
-    case CEC_MODE_OFF:
-        return "off";
-    case CEC_MODE_TANGENT:
-        return "tangent";
-    case CEC_MODE_CURVATURE:
-        return "curvature";
-    case CEC_MODE_EXACT:
-        return "exact";
-    case CEC_MODE_KOREN:
-        return "koren";
-    case CEC_MODE_COUNT:
-        break;
-    }
-    return "?";
-}
-
 cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err)
 {
     pid_params_t pp;

@@ -142,7 +142,6 @@ typedef struct {
 cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err);
 /* Select the estimate for the next job; bumpless (see Activity). */
 cec_err_t cec_set_mode(cec_t *c, cec_mode_t mode);
-const char *cec_mode_name(cec_mode_t mode);
 
 /* One tick: fills active, ec_nm, out_u, handover_u, saturated.
  * meas: measured positions, nm. */

@@ -469,6 +469,33 @@ fx_angle_t fx_atan2(int64_t y, int64_t x)
     return a;
 }
 
+/* Small-angle sine and versine in q62 (see fixmath.h): the angle in rad
+ * q64, then the Taylor series to x^5 and x^6 in q64 by high products (each
+ * within 2 units of q64 of the exact floor). */
+#define FX_PI_HALF_Q61  3622009729038561421ll  /* round(pi / 2 * 2^61) */
+#define FX_RECIP6_Q64   3074457345618258602ull /* floor(2^64 / 6) */
+#define FX_RECIP24_Q64  768614336404564650ull  /* floor(2^64 / 24) */
+#define FX_RECIP120_Q64 153722867280912930ull  /* floor(2^64 / 120) */
+#define FX_RECIP720_Q64 25620477880152155ull   /* floor(2^64 / 720) */
+
+void fx_sin_vers_small(uint64_t a, uint64_t *sn, uint64_t *vs)
+{
+    uint64_t x, x2, x3, x4;
+
+    if (a > FX_SMALL_ANGLE_MAX) {
+        a = FX_SMALL_ANGLE_MAX;
+    }
+    x = (uint64_t)fx_mul64_shift((int64_t)a, FX_PI_HALF_Q61, 61) << 2; /* rad, q64 */
+    x2 = fx_umulhi64(x, x);
+    x3 = fx_umulhi64(x2, x);
+    x4 = fx_umulhi64(x2, x2);
+    *sn = (x - fx_umulhi64(x3, FX_RECIP6_Q64) + fx_umulhi64(fx_umulhi64(x4, x), FX_RECIP120_Q64)) >>
+          2;
+    *vs = ((x2 >> 1) - fx_umulhi64(x4, FX_RECIP24_Q64) +
+           fx_umulhi64(fx_umulhi64(x4, x2), FX_RECIP720_Q64)) >>
+          2;
+}
+
 /* ---- vector length -------------------------------------------------------------- */
 
 static int64_t fx_sat_u64(uint64_t v)
@@ -514,33 +541,4 @@ int64_t fx_ratio_q30(int64_t num, int64_t den)
         return 0;
     }
     return fx_div_round64(num << 30, den);
-}
-
-#define FX_PI_HALF_Q61   3622009729038561421ll  /* round(pi / 2 * 2^61) */
-#define FX_RECIP_6_Q64   3074457345618258602ull /* floor(2^64 / 6) */
-#define FX_RECIP_24_Q64  768614336404564650ull  /* floor(2^64 / 24) */
-#define FX_RECIP_120_Q64 153722867280912930ull  /* floor(2^64 / 120) */
-#define FX_RECIP_720_Q64 25620477880152155ull   /* floor(2^64 / 720) */
-
-void fx_sin_1mcos_small_q62(int64_t d, int64_t *sin_q62, int64_t *omc_q62)
-{
-    uint64_t x, x2, x3, x4, sn, e;
-
-    if (d > ((int64_t)1 << 58) || d < -((int64_t)1 << 58)) {
-        *sin_q62 = 0;
-        *omc_q62 = 0;
-        return;
-    }
-    /* |d| in rad, q64 (< 2^61): |d| * 2 pi / 2^64 * 2^64 = |d| * pi/2 * 4 */
-    x = (uint64_t)fx_mul64_shift(fx_sat_abs64(d), FX_PI_HALF_Q61, 61) << 2;
-    x2 = fx_umulhi64(x, x);
-    x3 = fx_umulhi64(x2, x);
-    x4 = fx_umulhi64(x2, x2);
-    sn = x - fx_umulhi64(x3, FX_RECIP_6_Q64) + fx_umulhi64(fx_umulhi64(x4, x), FX_RECIP_120_Q64);
-    e = (x2 >> 1) - fx_umulhi64(x4, FX_RECIP_24_Q64) +
-        fx_umulhi64(fx_umulhi64(x4, x2), FX_RECIP_720_Q64);
-    sn >>= 2; /* q62 */
-    e >>= 2;
-    *sin_q62 = d < 0 ? -(int64_t)sn : (int64_t)sn;
-    *omc_q62 = (int64_t)e;
 }

@@ -221,38 +221,32 @@ int64_t fx_mul64x32_shift(int64_t a, int32_t b, unsigned s);
  * saturated to int64. Any s is accepted; s >= 128 gives 0. */
 int64_t fx_mul64_shift(int64_t a, int64_t b, unsigned s);
 
-/* Inline fast paths of the tick (the arc reference, the drive): the same
- * results as the general functions named, for every argument, with one
- * 32 x 32 -> 64 product when the operands fit (test_fixmath checks each
- * against its general function). */
-
 /* fx_mul32_shift(a, b, 30) as one SMLAL of the product and half an LSB and
  * a shift (|a * b| <= 2^62: the sum cannot overflow); fx_mul32_shift's
  * overflow-free rounding of any int64 costs the arc reference's cruise
- * tick 11 more instructions on the M4. */
+ * tick 11 more instructions on the M4 (tests/unit/test_fixmath_fast.c). */
 static inline int64_t fx_mul32_q30(int32_t a, int32_t b)
 {
     return ((int64_t)a * b + ((int64_t)1 << 29)) >> 30;
 }
 
-/* fx_mul64x32_shift(a, b, 30); one SMULL when a fits 32 bits (the product
- * is then below 2^62: exact). */
-static inline int64_t fx_mul64x32_q30(int64_t a, int32_t b)
-{
-    if (a == (int32_t)a) {
-        return fx_mul32_q30((int32_t)a, b);
-    }
-    return fx_mul64x32_shift(a, b, 30);
-}
-
-/* fx_mul64_shift(a, b, 0) (a * b saturated to int64); one SMULL when both
- * fit 32 bits (the product is then below 2^62: exact). */
+/* Inline forms for the tick, with a one-multiply path when the operands fit
+ * 32 bits: fx_mul64_sat(a, b) == fx_mul64_shift(a, b, 0) (a * b saturated
+ * to int64), fx_mul64x32_shift30(a, b) == fx_mul64x32_shift(a, b, 30). */
 static inline int64_t fx_mul64_sat(int64_t a, int64_t b)
 {
     if (a == (int32_t)a && b == (int32_t)b) {
         return (int64_t)(int32_t)a * (int32_t)b;
     }
     return fx_mul64_shift(a, b, 0);
+}
+
+static inline int64_t fx_mul64x32_shift30(int64_t a, int32_t b)
+{
+    if (a == (int32_t)a) { /* |a * b| <= 2^62: exact in int64 */
+        return fx_mul32_q30((int32_t)a, b);
+    }
+    return fx_mul64x32_shift(a, b, 30);
 }
 
 /* Position times a ratio, rounded and saturated to int64:
@@ -323,6 +317,37 @@ static inline int fx_cmp128(fx_u128_t a, fx_u128_t b)
         return (a.lo < b.lo) ? -1 : 1;
     }
     return 0;
+}
+
+/* round(+-ua * ub / 2^(64 + t)) (shift rule; negative when neg) for
+ * magnitudes ua, ub <= 2^63 and 1 <= t <= 63: fx_mul64_shift(+-ua, ub,
+ * 64 + t) in inline form from the product's high word (the low word only
+ * decides ties of negative values). For callers that keep a magnitude and a
+ * sign per axis (the interpolator's q62 direction ratios, t = 14). */
+static inline int64_t fx_umul_shift_hi(uint64_t ua, uint64_t ub, bool neg, unsigned t)
+{
+    fx_u128_t p = fx_umul64(ua, ub);
+    uint64_t half = (uint64_t)1 << (t - 1u);
+
+    if (neg) { /* -floor((|p| + 2^(63 + t) - 1) / 2^(64 + t)) */
+        return -(int64_t)((p.hi + half - (p.lo == 0u ? 1u : 0u)) >> t);
+    }
+    return (int64_t)((p.hi + half) >> t);
+}
+
+/* round(a * b / 2^32) (shift rule) == fx_mul64x32_shift(a, b, 32) for every
+ * int64 a and int32 b (|a * b| <= 2^94: never saturates), inline: two
+ * 32 x 32 -> 64 products. */
+static inline int64_t fx_mul64x32_shift32(int64_t a, int32_t b)
+{
+    fx_u128_t p = fx_umul64x32(fx_uabs64(a), (uint32_t)fx_uabs64(b));
+    uint64_t hi = (p.hi << 32) | (p.lo >> 32); /* |a * b| >> 32 */
+    uint32_t l32 = (uint32_t)p.lo;
+
+    if ((a < 0) != (b < 0)) { /* -floor((|p| + 2^31 - 1) / 2^32) */
+        return -(int64_t)(hi + (((uint64_t)l32 + 0x7FFFFFFFu) >> 32));
+    }
+    return (int64_t)(hi + (((uint64_t)l32 + 0x80000000u) >> 32));
 }
 
 /* Number of leading zero bits of v != 0 (32-bit CLZ only: Cortex-M4 has no
@@ -474,21 +499,22 @@ q1_30_t fx_sin(fx_angle_t a);
 q1_30_t fx_cos(fx_angle_t a);
 void fx_sincos(fx_angle_t a, q1_30_t *s, q1_30_t *c);
 
+/* sin(x) and 1 - cos(x) in q62 (2^62 = 1.0) of a small angle, for rotation
+ * recurrences that advance an angle by a constant step: a = |angle| as a
+ * 64-bit binary angle (a full turn is 2^64, an fx_angle_t times 2^32),
+ * a <= FX_SMALL_ANGLE_MAX (1/64 turn, pi/32 rad; larger values are
+ * clamped). Taylor series to x^5 and x^6: |error| <= x^7 / 5040 (sine) and
+ * x^8 / 40320 (versine) plus 2^-59, i.e. below 2e-11 and 2^-58 at pi/32
+ * (tests/unit/test_fixmath.c checks both against long double). */
+#define FX_SMALL_ANGLE_MAX ((uint64_t)1 << 58)
+void fx_sin_vers_small(uint64_t a, uint64_t *sn, uint64_t *vs);
+
 /* Angle of the vector (x, y), counter-clockwise from +x, in [0, 2^32): so
  * (0, -1) gives FX_ANGLE_270. (0, 0) gives 0. Any int64 inputs, including
  * INT64_MIN. Symmetric: atan2(-y, x) == -atan2(y, x) (mod 2^32),
  * atan2(y, -x) == FX_ANGLE_180 - atan2(y, x), atan2(x, y) == FX_ANGLE_90 -
  * atan2(y, x) for x, y >= 0. */
 fx_angle_t fx_atan2(int64_t y, int64_t x);
-
-/* sin d and 1 - cos d in q62 for a small angle d given in binary-angle units
- * times 2^32 (2^64 per turn), |d| <= 2^58 (pi/32 rad): Taylor series to d^5
- * and d^6 (remainders below d^7 / 5040 and d^8 / 40320: 2e-11 and 3e-13 at
- * pi/32) evaluated in q64 with exact high products (each within 2 units of
- * q64 of the exact floor); sin has the sign of d, 1 - cos >= 0. For the
- * rotation steps of the arc reference (arc_ref.h), where fx_sincos's q30 is
- * too coarse. Outside the domain both are 0. */
-void fx_sin_1mcos_small_q62(int64_t d, int64_t *sin_q62, int64_t *omc_q62);
 
 /* floor(sqrt(x^2 + y^2)) and floor(sqrt(x^2 + y^2 + z^2)), exact for every
  * input (128-bit sum of squares), saturated to INT64_MAX. Components below

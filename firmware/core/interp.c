@@ -110,44 +110,14 @@ int64_t interp_cruise_ds_q32(const interp_t *ip)
     return ds + fx_mul64x32_shift(ds, (int32_t)ip->corr_q32, 32);
 }
 
-/* round(sign * ua * ur / 2^78), ties toward +inf, for magnitudes ua, ur
- * < 2^63 and the sign negative when `neg`: four 32 x 32 -> 64 products and
- * the high word of fx_umul64. */
-static inline int64_t ip_scale_mag(uint64_t ua, uint64_t ur, bool neg)
-{
-    fx_u128_t p = fx_umul64(ua, ur);
-    uint64_t hi = p.hi;
-    uint32_t lo_zero = p.lo == 0u;
+/* Positions from q62 direction ratios: round(a * r / 2^78) (shift rule),
+ * fx_umul_shift_hi with t = 14; the cruise path keeps |r| and its sign. */
+#define IP_RATIO_SHIFT_HI 14u
 
-    if (neg) { /* -floor((|p| + 2^77 - 1) / 2^78) */
-        return -(int64_t)((hi + ((uint64_t)1 << 13) - lo_zero) >> 14);
-    }
-    return (int64_t)((hi + ((uint64_t)1 << 13)) >> 14);
-}
-
-/* round(a * r / 2^78), ties toward +inf: fx_mul64_shift(a, r, 78) for every
- * int64 a and r (|a * r| < 2^126, so the result is below 2^48 and never
- * saturates), inline. */
+/* round(a * r / 2^78) == fx_mul64_shift(a, r, 78) for every int64 a, r */
 static inline int64_t ip_scale(int64_t a, int64_t r)
 {
-    uint64_t ua = fx_uabs64(a), ur = fx_uabs64(r);
-
-    return ip_scale_mag(ua, ur, (a < 0) != (r < 0));
-}
-
-/* round(a * b / 2^32), ties toward +inf: fx_mul64_shift(a, b, 32) for every
- * int64 a and int32 b (|a * b| <= 2^94: the result fits, never saturates),
- * inline: two 32 x 32 -> 64 products. */
-static inline int64_t ip_mul_q32(int64_t a, int32_t b)
-{
-    fx_u128_t p = fx_umul64x32(fx_uabs64(a), (uint32_t)fx_uabs64(b));
-    uint64_t hi = (p.hi << 32) | (p.lo >> 32); /* |a * b| >> 32 */
-    uint32_t l32 = (uint32_t)p.lo;
-
-    if ((a < 0) != (b < 0)) { /* -floor((|p| + 2^31 - 1) / 2^32) */
-        return -(int64_t)(hi + (((uint64_t)l32 + 0x7FFFFFFFu) >> 32));
-    }
-    return (int64_t)(hi + (((uint64_t)l32 + 0x80000000u) >> 32));
+    return fx_umul_shift_hi(fx_uabs64(a), fx_uabs64(r), (a < 0) != (r < 0), IP_RATIO_SHIFT_HI);
 }
 
 #define IP_NS ((uint64_t)1000000000u)
@@ -274,7 +244,8 @@ static inline void ip_out_cruise(interp_t *ip, const plan_seg_t *s, int64_t sq, 
     int i;
 
     for (i = 0; i < CORE_AXES; i++) {
-        ip->pos[i] = s->start[i] + ip_scale_mag((uint64_t)sq, ip->cr_ur[i], ip->cr_neg[i]);
+        ip->pos[i] = s->start[i] +
+                     fx_umul_shift_hi((uint64_t)sq, ip->cr_ur[i], ip->cr_neg[i], IP_RATIO_SHIFT_HI);
         ref->pos[i] = ip->pos[i];
         ref->vel[i] = ip->cr_vel[i];
         ref->acc[i] = 0;
@@ -310,7 +281,7 @@ static bool ip_tick_cruise(interp_t *ip, motion_ref_t *ref)
     ip->cr_q = q; /* cr_tau: set when the fast path ends (interp_tick) */
     ip->cr_r = (uint32_t)r;
     sq = ip->cr_s0 + (int64_t)q;
-    sq += ip_mul_q32(sq, (int32_t)ip->corr_q32);
+    sq += fx_mul64x32_shift32(sq, (int32_t)ip->corr_q32);
     if (sq < 0) {
         sq = 0;
     }
@@ -329,7 +300,8 @@ static bool ip_tick_cruise(interp_t *ip, motion_ref_t *ref)
          * that reads it (end of segment, dwell, idle) writes it first */
         for (i = 0; i < CORE_AXES; i++) {
             if ((skip & (1u << i)) == 0u) {
-                ref->pos[i] = s->start[i] + ip_scale_mag((uint64_t)sq, ip->cr_ur[i], ip->cr_neg[i]);
+                ref->pos[i] = s->start[i] + fx_umul_shift_hi((uint64_t)sq, ip->cr_ur[i],
+                                                             ip->cr_neg[i], IP_RATIO_SHIFT_HI);
             }
         }
     }
@@ -410,7 +382,7 @@ static IP_NOINLINE void ip_tick_general(interp_t *ip, motion_ref_t *ref)
     lq = s->len * 65536;
     if (s->prof.s_end_q16 > 0) {
         if (ip->corr_q32 == (int32_t)ip->corr_q32) {
-            sq = st.s_q16 + ip_mul_q32(st.s_q16, (int32_t)ip->corr_q32);
+            sq = st.s_q16 + fx_mul64x32_shift32(st.s_q16, (int32_t)ip->corr_q32);
         } else {
             sq = st.s_q16 + fx_mul64_shift(st.s_q16, ip->corr_q32, 32);
         }

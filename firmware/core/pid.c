@@ -243,29 +243,6 @@ pid_err_t pid_config(pid_loop_t *pid, const pid_params_t *p)
     return PID_OK;
 }
 
-const char *pid_strerror(pid_err_t err)
-{
-    switch (err) {
-    case PID_OK:
-        return "ok";
-    case PID_ERR_NULL:
-        return "missing loop or parameters";
-    case PID_ERR_TICK_HZ:
-        return "tick_hz out of range 100..100000";
-    case PID_ERR_GAIN:
-        return "gain negative or >= 2^30 (q32_32 SI units)";
-    case PID_ERR_OUT_MAX:
-        return "out_max_mv out of range 1..1000000";
-    case PID_ERR_I_MAX:
-        return "i_max_mv out of range 0..1000000";
-    case PID_ERR_DEADBAND:
-        return "deadband_nm out of range 0..2^30";
-    case PID_ERR_D_FILTER:
-        return "d_tau_us above 10 s";
-    }
-    return "unknown pid error";
-}
-
 void pid_enable(pid_loop_t *pid, int32_t u_hold_mv)
 {
     int64_t lim = (pid->out_lim > 0) ? pid->out_lim : 0;

@@ -219,7 +219,6 @@ int64_t pid_coef_apply(pid_coef_t c, int32_t x);
  * On failure nothing changes. A loop must be configured before use; a zeroed
  * pid_loop_t is a disabled loop that outputs 0. */
 pid_err_t pid_config(pid_loop_t *pid, const pid_params_t *p);
-const char *pid_strerror(pid_err_t err);
 
 void pid_enable(pid_loop_t *pid, int32_t u_hold_mv);
 void pid_disable(pid_loop_t *pid);

@@ -48,37 +48,6 @@ void servo_params_default(servo_params_t *p, uint32_t tick_hz)
     p->on_saturation = SERVO_REACT_STOP;
 }
 
-const char *servo_strerror(servo_err_t err)
-{
-    switch (err) {
-    case SERVO_OK:
-        return "ok";
-    case SERVO_ERR_NULL:
-        return "missing servo or parameters";
-    case SERVO_ERR_AXES:
-        return "axes out of range 1..CORE_AXES";
-    case SERVO_ERR_TICK_HZ:
-        return "tick_hz out of range 100..100000";
-    case SERVO_ERR_AXIS_PID:
-        return "axis gains refused (see err_axis and pid_err)";
-    case SERVO_ERR_CEC_PID:
-        return "contour controller gains refused (see pid_err)";
-    case SERVO_ERR_CEC_MODE:
-        return "unknown contour controller mode";
-    case SERVO_ERR_LIMIT:
-        return "negative following error limit";
-    case SERVO_ERR_DECEL:
-        return "stop deceleration must be in 1..2^40 nm/s^2";
-    case SERVO_ERR_REACTION:
-        return "unknown fault reaction";
-    case SERVO_ERR_STATE:
-        return "not allowed in this state or with faults latched";
-    case SERVO_ERR_AXIS:
-        return "axis index out of range";
-    }
-    return "unknown servo error";
-}
-
 servo_err_t servo_config(servo_t *s, const servo_params_t *p)
 {
     pid_loop_t loops[CORE_AXES];

@@ -200,7 +200,6 @@ void servo_params_default(servo_params_t *p, uint32_t tick_hz);
 /* Validate everything, then apply (nothing changes on error). Bumpless on a
  * running servo. */
 servo_err_t servo_config(servo_t *s, const servo_params_t *p);
-const char *servo_strerror(servo_err_t err);
 
 /* Zero s, install io, configure; state OFF. */
 servo_err_t servo_init(servo_t *s, const servo_params_t *p, const servo_io_t *io);

@@ -1518,6 +1518,152 @@ static void test_mul_rsh_and_mul_q30_pos(void)
     TEST_ASSERT_EQUAL_INT64(0, fx_mul_q30_pos(-((int64_t)1 << 61), 0));
 }
 
+/* the inline high-word products against fx_mul64_shift at every shift,
+ * the extremes (2^63 magnitudes, ties of both signs) and random operands */
+static void check_umul_shift_hi(uint64_t ua, uint64_t ub, unsigned t)
+{
+    i128 x = (i128)((u128)ua * ub); /* <= 2^126 */
+    i128 half = (i128)1 << (63 + t);
+
+    /* shift rule: floor((x + 2^(s-1)) / 2^s), arithmetic shift of i128 */
+    TEST_ASSERT_EQUAL_INT64((int64_t)(((u128)x + (u128)half) >> (64 + t)),
+                            fx_umul_shift_hi(ua, ub, false, t));
+    TEST_ASSERT_EQUAL_INT64((int64_t)((-x + half) >> (64 + t)), fx_umul_shift_hi(ua, ub, true, t));
+}
+
+static void test_umul_shift_hi_and_mul64x32_shift32(void)
+{
+    static const uint64_t e[] = {0,
+                                 1,
+                                 3,
+                                 0xFFFFFFFFu,
+                                 (uint64_t)1 << 32,
+                                 (uint64_t)1 << 62,
+                                 ((uint64_t)1 << 63) - 1u,
+                                 (uint64_t)1 << 63};
+    static const int64_t a64[] = {
+        INT64_MIN,        INT64_MIN + 1, -((int64_t)1 << 32), -3, -1, 0, 1, 3,
+        (int64_t)1 << 32, INT64_MAX};
+    static const int32_t b32[] = {INT32_MIN, INT32_MIN + 1, -65536,   -2, -1, 0, 1,
+                                  2,         65536,         INT32_MAX};
+    unsigned t, i, j;
+
+    for (t = 1; t < 64; t++) {
+        for (i = 0; i < sizeof e / sizeof e[0]; i++) {
+            for (j = 0; j < sizeof e / sizeof e[0]; j++) {
+                check_umul_shift_hi(e[i], e[j], t);
+            }
+        }
+        if (t <= 61) { /* a tie of both signs: |p| = 3 * 2^(63 + t) */
+            check_umul_shift_hi((uint64_t)3 << t, (uint64_t)1 << 63, t);
+        }
+        check_umul_shift_hi(5, (uint64_t)1 << 62, t);
+    }
+    rng_seed(0x64);
+    for (i = 0; i < 200000; i++) {
+        check_umul_shift_hi(rng() >> 1, rng() >> 1, 1u + (unsigned)(rng() % 63));
+        check_umul_shift_hi(rnd_u64() >> 1, rnd_u64() >> 1, 14);
+    }
+    for (i = 0; i < sizeof a64 / sizeof a64[0]; i++) {
+        for (j = 0; j < sizeof b32 / sizeof b32[0]; j++) {
+            TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(a64[i], b32[j], 32),
+                                    fx_mul64x32_shift32(a64[i], b32[j]));
+        }
+    }
+    for (i = 0; i < 200000; i++) {
+        int64_t a = (int64_t)rnd_u64();
+        int32_t b = (int32_t)rng();
+        TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(a, b, 32), fx_mul64x32_shift32(a, b));
+        a = (int64_t)(rng() & ~(uint64_t)0xFFFFFFFFu) | 0x80000000u; /* ties */
+        TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(a, 1, 32), fx_mul64x32_shift32(a, 1));
+        TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(a, -1, 32), fx_mul64x32_shift32(a, -1));
+    }
+}
+
+/* small-angle sine and versine (q62) against long double (64-bit mantissa:
+ * absolute error below 2^-66 here) within the stated series bounds */
+static void check_sin_vers_small(uint64_t a)
+{
+    long double pi = 3.14159265358979323846264338327950288L;
+    long double x = (long double)a * (2.0L * pi) / 18446744073709551616.0L; /* rad */
+    long double two62 = 4611686018427387904.0L;
+    long double s_ref = sinl(x) * two62, v_ref = 2.0L * sinl(x / 2.0L) * sinl(x / 2.0L) * two62;
+    long double x2 = x * x, x7 = x2 * x2 * x2 * x, x8 = x7 * x;
+    long double s_tol = x7 / 5040.0L * two62 + 8.0L, v_tol = x8 / 40320.0L * two62 + 8.0L;
+    uint64_t sn, vs;
+
+    fx_sin_vers_small(a, &sn, &vs);
+    TEST_ASSERT_TRUE(fabsl((long double)sn - s_ref) <= s_tol);
+    TEST_ASSERT_TRUE(fabsl((long double)vs - v_ref) <= v_tol);
+}
+
+static void test_sin_vers_small(void)
+{
+    unsigned i;
+    uint64_t sn, vs, sn2, vs2;
+
+    fx_sin_vers_small(0, &sn, &vs);
+    TEST_ASSERT_EQUAL_UINT64(0, sn);
+    TEST_ASSERT_EQUAL_UINT64(0, vs);
+    check_sin_vers_small(1);
+    check_sin_vers_small((uint64_t)1 << 32); /* one fx_angle_t LSB */
+    check_sin_vers_small(FX_SMALL_ANGLE_MAX);
+    for (i = 0; i < 58; i++) {
+        check_sin_vers_small((uint64_t)1 << i);
+        check_sin_vers_small(((uint64_t)1 << i) * 3u / 2u);
+    }
+    rng_seed(0x5199);
+    for (i = 0; i < 100000; i++) {
+        check_sin_vers_small(rng() >> 6); /* [0, 2^58) */
+    }
+    /* clamped above the maximum */
+    fx_sin_vers_small(FX_SMALL_ANGLE_MAX, &sn, &vs);
+    fx_sin_vers_small(UINT64_MAX, &sn2, &vs2);
+    TEST_ASSERT_EQUAL_UINT64(sn, sn2);
+    TEST_ASSERT_EQUAL_UINT64(vs, vs2);
+}
+
+/* the inline one-multiply forms against the general functions */
+static void test_mul64_sat_and_shift30_inline(void)
+{
+    static const int64_t e[] = {INT64_MIN,
+                                INT64_MIN + 1,
+                                -((int64_t)1 << 32),
+                                (int64_t)INT32_MIN - 1,
+                                INT32_MIN,
+                                -3,
+                                -1,
+                                0,
+                                1,
+                                3,
+                                INT32_MAX,
+                                (int64_t)INT32_MAX + 1,
+                                (int64_t)1 << 32,
+                                INT64_MAX};
+    static const int32_t b32[] = {INT32_MIN, -65536, -1, 0, 1, 65536, (int32_t)1 << 29, INT32_MAX};
+    unsigned i, j;
+
+    for (i = 0; i < sizeof e / sizeof e[0]; i++) {
+        for (j = 0; j < sizeof e / sizeof e[0]; j++) {
+            TEST_ASSERT_EQUAL_INT64(fx_mul64_shift(e[i], e[j], 0), fx_mul64_sat(e[i], e[j]));
+        }
+        for (j = 0; j < sizeof b32 / sizeof b32[0]; j++) {
+            TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(e[i], b32[j], 30),
+                                    fx_mul64x32_shift30(e[i], b32[j]));
+        }
+    }
+    rng_seed(0x3030);
+    for (i = 0; i < 200000; i++) {
+        int64_t a = (int64_t)rnd_u64(), b = (int64_t)rnd_u64();
+        TEST_ASSERT_EQUAL_INT64(fx_mul64_shift(a, b, 0), fx_mul64_sat(a, b));
+        TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(a, (int32_t)b, 30),
+                                fx_mul64x32_shift30(a, (int32_t)b));
+        a = (int64_t)(int32_t)rng(); /* the one-multiply path, ties included */
+        TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift(a, (int32_t)1 << 29, 30),
+                                fx_mul64x32_shift30(a, (int32_t)1 << 29));
+    }
+}
+
 int main(void)
 {
     report_on = getenv("FIXMATH_REPORT") != NULL;
@@ -1558,5 +1704,8 @@ int main(void)
     RUN_TEST(test_isqrt128_boundaries_and_random);
     RUN_TEST(test_in_range_min_max);
     RUN_TEST(test_mul_rsh_and_mul_q30_pos);
+    RUN_TEST(test_umul_shift_hi_and_mul64x32_shift32);
+    RUN_TEST(test_sin_vers_small);
+    RUN_TEST(test_mul64_sat_and_shift30_inline);
     return UNITY_END();
 }
