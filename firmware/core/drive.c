@@ -859,16 +859,16 @@ void drive_status(drive_status_t *out)
 {
     uint16_t rd;
     int64_t rem;
-    /* flags before the snapshot (see main_state()) */
-    bool en = drv.req_enable, dis = drv.req_disable, stop = drv.req_stop;
+    bool stop = drv.req_stop; /* before the snapshot (see main_state()) */
     if (out == NULL) {
         return;
     }
     snapshot(out, &rd, &rem);
     drv.req_ref = true; /* the next tick samples the reference scales */
     PREEMPT_POINT();
-    /* main's view; IDLE with blocks queued since the last tick: RUNNING */
-    out->state = main_view(out->state, en, dis, stop);
+    /* a pending stop: STOPPING (no stale IDLE after a stop); IDLE with
+     * blocks queued since the last tick: RUNNING (docs/tick-main.md) */
+    out->state = main_view(out->state, false, false, stop);
     if (out->state == DRIVE_IDLE && !feed_idle(&feed)) {
         out->state = DRIVE_RUNNING;
     }
