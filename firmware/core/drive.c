@@ -2,19 +2,10 @@
  * drive.c - the drive application (specification in drive.h).
  *
  * Ownership of the state (docs/tick-main.md): every field of drv says which
- * context writes it.
- *   main  the feed path (feed.h: host-block FIFO, planner, arc segmentation,
- *         segment records not yet handed to the interpolator, the
- *         interpolator's producer side), requests (req_* and their payload).
- *   tick  decoders, servo loops, motion reference, the state (state, halted,
- *         faults), status snapshot, interpolator consumer side.
- *   init  set by drive_init before the tick runs (ready gates the tick).
- * Main requests changes through the req_* flags (main sets a flag, the tick
- * clears it when it applies it) and reads the state from the snapshot; the
- * tick never waits for main. Main resets the interpolator (both sides) only
- * while the tick is parked: DISABLED or FAULT with no enable pending, or
- * STOPPING at rest (halted) with no resume pending; the tick leaves those
- * states only on a request from main.
+ * context writes it (main: the feed path and the requests; tick: the state,
+ * decoders, servo, reference, snapshot; init: drive_init). Main posts
+ * requests (req_*) and reads the snapshot; it resets the interpolator only
+ * while the tick is parked (tick_parked()).
  */
 #include "drive.h"
 #include "drive_int.h"
@@ -37,28 +28,20 @@ static plan_block_t plan_store[PLAN_DEPTH_DEFAULT];
 static feed_t feed;
 
 static struct {
-    bool ready; /* init (drive_init runs before the tick is started) */
-    /* init; main changes the planner fields, stop_decel, arc_chord and
-     * start_delay only with the planner idle and no stop pending, and servo
-     * with a gains request (the tick reads tick_hz, axes, enc_counter,
-     * friction, and stop_decel when it applies a stop) */
-    drive_config_t cfg;
+    bool ready;                /* init (drive_init runs before the tick is started) */
+    drive_config_t cfg;        /* init; main: see docs/tick-main.md */
     drive_cec_mode_t cec_mode; /* main */
     interp_t ip;               /* producer side main, consumer side tick (interp.h) */
-    /* Requests: main writes the payload, CORE_BARRIER(), sets the flag, then
-     * req_any; the tick clears a flag when it applies it. */
+    /* requests: main sets (post()), the tick clears after the effect */
     CORE_SHARED bool req_enable; /* main flushed (DISABLED): switch on    */
     CORE_SHARED bool req_resume; /* main flushed (halted): STOPPING->IDLE */
     CORE_SHARED bool req_disable, req_stop, req_estop, req_reset, req_gains, req_cec;
     CORE_SHARED bool req_ref; /* main (drive_status): sample the reference scales */
     CORE_SHARED uint32_t req_fault;
     /* some req_* above (except req_ref) may be set: main sets it after the
-     * flag itself, the tick clears it before it reads the flags (and sets it
-     * again while a request stays pending), so the tick skips
-     * apply_requests on the usual tick */
+     * flag, the tick clears it before it reads the flags */
     CORE_SHARED bool req_any;
-    uint32_t rs_seq;      /* main, payload of req_enable / req_resume:
-                           * feed_seq_next at the flush */
+    uint32_t rs_seq;      /* main, payload of req_enable / req_resume */
     servo_params_t pend;  /* main, payload of req_gains */
     cec_mode_t pend_mode; /* main, payload of req_cec   */
     /* tick, read by main (the snapshot, or the state as main_state() reads it) */
@@ -397,8 +380,7 @@ static void friction_ff(void)
     }
 }
 
-/* A state change of the tick, published for main at once (apply_requests
- * clears a request's flag after its effect). */
+/* A state change of the tick, published for main at once. */
 static void set_state(drive_state_t s)
 {
     drv.state = s;
@@ -415,17 +397,16 @@ static void restart(void)
     interp_set_tick_ns(&drv.ip, (int64_t)(1000000000u / drv.cfg.tick_hz));
 }
 
-/* Apply the requests main posted. Each flag is cleared after its effect
- * (state written first), so main, which reads a flag before the state
- * (main_state()), never sees a request gone and its effect not yet there;
- * the tick clears only flags it applied (main cancels its own). */
 #if defined(__GNUC__)
 #define DRV_NOINLINE __attribute__((noinline))
 #else
 #define DRV_NOINLINE
 #endif
 
-/* The body out of line: the usual tick only tests req_any (drive_tick). */
+/* Apply the requests main posted (out of line: the usual tick only tests
+ * req_any). A flag is cleared after its effect, so main, reading flags
+ * before the state, never sees a request gone and its effect not there;
+ * the tick clears only flags it applied (main cancels its own). */
 static DRV_NOINLINE void apply_requests(const servo_fb_t *fb)
 {
     unsigned i;
@@ -571,12 +552,19 @@ static void flush_all(const pos_nm_t pos[CORE_AXES])
     drv.rs_seq = feed_seq_next(&feed);
 }
 
+/* Post a request: its payload is written; the flag, then req_any. */
+static void post(CORE_SHARED bool *flag)
+{
+    CORE_BARRIER();
+    *flag = true;
+    PREEMPT_POINT();
+    drv.req_any = true;
+}
+
 /* The state as main acts on it: the tick's, with the requests main posted
- * and the tick has not applied yet counted as applied (a pending disable:
- * DISABLED; a pending enable of a DISABLED drive: IDLE; a pending stop of
- * an IDLE or RUNNING drive: STOPPING, so no block is accepted that the stop
- * would drop). The flags are read before the state: a tick between the
- * reads has applied them. */
+ * and the tick has not applied yet counted as applied (a pending stop of an
+ * IDLE or RUNNING drive is STOPPING: no block is accepted that it would
+ * drop). Flags read before the state: a tick between has applied them. */
 static drive_state_t main_view(drive_state_t s, bool en, bool dis, bool stop)
 {
     if (s == DRIVE_FAULT) {
@@ -598,8 +586,7 @@ static drive_state_t main_state(void)
 }
 
 /* The tick does not touch the interpolator and leaves this state only on a
- * request from main: DISABLED or FAULT with no enable pending, or STOPPING
- * at rest with no resume pending (flags read before the state). */
+ * request from main (flags read before the state). */
 static bool tick_parked(void)
 {
     bool en = drv.req_enable, rs = drv.req_resume;
@@ -612,12 +599,10 @@ static bool tick_parked(void)
 
 void drive_poll(void)
 {
-    drive_state_t s;
+    drive_state_t s = main_state();
     if (!drv.ready) {
         return;
     }
-    PREEMPT_POINT();
-    s = main_state();
     if (s == DRIVE_DISABLED || s == DRIVE_FAULT || s == DRIVE_STOPPING) {
         PREEMPT_POINT();
         if (tick_parked() && (!feed_idle(&feed) || drv.state_pub == DRIVE_STOPPING)) {
@@ -627,11 +612,7 @@ void drive_poll(void)
             flush_all(st.ref);
             PREEMPT_POINT();
             if (drv.state_pub == DRIVE_STOPPING) {
-                /* at rest: the tick goes IDLE when it sees the request */
-                CORE_BARRIER();
-                drv.req_resume = true;
-                PREEMPT_POINT();
-                drv.req_any = true;
+                post(&drv.req_resume); /* at rest: the tick goes IDLE */
             }
         }
         return;
@@ -646,11 +627,10 @@ uint32_t drive_queue_free(void)
 
 static drive_result_t accept_check(void)
 {
-    drive_state_t s;
+    drive_state_t s = main_state();
     if (!drv.ready) {
         return DRIVE_E_DISABLED;
     }
-    s = main_state();
     if (s == DRIVE_FAULT) {
         return DRIVE_E_FAULTED;
     }
@@ -681,20 +661,17 @@ drive_result_t drive_queue_block(const drive_block_t *b)
 drive_result_t drive_enable(bool on)
 {
     drive_status_t st;
-    drive_state_t s;
+    drive_state_t s = main_state();
     if (!drv.ready) {
         return DRIVE_E_DISABLED;
     }
-    s = main_state();
     if (s == DRIVE_FAULT) {
         return DRIVE_E_FAULTED;
     }
     if (!on) {
         drv.req_enable = false; /* cancel an enable not yet applied */
         PREEMPT_POINT();
-        drv.req_disable = true;
-        PREEMPT_POINT();
-        drv.req_any = true;
+        post(&drv.req_disable);
         return DRIVE_OK;
     }
     PREEMPT_POINT();
@@ -709,25 +686,18 @@ drive_result_t drive_enable(bool on)
     PREEMPT_POINT();
     flush_all(st.pos);
     PREEMPT_POINT();
-    CORE_BARRIER();
-    drv.req_enable = true;
-    PREEMPT_POINT();
-    drv.req_any = true;
+    post(&drv.req_enable);
     return DRIVE_OK;
 }
 
 void drive_stop(void)
 {
-    drv.req_stop = true;
-    PREEMPT_POINT();
-    drv.req_any = true;
+    post(&drv.req_stop);
 }
 
 void drive_estop(void)
 {
-    drv.req_estop = true;
-    PREEMPT_POINT();
-    drv.req_any = true;
+    post(&drv.req_estop);
 }
 
 void drive_raise_fault(uint32_t fault_bits)
@@ -752,21 +722,8 @@ drive_result_t drive_fault_reset(void)
         }
     }
     PREEMPT_POINT();
-    drv.req_reset = true;
-    PREEMPT_POINT();
-    drv.req_any = true;
+    post(&drv.req_reset);
     return DRIVE_OK;
-}
-
-/* Keeps the compiler from moving plain loads across the st_seq reads (a
- * volatile access orders only other volatile accesses). Only main needs
- * it: the tick is an interrupt (or the same thread), so main never sees
- * the tick half way; the tick's own stores need no ordering. */
-static inline void snapshot_barrier(void)
-{
-#if defined(__GNUC__)
-    __asm__ volatile("" ::: "memory");
-#endif
 }
 
 static CORE_NO_TSAN void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t *ip_rem)
@@ -774,7 +731,7 @@ static CORE_NO_TSAN void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t 
     uint32_t s;
     do {
         s = drv.st_seq;
-        snapshot_barrier();
+        CORE_BARRIER(); /* no plain load moves across the st_seq reads */
         *out = drv.st;
         PREEMPT_POINT();
         status_live(out);
@@ -785,7 +742,7 @@ static CORE_NO_TSAN void snapshot(drive_status_t *out, uint16_t *ip_rd, int64_t 
          * FIFO slots and does not write the current one */
         *ip_rd = interp_rd(&drv.ip);
         *ip_rem = interp_left_ns(&drv.ip);
-        snapshot_barrier();
+        CORE_BARRIER();
     } while ((s & 1u) != 0 || s != drv.st_seq);
 }
 
@@ -803,19 +760,16 @@ void drive_status(drive_status_t *out)
 {
     uint16_t rd;
     int64_t rem;
-    bool en, dis, stop;
+    bool stop = drv.req_stop; /* before the snapshot (see main_state()) */
     if (out == NULL) {
         return;
     }
-    en = drv.req_enable; /* before the snapshot: see main_state() */
-    dis = drv.req_disable;
-    stop = drv.req_stop;
     snapshot(out, &rd, &rem);
     drv.req_ref = true; /* the next tick samples the reference scales */
     PREEMPT_POINT();
-    /* main's view: requests not yet applied count as applied, blocks
-     * queued since the tick's last state update as RUNNING */
-    out->state = main_view(out->state, en, dis, stop);
+    /* a pending stop: STOPPING (no stale IDLE after a stop); IDLE with
+     * blocks queued since the last tick: RUNNING (docs/tick-main.md) */
+    out->state = main_view(out->state, false, false, stop);
     if (out->state == DRIVE_IDLE && !feed_idle(&feed)) {
         out->state = DRIVE_RUNNING;
     }
@@ -858,10 +812,7 @@ drive_result_t drive_set_cec_mode(drive_cec_mode_t mode)
     }
     drv.pend_mode = map[mode];
     drv.cec_mode = mode;
-    CORE_BARRIER();
-    drv.req_cec = true;
-    PREEMPT_POINT();
-    drv.req_any = true;
+    post(&drv.req_cec);
     return DRIVE_OK;
 }
 
@@ -884,10 +835,7 @@ drive_result_t drive_set_servo_params(const servo_params_t *p)
     }
     drv.pend = q;
     drv.cfg.servo = q; /* main's copy; the tick applies pend */
-    CORE_BARRIER();
-    drv.req_gains = true;
-    PREEMPT_POINT();
-    drv.req_any = true;
+    post(&drv.req_gains);
     return DRIVE_OK;
 }
 

@@ -21,11 +21,9 @@
  *                                         publishes under a sequence count).
  *   drive_status()                        main (the snapshot plus queue_free
  *                                         and queued_time_ns from main-owned
- *                                         queues; its state is main's view:
- *                                         an enable, disable or stop not
- *                                         yet applied counts as applied,
- *                                         IDLE with blocks queued as
- *                                         RUNNING).
+ *                                         queues; its state: a stop not yet
+ *                                         applied counts as STOPPING, IDLE
+ *                                         with blocks queued as RUNNING).
  *   drive_param_*(), drive_queue_free()   main.
  *   drive_arc_chords()                    any (pure).
  *   drive_encoder_edge()                  edge interrupt / simulator, between
