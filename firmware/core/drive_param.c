@@ -1,8 +1,9 @@
 /*
  * drive_param.c - the drive's configuration defaults (drive_config_default)
  * and its parameters by id (specification in drive.h, "Parameters"): the
- * table of ranges and the fields they live in. Main context. A set builds a candidate configuration
- * and hands it to drive_apply_config (drive.c), which applies it only while the planner is idle.
+ * table of ranges and the fields they live in. Main context. A set builds
+ * a candidate configuration and hands it to drive_apply_config (drive.c),
+ * which applies it only while the planner is idle.
  */
 #include "drive.h"
 #include "drive_int.h"
@@ -182,34 +183,4 @@ drive_result_t drive_set_plan_profile(const plan_profile_t *prof)
     cand = *drive_config();
     cand.plan = *prof;
     return drive_apply_config(&cand);
-}
-
-/* The defaults of drive.h (kept here with the other configuration values). */
-void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes)
-{
-    drive_config_t zero = {0};
-    unsigned i;
-    *cfg = zero;
-    cfg->tick_hz = tick_hz;
-    cfg->axes = axes;
-    for (i = 0; i < CORE_AXES; i++) {
-        cfg->nm_per_count_num[i] = 1;
-        cfg->nm_per_count_den[i] = 1;
-        cfg->ref_nm_per_count_den[i] = 1;
-        cfg->plan.v_max[i] = 1000000000;      /* 1 m/s      */
-        cfg->plan.a_max[i] = 10000000000;     /* 10 m/s^2   */
-        cfg->plan.j_max[i] = 1000000000000;   /* 1000 m/s^3 */
-        cfg->plan.corner_dv[i] = 10000000;    /* 10 mm/s    */
-        cfg->plan.corner_acc[i] = 1000000000; /* 1 m/s^2    */
-    }
-    cfg->plan.junction_dev_nm = 10000;
-    cfg->plan.mbt_window = 1;
-    cfg->plan.corner = PLAN_CORNER_JD;
-    cfg->plan.shape = SC_SHAPE_SCURVE;
-    servo_params_default(&cfg->servo, tick_hz);
-    cfg->servo.axes = axes;
-    cfg->stop_decel_nm_s2 = 1000000000;   /* 1 m/s^2 */
-    cfg->friction_ff_band_nm_s = 1000000; /* 1 mm/s */
-    cfg->arc_chord_nm = DRIVE_ARC_CHORD_NM;
-    cfg->start_delay_ms = DRIVE_START_DELAY_MS;
 }
