@@ -31,14 +31,14 @@ INC        := -Ifirmware/core -Ifirmware/hal -Ifirmware -Ihil_sim -Ifirmware/por
 WARN       := -std=c99 -Wall -Wextra -Werror -pedantic
 SAN        := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 UNIT_CFLAGS := $(WARN) $(SAN) -g -O1 $(INC) -I$(UNITY_DIR) -Itests/unit/support \
-               -D_DEFAULT_SOURCE -DUNITY_INCLUDE_DOUBLE -DUNITY_SUPPORT_64
+               -D_DEFAULT_SOURCE -DUNITY_INCLUDE_DOUBLE -DUNITY_SUPPORT_64 -DCORE_PREEMPT_TEST
 HOST_CFLAGS := $(WARN) -D_DEFAULT_SOURCE -O2 -g -fPIC $(INC)
 M4_CFLAGS  := $(WARN) -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -O2 -ffreestanding \
               -ffunction-sections -fdata-sections $(INC)
 
 .SECONDARY:
 .PHONY: all deps venv host test unit m4-check pytest run bench lint fuzz fuzz-short firmware clean distclean proto \
-        test-socketcan
+        test-socketcan test-tsan
 
 all: deps venv host
 
@@ -99,6 +99,19 @@ unit: deps $(UNIT_BIN)
 unit-%: deps $(BUILD)/unit/test_%
 	./tests/run-unit.sh $(BUILD)/unit/test_$*
 
+# The tick from a second thread under ThreadSanitizer (docs/tick-main.md): the
+# core with CORE_TSAN (shared fields as C11 atomics), the sim HAL, no Unity.
+TSAN_SRC := $(CORE_SRC) firmware/ports/sim/hal_sim.c firmware/ports/sim/hal_flash_sim.c
+TSAN_BIN := $(BUILD)/tsan/test_tsan_drive
+
+$(TSAN_BIN): tests/tsan/test_tsan_drive.c $(TSAN_SRC) $(CORE_HDR) $(HIL_HDR)
+	@mkdir -p $(@D)
+	$(CC) -std=c11 -Wall -Wextra -Werror -pedantic -D_DEFAULT_SOURCE -DCORE_TSAN \
+	    -fsanitize=thread -g -O1 $(INC) -o $@ $< $(TSAN_SRC) -lpthread -lm
+
+test-tsan: $(TSAN_BIN)
+	TSAN_OPTIONS="halt_on_error=1 exitcode=66" $(TSAN_BIN)
+
 # The core must cross-compile for Cortex-M4 cleanly and without floating point.
 m4-check: deps
 	./mk/m4-check.sh $(CORE_SRC)
@@ -106,7 +119,7 @@ m4-check: deps
 pytest: venv host
 	$(PY) -m pytest -q tests/python
 
-test: deps lint unit fuzz-short m4-check pytest test-socketcan
+test: deps lint unit test-tsan fuzz-short m4-check pytest test-socketcan
 
 # ---- real targets: STM32F4 and QEMU mps2-an386 images (docs/ports.md) --------
 firmware: deps venv

@@ -27,11 +27,12 @@
  *   1. the HAL clock reads t_k; reference-scale counters are published on
  *      channels axes..2*axes-1 (hal_encoder_counter, 32-bit wrapping;
  *      axis_ref_reading: with the model's reference noise, if any);
- *   2. drive_tick() runs (decode, interpolate, servo, hal_motor_set_mv);
+ *   2. drive_tick(calib_sampling()) runs (decode, interpolate, servo,
+ *      hal_motor_set_mv), then calib_tick with what it published;
  *   3. every axis's decoded count is compared with the count the model
  *      emitted (sim_edge_mismatches() counts ticks where any differ);
  *   4. the trace row is written (state at t_k, command just computed);
- *   5. drive_poll() runs (background work between ticks);
+ *   5. calib_poll() and drive_poll() run (background work between ticks);
  *   6. each axis model advances over [t_k, t_k+1) in substeps with the motor
  *      command held (ZOH); after each substep the encoder reading (counts,
  *      with noise when configured) is quantised (floor) and every count

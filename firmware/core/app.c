@@ -83,6 +83,7 @@ app_result_t app_init(const app_board_t *b)
     if (drive_init(b->drive) != DRIVE_OK) {
         return APP_E_DRIVE;
     }
+    calib_init(); /* its tables from flash, installed in the drive's decoders */
     identity(b);
     if (app.link) {
         if (!proto_link_init(&app.ident, b->serial, b->can)) {
@@ -102,11 +103,17 @@ uint32_t app_fw_version(void)
 
 void app_tick(void)
 {
-    drive_tick();
+    /* the drive first; the calibration then sees what the drive published */
+    const drive_tick_out_t *t = drive_tick(calib_sampling());
+
+    if (t != NULL) {
+        calib_tick(t->st, t->vel_ref);
+    }
 }
 
 void app_poll(void)
 {
+    calib_poll(); /* may queue a move: before the feed path takes blocks */
     drive_poll();
     if (app.link) {
         proto_link_poll();

@@ -9,9 +9,9 @@
  * Specification
  * -------------
  * app_init(board), main context, interrupts (the tick) not yet running:
- *   1. drive_init(board->drive) - the machine: axes, tick, scales, gains
- *      (the calibration service and its compensation tables come up with
- *      it, calib_init);
+ *   1. drive_init(board->drive) - the machine: axes, tick, scales, gains;
+ *      then calib_init - the calibration service and its compensation
+ *      tables from flash, installed in the drive's decoders;
  *   2. the identity identify reports: fw_version and build id from this
  *      image's header in flash (board->boot, boot_check_app), else
  *      board->fw_version / board->build_id (an image loaded by a debugger,
@@ -32,10 +32,13 @@
  *   resets or exits).
  *
  * app_tick(), tick context (the board's timer interrupt or thread): one
- *   control tick - drive_tick (which ends with the calibration's tick).
+ *   control tick - drive_tick(calib_sampling()), then calib_tick with the
+ *   status and reference velocities the drive just published (the drive
+ *   calls no calibration function).
  *
  * app_poll(), main context, as often as the board's main loop runs (at
- *   least once per tick): drive_poll (feed path, calibration run), the host
+ *   least once per tick): calib_poll (the calibration run), drive_poll (the
+ *   feed path), the host
  *   link (proto_link_poll), hal_watchdog_kick, a pending reset.
  *
  * The tick/main contract these functions live under is docs/architecture.md.

@@ -7,6 +7,7 @@
 #include "comp_store.h"
 #include "proto_replay.h"
 #include "crc.h"
+#include "preempt.h"
 #include "proto_msgs.h"
 #include "proto_reply.h"
 
@@ -20,8 +21,14 @@ typedef enum {
     PH_SAMPLE
 } phase_t;
 
+/* Contexts (docs/tick-main.md): main runs the run's state machine and the
+ * handlers; the tick samples while s_active. Main writes the sampling order
+ * (s_target, s_left, s_phase and the leg fields the sample carries),
+ * CORE_BARRIER(), then sets s_active; the tick clears it after the last
+ * sample (main may clear it to cancel). */
 static struct {
-    /* run (main) */
+    /* run (main; axis, flags, sample_ticks and leg_point / leg_dir /
+     * leg_cycle are read by the tick while s_active) */
     calib_state_t state;
     uint8_t axis;
     uint8_t flags;
@@ -47,20 +54,21 @@ static struct {
     uint16_t legs_done;
     uint8_t reason;
     int32_t detail;
-    /* sample ring: oldest written by main, next by the tick */
+    /* sample ring: a slot is written by the tick before seq_next covers
+     * it, read by main below seq_next */
     calib_sample_t ring[CALIB_RING];
-    volatile uint32_t seq_next;
-    uint32_t seq_oldest;
-    /* tick-side sampling order (armed by main) */
-    volatile bool s_active;
-    uint16_t s_left;
-    uint16_t s_phase;
-    pos_nm_t s_target;
+    CORE_SHARED uint32_t seq_next; /* tick (main: calib_setup, tick idle) */
+    uint32_t seq_oldest;           /* main                                 */
+    /* sampling order: main writes it before s_active, the tick counts */
+    CORE_SHARED bool s_active; /* main sets (and may clear), tick clears */
+    uint16_t s_left;           /* tick while s_active                    */
+    uint16_t s_phase;          /* tick while s_active                    */
+    pos_nm_t s_target;         /* main                                   */
     /* compensation */
     comp_table_t tab[CORE_AXES][2];
     uint8_t act[CORE_AXES]; /* index of the active buffer, 0xFF: none */
     uint8_t slot[CORE_AXES];
-    comp_ramp_t ramp[CORE_AXES];
+    comp_ramp_t ramp[CORE_AXES]; /* tick (calib_init: main, before the tick) */
     /* bit i: ramp[i] has a direction and w has not reached its end (tick;
      * calib_init clears it with the ramps) */
     uint8_t ramp_busy;
@@ -309,6 +317,7 @@ static bool start_move(pos_nm_t pos)
     unsigned i;
 
     drive_snapshot(&st);
+    PREEMPT_POINT();
     for (i = 0; i < CORE_AXES; i++) {
         b.target[i] = st.ref[i];
     }
@@ -323,6 +332,7 @@ static bool start_move(pos_nm_t pos)
     b.sense = 1;
     b.dwell_ms = 0u;
     r = drive_queue_block(&b);
+    PREEMPT_POINT();
     if (r == DRIVE_E_FULL) {
         return false; /* try again at the next poll */
     }
@@ -364,6 +374,7 @@ void calib_poll(void)
         return;
     }
     drive_snapshot(&st);
+    PREEMPT_POINT();
     if (st.state == DRIVE_FAULT) {
         drive_stop();
         fail(PROTO_CALIB_STATUS_DRIVE_FAULT, (int32_t)st.faults);
@@ -407,6 +418,8 @@ void calib_poll(void)
             cb.s_left = cb.samples;
             cb.s_phase = 0u;
             cb.phase = PH_SAMPLE;
+            PREEMPT_POINT();
+            CORE_BARRIER();
             cb.s_active = true; /* hand over to the tick (last store) */
         }
         break;
@@ -632,6 +645,7 @@ static size_t h_start(const uint8_t *msg, size_t plen, uint8_t *out)
         }
     }
     drive_snapshot(&st);
+    PREEMPT_POINT();
     if (st.state != DRIVE_IDLE) {
         return refuse(out, msg, PROTO_CALIB_STATUS_DRIVE_DISABLED, st.state);
     }
@@ -678,6 +692,7 @@ static size_t h_abort(const uint8_t *msg, size_t plen, uint8_t *out)
     }
     if (run_busy()) {
         drive_stop();
+        PREEMPT_POINT();
         fail(PROTO_CALIB_STATUS_ABORTED, 0);
     }
     return reply_state(out, msg[1]);

@@ -72,11 +72,11 @@
  * executed.
  *
  * Contexts
- *   calib_init()      main, from drive_init (drive stopped).
- *   calib_tick(st, v) tick, at the end of drive_tick with the snapshot the
- *                     tick just published and its reference velocities:
- *                     direction ramps, sampling.
- *   calib_poll()      main, from drive_poll: the run's state machine.
+ *   calib_init()      main, after drive_init (drive stopped).
+ *   calib_tick(st, v) tick, right after drive_tick(calib_sampling()) with
+ *                     what it published (drive_tick_status(),
+ *                     drive_tick_vel_ref()): direction ramps, sampling.
+ *   calib_poll()      main, before drive_poll: the run's state machine.
  *   calib_handle()    main (the link's extension handler).
  *   Tick writes: ring entries, seq_next, the sampling flag, ramps. Main
  *   writes everything else; it arms sampling only while the tick is not

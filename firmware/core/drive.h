@@ -21,7 +21,9 @@
  *                                         publishes under a sequence count).
  *   drive_status()                        main (the snapshot plus queue_free
  *                                         and queued_time_ns from main-owned
- *                                         queues).
+ *                                         queues; its state: a stop not yet
+ *                                         applied counts as STOPPING, IDLE
+ *                                         with blocks queued as RUNNING).
  *   drive_param_*(), drive_queue_free()   main.
  *   drive_arc_chords()                    any (pure).
  *   drive_encoder_edge()                  edge interrupt / simulator, between
@@ -29,8 +31,21 @@
  *                                         on the simulator; on hardware the
  *                                         decoder's own rules apply).
  *
+ * The tick owns the state (docs/tick-main.md): the main-context commands
+ * post requests that a following tick applies and never write the state.
+ *
  * Units (docs/conventions.md): positions nm (pos_nm_t), velocities nm/s,
  * times ns or ticks, motor command mV at the amplifier input.
+ *
+ * Modules: drive.c is the state machine (request mailbox, the tick, the
+ * status snapshot); feed.c the feed path (host-block FIFO -> planner ->
+ * interpolator, main context); arc_seg.c the chord segmentation (and
+ * drive_arc_chords); arc_ref.c the arc reference of the tick;
+ * drive_inputs.c the encoders and reference scales; drive_param.c the
+ * configuration defaults and the parameter table. drive_int.h is their
+ * internal interface, drive_test.h holds the test hooks. The drive calls no
+ * other subsystem's main or tick functions: calibration runs beside it (see
+ * drive_tick).
  *
  * Motion: blocks are absolute end points with a programmed feed, queued in
  * a host-block FIFO of DRIVE_QUEUE_DEPTH entries (queue_free in the status)
@@ -54,36 +69,9 @@
  *          motion_ref_t geometry is MOTION_GEOM_ARC (centre, current radius,
  *          sense) for the contour-error controller.
  *
- * Arc overlay on cruise ticks. The exact overlay above (projection of the
- * chord point, fx_sincos, the products) runs on every tick on which the
- * interpolator leaves its cruise fast path (chord and phase starts,
- * accelerations, stops) and re-anchors a recurrence used on its fast-path
- * ticks (interp_t.ref_pos_only), whose chord advance per tick ds is
- * constant: the angle then advances by delta = dth ds / len per tick, and
- * the drive rotates the point's cosine and sine (q62) by delta (sin delta
- * and 1 - cos delta once per phase: 4 SMULL/SMLAL pairs per tick), advances
- * the radius by a constant step (spiral arcs) and writes position, velocity
- * v (-s, c), acceleration -v^2/r (c, s) and tangent from the rotated point
- * (no projection, no division, no sine). It is re-anchored exactly at least
- * every DRIVE_ARC_ROT_TICKS ticks. Used on chords with plane coordinates,
- * chord and radius below 2^31 nm, |dth| <= DRIVE_ARC_SEG_MAX_ANGLE, path
- * speed below 2^30 nm/s and v^2/r below 2^29 nm/s^2 (the exact overlay
- * otherwise). Error bound against the exact overlay of the same tick, per
- * plane axis, for any chord angle up to DRIVE_ARC_SEG_MAX_ANGLE and radius
- * r < 2^31 nm, with eps = (2 nm + r 2^-28) / r:
- *     position <= 2 nm + r 2^-28 (2 nm at 5 mm, 10 nm at 2.1 m),
- *     velocity <= 2 + eps |v| nm/s, acceleration <= 2 + eps |a| nm/s^2,
- *     tangent <= 2 + eps 2^30 (q30).
- * Its sources are the exact overlay's own rounding, not the recurrence: its
- * angle comes from the projection of the 1-nm-rounded chord point (up to
- * 0.71 nm of arc, times arc / chord), is rounded to one binary-angle unit
- * (r 1.5e-9) and fx_sincos has < 1 LSB of q30 (r 2^-30), against the
- * recurrence's exact linear angle (step within 2^-62 rad, rounding of the
- * rotation below 2^-61 per step: < 2^-52 r over DRIVE_ARC_ROT_TICKS steps;
- * the anchor takes fx_sincos's values). Measured by test_drive (every tick
- * against the exact overlay, drive_test_arc_exact): 1 nm, 5 nm/s at r =
- * 5 mm, 20 mm/s (a helix like the firmware benchmark's); 6 nm at r = 1.9e9
- * nm over three chords of the maximum angle, 12000 ticks each.
+ * The arc reference (the exact overlay and the recurrence that replaces it
+ * on the interpolator's cruise fast-path ticks, with its error bound) is
+ * specified in arc_ref.h, the chord segmentation in arc_seg.h.
  * A block is accepted only when the drive is enabled and not faulted; it is
  * validated before anything is queued (all or nothing). Blocks may be queued
  * right after drive_enable(true), before the tick has applied it.
@@ -113,9 +101,9 @@
  * the reference holds and the drive is IDLE: the rest of the job is dropped
  * and new blocks start from the stop point.
  *
- * State machine
+ * State machine (every transition made by the tick)
  *   DISABLED --enable--> IDLE <--> RUNNING (blocks queued / executing)
- *   RUNNING --stop--> STOPPING --(axes at rest)--> IDLE (queue flushed)
+ *   RUNNING --stop--> STOPPING --(axes at rest, main flushed)--> IDLE
  *   any --estop / fault--> FAULT (outputs zero and disabled, queue flushed)
  *   FAULT --fault_reset (cause gone)--> DISABLED
  *   IDLE/RUNNING --disable--> DISABLED (outputs zero, queue flushed)
@@ -145,9 +133,6 @@
 #define DRIVE_ARC_SEG_MAX_ANGLE ((uint32_t)1 << 26)
 /* Largest difference of start and end radius of an arc, nm. */
 #define DRIVE_ARC_RADIUS_TOL_NM 5000
-/* Arc overlay: the cruise recurrence is re-anchored on the exact overlay at
- * least every DRIVE_ARC_ROT_TICKS ticks (see "Arc overlay on cruise ticks"). */
-#define DRIVE_ARC_ROT_TICKS 256u
 /* Host blocks queued ahead of the planner. */
 #define DRIVE_QUEUE_DEPTH 16
 /* The reference scales are sampled at least every DRIVE_REF_SAMPLE_TICKS
@@ -240,7 +225,8 @@ typedef struct {
     uint32_t blocks_done;     /* blocks completed since init            */
     uint32_t tag;             /* tag of the block executing (or last)   */
     /* Reference-scale positions, nm (0 without a scale), as of the last
-     * sample: every tick while calibration samples (calib_sampling()), the
+     * sample: every tick while calibration samples (drive_tick's
+     * ref_sampling), the
      * tick after each drive_status() call, and otherwise every
      * DRIVE_REF_SAMPLE_TICKS ticks (the counters are read by the tick only:
      * a status reply reports the sample of the tick after the previous
@@ -296,8 +282,21 @@ void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes);
  * Returns DRIVE_E_INVALID (and stays uninitialised) on bad values. Main. */
 drive_result_t drive_init(const drive_config_t *cfg);
 
-/* One control tick: decode, interpolate, servo, motor commands. Tick. */
-void drive_tick(void);
+/* What drive_tick publishes for the tick-context consumer that runs right
+ * after it (calib_tick); valid until the next drive_tick. */
+typedef struct {
+    const drive_status_t *st; /* the status; its live fields (pos, pos_raw,
+                               * refscale ...) only when ref_sampling    */
+    const int64_t *vel_ref;   /* reference velocities handed to the servo,
+                               * nm/s, CORE_AXES                         */
+} drive_tick_out_t;
+
+/* One control tick: decode, interpolate, servo, motor commands, then the
+ * status is published. ref_sampling: the caller's calibration samples this
+ * tick (calib_sampling()): the reference scales are read and the live
+ * fields copied into the published status. NULL (nothing done) before a
+ * successful drive_init. Tick. */
+const drive_tick_out_t *drive_tick(bool ref_sampling);
 
 /* Background work: re-planning, state housekeeping. Main. */
 void drive_poll(void);
@@ -315,6 +314,9 @@ uint32_t drive_queue_free(void);
  * host's estimator plans exactly the drive's chords). Any. */
 uint32_t drive_arc_chords(const drive_block_t *b, const pos_nm_t start[CORE_AXES], unsigned axes,
                           uint32_t tick_hz, int64_t chord_nm, pos_nm_t *out, uint32_t cap);
+/* Enable (the next tick switches the servo on at the measured position) or
+ * disable. DRIVE_E_BUSY: enable while a disable is not yet applied (retry
+ * after a tick); DRIVE_E_FAULTED: a fault is latched. Main. */
 drive_result_t drive_enable(bool on);
 /* Controlled stop: decelerate on the path, flush the queue, stay enabled. */
 void drive_stop(void);
@@ -338,9 +340,13 @@ void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns);
 /* Decoded position of channel ch in counts (0 for a channel not in use). */
 int64_t drive_encoder_count(unsigned ch);
 
-/* Calibration (calib.h). drive_tick ends with calib_tick(published status,
- * reference velocities),
- * drive_poll starts with calib_poll(), drive_init ends with calib_init().
+/* Calibration (calib.h) is not called by the drive: the composition root
+ * runs, per tick,
+ *     const drive_tick_out_t *t = drive_tick(calib_sampling());
+ *     if (t != NULL)
+ *         calib_tick(t->st, t->vel_ref);
+ * and in the main loop calib_poll() then drive_poll(); calib_init() after
+ * a successful drive_init().
  * The reference-scale decoders read the absolute counter value at init
  * (position = counter * scale), like the encoder counts from 0 = position 0.
  *
@@ -349,19 +355,6 @@ int64_t drive_encoder_count(unsigned ch);
 void drive_set_comp(unsigned axis, const comp_table_t *table);
 /* True when the axis has a reference-scale input in use. Any. */
 bool drive_has_refscale(unsigned axis);
-/* Test hook: when on, every tick rebuilds the reference from the
- * interpolator's in full (no pos-only copy on its fast-path ticks); the
- * outputs are the same. drive_init turns it off. Main, with the tick
- * stopped. */
-void drive_test_full_ref(bool on);
-
-/* Test hook: when on, every arc tick takes the exact overlay (the oracle of
- * the cruise recurrence, see "Arc overlay on cruise ticks"). drive_init
- * turns it off. Main, with the tick stopped. */
-void drive_test_arc_exact(bool on);
-/* Test hook: the reference the last tick handed the servo. */
-const motion_ref_t *drive_test_ref(void);
-
 /* Select the contour-error controller (refused while moving). Main. */
 drive_result_t drive_set_cec_mode(drive_cec_mode_t mode);
 

@@ -524,3 +524,21 @@ int64_t fx_hypot3(int64_t x, int64_t y, int64_t z)
     n = fx_add128(fx_umul64(ax, ax), fx_umul64(ay, ay));
     return fx_sat_u64(fx_isqrt128(fx_add128(n, fx_umul64(az, az))));
 }
+
+int64_t fx_ratio_q30(int64_t num, int64_t den)
+{
+    if (den <= 0 || num <= 0) {
+        return 0;
+    }
+    if (num >= den) {
+        return FX_ONE_Q30;
+    }
+    while (den >= ((int64_t)1 << 32)) {
+        num >>= 1;
+        den >>= 1;
+    }
+    if (den == 0) {
+        return 0;
+    }
+    return fx_div_round64(num << 30, den);
+}

@@ -52,16 +52,6 @@ uint16_t interp_room(const interp_t *ip)
     return (uint16_t)(INTERP_FIFO - ip_queued(ip));
 }
 
-bool interp_load(interp_t *ip, const plan_seg_t *seg)
-{
-    if (interp_room(ip) == 0) {
-        return false;
-    }
-    ip->fifo[ip->wr & (INTERP_FIFO - 1)] = *seg;
-    ip->wr = (uint16_t)(ip->wr + 1u); /* publish after the slot is written */
-    return true;
-}
-
 unsigned interp_refill(interp_t *ip, plan_t *p)
 {
     unsigned n = 0;
@@ -77,9 +67,47 @@ unsigned interp_refill(interp_t *ip, plan_t *p)
     return n;
 }
 
-bool interp_idle(const interp_t *ip)
+int64_t interp_ahead_ns(const interp_t *ip)
 {
-    return !ip->busy && ip_queued(ip) == 0;
+    uint16_t rd = ip->rd, wr = ip->wr, i;
+    int64_t sum = 0;
+
+    if ((uint16_t)(wr - rd) > INTERP_FIFO) {
+        return 0;
+    }
+    for (i = (uint16_t)(rd + 1u); i != wr && rd != wr; i++) {
+        sum += ip->fifo[i & (INTERP_FIFO - 1)].total_ns;
+    }
+    return sum;
+}
+
+int64_t interp_queued_ns(const interp_t *ip, uint16_t rd, int64_t rem_rd)
+{
+    uint16_t wr = ip->wr, i;
+    int64_t sum = 0;
+
+    if ((uint16_t)(wr - rd) <= INTERP_FIFO) {
+        for (i = rd; i != wr; i++) {
+            sum += (i == rd && rem_rd >= 0) ? rem_rd : ip->fifo[i & (INTERP_FIFO - 1)].total_ns;
+        }
+    }
+    return sum;
+}
+
+#define IP_RECIP_1E9_Q64 18446744073ull /* floor(2^64 / 1e9) */
+
+int64_t interp_cruise_ds_q32(const interp_t *ip)
+{
+    int64_t ds;
+
+    if (ip->cr_dq >= ((uint64_t)1 << 46)) {
+        return -1;
+    }
+    /* cr_dr / 1e9 * 2^16 (< 2^16) by the reciprocal: within 1 of the exact
+     * floor, 2.3e-10 nm */
+    ds = (int64_t)(ip->cr_dq << 16) +
+         (int64_t)fx_umulhi64((uint64_t)ip->cr_dr << 16, IP_RECIP_1E9_Q64);
+    return ds + fx_mul64x32_shift(ds, (int32_t)ip->corr_q32, 32);
 }
 
 /* Positions from q62 direction ratios: round(a * r / 2^78) (shift rule),

@@ -4,12 +4,11 @@
  *
  * Specification
  * -------------
- * The main context pops blocks from the planner (plan_pop) and appends them
- * with interp_load() (or interp_refill(), which does both while there is
- * room); the tick context calls interp_tick() once per control tick. The two
- * share a single-producer single-consumer FIFO of INTERP_FIFO segments:
- * main writes a slot then advances `wr`; tick reads a slot then advances
- * `rd`. Each index is written by one context only.
+ * The main context pops blocks from the planner into the FIFO with
+ * interp_refill() (one block per call while there is room); the tick context calls interp_tick()
+ * once per control tick. The two share a single-producer single-consumer FIFO of INTERP_FIFO
+ * segments: main writes a slot then advances `wr`; tick reads a slot then advances `rd`. Each index
+ * is written by one context only.
  *
  * Time. Each tick advances the time of the current block by tick_ns (an
  * integer number of ns). When it reaches the block's duration the excess is
@@ -61,17 +60,20 @@
 #include "core_config.h"
 #include "motion_ref.h"
 #include "planner.h"
+#include "preempt.h"
 
 #ifndef INTERP_FIFO
 #define INTERP_FIFO 8 /* a power of two */
 #endif
 
 typedef struct {
-    /* shared FIFO (main writes slots and wr; tick writes rd) */
-    plan_seg_t fifo[INTERP_FIFO];
-    volatile uint16_t wr;
-    volatile uint16_t rd;
-    /* tick state */
+    /* shared FIFO: main writes a slot, then wr; the tick reads the slot
+     * after wr, then advances rd */
+    plan_seg_t fifo[INTERP_FIFO]; /* main                                    */
+    CORE_SHARED uint16_t wr;      /* main                                    */
+    CORE_SHARED uint16_t rd;      /* tick                                    */
+    /* tick state (every field below: tick; interp_init / interp_reset write
+     * them from main only while the tick does not run the interpolator) */
     int64_t tick_ns;
     bool busy;               /* a segment is current                   */
     int64_t t_ns;            /* time into the current segment, ns      */
@@ -129,14 +131,12 @@ typedef struct {
     uint8_t fast_skip;
 } interp_t;
 
-/* Initialise idle at `start` with a tick period of tick_ns (> 0). Main. */
+/* Initialise idle at `start` with a tick period of tick_ns (> 0). Main,
+ * with the tick not running the interpolator. */
 void interp_init(interp_t *ip, int64_t tick_ns, const pos_nm_t start[CORE_AXES]);
 
 /* Free FIFO slots. Main. */
 uint16_t interp_room(const interp_t *ip);
-
-/* Append a frozen segment; false if the FIFO is full. Main. */
-bool interp_load(interp_t *ip, const plan_seg_t *seg);
 
 /* Pop ONE planner block into the FIFO if there is room; returns 1 if it did.
  * The main loop pushes every block it has (until the planner is full)
@@ -153,11 +153,117 @@ unsigned interp_refill(interp_t *ip, plan_t *p);
  * drive does). Every other tick writes every field. Tick. */
 void interp_tick(interp_t *ip, motion_ref_t *ref);
 
-/* True when no segment is current or queued. Any (snapshot). */
-bool interp_idle(const interp_t *ip);
+/* True when no segment is current or queued (reads wr and rd only: busy
+ * implies rd != wr, the current segment stays in the FIFO until it ends).
+ * Any. */
+static inline bool interp_idle(const interp_t *ip)
+{
+    return ip->wr == ip->rd;
+}
+
+/* ---- accessors: the only way other modules read or write an interp_t ----
+ * (static inline: the drive's tick uses them). */
+
+/* A segment is current (not idle between segments or at rest). Tick. */
+static inline bool interp_busy(const interp_t *ip)
+{
+    return ip->busy;
+}
+
+/* Tag of the current (or last) segment. Tick. */
+static inline uint32_t interp_tag(const interp_t *ip)
+{
+    return ip->tag;
+}
+
+/* Segments completed since interp_init. Tick. */
+static inline uint32_t interp_blocks_done(const interp_t *ip)
+{
+    return ip->blocks_done;
+}
+
+/* Segments that ended moving on an empty FIFO since interp_init. Any. */
+static inline uint32_t interp_underruns(const interp_t *ip)
+{
+    return ip->underruns;
+}
+
+/* The time step of the following ticks, ns (>= 0; 0 holds the time): the
+ * drive's controlled stop slows the interpolator's time down. Tick (or main
+ * with the tick stopped). */
+static inline void interp_set_tick_ns(interp_t *ip, int64_t tick_ns)
+{
+    ip->tick_ns = tick_ns;
+}
+
+/* The last interp_tick was a fast-path tick (see interp_t.ref_pos_only). */
+static inline bool interp_pos_only(const interp_t *ip)
+{
+    return ip->ref_pos_only;
+}
+
+/* The axes fast-path ticks leave unwritten (see interp_t.fast_skip). Tick. */
+static inline unsigned interp_fast_skip(const interp_t *ip)
+{
+    return ip->fast_skip;
+}
+
+static inline void interp_set_fast_skip(interp_t *ip, uint8_t mask)
+{
+    ip->fast_skip = mask;
+}
+
+/* The next tick may be a cruise fast-path tick (interp_t.cr_fast). Tick. */
+static inline bool interp_cruise_next(const interp_t *ip)
+{
+    return ip->cr_fast;
+}
+
+/* Length of the current segment, nm (0 when idle). Tick. */
+static inline int64_t interp_seg_len(const interp_t *ip)
+{
+    return ip->busy ? ip->fifo[ip->rd & (INTERP_FIFO - 1)].len : 0;
+}
+
+/* Path advance of one cruise fast-path tick of the current phase, q32 nm:
+ * ds = (cr_dq + cr_dr / 1e9) * 2^16 * (1 + corr_q32 / 2^32), the fast
+ * path's step in q16 nm (to within 2 q16 units, not accumulated) in q32,
+ * the remainder's division by a reciprocal (within 1 of the exact floor).
+ * -1 when the step is 2^46 q16 nm or more (no such phase is needed). Tick,
+ * after an interp_tick that left interp_cruise_next() true. */
+int64_t interp_cruise_ds_q32(const interp_t *ip);
+
+/* Planned time queued after the current segment, ns: the FIFO slots
+ * main wrote beyond the one the tick reads (0 when idle). Main. */
+int64_t interp_ahead_ns(const interp_t *ip);
+
+/* Read index of the FIFO and the time left in the current segment (-1 when
+ * none), for a snapshot inside the tick's publication window (it reads the
+ * tick's fields: validated by the snapshot's count, CORE_NO_TSAN). Main. */
+static inline uint16_t interp_rd(const interp_t *ip)
+{
+    return ip->rd;
+}
+
+static inline CORE_NO_TSAN int64_t interp_left_ns(const interp_t *ip)
+{
+    int64_t rem;
+
+    if (!ip->busy) {
+        return -1;
+    }
+    rem = ip->fifo[ip->rd & (INTERP_FIFO - 1)].total_ns - ip->t_ns;
+    return rem < 0 ? 0 : rem;
+}
+
+/* Planned time in the FIFO from slot rd (a read index the tick published)
+ * to the write index, ns, the slot rd counted by rem_rd when rem_rd >= 0
+ * (the time left in it) and in full otherwise. Main (the only writer of
+ * the slots). */
+int64_t interp_queued_ns(const interp_t *ip, uint16_t rd, int64_t rem_rd);
 
 /* Drop everything (after a stop or a fault) and hold `pos`. Main, with the
- * tick stopped. */
+ * tick not running the interpolator (the drive: tick parked, drive.c). */
 void interp_reset(interp_t *ip, const pos_nm_t pos[CORE_AXES]);
 
 #endif /* INTERP_H */

@@ -6,6 +6,7 @@
 
 #include "drive.h"
 #include "fixmath.h"
+#include "preempt.h"
 #include "proto_reply.h"
 
 #define AXES_OF(d) ((unsigned)(d)->ident.axes)
@@ -326,6 +327,7 @@ static refusal_t do_queue(const drive_block_t *b, drive_status_t *st)
 {
     drive_result_t r = drive_queue_block(b);
 
+    PREEMPT_POINT();
     drive_status(st);
     return map_drive_result(r, st);
 }
@@ -581,6 +583,7 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
             r = refuse(PROTO_ERROR_CODE_NOT_SUPPORTED, e.axis_mask);
         } else {
             dr = drive_enable(e.on != 0u);
+            PREEMPT_POINT();
             drive_status(&st);
             r = map_drive_result(dr, &st);
         }
@@ -629,6 +632,7 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
         return proto_reply_ack(out, seq, id);
     case PROTO_MSG_FAULT_RESET:
         dr = drive_fault_reset();
+        PREEMPT_POINT();
         drive_status(&st);
         r = map_drive_result(dr, &st);
         if (r.code == PROTO_ERROR_CODE_NONE) {
@@ -828,6 +832,7 @@ static void watchdog(proto_dispatch_t *d, uint32_t now_us)
     drive_status_t st;
 
     drive_status(&st);
+    PREEMPT_POINT();
     if (d->wd_stopping) {
         if (st.state == DRIVE_STOPPING || st.state == DRIVE_RUNNING) {
             return; /* still decelerating */

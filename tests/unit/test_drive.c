@@ -20,7 +20,9 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "calib.h"
 #include "drive.h"
+#include "drive_test.h"
 #include "estimator.h"
 #include "hal_sim.h"
 #include "sim.h"
@@ -127,8 +129,10 @@ static void test_enable_queue_poll_before_the_first_tick(void)
     /* the main loop may poll before the tick applied the enable */
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(500000, 500000, 10000000, false, 1));
+    calib_poll();
     drive_poll();
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 500000, 10000000, true, 2));
+    calib_poll();
     drive_poll();
     run(20000);
     TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
@@ -154,6 +158,7 @@ static void test_status_reports_planned_time_queued(void)
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 0, 20000000, true, 1));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 2000000, 20000000, true, 2));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 0, 30000000, true, 3));
+    calib_poll();
     drive_poll(); /* hands the blocks to the planner and the interpolator */
     drive_status(&st);
     TEST_ASSERT_EQUAL_INT64(total, st.queued_time_ns);
@@ -182,6 +187,7 @@ static void test_planned_time_counts_blocks_waiting_in_the_planner(void)
     for (i = 0; i < 20; i++) {
         TEST_ASSERT_EQUAL_INT(DRIVE_OK,
                               queue_line(m[i].target[0], m[i].target[1], m[i].feed, false, i));
+        calib_poll();
         drive_poll();
     }
     drive_status(&st);
@@ -657,6 +663,7 @@ static void test_new_limits_are_what_the_planner_uses(void)
     run(1);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 0, 50000000, false, 1));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(1000000, 5000, 50000000, true, 2));
+    calib_poll();
     drive_poll();
     drive_status(&st);
     TEST_ASSERT_EQUAL_INT64(total, st.queued_time_ns);
@@ -747,6 +754,7 @@ static void test_reference_scale_samples_and_wrap_guard(void)
     hal_sim_set_time_ns(t);
     hal_sim_set_counter(1, raw0, true);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_init(&cfg));
+    calib_init();
     TEST_ASSERT_TRUE(drive_has_refscale(0));
     sampled = 5 * cnt; /* set by the first tick (k = 0) */
     for (k = 0; k < 12u * DRIVE_REF_SAMPLE_TICKS; k++) {
@@ -756,7 +764,13 @@ static void test_reference_scale_samples_and_wrap_guard(void)
         t += TICK_NS;
         hal_sim_set_time_ns(t);
         hal_sim_set_counter(1, raw, true);
-        drive_tick(); /* tick number k since drive_init */
+        /* tick number k since drive_init */
+        {
+            const drive_tick_out_t *t = drive_tick(calib_sampling());
+            if (t != NULL) {
+                calib_tick(t->st, t->vel_ref);
+            }
+        }
         if (k % DRIVE_REF_SAMPLE_TICKS == 0u || (status && k > 6u * DRIVE_REF_SAMPLE_TICKS)) {
             sampled = 5 * cnt;
         }
@@ -859,14 +873,14 @@ static void test_pos_only_reference_copy_equals_the_full_copy(void)
     fr_cec = false;
 }
 
-/* The arc overlay's cruise recurrence (drive.h, "Arc overlay on cruise
+/* The arc overlay's cruise recurrence (arc_ref.h, "Arc overlay on cruise
  * ticks") against the exact overlay (drive_test_arc_exact, the oracle) on
  * the same job: the reference of every tick (position, velocity,
  * acceleration, tangent, radius of the two plane axes) within the bounds
  * drive.h states. Two jobs: a helix like the firmware benchmark's (5 mm
  * radius, short chords) and three chords of the maximum angle
  * DRIVE_ARC_SEG_MAX_ANGLE at a radius near the fast path's 2^31 nm limit,
- * each thousands of ticks long (re-anchoring every DRIVE_ARC_ROT_TICKS).
+ * each thousands of ticks long (re-anchoring every ARC_REF_ROT_TICKS).
  * Fails with a wrong step (e.g. without the interpolator's length
  * correction or the remainder of the step), a drifting rotation, or when
  * the recurrence is not in use at all. */
@@ -941,7 +955,7 @@ static void rc_job(bool exact, int64_t radius, int64_t feed, int64_t chord_nm, u
         d->ticks++;
         {
             bool diff = false;
-            /* drive.h's bounds: eps = (2 nm + r 2^-28) / r */
+            /* arc_ref.h's bounds: eps = (2 nm + r 2^-28) / r */
             double eps = (2.0 + (double)o->rad / (1 << 28)) / (double)o->rad;
             double vm = hypot((double)o->vel[0], (double)o->vel[1]);
             double am = hypot((double)o->acc[0], (double)o->acc[1]);

@@ -12,6 +12,7 @@
  */
 #include <string.h>
 
+#include "calib.h"
 #include "drive.h"
 #include "hal_sim.h"
 #include "unity.h"
@@ -33,9 +34,14 @@ void tearDown(void)
 
 static void tick(void)
 {
+    const drive_tick_out_t *t;
+
     t_ns += TICK_NS;
     hal_sim_set_time_ns(t_ns);
-    drive_tick();
+    t = drive_tick(calib_sampling());
+    if (t != NULL) {
+        calib_tick(t->st, t->vel_ref);
+    }
 }
 
 static void config(drive_config_t *cfg, uint32_t raw0)
@@ -76,6 +82,7 @@ static void test_counter_follows_across_wrap(void)
 
     config(&cfg, raw0);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_init(&cfg));
+    calib_init();
     tick();
     TEST_ASSERT_EQUAL_INT64(0, drive_encoder_count(0));
     TEST_ASSERT_EQUAL_INT64(0, pos_nm(0));
@@ -116,6 +123,7 @@ static void test_edges_ignored_on_counter_axis(void)
 
     config(&cfg, 7u);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_init(&cfg));
+    calib_init();
     tick();
     for (k = 0; k < 8; k++) {
         uint32_t t = (uint32_t)(t_ns + 1000u * (k + 1));
@@ -138,6 +146,7 @@ static void test_missing_snapshot_keeps_position(void)
 
     config(&cfg, 100u);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_init(&cfg));
+    calib_init();
     hal_sim_set_counter(0, 150u, true);
     tick();
     TEST_ASSERT_EQUAL_INT64(50, drive_encoder_count(0));

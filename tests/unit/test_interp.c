@@ -174,11 +174,11 @@ static void test_cruise_increments_equal_closed_form(void)
     do {
         n++;
         if (n % 20000 == 0) { /* an odd step for a while, then back */
-            ip.tick_ns = (n / 20000) % 2 ? 33331 : 100003;
+            interp_set_tick_ns(&ip, (n / 20000) % 2 ? 33331 : 100003);
         }
         fast += ip.cr_fast ? 1u : 0u; /* this tick may take the fast path */
         interp_tick(&ip, &ref);
-        if (ip.busy && ip.fifo[ip.rd & (INTERP_FIFO - 1)].dwell_ns == 0) {
+        if (interp_busy(&ip) && ip.fifo[ip.rd & (INTERP_FIFO - 1)].dwell_ns == 0) {
             ref_closed_form(&ip, &chk);
             TEST_ASSERT_EQUAL_INT(MOTION_GEOM_LINE, ref.geom.kind);
             TEST_ASSERT_TRUE(ref.active);
@@ -316,11 +316,11 @@ static void test_fast_skip_leaves_only_the_skipped_axes(void)
         int64_t before = ref.pos[1];
         n++;
         interp_tick(&ip, &ref);
-        if (ip.busy && ip.fifo[ip.rd & (INTERP_FIFO - 1)].dwell_ns == 0) {
+        if (interp_busy(&ip) && ip.fifo[ip.rd & (INTERP_FIFO - 1)].dwell_ns == 0) {
             ref_closed_form(&ip, &chk);
             TEST_ASSERT_EQUAL_INT64(chk.pos[0], ref.pos[0]);
             TEST_ASSERT_EQUAL_INT64(chk.pos[2], ref.pos[2]);
-            if (ip.ref_pos_only) {
+            if (interp_pos_only(&ip)) {
                 TEST_ASSERT_EQUAL_INT64(before, ref.pos[1]);
                 skipped += chk.pos[1] != before ? 1u : 0u;
             } else {
@@ -328,7 +328,7 @@ static void test_fast_skip_leaves_only_the_skipped_axes(void)
                 general++;
             }
         }
-        ip.fast_skip = 2u; /* axis 1, for the next fast-path ticks */
+        interp_set_fast_skip(&ip, 2u); /* axis 1, for the next fast-path ticks */
         TEST_ASSERT_TRUE(n < 1000000);
     } while (!interp_idle(&ip));
     interp_tick(&ip, &ref); /* idle: the hold position */

@@ -20,6 +20,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "calib.h"
 #include "drive.h"
 #include "hal.h"
 #include "app.h"

@@ -149,6 +149,8 @@ static uint32_t instr(uint64_t counts, uint32_t calls)
                       ((uint64_t)counts_per_cal * calls));
 }
 
+/* The control tick as the ports run it: the drive, then the calibration
+ * with what the drive published (what drive_tick did before the split). */
 static void bench_tick(void)
 {
     drive_config_t cfg;

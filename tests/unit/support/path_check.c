@@ -155,7 +155,7 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
         interp_tick(&ip, &ref);
         r->ticks++;
         /* block ends this tick: (ticks - 1) h < cumulative estimate <= ticks h */
-        for (k = done_prev; k < ip.blocks_done && k < n; k++) {
+        for (k = done_prev; k < interp_blocks_done(&ip) && k < n; k++) {
             int64_t now = (int64_t)r->ticks * tick_ns;
             int64_t err = now - cum[k];
             if (err < 0 || err >= tick_ns) {
@@ -165,8 +165,8 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
                 r->max_block_err_ns = pc_abs(err);
             }
         }
-        done_prev = ip.blocks_done;
-        id = ip.busy ? ip.blocks_done : 0xFFFFFFFFu;
+        done_prev = interp_blocks_done(&ip);
+        id = interp_busy(&ip) ? interp_blocks_done(&ip) : 0xFFFFFFFFu;
         for (i = 0; i < CORE_AXES; i++) {
             double vr = (double)pc_abs(ref.pos[i] - p1[i]) - 1.0;
             vr /= (double)prof.v_max[i] * h;
@@ -207,8 +207,8 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
         id2 = id1;
         id1 = id;
     }
-    r->blocks = ip.blocks_done;
-    r->underruns = ip.underruns;
+    r->blocks = interp_blocks_done(&ip);
+    r->underruns = interp_underruns(&ip);
     r->final_exact = true;
     for (i = 0; i < CORE_AXES; i++) {
         if (ip.pos[i] != mv[n - 1].target[i]) {

@@ -1,0 +1,85 @@
+/*
+ * drive_inputs.h - the drive's position inputs: one encoder decoder per axis
+ * (edges or a hardware counter, qdec.h) and the reference scales.
+ *
+ * Specification
+ * -------------
+ * drive_inputs_init sets the decoders up from the drive's configuration
+ * (drive.h, drive_config_t): encoder axis i scaled by nm_per_count, from
+ * enc_initial_lines or, for an enc_counter axis, from the counter's value
+ * at init (position 0 there), illegal transitions latched at once; a
+ * reference scale on counter channel axes + i when ref_nm_per_count_num is
+ * not 0 and the port has the counter, absolute (position = counter times
+ * the scale). Each tick drive_inputs_sample samples every encoder and fills
+ * the servo's feedback; drive_inputs_ref_sample adds each reference
+ * scale's counter change since its last sample, taken as int32 (so samples
+ * must come while a scale moves less than 2^31 counts between them:
+ * DRIVE_REF_SAMPLE_TICKS), and scales it.
+ *
+ * Contexts: init main (drive_init, tick not running); the samples tick;
+ * encoder edges (qdec_edge on enc[]) the edge interrupt per qdec.h. The
+ * fields are the tick's; main reads them inside the drive's snapshot.
+ */
+#ifndef DRIVE_INPUTS_H
+#define DRIVE_INPUTS_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "drive.h"
+#include "hal.h"
+#include "qdec.h"
+#include "servo.h"
+
+typedef struct {
+    qdec_t enc[CORE_AXES];
+    qdec_t refs[CORE_AXES]; /* configuration and scaling only (see ref_*) */
+    bool ref_on[CORE_AXES]; /* axis i has a reference scale */
+    /* Reference scales: only their position is ever read (published as
+     * refscale), so just the counter's unwrapped count (what
+     * qdec_sample_counter accumulates) is kept and scaled. */
+    uint32_t ref_raw[CORE_AXES]; /* counter value at the last sample   */
+    int64_t ref_cnt[CORE_AXES];  /* counts since init                   */
+    pos_nm_t ref_nm[CORE_AXES];  /* position, nm (published)            */
+    bool any_counter;            /* some axis in use has enc_counter    */
+} drive_inputs_t;
+
+/* Set up the decoders of cfg's axes at now_ns (see above). False when a
+ * decoder refuses its configuration or an enc_counter axis has no counter
+ * on this port. Main. */
+bool drive_inputs_init(drive_inputs_t *in, const drive_config_t *cfg, uint32_t now_ns);
+
+/* Sample every encoder at now_ns and fill fb as servo_fb_from_qdec would
+ * (pos_nm, the fault bit; 0 beyond cfg->axes). Inline: the tick. */
+static inline void drive_inputs_sample(drive_inputs_t *in, const drive_config_t *cfg,
+                                       uint32_t now_ns, servo_fb_t *fb)
+{
+    uint32_t enc_fault = 0;
+    unsigned i;
+    for (i = 0; i < CORE_AXES; i++) {
+        qdec_t *q = &in->enc[i];
+        if (i >= cfg->axes) {
+            fb->pos[i] = 0;
+            continue;
+        }
+        if (!in->any_counter) { /* the usual configuration */
+            qdec_sample(q, now_ns);
+        } else if (cfg->enc_counter[i]) {
+            uint32_t raw = q->last_raw; /* no snapshot: no change */
+            (void)hal_encoder_counter(i, &raw);
+            qdec_sample_counter(q, raw, now_ns);
+        } else {
+            qdec_sample(q, now_ns);
+        }
+        fb->pos[i] = q->out.pos_nm;
+        if (q->out.faults != 0) {
+            enc_fault |= 1u << i;
+        }
+    }
+    fb->enc_fault = enc_fault;
+}
+
+/* Sample the reference scales of the first `axes` axes (see above). Tick. */
+void drive_inputs_ref_sample(drive_inputs_t *in, unsigned axes);
+
+#endif /* DRIVE_INPUTS_H */

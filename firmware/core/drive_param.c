@@ -1,0 +1,186 @@
+/*
+ * drive_param.c - the drive's configuration defaults (drive_config_default)
+ * and its parameters by id (specification in drive.h, "Parameters"): the
+ * table of ranges and the fields they live in. Main context. A set builds
+ * a candidate configuration and hands it to drive_apply_config (drive.c),
+ * which applies it only while the planner is idle.
+ */
+#include "drive.h"
+#include "drive_int.h"
+
+void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes)
+{
+    drive_config_t zero = {0};
+    unsigned i;
+    *cfg = zero;
+    cfg->tick_hz = tick_hz;
+    cfg->axes = axes;
+    for (i = 0; i < CORE_AXES; i++) {
+        cfg->nm_per_count_num[i] = 1;
+        cfg->nm_per_count_den[i] = 1;
+        cfg->ref_nm_per_count_den[i] = 1;
+        cfg->plan.v_max[i] = 1000000000;      /* 1 m/s      */
+        cfg->plan.a_max[i] = 10000000000;     /* 10 m/s^2   */
+        cfg->plan.j_max[i] = 1000000000000;   /* 1000 m/s^3 */
+        cfg->plan.corner_dv[i] = 10000000;    /* 10 mm/s    */
+        cfg->plan.corner_acc[i] = 1000000000; /* 1 m/s^2    */
+    }
+    cfg->plan.junction_dev_nm = 10000;
+    cfg->plan.mbt_window = 1;
+    cfg->plan.corner = PLAN_CORNER_JD;
+    cfg->plan.shape = SC_SHAPE_SCURVE;
+    servo_params_default(&cfg->servo, tick_hz);
+    cfg->servo.axes = axes;
+    cfg->stop_decel_nm_s2 = 1000000000;   /* 1 m/s^2 */
+    cfg->friction_ff_band_nm_s = 1000000; /* 1 mm/s */
+    cfg->arc_chord_nm = DRIVE_ARC_CHORD_NM;
+    cfg->start_delay_ms = DRIVE_START_DELAY_MS;
+}
+
+static const struct {
+    int64_t lo, hi;
+    bool per_axis;
+} param_info[DRIVE_PARAM_COUNT] = {
+    [DRIVE_PARAM_V_MAX] = {1000, SC_V_LIMIT, true},
+    [DRIVE_PARAM_A_MAX] = {SC_A_MIN, SC_A_LIMIT, true},
+    [DRIVE_PARAM_J_MAX] = {SC_J_MIN, SC_J_LIMIT, true},
+    [DRIVE_PARAM_CORNER_DV] = {0, SC_V_LIMIT, true},
+    [DRIVE_PARAM_CORNER_ACC] = {0, SC_A_LIMIT, true},
+    [DRIVE_PARAM_JUNCTION_DEV] = {0, (int64_t)1 << 40, false},
+    [DRIVE_PARAM_CORNER] = {PLAN_CORNER_JD, PLAN_CORNER_STOP, false},
+    [DRIVE_PARAM_SHAPE] = {SC_SHAPE_SCURVE, SC_SHAPE_SCURVE_AT_REST, false},
+    [DRIVE_PARAM_MIN_BLOCK_NS] = {0, 10 * SC_NS_PER_S, false},
+    [DRIVE_PARAM_MBT_WINDOW] = {1, PLAN_WINDOW_MAX, false},
+    [DRIVE_PARAM_STOP_DECEL] = {1000, SC_A_LIMIT, false},
+    [DRIVE_PARAM_ARC_CHORD] = {1, 1000000000, false},
+    [DRIVE_PARAM_START_DELAY_MS] = {0, DRIVE_START_DELAY_MS_MAX, false},
+};
+
+/* The field of a configuration a parameter lives in. */
+static const int64_t *param_field(const drive_config_t *c, drive_param_t id, unsigned axis)
+{
+    switch (id) {
+    case DRIVE_PARAM_V_MAX:
+        return &c->plan.v_max[axis];
+    case DRIVE_PARAM_A_MAX:
+        return &c->plan.a_max[axis];
+    case DRIVE_PARAM_J_MAX:
+        return &c->plan.j_max[axis];
+    case DRIVE_PARAM_CORNER_DV:
+        return &c->plan.corner_dv[axis];
+    case DRIVE_PARAM_CORNER_ACC:
+        return &c->plan.corner_acc[axis];
+    case DRIVE_PARAM_JUNCTION_DEV:
+        return &c->plan.junction_dev_nm;
+    case DRIVE_PARAM_MIN_BLOCK_NS:
+        return &c->plan.min_block_ns;
+    case DRIVE_PARAM_STOP_DECEL:
+        return &c->stop_decel_nm_s2;
+    case DRIVE_PARAM_ARC_CHORD:
+        return &c->arc_chord_nm;
+    default:
+        return NULL; /* narrower fields: see param_read / param_write */
+    }
+}
+
+static bool param_ok(drive_param_t id, unsigned axis)
+{
+    if (!drive_ready() || (unsigned)id >= (unsigned)DRIVE_PARAM_COUNT) {
+        return false;
+    }
+    return param_info[id].per_axis ? axis < drive_config()->axes : axis == 0;
+}
+
+static int64_t param_read(const drive_config_t *c, drive_param_t id, unsigned axis)
+{
+    const int64_t *f = param_field(c, id, axis);
+    if (f != NULL) {
+        return *f;
+    }
+    switch (id) {
+    case DRIVE_PARAM_CORNER:
+        return c->plan.corner;
+    case DRIVE_PARAM_SHAPE:
+        return c->plan.shape;
+    case DRIVE_PARAM_MBT_WINDOW:
+        return c->plan.mbt_window;
+    default:
+        return c->start_delay_ms;
+    }
+}
+
+static void param_write(drive_config_t *c, drive_param_t id, unsigned axis, int64_t v)
+{
+    int64_t *f = (int64_t *)param_field(c, id, axis); /* c is writable */
+    if (f != NULL) {
+        *f = v;
+        return;
+    }
+    switch (id) {
+    case DRIVE_PARAM_CORNER:
+        c->plan.corner = (uint8_t)v;
+        break;
+    case DRIVE_PARAM_SHAPE:
+        c->plan.shape = (uint8_t)v;
+        break;
+    case DRIVE_PARAM_MBT_WINDOW:
+        c->plan.mbt_window = (uint16_t)v;
+        break;
+    default:
+        c->start_delay_ms = (uint32_t)v;
+        break;
+    }
+}
+
+drive_result_t drive_param_get(drive_param_t id, unsigned axis, int64_t *value)
+{
+    if (value == NULL || !param_ok(id, axis)) {
+        return DRIVE_E_INVALID;
+    }
+    *value = param_read(drive_config(), id, axis);
+    return DRIVE_OK;
+}
+
+drive_result_t drive_param_range(drive_param_t id, unsigned axis, int64_t *lo, int64_t *hi)
+{
+    const plan_profile_t *p = &drive_config()->plan;
+    if (lo == NULL || hi == NULL || !param_ok(id, axis)) {
+        return DRIVE_E_INVALID;
+    }
+    *lo = param_info[id].lo;
+    *hi = param_info[id].hi;
+    /* S-curve: a_max / j_max <= SC_TJ_MAX_NS (3 s) per axis */
+    if (p->shape != SC_SHAPE_TRAPEZOID && id == DRIVE_PARAM_A_MAX &&
+        p->j_max[axis] <= SC_A_LIMIT / 3) {
+        *hi = p->j_max[axis] * (SC_TJ_MAX_NS / SC_NS_PER_S); /* j * 3 s */
+    }
+    if (p->shape != SC_SHAPE_TRAPEZOID && id == DRIVE_PARAM_J_MAX) {
+        int64_t tj_s = SC_TJ_MAX_NS / SC_NS_PER_S; /* whole seconds (3) */
+        int64_t j = (p->a_max[axis] + tj_s - 1) / tj_s;
+        *lo = j > *lo ? j : *lo;
+    }
+    return DRIVE_OK;
+}
+
+drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value)
+{
+    static drive_config_t cand; /* static: no large stack frame */
+    int64_t lo, hi;
+    if (drive_param_range(id, axis, &lo, &hi) != DRIVE_OK || value < lo || value > hi) {
+        return DRIVE_E_INVALID;
+    }
+    cand = *drive_config();
+    param_write(&cand, id, axis, value);
+    return drive_apply_config(&cand);
+}
+
+drive_result_t drive_set_plan_profile(const plan_profile_t *prof)
+{
+    static drive_config_t cand;
+    if (prof == NULL || !drive_ready()) {
+        return DRIVE_E_INVALID;
+    }
+    cand = *drive_config();
+    cand.plan = *prof;
+    return drive_apply_config(&cand);
+}
