@@ -15,6 +15,7 @@ static struct {
     proto_identity_t ident;
     bool reset_pending;
     uint32_t reset_at_us;
+    uint16_t sessions; /* link sessions seen (a new one ends a calibration run) */
 } app;
 
 size_t app_boot_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out, size_t cap)
@@ -91,6 +92,7 @@ app_result_t app_init(const app_board_t *b)
         }
         proto_link_set_ext_handler(calib_handle);
         calib_set_next_handler(app_boot_handle);
+        app.sessions = proto_link_dispatch()->sessions;
     }
     hal_watchdog_start();
     return APP_OK;
@@ -117,6 +119,11 @@ void app_poll(void)
     drive_poll();
     if (app.link) {
         proto_link_poll();
+        if (proto_link_dispatch()->sessions != app.sessions) {
+            /* a run belongs to the session that started it */
+            app.sessions = proto_link_dispatch()->sessions;
+            calib_host_gone(PROTO_CALIB_STATUS_NEW_SESSION);
+        }
     }
     hal_watchdog_kick();
     if (app.reset_pending) {

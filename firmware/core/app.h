@@ -38,8 +38,8 @@
  *
  * app_poll(), main context, as often as the board's main loop runs (at
  *   least once per tick): calib_poll (the calibration run), drive_poll (the
- *   feed path), the host
- *   link (proto_link_poll), hal_watchdog_kick, a pending reset.
+ *   feed path), the host link (proto_link_poll; a new host session ends a
+ *   calibration run: calib_host_gone), hal_watchdog_kick, a pending reset.
  *
  * The tick/main contract these functions live under is docs/architecture.md.
  */

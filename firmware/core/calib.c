@@ -51,6 +51,8 @@ static struct {
     phase_t phase;
     uint32_t done_mark; /* blocks_done to reach                     */
     uint64_t dwell_end; /* tick at which the dwell ends             */
+    bool host_seen;     /* a calibration request since the last poll */
+    uint64_t host_tick; /* tick of the last poll that saw one        */
     uint16_t legs_done;
     uint8_t reason;
     int32_t detail;
@@ -365,6 +367,15 @@ static void leg_finished(void)
     leg_of(cb.leg);
 }
 
+void calib_host_gone(uint8_t reason)
+{
+    if (cb.state == CALIB_RUNNING) {
+        drive_stop();
+        PREEMPT_POINT();
+        fail(reason, 0);
+    }
+}
+
 void calib_poll(void)
 {
     drive_status_t st;
@@ -382,6 +393,13 @@ void calib_poll(void)
     }
     if (st.state == DRIVE_DISABLED) {
         fail(PROTO_CALIB_STATUS_DRIVE_DISABLED, 0);
+        return;
+    }
+    if (cb.host_seen) {
+        cb.host_seen = false;
+        cb.host_tick = st.tick;
+    } else if (st.tick - cb.host_tick > (uint64_t)CALIB_HOST_TIMEOUT_MS * tick_hz() / 1000u) {
+        calib_host_gone(PROTO_CALIB_STATUS_HOST_SILENT);
         return;
     }
     t = cb.target[cb.leg_point];
@@ -652,6 +670,7 @@ static size_t h_start(const uint8_t *msg, size_t plen, uint8_t *out)
     cb.leg = 0u;
     cb.repeat = false;
     leg_of(0u);
+    cb.host_seen = true; /* the watchdog counts from the next poll */
     cb.state = CALIB_RUNNING;
     return reply_state(out, msg[1]);
 }
@@ -681,6 +700,7 @@ static size_t h_point(const uint8_t *msg, size_t plen, uint8_t *out)
     cb.leg_cycle = m.cycle;
     cb.leg_pre = true;
     cb.phase = PH_PRE;
+    cb.host_seen = true;
     cb.state = CALIB_RUNNING;
     return reply_state(out, msg[1]);
 }
@@ -690,11 +710,7 @@ static size_t h_abort(const uint8_t *msg, size_t plen, uint8_t *out)
     if (plen != 0u) {
         return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen, 0);
     }
-    if (run_busy()) {
-        drive_stop();
-        PREEMPT_POINT();
-        fail(PROTO_CALIB_STATUS_ABORTED, 0);
-    }
+    calib_host_gone(PROTO_CALIB_STATUS_ABORTED);
     return reply_state(out, msg[1]);
 }
 
@@ -899,6 +915,7 @@ size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *ou
         }
         return reply_error(out, id, msg[1], PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
     }
+    cb.host_seen = true; /* the host is there (calib_poll's watchdog) */
     plen = len - PROTO_MSG_HDR;
     cacheable = mutating(id);
     if (cacheable) {

@@ -46,7 +46,11 @@
  *
  *    Faults: a drive fault or a disabled drive during a run ends it (state
  *    ERROR, reason drive_fault / drive_disabled); calib_abort stops the axes
- *    (drive_stop) and ends it (reason aborted). The samples taken stay
+ *    (drive_stop) and ends it (reason aborted). A host that goes silent
+ *    ends it the same way: no calibration request for CALIB_HOST_TIMEOUT_MS
+ *    of drive time (reason host_silent), or a new host session (reason
+ *    new_session, from the composition root, app.c): a run never resumes
+ *    motion for a host that did not start it. The samples taken stay
  *    readable.
  *
  * 2. Compensation tables (comp.h), per axis: the active table is installed
@@ -103,7 +107,9 @@
 #define CALIB_READ_MAX     11u         /* samples per calib_samples reply      */
 #define CALIB_OVERRUN_MAX  1000000000u /* 1 m                                 */
 #define CALIB_DWELL_MAX_MS 60000u
-#define CALIB_POS_LIMIT_NM ((pos_nm_t)1 << 48) /* |target| and target +- overrun */
+/* A run with no calibration request for this long is aborted (host gone). */
+#define CALIB_HOST_TIMEOUT_MS 3000u
+#define CALIB_POS_LIMIT_NM    ((pos_nm_t)1 << 48) /* |target| and target +- overrun */
 
 #define CALIB_FLAG_HOST_REFERENCE 0x01u
 
@@ -134,6 +140,11 @@ typedef size_t (*calib_handler_fn)(const uint8_t *msg, size_t len, uint32_t now_
                                    size_t cap);
 
 void calib_init(void);
+/* The host of a running run is gone (reason: PROTO_CALIB_STATUS_HOST_SILENT,
+ * _NEW_SESSION or _ABORTED): the axes stop (drive_stop) and the run ends in
+ * ERROR with that reason; nothing moves again without a new calib_start or
+ * calib_point. No effect when no run is in progress. Main. */
+void calib_host_gone(uint8_t reason);
 void calib_tick(const drive_status_t *st, const int64_t vel_ref[CORE_AXES]);
 /* True while sampling is armed: calib_tick then reads pos, pos_raw,
  * refscale and faults of the status (otherwise only vel_ref, the reference

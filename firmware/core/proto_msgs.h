@@ -152,6 +152,8 @@
 #define PROTO_CALIB_STATUS_RECORD_RANGE 14u /* comp_write offset/length outside the record buffer */
 #define PROTO_CALIB_STATUS_FLASH 15u /* flash store failed (lo = comp_store result); the previous table stays active */
 #define PROTO_CALIB_STATUS_DRIVE_ENABLED 16u /* compensation tables are written with the drive disabled (lo = drive state): a flash write stalls a single-bank MCU; the staged record is kept for a retry */
+#define PROTO_CALIB_STATUS_HOST_SILENT 17u /* the host sent no calibration request for 3 s during the run: run aborted, axes stopped */
+#define PROTO_CALIB_STATUS_NEW_SESSION 18u /* a new host session started during the run: run aborted, axes stopped */
 
 /* calib_state.state */
 #define PROTO_CALIB_RUN_STATE_IDLE 0u /* no run set up */

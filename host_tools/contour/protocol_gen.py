@@ -202,6 +202,8 @@ class CalibStatus(IntEnum):
     RECORD_RANGE = 14
     FLASH = 15
     DRIVE_ENABLED = 16
+    HOST_SILENT = 17
+    NEW_SESSION = 18
 
 
 class CalibRunState(IntEnum):

@@ -65,3 +65,73 @@ def test_calibrate_over_slcan(server, capsys):
     rep = json.loads(capsys.readouterr().out)
     assert rep["measure"]["samples"] == 2 * 2 * 20
     assert [p["position_mm"] for p in rep["points"]] == [0.0, 15.0]
+
+
+def _calib_run_in_subprocess(server):
+    import subprocess
+    import sys
+
+    argv = [
+        sys.executable, "-m", "contour", "calibrate", "--port", server.serial, "--axis", "Y",
+        "--from", "-75", "--to", "75", "--step", "15", "--samples", "200", "--dwell-ms", "300",
+        "--no-progress",
+    ]  # fmt: skip
+    return subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+
+
+@pytest.mark.parametrize("how", ["kill", "term"])
+def test_host_gone_mid_calibration_stops_the_run(server, capsys, how):
+    """kill -9 (the drive's watchdog / the next session ends the run) or
+    SIGTERM (the host aborts it): the axes stop, nothing resumes, and the
+    next calibration starts (not 'busy')."""
+    import signal
+    import time
+
+    from contour import protocol_gen as pg
+    from contour.link import connect
+
+    p = _calib_run_in_subprocess(server)
+    time.sleep(4.0)  # connected, set up, moving between the first points
+    assert p.poll() is None, p.stderr.read().decode()
+    p.send_signal(signal.SIGKILL if how == "kill" else signal.SIGTERM)
+    p.wait(timeout=10)
+    p.stderr.close()
+    if how == "kill":
+        time.sleep(0.5)
+    with connect(port=server.serial) as c:
+        st = c.request("calib_status").fields
+        for _ in range(100):  # a SIGTERM'd host's abort, or this session's arrival
+            if st["state"] == pg.CalibRunState.ERROR:
+                break
+            time.sleep(0.05)
+            st = c.request("calib_status").fields
+        assert st["state"] == pg.CalibRunState.ERROR, st
+        want = {"kill": {pg.CalibStatus.NEW_SESSION, pg.CalibStatus.HOST_SILENT}}.get(
+            how, {pg.CalibStatus.ABORTED}
+        )
+        assert st["reason"] in want, st
+        for _ in range(100):  # the controlled stop comes to rest
+            if c.status()["state"] == pg.State.READY:
+                break
+            time.sleep(0.05)
+        y0 = c.status()["pos"][1]
+        for _ in range(30):  # the axis settles on the stopped reference
+            time.sleep(0.2)
+            y1 = c.status()["pos"][1]
+            if abs(y1 - y0) < 2500:
+                break
+            y0 = y1
+        time.sleep(1.0)
+        for _ in range(5):  # reads do not resume the run
+            c.request("calib_read", from_seq=st["seq_oldest"], max=5)
+        time.sleep(1.0)
+        assert abs(c.status()["pos"][1] - y0) < 5000, "the axis moved without a command"
+        assert c.request("calib_status").fields["legs_done"] == st["legs_done"]
+    rc = cli.main(
+        [
+            "calibrate", "--port", server.serial, "--axis", "Y", "--from", "0", "--to", "15",
+            "--step", "15", "--samples", "20", "--dwell-ms", "100", "--json", "--no-progress",
+        ]
+    )  # fmt: skip
+    assert rc == 0
+    capsys.readouterr()

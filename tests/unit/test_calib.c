@@ -128,11 +128,22 @@ static void send_targets(uint16_t first, const int64_t *t, unsigned n)
     req(PROTO_MSG_CALIB_TARGETS, p, len);
 }
 
+/* Run the drive for `ticks` as a host that polls calib_status every 10 ms
+ * (it is there: the calibration's host watchdog stays quiet). */
+static void run_polled(uint32_t ticks)
+{
+    uint32_t k;
+    for (k = 0; k < ticks; k += 100) {
+        TEST_ASSERT_TRUE(sim_run(100, NULL, 0, 0) >= 0);
+        (void)status();
+    }
+}
+
 static void run_until(calib_state_t want, uint32_t max_ticks)
 {
     uint32_t k;
     for (k = 0; k < max_ticks && calib_state() != want; k += 100) {
-        TEST_ASSERT_TRUE(sim_run(100, NULL, 0, 0) >= 0);
+        run_polled(100);
     }
     TEST_ASSERT_EQUAL_INT(want, calib_state());
 }
@@ -233,14 +244,14 @@ static void test_flow_control_never_overwrites(void)
     setup_run(1, 0, 3, 1, CALIB_RING);
     send_targets(0, T3, 3);
     req(PROTO_MSG_CALIB_START, NULL, 0);
-    TEST_ASSERT_TRUE(sim_run(60000, NULL, 0, 0) >= 0); /* 6 s, nobody reads */
+    run_polled(60000); /* 6 s, the host polls but reads nothing */
     s = status();
     TEST_ASSERT_EQUAL_UINT8(CALIB_RUNNING, s.state);
     TEST_ASSERT_EQUAL_UINT16(1, s.legs_done); /* waits for room */
     TEST_ASSERT_EQUAL_UINT32(CALIB_RING, s.seq_next);
     TEST_ASSERT_EQUAL_UINT32(0, s.seq_oldest);
     TEST_ASSERT_EQUAL_UINT(CALIB_RING, read_all(0, S, 2048)); /* all still there */
-    TEST_ASSERT_TRUE(sim_run(20000, NULL, 0, 0) >= 0);
+    run_polled(20000);
     s = status();
     TEST_ASSERT_TRUE(s.legs_done >= 2);
     /* released samples are gone: reading them again is refused */
@@ -251,6 +262,53 @@ static void test_flow_control_never_overwrites(void)
         req(PROTO_MSG_CALIB_READ, p, sizeof p);
         expect_error(PROTO_ERROR_CODE_CALIB, PROTO_CALIB_STATUS_SEQ);
     }
+}
+
+/* A host that goes silent mid-run (killed): the drive aborts the run after
+ * CALIB_HOST_TIMEOUT_MS, stops the axes, and a later read - the next host
+ * pulling the samples - never resumes motion. */
+static void test_silent_host_aborts_the_run_and_nothing_resumes(void)
+{
+    proto_calib_state_t s;
+    drive_status_t st;
+    pos_nm_t y;
+    uint16_t legs;
+
+    setup_run(1, 0, 3, 1, CALIB_RING);
+    send_targets(0, T3, 3);
+    req(PROTO_MSG_CALIB_START, NULL, 0);
+    run_polled(5000); /* under way, the ring filling */
+    TEST_ASSERT_EQUAL_UINT8(CALIB_RUNNING, status().state);
+    TEST_ASSERT_TRUE(sim_run((CALIB_HOST_TIMEOUT_MS + 200u) * 10u, NULL, 0, 0) >= 0);
+    s = status();
+    TEST_ASSERT_EQUAL_UINT8(CALIB_ERROR, s.state);
+    TEST_ASSERT_EQUAL_UINT8(PROTO_CALIB_STATUS_HOST_SILENT, s.reason);
+    legs = s.legs_done;
+    TEST_ASSERT_TRUE(sim_run(5000, NULL, 0, 0) >= 0); /* come to rest */
+    drive_snapshot(&st);
+    y = st.pos[1];
+    TEST_ASSERT_EQUAL_UINT(CALIB_RING, read_all(0, S, 2048)); /* samples kept */
+    run_polled(30000);
+    drive_snapshot(&st);
+    s = status();
+    TEST_ASSERT_EQUAL_UINT8(CALIB_ERROR, s.state);
+    TEST_ASSERT_EQUAL_UINT16(legs, s.legs_done);
+    TEST_ASSERT_INT64_WITHIN(2500, y, st.pos[1]); /* 2 encoder counts */
+    TEST_ASSERT_TRUE(st.state == DRIVE_IDLE);
+}
+
+/* The composition root ends a run when another host session starts. */
+static void test_host_gone_stops_a_run_and_is_a_no_op_otherwise(void)
+{
+    calib_host_gone(PROTO_CALIB_STATUS_NEW_SESSION); /* no run: nothing */
+    TEST_ASSERT_EQUAL_UINT8(CALIB_IDLE, status().state);
+    setup_run(1, 0, 3, 1, 20);
+    send_targets(0, T3, 3);
+    req(PROTO_MSG_CALIB_START, NULL, 0);
+    run_polled(2000);
+    calib_host_gone(PROTO_CALIB_STATUS_NEW_SESSION);
+    TEST_ASSERT_EQUAL_UINT8(CALIB_ERROR, status().state);
+    TEST_ASSERT_EQUAL_UINT8(PROTO_CALIB_STATUS_NEW_SESSION, state_of_reply().reason);
 }
 
 static void test_replay_cache_does_not_execute_twice(void)
@@ -668,6 +726,8 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_run_order_samples_and_errors);
     RUN_TEST(test_flow_control_never_overwrites);
+    RUN_TEST(test_silent_host_aborts_the_run_and_nothing_resumes);
+    RUN_TEST(test_host_gone_stops_a_run_and_is_a_no_op_otherwise);
     RUN_TEST(test_replay_cache_does_not_execute_twice);
     RUN_TEST(test_refusals);
     RUN_TEST(test_other_ids_go_to_next_handler);

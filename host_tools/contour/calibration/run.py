@@ -18,6 +18,7 @@ ever analysed with fewer samples than asked for.
 
 from __future__ import annotations
 
+import contextlib
 import struct
 import time
 import zlib
@@ -247,6 +248,21 @@ class Calibrator:
     # ---- the whole run -----------------------------------------------------------
 
     def run(self, cfg: RunConfig) -> RunResult:
+        """The whole run. On any way out but success (an error, Ctrl-C,
+        SIGTERM) the drive's run is aborted (calib_abort: the axes stop), so
+        it never waits for a host that is gone; a host killed outright is
+        covered by the drive's own watchdog (CALIB_HOST_TIMEOUT_MS)."""
+        try:
+            return self._run(cfg)
+        except BaseException:
+            self._abort()
+            raise
+
+    def _abort(self) -> None:
+        with contextlib.suppress(Exception):  # best effort: the link may be the problem
+            self.c.request("calib_abort", retries=2)
+
+    def _run(self, cfg: RunConfig) -> RunResult:
         t0 = time.monotonic()
         retried0 = getattr(self.c, "retried", 0)
         res = RunResult(config=cfg)
