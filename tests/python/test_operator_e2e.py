@@ -16,6 +16,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 from contour import protocol_gen as pg
@@ -107,9 +108,7 @@ def test_status_watch_one_line_per_sample(server, transport, capsys):
     objs = [json.loads(line) for line in lines]
     assert all("state" in o and "position_mm" in o for o in objs)
     assert objs[0]["t_s"] < objs[1]["t_s"] < objs[2]["t_s"]
-    rc, out, err = run_cli(
-        ["status", "--watch", "--count", "2", "--period", "0.05", *args], capsys
-    )
+    rc, out, err = run_cli(["status", "--watch", "--count", "2", "--period", "0.05", *args], capsys)
     assert rc == 0, err
     lines = out.splitlines()
     assert len(lines) == 2 and "\r" not in out and "\033" not in out  # not a TTY
@@ -339,3 +338,157 @@ def test_kill_9_during_jog_comm_timeout_then_reset(server, transport, capsys):
     rc, out, err = run_cli(["jog", "x", "-1", "--feed", "600", "--json", *other], capsys)
     assert rc == 0, err
     assert abs(json.loads(out)["end_mm"] * 1e6 - (x1 - 1_000_000)) <= 2 * COUNT_NM
+
+
+def test_ctrl_c_during_jog_is_a_controlled_stop(server, monkeypatch, capsys):
+    """Ctrl-C while `jog` waits: controlled stop, exit 130, no fault."""
+    from contour.operator import Operator
+
+    with client_for(server, "serial") as c:
+        x0 = fresh(c)["pos"][0]
+    real = Operator.snapshot
+    fired = []
+
+    def snapshot(self):
+        s = real(self)
+        if not fired and s.state == "running" and s.position_nm[0] - x0 > 200_000:
+            fired.append(s)
+            raise KeyboardInterrupt
+        return s
+
+    monkeypatch.setattr(Operator, "snapshot", snapshot)
+    rc, _, err = run_cli(["jog", "x", "30", "--feed", "1200", *link_args(server, "serial")], capsys)
+    assert fired and rc == 130, err
+    assert "stopped by Ctrl-C" in err
+    monkeypatch.undo()
+    with client_for(server, "serial") as c:
+        st = c.status()
+        assert st["state"] == pg.State.READY and st["faults"] == 0
+        assert x0 + 200_000 < st["pos"][0] < x0 + 29_000_000
+        time.sleep(0.1)
+        assert abs(c.status()["pos"][0] - st["pos"][0]) <= 2 * COUNT_NM  # at rest
+
+
+def test_status_watch_redraws_in_place_on_a_terminal(server, monkeypatch, capsys):
+    import contour.commands.status as status_cmd
+
+    monkeypatch.setattr(status_cmd, "is_terminal", lambda stream: True)
+    argv = ["status", "--watch", "--count", "3", "--period", "0.05"]
+    rc, out, err = run_cli([*argv, *link_args(server, "serial")], capsys)
+    assert rc == 0, err
+    assert out.count("\r\033[K") == 3 and out.count("\n") == 1  # one line, redrawn
+
+
+def test_watch_ends_on_ctrl_c_with_exit_0(server, monkeypatch, capsys):
+    """Ctrl-C is how `status --watch` is meant to end: no error."""
+    import contour.commands.status as status_cmd
+
+    calls = []
+
+    def sleep(s):
+        calls.append(s)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(status_cmd, "sleep", sleep)
+    rc, out, err = run_cli(
+        ["status", "--watch", "--json", "--period", "0.05", *link_args(server, "serial")], capsys
+    )
+    assert rc == 0 and err == ""
+    assert len(out.strip().splitlines()) == 2
+
+
+class FakeClient:
+    """Just enough of a Client for Operator.reset: a fault whose cause stays."""
+
+    def __init__(self, faults: int, state: int, refuse=None) -> None:
+        self.st = {
+            "state": state,
+            "enabled": 0,
+            "faults": faults,
+            "free_slots": 16,
+            "queued_us": 0,
+            "blocks_done": 0,
+            "last_block_seq": 0,
+            "pos": [0, 0, 0, 0],
+        }
+        self.refuse = refuse
+        self.sent = []
+
+    def identify(self):
+        return {"axes": 3}
+
+    def status(self):
+        return dict(self.st)
+
+    def request(self, name, **fields):
+        from contour.link.client import DriveError, describe_error
+
+        self.sent.append(name)
+        if self.refuse is not None:
+            f = {"req": 9, "code": int(self.refuse), "arg": 0, "lo": 0, "hi": 0}
+            raise DriveError(name, f, describe_error(name, f))
+        self.st.update(faults=0, state=pg.State.DISABLED)
+
+
+def test_reset_names_a_fault_whose_cause_is_present():
+    from contour.operator import FaultError, Operator
+
+    bits = 1 << pg.Fault.AMP_FAULT
+    c = FakeClient(bits, pg.State.FAULT, refuse=pg.ErrorCode.CAUSE_PRESENT)
+    with pytest.raises(FaultError, match=r"cannot clear amp_fault: its cause is still present"):
+        Operator(c).reset()
+    assert c.sent == ["fault_reset"]
+    c = FakeClient(bits | 1, pg.State.FAULT)
+    cleared, snap = Operator(c).reset()
+    assert cleared == ["comm_timeout", "amp_fault"] and snap.state == "disabled"
+    c = FakeClient(0, pg.State.READY)
+    assert Operator(c).reset()[0] == [] and c.sent == []  # nothing latched: nothing sent
+
+
+LINK_OPTIONS = {"--port", "--can", "--interface", "--channel", "--bitrate", "--node", "--timeout"}
+OPERATOR_COMMANDS = ("enable", "disable", "reset", "estop", "stop", "jog", "status")
+
+
+def test_operator_commands_follow_the_conventions():
+    """Same link options and --json on every operator command; the commands
+    only parse and print (the procedures are in contour.operator)."""
+    import argparse
+    import ast
+
+    from contour import cli, operator
+
+    parser = cli.build_parser()
+    cmds = {}
+    for a in parser._actions:
+        if isinstance(a, argparse._SubParsersAction):
+            cmds.update(a.choices)
+    for name in OPERATOR_COMMANDS:
+        opts = {o for a in cmds[name]._actions for o in a.option_strings}
+        assert opts >= LINK_OPTIONS | {"--json"}, (name, LINK_OPTIONS - opts)
+    tree = ast.parse(Path(operator.__file__).read_text())
+    imported = {
+        n.module if isinstance(n, ast.ImportFrom) else a.name
+        for n in ast.walk(tree)
+        if isinstance(n, (ast.Import, ast.ImportFrom))
+        for a in n.names
+    }
+    assert not {m for m in imported if m == "argparse" or m.startswith("contour.commands")}
+
+
+def test_reset_cause_present_is_exit_1_on_the_command_line(monkeypatch, capsys):
+    import contour.commands.reset as reset_cmd
+
+    fake = FakeClient(1 << pg.Fault.AMP_FAULT, pg.State.FAULT, refuse=pg.ErrorCode.CAUSE_PRESENT)
+
+    class Ctx:
+        def __enter__(self):
+            return fake
+
+        def __exit__(self, *exc):
+            return False
+
+    monkeypatch.setattr(reset_cmd, "connect_from_args", lambda args: Ctx())
+    rc, out, _ = run_cli(["reset", "--json", "--port", "/nonexistent"], capsys)
+    err = json.loads(out)["error"]
+    assert rc == 1 and err["kind"] == "fault" and "amp_fault" in err["message"]

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import sys
-import time
+from time import monotonic, sleep
 
 from contour.errors import Terminated, UsageError
 from contour.link.options import connect_from_args, link_options
@@ -20,12 +20,12 @@ from contour.progress import is_terminal
 
 def _watch(op: Operator, args) -> int:
     tty = is_terminal(sys.stdout) and not args.json
-    t0 = time.monotonic()
+    t0 = monotonic()
     n = 0
     try:
         while args.count == 0 or n < args.count:
             snap = op.snapshot()
-            t = time.monotonic() - t0
+            t = monotonic() - t0
             if args.json:
                 print(json.dumps({"t_s": round(t, 3), **snap.as_dict()}), flush=True)
             elif tty:
@@ -35,7 +35,7 @@ def _watch(op: Operator, args) -> int:
                 print(f"{t:7.1f} s  {snap.line()}", flush=True)
             n += 1
             if args.count == 0 or n < args.count:
-                time.sleep(max(0.0, t0 + n * args.period - time.monotonic()))
+                sleep(max(0.0, t0 + n * args.period - monotonic()))
     except Terminated:
         if tty:
             print()
