@@ -35,12 +35,20 @@ def run(args) -> int:
             res = op.jog(axis, feed, distance_nm=dist, to_nm=to)
         except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated): stopped already
             snap = op.snapshot()
-            what = f"signal {exc.signum}" if isinstance(exc, Terminated) else "Ctrl-C"
-            print(
-                f"contour jog: stopped by {what} at {snap.position_text()} mm (state {snap.state})",
-                file=sys.stderr,
-            )
-            return 128 + exc.signum if isinstance(exc, Terminated) else 130
+            term = isinstance(exc, Terminated)
+            what = f"signal {exc.signum}" if term else "Ctrl-C"
+            code = 128 + exc.signum if term else 130
+            text = f"stopped by {what} at {snap.position_text()} mm (state {snap.state})"
+            if args.json:
+                err = {
+                    "kind": "terminated" if term else "interrupted",
+                    "message": text,
+                    "exit_code": code,
+                }
+                print(json.dumps({"error": err, **snap.as_dict()}))
+            else:
+                print(f"contour jog: {text}", file=sys.stderr)
+            return code
     if args.json:
         print(json.dumps(res))
     else:

@@ -9,6 +9,7 @@ per line). Polling is the drive's communication keep-alive, as any request.
 from __future__ import annotations
 
 import json
+import shutil
 import sys
 from time import monotonic, sleep
 
@@ -29,7 +30,8 @@ def _watch(op: Operator, args) -> int:
             if args.json:
                 print(json.dumps({"t_s": round(t, 3), **snap.as_dict()}), flush=True)
             elif tty:
-                sys.stdout.write(f"\r\033[K{t:7.1f} s  {snap.line()}")
+                width = shutil.get_terminal_size().columns - 1  # a wrapped line is not redrawn
+                sys.stdout.write(f"\r\033[K{t:7.1f} s  {snap.line()}"[: width + 4])
                 sys.stdout.flush()
             else:
                 print(f"{t:7.1f} s  {snap.line()}", flush=True)
