@@ -31,3 +31,29 @@ def wait_state(c, states, timeout: float = 5.0) -> dict:
         time.sleep(0.02)
         st = c.status()
     return st
+
+
+def client_for(server, transport: str, **kw):
+    """A `contour.link` client of `server` over "serial" or "slcan" (node 1)."""
+    from contour.link import connect
+
+    if transport == "serial":
+        return connect(port=server.serial, **kw)
+    return connect(can=f"slcan:{server.slcan}@500000", node=1, **kw)
+
+
+def fresh(c) -> dict:
+    """Drive back to a known state: link defaults, no fault, enabled, at rest.
+    Returns the status after it."""
+    from contour import protocol_gen as pg
+
+    c.set_param("telem_period_ms", 0)
+    c.set_param("comm_timeout_ms", 1000)
+    st = c.status()
+    if st["state"] in (pg.State.RUNNING, pg.State.STOPPING):
+        c.request("stop")
+        st = wait_state(c, (pg.State.READY, pg.State.DISABLED, pg.State.FAULT, pg.State.ESTOP))
+    if st["state"] in (pg.State.FAULT, pg.State.ESTOP):
+        c.request("fault_reset")
+    c.enable(True)
+    return c.status()

@@ -17,9 +17,9 @@ import time
 
 import pytest
 from contour import protocol_gen as pg
-from contour.link import DriveError, codec, connect
+from contour.link import DriveError, codec
 from contour.simserve import spawn
-from linkhelp import link_args, run_cli, wait_state
+from linkhelp import client_for, fresh, link_args, run_cli, wait_state
 
 TRANSPORTS = ["serial", "slcan"]
 
@@ -28,29 +28,6 @@ TRANSPORTS = ["serial", "slcan"]
 def server():
     with spawn() as s:
         yield s
-
-
-def client_for(server, transport: str, **kw):
-    if transport == "serial":
-        return connect(port=server.serial, **kw)
-    return connect(can=f"slcan:{server.slcan}@500000", node=1, **kw)
-
-
-def fresh(c) -> None:
-    """Drive back to a known state: link defaults, no fault, enabled, at rest."""
-    c.set_param("telem_period_ms", 0)
-    c.set_param("comm_timeout_ms", 1000)
-    st = c.status()
-    if st["state"] in (pg.State.RUNNING, pg.State.STOPPING):
-        c.request("stop")
-    for _ in range(200):
-        st = c.status()
-        if st["state"] not in (pg.State.RUNNING, pg.State.STOPPING):
-            break
-        time.sleep(0.02)
-    if st["state"] in (pg.State.FAULT, pg.State.ESTOP):
-        c.request("fault_reset")
-    c.enable(True)
 
 
 @pytest.mark.parametrize("transport", TRANSPORTS)

@@ -20,9 +20,8 @@ from pathlib import Path
 
 import pytest
 from contour import protocol_gen as pg
-from contour.link import connect
 from contour.simserve import spawn
-from linkhelp import link_args, run_cli, wait_state
+from linkhelp import client_for, fresh, link_args, run_cli
 
 TRANSPORTS = ["serial", "slcan"]
 COUNT_NM = 1250  # one encoder count of the default machine: 5 mm lead / 4000 counts
@@ -33,26 +32,6 @@ OTHER = {"serial": "slcan", "slcan": "serial"}
 def server():
     with spawn() as s:
         yield s
-
-
-def client_for(server, transport: str, **kw):
-    if transport == "serial":
-        return connect(port=server.serial, **kw)
-    return connect(can=f"slcan:{server.slcan}@500000", node=1, **kw)
-
-
-def fresh(c) -> dict:
-    """Drive back to a known state: link defaults, no fault, enabled, at rest."""
-    c.set_param("telem_period_ms", 0)
-    c.set_param("comm_timeout_ms", 1000)
-    st = c.status()
-    if st["state"] in (pg.State.RUNNING, pg.State.STOPPING):
-        c.request("stop")
-        st = wait_state(c, (pg.State.READY, pg.State.DISABLED, pg.State.FAULT, pg.State.ESTOP))
-    if st["state"] in (pg.State.FAULT, pg.State.ESTOP):
-        c.request("fault_reset")
-    c.enable(True)
-    return c.status()
 
 
 def moving_from(c, axis: int, p0: int, timeout: float = 15.0, by: int = 200_000) -> int:

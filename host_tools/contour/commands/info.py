@@ -7,17 +7,11 @@ import json
 from contour import protocol_gen as pg
 from contour.image import build_id_prefix
 from contour.link.options import connect_from_args, link_options
+from contour.operator import state_name
 
 
 def _bits(value: int, enum) -> list[str]:
     return [e.name.lower() for e in enum if value & (1 << int(e))]
-
-
-def _state_name(v: int) -> str:
-    try:
-        return pg.State(v).name.lower()
-    except ValueError:
-        return f"unknown({v})"
 
 
 def in_bootloader(ident: dict) -> bool:
@@ -53,7 +47,7 @@ def gather(client) -> dict:
         "tick_hz": ident["tick_hz"],
         "planner_slots": ident["planner_slots"],
         "max_payload": ident["max_payload"],
-        "state": _state_name(st["state"]),
+        "state": state_name(st["state"]),
         "faults": _bits(st["faults"], pg.Fault),
         "free_slots": st["free_slots"],
         "queued_s": st["queued_us"] / 1e6,

@@ -184,21 +184,8 @@ class Client:
             ev: threading.Event = threading.Event()
             box: list = []
             self._pending[seq] = (ev, box, msg)
-        data = codec.encode(name, seq, **fields)
-        tries = 1 + (self.retries if retries is None else retries)
-        wait = self.timeout if timeout is None else timeout
         try:
-            for attempt in range(tries):
-                if attempt:
-                    self.retried += 1
-                self.t.send(data)
-                if ev.wait(wait):
-                    break
-            else:
-                raise LinkError(
-                    f"no reply from the drive to {name} after {tries} tries "
-                    f"({wait:g} s each): is it connected and powered?"
-                )
+            self._exchange(name, codec.encode(name, seq, **fields), ev, timeout, retries)
         finally:
             with self._lock:
                 self._pending.pop(seq, None)
@@ -208,6 +195,29 @@ class Client:
         if msg.reply and reply.name != msg.reply:
             raise codec.ProtocolError(f"{name}: drive answered {reply.name}, expected {msg.reply}")
         return reply
+
+    def _exchange(
+        self,
+        name: str,
+        data: bytes,
+        ev: threading.Event,
+        timeout: Optional[float],
+        retries: Optional[int],
+    ) -> None:
+        """Send `data` until `ev` is set (the reply arrived), the same bytes
+        each try (the drive answers a repeat from its replay cache)."""
+        tries = 1 + (self.retries if retries is None else retries)
+        wait = self.timeout if timeout is None else timeout
+        for attempt in range(tries):
+            if attempt:
+                self.retried += 1
+            self.t.send(data)
+            if ev.wait(wait):
+                return
+        raise LinkError(
+            f"no reply from the drive to {name} after {tries} tries "
+            f"({wait:g} s each): is it connected and powered?"
+        )
 
     def _open_session(self, timeout: Optional[float], retries: Optional[int]) -> None:
         """session_open with a fresh nonce; until its reply arrives every
@@ -219,21 +229,9 @@ class Client:
             ev: threading.Event = threading.Event()
             box: list = []
             self._opening = (nonce, seq, ev, box)
-        data = codec.encode("session_open", seq, nonce=nonce)
-        tries = 1 + (self.retries if retries is None else retries)
-        wait = self.timeout if timeout is None else timeout
         try:
-            for attempt in range(tries):
-                if attempt:
-                    self.retried += 1
-                self.t.send(data)
-                if ev.wait(wait):
-                    break
-            else:
-                raise LinkError(
-                    f"no reply from the drive to session_open after {tries} tries "
-                    f"({wait:g} s each): is it connected and powered?"
-                )
+            data = codec.encode("session_open", seq, nonce=nonce)
+            self._exchange("session_open", data, ev, timeout, retries)
         finally:
             with self._lock:
                 self._opening = None
