@@ -185,11 +185,17 @@ drive_result_t feed_queue(feed_t *f, const drive_block_t *b, uint32_t now)
                 return DRIVE_E_INVALID;
             }
         }
+        if (drive_soft_limit_check(h.b.target, f->q_end) != DRIVE_OK) {
+            return DRIVE_E_LIMIT;
+        }
         break;
     case DRIVE_BLOCK_ARC:
         if (!arc_seg_setup(&h.arc, &h.b, f->q_end, f->cfg->axes, f->cfg->tick_hz,
                            f->cfg->arc_chord_nm)) {
             return DRIVE_E_INVALID;
+        }
+        if (drive_soft_limit_check(h.b.target, f->q_end) != DRIVE_OK) {
+            return DRIVE_E_LIMIT;
         }
         break;
     default:

@@ -170,6 +170,23 @@
 #define PROTO_CALIB_SAMPLE_FLAG_NO_REFERENCE 1u /* reference field not measured (host reference) */
 #define PROTO_CALIB_SAMPLE_FLAG_FAULT 2u /* a drive or decoder fault was latched while sampling */
 
+/* Contour-error controller mode (param cec_mode). */
+#define PROTO_CEC_MODE_OFF 0u /* no contour-error controller */
+#define PROTO_CEC_MODE_TANGENT 1u /* tangent estimate */
+#define PROTO_CEC_MODE_CURVATURE 2u /* curvature estimate */
+#define PROTO_CEC_MODE_EXACT 3u /* exact contour error */
+
+/* Planner cornering rule (param corner_rule). */
+#define PROTO_CORNER_RULE_JUNCTION_DEVIATION 0u /* junction deviation */
+#define PROTO_CORNER_RULE_VELOCITY_STEP 1u /* axis velocity step */
+#define PROTO_CORNER_RULE_SMOOTHED 2u /* smoothed corner */
+#define PROTO_CORNER_RULE_EXACT_STOP 3u /* exact stop at every junction */
+
+/* Planner block profile (param velocity_profile). */
+#define PROTO_VELOCITY_PROFILE_SCURVE 0u /* S-curve (jerk-limited) */
+#define PROTO_VELOCITY_PROFILE_TRAPEZOID 1u /* trapezoid */
+#define PROTO_VELOCITY_PROFILE_SCURVE_AT_REST 2u /* S-curve only for blocks that start or end at rest */
+
 /* Message ids. */
 #define PROTO_MSG_IDENTIFY 0x01u
 #define PROTO_MSG_PARAM_GET 0x02u
@@ -259,6 +276,15 @@
 #define PROTO_PARAM_STOP_DECELERATION 0x0355u
 #define PROTO_PARAM_ARC_CHORD_TOLERANCE 0x0356u
 #define PROTO_PARAM_START_DELAY_MS 0x0357u
+#define PROTO_PARAM_PID_KP 0x0500u
+#define PROTO_PARAM_PID_KI 0x0510u
+#define PROTO_PARAM_PID_KD 0x0520u
+#define PROTO_PARAM_VELOCITY_FEEDFORWARD 0x0530u
+#define PROTO_PARAM_ACCELERATION_FEEDFORWARD 0x0540u
+#define PROTO_PARAM_FOLLOWING_ERROR_LIMIT 0x0550u
+#define PROTO_PARAM_SOFT_LIMIT_MIN 0x0600u
+#define PROTO_PARAM_SOFT_LIMIT_MAX 0x0610u
+#define PROTO_PARAM_IN_POSITION_WINDOW 0x0620u
 
 /* identify (h2d): Who are you: versions, axes, capabilities, node id. Read-only, safe to send any time. */
 #define PROTO_IDENTIFY_LEN 0u
