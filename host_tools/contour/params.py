@@ -123,9 +123,8 @@ def parse_value(p: pg.Param, text: str) -> int:
         if raw not in names:
             raise UserError(f"{p.name}: {raw} is not one of {', '.join(by_name)}")
         return raw
-    if p.display == "on/off" or p.type == "bool":
-        if t.lower() in _TRUE + _FALSE:
-            return int(t.lower() in _TRUE)
+    if (p.display == "on/off" or p.type == "bool") and t.lower() in _TRUE + _FALSE:
+        return int(t.lower() in _TRUE)
     m = _NUM.match(t.replace("_", ""))
     integer = p.scale == 1 and not p.display.startswith("2^")
     if m is None:
