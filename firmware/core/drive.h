@@ -431,6 +431,18 @@ drive_result_t drive_param_range(drive_param_t id, unsigned axis, int64_t *lo, i
 drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value);
 drive_result_t drive_set_plan_profile(const plan_profile_t *prof);
 
+/* Set many parameters at once (param_store's load): every value checked
+ * against its static range, the whole planner profile (plan_check_profile)
+ * and the servo parameters (servo_config) before anything changes; then
+ * applied like drive_param_set. All or nothing: DRIVE_E_INVALID or
+ * DRIVE_E_BUSY (planner not idle) change nothing. Main. */
+typedef struct {
+    drive_param_t id;
+    unsigned axis;
+    int64_t value;
+} drive_param_value_t;
+drive_result_t drive_param_set_all(const drive_param_value_t *v, unsigned n);
+
 /* Soft travel limits (drive_config_t.soft_min / soft_max): DRIVE_E_LIMIT
  * when an axis that moves (target != from) ends outside the limits of the
  * axis; the axis is kept for drive_soft_limit_refused. Main. */

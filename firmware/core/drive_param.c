@@ -216,6 +216,36 @@ drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value)
     return drive_apply_config(&cand);
 }
 
+drive_result_t drive_param_set_all(const drive_param_value_t *v, unsigned n)
+{
+    static drive_config_t cand;
+    static servo_t probe;
+    servo_params_t q;
+    unsigned k;
+    drive_result_t r;
+    if (v == NULL || !drive_ready()) {
+        return DRIVE_E_INVALID;
+    }
+    cand = *drive_config();
+    for (k = 0; k < n; k++) {
+        if (!param_ok(v[k].id, v[k].axis) || v[k].value < param_info[v[k].id].lo ||
+            v[k].value > param_info[v[k].id].hi) {
+            return DRIVE_E_INVALID;
+        }
+        param_write(&cand, v[k].id, v[k].axis, v[k].value);
+    }
+    q = cand.servo;
+    q.cec.mode = CEC_MODE_OFF;
+    if (plan_check_profile(&cand.plan) != PLAN_OK || servo_init(&probe, &q, NULL) != SERVO_OK) {
+        return DRIVE_E_INVALID;
+    }
+    r = drive_apply_config(&cand); /* checks the planner is idle */
+    if (r != DRIVE_OK) {
+        return r;
+    }
+    return drive_set_servo_params(&cand.servo); /* validated, not moving: OK */
+}
+
 static unsigned limit_axis; /* main: axis of the last DRIVE_E_LIMIT */
 
 drive_result_t drive_soft_limit_check(const pos_nm_t target[CORE_AXES],

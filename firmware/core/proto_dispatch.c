@@ -6,6 +6,7 @@
 
 #include "drive.h"
 #include "fixmath.h"
+#include "param_store.h"
 #include "preempt.h"
 #include "proto_reply.h"
 
@@ -228,6 +229,9 @@ static refusal_t param_read(proto_dispatch_t *d, uint16_t id, int64_t *value)
         break;
     case PROTO_PARAM_AXES:
         *value = d->ident.axes;
+        break;
+    case PROTO_PARAM_PARAM_STORE_STATUS:
+        *value = (int64_t)param_store_status();
         break;
     case PROTO_PARAM_POSITION:
         *value = axis < CORE_AXES ? st.pos[axis] : 0;
@@ -650,6 +654,18 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
     case PROTO_MSG_ESTOP:
         drive_estop();
         return proto_reply_ack(out, seq, id);
+    case PROTO_MSG_PARAM_SAVE: {
+        uint32_t detail = 0u;
+        param_store_result_t ps = param_store_save(NULL, &detail);
+
+        if (ps == PARAM_STORE_OK) {
+            return proto_reply_ack(out, seq, id);
+        }
+        drive_status(&st);
+        r = ps == PARAM_STORE_E_STATE ? refuse(PROTO_ERROR_CODE_BAD_STATE, map_state(&st))
+                                      : refuse(PROTO_ERROR_CODE_INTERNAL, (uint16_t)detail);
+        break;
+    }
     case PROTO_MSG_FAULT_RESET:
         dr = drive_fault_reset();
         PREEMPT_POINT();

@@ -260,6 +260,17 @@ class VelocityProfile(IntEnum):
     SCURVE_AT_REST = 2
 
 
+class ParamStoreStatus(IntEnum):
+    """What the drive did with its saved parameters at start-up (param param_store_status)."""
+
+    NONE = 0
+    LOADED = 1
+    CORRUPT = 2
+    VERSION = 3
+    AXES = 4
+    REFUSED = 5
+
+
 MESSAGES = (
     Message(
         "identify",
@@ -426,6 +437,18 @@ MESSAGES = (
         4,
         4,
         'A host starts a session: the drive forgets its replay cache and echoes the nonce. Everything the drive sent before this reply belongs to an earlier session: the host discards it. The bootloader answers it too.',
+    ),
+    Message(
+        "param_save",
+        0x2E,
+        "h2d",
+        'ack',
+        None,
+        (
+        ),
+        0,
+        0,
+        'Store the drive parameters in flash (loaded at start-up; docs/parameters.md). Only while disabled (bad_state, arg = state); a flash failure is internal (arg = comp_store result).',
     ),
     Message(
         "heartbeat",
@@ -1238,6 +1261,22 @@ PARAMS = (
         '',
         1,
         '',
+    ),
+    Param(
+        'param_store_status',
+        6,
+        'u8',
+        '',
+        0,
+        5,
+        0,
+        'ro',
+        False,
+        'link',
+        'What the drive did with its saved parameters at start-up (param_save).',
+        '',
+        1,
+        'param_store_status',
     ),
     Param(
         'cec_mode',
