@@ -76,6 +76,10 @@ def run_get(args) -> int:
 
 
 def run_set(args) -> int:
+    if args.value is None:  # NAME=VALUE: a negative value with a unit is no option
+        if "=" not in args.param:
+            raise UsageError("give a value: contour set NAME VALUE (or NAME=VALUE)")
+        args.param, args.value = args.param.split("=", 1)
     with usage_errors():
         p, _ = parse_param(args.param)
         if p.access == "ro":
@@ -98,10 +102,12 @@ def register(sub) -> None:
     s = sub.add_parser(
         "set", help="write a drive parameter (user units, range-checked)", parents=[link_options()]
     )
-    s.add_argument("param", help="parameter name")
+    s.add_argument("param", help="parameter name, or NAME=VALUE (soft_limit_min.x=-10mm)")
     s.add_argument(
         "value",
+        nargs="?",
         help="new value in the parameter's unit, or with a unit suffix (10mm/s, 600mm/min, "
-        "2.5um), or an enum name (cec_mode curvature)",
+        "2.5um), or an enum name (cec_mode curvature); a negative value with a unit: "
+        "NAME=VALUE or after --",
     )
     s.set_defaults(func=run_set)
