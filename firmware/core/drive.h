@@ -278,7 +278,8 @@ typedef struct {
     /* Soft travel limits per axis, nm: a line, arc or jog whose end point
      * on a moving axis lies outside [soft_min, soft_max] is refused
      * (DRIVE_E_LIMIT) before it is queued. Off while soft_min >= soft_max
-     * (default 0 / 0). Arcs: end points only. */
+     * (default 0 / 0). Arcs: the end point and every extreme point
+     * (centre +- radius along a plane axis) the sweep passes. */
     pos_nm_t soft_min[CORE_AXES];
     pos_nm_t soft_max[CORE_AXES];
     /* In-position window per axis, nm (default DRIVE_IN_POS_NM): not used

@@ -1657,7 +1657,7 @@ PARAMS = (
         'rw',
         True,
         'drive',
-        'Soft travel limit, low end: a block or jog ending outside [min, max] on a moving axis is refused (out_of_range) before anything moves; off while min >= max (0 / 0).',
+        'Soft travel limit, low end: a block or jog ending outside [min, max] on a moving axis (an arc: also its bulge) is refused (out_of_range, lo/hi = the limits) before anything moves; off while min >= max (0 / 0).',
         'mm',
         1000000,
         '',

@@ -122,12 +122,16 @@ def test_backup_and_restore(server, capsys, tmp_path):
     for what, body in bad.items():
         b = tmp_path / "bad.toml"
         b.write_text(body)
-        rc, _, err = run_cli(["config", "restore", str(b), *port], capsys)
+        rc, out, _ = run_cli(["config", "restore", str(b), "--json", *port], capsys)
         assert rc == 1, what
-        assert "nothing written" in err, (what, err)
+        assert "nothing written" in json.loads(out)["error"]["message"], (what, out)
         with connect(port=server.serial) as c:
             assert c.get_param("max_velocity.y") == before["max_velocity.y"], what
             assert c.get_param("corner_rule") == before["corner_rule"], what
+    rc, out, err = run_cli(["config", "restore", str(g), "--dry-run", "--json", *port], capsys)
+    assert rc == 0 and json.loads(out)["written"] is False, err
+    with connect(port=server.serial) as c:
+        assert c.get_param("corner_rule") == before["corner_rule"]
     rc, out, err = run_cli(["config", "restore", str(g), *port], capsys)
     assert rc == 0, err
     assert "read back" in out

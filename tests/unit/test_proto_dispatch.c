@@ -544,7 +544,41 @@ static void test_soft_limits_refuse_before_motion(void)
     run_ms(200);
     TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, (jog(1, 9000000, 50000000), out[0]));
     run_ms(500);
+    /* an arc whose end point is inside but whose bulge is not: Y from y0
+     * to y0 over (X+10 mm, centre X+5 mm): counter-clockwise passes
+     * y0 - 5 mm (refused, Y limits y0 - 1 .. y0 + 10 mm), clockwise
+     * y0 + 5 mm */
+    {
+        drive_status_t st;
+        proto_queue_arc_t q = {8, 0, 0, 1, 20000000, {0, 0, 0, 0}, 0, 0};
+        uint8_t p[80];
+
+        drive_status(&st);
+        TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                               (set_param(PROTO_PARAM_SOFT_LIMIT_MAX + 0, 100000000), out[0]));
+        TEST_ASSERT_EQUAL_HEX8(
+            PROTO_MSG_PARAM_VALUE,
+            (set_param(PROTO_PARAM_SOFT_LIMIT_MIN + 1, st.ref[1] - 1000000), out[0]));
+        TEST_ASSERT_EQUAL_HEX8(
+            PROTO_MSG_PARAM_VALUE,
+            (set_param(PROTO_PARAM_SOFT_LIMIT_MAX + 1, st.ref[1] + 10000000), out[0]));
+        q.target[0] = st.ref[0] + 10000000;
+        q.target[1] = st.ref[1];
+        q.centre_u = st.ref[0] + 5000000;
+        q.centre_v = st.ref[1];
+        e = expect_error(request(PROTO_MSG_QUEUE_ARC, p, proto_queue_arc_encode(&q, p, sizeof p)),
+                         PROTO_ERROR_CODE_OUT_OF_RANGE);
+        TEST_ASSERT_EQUAL_UINT16(5 + 1, e.arg);
+        TEST_ASSERT_EQUAL_INT64(st.ref[1] - 1000000, e.lo);
+        q.sense = -1;
+        TEST_ASSERT_EQUAL_HEX8(
+            PROTO_MSG_QUEUE_REPLY,
+            (request(PROTO_MSG_QUEUE_ARC, p, proto_queue_arc_encode(&q, p, sizeof p)), out[0]));
+        run_ms(2000);
+    }
     /* off again: min >= max */
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_SOFT_LIMIT_MAX + 0, 4000000), out[0]));
     TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
                            (set_param(PROTO_PARAM_SOFT_LIMIT_MAX + 0, -1000000), out[0]));
     TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, (jog(0, 2000000, 50000000), out[0]));

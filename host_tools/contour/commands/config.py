@@ -186,9 +186,15 @@ def run_backup(args) -> int:
     text = backup_text(ident, values)
     if args.file == "-":
         sys.stdout.write(text)
-    else:
+        return 0
+    try:
         with open(args.file, "w", encoding="utf-8") as f:
             f.write(text)
+    except OSError as exc:
+        raise UserError(f"{args.file}: {exc.strerror}") from None
+    if args.json:
+        print(json.dumps({"file": args.file, "values": len(values), "axes": ident["axes"]}))
+    else:
         print(f"{len(values)} values of {ident['axes']} axes written to {args.file}")
     return 0
 
@@ -211,11 +217,14 @@ def run_restore(args) -> int:
         st = client.status()
         if st["state"] in (pg.State.RUNNING, pg.State.STOPPING):
             raise UserError("the drive is moving: nothing written (wait or stop it first)")
-        if args.dry_run:
-            print(f"{args.file}: {len(values)} values check out; nothing written (--dry-run)")
-            return 0
-        write_all(client, values)
-    print(f"{len(values)} values restored from {args.file} and read back")
+        if not args.dry_run:
+            write_all(client, values)
+    if args.json:
+        print(json.dumps({"file": args.file, "values": len(values), "written": not args.dry_run}))
+    elif args.dry_run:
+        print(f"{args.file}: {len(values)} values check out; nothing written (--dry-run)")
+    else:
+        print(f"{len(values)} values restored from {args.file} and read back")
     return 0
 
 
@@ -249,6 +258,7 @@ def register(sub) -> None:
         parents=[link_options()],
     )
     b.add_argument("file", metavar="FILE.toml")
+    b.add_argument("--json", action="store_true", help="print the result as JSON")
     b.set_defaults(func=run_backup)
     r = cs.add_parser(
         "restore",
@@ -257,6 +267,7 @@ def register(sub) -> None:
     )
     r.add_argument("file", metavar="FILE.toml")
     r.add_argument("--dry-run", action="store_true", help="check only, write nothing")
+    r.add_argument("--json", action="store_true", help="print the result as JSON")
     r.set_defaults(func=run_restore)
     s = cs.add_parser(
         "save",
