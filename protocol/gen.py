@@ -224,6 +224,7 @@ def load(path: Path = SPEC) -> dict:
     messages.sort(key=lambda m: m["id"])
 
     params = []
+    enum_names = {e["name"] for e in enums}
     pids: dict[int, str] = {}
     pnames = set()
     for p in raw.get("param", []):
@@ -255,8 +256,20 @@ def load(path: Path = SPEC) -> dict:
             if pid + k in pids:
                 raise SpecError(f"param {name}: id 0x{pid + k:04X} already used by {pids[pid + k]}")
             pids[pid + k] = name
+        display = p.get("display", p.get("unit", ""))
+        scale = p.get("scale", 1)
+        if not isinstance(scale, (int, float)) or scale <= 0:
+            raise SpecError(f"param {name}: scale must be a positive number")
+        penum = p.get("enum", "")
+        if penum and penum not in enum_names:
+            raise SpecError(f"param {name}: enum {penum!r} is not an [[enum]]")
+        if penum and ptype not in ("u8", "u16"):
+            raise SpecError(f"param {name}: an enum parameter must be u8 or u16")
         params.append(
             {
+                "display": display,
+                "scale": scale,
+                "enum": penum,
                 "name": name,
                 "id": pid,
                 "type": ptype,
@@ -715,6 +728,10 @@ def gen_python(spec: dict) -> str:
         "    per_axis: bool",
         "    owner: str",
         "    doc: str",
+        "    # user units: value shown = raw / scale, in `display` (protocol/README.md)",
+        '    display: str = ""',
+        "    scale: float = 1",
+        '    enum: str = ""',
         "",
     ]
     for e in spec["enums"]:
@@ -755,6 +772,9 @@ def gen_python(spec: dict) -> str:
         L.append(f"        {p['per_axis']},")
         L.append(f"        {repr(p['owner'])},")
         L.append(f"        {repr(p['doc'])},")
+        L.append(f"        {repr(p['display'])},")
+        L.append(f"        {repr(p['scale'])},")
+        L.append(f"        {repr(p['enum'])},")
         L.append("    ),")
     L.append(")")
     L.append("")

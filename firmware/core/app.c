@@ -3,6 +3,7 @@
 
 #include "calib.h"
 #include "hal.h"
+#include "param_store.h"
 #include "proto_link.h"
 #include "proto_msgs.h"
 #include "proto_reply.h"
@@ -84,7 +85,8 @@ app_result_t app_init(const app_board_t *b)
     if (drive_init(b->drive) != DRIVE_OK) {
         return APP_E_DRIVE;
     }
-    calib_init(); /* its tables from flash, installed in the drive's decoders */
+    calib_init();             /* its tables from flash, installed in the drive's decoders */
+    (void)param_store_load(); /* the saved parameters, all or none; status: param_store_status */
     identity(b);
     if (app.link) {
         if (!proto_link_init(&app.ident, b->serial, b->can)) {

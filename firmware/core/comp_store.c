@@ -39,7 +39,8 @@ bool comp_store_layout(comp_store_layout_t *out)
     }
     bank =
         ((uint64_t)COMP_STORE_REGION_BYTES / 2u + l->page_size - 1u) / l->page_size * l->page_size;
-    if (bank < COMP_STORE_HDR_BYTES + (uint64_t)CORE_AXES * pad(COMP_RECORD_MAX, l->write_size) ||
+    if (bank < COMP_STORE_HDR_BYTES +
+                   (uint64_t)(CORE_AXES + 1u) * pad(COMP_RECORD_MAX, l->write_size) ||
         4u * bank > l->size) {
         return false;
     }
@@ -147,8 +148,40 @@ static void scan_bank(const comp_store_layout_t *lay, unsigned bank, unsigned ax
     /* full: no clean end */
 }
 
-/* Current record of `axis` in `bank` decoded into t (its raw bytes stay in
- * rec[0..*len)); *off_out gets its offset. */
+/* A blob record (slot COMP_STORE_SLOT_BLOB): the comp record header, data
+ * CRC over the padded data, byte length (offset 14) within the last unit;
+ * t gets axis, version, n, data_crc. */
+static comp_result_t blob_decode(const uint8_t *buf, size_t len, comp_table_t *t)
+{
+    size_t total;
+    uint16_t blen = (uint16_t)(buf[14] | (buf[15] << 8));
+    comp_result_t r = comp_record_header(buf, len, &total);
+    if (r != COMP_OK) {
+        return r;
+    }
+    if (len != total || blen > total - COMP_RECORD_HDR ||
+        blen + COMP_POINT_BYTES <= total - COMP_RECORD_HDR) {
+        return COMP_E_COUNT;
+    }
+    if (crc32_update(CRC32_INIT, buf + COMP_RECORD_HDR, len - COMP_RECORD_HDR) != get32(buf + 20)) {
+        return COMP_E_CRC;
+    }
+    t->axis = buf[6];
+    t->version = get32(buf + 8);
+    t->n = (uint16_t)(buf[12] | (buf[13] << 8));
+    t->data_crc = get32(buf + 20);
+    return COMP_OK;
+}
+
+static comp_result_t decode(const uint8_t *buf, size_t len, unsigned slot, comp_table_t *t)
+{
+    return slot == COMP_STORE_SLOT_BLOB ? blob_decode(buf, len, t)
+                                        : comp_record_decode(buf, len, t);
+}
+
+/* Current record of `axis` (a slot: an axis or COMP_STORE_SLOT_BLOB) in
+ * `bank` decoded into t (its raw bytes stay in rec[0..*len)); *off_out gets
+ * its offset. */
 static comp_store_result_t find(const comp_store_layout_t *lay, unsigned bank, unsigned axis,
                                 comp_table_t *t, uint32_t *off_out, uint32_t *len_out)
 {
@@ -166,7 +199,7 @@ static comp_store_result_t find(const comp_store_layout_t *lay, unsigned bank, u
         if (!hal_flash_read(addr + s.off, rec, s.len)) {
             return COMP_STORE_E_FLASH;
         }
-        if (comp_record_decode(rec, s.len, t) == COMP_OK && t->axis == axis) {
+        if (decode(rec, s.len, axis, t) == COMP_OK && t->axis == axis) {
             *off_out = s.off;
             *len_out = s.len;
             return COMP_STORE_OK;
@@ -272,6 +305,12 @@ static comp_store_result_t verify(const comp_store_layout_t *lay, unsigned bank,
     if (r == COMP_STORE_E_FLASH) {
         return r;
     }
+    if (axis == COMP_STORE_SLOT_BLOB) {
+        return r == COMP_STORE_OK && back.version == want->version && back.n == want->n &&
+                       back.data_crc == want->data_crc
+                   ? COMP_STORE_OK
+                   : COMP_STORE_E_VERIFY;
+    }
     if (r != COMP_STORE_OK || back.version != want->version || back.n != want->n ||
         back.ramp_us != want->ramp_us) {
         return COMP_STORE_E_VERIFY;
@@ -285,17 +324,24 @@ static comp_store_result_t verify(const comp_store_layout_t *lay, unsigned bank,
     return COMP_STORE_OK;
 }
 
-/* Copy the live records into the other bank, then make it active. */
+/* Slot k of the store: the axes, then the blob. */
+static unsigned slot_of(unsigned k)
+{
+    return k < CORE_AXES ? k : COMP_STORE_SLOT_BLOB;
+}
+
+/* Copy the live records into the other bank, then make it active. The new
+ * record of `slot` (want: what verify expects) is in rec[0..padded). */
 static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uint32_t seq,
-                                   const comp_table_t *tmp)
+                                   unsigned slot, uint32_t padded, const comp_table_t *want)
 {
     static comp_table_t t;
-    static uint32_t vers[CORE_AXES];
-    static bool have[CORE_AXES];
+    static uint32_t vers[CORE_AXES + 1u];
+    static bool have[CORE_AXES + 1u];
     const hal_flash_layout_t *l = hal_flash_layout();
     unsigned to = from < 0 ? 0u : (unsigned)from ^ 1u, a;
     uint32_t to_addr = lay->base + (uint32_t)to * lay->bank_bytes;
-    uint32_t at = COMP_STORE_HDR_BYTES, off, len, padded;
+    uint32_t at = COMP_STORE_HDR_BYTES, off, len;
     uint8_t h[COMP_STORE_HDR_BYTES];
     comp_store_result_t r;
 
@@ -304,20 +350,16 @@ static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uin
             return COMP_STORE_E_FLASH;
         }
     }
-    padded = encode(lay, tmp);
-    if (padded == 0u) {
-        return COMP_STORE_E_ARG;
-    }
     if (!hal_flash_write(to_addr + at, rec, padded)) {
         return COMP_STORE_E_FLASH;
     }
     at += padded;
-    for (a = 0; a < CORE_AXES; a++) {
+    for (a = 0; a <= CORE_AXES; a++) {
         have[a] = false;
-        if (a == tmp->axis || from < 0) {
+        if (slot_of(a) == slot || from < 0) {
             continue;
         }
-        r = find(lay, (unsigned)from, a, &t, &off, &len);
+        r = find(lay, (unsigned)from, slot_of(a), &t, &off, &len);
         if (r == COMP_STORE_E_FLASH) {
             return r;
         }
@@ -335,13 +377,13 @@ static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uin
         have[a] = true;
         vers[a] = t.version;
     }
-    r = verify(lay, to, tmp->axis, tmp);
+    r = verify(lay, to, slot, want);
     if (r != COMP_STORE_OK) {
         return r;
     }
-    for (a = 0; a < CORE_AXES; a++) {
+    for (a = 0; a <= CORE_AXES; a++) {
         if (have[a] &&
-            (find(lay, to, a, &t, &off, &len) != COMP_STORE_OK || t.version != vers[a])) {
+            (find(lay, to, slot_of(a), &t, &off, &len) != COMP_STORE_OK || t.version != vers[a])) {
             return COMP_STORE_E_VERIFY;
         }
     }
@@ -361,16 +403,43 @@ static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uin
     return COMP_STORE_OK;
 }
 
+/* Append the record in rec[0..padded) (slot, want: see compact) to the
+ * active bank act (-1: none), or compact when it does not fit. */
+static comp_store_result_t put_record(const comp_store_layout_t *lay, int act, uint32_t seq,
+                                      unsigned slot, uint32_t padded, const comp_table_t *want,
+                                      unsigned *bank)
+{
+    uint32_t bank_addr = act >= 0 ? lay->base + (uint32_t)act * lay->bank_bytes : 0u;
+    scan_t s;
+    s.end = NO_OFF;
+    if (act >= 0) {
+        scan_bank(lay, (unsigned)act, CORE_AXES, 0u, 0u, &s);
+        if (s.read_failed) {
+            return COMP_STORE_E_FLASH;
+        }
+    }
+    if (act >= 0 && s.end != NO_OFF && padded <= lay->bank_bytes - s.end &&
+        erased(bank_addr + s.end, padded)) {
+        /* append */
+        *bank = (unsigned)act;
+        if (!hal_flash_write(bank_addr + s.end, rec, padded)) {
+            return COMP_STORE_E_FLASH;
+        }
+        return verify(lay, *bank, slot, want);
+    }
+    *bank = act < 0 ? 0u : (unsigned)act ^ 1u;
+    return compact(lay, act, seq, slot, padded, want);
+}
+
 comp_store_result_t comp_store_write(unsigned axis, const comp_table_t *table, uint32_t *version,
                                      unsigned *slot)
 {
     static comp_table_t cur, tmp;
     comp_store_layout_t lay;
     comp_store_result_t r;
-    uint32_t seq = 0u, off, len, padded, bank_addr;
-    unsigned cb = 0u, bank;
+    uint32_t seq = 0u, off, len, padded;
+    unsigned cb = 0u, bank = 0u;
     int act;
-    scan_t s;
 
     if (axis >= CORE_AXES || table == NULL || table->axis != axis ||
         comp_table_check(table) != COMP_OK) {
@@ -390,26 +459,7 @@ comp_store_result_t comp_store_write(unsigned axis, const comp_table_t *table, u
     if (padded == 0u) {
         return COMP_STORE_E_ARG;
     }
-    s.end = NO_OFF;
-    if (act >= 0) {
-        scan_bank(&lay, (unsigned)act, CORE_AXES, 0u, 0u, &s);
-        if (s.read_failed) {
-            return COMP_STORE_E_FLASH;
-        }
-    }
-    bank_addr = act >= 0 ? lay.base + (uint32_t)act * lay.bank_bytes : 0u;
-    if (act >= 0 && s.end != NO_OFF && padded <= lay.bank_bytes - s.end &&
-        erased(bank_addr + s.end, padded)) {
-        /* append */
-        bank = (unsigned)act;
-        if (!hal_flash_write(bank_addr + s.end, rec, padded)) {
-            return COMP_STORE_E_FLASH;
-        }
-        r = verify(&lay, bank, axis, &tmp);
-    } else {
-        bank = act < 0 ? 0u : (unsigned)act ^ 1u;
-        r = compact(&lay, act, seq, &tmp);
-    }
+    r = put_record(&lay, act, seq, axis, padded, &tmp, &bank);
     if (r != COMP_STORE_OK) {
         return r;
     }
@@ -418,6 +468,100 @@ comp_store_result_t comp_store_write(unsigned axis, const comp_table_t *table, u
     }
     if (slot != NULL) {
         *slot = bank;
+    }
+    return COMP_STORE_OK;
+}
+
+comp_store_result_t comp_store_blob_write(const uint8_t *data, uint16_t len, uint32_t *version)
+{
+    static comp_table_t cur, want;
+    comp_store_layout_t lay;
+    comp_store_result_t r;
+    uint32_t seq = 0u, off, rlen, padded, i, dlen;
+    unsigned cb = 0u, bank = 0u;
+    int act;
+
+    if ((data == NULL && len > 0u) || len > COMP_STORE_BLOB_MAX) {
+        return COMP_STORE_E_ARG;
+    }
+    if (!comp_store_layout(&lay)) {
+        return COMP_STORE_E_LAYOUT;
+    }
+    act = active_bank(&lay, &seq);
+    r = act < 0 ? COMP_STORE_EMPTY : current(&lay, COMP_STORE_SLOT_BLOB, &cur, &cb, &off, &rlen);
+    if (r != COMP_STORE_OK && r != COMP_STORE_EMPTY) {
+        return r;
+    }
+    /* the comp record header with the blob's slot, its length at 14 */
+    want.version = r == COMP_STORE_OK ? cur.version + 1u : 1u;
+    want.n = (uint16_t)((len + COMP_POINT_BYTES - 1u) / COMP_POINT_BYTES);
+    dlen = (uint32_t)want.n * COMP_POINT_BYTES;
+    for (i = 0; i < COMP_RECORD_HDR + dlen; i++) {
+        rec[i] = 0u;
+    }
+    for (i = 0; i < len; i++) {
+        rec[COMP_RECORD_HDR + i] = data[i];
+    }
+    put32(rec, COMP_RECORD_MAGIC);
+    rec[4] = (uint8_t)COMP_RECORD_FORMAT;
+    rec[6] = (uint8_t)COMP_STORE_SLOT_BLOB;
+    put32(rec + 8, want.version);
+    rec[12] = (uint8_t)want.n;
+    rec[13] = (uint8_t)(want.n >> 8);
+    rec[14] = (uint8_t)len;
+    rec[15] = (uint8_t)(len >> 8);
+    want.data_crc = crc32_update(CRC32_INIT, rec + COMP_RECORD_HDR, dlen);
+    put32(rec + 20, want.data_crc);
+    put32(rec + 28, crc32_update(CRC32_INIT, rec, 28));
+    padded = pad(COMP_RECORD_HDR + dlen, lay.write_size);
+    for (i = COMP_RECORD_HDR + dlen; i < padded; i++) {
+        rec[i] = 0xFFu;
+    }
+    r = put_record(&lay, act, seq, COMP_STORE_SLOT_BLOB, padded, &want, &bank);
+    if (r == COMP_STORE_OK && version != NULL) {
+        *version = want.version;
+    }
+    return r;
+}
+
+comp_store_result_t comp_store_blob_load(uint8_t *data, uint16_t cap, uint16_t *len,
+                                         uint32_t *version)
+{
+    static comp_table_t t;
+    comp_store_layout_t lay;
+    comp_store_result_t r;
+    unsigned b = 0u;
+    uint32_t off, rlen, i, seq = 0u;
+    uint16_t blen;
+
+    if (data == NULL || len == NULL) {
+        return COMP_STORE_E_ARG;
+    }
+    if (!comp_store_layout(&lay)) {
+        return COMP_STORE_E_LAYOUT;
+    }
+    r = current(&lay, COMP_STORE_SLOT_BLOB, &t, &b, &off, &rlen);
+    if (r == COMP_STORE_EMPTY && active_bank(&lay, &seq) >= 0) {
+        scan_t s;
+        /* a blob record is there but none decodes: damaged, not absent */
+        scan_bank(&lay, b, COMP_STORE_SLOT_BLOB, 0xFFFFFFFFu, NO_OFF, &s);
+        if (s.off != NO_OFF) {
+            return COMP_STORE_E_VERIFY;
+        }
+    }
+    if (r != COMP_STORE_OK) {
+        return r;
+    }
+    blen = (uint16_t)(rec[14] | (rec[15] << 8));
+    if (blen > cap) {
+        return COMP_STORE_E_ARG;
+    }
+    for (i = 0; i < blen; i++) {
+        data[i] = rec[COMP_RECORD_HDR + i];
+    }
+    *len = blen;
+    if (version != NULL) {
+        *version = t.version;
     }
     return COMP_STORE_OK;
 }

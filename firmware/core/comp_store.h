@@ -13,7 +13,8 @@
  *   QEMU mps2-an386 (4 KiB pages): 2 x 16 KiB, the top 32 KiB;
  *   STM32F4 (128 KiB sectors): 2 x 128 KiB = sectors 10 and 11.
  * No layout (COMP_STORE_E_LAYOUT) when the write unit is 0, > 64 or does not
- * divide 64, or the two banks would take more than half of the region.
+ * divide 64, or the two banks would take more than half of the region, or
+ * a bank cannot hold CORE_AXES + 1 full records (the blob, below).
  *
  * Bank: a 64-byte header cell at offset 0, then a log of comp records (comp.h:
  * magic, format, axis, version, header CRC, data CRC) from offset 64, each
@@ -71,6 +72,8 @@
 #define COMP_STORE_REGION_BYTES (32u * 1024u) /* minimum size of both banks */
 #define COMP_STORE_HDR_BYTES    64u           /* bank header cell            */
 #define COMP_STORE_BANK_MAGIC   0x42545343u   /* "CSTB" little-endian        */
+#define COMP_STORE_SLOT_BLOB    0x50u         /* axis byte of the blob record */
+#define COMP_STORE_BLOB_MAX     (COMP_RECORD_MAX - COMP_RECORD_HDR)
 
 typedef enum {
     COMP_STORE_OK = 0,
@@ -113,5 +116,19 @@ comp_store_result_t comp_store_write(unsigned axis, const comp_table_t *table, u
 
 /* Store an empty table (n = 0: no compensation) as the new current one. */
 comp_store_result_t comp_store_clear(unsigned axis, uint32_t *version);
+
+/* One more record kind in the same log: an opaque blob (the drive's saved
+ * parameters, param_store.h) of up to COMP_STORE_BLOB_MAX bytes, in a comp
+ * record whose axis byte is COMP_STORE_SLOT_BLOB and whose reserved u16 at
+ * offset 14 holds the byte length (data zero-padded to 16-byte units, data
+ * CRC over them). Compensation loads never choose it (another axis);
+ * compaction carries it over like an axis's table; the same versioning,
+ * fallback to the previous version and power-cut guarantees. */
+comp_store_result_t comp_store_blob_write(const uint8_t *data, uint16_t len, uint32_t *version);
+/* The current blob into data (cap bytes), its length in *len.
+ * COMP_STORE_EMPTY: none saved; COMP_STORE_E_VERIFY: blob records are in
+ * the log but none decodes (damaged). */
+comp_store_result_t comp_store_blob_load(uint8_t *data, uint16_t cap, uint16_t *len,
+                                         uint32_t *version);
 
 #endif /* COMP_STORE_H */

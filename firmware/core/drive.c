@@ -883,6 +883,7 @@ static bool planner_idle(void)
 
 drive_result_t drive_apply_config(const drive_config_t *c)
 {
+    unsigned i;
     if (plan_check_profile(&c->plan) != PLAN_OK) {
         return DRIVE_E_INVALID;
     }
@@ -894,6 +895,11 @@ drive_result_t drive_apply_config(const drive_config_t *c)
     drv.cfg.stop_decel_nm_s2 = c->stop_decel_nm_s2;
     drv.cfg.arc_chord_nm = c->arc_chord_nm;
     drv.cfg.start_delay_ms = c->start_delay_ms;
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.cfg.soft_min[i] = c->soft_min[i];
+        drv.cfg.soft_max[i] = c->soft_max[i];
+        drv.cfg.in_pos_nm[i] = c->in_pos_nm[i];
+    }
     feed_set_profile(&feed, &c->plan);
     return DRIVE_OK;
 }

@@ -146,6 +146,10 @@
 /* Default and largest start delay (drive_config_t.start_delay_ms), ms. */
 #define DRIVE_START_DELAY_MS     50u
 #define DRIVE_START_DELAY_MS_MAX 10000u
+/* Default in-position window and range of the soft limits, nm. */
+#define DRIVE_IN_POS_NM     5000
+#define DRIVE_IN_POS_NM_MAX 100000000
+#define DRIVE_SOFT_LIMIT_NM ((int64_t)1 << 40)
 
 typedef enum {
     DRIVE_OK = 0,
@@ -154,7 +158,8 @@ typedef enum {
     DRIVE_E_DISABLED, /* the drive is not enabled                        */
     DRIVE_E_FAULTED,  /* a fault is latched: fault_reset first           */
     DRIVE_E_BUSY,     /* not allowed while moving (parameter changes)    */
-    DRIVE_E_CAUSE     /* fault_reset refused: the cause is still present */
+    DRIVE_E_CAUSE,    /* fault_reset refused: the cause is still present */
+    DRIVE_E_LIMIT     /* a target outside the soft travel limits          */
 } drive_result_t;
 
 typedef enum {
@@ -270,6 +275,16 @@ typedef struct {
     int64_t arc_chord_nm;          /* arc segmentation tolerance, 0: default      */
     uint32_t start_delay_ms;       /* start of motion from rest: see "Feeding",
                                     * 0..DRIVE_START_DELAY_MS_MAX              */
+    /* Soft travel limits per axis, nm: a line, arc or jog whose end point
+     * on a moving axis lies outside [soft_min, soft_max] is refused
+     * (DRIVE_E_LIMIT) before it is queued. Off while soft_min >= soft_max
+     * (default 0 / 0). Arcs: the end point and every extreme point
+     * (centre +- radius along a plane axis) the sweep passes. */
+    pos_nm_t soft_min[CORE_AXES];
+    pos_nm_t soft_max[CORE_AXES];
+    /* In-position window per axis, nm (default DRIVE_IN_POS_NM): not used
+     * by the drive; the host waits until |ref - pos| is inside it. */
+    int64_t in_pos_nm[CORE_AXES];
 } drive_config_t;
 
 /* Fill cfg with working defaults for `axes` axes at tick_hz: 1 nm per
@@ -381,7 +396,11 @@ const drive_config_t *drive_config(void);
  *          changes; on success the new profile is in use for the next block
  *          (the empty planner is re-initialised at its position).
  * drive_set_plan_profile replaces the whole profile the same way (all or
- * nothing). Main. */
+ * nothing). Main.
+ * The servo parameters (KP .. FERR_LIMIT) change servo_params_t of the axis
+ * through drive_set_servo_params (validated with servo_config, refused with
+ * DRIVE_E_BUSY while moving, applied by the tick's gains request); the
+ * others (soft limits, in-position window) like the planner's. */
 typedef enum {
     DRIVE_PARAM_V_MAX = 0,      /* per axis, nm/s          1000 .. SC_V_LIMIT   */
     DRIVE_PARAM_A_MAX,          /* per axis, nm/s^2   SC_A_MIN .. SC_A_LIMIT    */
@@ -396,6 +415,15 @@ typedef enum {
     DRIVE_PARAM_STOP_DECEL,     /* nm/s^2 (drive_stop)     1000 .. SC_A_LIMIT   */
     DRIVE_PARAM_ARC_CHORD,      /* nm                         1 .. 1e9          */
     DRIVE_PARAM_START_DELAY_MS, /* ms                         0 .. DRIVE_START_DELAY_MS_MAX */
+    DRIVE_PARAM_KP,             /* per axis, V/m q32_32       0 .. PID_GAIN_MAX - 1 */
+    DRIVE_PARAM_KI,             /* per axis, V/(m*s) q32_32   0 .. PID_GAIN_MAX - 1 */
+    DRIVE_PARAM_KD,             /* per axis, V*s/m q32_32     0 .. PID_GAIN_MAX - 1 */
+    DRIVE_PARAM_KVFF,           /* per axis, V/(m/s) q32_32   0 .. PID_GAIN_MAX - 1 */
+    DRIVE_PARAM_KAFF,           /* per axis, V/(m/s^2) q32_32 0 .. PID_GAIN_MAX - 1 */
+    DRIVE_PARAM_FERR_LIMIT,     /* per axis, nm, 0: off       0 .. 2^31 - 1     */
+    DRIVE_PARAM_SOFT_MIN,       /* per axis, nm   +-DRIVE_SOFT_LIMIT_NM          */
+    DRIVE_PARAM_SOFT_MAX,       /* per axis, nm   +-DRIVE_SOFT_LIMIT_NM          */
+    DRIVE_PARAM_IN_POS,         /* per axis, nm               1 .. DRIVE_IN_POS_NM_MAX */
     DRIVE_PARAM_COUNT
 } drive_param_t;
 
@@ -403,5 +431,25 @@ drive_result_t drive_param_get(drive_param_t id, unsigned axis, int64_t *value);
 drive_result_t drive_param_range(drive_param_t id, unsigned axis, int64_t *lo, int64_t *hi);
 drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value);
 drive_result_t drive_set_plan_profile(const plan_profile_t *prof);
+
+/* Set many parameters at once (param_store's load): every value checked
+ * against its static range, the whole planner profile (plan_check_profile)
+ * and the servo parameters (servo_config) before anything changes; then
+ * applied like drive_param_set. All or nothing: DRIVE_E_INVALID or
+ * DRIVE_E_BUSY (planner not idle) change nothing. Main. */
+typedef struct {
+    drive_param_t id;
+    unsigned axis;
+    int64_t value;
+} drive_param_value_t;
+drive_result_t drive_param_set_all(const drive_param_value_t *v, unsigned n);
+
+/* Soft travel limits (drive_config_t.soft_min / soft_max): DRIVE_E_LIMIT
+ * when an axis that moves (target != from) ends outside the limits of the
+ * axis; the axis is kept for drive_soft_limit_refused. Main. */
+drive_result_t drive_soft_limit_check(const pos_nm_t target[CORE_AXES],
+                                      const pos_nm_t from[CORE_AXES]);
+/* Axis and limits of the last DRIVE_E_LIMIT refusal. Main. */
+void drive_soft_limit_refused(unsigned *axis, int64_t *lo, int64_t *hi);
 
 #endif /* DRIVE_H */

@@ -35,6 +35,9 @@ void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes)
     cfg->friction_ff_band_nm_s = 1000000; /* 1 mm/s */
     cfg->arc_chord_nm = DRIVE_ARC_CHORD_NM;
     cfg->start_delay_ms = DRIVE_START_DELAY_MS;
+    for (i = 0; i < CORE_AXES; i++) {
+        cfg->in_pos_nm[i] = DRIVE_IN_POS_NM; /* soft limits 0 / 0: off */
+    }
 }
 
 static const struct {
@@ -54,7 +57,22 @@ static const struct {
     [DRIVE_PARAM_STOP_DECEL] = {1000, SC_A_LIMIT, false},
     [DRIVE_PARAM_ARC_CHORD] = {1, 1000000000, false},
     [DRIVE_PARAM_START_DELAY_MS] = {0, DRIVE_START_DELAY_MS_MAX, false},
+    [DRIVE_PARAM_KP] = {0, PID_GAIN_MAX - 1, true},
+    [DRIVE_PARAM_KI] = {0, PID_GAIN_MAX - 1, true},
+    [DRIVE_PARAM_KD] = {0, PID_GAIN_MAX - 1, true},
+    [DRIVE_PARAM_KVFF] = {0, PID_GAIN_MAX - 1, true},
+    [DRIVE_PARAM_KAFF] = {0, PID_GAIN_MAX - 1, true},
+    [DRIVE_PARAM_FERR_LIMIT] = {0, INT32_MAX, true},
+    [DRIVE_PARAM_SOFT_MIN] = {-DRIVE_SOFT_LIMIT_NM, DRIVE_SOFT_LIMIT_NM, true},
+    [DRIVE_PARAM_SOFT_MAX] = {-DRIVE_SOFT_LIMIT_NM, DRIVE_SOFT_LIMIT_NM, true},
+    [DRIVE_PARAM_IN_POS] = {1, DRIVE_IN_POS_NM_MAX, true},
 };
+
+/* Servo parameters: set through drive_set_servo_params (the tick applies). */
+static bool param_is_servo(drive_param_t id)
+{
+    return id >= DRIVE_PARAM_KP && id <= DRIVE_PARAM_FERR_LIMIT;
+}
 
 /* The field of a configuration a parameter lives in. */
 static const int64_t *param_field(const drive_config_t *c, drive_param_t id, unsigned axis)
@@ -78,6 +96,22 @@ static const int64_t *param_field(const drive_config_t *c, drive_param_t id, uns
         return &c->stop_decel_nm_s2;
     case DRIVE_PARAM_ARC_CHORD:
         return &c->arc_chord_nm;
+    case DRIVE_PARAM_KP:
+        return &c->servo.axis[axis].kp;
+    case DRIVE_PARAM_KI:
+        return &c->servo.axis[axis].ki;
+    case DRIVE_PARAM_KD:
+        return &c->servo.axis[axis].kd;
+    case DRIVE_PARAM_KVFF:
+        return &c->servo.axis[axis].kvff;
+    case DRIVE_PARAM_KAFF:
+        return &c->servo.axis[axis].kaff;
+    case DRIVE_PARAM_SOFT_MIN:
+        return &c->soft_min[axis];
+    case DRIVE_PARAM_SOFT_MAX:
+        return &c->soft_max[axis];
+    case DRIVE_PARAM_IN_POS:
+        return &c->in_pos_nm[axis];
     default:
         return NULL; /* narrower fields: see param_read / param_write */
     }
@@ -104,6 +138,8 @@ static int64_t param_read(const drive_config_t *c, drive_param_t id, unsigned ax
         return c->plan.shape;
     case DRIVE_PARAM_MBT_WINDOW:
         return c->plan.mbt_window;
+    case DRIVE_PARAM_FERR_LIMIT:
+        return c->servo.ferr_limit_nm[axis];
     default:
         return c->start_delay_ms;
     }
@@ -125,6 +161,9 @@ static void param_write(drive_config_t *c, drive_param_t id, unsigned axis, int6
         break;
     case DRIVE_PARAM_MBT_WINDOW:
         c->plan.mbt_window = (uint16_t)v;
+        break;
+    case DRIVE_PARAM_FERR_LIMIT:
+        c->servo.ferr_limit_nm[axis] = (int32_t)v;
         break;
     default:
         c->start_delay_ms = (uint32_t)v;
@@ -171,7 +210,65 @@ drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value)
     }
     cand = *drive_config();
     param_write(&cand, id, axis, value);
+    if (param_is_servo(id)) {
+        return drive_set_servo_params(&cand.servo);
+    }
     return drive_apply_config(&cand);
+}
+
+drive_result_t drive_param_set_all(const drive_param_value_t *v, unsigned n)
+{
+    static drive_config_t cand;
+    static servo_t probe;
+    servo_params_t q;
+    unsigned k;
+    drive_result_t r;
+    if (v == NULL || !drive_ready()) {
+        return DRIVE_E_INVALID;
+    }
+    cand = *drive_config();
+    for (k = 0; k < n; k++) {
+        if (!param_ok(v[k].id, v[k].axis) || v[k].value < param_info[v[k].id].lo ||
+            v[k].value > param_info[v[k].id].hi) {
+            return DRIVE_E_INVALID;
+        }
+        param_write(&cand, v[k].id, v[k].axis, v[k].value);
+    }
+    q = cand.servo;
+    q.cec.mode = CEC_MODE_OFF;
+    if (plan_check_profile(&cand.plan) != PLAN_OK || servo_init(&probe, &q, NULL) != SERVO_OK) {
+        return DRIVE_E_INVALID;
+    }
+    r = drive_apply_config(&cand); /* checks the planner is idle */
+    if (r != DRIVE_OK) {
+        return r;
+    }
+    return drive_set_servo_params(&cand.servo); /* validated, not moving: OK */
+}
+
+static unsigned limit_axis; /* main: axis of the last DRIVE_E_LIMIT */
+
+drive_result_t drive_soft_limit_check(const pos_nm_t target[CORE_AXES],
+                                      const pos_nm_t from[CORE_AXES])
+{
+    const drive_config_t *c = drive_config();
+    unsigned i;
+    for (i = 0; i < c->axes; i++) {
+        if (c->soft_min[i] < c->soft_max[i] && target[i] != from[i] &&
+            (target[i] < c->soft_min[i] || target[i] > c->soft_max[i])) {
+            limit_axis = i;
+            return DRIVE_E_LIMIT;
+        }
+    }
+    return DRIVE_OK;
+}
+
+void drive_soft_limit_refused(unsigned *axis, int64_t *lo, int64_t *hi)
+{
+    const drive_config_t *c = drive_config();
+    *axis = limit_axis;
+    *lo = c->soft_min[limit_axis];
+    *hi = c->soft_max[limit_axis];
 }
 
 drive_result_t drive_set_plan_profile(const plan_profile_t *prof)

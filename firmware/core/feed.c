@@ -160,6 +160,40 @@ void feed_poll(feed_t *f, uint32_t now)
     feed_publish(f);
 }
 
+/* Soft limits of an arc: its end point, then every extreme point of the
+ * plane (centre +- radius along u or v) its sweep passes; the larger of
+ * the two radii (they differ by at most DRIVE_ARC_RADIUS_TOL_NM). */
+static drive_result_t arc_limits(const feed_block_t *h, const pos_nm_t from[CORE_AXES])
+{
+    const arc_seg_t *a = &h->arc;
+    pos_nm_t p[CORE_AXES];
+    pos_nm_t rad = a->r_s > a->r_e ? a->r_s : a->r_e;
+    unsigned k, i;
+    if (drive_soft_limit_check(h->b.target, from) != DRIVE_OK) {
+        return DRIVE_E_LIMIT;
+    }
+    for (k = 0; k < 4u; k++) {
+        fx_angle_t phi = (fx_angle_t)k << 30; /* +u, +v, -u, -v */
+        uint32_t d = a->sweep > 0 ? (uint32_t)(phi - a->th_s) : (uint32_t)(a->th_s - phi);
+        int64_t sw = a->sweep > 0 ? a->sweep : -a->sweep;
+        if ((int64_t)d > sw) {
+            continue;
+        }
+        for (i = 0; i < CORE_AXES; i++) {
+            p[i] = from[i];
+        }
+        if ((k & 1u) == 0u) {
+            p[a->u] = h->b.centre_u + (k == 0u ? rad : -rad);
+        } else {
+            p[a->v] = h->b.centre_v + (k == 1u ? rad : -rad);
+        }
+        if (drive_soft_limit_check(p, from) != DRIVE_OK) {
+            return DRIVE_E_LIMIT;
+        }
+    }
+    return DRIVE_OK;
+}
+
 drive_result_t feed_queue(feed_t *f, const drive_block_t *b, uint32_t now)
 {
     feed_block_t h;
@@ -185,11 +219,17 @@ drive_result_t feed_queue(feed_t *f, const drive_block_t *b, uint32_t now)
                 return DRIVE_E_INVALID;
             }
         }
+        if (drive_soft_limit_check(h.b.target, f->q_end) != DRIVE_OK) {
+            return DRIVE_E_LIMIT;
+        }
         break;
     case DRIVE_BLOCK_ARC:
         if (!arc_seg_setup(&h.arc, &h.b, f->q_end, f->cfg->axes, f->cfg->tick_hz,
                            f->cfg->arc_chord_nm)) {
             return DRIVE_E_INVALID;
+        }
+        if (arc_limits(&h, f->q_end) != DRIVE_OK) {
+            return DRIVE_E_LIMIT;
         }
         break;
     default:

@@ -6,6 +6,7 @@
 
 #include "drive.h"
 #include "fixmath.h"
+#include "param_store.h"
 #include "preempt.h"
 #include "proto_reply.h"
 
@@ -130,6 +131,15 @@ static const struct {
     {PROTO_PARAM_STOP_DECELERATION, DRIVE_PARAM_STOP_DECEL},
     {PROTO_PARAM_ARC_CHORD_TOLERANCE, DRIVE_PARAM_ARC_CHORD},
     {PROTO_PARAM_START_DELAY_MS, DRIVE_PARAM_START_DELAY_MS},
+    {PROTO_PARAM_PID_KP, DRIVE_PARAM_KP},
+    {PROTO_PARAM_PID_KI, DRIVE_PARAM_KI},
+    {PROTO_PARAM_PID_KD, DRIVE_PARAM_KD},
+    {PROTO_PARAM_VELOCITY_FEEDFORWARD, DRIVE_PARAM_KVFF},
+    {PROTO_PARAM_ACCELERATION_FEEDFORWARD, DRIVE_PARAM_KAFF},
+    {PROTO_PARAM_FOLLOWING_ERROR_LIMIT, DRIVE_PARAM_FERR_LIMIT},
+    {PROTO_PARAM_SOFT_LIMIT_MIN, DRIVE_PARAM_SOFT_MIN},
+    {PROTO_PARAM_SOFT_LIMIT_MAX, DRIVE_PARAM_SOFT_MAX},
+    {PROTO_PARAM_IN_POSITION_WINDOW, DRIVE_PARAM_IN_POS},
 };
 
 static bool drive_param_of(uint16_t base_id, drive_param_t *out)
@@ -203,6 +213,9 @@ static refusal_t param_read(proto_dispatch_t *d, uint16_t id, int64_t *value)
         break;
     case PROTO_PARAM_AXES:
         *value = d->ident.axes;
+        break;
+    case PROTO_PARAM_PARAM_STORE_STATUS:
+        *value = (int64_t)param_store_status();
         break;
     case PROTO_PARAM_POSITION:
         *value = axis < CORE_AXES ? st.pos[axis] : 0;
@@ -307,12 +320,23 @@ static void copy_targets(drive_block_t *b, const int64_t *target)
     }
 }
 
-static refusal_t do_queue(const drive_block_t *b, drive_status_t *st)
+/* Queue b; a target outside the soft travel limits is out_of_range with
+ * the field index of that axis's target (first_field + axis, or
+ * first_field for a jog) and the axis's limits. */
+static refusal_t do_queue(const drive_block_t *b, drive_status_t *st, unsigned first_field,
+                          bool per_axis)
 {
     drive_result_t r = drive_queue_block(b);
 
     PREEMPT_POINT();
     drive_status(st);
+    if (r == DRIVE_E_LIMIT) {
+        unsigned axis;
+        int64_t lo, hi;
+
+        drive_soft_limit_refused(&axis, &lo, &hi);
+        return range_error((uint16_t)(first_field + (per_axis ? axis : 0u)), lo, hi);
+    }
     return map_drive_result(r, st);
 }
 
@@ -356,7 +380,7 @@ static refusal_t req_queue_block(proto_dispatch_t *d, const proto_queue_block_t 
         }
         copy_targets(&b, q->target);
     }
-    return do_queue(&b, st);
+    return do_queue(&b, st, 4, true);
 }
 
 static refusal_t req_queue_arc(proto_dispatch_t *d, const proto_queue_arc_t *q, drive_status_t *st)
@@ -395,7 +419,7 @@ static refusal_t req_queue_arc(proto_dispatch_t *d, const proto_queue_arc_t *q, 
     b.centre_u = q->centre_u;
     b.centre_v = q->centre_v;
     copy_targets(&b, q->target);
-    return do_queue(&b, st);
+    return do_queue(&b, st, 5, true);
 }
 
 static refusal_t req_jog(proto_dispatch_t *d, const proto_jog_t *j, drive_status_t *st)
@@ -426,7 +450,7 @@ static refusal_t req_jog(proto_dispatch_t *d, const proto_jog_t *j, drive_status
     b.kind = DRIVE_BLOCK_LINE;
     b.feed_nm_s = j->feed;
     b.exact_stop = true;
-    return do_queue(&b, st);
+    return do_queue(&b, st, 2, false);
 }
 
 static size_t put_error(uint8_t *out, uint8_t seq, uint8_t req, const refusal_t *r)
@@ -614,6 +638,18 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
     case PROTO_MSG_ESTOP:
         drive_estop();
         return proto_reply_ack(out, seq, id);
+    case PROTO_MSG_PARAM_SAVE: {
+        uint32_t detail = 0u;
+        param_store_result_t ps = param_store_save(NULL, &detail);
+
+        if (ps == PARAM_STORE_OK) {
+            return proto_reply_ack(out, seq, id);
+        }
+        drive_status(&st);
+        r = ps == PARAM_STORE_E_STATE ? refuse(PROTO_ERROR_CODE_BAD_STATE, map_state(&st))
+                                      : refuse(PROTO_ERROR_CODE_INTERNAL, (uint16_t)detail);
+        break;
+    }
     case PROTO_MSG_FAULT_RESET:
         dr = drive_fault_reset();
         PREEMPT_POINT();

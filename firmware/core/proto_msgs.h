@@ -170,6 +170,31 @@
 #define PROTO_CALIB_SAMPLE_FLAG_NO_REFERENCE 1u /* reference field not measured (host reference) */
 #define PROTO_CALIB_SAMPLE_FLAG_FAULT 2u /* a drive or decoder fault was latched while sampling */
 
+/* Contour-error controller mode (param cec_mode). */
+#define PROTO_CEC_MODE_OFF 0u /* no contour-error controller */
+#define PROTO_CEC_MODE_TANGENT 1u /* tangent estimate */
+#define PROTO_CEC_MODE_CURVATURE 2u /* curvature estimate */
+#define PROTO_CEC_MODE_EXACT 3u /* exact contour error */
+
+/* Planner cornering rule (param corner_rule). */
+#define PROTO_CORNER_RULE_JUNCTION_DEVIATION 0u /* junction deviation */
+#define PROTO_CORNER_RULE_VELOCITY_STEP 1u /* axis velocity step */
+#define PROTO_CORNER_RULE_SMOOTHED 2u /* smoothed corner */
+#define PROTO_CORNER_RULE_EXACT_STOP 3u /* exact stop at every junction */
+
+/* Planner block profile (param velocity_profile). */
+#define PROTO_VELOCITY_PROFILE_SCURVE 0u /* S-curve (jerk-limited) */
+#define PROTO_VELOCITY_PROFILE_TRAPEZOID 1u /* trapezoid */
+#define PROTO_VELOCITY_PROFILE_SCURVE_AT_REST 2u /* S-curve only for blocks that start or end at rest */
+
+/* What the drive did with its saved parameters at start-up (param param_store_status). */
+#define PROTO_PARAM_STORE_STATUS_NONE 0u /* nothing saved: defaults */
+#define PROTO_PARAM_STORE_STATUS_LOADED 1u /* the saved parameters are in use */
+#define PROTO_PARAM_STORE_STATUS_CORRUPT 2u /* the record cannot be read: defaults */
+#define PROTO_PARAM_STORE_STATUS_VERSION 3u /* saved by another format or parameter set: defaults */
+#define PROTO_PARAM_STORE_STATUS_AXES 4u /* saved for another axis count: defaults */
+#define PROTO_PARAM_STORE_STATUS_REFUSED 5u /* a saved value the drive refuses: defaults */
+
 /* Message ids. */
 #define PROTO_MSG_IDENTIFY 0x01u
 #define PROTO_MSG_PARAM_GET 0x02u
@@ -183,6 +208,7 @@
 #define PROTO_MSG_STATUS_GET 0x0Au
 #define PROTO_MSG_QUEUE_ARC 0x0Bu
 #define PROTO_MSG_SESSION_OPEN 0x0Cu
+#define PROTO_MSG_PARAM_SAVE 0x2Eu
 #define PROTO_MSG_HEARTBEAT 0x30u
 #define PROTO_MSG_STATUS 0x31u
 #define PROTO_MSG_PROGRESS 0x32u
@@ -242,6 +268,7 @@
 #define PROTO_PARAM_TELEM_PERIOD_MS 0x0003u
 #define PROTO_PARAM_HEARTBEAT_PERIOD_MS 0x0004u
 #define PROTO_PARAM_NODE_ID 0x0005u
+#define PROTO_PARAM_PARAM_STORE_STATUS 0x0006u
 #define PROTO_PARAM_CEC_MODE 0x0100u
 #define PROTO_PARAM_AXES 0x0101u
 #define PROTO_PARAM_POSITION 0x0200u
@@ -259,6 +286,15 @@
 #define PROTO_PARAM_STOP_DECELERATION 0x0355u
 #define PROTO_PARAM_ARC_CHORD_TOLERANCE 0x0356u
 #define PROTO_PARAM_START_DELAY_MS 0x0357u
+#define PROTO_PARAM_PID_KP 0x0500u
+#define PROTO_PARAM_PID_KI 0x0510u
+#define PROTO_PARAM_PID_KD 0x0520u
+#define PROTO_PARAM_VELOCITY_FEEDFORWARD 0x0530u
+#define PROTO_PARAM_ACCELERATION_FEEDFORWARD 0x0540u
+#define PROTO_PARAM_FOLLOWING_ERROR_LIMIT 0x0550u
+#define PROTO_PARAM_SOFT_LIMIT_MIN 0x0600u
+#define PROTO_PARAM_SOFT_LIMIT_MAX 0x0610u
+#define PROTO_PARAM_IN_POSITION_WINDOW 0x0620u
 
 /* identify (h2d): Who are you: versions, axes, capabilities, node id. Read-only, safe to send any time. */
 #define PROTO_IDENTIFY_LEN 0u
@@ -345,6 +381,9 @@ typedef struct {
 } proto_session_open_t;
 size_t proto_session_open_encode(const proto_session_open_t *m, uint8_t *buf, size_t cap);
 bool proto_session_open_decode(const uint8_t *buf, size_t len, proto_session_open_t *m);
+
+/* param_save (h2d): Store the drive parameters in flash (loaded at start-up; docs/parameters.md). Only while disabled (bad_state, arg = state); a flash failure is internal (arg = comp_store result). */
+#define PROTO_PARAM_SAVE_LEN 0u
 
 /* heartbeat (d2h): Sent every heartbeat_period_ms on CAN (lowest priority); contour scan listens for it. */
 #define PROTO_HEARTBEAT_LEN 8u

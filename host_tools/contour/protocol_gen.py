@@ -71,6 +71,10 @@ class Param(NamedTuple):
     per_axis: bool
     owner: str
     doc: str
+    # user units: value shown = raw / scale, in `display` (protocol/README.md)
+    display: str = ""
+    scale: float = 1
+    enum: str = ""
 
 
 class ErrorCode(IntEnum):
@@ -228,6 +232,43 @@ class CalibSampleFlag(IntEnum):
     NEG = 0
     NO_REFERENCE = 1
     FAULT = 2
+
+
+class CecMode(IntEnum):
+    """Contour-error controller mode (param cec_mode)."""
+
+    OFF = 0
+    TANGENT = 1
+    CURVATURE = 2
+    EXACT = 3
+
+
+class CornerRule(IntEnum):
+    """Planner cornering rule (param corner_rule)."""
+
+    JUNCTION_DEVIATION = 0
+    VELOCITY_STEP = 1
+    SMOOTHED = 2
+    EXACT_STOP = 3
+
+
+class VelocityProfile(IntEnum):
+    """Planner block profile (param velocity_profile)."""
+
+    SCURVE = 0
+    TRAPEZOID = 1
+    SCURVE_AT_REST = 2
+
+
+class ParamStoreStatus(IntEnum):
+    """What the drive did with its saved parameters at start-up (param param_store_status)."""
+
+    NONE = 0
+    LOADED = 1
+    CORRUPT = 2
+    VERSION = 3
+    AXES = 4
+    REFUSED = 5
 
 
 MESSAGES = (
@@ -396,6 +437,18 @@ MESSAGES = (
         4,
         4,
         'A host starts a session: the drive forgets its replay cache and echoes the nonce. Everything the drive sent before this reply belongs to an earlier session: the host discards it. The bootloader answers it too.',
+    ),
+    Message(
+        "param_save",
+        0x2E,
+        "h2d",
+        'ack',
+        None,
+        (
+        ),
+        0,
+        0,
+        'Store the drive parameters in flash (loaded at start-up; docs/parameters.md). Only while disabled (bad_state, arg = state); a flash failure is internal (arg = comp_store result).',
     ),
     Message(
         "heartbeat",
@@ -1141,6 +1194,9 @@ PARAMS = (
         False,
         'link',
         'Communication watchdog: controlled stop when no valid request arrives for this long while motion is queued (0 = off).',
+        'ms',
+        1,
+        '',
     ),
     Param(
         'status_period_ms',
@@ -1154,6 +1210,9 @@ PARAMS = (
         False,
         'link',
         'Period of status+progress frames (0 = off).',
+        'ms',
+        1,
+        '',
     ),
     Param(
         'telem_period_ms',
@@ -1167,6 +1226,9 @@ PARAMS = (
         False,
         'link',
         'Period of full telemetry cycles (0 = off); takes precedence over status_period_ms.',
+        'ms',
+        1,
+        '',
     ),
     Param(
         'heartbeat_period_ms',
@@ -1180,6 +1242,9 @@ PARAMS = (
         False,
         'link',
         'CAN heartbeat period (0 = off).',
+        'ms',
+        1,
+        '',
     ),
     Param(
         'node_id',
@@ -1193,6 +1258,25 @@ PARAMS = (
         False,
         'link',
         'CAN node id (set by the port/configuration).',
+        '',
+        1,
+        '',
+    ),
+    Param(
+        'param_store_status',
+        6,
+        'u8',
+        '',
+        0,
+        5,
+        0,
+        'ro',
+        False,
+        'link',
+        'What the drive did with its saved parameters at start-up (param_save).',
+        '',
+        1,
+        'param_store_status',
     ),
     Param(
         'cec_mode',
@@ -1206,6 +1290,9 @@ PARAMS = (
         False,
         'drive',
         'Contour-error controller: 0 off, 1 tangent, 2 curvature, 3 exact (refused while moving).',
+        '',
+        1,
+        'cec_mode',
     ),
     Param(
         'axes',
@@ -1219,6 +1306,9 @@ PARAMS = (
         False,
         'drive',
         'Axes in use.',
+        '',
+        1,
+        '',
     ),
     Param(
         'position',
@@ -1232,6 +1322,9 @@ PARAMS = (
         True,
         'drive',
         'Measured position.',
+        'mm',
+        1000000,
+        '',
     ),
     Param(
         'following_error',
@@ -1245,6 +1338,9 @@ PARAMS = (
         True,
         'drive',
         'Reference minus measured position.',
+        'mm',
+        1000000,
+        '',
     ),
     Param(
         'max_velocity',
@@ -1258,6 +1354,9 @@ PARAMS = (
         True,
         'drive',
         'Planner: axis velocity limit (busy while moving).',
+        'mm/s',
+        1000000,
+        '',
     ),
     Param(
         'max_acceleration',
@@ -1271,6 +1370,9 @@ PARAMS = (
         True,
         'drive',
         'Planner: axis acceleration limit (busy while moving).',
+        'mm/s^2',
+        1000000,
+        '',
     ),
     Param(
         'max_jerk',
@@ -1284,6 +1386,9 @@ PARAMS = (
         True,
         'drive',
         'Planner: axis jerk limit, S-curve profiles (busy while moving).',
+        'mm/s^3',
+        1000000,
+        '',
     ),
     Param(
         'corner_velocity_step',
@@ -1297,6 +1402,9 @@ PARAMS = (
         True,
         'drive',
         'Planner, corner_rule 1: allowed axis velocity step at a junction.',
+        'mm/s',
+        1000000,
+        '',
     ),
     Param(
         'corner_acceleration',
@@ -1310,6 +1418,9 @@ PARAMS = (
         True,
         'drive',
         'Planner, corner_rule 2 (smoothed corner): axis corner acceleration.',
+        'mm/s^2',
+        1000000,
+        '',
     ),
     Param(
         'junction_deviation',
@@ -1323,6 +1434,9 @@ PARAMS = (
         False,
         'drive',
         'Planner, corner_rule 0: junction deviation.',
+        'mm',
+        1000000,
+        '',
     ),
     Param(
         'corner_rule',
@@ -1336,6 +1450,9 @@ PARAMS = (
         False,
         'drive',
         'Planner cornering rule: 0 junction deviation, 1 axis velocity step, 2 smoothed corner, 3 exact stop at every junction.',
+        '',
+        1,
+        'corner_rule',
     ),
     Param(
         'velocity_profile',
@@ -1349,6 +1466,9 @@ PARAMS = (
         False,
         'drive',
         'Planner block profile: 0 S-curve (jerk-limited), 1 trapezoid, 2 S-curve only for blocks that start or end at rest.',
+        '',
+        1,
+        'velocity_profile',
     ),
     Param(
         'min_block_time',
@@ -1362,6 +1482,9 @@ PARAMS = (
         False,
         'drive',
         'Planner: minimum block time as a throughput limit (0 = off).',
+        'ms',
+        1000000,
+        '',
     ),
     Param(
         'min_block_window',
@@ -1375,6 +1498,9 @@ PARAMS = (
         False,
         'drive',
         'Planner: blocks in the minimum-block-time window (1 = a per-block cap).',
+        'blocks',
+        1,
+        '',
     ),
     Param(
         'stop_deceleration',
@@ -1388,6 +1514,9 @@ PARAMS = (
         False,
         'drive',
         'Controlled stop (stop request, watchdog): path deceleration.',
+        'mm/s^2',
+        1000000,
+        '',
     ),
     Param(
         'arc_chord_tolerance',
@@ -1401,6 +1530,9 @@ PARAMS = (
         False,
         'drive',
         "Arc blocks: largest chord deviation of the drive's segmentation.",
+        'um',
+        1000,
+        '',
     ),
     Param(
         'start_delay_ms',
@@ -1414,6 +1546,153 @@ PARAMS = (
         False,
         'drive',
         "A job starts from rest once the planner is full, its first block's plan is final, or no block arrived for this long.",
+        'ms',
+        1,
+        '',
+    ),
+    Param(
+        'pid_kp',
+        1280,
+        'i64',
+        '2^-32 V/m',
+        0,
+        4611686018427387903,
+        6442450944000,
+        'rw',
+        True,
+        'drive',
+        'Position loop proportional gain (busy while moving).',
+        'V/m',
+        4294967296,
+        '',
+    ),
+    Param(
+        'pid_ki',
+        1296,
+        'i64',
+        '2^-32 V/(m*s)',
+        0,
+        4611686018427387903,
+        34359738368000,
+        'rw',
+        True,
+        'drive',
+        'Position loop integral gain (busy while moving).',
+        'V/(m*s)',
+        4294967296,
+        '',
+    ),
+    Param(
+        'pid_kd',
+        1312,
+        'i64',
+        '2^-32 V*s/m',
+        0,
+        4611686018427387903,
+        21474836480,
+        'rw',
+        True,
+        'drive',
+        'Position loop derivative gain (busy while moving).',
+        'V*s/m',
+        4294967296,
+        '',
+    ),
+    Param(
+        'velocity_feedforward',
+        1328,
+        'i64',
+        '2^-32 V/(m/s)',
+        0,
+        4611686018427387903,
+        0,
+        'rw',
+        True,
+        'drive',
+        'Velocity feed-forward gain Kvff (busy while moving).',
+        'V/(m/s)',
+        4294967296,
+        '',
+    ),
+    Param(
+        'acceleration_feedforward',
+        1344,
+        'i64',
+        '2^-32 V/(m/s^2)',
+        0,
+        4611686018427387903,
+        0,
+        'rw',
+        True,
+        'drive',
+        'Acceleration feed-forward gain Kaff (busy while moving).',
+        'V/(m/s^2)',
+        4294967296,
+        '',
+    ),
+    Param(
+        'following_error_limit',
+        1360,
+        'i64',
+        'nm',
+        0,
+        2147483647,
+        5000000,
+        'rw',
+        True,
+        'drive',
+        'Following-error fault limit (0 = off; busy while moving).',
+        'mm',
+        1000000,
+        '',
+    ),
+    Param(
+        'soft_limit_min',
+        1536,
+        'i64',
+        'nm',
+        -1099511627776,
+        1099511627776,
+        0,
+        'rw',
+        True,
+        'drive',
+        'Soft travel limit, low end: a block or jog ending outside [min, max] on a moving axis (an arc: also its bulge) is refused (out_of_range, lo/hi = the limits) before anything moves; off while min >= max (0 / 0).',
+        'mm',
+        1000000,
+        '',
+    ),
+    Param(
+        'soft_limit_max',
+        1552,
+        'i64',
+        'nm',
+        -1099511627776,
+        1099511627776,
+        0,
+        'rw',
+        True,
+        'drive',
+        'Soft travel limit, high end (see soft_limit_min).',
+        'mm',
+        1000000,
+        '',
+    ),
+    Param(
+        'in_position_window',
+        1568,
+        'i64',
+        'nm',
+        1,
+        100000000,
+        5000,
+        'rw',
+        True,
+        'drive',
+        "In position: |reference - position| inside this window (the host's run waits for it at the end of a job).",
+        'mm',
+        1000000,
+        '',
     ),
 )
 

@@ -25,8 +25,8 @@ def server():
 def test_planner_parameters_over_the_link(server, capsys):
     with connect(port=server.serial) as c:
         vy0 = c.get_param("max_velocity.y")  # the machine's (hil_sim/machines/tuned.toml)
-    rc = cli.main(["set", "max_velocity.y", "250000000", "--port", server.serial])
-    assert rc == 0 and "250000000 nm/s" in capsys.readouterr().out
+    rc = cli.main(["set", "max_velocity.y", "250", "--port", server.serial])
+    assert rc == 0 and "max_velocity.y = 250 mm/s" in capsys.readouterr().out
     with connect(port=server.serial) as c:
         assert c.get_param("max_velocity.y") == 250000000
         assert c.get_param("max_velocity.x") != 250000000

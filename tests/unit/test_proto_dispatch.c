@@ -460,6 +460,130 @@ static void test_planner_parameters_over_the_link(void)
     TEST_ASSERT_EQUAL_INT64(1000000000, get_param(PROTO_PARAM_STOP_DECELERATION));
 }
 
+static size_t jog(uint8_t axis, int64_t dist, uint32_t feed)
+{
+    proto_jog_t j = {axis, feed, dist};
+    uint8_t p[16];
+
+    return request(PROTO_MSG_JOG, p, proto_jog_encode(&j, p, sizeof p));
+}
+
+/* Gains, feed-forward and the following-error limit reach the servo through
+ * the tick's gains request: a 1 um limit trips on a jog that the default
+ * 5 mm limit lets run; zero gains leave the axis where it was. */
+static void test_servo_parameters_reach_the_servo(void)
+{
+    proto_error_t e;
+    proto_drive_state_t s;
+
+    TEST_ASSERT_EQUAL_INT64(5000000, get_param(PROTO_PARAM_FOLLOWING_ERROR_LIMIT + 0));
+    TEST_ASSERT_EQUAL_INT64(drive_config()->servo.axis[1].kp, get_param(PROTO_PARAM_PID_KP + 1));
+    e = set_param_error(PROTO_PARAM_PID_KP, -1, PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_INT64(0, e.lo);
+    TEST_ASSERT_EQUAL_INT64(((int64_t)1 << 62) - 1, e.hi);
+    set_param_error(PROTO_PARAM_FOLLOWING_ERROR_LIMIT, (int64_t)1 << 31,
+                    PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_VELOCITY_FEEDFORWARD + 2, 12345), out[0]));
+    TEST_ASSERT_EQUAL_INT64(12345, drive_config()->servo.axis[2].kvff);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_FOLLOWING_ERROR_LIMIT + 0, 1000), out[0]));
+    TEST_ASSERT_EQUAL_INT64(1000, get_param(PROTO_PARAM_FOLLOWING_ERROR_LIMIT + 0));
+    enable();
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, (jog(0, 2000000, 50000000), out[0]));
+    run_ms(200);
+    s = state();
+    TEST_ASSERT_TRUE((s.faults & (1u << PROTO_FAULT_FOLLOWING_ERROR)) != 0u);
+
+    /* zero gains on Y: it does not follow a jog */
+    start();
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, (set_param(PROTO_PARAM_PID_KP + 1, 0), out[0]));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, (set_param(PROTO_PARAM_PID_KI + 1, 0), out[0]));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, (set_param(PROTO_PARAM_PID_KD + 1, 0), out[0]));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_VELOCITY_FEEDFORWARD + 1, 0), out[0]));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_ACCELERATION_FEEDFORWARD + 1, 0), out[0]));
+    enable();
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, (jog(1, 10000000, 10000000), out[0]));
+    run_ms(100);
+    TEST_ASSERT_INT64_WITHIN(1000, 0, get_param(PROTO_PARAM_POSITION + 1));
+    /* busy while moving */
+    set_param_error(PROTO_PARAM_PID_KP + 1, 1, PROTO_ERROR_CODE_BUSY);
+}
+
+/* Soft travel limits: off at 0 / 0; a jog or block ending outside is
+ * refused with out_of_range and the limits before anything moves; an
+ * axis that does not move is not checked. */
+static void test_soft_limits_refuse_before_motion(void)
+{
+    proto_error_t e;
+
+    TEST_ASSERT_EQUAL_INT64(5000, get_param(PROTO_PARAM_IN_POSITION_WINDOW + 2));
+    set_param_error(PROTO_PARAM_IN_POSITION_WINDOW, 0, PROTO_ERROR_CODE_OUT_OF_RANGE);
+    enable();
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, (jog(0, 3000000, 50000000), out[0]));
+    run_ms(400);
+    TEST_ASSERT_EQUAL_UINT8(PROTO_STATE_READY, state().state);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_SOFT_LIMIT_MIN + 0, -1000000), out[0]));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_SOFT_LIMIT_MAX + 0, 4000000), out[0]));
+    /* X at 3 mm: +2 mm ends at 5 mm, outside */
+    e = expect_error(jog(0, 2000000, 50000000), PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_UINT16(2, e.arg);
+    TEST_ASSERT_EQUAL_INT64(-1000000, e.lo);
+    TEST_ASSERT_EQUAL_INT64(4000000, e.hi);
+    e = expect_error(queue_line(7, -2000000, 50000000), PROTO_ERROR_CODE_OUT_OF_RANGE);
+    TEST_ASSERT_EQUAL_UINT16(4, e.arg);
+    run_ms(50);
+    TEST_ASSERT_EQUAL_UINT8(PROTO_STATE_READY, state().state);
+    TEST_ASSERT_INT64_WITHIN(100000, 3000000, get_param(PROTO_PARAM_POSITION + 0));
+    /* inside: accepted; Y has no limits */
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, (jog(0, 500000, 50000000), out[0]));
+    run_ms(200);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, (jog(1, 9000000, 50000000), out[0]));
+    run_ms(500);
+    /* an arc whose end point is inside but whose bulge is not: Y from y0
+     * to y0 over (X+10 mm, centre X+5 mm): counter-clockwise passes
+     * y0 - 5 mm (refused, Y limits y0 - 1 .. y0 + 10 mm), clockwise
+     * y0 + 5 mm */
+    {
+        drive_status_t st;
+        proto_queue_arc_t q = {8, 0, 0, 1, 20000000, {0, 0, 0, 0}, 0, 0};
+        uint8_t p[80];
+
+        drive_status(&st);
+        TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                               (set_param(PROTO_PARAM_SOFT_LIMIT_MAX + 0, 100000000), out[0]));
+        TEST_ASSERT_EQUAL_HEX8(
+            PROTO_MSG_PARAM_VALUE,
+            (set_param(PROTO_PARAM_SOFT_LIMIT_MIN + 1, st.ref[1] - 1000000), out[0]));
+        TEST_ASSERT_EQUAL_HEX8(
+            PROTO_MSG_PARAM_VALUE,
+            (set_param(PROTO_PARAM_SOFT_LIMIT_MAX + 1, st.ref[1] + 10000000), out[0]));
+        q.target[0] = st.ref[0] + 10000000;
+        q.target[1] = st.ref[1];
+        q.centre_u = st.ref[0] + 5000000;
+        q.centre_v = st.ref[1];
+        e = expect_error(request(PROTO_MSG_QUEUE_ARC, p, proto_queue_arc_encode(&q, p, sizeof p)),
+                         PROTO_ERROR_CODE_OUT_OF_RANGE);
+        TEST_ASSERT_EQUAL_UINT16(5 + 1, e.arg);
+        TEST_ASSERT_EQUAL_INT64(st.ref[1] - 1000000, e.lo);
+        q.sense = -1;
+        TEST_ASSERT_EQUAL_HEX8(
+            PROTO_MSG_QUEUE_REPLY,
+            (request(PROTO_MSG_QUEUE_ARC, p, proto_queue_arc_encode(&q, p, sizeof p)), out[0]));
+        run_ms(2000);
+    }
+    /* off again: min >= max */
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_SOFT_LIMIT_MAX + 0, 4000000), out[0]));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_SOFT_LIMIT_MAX + 0, -1000000), out[0]));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, (jog(0, 2000000, 50000000), out[0]));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -476,5 +600,7 @@ int main(void)
     RUN_TEST(test_enable_and_queue_in_one_batch_runs_the_block);
     RUN_TEST(test_queued_time_is_reported);
     RUN_TEST(test_planner_parameters_over_the_link);
+    RUN_TEST(test_servo_parameters_reach_the_servo);
+    RUN_TEST(test_soft_limits_refuse_before_motion);
     return UNITY_END();
 }

@@ -81,8 +81,13 @@ def describe_error(request: str, f: dict) -> str:
         pg.ErrorCode.CAUSE_PRESENT: "the fault's cause is still present",
     }.get(code, cname)
     if code == pg.ErrorCode.OUT_OF_RANGE:
-        target = _param_label(arg) if request in ("param_set", "param_get") else f"field {arg}"
-        what = f"{target} out of range [{f['lo']}, {f['hi']}]"
+        from contour.params import format_range, param_of_id
+
+        found = param_of_id(arg) if request in ("param_set", "param_get") else None
+        if found is not None:
+            what = f"{_param_label(arg)} out of range {format_range(found[0], f['lo'], f['hi'])}"
+        else:
+            what = f"field {arg} out of range [{f['lo']}, {f['hi']}]"
     return f"drive refused {request}: {what} ({cname})"
 
 
@@ -106,16 +111,10 @@ def parse_param(name: str) -> tuple[pg.Param, int]:
 
 
 def parse_value(p: pg.Param, text: str) -> int:
-    t = text.strip().lower().replace("_", "")
-    if p.type == "bool" and t in ("true", "on", "yes", "false", "off", "no"):
-        return int(t in ("true", "on", "yes"))
-    try:
-        v = int(t, 0)
-    except ValueError:
-        raise UserError(f"{p.name}: {text!r} is not an integer") from None
-    if not p.min <= v <= p.max:
-        raise UserError(f"{p.name}: {v} out of range [{p.min}, {p.max}] {p.unit}".rstrip())
-    return v
+    """User text (user units, enum names, unit suffixes) -> raw value."""
+    from contour.params import parse_value as _parse
+
+    return _parse(p, text)
 
 
 class Client:

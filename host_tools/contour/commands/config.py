@@ -1,0 +1,278 @@
+"""`contour config backup|restore|save`: the drive's parameters as a file and in flash.
+
+backup FILE.toml
+    Every writable parameter (per axis for the drive's axes) in user units
+    (``"25 mm/s"``, ``"curvature"``; contour/params.py), under a ``[drive]``
+    header naming board, firmware version, build id, protocol version and axes.
+restore FILE.toml
+    Checks the whole file first: a ``[drive]`` table with the drive's axis
+    count, only known writable parameters, every per-axis parameter with one
+    value per axis of the drive, every value in its range, the drive not
+    moving. Nothing is written unless all of that holds. Then writes in table
+    order (a value the drive refuses because of another one still to come,
+    e.g. max_acceleration before max_jerk, is retried after the others) and
+    reads every value back. Another board id only warns.
+save
+    Stores the drive parameters in the drive's flash (message param_save); the
+    drive loads them at start-up and reports what it did in the read-only
+    parameter param_store_status. Only while the drive is disabled.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import sys
+
+import tomllib
+
+from contour import params as up
+from contour import protocol_gen as pg
+from contour.commands.param import param_names
+from contour.errors import UserError
+from contour.image import build_id_prefix
+from contour.link.client import DriveError, parse_param
+from contour.link.options import connect_from_args, link_options
+
+AXES = "xyza"
+HEADER = """\
+# contour drive configuration (contour config backup). Values in user units:
+# a number with its unit ("25 mm/s"; another unit of the same kind is taken,
+# "1500 mm/min"), enums by name. Write it back with: contour config restore FILE
+"""
+
+
+def _version(v: int) -> str:
+    return f"{v >> 16}.{(v >> 8) & 0xFF}.{v & 0xFF}"
+
+
+def _q(s: str) -> str:
+    return json.dumps(s, ensure_ascii=False)  # a TOML basic string
+
+
+def _toml_value(p: pg.Param, raw: int) -> str:
+    return _q(up.format_value(p, raw))
+
+
+def backup_text(ident: dict, values: dict[str, int]) -> str:
+    """The backup file for `values` (name or name.axis -> raw)."""
+    axes = ident["axes"]
+    lines = [
+        HEADER,
+        "[drive]",
+        f"board_id = {ident['board_id']}",
+        f"firmware_version = {_q(_version(ident['fw_version']))}",
+        f"build_id = {_q(build_id_prefix(ident['build_id']))}",
+        f"protocol_version = {ident['protocol_version']}",
+        f"axes = {axes}",
+        "saved = "
+        + _q(datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")),
+        "",
+        "[params]",
+    ]
+    for p in pg.PARAMS:
+        if p.access != "rw":
+            continue
+        if p.per_axis:
+            cells = ", ".join(
+                f"{AXES[i]} = {_toml_value(p, values[f'{p.name}.{AXES[i]}'])}" for i in range(axes)
+            )
+            lines.append(f"{p.name} = {{ {cells} }}")
+        else:
+            lines.append(f"{p.name} = {_toml_value(p, values[p.name])}")
+    return "\n".join(lines) + "\n"
+
+
+def read_all(client, axes: int) -> dict[str, int]:
+    return {n: client.get_param(n) for n in param_names(axes, writable_only=True)}
+
+
+def parse_backup(text: str, axes: int, source: str = "file") -> tuple[dict, dict[str, int]]:
+    """Check a whole backup against a drive with `axes` axes: ([drive] table,
+    name -> raw value). Every problem is collected; UserError lists them."""
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise UserError(f"{source}: not TOML: {exc}") from None
+    problems = []
+    drive = doc.get("drive")
+    if not isinstance(drive, dict):
+        problems.append("no [drive] table")
+        drive = {}
+    elif drive.get("axes") != axes:
+        problems.append(f"written for {drive.get('axes')} axes, the drive has {axes}")
+    table = doc.get("params")
+    if not isinstance(table, dict):
+        problems.append("no [params] table")
+        table = {}
+    unknown = sorted(set(doc) - {"drive", "params"})
+    if unknown:
+        problems.append(f"unknown tables: {', '.join(unknown)}")
+    out: dict[str, int] = {}
+    for name, v in table.items():
+        p = pg.PARAM_BY_NAME.get(name)
+        if p is None:
+            problems.append(f"{name}: unknown parameter")
+            continue
+        if p.access != "rw":
+            problems.append(f"{name}: read-only")
+            continue
+        if p.per_axis:
+            want = set(AXES[:axes])
+            if not isinstance(v, dict) or set(v) != want:
+                got = ", ".join(sorted(v)) if isinstance(v, dict) else repr(v)
+                problems.append(
+                    f"{name}: needs one value per axis ({', '.join(AXES[:axes])}), got {got}"
+                )
+                continue
+            items = [(f"{name}.{a}", v[a]) for a in AXES[:axes]]
+        else:
+            items = [(name, v)]
+        for full, val in items:
+            if isinstance(val, bool) or not isinstance(val, (str, int, float)):
+                problems.append(f"{full}: {val!r} is not a value")
+                continue
+            try:
+                out[full] = up.parse_value(p, str(val))
+            except UserError as exc:
+                problems.append(str(exc))
+    if problems:
+        raise UserError(
+            f"{source}: nothing written, {len(problems)} problem(s):\n  " + "\n  ".join(problems)
+        )
+    return drive, out
+
+
+def write_all(client, values: dict[str, int]) -> None:
+    """Write in table order; a refusal that another value may lift (range,
+    bad value) is retried after the others; then read every value back."""
+    pending = [n for n in param_names(pg.MAX_AXES, writable_only=True) if n in values]
+    errors: dict[str, DriveError] = {}
+    for _ in range(3):
+        later = []
+        for name in pending:
+            try:
+                client.set_param(name, values[name])
+            except DriveError as exc:
+                if exc.code not in (pg.ErrorCode.OUT_OF_RANGE, pg.ErrorCode.BAD_VALUE):
+                    raise UserError(f"restore stopped at {name}: {exc}") from None
+                later.append(name)
+                errors[name] = exc
+        if not later or later == pending:
+            pending = later
+            break
+        pending = later
+    if pending:
+        raise UserError(
+            "restore incomplete: the drive refused "
+            + "; ".join(f"{n}: {errors[n]}" for n in pending)
+        )
+    wrong = []
+    for name, raw in values.items():
+        back = client.get_param(name)
+        if back != raw:
+            p = parse_param(name)[0]
+            wrong.append(
+                f"{name} reads {up.format_value(p, back)}, wrote {up.format_value(p, raw)}"
+            )
+    if wrong:
+        raise UserError("restore verify failed: " + "; ".join(wrong))
+
+
+def run_backup(args) -> int:
+    with connect_from_args(args) as client:
+        ident = client.identify()
+        values = read_all(client, ident["axes"])
+    text = backup_text(ident, values)
+    if args.file == "-":
+        sys.stdout.write(text)
+        return 0
+    try:
+        with open(args.file, "w", encoding="utf-8") as f:
+            f.write(text)
+    except OSError as exc:
+        raise UserError(f"{args.file}: {exc.strerror}") from None
+    if args.json:
+        print(json.dumps({"file": args.file, "values": len(values), "axes": ident["axes"]}))
+    else:
+        print(f"{len(values)} values of {ident['axes']} axes written to {args.file}")
+    return 0
+
+
+def run_restore(args) -> int:
+    try:
+        with open(args.file, encoding="utf-8") as f:
+            text = f.read()
+    except OSError as exc:
+        raise UserError(f"{args.file}: {exc.strerror}") from None
+    with connect_from_args(args) as client:
+        ident = client.identify()
+        drive, values = parse_backup(text, ident["axes"], args.file)
+        if drive.get("board_id") not in (None, ident["board_id"]):
+            print(
+                f"warning: {args.file} is from board {drive['board_id']}, "
+                f"the drive is board {ident['board_id']}",
+                file=sys.stderr,
+            )
+        st = client.status()
+        if st["state"] in (pg.State.RUNNING, pg.State.STOPPING):
+            raise UserError("the drive is moving: nothing written (wait or stop it first)")
+        if not args.dry_run:
+            write_all(client, values)
+    if args.json:
+        print(json.dumps({"file": args.file, "values": len(values), "written": not args.dry_run}))
+    elif args.dry_run:
+        print(f"{args.file}: {len(values)} values check out; nothing written (--dry-run)")
+    else:
+        print(f"{len(values)} values restored from {args.file} and read back")
+    return 0
+
+
+def run_save(args) -> int:
+    with connect_from_args(args) as client:
+        try:
+            client.request("param_save")
+        except DriveError as exc:
+            if exc.code == pg.ErrorCode.BAD_STATE:
+                raise UserError(
+                    "the drive saves its parameters only while disabled: contour disable first"
+                ) from None
+            raise
+    if args.json:
+        print(json.dumps({"saved": True}))
+    else:
+        print("drive parameters saved to the drive's flash (loaded at its next start)")
+    return 0
+
+
+def register(sub) -> None:
+    c = sub.add_parser(
+        "config",
+        help="drive parameters: backup to / restore from a TOML file, save to flash",
+        description=__doc__.split("\n\n", 1)[1] if __doc__ else None,
+    )
+    cs = c.add_subparsers(dest="config_cmd", metavar="{backup,restore,save}", required=True)
+    b = cs.add_parser(
+        "backup",
+        help="write every writable parameter to FILE.toml (- : stdout)",
+        parents=[link_options()],
+    )
+    b.add_argument("file", metavar="FILE.toml")
+    b.add_argument("--json", action="store_true", help="print the result as JSON")
+    b.set_defaults(func=run_backup)
+    r = cs.add_parser(
+        "restore",
+        help="check FILE.toml completely, then write it and read it back",
+        parents=[link_options()],
+    )
+    r.add_argument("file", metavar="FILE.toml")
+    r.add_argument("--dry-run", action="store_true", help="check only, write nothing")
+    r.add_argument("--json", action="store_true", help="print the result as JSON")
+    r.set_defaults(func=run_restore)
+    s = cs.add_parser(
+        "save",
+        help="store the drive parameters in its flash (drive disabled)",
+        parents=[link_options()],
+    )
+    s.add_argument("--json", action="store_true", help="print JSON")
+    s.set_defaults(func=run_save)

@@ -1,0 +1,219 @@
+"""Parameters a machinist can use, against `sim serve`: values in user units
+with unit suffixes and enum names, `get --all` with units, servo and travel
+parameters, soft limits refusing a jog before it moves, `config backup` /
+`config restore` (whole file checked before anything is written; written and
+read back), and `config save` surviving a restart of the drive on the same
+flash file (`--flash`)."""
+
+from __future__ import annotations
+
+import json
+import random
+import time
+from pathlib import Path
+
+import pytest
+from contour import image as img
+from contour import protocol_gen as pg
+from contour.link import DriveError, connect
+from contour.simserve import spawn
+from linkhelp import run_cli, wait_state
+
+LOAD_ADDR = 0x08010200  # the simulated drive's application slot (test_flash_e2e.py)
+
+
+@pytest.fixture(scope="module")
+def server():
+    with spawn() as s:
+        yield s
+
+
+def test_values_in_user_units(server, capsys):
+    port = ["--port", server.serial]
+    rc, out, err = run_cli(["set", "max_velocity.x", "600mm/min", *port], capsys)
+    assert rc == 0, err
+    assert out.strip() == "max_velocity.x = 10 mm/s"
+    rc, out, _ = run_cli(["get", "max_velocity.x", *port], capsys)
+    assert out.strip() == "max_velocity.x = 10 mm/s"
+    rc, out, _ = run_cli(["set", "max_velocity.x", "250", *port], capsys)
+    assert rc == 0 and out.strip() == "max_velocity.x = 250 mm/s"
+    rc, out, err = run_cli(["set", "cec_mode", "curvature", *port], capsys)
+    assert rc == 0, err
+    assert out.strip() == "cec_mode = curvature"
+    rc, out, _ = run_cli(["set", "cec_mode", "off", *port], capsys)
+    assert rc == 0
+    rc, out, _ = run_cli(["set", "arc_chord_tolerance", "0.5um", *port], capsys)
+    assert rc == 0 and out.strip() == "arc_chord_tolerance = 0.5 um"
+    # wrong unit kind, unknown enum name: usage errors, nothing sent
+    rc, _, err = run_cli(["set", "max_velocity.x", "10mm", *port], capsys)
+    assert rc == 2 and "does not fit" in err
+    rc, _, err = run_cli(["set", "cec_mode", "curly", *port], capsys)
+    assert rc == 2 and "curvature" in err
+    # the drive's out_of_range in user units
+    with connect(port=server.serial) as c:
+        with pytest.raises(DriveError, match=r"max_velocity.x out of range \[0.001, ") as e:
+            c.request("param_set", param=pg.PARAM_BY_NAME["max_velocity"].id, value=1)
+        assert e.value.code == pg.ErrorCode.OUT_OF_RANGE
+    rc, out, _ = run_cli(["get", "--all", *port], capsys)
+    assert rc == 0
+    lines = {ln.split("=")[0].strip(): ln.split("=", 1)[1].strip() for ln in out.splitlines()}
+    assert lines["in_position_window.x"] == "0.005 mm"
+    assert lines["pid_kp.y"].endswith(" V/m") and float(lines["pid_kp.y"].split()[0]) > 0
+    assert lines["following_error_limit.z"].endswith(" mm")
+    assert lines["soft_limit_max.x"] == "0 mm"
+    assert lines["cec_mode"] == "off"
+    assert lines["param_store_status"] == "none"
+    rc, out, _ = run_cli(["get", "max_acceleration.y", "--json", *port], capsys)
+    j = json.loads(out)["max_acceleration.y"]
+    assert j["unit"] == "mm/s^2" and j["raw_unit"] == "nm/s^2" and j["raw"] == j["value"] * 10**6
+
+
+def test_soft_limits_refuse_a_jog_before_it_moves(server, capsys):
+    port = ["--port", server.serial]
+    with connect(port=server.serial) as c:
+        if c.status()["state"] in (pg.State.FAULT, pg.State.ESTOP):
+            c.request("fault_reset")
+        x0 = c.status()["pos"][0]
+    lo, hi = (x0 - 1_000_000) / 1e6, (x0 + 2_000_000) / 1e6
+    assert run_cli(["set", f"soft_limit_min.x={lo}mm", *port], capsys)[0] == 0
+    assert run_cli(["set", "soft_limit_max.x", f"{hi}mm", *port], capsys)[0] == 0
+    with connect(port=server.serial) as c:
+        c.enable(True)
+        wait_state(c, (pg.State.READY,))
+        with pytest.raises(DriveError, match="out of range") as e:
+            c.request("jog", axis=0, feed=20_000_000, distance=3_000_000)
+        assert e.value.fields["hi"] == round(hi * 1e6)
+        time.sleep(0.2)
+        st = c.status()
+        assert st["state"] == pg.State.READY and abs(st["pos"][0] - x0) < 20_000
+        c.request("jog", axis=0, feed=20_000_000, distance=1_000_000)  # inside
+        wait_state(c, (pg.State.READY,))
+        c.enable(False)
+        wait_state(c, (pg.State.DISABLED,))
+    assert run_cli(["set", "soft_limit_max.x", "0", *port], capsys)[0] == 0
+    assert run_cli(["set", "soft_limit_min.x", "0", *port], capsys)[0] == 0
+
+
+def test_backup_and_restore(server, capsys, tmp_path):
+    port = ["--port", server.serial]
+    f = tmp_path / "drive.toml"
+    rc, out, err = run_cli(["config", "backup", str(f), *port], capsys)
+    assert rc == 0, err
+    text = f.read_text()
+    assert "[drive]" in text and "axes = 3" in text and "board_id = " in text
+    assert 'firmware_version = "' in text
+    assert "\nposition = " not in text and "\nparam_store_status" not in text  # read-only
+    with connect(port=server.serial) as c:
+        before = {n: c.get_param(n) for n in ("max_velocity.y", "pid_kd.x", "corner_rule")}
+    # edit: other values, in other units of the same kind
+    edited = text.replace(
+        text.split("max_velocity = ")[1].split("\n")[0],
+        '{ x = "250 mm/s", y = "6000 mm/min", z = "0.2 m/s" }',
+    ).replace('corner_rule = "junction_deviation"', 'corner_rule = "smoothed"')
+    g = tmp_path / "edited.toml"
+    g.write_text(edited)
+    # broken variants: each refused as a whole, nothing written
+    bad = {
+        "unknown": edited + 'no_such_param = "1 mm"\n',
+        "range": edited.replace('y = "6000 mm/min"', 'y = "-5 mm/s"'),
+        "axes": edited.replace("axes = 3", "axes = 2"),
+        "missing axis": edited.replace(', z = "0.2 m/s"', ""),
+    }
+    for what, body in bad.items():
+        b = tmp_path / "bad.toml"
+        b.write_text(body)
+        rc, out, _ = run_cli(["config", "restore", str(b), "--json", *port], capsys)
+        assert rc == 1, what
+        assert "nothing written" in json.loads(out)["error"]["message"], (what, out)
+        with connect(port=server.serial) as c:
+            assert c.get_param("max_velocity.y") == before["max_velocity.y"], what
+            assert c.get_param("corner_rule") == before["corner_rule"], what
+    rc, out, err = run_cli(["config", "restore", str(g), "--dry-run", "--json", *port], capsys)
+    assert rc == 0 and json.loads(out)["written"] is False, err
+    with connect(port=server.serial) as c:
+        assert c.get_param("corner_rule") == before["corner_rule"]
+    rc, out, err = run_cli(["config", "restore", str(g), *port], capsys)
+    assert rc == 0, err
+    assert "read back" in out
+    with connect(port=server.serial) as c:
+        assert c.get_param("max_velocity.x") == 250_000_000
+        assert c.get_param("max_velocity.y") == 100_000_000
+        assert c.get_param("max_velocity.z") == 200_000_000
+        assert c.get_param("corner_rule") == 2
+        assert c.get_param("pid_kd.x") == before["pid_kd.x"]
+    # and back to the first backup
+    rc, _, err = run_cli(["config", "restore", str(f), *port], capsys)
+    assert rc == 0, err
+    with connect(port=server.serial) as c:
+        assert {n: c.get_param(n) for n in before} == before
+
+
+def _app_image() -> img.Image:
+    payload = random.Random(7).randbytes(4096)
+    return img.build(
+        payload, board_id=1, fw_version=img.parse_version("1.2.3"), load_addr=LOAD_ADDR
+    )
+
+
+def _wait_app(server, timeout: float = 5.0) -> None:
+    end = time.monotonic() + timeout
+    while True:
+        try:
+            with connect(port=server.serial) as c:
+                if c.identify()["axes"] > 0:
+                    return
+        except Exception:  # noqa: BLE001 - a drive that just reset: ask again
+            pass
+        if time.monotonic() > end:
+            raise AssertionError("the application did not start")
+        time.sleep(0.05)
+
+
+def test_save_survives_a_restart(capsys, tmp_path):
+    flash = tmp_path / "drive.flash"
+    image = tmp_path / "app.img"
+    image.write_bytes(_app_image().to_bytes())
+    with spawn(["--flash", str(flash), "--boot-window-ms", "200"]) as s:
+        rc, _, err = run_cli(["flash", str(image), "--port", s.serial, "--no-progress"], capsys)
+        assert rc == 0, err
+        _wait_app(s)
+        port = ["--port", s.serial]
+        for argv in (
+            ["set", "max_velocity.y", "123mm/s"],
+            ["set", "pid_kp.x", "2500"],
+            ["set", "following_error_limit.z", "0.75"],
+            ["set", "soft_limit_max.x", "300"],
+            ["set", "in_position_window.y", "2um"],
+        ):
+            assert run_cli([*argv, *port], capsys)[0] == 0, argv
+        # refused while enabled
+        with connect(port=s.serial) as c:
+            c.enable(True)
+            wait_state(c, (pg.State.READY,))
+        rc, _, err = run_cli(["config", "save", *port], capsys)
+        assert rc == 1 and "disable" in err
+        with connect(port=s.serial) as c:
+            c.enable(False)
+            wait_state(c, (pg.State.DISABLED,))
+        rc, out, err = run_cli(["config", "save", *port], capsys)
+        assert rc == 0, err
+        # changed after the save: not kept
+        assert run_cli(["set", "max_velocity.y", "77", *port], capsys)[0] == 0
+    # power cycle: a new server process on the same flash file
+    with spawn(["--flash", str(flash), "--boot-window-ms", "0"]) as s:
+        _wait_app(s)
+        with connect(port=s.serial) as c:
+            assert c.get_param("param_store_status") == 1  # loaded
+            assert c.get_param("max_velocity.y") == 123_000_000
+            assert c.get_param("pid_kp.x") == 2500 << 32
+            assert c.get_param("following_error_limit.z") == 750_000
+            assert c.get_param("soft_limit_max.x") == 300_000_000
+            assert c.get_param("in_position_window.y") == 2000
+            assert c.get_param("in_position_window.x") == 5000
+    # an erased flash of the same drive: the machine's values, status none
+    with spawn(["--flash", str(Path(tmp_path / "other.flash")), "--boot-window-ms", "200"]) as s:
+        assert run_cli(["flash", str(image), "--port", s.serial, "--no-progress"], capsys)[0] == 0
+        _wait_app(s)
+        with connect(port=s.serial) as c:
+            assert c.get_param("param_store_status") == 0
+            assert c.get_param("max_velocity.y") != 123_000_000
