@@ -114,6 +114,9 @@ static CORE_NO_TSAN void status_live(drive_status_t *s)
     s->blocks_done = drv.blocks_done + feed_skipped(&feed);
     s->tag = drv.cur_tag;
     s->homed = drv.homed;
+    for (i = 0; i < CORE_AXES; i++) {
+        s->home_shift[i] = drv.home.shift[i];
+    }
 }
 
 /* End of the tick's status update (drive_tick made st_seq odd at its
@@ -196,6 +199,9 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.req_ref = false;
     drv.req_home = false;
     drv.homed = 0;
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.home.shift[i] = 0;
+    }
     drv.halted = false;
     drv.state = DRIVE_DISABLED;
     drv.state_pub = DRIVE_DISABLED;

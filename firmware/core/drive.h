@@ -239,7 +239,11 @@ typedef struct {
     uint32_t encoder_illegal[CORE_AXES]; /* illegal transitions seen      */
     pos_nm_t pos_raw[CORE_AXES];         /* measured position before the
                                           * compensation table, nm       */
-    uint32_t homed;                      /* bit i: axis i homed (drive_home) since init      */
+    uint32_t homed;                      /* bit i: axis i homed (drive_home) since init */
+    /* per axis: how far its last homing moved the position frame, nm
+     * (home_pos minus what the reference point read before: 0 when the
+     * frame was already right) */
+    pos_nm_t home_shift[CORE_AXES];
 } drive_status_t;
 
 typedef struct {

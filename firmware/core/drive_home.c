@@ -117,6 +117,7 @@ static void rebase(home_t *h, unsigned i, qdec_t *q, servo_fb_t *fb, servo_t *se
     h->pos[i] += delta;
     h->phase[i] = HOME_IDLE;
     h->done |= 1u << i;
+    h->shift[i] = delta;
 }
 
 home_result_t home_tick(home_t *h, uint32_t tick_hz, qdec_t enc[CORE_AXES], servo_fb_t *fb,

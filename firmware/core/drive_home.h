@@ -70,6 +70,9 @@ typedef struct {
     uint32_t idx_ev[CORE_AXES];
     uint32_t fault_axes; /* axes over max_dist_nm */
     uint32_t done;       /* axes homed (rebased) */
+    /* per axis: the frame shift of its last homing, nm (kept across
+     * homings of other axes; zeroed by drive_init) */
+    pos_nm_t shift[CORE_AXES];
     bool aborting;
 } home_t;
 

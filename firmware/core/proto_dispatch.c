@@ -527,6 +527,9 @@ static size_t put_drive_state(const proto_dispatch_t *d, uint8_t *out, uint8_t s
     s.rx_errors = sat_u16(d->rx_errors);
     s.replayed = sat_u16(d->stats.replayed);
     s.homed = (uint8_t)(st.homed & 0xFFu);
+    for (i = 0; i < PROTO_MAX_AXES; i++) {
+        s.home_shift[i] = (i < CORE_AXES && i < AXES_OF(d)) ? st.home_shift[i] : 0;
+    }
     out[0] = PROTO_MSG_DRIVE_STATE;
     out[1] = seq;
     return PROTO_MSG_HDR + proto_drive_state_encode(&s, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);

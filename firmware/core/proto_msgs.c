@@ -473,6 +473,10 @@ size_t proto_drive_state_encode(const proto_drive_state_t *m, uint8_t *buf, size
     proto_put_le(buf + 50, (uint64_t)m->rx_errors, 2u);
     proto_put_le(buf + 52, (uint64_t)m->replayed, 2u);
     proto_put_le(buf + 54, (uint64_t)m->homed, 1u);
+    proto_put_le(buf + 55, (uint64_t)m->home_shift[0], 8u);
+    proto_put_le(buf + 63, (uint64_t)m->home_shift[1], 8u);
+    proto_put_le(buf + 71, (uint64_t)m->home_shift[2], 8u);
+    proto_put_le(buf + 79, (uint64_t)m->home_shift[3], 8u);
     return PROTO_DRIVE_STATE_LEN;
 }
 
@@ -495,6 +499,10 @@ bool proto_drive_state_decode(const uint8_t *buf, size_t len, proto_drive_state_
     m->rx_errors = (uint16_t)proto_get_le(buf + 50, 2u);
     m->replayed = (uint16_t)proto_get_le(buf + 52, 2u);
     m->homed = (uint8_t)proto_get_le(buf + 54, 1u);
+    m->home_shift[0] = (int64_t)proto_get_sle(buf + 55, 8u);
+    m->home_shift[1] = (int64_t)proto_get_sle(buf + 63, 8u);
+    m->home_shift[2] = (int64_t)proto_get_sle(buf + 71, 8u);
+    m->home_shift[3] = (int64_t)proto_get_sle(buf + 79, 8u);
     return true;
 }
 
@@ -1298,7 +1306,7 @@ const proto_msg_info_t proto_msg_table[] = {
     {0x41u, PROTO_DIR_D2H, 0x00u, 0u, 28u, 28u, "identify_reply"},
     {0x42u, PROTO_DIR_D2H, 0x00u, 0u, 10u, 10u, "param_value"},
     {0x46u, PROTO_DIR_D2H, 0x00u, 0u, 10u, 10u, "queue_reply"},
-    {0x4Au, PROTO_DIR_D2H, 0x00u, 0u, 55u, 55u, "drive_state"},
+    {0x4Au, PROTO_DIR_D2H, 0x00u, 0u, 87u, 87u, "drive_state"},
     {0x4Cu, PROTO_DIR_D2H, 0x00u, 0u, 6u, 6u, "session_reply"},
     {0x70u, PROTO_DIR_D2H, 0x00u, 0u, 1u, 1u, "ack"},
     {0x7Fu, PROTO_DIR_D2H, 0x00u, 0u, 20u, 20u, "error"},

@@ -462,7 +462,7 @@ size_t proto_queue_reply_encode(const proto_queue_reply_t *m, uint8_t *buf, size
 bool proto_queue_reply_decode(const uint8_t *buf, size_t len, proto_queue_reply_t *m);
 
 /* drive_state (d2h): Reply to status_get. */
-#define PROTO_DRIVE_STATE_LEN 55u
+#define PROTO_DRIVE_STATE_LEN 87u
 typedef struct {
     uint8_t state; /* state enum */
     uint8_t enabled; /* enabled axes mask */
@@ -475,6 +475,7 @@ typedef struct {
     uint16_t rx_errors; /* frames dropped (CRC, length, overflow) since start */
     uint16_t replayed; /* repeated requests answered from the cache */
     uint8_t homed; /* homed axes mask (home) */
+    int64_t home_shift[4]; /* [nm] per axis: how far its last homing moved the position frame (0: it was already right) */
 } proto_drive_state_t;
 size_t proto_drive_state_encode(const proto_drive_state_t *m, uint8_t *buf, size_t cap);
 bool proto_drive_state_decode(const uint8_t *buf, size_t len, proto_drive_state_t *m);

@@ -666,9 +666,10 @@ MESSAGES = (
             Field("rx_errors", "u16", 2, 1, 0, 50, ""),
             Field("replayed", "u16", 2, 1, 0, 52, ""),
             Field("homed", "u8", 1, 1, 0, 54, ""),
+            Field("home_shift", "i64", 8, 4, 0, 55, "nm"),
         ),
-        55,
-        55,
+        87,
+        87,
         'Reply to status_get.',
     ),
     Message(

@@ -94,6 +94,9 @@ static void test_home_switch_and_index_any_start(void)
         TEST_ASSERT_EQUAL_INT(DRIVE_HOMING, status().state);
         run_until(DRIVE_IDLE, 400000);
         check_frame(INDEX_NM);
+        /* the decoder started in the table's frame: the index at -20 mm
+         * read -20 mm, and now reads HOME_NM */
+        TEST_ASSERT_INT64_WITHIN(NM_PER_COUNT, HOME_NM - INDEX_NM, status().home_shift[0]);
         /* the servo holds on: no step at the rebase */
         TEST_ASSERT_INT64_WITHIN(20 * NM_PER_COUNT, status().ref[0], status().pos[0]);
     }
