@@ -371,7 +371,7 @@ class Operator:
 
     # ---- homing -------------------------------------------------------------------
 
-    def home(self, mask: int, params: "HomeParams", timeout: Optional[float] = None) -> dict:
+    def home(self, mask: int, params: HomeParams, timeout: Optional[float] = None) -> dict:
         """Home the axes of ``mask`` (the drive's sequence: switch, back-off,
         index; docs/operating.md, Homing), wait until the drive is ready and
         at rest, return the homed axes and their positions. A fault before or
@@ -381,9 +381,10 @@ class Operator:
         self.check_axes(mask)
         for a in range(self.axes):
             if mask & (1 << a) and params.search_nm_s > self.max_feed_nm_s(a):
+                limit = self.max_feed_nm_s(a) * 60 / NM_PER_MM
                 raise UsageError(
                     f"--search-feed {params.search_nm_s * 60 / NM_PER_MM:g} mm/min is above "
-                    f"axis {AXIS_NAMES[a]}'s limit {self.max_feed_nm_s(a) * 60 / NM_PER_MM:g} mm/min"
+                    f"axis {AXIS_NAMES[a]}'s limit {limit:g} mm/min"
                 )
         snap = self.snapshot()
         self.refuse_if_latched(snap)
@@ -432,10 +433,10 @@ class Operator:
             )
         return {
             "homed_axes": names,
-            "position_mm": {
-                AXIS_NAMES[i]: p / NM_PER_MM for i, p in enumerate(snap.position_nm)
+            "position_mm": {AXIS_NAMES[i]: p / NM_PER_MM for i, p in enumerate(snap.position_nm)},
+            "shift_um": {
+                AXIS_NAMES[a]: shift[a] / 1000 for a in range(self.axes) if mask & (1 << a)
             },
-            "shift_um": {AXIS_NAMES[a]: shift[a] / 1000 for a in range(self.axes) if mask & (1 << a)},
             "elapsed_s": time.monotonic() - t0,
             "state": snap.state,
         }
