@@ -157,6 +157,18 @@ static inline int64_t fx_clamp_sym64(int64_t v, int64_t lim)
     return (v > lim) ? lim : (v < -lim) ? -lim : v;
 }
 
+/* v saturated to the unsigned ranges of the wire formats: [0, 2^32 - 1]
+ * and [0, 2^16 - 1]. */
+static inline uint32_t fx_sat_u32(int64_t v)
+{
+    return (v < 0) ? 0u : (v > (int64_t)UINT32_MAX) ? UINT32_MAX : (uint32_t)v;
+}
+
+static inline uint16_t fx_sat_u16(uint32_t v)
+{
+    return (v > 0xFFFFu) ? (uint16_t)0xFFFFu : (uint16_t)v;
+}
+
 /* |v| as uint64_t, exact for every v (|INT64_MIN| is 2^63). */
 static inline uint64_t fx_uabs64(int64_t v)
 {

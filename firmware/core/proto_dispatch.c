@@ -93,22 +93,6 @@ static uint8_t enabled_mask(const proto_dispatch_t *d, const drive_status_t *st)
     return (uint8_t)((1u << AXES_OF(d)) - 1u);
 }
 
-static uint32_t sat_u32(int64_t v)
-{
-    if (v < 0) {
-        return 0;
-    }
-    if (v > (int64_t)UINT32_MAX) {
-        return UINT32_MAX;
-    }
-    return (uint32_t)v;
-}
-
-static uint16_t sat_u16(uint32_t v)
-{
-    return v > 0xFFFFu ? (uint16_t)0xFFFFu : (uint16_t)v;
-}
-
 static refusal_t map_drive_result(drive_result_t r, const drive_status_t *st)
 {
     switch (r) {
@@ -500,8 +484,8 @@ static size_t put_queue_reply(uint8_t *out, uint8_t seq, uint32_t block_seq,
     proto_queue_reply_t q;
 
     q.block_seq = block_seq;
-    q.free_slots = sat_u16(st->queue_free);
-    q.queued_us = sat_u32(st->queued_time_ns / 1000);
+    q.free_slots = fx_sat_u16(st->queue_free);
+    q.queued_us = fx_sat_u32(st->queued_time_ns / 1000);
     out[0] = PROTO_MSG_QUEUE_REPLY;
     out[1] = seq;
     return PROTO_MSG_HDR + proto_queue_reply_encode(&q, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
@@ -517,15 +501,15 @@ static size_t put_drive_state(const proto_dispatch_t *d, uint8_t *out, uint8_t s
     s.state = map_state(&st);
     s.enabled = enabled_mask(d, &st);
     s.faults = map_faults(&st);
-    s.free_slots = sat_u16(st.queue_free);
-    s.queued_us = sat_u32(st.queued_time_ns / 1000);
+    s.free_slots = fx_sat_u16(st.queue_free);
+    s.queued_us = fx_sat_u32(st.queued_time_ns / 1000);
     s.blocks_done = st.blocks_done;
     s.last_block_seq = st.tag;
     for (i = 0; i < PROTO_MAX_AXES; i++) {
         s.pos[i] = (i < CORE_AXES && i < AXES_OF(d)) ? st.pos[i] : 0;
     }
-    s.rx_errors = sat_u16(d->rx_errors);
-    s.replayed = sat_u16(d->stats.replayed);
+    s.rx_errors = fx_sat_u16(d->rx_errors);
+    s.replayed = fx_sat_u16(d->stats.replayed);
     s.homed = (uint8_t)(st.homed & 0xFFu);
     for (i = 0; i < PROTO_MAX_AXES; i++) {
         s.home_shift[i] = (i < CORE_AXES && i < AXES_OF(d)) ? st.home_shift[i] : 0;
@@ -720,7 +704,7 @@ bool proto_dispatch_init(proto_dispatch_t *d, const proto_identity_t *ident, uin
         drive_status_t st;
 
         drive_status(&st); /* at start-up the queue is empty: free = depth */
-        d->ident.planner_slots = sat_u16(st.queue_free);
+        d->ident.planner_slots = fx_sat_u16(st.queue_free);
     }
     d->comm_timeout_ms = (uint32_t)proto_param_find(PROTO_PARAM_COMM_TIMEOUT_MS, NULL)->def;
     d->status_period_ms = (uint16_t)proto_param_find(PROTO_PARAM_STATUS_PERIOD_MS, NULL)->def;
@@ -806,19 +790,6 @@ static bool emit_msg(proto_dispatch_t *d, uint8_t id, uint8_t can_func, const ui
     return emit(ctx, m, PROTO_MSG_HDR + n, can_func);
 }
 
-static int64_t clamp48(int64_t v)
-{
-    const int64_t lim = ((int64_t)1 << 47) - 1;
-
-    if (v > lim) {
-        return lim;
-    }
-    if (v < -lim) {
-        return -lim;
-    }
-    return v;
-}
-
 static void emit_cycle(proto_dispatch_t *d, bool full, proto_emit_fn emit, void *ctx)
 {
     drive_status_t st;
@@ -835,7 +806,7 @@ static void emit_cycle(proto_dispatch_t *d, bool full, proto_emit_fn emit, void 
         s.state = map_state(&st);
         s.enabled = enabled_mask(d, &st);
         s.faults = map_faults(&st);
-        s.free_slots = sat_u16(st.queue_free);
+        s.free_slots = fx_sat_u16(st.queue_free);
         n = proto_status_encode(&s, buf, sizeof(buf));
         (void)emit_msg(d, PROTO_MSG_STATUS, PROTO_CAN_FUNC_STATUS, buf, n, emit, ctx);
     }
@@ -843,7 +814,7 @@ static void emit_cycle(proto_dispatch_t *d, bool full, proto_emit_fn emit, void 
         proto_progress_t p;
 
         p.seq = seq;
-        p.queued_us = sat_u32(st.queued_time_ns / 1000);
+        p.queued_us = fx_sat_u32(st.queued_time_ns / 1000);
         p.blocks_done = (uint16_t)st.blocks_done;
         n = proto_progress_encode(&p, buf, sizeof(buf));
         (void)emit_msg(d, PROTO_MSG_PROGRESS, PROTO_CAN_FUNC_PROGRESS, buf, n, emit, ctx);
@@ -864,7 +835,7 @@ static void emit_cycle(proto_dispatch_t *d, bool full, proto_emit_fn emit, void 
         if (v > ((int64_t)1 << 50)) {
             v = (int64_t)1 << 50;
         }
-        p.feed = sat_u16(sat_u32(v * 3 / 50000)); /* nm/s -> mm/min */
+        p.feed = fx_sat_u16(fx_sat_u32(v * 3 / 50000)); /* nm/s -> mm/min */
         n = proto_path_encode(&p, buf, sizeof(buf));
         (void)emit_msg(d, PROTO_MSG_PATH, PROTO_CAN_FUNC_PATH, buf, n, emit, ctx);
     }
@@ -874,7 +845,7 @@ static void emit_cycle(proto_dispatch_t *d, bool full, proto_emit_fn emit, void 
         int32_t cmd = st.motor_mv[i] / 10;
 
         p.seq = seq;
-        p.pos = clamp48(st.pos[i]);
+        p.pos = fx_clamp_sym64(st.pos[i], ((int64_t)1 << 47) - 1);
         n = proto_pos_encode(&p, buf, sizeof(buf));
         (void)emit_msg(d, PROTO_MSG_POS(i), (uint8_t)PROTO_CAN_FUNC_POS(i), buf, n, emit, ctx);
         f.seq = seq;

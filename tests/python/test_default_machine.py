@@ -140,22 +140,21 @@ def test_rapids_and_feeds_at_the_limits(server, tuned, tmp_path):
         ready(c)
         st = c.status()
         blocks = blocks_from_gcode(str(job), start_mm=[p / 1e6 for p in st["pos"][:3]])
-        c.set_param("telem_period_ms", 1)
-        c.drain_unsolicited()
-        try:
-            result = Streamer(c, blocks, queue_s=1.0).run()  # raises on a fault
-            target = blocks[-1].target_nm
-            st = settle(c, target, END_COUNTS * count_nm(tuned, "x"))
-            time.sleep(0.1)
-        finally:
-            c.set_param("telem_period_ms", 0)
-        while (m := c.unsolicited()) is not None:
-            d = m[1]
+
+        def sample(d) -> None:
+            nonlocal samples
             if d.name.startswith("ferr_") and int(d.name[5:]) < axes:
                 k = int(d.name[5:])
                 peak[k] = max(peak[k], abs(d.fields["ferr"]))
                 peak_cmd[k] = max(peak_cmd[k], abs(d.fields["cmd"]))
                 samples += 1
+
+        # raises on a fault; returns with the axes in position (5 um)
+        streamer = Streamer(c, blocks, queue_s=1.0, telem_period_ms=1, on_telemetry=sample)
+        result = streamer.run()
+        target = blocks[-1].target_nm
+        st = settle(c, target, END_COUNTS * count_nm(tuned, "x"))
+    assert result["max_following_error_um"] * 1000 == max(peak)
     kx = [tuned.axis[ax]["kx"] for ax in "xyz"[:axes]]
     print(  # shown by pytest -rP (docs/simulator.md "The default machine")
         f"{len(blocks)} blocks, {samples} ferr samples; peak following error (um) "

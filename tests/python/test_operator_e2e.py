@@ -501,3 +501,42 @@ def test_reset_cause_present_is_exit_1_on_the_command_line(monkeypatch, capsys):
     rc, out, _ = run_cli(["reset", "--json", "--port", "/nonexistent"], capsys)
     err = json.loads(out)["error"]
     assert rc == 1 and err["kind"] == "fault" and "amp_fault" in err["message"]
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_fault_during_run_names_the_program_line(server, transport, tmp_path, capsys):
+    """Another host e-stops the drive during `contour run`: exit 1 and the
+    message names the line of the block that was executing."""
+    args = link_args(server, transport)
+    with client_for(server, transport) as c:
+        x0 = fresh(c)["pos"][0]
+    job = tmp_path / "long.nc"
+    job.write_text("G21 G91\nG1 X0.5 F600\nG1 X20 F1200\nG1 X-20.5\n")
+
+    def estop_when_moving() -> None:
+        with client_for(server, OTHER[transport]) as other:
+            moving_from(other, 0, x0, by=1_000_000)
+            other.request("estop")
+
+    t = threading.Thread(target=estop_when_moving)
+    t.start()
+    try:
+        rc, _, err = run_cli(["run", str(job), "--quiet", *args], capsys)
+    finally:
+        t.join(20)
+    assert rc == 1 and f"{job}:3: drive stopped with fault(s): estop" in err, err
+    with client_for(server, transport) as c:
+        c.request("fault_reset")
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_refused_block_names_the_program_line(server, transport, tmp_path, capsys):
+    args = link_args(server, transport)
+    with client_for(server, transport) as c:
+        fresh(c)
+    job = tmp_path / "far.nc"
+    job.write_text(
+        "G21 G91\nG1 X0.1 F600\nG1 X10000000000\n"
+    )  # 10 000 km: beyond the drive's range
+    rc, _, err = run_cli(["run", str(job), "--quiet", *args], capsys)
+    assert rc == 1 and f"{job}:3: drive refused queue_block" in err, err

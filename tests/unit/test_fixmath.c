@@ -1664,10 +1664,28 @@ static void test_mul64_sat_and_shift30_inline(void)
     }
 }
 
+/* The wire formats' unsigned saturations, at both ends. */
+static void test_sat_u32_u16_at_the_extremes(void)
+{
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_sat_u32(INT64_MIN));
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_sat_u32(-1));
+    TEST_ASSERT_EQUAL_UINT32(0u, fx_sat_u32(0));
+    TEST_ASSERT_EQUAL_UINT32(UINT32_MAX - 1u, fx_sat_u32((int64_t)UINT32_MAX - 1));
+    TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, fx_sat_u32((int64_t)UINT32_MAX));
+    TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, fx_sat_u32((int64_t)UINT32_MAX + 1));
+    TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, fx_sat_u32(INT64_MAX));
+    TEST_ASSERT_EQUAL_UINT16(0u, fx_sat_u16(0u));
+    TEST_ASSERT_EQUAL_UINT16(0xFFFEu, fx_sat_u16(0xFFFEu));
+    TEST_ASSERT_EQUAL_UINT16(0xFFFFu, fx_sat_u16(0xFFFFu));
+    TEST_ASSERT_EQUAL_UINT16(0xFFFFu, fx_sat_u16(0x10000u));
+    TEST_ASSERT_EQUAL_UINT16(0xFFFFu, fx_sat_u16(UINT32_MAX));
+}
+
 int main(void)
 {
     report_on = getenv("FIXMATH_REPORT") != NULL;
     UNITY_BEGIN();
+    RUN_TEST(test_sat_u32_u16_at_the_extremes);
     RUN_TEST(test_sat32_boundaries);
     RUN_TEST(test_sat_arith32_edges_and_random);
     RUN_TEST(test_sat_arith64_edges_and_random);

@@ -2,7 +2,11 @@
 
 Progress bar over the job's estimated time (the drive's own planner, host
 build), live feed and ETA; flow control by the planned time queued in the
-drive. Ctrl-C brings the axes to a controlled stop before exiting.
+drive. "Done" means the last block is done and every axis is within its
+in-position window of the program's end point; the measured end position and
+the largest following error of the job are reported. A fault or a refused
+block names the program line (exit 1). Ctrl-C brings the axes to a
+controlled stop before exiting.
 """
 
 from __future__ import annotations
@@ -19,6 +23,8 @@ from contour.progress import Bar
 def run(args) -> int:
     if not 0.05 <= args.queue_s <= 60:
         raise UsageError("--queue-s must be 0.05..60 s")
+    if args.in_position_um is not None and not 0.001 <= args.in_position_um <= 10000:
+        raise UsageError("--in-position-um must be 0.001..10000")
     with connect_from_args(args) as client:
         st = client.status()
         start = [p / 1e6 for p in st["pos"][:3]]
@@ -40,7 +46,16 @@ def run(args) -> int:
             )
             bar.to(round(p.est_done_s, 2))
 
-        streamer = Streamer(client, blocks, queue_s=args.queue_s, on_progress=progress)
+        streamer = Streamer(
+            client,
+            blocks,
+            queue_s=args.queue_s,
+            on_progress=progress,
+            source=args.file,
+            in_position_nm=None
+            if args.in_position_um is None
+            else round(args.in_position_um * 1000),
+        )
         try:
             result = streamer.run()
         except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated)
@@ -60,9 +75,9 @@ def run(args) -> int:
     else:
         print(
             f"job done: {result['blocks']} blocks in {result['elapsed_s']:.2f} s "
-            f"(estimated {result['estimated_s']:.2f} s), end position "
+            f"(estimated {result['estimated_s']:.2f} s), axes in position at "
             + ", ".join(f"{v:.4f}" for v in result["position_mm"])
-            + " mm"
+            + f" mm, max following error {result['max_following_error_um']:.1f} um"
         )
     return 0
 
@@ -78,6 +93,13 @@ def register(sub) -> None:
     )
     p.add_argument(
         "--chord-mm", type=float, default=0.001, help="arc chord tolerance, mm (default 0.001)"
+    )
+    p.add_argument(
+        "--in-position-um",
+        type=float,
+        default=None,
+        help="done when every axis is this close to the end point, um "
+        "(default: the drive's in_position_window parameter, else 5)",
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument(
