@@ -43,10 +43,9 @@ static struct {
     /* some req_* above (except req_ref) may be set: main sets it after the
      * flag, the tick clears it before it reads the flags */
     CORE_SHARED bool req_any;
-    uint32_t rs_seq;        /* main, payload of req_enable / req_resume */
-    servo_params_t pend;    /* main, payload of req_gains */
-    cec_mode_t pend_mode;   /* main, payload of req_cec   */
-    drive_home_t pend_home; /* main, payload of req_home */
+    uint32_t rs_seq;      /* main, payload of req_enable / req_resume */
+    servo_params_t pend;  /* main, payload of req_gains */
+    cec_mode_t pend_mode; /* main, payload of req_cec   */
     /* tick, read by main (the snapshot, or the state as main_state() reads it) */
     CORE_SHARED drive_state_t state_pub; /* `state` as the tick wrote it */
     CORE_SHARED bool halted;             /* controlled stop reached rest: reference held */
@@ -80,12 +79,16 @@ static struct {
     uint32_t blocks_done;
     uint32_t cur_tag;
     uint64_t tick;
-    home_t home;    /* homing sequence (tick, while HOMING) */
-    uint32_t homed; /* tick: axes homed (main reads it in the snapshot) */
     /* published snapshot (tick; main reads it under st_seq) */
     CORE_SHARED uint32_t st_seq;
     drive_status_t st;
+    /* last: the usual tick's fields keep short offsets */
+    uint32_t homed; /* tick: axes homed (main reads it in the snapshot) */
+    home_t home;    /* homing sequence (tick, while HOMING) */
 } drv;
+
+/* main, payload of req_home (outside drv: see feed) */
+static drive_home_t pend_home;
 
 /* ---- helpers ------------------------------------------------------------- */
 
@@ -492,8 +495,8 @@ static DRV_NOINLINE void apply_requests(const servo_fb_t *fb)
         /* main checked IDLE with nothing queued; an enable, stop or fault
          * applied since wins */
         if (drv.state == DRIVE_IDLE && !feed_busy(&feed) && drv.faults == 0) {
-            home_start(&drv.home, &drv.pend_home, drv.ref.pos, drv.cfg.plan.a_max, drv.cfg.tick_hz);
-            drv.homed &= ~drv.pend_home.axes;
+            home_start(&drv.home, &pend_home, drv.ref.pos, drv.cfg.plan.a_max, drv.cfg.tick_hz);
+            drv.homed &= ~pend_home.axes;
             set_state(DRIVE_HOMING);
         }
         drv.req_home = false;
@@ -514,7 +517,8 @@ static DRV_NOINLINE void apply_requests(const servo_fb_t *fb)
     }
 }
 
-/* One tick of the homing sequence (out of line: only while HOMING). At its
+/* One tick of the homing sequence and the servo (out of line: only while
+ * HOMING). At its
  * end the drive is STOPPING at rest (halted): main flushes its queues at
  * the new reference and resumes, as after a stop. */
 static DRV_NOINLINE void home_step(servo_fb_t *fb)
@@ -530,6 +534,29 @@ static DRV_NOINLINE void home_step(servo_fb_t *fb)
         drv.v_act = 0;
         set_state(DRIVE_STOPPING);
     }
+    servo_tick(&drv.servo, &drv.ref, fb);
+}
+
+/* The tick of a drive that is not IDLE, RUNNING or STOPPING with its
+ * servo running (out of line: the usual tick does not pay for it): the
+ * homing sequence, or the servo holding / off with the reference on its
+ * hold position. */
+static DRV_NOINLINE void tick_still(servo_fb_t *fb)
+{
+    unsigned i;
+    if (drv.state == DRIVE_HOMING && drv.servo.state == SERVO_RUN) {
+        home_step(fb); /* reference and servo tick */
+        return;
+    }
+    servo_tick(&drv.servo, NULL, fb);
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.ref.pos[i] = drv.servo.ref_pos[i];
+        drv.ref.vel[i] = 0;
+        drv.ref.acc[i] = 0;
+    }
+    drv.ref.active = false;
+    drv.ref.geom.kind = MOTION_GEOM_NONE;
+    drv.ref_synced = false;
 }
 
 /* drive_tick's result: constant pointers into drv */
@@ -537,7 +564,6 @@ static const drive_tick_out_t tick_out = {&drv.st, drv.ref.vel};
 
 const drive_tick_out_t *drive_tick(bool ref_sampling)
 {
-    unsigned i;
     servo_fb_t fb;
     bool moving_ok;
 
@@ -561,19 +587,8 @@ const drive_tick_out_t *drive_tick(bool ref_sampling)
         reference_step();
         friction_ff();
         servo_tick(&drv.servo, &drv.ref, &fb);
-    } else if (drv.state == DRIVE_HOMING && drv.servo.state == SERVO_RUN) {
-        home_step(&fb);
-        servo_tick(&drv.servo, &drv.ref, &fb);
     } else {
-        servo_tick(&drv.servo, NULL, &fb);
-        for (i = 0; i < CORE_AXES; i++) {
-            drv.ref.pos[i] = drv.servo.ref_pos[i];
-            drv.ref.vel[i] = 0;
-            drv.ref.acc[i] = 0;
-        }
-        drv.ref.active = false;
-        drv.ref.geom.kind = MOTION_GEOM_NONE;
-        drv.ref_synced = false;
+        tick_still(&fb);
     }
     drv.faults |= drv.servo.faults;
     if (drv.faults != 0) {
@@ -765,7 +780,7 @@ drive_result_t drive_home(const drive_home_t *h)
     if (main_state() != DRIVE_IDLE || !feed_idle(&feed)) {
         return DRIVE_E_BUSY; /* a job or jog is queued or executing */
     }
-    drv.pend_home = *h;
+    pend_home = *h;
     post(&drv.req_home);
     return DRIVE_OK;
 }
