@@ -863,7 +863,7 @@ static void watchdog(proto_dispatch_t *d, uint32_t now_us)
     drive_status(&st);
     PREEMPT_POINT();
     if (d->wd_stopping) {
-        if (st.state == DRIVE_STOPPING || st.state == DRIVE_RUNNING) {
+        if (st.state == DRIVE_STOPPING || st.state == DRIVE_RUNNING || st.state == DRIVE_HOMING) {
             return; /* still decelerating */
         }
         d->wd_stopping = false;
@@ -872,8 +872,8 @@ static void watchdog(proto_dispatch_t *d, uint32_t now_us)
         }
         return;
     }
-    if (d->comm_timeout_ms == 0u || st.state != DRIVE_RUNNING) {
-        return;
+    if (d->comm_timeout_ms == 0u || (st.state != DRIVE_RUNNING && st.state != DRIVE_HOMING)) {
+        return; /* homing too: a host that died does not leave the axes homing */
     }
     if ((uint32_t)(now_us - d->last_rx_us) / 1000u >= d->comm_timeout_ms) {
         d->stats.watchdog_stops++;

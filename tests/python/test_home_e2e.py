@@ -13,6 +13,10 @@ position visible from the host.
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+import time
 
 import pytest
 from contour import protocol_gen as pg
@@ -197,3 +201,53 @@ def test_first_home_finds_the_index_above_the_switch(capsys):
         # without the index, the switch edge is the reference
         res = home(args, capsys, "X=-21.3", extra=["--no-index"])
         assert abs(res["shift_um"]["x"]) <= 2 * COUNT_NM / 1000, res
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_kill_9_during_home_comm_timeout(server, transport, capsys):
+    """A host killed while the drive homes: the communication watchdog stops
+    the homing (fault comm_timeout, axis not homed), `reset`, `enable` and a
+    new `home` go on."""
+    other = "slcan" if transport == "serial" else "serial"
+    oargs = link_args(server, other)
+    with client_for(server, other) as c:
+        fresh(c)
+    jog_to(oargs, capsys, 10.0)
+    with client_for(server, other) as c:
+        c.set_param("comm_timeout_ms", 300)
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(
+        p for p in (os.path.dirname(os.path.dirname(pg.__file__)), env.get("PYTHONPATH")) if p
+    )
+    argv = ["home", "--axes", "x", "--search-feed", "300", *link_args(server, transport)]
+    p = subprocess.Popen(
+        [sys.executable, "-m", "contour", *argv],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
+    try:
+        with client_for(server, other) as c:
+            wait_state(c, (pg.State.HOMING,))
+            end = time.monotonic() + 10
+            while c.status()["pos"][0] > 9_500_000 and time.monotonic() < end:
+                time.sleep(0.02)
+        p.kill()  # from here no host talks to the drive
+        p.wait(timeout=10)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    time.sleep(1.5)  # 300 ms watchdog + the stop
+    with client_for(server, other) as c:
+        st = c.status()
+        assert st["state"] == pg.State.FAULT, st
+        assert st["faults"] == 1 << pg.Fault.COMM_TIMEOUT, st
+        assert not st["homed"] & 1
+        assert -21_300_000 < st["pos"][0] < 9_500_000  # stopped on the way
+        c.set_param("comm_timeout_ms", 1000)
+    rc, out, err = run_cli(["reset", *oargs], capsys)
+    assert rc == 0 and "comm_timeout" in out, err
+    rc, _, err = run_cli(["enable", *oargs], capsys)
+    assert rc == 0, err
+    assert home(oargs, capsys)["homed_axes"] == ["x"]
