@@ -13,7 +13,7 @@
  * Contexts
  *   drive_tick()                          tick only.
  *   drive_poll(), drive_queue_block(),
- *   drive_enable(), drive_stop(),
+ *   drive_enable(), drive_stop(), drive_home(),
  *   drive_fault_reset(), drive_set_*()    main only.
  *   drive_estop(), drive_snapshot()       any context (estop only sets a
  *                                         flag acted on by the next tick;
