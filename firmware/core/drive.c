@@ -761,16 +761,8 @@ drive_result_t drive_enable(bool on)
 drive_result_t drive_home(const drive_home_t *h)
 {
     drive_result_t r;
-    unsigned i;
-    if (h == NULL || h->axes == 0u || drv.cfg.axes > 31u ||
-        (h->axes & ~((1u << drv.cfg.axes) - 1u)) != 0u || h->search_nm_s <= 0 ||
-        h->latch_nm_s <= 0 || h->latch_nm_s > h->search_nm_s || h->max_dist_nm <= 0) {
+    if (h == NULL || !home_check(h, &drv.cfg)) {
         return DRIVE_E_INVALID;
-    }
-    for (i = 0; i < drv.cfg.axes; i++) {
-        if ((h->axes & (1u << i)) != 0u && h->search_nm_s > drv.cfg.plan.v_max[i]) {
-            return DRIVE_E_INVALID;
-        }
     }
     r = accept_check();
     if (r != DRIVE_OK) {

@@ -5,6 +5,22 @@
 
 #include "hal.h"
 
+bool home_check(const drive_home_t *req, const drive_config_t *cfg)
+{
+    unsigned i;
+    if (req->axes == 0u || cfg->axes > 31u || (req->axes & ~((1u << cfg->axes) - 1u)) != 0u ||
+        req->search_nm_s <= 0 || req->latch_nm_s <= 0 || req->latch_nm_s > req->search_nm_s ||
+        req->max_dist_nm <= 0) {
+        return false;
+    }
+    for (i = 0; i < cfg->axes; i++) {
+        if ((req->axes & (1u << i)) != 0u && req->search_nm_s > cfg->plan.v_max[i]) {
+            return false;
+        }
+    }
+    return true;
+}
+
 void home_start(home_t *h, const drive_home_t *req, const pos_nm_t ref_pos[CORE_AXES],
                 const int64_t a_max[CORE_AXES], uint32_t tick_hz)
 {

@@ -76,6 +76,10 @@ typedef struct {
     bool aborting;
 } home_t;
 
+/* The request is valid for a drive of configuration cfg (drive_home's
+ * DRIVE_E_INVALID rules, drive.h). Pure. */
+bool home_check(const drive_home_t *req, const drive_config_t *cfg);
+
 /* Start the sequence of req (validated by drive_home) from the reference
  * position ref_pos; dv from the planner's a_max per axis and tick_hz. */
 void home_start(home_t *h, const drive_home_t *req, const pos_nm_t ref_pos[CORE_AXES],
