@@ -36,7 +36,31 @@ static struct {
     uint64_t mismatches;
     app_board_t board; /* the host link and identity (sim_set_link) */
     int boot;          /* board.boot is the simulated bootloader's slot */
+    /* per axis: home switch and encoder index (sim_axis_set names below) */
+    double home_switch[SIM_AXES]; /* switch edge, table position, m      */
+    double home_side[SIM_AXES];   /* -1: active at or below the edge, +1:
+                                   * at or above, 0: no switch           */
+    double enc_index[SIM_AXES];   /* 1: an index pulse per motor turn    */
+    double index_phase[SIM_AXES]; /* counts from position 0 to an index  */
 } S;
+
+/* The simulator's own per-axis settings (not axis_model parameters). */
+static double *sim_field(unsigned axis, const char *name)
+{
+    if (strcmp(name, "home_switch") == 0) {
+        return &S.home_switch[axis];
+    }
+    if (strcmp(name, "home_side") == 0) {
+        return &S.home_side[axis];
+    }
+    if (strcmp(name, "enc_index") == 0) {
+        return &S.enc_index[axis];
+    }
+    if (strcmp(name, "index_phase") == 0) {
+        return &S.index_phase[axis];
+    }
+    return NULL;
+}
 
 int sim_setup(double tick_hz, unsigned axes)
 {
@@ -52,6 +76,10 @@ int sim_setup(double tick_hz, unsigned axes)
         axis_params_lacerda(&S.par[i], i == 1);
         S.par[i].l = 0.005 / (2.0 * PI_D); /* 5.00 mm lead exactly */
         S.par[i].seed = 0x5EEDu + i;
+        S.home_switch[i] = SIM_HOME_SWITCH_M;
+        S.home_side[i] = -1.0;
+        S.enc_index[i] = 1.0;
+        S.index_phase[i] = 0.0;
     }
     drive_config_default(&S.dcfg, S.tick_hz, axes);
     /* this amplifier: +-10 V input for +-160 V (vmax / kx) */
@@ -123,6 +151,15 @@ int sim_axis_set(unsigned axis, const char *name, double value)
         return SIM_E_ARG;
     }
     S.started = 0;
+    f = sim_field(axis, name);
+    if (f != NULL) {
+        if ((strcmp(name, "home_side") == 0 && value != -1.0 && value != 0.0 && value != 1.0) ||
+            (strcmp(name, "enc_index") == 0 && value != 0.0 && value != 1.0)) {
+            return SIM_E_ARG;
+        }
+        *f = value;
+        return 0;
+    }
     if (strcmp(name, "lead") == 0) {
         if (!(value > 0.0)) {
             return SIM_E_ARG;
@@ -155,7 +192,10 @@ int sim_axis_get(unsigned axis, const char *name, double *value)
         *value = S.par[axis].l * 2.0 * PI_D;
         return 0;
     }
-    f = field_ptr(&S.par[axis], name);
+    f = sim_field(axis, name);
+    if (f == NULL) {
+        f = field_ptr(&S.par[axis], name);
+    }
     if (f == NULL) {
         return SIM_E_ARG;
     }
@@ -468,6 +508,12 @@ int sim_start(void)
         qgen_init(&S.gen[i], to_qgen(axis_encoder_counts(&S.ax[i])), 0, emit_edge,
                   (void *)(uintptr_t)i);
         S.count0[i] = S.gen[i].count;
+        if (S.enc_index[i] != 0.0) {
+            /* one index pulse per motor turn, one count wide */
+            uint64_t per = (uint64_t)floor(S.par[i].enc_counts_per_rev + 0.5);
+            qgen_set_index(&S.gen[i], S.count0[i] + (int64_t)floor(S.index_phase[i] + 0.5), per, 0,
+                           0);
+        }
         cfg.enc_initial_lines[i] = qgen_lines(&S.gen[i]);
         hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)axis_ref_count(&S.ax[i]), true);
         if (!encoder_scale(S.par[i].l * 2.0 * PI_D, S.par[i].enc_counts_per_rev,
@@ -491,6 +537,14 @@ int sim_start(void)
     S.t_ns = S.period_ns;
     S.started = 1;
     return 0;
+}
+
+/* The home switch of axis i from the table position. */
+static void sim_home_switch(unsigned i)
+{
+    double x = axis_table_pos(&S.ax[i]) - S.home_switch[i];
+    hal_sim_set_home_switch(i, (S.home_side[i] < 0.0 && x <= 0.0) ||
+                                   (S.home_side[i] > 0.0 && x >= 0.0));
 }
 
 static void write_row(double *row)
@@ -530,6 +584,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         for (i = 0; i < S.axes; i++) {
             int64_t rc = axis_ref_reading(&S.ax[i]);
             hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
+            sim_home_switch(i);
         }
         app_tick();
         for (i = 0; i < S.axes; i++) {

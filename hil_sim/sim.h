@@ -14,6 +14,16 @@
  *                                   or backlash is configured).
  *   sim_axis_set(axis, name, val)   any axis_params_t field by name (SI), plus
  *                                   "lead" (m per motor revolution: sets l).
+ *                                   The simulator's own, per axis:
+ *                                   "home_switch" (m, default
+ *                                   SIM_HOME_SWITCH_M) and "home_side" (-1:
+ *                                   the switch is active at table positions
+ *                                   <= home_switch, +1: >=, 0: none; default
+ *                                   -1): hal_home_switch, read each tick;
+ *                                   "enc_index" (1: default, one index pulse
+ *                                   per motor turn, one count wide, at
+ *                                   "index_phase" counts from position 0 and
+ *                                   every enc_counts_per_rev counts; 0: none).
  *   sim_axis_pitch(axis, n, ...)    the pitch error map.
  *   sim_set_substep(max_s)          substep length bound (0: the default).
  *   sim_start()                     discretise (matrix exponentials), reset
@@ -67,6 +77,10 @@
 
 #define SIM_AXES       CORE_AXES
 #define SIM_TRACE_COLS (4 + 4 * SIM_AXES)
+
+/* Default home switch edge: 21.3 mm below the start position (the next
+ * index above it, with index_phase 0 and a 5 mm lead, is at -20 mm). */
+#define SIM_HOME_SWITCH_M (-0.0213)
 
 #define SIM_E_ARG   (-1) /* bad argument / unknown name        */
 #define SIM_E_STATE (-2) /* not set up / not started            */

@@ -9,6 +9,7 @@
  */
 #include "drive.h"
 #include "drive_int.h"
+#include "drive_home.h"
 #include "drive_inputs.h"
 #include "drive_test.h"
 
@@ -36,7 +37,8 @@ static struct {
     CORE_SHARED bool req_enable; /* main flushed (DISABLED): switch on    */
     CORE_SHARED bool req_resume; /* main flushed (halted): STOPPING->IDLE */
     CORE_SHARED bool req_disable, req_stop, req_estop, req_reset, req_gains, req_cec;
-    CORE_SHARED bool req_ref; /* main (drive_status): sample the reference scales */
+    CORE_SHARED bool req_ref;  /* main (drive_status): sample the reference scales */
+    CORE_SHARED bool req_home; /* main: start homing (payload pend_home) */
     CORE_SHARED uint32_t req_fault;
     /* some req_* above (except req_ref) may be set: main sets it after the
      * flag, the tick clears it before it reads the flags */
@@ -80,7 +82,13 @@ static struct {
     /* published snapshot (tick; main reads it under st_seq) */
     CORE_SHARED uint32_t st_seq;
     drive_status_t st;
+    /* last: the usual tick's fields keep short offsets */
+    uint32_t homed; /* tick: axes homed (main reads it in the snapshot) */
+    home_t home;    /* homing sequence (tick, while HOMING) */
 } drv;
+
+/* main, payload of req_home (outside drv: see feed) */
+static drive_home_t pend_home;
 
 /* ---- helpers ------------------------------------------------------------- */
 
@@ -108,6 +116,10 @@ static CORE_NO_TSAN void status_live(drive_status_t *s)
     s->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
     s->blocks_done = drv.blocks_done + feed_skipped(&feed);
     s->tag = drv.cur_tag;
+    s->homed = drv.homed;
+    for (i = 0; i < CORE_AXES; i++) {
+        s->home_shift[i] = drv.home.shift[i];
+    }
 }
 
 /* End of the tick's status update (drive_tick made st_seq odd at its
@@ -188,6 +200,11 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.rs_seq = 0;
     drv.req_any = false;
     drv.req_ref = false;
+    drv.req_home = false;
+    drv.homed = 0;
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.home.shift[i] = 0;
+    }
     drv.halted = false;
     drv.state = DRIVE_DISABLED;
     drv.state_pub = DRIVE_DISABLED;
@@ -474,8 +491,20 @@ static DRV_NOINLINE void apply_requests(const servo_fb_t *fb)
         }
         drv.req_resume = false;
     }
+    if (drv.req_home) {
+        /* main checked IDLE with nothing queued; an enable, stop or fault
+         * applied since wins */
+        if (drv.state == DRIVE_IDLE && !feed_busy(&feed) && drv.faults == 0) {
+            home_start(&drv.home, &pend_home, drv.ref.pos, drv.cfg.plan.a_max, drv.cfg.tick_hz);
+            drv.homed &= ~pend_home.axes;
+            set_state(DRIVE_HOMING);
+        }
+        drv.req_home = false;
+    }
     if (drv.req_stop) {
-        if (drv.state == DRIVE_RUNNING || drv.state == DRIVE_IDLE) {
+        if (drv.state == DRIVE_HOMING) {
+            home_abort(&drv.home); /* HOMING until at rest (home_step) */
+        } else if (drv.state == DRIVE_RUNNING || drv.state == DRIVE_IDLE) {
             set_state(DRIVE_STOPPING);
             drv.v_act = path_speed(drv.ref.vel);
             drv.stop_v = drv.v_act;
@@ -488,12 +517,53 @@ static DRV_NOINLINE void apply_requests(const servo_fb_t *fb)
     }
 }
 
+/* One tick of the homing sequence and the servo (out of line: only while
+ * HOMING). At its
+ * end the drive is STOPPING at rest (halted): main flushes its queues at
+ * the new reference and resumes, as after a stop. */
+static DRV_NOINLINE void home_step(servo_fb_t *fb)
+{
+    home_result_t r = home_tick(&drv.home, drv.cfg.tick_hz, drv.in.enc, fb, &drv.servo, &drv.ref);
+    drv.ref_synced = false;
+    drv.homed |= drv.home.done;
+    if (r == HOME_FAULT) {
+        drv.faults |= DRIVE_FAULT_HOMING;
+        servo_stop(&drv.servo);
+    } else if (r != HOME_MOVING) {
+        drv.halted = true;
+        drv.v_act = 0;
+        set_state(DRIVE_STOPPING);
+    }
+    servo_tick(&drv.servo, &drv.ref, fb);
+}
+
+/* The tick of a drive that is not IDLE, RUNNING or STOPPING with its
+ * servo running (out of line: the usual tick does not pay for it): the
+ * homing sequence, or the servo holding / off with the reference on its
+ * hold position. */
+static DRV_NOINLINE void tick_still(servo_fb_t *fb)
+{
+    unsigned i;
+    if (drv.state == DRIVE_HOMING && drv.servo.state == SERVO_RUN) {
+        home_step(fb); /* reference and servo tick */
+        return;
+    }
+    servo_tick(&drv.servo, NULL, fb);
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.ref.pos[i] = drv.servo.ref_pos[i];
+        drv.ref.vel[i] = 0;
+        drv.ref.acc[i] = 0;
+    }
+    drv.ref.active = false;
+    drv.ref.geom.kind = MOTION_GEOM_NONE;
+    drv.ref_synced = false;
+}
+
 /* drive_tick's result: constant pointers into drv */
 static const drive_tick_out_t tick_out = {&drv.st, drv.ref.vel};
 
 const drive_tick_out_t *drive_tick(bool ref_sampling)
 {
-    unsigned i;
     servo_fb_t fb;
     bool moving_ok;
 
@@ -518,15 +588,7 @@ const drive_tick_out_t *drive_tick(bool ref_sampling)
         friction_ff();
         servo_tick(&drv.servo, &drv.ref, &fb);
     } else {
-        servo_tick(&drv.servo, NULL, &fb);
-        for (i = 0; i < CORE_AXES; i++) {
-            drv.ref.pos[i] = drv.servo.ref_pos[i];
-            drv.ref.vel[i] = 0;
-            drv.ref.acc[i] = 0;
-        }
-        drv.ref.active = false;
-        drv.ref.geom.kind = MOTION_GEOM_NONE;
-        drv.ref_synced = false;
+        tick_still(&fb);
     }
     drv.faults |= drv.servo.faults;
     if (drv.faults != 0) {
@@ -573,7 +635,7 @@ static drive_state_t main_view(drive_state_t s, bool en, bool dis, bool stop)
     if (dis) {
         return DRIVE_DISABLED;
     }
-    if (stop && (s == DRIVE_IDLE || s == DRIVE_RUNNING)) {
+    if (stop && (s == DRIVE_IDLE || s == DRIVE_RUNNING || s == DRIVE_HOMING)) {
         return DRIVE_STOPPING;
     }
     return (en && s == DRIVE_DISABLED) ? DRIVE_IDLE : s;
@@ -582,7 +644,10 @@ static drive_state_t main_view(drive_state_t s, bool en, bool dis, bool stop)
 static drive_state_t main_state(void)
 {
     bool en = drv.req_enable, dis = drv.req_disable, stop = drv.req_stop;
-    return main_view(drv.state_pub, en, dis, stop);
+    bool home = drv.req_home;
+    drive_state_t s = main_view(drv.state_pub, en, dis, stop);
+    /* a pending home: HOMING (no block is queued under it) */
+    return (home && s == DRIVE_IDLE) ? DRIVE_HOMING : s;
 }
 
 /* The tick does not touch the interpolator and leaves this state only on a
@@ -602,6 +667,9 @@ void drive_poll(void)
     drive_state_t s = main_state();
     if (!drv.ready) {
         return;
+    }
+    if (s == DRIVE_HOMING) {
+        return; /* nothing queued; the tick makes the motion */
     }
     if (s == DRIVE_DISABLED || s == DRIVE_FAULT || s == DRIVE_STOPPING) {
         PREEMPT_POINT();
@@ -637,7 +705,7 @@ static drive_result_t accept_check(void)
     if (s == DRIVE_DISABLED) {
         return DRIVE_E_DISABLED;
     }
-    if (s == DRIVE_STOPPING) {
+    if (s == DRIVE_STOPPING || s == DRIVE_HOMING) {
         return DRIVE_E_BUSY;
     }
     return DRIVE_OK;
@@ -687,6 +755,25 @@ drive_result_t drive_enable(bool on)
     flush_all(st.pos);
     PREEMPT_POINT();
     post(&drv.req_enable);
+    return DRIVE_OK;
+}
+
+drive_result_t drive_home(const drive_home_t *h)
+{
+    drive_result_t r;
+    if (h == NULL || !home_check(h, &drv.cfg)) {
+        return DRIVE_E_INVALID;
+    }
+    r = accept_check();
+    if (r != DRIVE_OK) {
+        return r;
+    }
+    PREEMPT_POINT();
+    if (main_state() != DRIVE_IDLE || !feed_idle(&feed)) {
+        return DRIVE_E_BUSY; /* a job or jog is queued or executing */
+    }
+    pend_home = *h;
+    post(&drv.req_home);
     return DRIVE_OK;
 }
 
@@ -761,6 +848,7 @@ void drive_status(drive_status_t *out)
     uint16_t rd;
     int64_t rem;
     bool stop = drv.req_stop; /* before the snapshot (see main_state()) */
+    bool home = drv.req_home;
     if (out == NULL) {
         return;
     }
@@ -770,6 +858,9 @@ void drive_status(drive_status_t *out)
     /* a pending stop: STOPPING (no stale IDLE after a stop); IDLE with
      * blocks queued since the last tick: RUNNING (docs/tick-main.md) */
     out->state = main_view(out->state, false, false, stop);
+    if (home && out->state == DRIVE_IDLE) {
+        out->state = DRIVE_HOMING; /* a home not yet started */
+    }
     if (out->state == DRIVE_IDLE && !feed_idle(&feed)) {
         out->state = DRIVE_RUNNING;
     }
@@ -797,7 +888,7 @@ int64_t drive_encoder_count(unsigned ch)
 static bool moving(void)
 {
     drive_state_t s = main_state();
-    return s == DRIVE_RUNNING || s == DRIVE_STOPPING;
+    return s == DRIVE_RUNNING || s == DRIVE_STOPPING || s == DRIVE_HOMING;
 }
 
 drive_result_t drive_set_cec_mode(drive_cec_mode_t mode)

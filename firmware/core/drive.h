@@ -13,7 +13,7 @@
  * Contexts
  *   drive_tick()                          tick only.
  *   drive_poll(), drive_queue_block(),
- *   drive_enable(), drive_stop(),
+ *   drive_enable(), drive_stop(), drive_home(),
  *   drive_fault_reset(), drive_set_*()    main only.
  *   drive_estop(), drive_snapshot()       any context (estop only sets a
  *                                         flag acted on by the next tick;
@@ -42,7 +42,8 @@
  * interpolator, main context); arc_seg.c the chord segmentation (and
  * drive_arc_chords); arc_ref.c the arc reference of the tick;
  * drive_inputs.c the encoders and reference scales; drive_param.c the
- * configuration defaults and the parameter table. drive_int.h is their
+ * configuration defaults and the parameter table; drive_home.c the homing
+ * sequence (tick). drive_int.h is their
  * internal interface, drive_test.h holds the test hooks. The drive calls no
  * other subsystem's main or tick functions: calibration runs beside it (see
  * drive_tick).
@@ -106,6 +107,7 @@
  *   RUNNING --stop--> STOPPING --(axes at rest, main flushed)--> IDLE
  *   any --estop / fault--> FAULT (outputs zero and disabled, queue flushed)
  *   FAULT --fault_reset (cause gone)--> DISABLED
+ *   IDLE --home--> HOMING --(homed, or stop: at rest)--> STOPPING --> IDLE
  *   IDLE/RUNNING --disable--> DISABLED (outputs zero, queue flushed)
  */
 #ifndef DRIVE_H
@@ -167,7 +169,8 @@ typedef enum {
     DRIVE_IDLE,
     DRIVE_RUNNING,
     DRIVE_STOPPING,
-    DRIVE_FAULT
+    DRIVE_FAULT,
+    DRIVE_HOMING /* the homing sequence runs (drive_home) */
 } drive_state_t;
 
 /* Fault bits (latched until drive_fault_reset); the first four are the
@@ -180,6 +183,7 @@ typedef enum {
 #define DRIVE_FAULT_AMPLIFIER  (1u << 3) /* amplifier fault input             */
 #define DRIVE_FAULT_ESTOP      (1u << 4) /* emergency stop requested          */
 #define DRIVE_FAULT_COMM       (1u << 5) /* host link watchdog (protocol)     */
+#define DRIVE_FAULT_HOMING     (1u << 6) /* home switch or index not found    */
 
 typedef enum {
     DRIVE_BLOCK_LINE = 1,
@@ -240,6 +244,11 @@ typedef struct {
     uint32_t encoder_illegal[CORE_AXES]; /* illegal transitions seen      */
     pos_nm_t pos_raw[CORE_AXES];         /* measured position before the
                                           * compensation table, nm       */
+    uint32_t homed;                      /* bit i: axis i homed (drive_home) since init */
+    /* per axis: how far its last homing moved the position frame, nm
+     * (home_pos minus what the reference point read before: 0 when the
+     * frame was already right) */
+    pos_nm_t home_shift[CORE_AXES];
 } drive_status_t;
 
 typedef struct {
@@ -370,6 +379,30 @@ int64_t drive_encoder_count(unsigned ch);
 void drive_set_comp(unsigned axis, const comp_table_t *table);
 /* True when the axis has a reference-scale input in use. Any. */
 bool drive_has_refscale(unsigned axis);
+/* Homing (the sequence: drive_home.h). Every axis of `axes` searches its
+ * home switch, backs off to the switch edge and, for an axis in `index`,
+ * goes on to the next encoder index; its position there becomes home_pos.
+ * Feeds in nm/s (latch_nm_s <= search_nm_s), distances in nm. */
+typedef struct {
+    uint32_t axes;                /* bit i: home axis i (non-zero, < 1 << axes) */
+    uint32_t negative;            /* bit i: the switch is toward -             */
+    uint32_t index;               /* bit i: reference = index after the edge   */
+    int64_t search_nm_s;          /* toward the switch, > 0                    */
+    int64_t latch_nm_s;           /* back-off and index search, > 0            */
+    int64_t max_dist_nm;          /* per phase, > 0: else DRIVE_FAULT_HOMING  */
+    pos_nm_t home_pos[CORE_AXES]; /* position at the reference point, nm       */
+} drive_home_t;
+
+/* Start homing: only IDLE with nothing queued (DRIVE_E_BUSY otherwise,
+ * DRIVE_E_DISABLED / DRIVE_E_FAULTED as drive_queue_block); feeds over an
+ * axis's planner v_max or a bad mask: DRIVE_E_INVALID. The drive is
+ * HOMING until every axis is homed, then (through STOPPING at rest) IDLE,
+ * the axes' bits set in drive_status_t.homed. drive_stop aborts it (ramp
+ * to rest, IDLE, unfinished axes not homed); a fault or e-stop ends it as
+ * usual (FAULT); a switch or index not found latches DRIVE_FAULT_HOMING
+ * (controlled stop, FAULT). Blocks are refused (BUSY) while homing. Main. */
+drive_result_t drive_home(const drive_home_t *h);
+
 /* Select the contour-error controller (refused while moving). Main. */
 drive_result_t drive_set_cec_mode(drive_cec_mode_t mode);
 

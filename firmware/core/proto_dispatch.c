@@ -46,6 +46,8 @@ static uint8_t map_state(const drive_status_t *st)
         return PROTO_STATE_RUNNING;
     case DRIVE_STOPPING:
         return PROTO_STATE_STOPPING;
+    case DRIVE_HOMING:
+        return PROTO_STATE_HOMING;
     default:
         return (st->faults & DRIVE_FAULT_ESTOP) != 0u ? PROTO_STATE_ESTOP : PROTO_STATE_FAULT;
     }
@@ -73,9 +75,12 @@ static uint16_t map_faults(const drive_status_t *st)
     if ((st->faults & DRIVE_FAULT_SATURATION) != 0u) {
         f |= 1u << PROTO_FAULT_SATURATION;
     }
-    if ((st->faults &
-         ~(uint32_t)(DRIVE_FAULT_COMM | DRIVE_FAULT_FOLLOWING | DRIVE_FAULT_AMPLIFIER |
-                     DRIVE_FAULT_ENCODER | DRIVE_FAULT_ESTOP | DRIVE_FAULT_SATURATION)) != 0u) {
+    if ((st->faults & DRIVE_FAULT_HOMING) != 0u) {
+        f |= 1u << PROTO_FAULT_HOMING;
+    }
+    if ((st->faults & ~(uint32_t)(DRIVE_FAULT_COMM | DRIVE_FAULT_FOLLOWING | DRIVE_FAULT_AMPLIFIER |
+                                  DRIVE_FAULT_ENCODER | DRIVE_FAULT_ESTOP | DRIVE_FAULT_SATURATION |
+                                  DRIVE_FAULT_HOMING)) != 0u) {
         f |= 1u << PROTO_FAULT_INTERNAL;
     }
     return f;
@@ -453,6 +458,45 @@ static refusal_t req_jog(proto_dispatch_t *d, const proto_jog_t *j, drive_status
     return do_queue(&b, st, 2, false);
 }
 
+static refusal_t req_home(proto_dispatch_t *d, const proto_home_t *h, drive_status_t *st)
+{
+    uint8_t all = (uint8_t)((1u << AXES_OF(d)) - 1u);
+    drive_home_t q = {0};
+    drive_result_t dr;
+    unsigned i;
+
+    if (h->axis_mask == 0u || (h->axis_mask & (uint8_t)~all) != 0u) {
+        return refuse(PROTO_ERROR_CODE_BAD_AXIS, h->axis_mask);
+    }
+    if (h->search_feed == 0u) {
+        return range_error(3, 1, UINT32_MAX);
+    }
+    if (h->latch_feed == 0u || h->latch_feed > h->search_feed) {
+        return range_error(4, 1, h->search_feed);
+    }
+    if (h->max_distance == 0u) {
+        return range_error(5, 1, UINT32_MAX);
+    }
+    for (i = 0; i < PROTO_MAX_AXES; i++) {
+        if (!pos_ok(h->home_pos[i])) {
+            return range_error((uint16_t)(6 + i), -PROTO_POS_LIMIT_NM, PROTO_POS_LIMIT_NM);
+        }
+        if (i < CORE_AXES) {
+            q.home_pos[i] = h->home_pos[i];
+        }
+    }
+    q.axes = h->axis_mask;
+    q.negative = h->negative_mask & all;
+    q.index = h->index_mask & all;
+    q.search_nm_s = h->search_feed;
+    q.latch_nm_s = h->latch_feed;
+    q.max_dist_nm = h->max_distance;
+    dr = drive_home(&q);
+    PREEMPT_POINT();
+    drive_status(st);
+    return map_drive_result(dr, st);
+}
+
 static size_t put_error(uint8_t *out, uint8_t seq, uint8_t req, const refusal_t *r)
 {
     return proto_reply_error(out, seq, req, r->code, r->arg, r->lo, r->hi);
@@ -490,6 +534,10 @@ static size_t put_drive_state(const proto_dispatch_t *d, uint8_t *out, uint8_t s
     }
     s.rx_errors = fx_sat_u16(d->rx_errors);
     s.replayed = fx_sat_u16(d->stats.replayed);
+    s.homed = (uint8_t)(st.homed & 0xFFu);
+    for (i = 0; i < PROTO_MAX_AXES; i++) {
+        s.home_shift[i] = (i < CORE_AXES && i < AXES_OF(d)) ? st.home_shift[i] : 0;
+    }
     out[0] = PROTO_MSG_DRIVE_STATE;
     out[1] = seq;
     return PROTO_MSG_HDR + proto_drive_state_encode(&s, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
@@ -629,6 +677,16 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
         r = req_queue_arc(d, &q, &st);
         if (r.code == PROTO_ERROR_CODE_NONE) {
             return put_queue_reply(out, seq, block_seq, &st);
+        }
+        break;
+    }
+    case PROTO_MSG_HOME: {
+        proto_home_t h;
+
+        (void)proto_home_decode(p, n, &h);
+        r = req_home(d, &h, &st);
+        if (r.code == PROTO_ERROR_CODE_NONE) {
+            return proto_reply_ack(out, seq, id);
         }
         break;
     }
@@ -841,7 +899,7 @@ static void watchdog(proto_dispatch_t *d, uint32_t now_us)
     drive_status(&st);
     PREEMPT_POINT();
     if (d->wd_stopping) {
-        if (st.state == DRIVE_STOPPING || st.state == DRIVE_RUNNING) {
+        if (st.state == DRIVE_STOPPING || st.state == DRIVE_RUNNING || st.state == DRIVE_HOMING) {
             return; /* still decelerating */
         }
         d->wd_stopping = false;
@@ -850,8 +908,8 @@ static void watchdog(proto_dispatch_t *d, uint32_t now_us)
         }
         return;
     }
-    if (d->comm_timeout_ms == 0u || st.state != DRIVE_RUNNING) {
-        return;
+    if (d->comm_timeout_ms == 0u || (st.state != DRIVE_RUNNING && st.state != DRIVE_HOMING)) {
+        return; /* homing too: a host that died does not leave the axes homing */
     }
     if ((uint32_t)(now_us - d->last_rx_us) / 1000u >= d->comm_timeout_ms) {
         d->stats.watchdog_stops++;

@@ -204,6 +204,42 @@ bool proto_session_open_decode(const uint8_t *buf, size_t len, proto_session_ope
     return true;
 }
 
+size_t proto_home_encode(const proto_home_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_HOME_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->axis_mask, 1u);
+    proto_put_le(buf + 1, (uint64_t)m->negative_mask, 1u);
+    proto_put_le(buf + 2, (uint64_t)m->index_mask, 1u);
+    proto_put_le(buf + 3, (uint64_t)m->search_feed, 4u);
+    proto_put_le(buf + 7, (uint64_t)m->latch_feed, 4u);
+    proto_put_le(buf + 11, (uint64_t)m->max_distance, 4u);
+    proto_put_le(buf + 15, (uint64_t)m->home_pos[0], 8u);
+    proto_put_le(buf + 23, (uint64_t)m->home_pos[1], 8u);
+    proto_put_le(buf + 31, (uint64_t)m->home_pos[2], 8u);
+    proto_put_le(buf + 39, (uint64_t)m->home_pos[3], 8u);
+    return PROTO_HOME_LEN;
+}
+
+bool proto_home_decode(const uint8_t *buf, size_t len, proto_home_t *m)
+{
+    if (len != PROTO_HOME_LEN) {
+        return false;
+    }
+    m->axis_mask = (uint8_t)proto_get_le(buf + 0, 1u);
+    m->negative_mask = (uint8_t)proto_get_le(buf + 1, 1u);
+    m->index_mask = (uint8_t)proto_get_le(buf + 2, 1u);
+    m->search_feed = (uint32_t)proto_get_le(buf + 3, 4u);
+    m->latch_feed = (uint32_t)proto_get_le(buf + 7, 4u);
+    m->max_distance = (uint32_t)proto_get_le(buf + 11, 4u);
+    m->home_pos[0] = (int64_t)proto_get_sle(buf + 15, 8u);
+    m->home_pos[1] = (int64_t)proto_get_sle(buf + 23, 8u);
+    m->home_pos[2] = (int64_t)proto_get_sle(buf + 31, 8u);
+    m->home_pos[3] = (int64_t)proto_get_sle(buf + 39, 8u);
+    return true;
+}
+
 size_t proto_heartbeat_encode(const proto_heartbeat_t *m, uint8_t *buf, size_t cap)
 {
     if (cap < PROTO_HEARTBEAT_LEN) {
@@ -436,6 +472,11 @@ size_t proto_drive_state_encode(const proto_drive_state_t *m, uint8_t *buf, size
     proto_put_le(buf + 42, (uint64_t)m->pos[3], 8u);
     proto_put_le(buf + 50, (uint64_t)m->rx_errors, 2u);
     proto_put_le(buf + 52, (uint64_t)m->replayed, 2u);
+    proto_put_le(buf + 54, (uint64_t)m->homed, 1u);
+    proto_put_le(buf + 55, (uint64_t)m->home_shift[0], 8u);
+    proto_put_le(buf + 63, (uint64_t)m->home_shift[1], 8u);
+    proto_put_le(buf + 71, (uint64_t)m->home_shift[2], 8u);
+    proto_put_le(buf + 79, (uint64_t)m->home_shift[3], 8u);
     return PROTO_DRIVE_STATE_LEN;
 }
 
@@ -457,6 +498,11 @@ bool proto_drive_state_decode(const uint8_t *buf, size_t len, proto_drive_state_
     m->pos[3] = (int64_t)proto_get_sle(buf + 42, 8u);
     m->rx_errors = (uint16_t)proto_get_le(buf + 50, 2u);
     m->replayed = (uint16_t)proto_get_le(buf + 52, 2u);
+    m->homed = (uint8_t)proto_get_le(buf + 54, 1u);
+    m->home_shift[0] = (int64_t)proto_get_sle(buf + 55, 8u);
+    m->home_shift[1] = (int64_t)proto_get_sle(buf + 63, 8u);
+    m->home_shift[2] = (int64_t)proto_get_sle(buf + 71, 8u);
+    m->home_shift[3] = (int64_t)proto_get_sle(buf + 79, 8u);
     return true;
 }
 
@@ -1244,6 +1290,7 @@ const proto_msg_info_t proto_msg_table[] = {
     {0x0Au, PROTO_DIR_H2D, 0x4Au, 0u, 0u, 0u, "status_get"},
     {0x0Bu, PROTO_DIR_H2D, 0x46u, 0u, 59u, 59u, "queue_arc"},
     {0x0Cu, PROTO_DIR_H2D, 0x4Cu, 0u, 4u, 4u, "session_open"},
+    {0x0Du, PROTO_DIR_H2D, 0x70u, 0u, 47u, 47u, "home"},
     {0x2Eu, PROTO_DIR_H2D, 0x70u, 0u, 0u, 0u, "param_save"},
     {0x30u, PROTO_DIR_D2H, 0x00u, 31u, 8u, 8u, "heartbeat"},
     {0x31u, PROTO_DIR_D2H, 0x00u, 4u, 8u, 8u, "status"},
@@ -1260,7 +1307,7 @@ const proto_msg_info_t proto_msg_table[] = {
     {0x41u, PROTO_DIR_D2H, 0x00u, 0u, 28u, 28u, "identify_reply"},
     {0x42u, PROTO_DIR_D2H, 0x00u, 0u, 10u, 10u, "param_value"},
     {0x46u, PROTO_DIR_D2H, 0x00u, 0u, 10u, 10u, "queue_reply"},
-    {0x4Au, PROTO_DIR_D2H, 0x00u, 0u, 54u, 54u, "drive_state"},
+    {0x4Au, PROTO_DIR_D2H, 0x00u, 0u, 87u, 87u, "drive_state"},
     {0x4Cu, PROTO_DIR_D2H, 0x00u, 0u, 6u, 6u, "session_reply"},
     {0x70u, PROTO_DIR_D2H, 0x00u, 0u, 1u, 1u, "ack"},
     {0x7Fu, PROTO_DIR_D2H, 0x00u, 0u, 20u, 20u, "error"},

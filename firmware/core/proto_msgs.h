@@ -77,6 +77,7 @@
 #define PROTO_STATE_FAULT 4u /* a fault is latched; fault_reset clears it */
 #define PROTO_STATE_ESTOP 5u /* emergency stop latched; fault_reset clears it */
 #define PROTO_STATE_BOOTLOADER 6u /* the bootloader is running (no motion) */
+#define PROTO_STATE_HOMING 7u /* the homing sequence runs (home); stop aborts it */
 
 /* Fault bits (bit numbers) in status.faults and drive_state.faults. */
 #define PROTO_FAULT_COMM_TIMEOUT 0u /* host silent while motion was queued: controlled stop */
@@ -86,6 +87,7 @@
 #define PROTO_FAULT_ENCODER 4u /* encoder error (illegal transition, lost count) */
 #define PROTO_FAULT_ESTOP 5u /* emergency stop requested */
 #define PROTO_FAULT_SATURATION 6u /* motor command saturated too long */
+#define PROTO_FAULT_HOMING 7u /* home switch or index not found within max_distance */
 #define PROTO_FAULT_INTERNAL 15u /* other application fault */
 
 /* Capability bits in identify_reply.capabilities. */
@@ -208,6 +210,7 @@
 #define PROTO_MSG_STATUS_GET 0x0Au
 #define PROTO_MSG_QUEUE_ARC 0x0Bu
 #define PROTO_MSG_SESSION_OPEN 0x0Cu
+#define PROTO_MSG_HOME 0x0Du
 #define PROTO_MSG_PARAM_SAVE 0x2Eu
 #define PROTO_MSG_HEARTBEAT 0x30u
 #define PROTO_MSG_STATUS 0x31u
@@ -382,6 +385,20 @@ typedef struct {
 size_t proto_session_open_encode(const proto_session_open_t *m, uint8_t *buf, size_t cap);
 bool proto_session_open_decode(const uint8_t *buf, size_t len, proto_session_open_t *m);
 
+/* home (h2d): Home the axes of axis_mask (ready only, nothing queued): per axis, toward the home switch at search_feed until it triggers, back off at latch_feed until it releases, on to the next encoder index (axes in index_mask; else the switch edge), stop; the position there becomes home_pos. The drive is homing (state) until every axis is homed (drive_state.homed), then ready; stop aborts; a switch or index not found within max_distance latches the homing fault. docs/operating.md, Homing. */
+#define PROTO_HOME_LEN 47u
+typedef struct {
+    uint8_t axis_mask; /* axes to home, non-zero */
+    uint8_t negative_mask; /* bit i: axis i's switch is toward negative positions */
+    uint8_t index_mask; /* bit i: reference is the encoder index after the switch edge */
+    uint32_t search_feed; /* [nm/s] toward the switch, > 0, <= max_velocity */
+    uint32_t latch_feed; /* [nm/s] back-off and index search, 0 < latch_feed <= search_feed */
+    uint32_t max_distance; /* [nm] travel allowed per phase, > 0 */
+    int64_t home_pos[4]; /* [nm] position at the reference point */
+} proto_home_t;
+size_t proto_home_encode(const proto_home_t *m, uint8_t *buf, size_t cap);
+bool proto_home_decode(const uint8_t *buf, size_t len, proto_home_t *m);
+
 /* param_save (h2d): Store the drive parameters in flash (loaded at start-up; docs/parameters.md). Only while disabled (bad_state, arg = state); a flash failure is internal (arg = comp_store result). */
 #define PROTO_PARAM_SAVE_LEN 0u
 
@@ -484,7 +501,7 @@ size_t proto_queue_reply_encode(const proto_queue_reply_t *m, uint8_t *buf, size
 bool proto_queue_reply_decode(const uint8_t *buf, size_t len, proto_queue_reply_t *m);
 
 /* drive_state (d2h): Reply to status_get. */
-#define PROTO_DRIVE_STATE_LEN 54u
+#define PROTO_DRIVE_STATE_LEN 87u
 typedef struct {
     uint8_t state; /* state enum */
     uint8_t enabled; /* enabled axes mask */
@@ -496,6 +513,8 @@ typedef struct {
     int64_t pos[4]; /* [nm] measured position */
     uint16_t rx_errors; /* frames dropped (CRC, length, overflow) since start */
     uint16_t replayed; /* repeated requests answered from the cache */
+    uint8_t homed; /* homed axes mask (home) */
+    int64_t home_shift[4]; /* [nm] per axis: how far its last homing moved the position frame (0: it was already right) */
 } proto_drive_state_t;
 size_t proto_drive_state_encode(const proto_drive_state_t *m, uint8_t *buf, size_t cap);
 bool proto_drive_state_decode(const uint8_t *buf, size_t len, proto_drive_state_t *m);

@@ -73,6 +73,16 @@ static inline uint32_t hal_generic_amp_fault_mask(unsigned n)
     return m;
 }
 
+/* Home switch of one axis (true = the axis is on its switch). The switch is
+ * a region at one end of travel: active from its edge to the end, so an
+ * axis that overshoots the edge keeps it active. Read by the homing
+ * sequence only (drive_home.h). Tick context. A port without a switch on
+ * an axis returns false (homing that axis then fails: switch not found).
+ * Ports: sim from the simulated table position (sim.h home_switch_*),
+ * mps2_an386 from its plant, stm32f4 a GPIO input (hal_stm32f4.c), linux a
+ * GPIO line (hal_linux.c, CONTOUR_GPIO_HOME). */
+bool hal_home_switch(unsigned axis);
+
 /* ---- host link ----------------------------------------------------------- */
 
 /* Non-blocking UART: returns bytes accepted / read (0 when none). Main. */

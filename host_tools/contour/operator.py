@@ -1,6 +1,6 @@
 """What the person at the machine does: enable, disable, reset, stop, e-stop,
-jog and look at the drive's status (library of the `contour enable`,
-`disable`, `reset`, `stop`, `estop`, `jog` and `status` commands).
+jog, home and look at the drive's status (library of the `contour enable`,
+`disable`, `reset`, `stop`, `estop`, `jog`, `home` and `status` commands).
 
 Everything here works in the drive's units (nm, nm/s) on a connected
 :class:`contour.link.client.Client`; the commands convert from and to mm and
@@ -28,7 +28,8 @@ POS_LIMIT_NM = 10**15  # PROTO_POS_LIMIT_NM (firmware/core/proto_dispatch.h)
 REST_NM = 1250  # one encoder count of the default machine (5 mm lead, 4000 counts/rev)
 REST_S = 0.1  # the position holds within REST_NM this long: at rest
 POLL_S = 0.02
-MOVING = (pg.State.RUNNING, pg.State.STOPPING)
+MOVING = (pg.State.RUNNING, pg.State.STOPPING, pg.State.HOMING)
+MOVING_NAMES = ("running", "stopping", "homing")
 LATCHED = (pg.State.FAULT, pg.State.ESTOP)
 
 
@@ -106,6 +107,7 @@ class Snapshot:
     queued_us: int
     blocks_done: int
     last_block_seq: int
+    homed: list = None  # axis names homed since the drive started
 
     @property
     def latched(self) -> bool:
@@ -117,6 +119,7 @@ class Snapshot:
             "state": self.state,
             "enabled_axes": self.enabled,
             "faults": self.faults,
+            "homed_axes": self.homed or [],
             "position_mm": {AXIS_NAMES[i]: p / NM_PER_MM for i, p in enumerate(self.position_nm)},
             "queue": {
                 "free_slots": self.free_slots,
@@ -146,6 +149,7 @@ class Snapshot:
             f"state     {self.state} (enabled: {enabled})\n"
             f"faults    {', '.join(self.faults) or 'none'}\n"
             f"position  {self.position_text()} mm\n"
+            f"homed     {' '.join(self.homed or []) or 'none'}\n"
             f"queue     {self.free_slots} slots free, {self.queued_us / 1e6:.3f} s planned, "
             f"{self.blocks_done} blocks done"
         )
@@ -180,6 +184,7 @@ class Operator:
             queued_us=st["queued_us"],
             blocks_done=st["blocks_done"],
             last_block_seq=st["last_block_seq"],
+            homed=[AXIS_NAMES[i] for i in range(self.axes) if st.get("homed", 0) & (1 << i)],
         )
 
     def check_axes(self, mask: int) -> None:
@@ -258,7 +263,7 @@ class Operator:
             if on_sample is not None:
                 on_sample(snap)
             now = time.monotonic()
-            if snap.state in ("running", "stopping"):
+            if snap.state in MOVING_NAMES:
                 held_since, ref = None, snap.position_nm
             elif max(abs(a - b) for a, b in zip(snap.position_nm, ref)) > REST_NM:
                 held_since, ref = now, snap.position_nm
@@ -301,7 +306,7 @@ class Operator:
         self.refuse_if_latched(snap)
         if snap.state == "disabled":
             raise UserError("the drive is disabled: `contour enable` first")
-        if snap.state in ("running", "stopping"):
+        if snap.state in MOVING_NAMES:
             raise UserError(f"the drive is moving (state {snap.state}): `contour stop` first")
         start = snap.position_nm[axis]
         if distance_nm is None:
@@ -363,3 +368,107 @@ class Operator:
             time.sleep(POLL_S)
             snap = self.snapshot()
         return self.wait_rest(max(1.0, deadline - time.monotonic()), on_sample=check)
+
+    # ---- homing -------------------------------------------------------------------
+
+    def home(self, mask: int, params: HomeParams, timeout: Optional[float] = None) -> dict:
+        """Home the axes of ``mask`` (the drive's sequence: switch, back-off,
+        index; docs/operating.md, Homing), wait until the drive is ready and
+        at rest, return the homed axes and their positions. A fault before or
+        during homing: FaultError naming it; the drive refusing (moving,
+        disabled): UserError. On KeyboardInterrupt: controlled stop (aborts
+        homing), wait for rest, re-raise."""
+        self.check_axes(mask)
+        for a in range(self.axes):
+            if mask & (1 << a) and params.search_nm_s > self.max_feed_nm_s(a):
+                limit = self.max_feed_nm_s(a) * 60 / NM_PER_MM
+                raise UsageError(
+                    f"--search-feed {params.search_nm_s * 60 / NM_PER_MM:g} mm/min is above "
+                    f"axis {AXIS_NAMES[a]}'s limit {limit:g} mm/min"
+                )
+        snap = self.snapshot()
+        self.refuse_if_latched(snap)
+        if snap.state == "disabled":
+            raise UserError("the drive is disabled: `contour enable` first")
+        if snap.state in MOVING_NAMES:
+            raise UserError(f"the drive is moving (state {snap.state}): `contour stop` first")
+        if timeout is None:
+            # search, back-off and index phases at their feeds, plus ramps and margin
+            timeout = (
+                15.0
+                + params.max_distance_nm / params.search_nm_s
+                + 2.0 * params.max_distance_nm / params.latch_nm_s
+            )
+        t0 = time.monotonic()
+        home_pos = [params.home_pos_nm[i] if i < len(params.home_pos_nm) else 0 for i in range(4)]
+        try:
+            self.c.request(
+                "home",
+                axis_mask=mask,
+                negative_mask=mask if params.negative else 0,
+                index_mask=mask if params.index else 0,
+                search_feed=params.search_nm_s,
+                latch_feed=params.latch_nm_s,
+                max_distance=params.max_distance_nm,
+                home_pos=home_pos,
+            )
+        except DriveError as exc:
+            if exc.code == pg.ErrorCode.FAULTED:
+                s2 = self.snapshot()
+                raise FaultError(latched_text(s2), s2.faults) from None
+            if exc.code in (pg.ErrorCode.BUSY, pg.ErrorCode.DISABLED):
+                raise UserError(f"the drive refused homing: {exc}") from None
+            raise
+        try:
+            snap = self._wait_home(t0 + timeout)
+        except KeyboardInterrupt:
+            self.stop()
+            raise
+        names = [AXIS_NAMES[a] for a in range(self.axes) if mask & (1 << a)]
+        shift = self.c.status()["home_shift"]
+        missing = [n for n in names if n not in (snap.homed or [])]
+        if missing:
+            raise UserError(
+                f"homing ended without homing {', '.join(missing)} (state {snap.state})"
+            )
+        return {
+            "homed_axes": names,
+            "position_mm": {AXIS_NAMES[i]: p / NM_PER_MM for i, p in enumerate(snap.position_nm)},
+            "shift_um": {
+                AXIS_NAMES[a]: shift[a] / 1000 for a in range(self.axes) if mask & (1 << a)
+            },
+            "elapsed_s": time.monotonic() - t0,
+            "state": snap.state,
+        }
+
+    def _wait_home(self, deadline: float) -> Snapshot:
+        def check(s: Snapshot) -> None:
+            if s.latched:
+                raise FaultError(
+                    f"homing stopped by a fault: {', '.join(s.faults) or s.state} at "
+                    f"{s.position_text()} mm; `contour reset` clears it",
+                    s.faults,
+                )
+
+        snap = self.snapshot()
+        while snap.state in MOVING_NAMES:
+            check(snap)
+            if time.monotonic() > deadline:
+                self.stop()
+                raise UserError(f"homing did not finish in time (state {snap.state}): stopped")
+            time.sleep(POLL_S)
+            snap = self.snapshot()
+        check(snap)
+        return self.wait_rest(max(1.0, deadline - time.monotonic()), on_sample=check)
+
+
+@dataclass
+class HomeParams:
+    """The homing request's parameters, drive units (see the `home` message)."""
+
+    search_nm_s: int
+    latch_nm_s: int
+    max_distance_nm: int
+    negative: bool = True  # the switches are toward negative positions
+    index: bool = True  # reference on the encoder index after the switch edge
+    home_pos_nm: tuple = (0, 0, 0, 0)  # position at the reference point, per axis

@@ -110,6 +110,7 @@ class State(IntEnum):
     FAULT = 4
     ESTOP = 5
     BOOTLOADER = 6
+    HOMING = 7
 
 
 class Fault(IntEnum):
@@ -122,6 +123,7 @@ class Fault(IntEnum):
     ENCODER = 4
     ESTOP = 5
     SATURATION = 6
+    HOMING = 7
     INTERNAL = 15
 
 
@@ -439,6 +441,25 @@ MESSAGES = (
         'A host starts a session: the drive forgets its replay cache and echoes the nonce. Everything the drive sent before this reply belongs to an earlier session: the host discards it. The bootloader answers it too.',
     ),
     Message(
+        "home",
+        0x0D,
+        "h2d",
+        'ack',
+        None,
+        (
+            Field("axis_mask", "u8", 1, 1, 0, 0, ""),
+            Field("negative_mask", "u8", 1, 1, 0, 1, ""),
+            Field("index_mask", "u8", 1, 1, 0, 2, ""),
+            Field("search_feed", "u32", 4, 1, 0, 3, "nm/s"),
+            Field("latch_feed", "u32", 4, 1, 0, 7, "nm/s"),
+            Field("max_distance", "u32", 4, 1, 0, 11, "nm"),
+            Field("home_pos", "i64", 8, 4, 0, 15, "nm"),
+        ),
+        47,
+        47,
+        'Home the axes of axis_mask (ready only, nothing queued): per axis, toward the home switch at search_feed until it triggers, back off at latch_feed until it releases, on to the next encoder index (axes in index_mask; else the switch edge), stop; the position there becomes home_pos. The drive is homing (state) until every axis is homed (drive_state.homed), then ready; stop aborts; a switch or index not found within max_distance latches the homing fault. docs/operating.md, Homing.',
+    ),
+    Message(
         "param_save",
         0x2E,
         "h2d",
@@ -697,9 +718,11 @@ MESSAGES = (
             Field("pos", "i64", 8, 4, 0, 18, "nm"),
             Field("rx_errors", "u16", 2, 1, 0, 50, ""),
             Field("replayed", "u16", 2, 1, 0, 52, ""),
+            Field("homed", "u8", 1, 1, 0, 54, ""),
+            Field("home_shift", "i64", 8, 4, 0, 55, "nm"),
         ),
-        54,
-        54,
+        87,
+        87,
         'Reply to status_get.',
     ),
     Message(

@@ -271,6 +271,18 @@ static void calibrate(void)
     TEST_ASSERT_EQUAL_UINT32_MESSAGE(4u * 5u, cs.seq_next, where);
 }
 
+/* Home X (switch at -21.3 mm, index at -20 mm: the simulator's defaults)
+ * to -21 mm; the drive is HOMING at once (main's view). */
+static void home_x(void)
+{
+    proto_home_t h = {1u, 1u, 1u, 50000000u, 10000000u, 100000000u, {-21000000, 0, 0, 0}};
+    uint8_t p[64];
+    request(PROTO_MSG_HOME, p, proto_home_encode(&h, p, sizeof p));
+    expect_reply(PROTO_MSG_ACK);
+    msg();
+    TEST_ASSERT_EQUAL_INT_MESSAGE(DRIVE_HOMING, status().state, where);
+}
+
 static void scenario(void)
 {
     proto_identity_t id = {0x000100u, 0xABCDu, 7u, 10000u, 1u, 0u, 5u, 3u};
@@ -360,6 +372,24 @@ static void scenario(void)
     st = wait_for(DRIVE_IDLE, -1);
     msg();
     TEST_ASSERT_EQUAL_UINT32_MESSAGE(0, st.faults, where);
+
+    phase = "H homing stopped, homing, then a job in the new frame";
+    home_x();
+    run(500);
+    request(PROTO_MSG_STOP, NULL, 0);
+    expect_reply(PROTO_MSG_ACK);
+    st = wait_for(DRIVE_IDLE, -1);
+    msg();
+    TEST_ASSERT_EQUAL_UINT32_MESSAGE(0, st.homed, where);
+    home_x();
+    st = wait_for(DRIVE_IDLE, -1);
+    msg();
+    TEST_ASSERT_EQUAL_UINT32_MESSAGE(0, st.faults, where);
+    TEST_ASSERT_EQUAL_UINT32_MESSAGE(1u, st.homed, where);
+    /* the index at -20 mm reads -21 mm now (the drive started in the
+     * table's frame) */
+    TEST_ASSERT_INT64_WITHIN_MESSAGE(1250, -1000000, st.home_shift[0], where);
+    job(30, -15000000, st.blocks_done + 1u);
 }
 
 void setUp(void)

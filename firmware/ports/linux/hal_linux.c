@@ -43,6 +43,7 @@ typedef struct {
     struct gpiod_edge_event_buffer *evbuf;
     uint32_t levels[CORE_AXES];
     bool fault[CORE_AXES];
+    bool home[CORE_AXES]; /* home switch, read with the faults */
     bool en[CORE_AXES];
     int en_line[CORE_AXES]; /* last EN level written, -1 unknown */
     int dir[CORE_AXES];     /* last DIR level written, -1 unknown */
@@ -111,7 +112,7 @@ static struct gpiod_line_request *request(const unsigned *offs, size_t n,
 
 static bool gpio_open(uint32_t initial[CORE_AXES])
 {
-    unsigned enc[2 * CORE_AXES], out[2 * CORE_AXES], in[CORE_AXES], i;
+    unsigned enc[2 * CORE_AXES], out[2 * CORE_AXES], in[2 * CORE_AXES], i;
     unsigned n = lx.cfg.axes;
 
     lx.chip = gpiod_chip_open(lx.cfg.gpiochip);
@@ -125,18 +126,19 @@ static bool gpio_open(uint32_t initial[CORE_AXES])
         enc[2 * i + 1] = line(i, 1);
         out[2 * i] = line(i, 2);
         out[2 * i + 1] = line(i, 3);
-        in[i] = line(i, 4);
+        in[2 * i] = line(i, 4);     /* FAULT */
+        in[2 * i + 1] = line(i, 5); /* HOME */
     }
     lx.enc_req = request(enc, 2 * n, GPIOD_LINE_DIRECTION_INPUT, GPIOD_LINE_EDGE_BOTH,
                          GPIOD_LINE_BIAS_AS_IS);
     lx.out_req = request(out, 2 * n, GPIOD_LINE_DIRECTION_OUTPUT, GPIOD_LINE_EDGE_NONE,
                          GPIOD_LINE_BIAS_AS_IS);
-    lx.in_req =
-        request(in, n, GPIOD_LINE_DIRECTION_INPUT, GPIOD_LINE_EDGE_NONE, GPIOD_LINE_BIAS_PULL_UP);
+    lx.in_req = request(in, 2 * n, GPIOD_LINE_DIRECTION_INPUT, GPIOD_LINE_EDGE_NONE,
+                        GPIOD_LINE_BIAS_PULL_UP);
     lx.evbuf = gpiod_edge_event_buffer_new(EDGE_BUF);
     if (lx.enc_req == NULL || lx.out_req == NULL || lx.in_req == NULL || lx.evbuf == NULL) {
         fprintf(stderr, "contour-drive: cannot request GPIO lines %u..%u of %s: %s\n",
-                lx.cfg.line_base, line(n - 1u, 4), lx.cfg.gpiochip, strerror(errno));
+                lx.cfg.line_base, line(n - 1u, 5), lx.cfg.gpiochip, strerror(errno));
         return false;
     }
     for (i = 0; i < n; i++) {
@@ -200,6 +202,8 @@ static void gpio_faults(void)
     for (i = 0; lx.in_req != NULL && i < lx.cfg.axes; i++) {
         lx.fault[i] =
             gpiod_line_request_get_value(lx.in_req, line(i, 4)) == GPIOD_LINE_VALUE_INACTIVE;
+        lx.home[i] =
+            gpiod_line_request_get_value(lx.in_req, line(i, 5)) == GPIOD_LINE_VALUE_INACTIVE;
     }
 }
 
@@ -271,6 +275,11 @@ void hal_motor_enable(unsigned axis, bool on)
     if (!on) {
         hal_motor_set_mv(axis, 0);
     }
+}
+
+bool hal_home_switch(unsigned axis)
+{
+    return axis < lx.cfg.axes && lx.home[axis];
 }
 
 bool hal_amp_fault(unsigned axis)

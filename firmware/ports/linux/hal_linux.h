@@ -9,6 +9,8 @@
  *   +2 EN         amplifier enable output (active high)
  *   +3 DIR        sign of the motor command (high = negative)
  *   +4 FAULT      amplifier fault input, pull-up, low = fault
+ *   +5 HOME       home switch input, pull-up, low = on the switch
+ *                 (hal_home_switch; read with FAULT before each tick)
  * The command's magnitude goes to an optional sysfs PWM channel per axis
  * (cfg.pwm: printf pattern with the axis, e.g.
  * /sys/class/pwm/pwmchip0/pwm%u; duty 0..100 % = 0..10 V).

@@ -11,6 +11,11 @@
 #define PLANT_LEAD_M   0.005
 #define PLANT_MV_LIMIT 160000
 #define PLANT_SUB_MAX  8u
+/* Home switch (hal_home_switch): active at table positions <= this, m; the
+ * encoder index: one count per motor turn, at counts 0 mod PLANT_INDEX_PER
+ * from position 0 (as the simulator's defaults, sim.h). */
+#define PLANT_HOME_SWITCH_M (-0.0213)
+#define PLANT_INDEX_PER     4000
 
 /* X's pitch error map (plant_mps2.h): table position minus l th2, um, at
  * every PLANT_PITCH_STEP_MM from PLANT_PITCH_FROM_MM, both directions. */
@@ -26,6 +31,7 @@ static struct {
     uint32_t period_ns;
     axis_t ax[CORE_AXES];
     int64_t count[CORE_AXES];      /* encoder count last delivered (floor of the reading) */
+    int64_t count0[CORE_AXES];     /* count at position 0 (an index) */
     uint32_t ref_count[CORE_AXES]; /* reference-scale counter, latched per plant step */
     double reading[CORE_AXES];     /* reading at the end of the last substep, counts */
     int32_t mv[HAL_MAX_AXES];
@@ -35,11 +41,11 @@ static struct {
 /* A/B levels of count c (x4 quadrature, forward = A leading B: 0, A, AB, B),
  * as hil_sim/qgen.h generates them. (qgen itself needs 128-bit integers,
  * which 32-bit ARM lacks; the plant may use doubles instead.) */
-static uint32_t lines_at(int64_t c)
+static uint32_t lines_at(unsigned i, int64_t c)
 {
     static const uint32_t ab[4] = {0u, QDEC_LINE_A, QDEC_LINE_A | QDEC_LINE_B, QDEC_LINE_B};
 
-    return ab[(uint32_t)c & 3u];
+    return ab[(uint32_t)c & 3u] | (((c - pl.count0[i]) % PLANT_INDEX_PER) == 0 ? QDEC_LINE_Z : 0u);
 }
 
 /* Move axis i's encoder from the last reading to r over [t0, t1] ns: one
@@ -62,7 +68,7 @@ static void encoder_move(unsigned i, double r, uint64_t t0, uint64_t t1)
         }
         t = t0 + (uint64_t)(f * (double)(t1 - t0));
         pl.count[i] = next;
-        drive_encoder_edge(i, lines_at(next), (uint32_t)t);
+        drive_encoder_edge(i, lines_at(i, next), (uint32_t)t);
     }
     pl.reading[i] = r;
 }
@@ -122,7 +128,8 @@ bool plant_init(uint32_t tick_hz, unsigned axes, drive_config_t *cfg)
         pl.ref_count[i] = (uint32_t)(uint64_t)axis_ref_count(&pl.ax[i]);
         pl.reading[i] = axis_encoder_reading(&pl.ax[i]);
         pl.count[i] = (int64_t)floor(pl.reading[i]);
-        cfg->enc_initial_lines[i] = lines_at(pl.count[i]);
+        pl.count0[i] = pl.count[i];
+        cfg->enc_initial_lines[i] = lines_at(i, pl.count[i]);
         /* 5 mm per 4000 counts = 1250 nm per count; reference scale 1 nm */
         cfg->nm_per_count_num[i] = (int32_t)llround(PLANT_LEAD_M * 1e9 / p.enc_counts_per_rev);
         cfg->nm_per_count_den[i] = 1;
@@ -179,6 +186,11 @@ void hal_motor_enable(unsigned axis, bool on)
     if (axis < HAL_MAX_AXES) {
         pl.on[axis] = on;
     }
+}
+
+bool hal_home_switch(unsigned axis)
+{
+    return axis < pl.axes && axis_table_pos(&pl.ax[axis]) <= PLANT_HOME_SWITCH_M;
 }
 
 bool hal_amp_fault(unsigned axis)

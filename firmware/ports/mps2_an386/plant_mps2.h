@@ -22,6 +22,11 @@
  * Z have none. The map lives in the plant (doubles, like the rest of the
  * model); the drive's code sees only counts.
  *
+ * Homing: each axis's home switch (hal_home_switch) is active at table
+ * positions <= -21.3 mm, and its encoder has an index (Z) one count wide
+ * every motor turn (4000 counts), one at position 0: the simulator's
+ * defaults (hil_sim/sim.h).
+ *
  * plant_init  prepares the models for `axes` axes at tick_hz (substeps of at
  *             most 100 us) and fills the encoder part of the drive's
  *             configuration (scales, initial line levels). Main context,

@@ -29,6 +29,7 @@ static struct {
     int32_t mv[HAL_MAX_AXES];
     bool enabled[HAL_MAX_AXES];
     bool amp_fault[HAL_MAX_AXES];
+    bool home[HAL_MAX_AXES];
     uint32_t counter[HAL_SIM_CHANNELS];
     bool counter_valid[HAL_SIM_CHANNELS];
     sim_ring_t to_drive, from_drive;
@@ -120,6 +121,18 @@ int32_t hal_sim_motor_mv(unsigned axis)
 bool hal_sim_motor_enabled(unsigned axis)
 {
     return axis < HAL_MAX_AXES && sim.enabled[axis];
+}
+
+bool hal_home_switch(unsigned axis)
+{
+    return axis < HAL_MAX_AXES && sim.home[axis];
+}
+
+void hal_sim_set_home_switch(unsigned axis, bool on)
+{
+    if (axis < HAL_MAX_AXES) {
+        sim.home[axis] = on;
+    }
 }
 
 void hal_sim_set_amp_fault(unsigned axis, bool fault)

@@ -42,6 +42,9 @@ uint64_t hal_sim_time_ns(void);
 int32_t hal_sim_motor_mv(unsigned axis);
 bool hal_sim_motor_enabled(unsigned axis);
 void hal_sim_set_amp_fault(unsigned axis, bool fault);
+/* Home switch input of an axis (hal_home_switch; sim.c drives it from the
+ * simulated table position every tick). */
+void hal_sim_set_home_switch(unsigned axis, bool on);
 
 /* Hardware counter value of channel ch (valid = false: edge mode). */
 void hal_sim_set_counter(unsigned ch, uint32_t count, bool valid);

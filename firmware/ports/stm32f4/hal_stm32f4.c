@@ -158,6 +158,15 @@ bool hal_amp_fault(unsigned axis)
     return !clk.hse_ok || !(F4_GPIO_IDR(F4_GPIO(F4_PE)) & (1u << (axis + 3u)));
 }
 
+/* Home switches on PE6..PE8, active low (stm32f4.h). */
+bool hal_home_switch(unsigned axis)
+{
+    if (axis >= AXES) {
+        return false;
+    }
+    return !(F4_GPIO_IDR(F4_GPIO(F4_PE)) & (1u << (axis + 6u)));
+}
+
 void hal_motor_set_mv_all(const int32_t *mv, unsigned n)
 {
     hal_generic_set_mv_all(mv, n < AXES ? n : AXES);
@@ -530,6 +539,7 @@ static void peripherals(void)
         pin(F4_PA, 8u + i, 2u, 1u, 0u);
         pin(F4_PE, i, 1u, 0u, 0u);      /* enable line, low */
         pin(F4_PE, 3u + i, 0u, 0u, 1u); /* fault input, pull-up */
+        pin(F4_PE, 6u + i, 0u, 0u, 1u); /* home switch, pull-up */
         F4_GPIO_BSRR(F4_GPIO(F4_PE)) = 1u << (i + 16u);
     }
     F4_TIM_CR1(F4_TIM1) = 1u << 5; /* CMS = 01 */

@@ -12,6 +12,8 @@
  *                   50 % = 0 V; the analogue stage maps 0..100 % to -10..+10 V
  *   enable lines    PE0..PE2 (push-pull, high = enabled)
  *   fault inputs    PE3..PE5 (pull-up, low = amplifier fault)
+ *   home switches   PE6..PE8 (pull-up, low = on the switch: a switch
+ *                   closing to ground; hal_home_switch)
  *   host UART       USART2 PA2/PA3, 115200 8N1, interrupt driven rings
  *   CAN             CAN1 PB8/PB9, 500 kbit/s, RX FIFO 0 interrupt into a ring
  *   watchdog        IWDG, ~4 s (application only; a 128 KiB sector erase,

@@ -24,6 +24,10 @@ optional except where noted; units SI unless the name says otherwise)::
     pitch_map = [[pos_mm, err_fwd_um, err_rev_um], ...]   # (absent: off)
     pitch_dir_band_um = 1.0
     seed = 1                        # noise generator
+    home_switch_mm = -21.3          # home switch edge, table position (hal_home_switch)
+    home_side = -1                  # -1: active at <= the edge, +1: at >=, 0: no switch
+    encoder_index = 1               # 1: one index pulse per motor turn, 0: none
+    index_phase_counts = 0          # counts from position 0 to an index pulse
 
     [planner]                       # per-axis limits (same for every axis)
     v_max = 1.0   a_max = 20.0   j_max = 2000.0   junction_dev = 1e-5
@@ -98,6 +102,10 @@ AXIS_KEYS = {
     "pitch_map",
     "pitch_dir_band_um",
     "seed",
+    "home_switch_mm",
+    "home_side",
+    "encoder_index",
+    "index_phase_counts",
 }
 GAIN_KEYS = {"kp", "ki", "kd", "d_tau", "d_on_measurement", "kt", "i_max", "out_max"}
 PLAN_KEYS = {"v_max", "a_max", "j_max", "junction_dev", "arc_chord"}
@@ -216,6 +224,10 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
         for k in ("lead_mm", "I1", "I2", "La", "Ra", "kt", "kb", "kx", "vmax", "encoder_lines"):
             if p[k] <= 0:
                 raise UserError(f"{path}: axis.{ax}.{k} must be positive, got {p[k]}")
+        if p.get("home_side", -1) not in (-1, 0, 1):
+            raise UserError(f"{path}: axis.{ax}.home_side must be -1, 0 or 1")
+        if p.get("encoder_index", 1) not in (0, 1):
+            raise UserError(f"{path}: axis.{ax}.encoder_index must be 0 or 1")
         if "pitch_map" in p:
             pm = p["pitch_map"]
             if not isinstance(pm, list) or not all(isinstance(r, list) and len(r) == 3 for r in pm):
@@ -308,6 +320,10 @@ def apply(
         axset(i, "backlash", p.get("backlash_um", 0.0) * 1e-6)
         axset(i, "pitch_dir_band", p.get("pitch_dir_band_um", 1.0) * 1e-6)
         axset(i, "seed", p.get("seed", 1 + i))
+        axset(i, "home_switch", p.get("home_switch_mm", -21.3) * 1e-3)
+        axset(i, "home_side", p.get("home_side", -1))
+        axset(i, "enc_index", p.get("encoder_index", 1))
+        axset(i, "index_phase", p.get("index_phase_counts", 0))
         pm = p.get("pitch_map")
         if pm:
             import numpy as np
