@@ -242,16 +242,6 @@ int sim_set_substep(double max_s)
     return 0;
 }
 
-static int64_t gcd64(int64_t a, int64_t b)
-{
-    while (b != 0) {
-        int64_t t = a % b;
-        a = b;
-        b = t;
-    }
-    return a < 0 ? -a : a;
-}
-
 /* nm per encoder count as a rational number num / den = lead (nm) / counts
  * per revolution, with the lead rounded to 1e-3 nm, reduced; false if it
  * does not fit the decoder's int32 scale. */
@@ -259,10 +249,11 @@ static int encoder_scale(double lead_m, double counts, int32_t *num, int32_t *de
 {
     int64_t n = (int64_t)floor(lead_m * 1e12 + 0.5);
     int64_t d = (int64_t)floor(counts + 0.5) * 1000;
-    int64_t g = gcd64(n, d);
+    int64_t g;
     if (n <= 0 || d <= 0) {
         return 0;
     }
+    g = (int64_t)fx_gcd64((uint64_t)n, (uint64_t)d);
     n /= g;
     d /= g;
     while (n > INT32_MAX || d > INT32_MAX) {

@@ -71,6 +71,16 @@ int32_t fx_clamp32(int32_t v, int32_t lo, int32_t hi)
     return (v > hi) ? hi : v;
 }
 
+uint64_t fx_gcd64(uint64_t a, uint64_t b)
+{
+    while (b != 0u) {
+        uint64_t t = a % b;
+        a = b;
+        b = t;
+    }
+    return a;
+}
+
 int64_t fx_clamp64(int64_t v, int64_t lo, int64_t hi)
 {
     if (v < lo) {

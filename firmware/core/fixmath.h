@@ -498,8 +498,10 @@ q16_16_t fx_recip_q16(q16_16_t x);
 
 /* ---- roots (floor, exact) --------------------------------------------------- */
 
-uint32_t fx_isqrt32(uint32_t v);   /* floor(sqrt(v)) */
-uint32_t fx_isqrt64(uint64_t v);   /* floor(sqrt(v)) */
+uint32_t fx_isqrt32(uint32_t v); /* floor(sqrt(v)) */
+uint32_t fx_isqrt64(uint64_t v); /* floor(sqrt(v)) */
+/* Greatest common divisor (fx_gcd64(0, 0) == 0); for reducing scale ratios. */
+uint64_t fx_gcd64(uint64_t a, uint64_t b);
 uint32_t fx_icbrt64(uint64_t v);   /* floor(cbrt(v)) */
 uint64_t fx_isqrt128(fx_u128_t v); /* floor(sqrt(v)), every 128-bit v */
 

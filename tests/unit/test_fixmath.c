@@ -1681,10 +1681,23 @@ static void test_sat_u32_u16_at_the_extremes(void)
     TEST_ASSERT_EQUAL_UINT16(0xFFFFu, fx_sat_u16(UINT32_MAX));
 }
 
+static void test_gcd64(void)
+{
+    TEST_ASSERT_EQUAL_UINT64(0u, fx_gcd64(0u, 0u));
+    TEST_ASSERT_EQUAL_UINT64(7u, fx_gcd64(7u, 0u));
+    TEST_ASSERT_EQUAL_UINT64(7u, fx_gcd64(0u, 7u));
+    TEST_ASSERT_EQUAL_UINT64(4000000u,
+                             fx_gcd64(5000000000u, 4000u * 1000u)); /* 5 mm lead, 4000 counts */
+    TEST_ASSERT_EQUAL_UINT64(1u, fx_gcd64(UINT64_MAX, UINT64_MAX - 1u));
+    TEST_ASSERT_EQUAL_UINT64(UINT64_MAX, fx_gcd64(UINT64_MAX, UINT64_MAX));
+    TEST_ASSERT_EQUAL_UINT64(1u << 20, fx_gcd64((uint64_t)3 << 20, (uint64_t)5 << 20));
+}
+
 int main(void)
 {
     report_on = getenv("FIXMATH_REPORT") != NULL;
     UNITY_BEGIN();
+    RUN_TEST(test_gcd64);
     RUN_TEST(test_sat_u32_u16_at_the_extremes);
     RUN_TEST(test_sat32_boundaries);
     RUN_TEST(test_sat_arith32_edges_and_random);
