@@ -26,7 +26,7 @@ def _bind(lib) -> None:
     global _BOUND
     if _BOUND:
         return
-    from contour import simserve
+    from contour.sim import serve as simserve
 
     simserve._bind(lib)
     c = ctypes
@@ -55,7 +55,8 @@ class SimDrive:
         node: int = 1,
         keep_flash: bool = True,
     ) -> None:
-        from contour import native, simserve
+        from contour import native
+        from contour.sim import serve as simserve
         from contour.sim import core
         from contour.sim import machine as mach
 

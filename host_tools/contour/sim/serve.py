@@ -437,7 +437,7 @@ def spawn(extra_args=(), timeout: float = 20.0, env=None) -> Spawned:
     For tests, benches and scripts: ``with spawn() as s: connect(port=s.serial)``.
     The child is stopped (SIGTERM, then SIGKILL) on exit of the context.
     """
-    cmd = [sys.executable, "-m", "contour.simserve", *map(str, extra_args)]
+    cmd = [sys.executable, "-m", "contour.sim.serve", *map(str, extra_args)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     paths: dict = {}
     buf = b""
@@ -531,7 +531,7 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-if __name__ == "__main__":  # python -m contour.simserve (same as `contour sim serve`)
+if __name__ == "__main__":  # python -m contour.sim.serve (same as `contour sim serve`)
     _p = argparse.ArgumentParser(prog="contour sim serve", description=__doc__.splitlines()[0])
     add_arguments(_p)
     try:
