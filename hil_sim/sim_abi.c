@@ -7,6 +7,7 @@
 #include "drive.h"
 #include "estimator.h"
 #include "planner.h"
+#include "proto_msgs.h"
 #include "sim.h"
 
 typedef struct {
@@ -25,6 +26,7 @@ static const sim_abi_entry_t sim_abi_table[] = {
     {SIM_ABI_SIZE(plan_profile_t)},
     {SIM_ABI_SIZE(plan_move_t)},
     {SIM_ABI_SIZE(plan_est_t)},
+    {SIM_ABI_SIZE(proto_msg_info_t)},
     {SIM_ABI_FIELD(sim_status_t, state)},
     {SIM_ABI_FIELD(sim_status_t, faults)},
     {SIM_ABI_FIELD(sim_status_t, queue_free)},
@@ -69,6 +71,13 @@ static const sim_abi_entry_t sim_abi_table[] = {
     {SIM_ABI_FIELD(plan_est_t, t_mbt_ns)},
     {SIM_ABI_FIELD(plan_est_t, tag)},
     {SIM_ABI_FIELD(plan_est_t, flags)},
+    {SIM_ABI_FIELD(proto_msg_info_t, id)},
+    {SIM_ABI_FIELD(proto_msg_info_t, dir)},
+    {SIM_ABI_FIELD(proto_msg_info_t, reply)},
+    {SIM_ABI_FIELD(proto_msg_info_t, can_func)},
+    {SIM_ABI_FIELD(proto_msg_info_t, min_len)},
+    {SIM_ABI_FIELD(proto_msg_info_t, max_len)},
+    {SIM_ABI_FIELD(proto_msg_info_t, name)},
 };
 
 #define SIM_ABI_ROWS (sizeof(sim_abi_table) / sizeof(sim_abi_table[0]))

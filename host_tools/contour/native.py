@@ -81,6 +81,20 @@ class PlanProfile(c.Structure):
     ]
 
 
+class ProtoMsgInfo(c.Structure):
+    """proto_msg_info_t (firmware/core/proto_msgs.h, generated)."""
+
+    _fields_ = [
+        ("id", c.c_uint8),
+        ("dir", c.c_uint8),
+        ("reply", c.c_uint8),
+        ("can_func", c.c_uint8),
+        ("min_len", c.c_uint16),
+        ("max_len", c.c_uint16),
+        ("name", c.c_char_p),
+    ]
+
+
 # plan_move_t (firmware/core/planner.h), as a numpy record for whole arrays
 PLAN_MOVE_DTYPE = np.dtype(
     [
@@ -119,6 +133,7 @@ MIRRORS: dict[str, Union[type, np.dtype]] = {
     "plan_profile_t": PlanProfile,
     "plan_move_t": PLAN_MOVE_DTYPE,
     "plan_est_t": PLAN_EST_DTYPE,
+    "proto_msg_info_t": ProtoMsgInfo,
 }
 
 
@@ -223,8 +238,17 @@ SIGNATURES: dict[str, tuple] = {
     "plan_est_sizeof": (c.c_size_t, []),
     "plan_move_sizeof": (c.c_size_t, []),
     "plan_profile_sizeof": (c.c_size_t, []),
-    # host link (firmware/core/proto_link.h)
+    # host link (firmware/core/proto_link.h, proto_frame.h, proto_msgs.h)
     "proto_link_poll": (None, []),
+    "proto_frame_encode": (c.c_size_t, [c.c_char_p, c.c_size_t, c.c_char_p, c.c_size_t]),
+    "proto_frame_rx_init": (None, [c.c_void_p]),
+    "proto_frame_rx_byte": (
+        c.c_bool,
+        [c.c_void_p, c.c_uint8, _p(_p(c.c_uint8)), _p(c.c_size_t)],
+    ),
+    "proto_msg_info": (_p(ProtoMsgInfo), [c.c_uint8]),
+    # compensation tables (firmware/core/comp.h)
+    "comp_record_decode": (c.c_int, [c.c_char_p, c.c_size_t, c.c_void_p]),
     # bootloader and flash of the simulated drive (firmware/ports/sim)
     "boot_sim_serve_link": (c.c_bool, []),
     "boot_sim_init": (c.c_bool, [c.c_char_p, c.c_uint8, c.c_uint32]),

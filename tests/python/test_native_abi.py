@@ -35,10 +35,10 @@ def test_mirror_matches_c(name):
 
 
 def test_every_c_structure_passed_is_mirrored():
-    # every POINTER(Structure) in a signature points at a checked mirror
+    # every POINTER(Structure) in a signature (result or argument) is checked
     mirrored = {m for m in native.MIRRORS.values() if not isinstance(m, np.dtype)}
-    for fn, (_, args) in native.SIGNATURES.items():
-        for a in args:
+    for fn, (res, args) in native.SIGNATURES.items():
+        for a in [res, *args]:
             target = getattr(a, "_type_", None)
             if isinstance(target, type) and issubclass(target, ctypes.Structure):
                 assert target in mirrored, f"{fn}: {target.__name__} is not in MIRRORS"
