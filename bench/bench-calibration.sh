@@ -25,7 +25,7 @@ import json, sys, time
 from pathlib import Path
 from contour import cli
 from contour.calibration import analysis, tables
-from contour.simserve import spawn
+from contour.sim.serve import spawn
 import contextlib, io
 
 out = Path(sys.argv[1])

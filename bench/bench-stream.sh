@@ -14,7 +14,7 @@ import time
 from contour import protocol_gen as pg
 from contour.link import connect
 from contour.link.stream import Block, Streamer
-from contour.simserve import spawn
+from contour.sim.serve import spawn
 
 n = int(sys.argv[1])
 

@@ -85,85 +85,13 @@ EST_SKIPPED = 0x100
 MOVE_EXACT_STOP = 0x01
 
 
-class _Profile(ctypes.Structure):
-    _fields_ = [
-        ("v_max", ctypes.c_int64 * AXES),
-        ("a_max", ctypes.c_int64 * AXES),
-        ("j_max", ctypes.c_int64 * AXES),
-        ("corner_dv", ctypes.c_int64 * AXES),
-        ("corner_acc", ctypes.c_int64 * AXES),
-        ("junction_dev_nm", ctypes.c_int64),
-        ("min_block_ns", ctypes.c_int64),
-        ("mbt_window", ctypes.c_uint16),
-        ("corner", ctypes.c_uint8),
-        ("shape", ctypes.c_uint8),
-    ]
-
-
-MOVE_DTYPE = np.dtype(
-    [
-        ("target", "<i8", (AXES,)),
-        ("feed", "<i8"),
-        ("dwell_ns", "<i8"),
-        ("tag", "<u4"),
-        ("flags", "u1"),
-    ],
-    align=True,
-)
-
-EST_DTYPE = np.dtype(
-    [
-        ("len_nm", "<i8"),
-        ("v_entry", "<i8"),
-        ("v_peak", "<i8"),
-        ("v_exit", "<i8"),
-        ("v_max", "<i8"),
-        ("t_acc_ns", "<i8"),
-        ("t_cruise_ns", "<i8"),
-        ("t_dec_ns", "<i8"),
-        ("t_total_ns", "<i8"),
-        ("t_mbt_ns", "<i8"),
-        ("tag", "<u4"),
-        ("flags", "<u4"),
-    ],
-    align=True,
-)
+_Profile = native.PlanProfile  # plan_profile_t (firmware/core/planner.h)
+MOVE_DTYPE = native.PLAN_MOVE_DTYPE  # plan_move_t
+EST_DTYPE = native.PLAN_EST_DTYPE  # plan_est_t (firmware/core/estimator.h)
 
 
 def _lib():
-    lib = native.load()
-    if not getattr(lib, "_contour_planner_ready", False):
-        lib.plan_estimate.restype = ctypes.c_int
-        lib.plan_estimate.argtypes = [
-            ctypes.POINTER(_Profile),
-            ctypes.POINTER(ctypes.c_int64),
-            ctypes.c_void_p,
-            ctypes.c_uint32,
-            ctypes.c_void_p,
-            ctypes.c_uint16,
-            ctypes.c_void_p,
-            ctypes.POINTER(ctypes.c_uint32),
-        ]
-        lib.plan_check_profile.restype = ctypes.c_int
-        lib.plan_check_profile.argtypes = [ctypes.POINTER(_Profile)]
-        for name in (
-            "plan_block_sizeof",
-            "plan_est_sizeof",
-            "plan_move_sizeof",
-            "plan_profile_sizeof",
-        ):
-            getattr(lib, name).restype = ctypes.c_size_t
-            getattr(lib, name).argtypes = []
-        if (
-            lib.plan_est_sizeof() != EST_DTYPE.itemsize
-            or lib.plan_move_sizeof() != MOVE_DTYPE.itemsize
-            or lib.plan_profile_sizeof() != ctypes.sizeof(_Profile)
-        ):
-            raise UserError(
-                f"{native.library_path()}: planner structures do not match this wrapper"
-            )
-        lib._contour_planner_ready = True
-    return lib
+    return native.load()
 
 
 def _triple(name: str, values, scale: float, low: float, high: float) -> list:

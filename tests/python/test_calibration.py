@@ -147,8 +147,6 @@ def _c_decode(record: bytes) -> int:
     from contour import native
 
     lib = native.load()
-    lib.comp_record_decode.restype = ctypes.c_int
-    lib.comp_record_decode.argtypes = [ctypes.c_char_p, ctypes.c_size_t, ctypes.c_void_p]
     out = ctypes.create_string_buffer(4096)
     return lib.comp_record_decode(record, len(record), out)
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from contour import cli
 from contour.calibration import tables
-from contour.simserve import spawn
+from contour.sim.serve import spawn
 
 DATA = (
     Path(__file__).resolve().parents[3] / "shared" / "data" / "lacerda1998"

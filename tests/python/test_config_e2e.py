@@ -16,7 +16,7 @@ import pytest
 from contour import image as img
 from contour import protocol_gen as pg
 from contour.link import DriveError, connect
-from contour.simserve import spawn
+from contour.sim.serve import spawn
 from linkhelp import run_cli, wait_state
 
 LOAD_ADDR = 0x08010200  # the simulated drive's application slot (test_flash_e2e.py)

@@ -18,7 +18,7 @@ from contour.errors import UserError
 from contour.link import connect
 from contour.link.stream import Streamer, blocks_from_gcode
 from contour.sim import machine
-from contour.simserve import DEFAULT_MACHINE, spawn
+from contour.sim.serve import DEFAULT_MACHINE, spawn
 from linkhelp import run_cli, wait_state
 
 FERR_FRACTION = 1 / 3  # peak following error must stay below this part of the limit

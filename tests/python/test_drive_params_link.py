@@ -12,7 +12,7 @@ import pytest
 from contour import cli
 from contour import protocol_gen as pg
 from contour.link import DriveError, connect
-from contour.simserve import spawn
+from contour.sim.serve import spawn
 from linkhelp import wait_state
 
 

@@ -356,13 +356,6 @@ def test_bit_flips_in_transit_are_caught_by_frame_crc(drive):
     (proto_frame.c); a flipped bit fails the frame CRC, the frame is dropped,
     and the host's retry delivers it."""
     lib = drive.lib
-    lib.proto_frame_rx_byte.argtypes = [
-        ctypes.c_void_p,
-        ctypes.c_uint8,
-        ctypes.POINTER(ctypes.POINTER(ctypes.c_uint8)),
-        ctypes.POINTER(ctypes.c_size_t),
-    ]
-    lib.proto_frame_rx_byte.restype = ctypes.c_bool
     rx = ctypes.create_string_buffer(1024)
     lib.proto_frame_rx_init(rx)
     rnd = random.Random(3)

@@ -42,7 +42,7 @@ from contour.errors import UserError
 from contour.link import boot as fl
 from contour.link import connect
 from contour.link.transport import open_transport
-from contour.simserve import spawn
+from contour.sim.serve import spawn
 from linkhelp import link_args, run_cli
 
 FLASH_BASE = 0x08010000  # FLASH_SIM_DEFAULT_BASE (hal_flash_sim.h)

@@ -21,7 +21,7 @@ import time
 import pytest
 from contour import protocol_gen as pg
 from contour.link import connect
-from contour.simserve import spawn
+from contour.sim.serve import spawn
 from linkhelp import link_args, run_cli, wait_state
 
 TRANSPORTS = ["serial", "slcan"]

@@ -18,7 +18,7 @@ import time
 import pytest
 from contour import protocol_gen as pg
 from contour.link import DriveError, codec
-from contour.simserve import spawn
+from contour.sim.serve import spawn
 from linkhelp import client_for, fresh, link_args, run_cli, wait_state
 
 TRANSPORTS = ["serial", "slcan"]

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 from contour import protocol_gen as pg
-from contour.simserve import spawn
+from contour.sim.serve import spawn
 from linkhelp import client_for, fresh, link_args, run_cli
 
 TRANSPORTS = ["serial", "slcan"]

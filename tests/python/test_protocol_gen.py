@@ -119,28 +119,15 @@ def test_python_framing_survives_garbage_and_counts_errors():
 def _lib():
     from contour import native
 
-    path = native.library_path()
-    if not path.exists():
+    if not native.library_path().exists():
         pytest.skip("libcontour.so not built")
-    try:
-        lib = ctypes.CDLL(str(path))
-        lib.proto_frame_encode  # noqa: B018
-    except (OSError, AttributeError) as exc:
-        pytest.skip(f"libcontour.so unusable: {exc}")
-    return lib
+    return native.load()
 
 
 def test_python_and_c_frames_are_identical():
     from contour.link import codec
 
     lib = _lib()
-    lib.proto_frame_encode.restype = ctypes.c_size_t
-    lib.proto_frame_encode.argtypes = [
-        ctypes.c_char_p,
-        ctypes.c_size_t,
-        ctypes.c_char_p,
-        ctypes.c_size_t,
-    ]
     out = ctypes.create_string_buffer(300)
     for n in (2, 3, 100, 252):
         for fill in (0, 0xFF, 0x5A):
@@ -154,19 +141,6 @@ def test_c_message_table_matches_python():
 
     lib = _lib()
 
-    class Info(ctypes.Structure):
-        _fields_ = [
-            ("id", ctypes.c_uint8),
-            ("dir", ctypes.c_uint8),
-            ("reply", ctypes.c_uint8),
-            ("can_func", ctypes.c_uint8),
-            ("min_len", ctypes.c_uint16),
-            ("max_len", ctypes.c_uint16),
-            ("name", ctypes.c_char_p),
-        ]
-
-    lib.proto_msg_info.restype = ctypes.POINTER(Info)
-    lib.proto_msg_info.argtypes = [ctypes.c_uint8]
     for m in pg.MESSAGES:
         info = lib.proto_msg_info(m.id).contents
         assert info.name.decode() == m.name

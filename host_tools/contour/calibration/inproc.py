@@ -19,28 +19,12 @@ from contour.calibration.faults import FrameFaults, StreamFaults
 from contour.errors import UserError
 from contour.link import codec
 
-_BOUND = False
-
-
-def _bind(lib) -> None:
-    global _BOUND
-    if _BOUND:
-        return
-    from contour import simserve
-
-    simserve._bind(lib)
-    c = ctypes
-    lib.flash_sim_configure.restype = c.c_bool
-    lib.flash_sim_configure.argtypes = [c.c_uint32, c.c_uint32, c.c_uint32, c.c_uint32]
-    _BOUND = True
-
 
 def erase_flash() -> None:
     """Erase the simulated flash (default geometry): no stored tables."""
     from contour import native
 
     lib = native.load()
-    _bind(lib)
     if not lib.flash_sim_configure(0x08010000, 256 * 1024, 2048, 8):
         raise UserError("simulated flash refused its default geometry")
 
@@ -55,12 +39,12 @@ class SimDrive:
         node: int = 1,
         keep_flash: bool = True,
     ) -> None:
-        from contour import native, simserve
+        from contour import native
         from contour.sim import core
         from contour.sim import machine as mach
+        from contour.sim import serve as simserve
 
         lib = native.load()
-        _bind(lib)
         self.lib = lib
         if not keep_flash:
             erase_flash()

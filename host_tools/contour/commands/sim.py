@@ -72,7 +72,7 @@ def register(sub) -> None:
 
     s = ss.add_parser("serve", help="the simulated drive in real time on pseudo-terminals")
     try:
-        from contour import simserve
+        from contour.sim import serve as simserve
 
         simserve.add_arguments(s)
     except ImportError:
@@ -150,10 +150,10 @@ def cmd_demo(args) -> int:
 
 def cmd_serve(args) -> int:
     try:
-        from contour import simserve
+        from contour.sim import serve as simserve
     except ImportError as exc:
         raise UserError(
-            f"`contour sim serve` is not available in this build (contour.simserve: {exc})"
+            f"`contour sim serve` is not available in this build (contour.sim.serve: {exc})"
         ) from exc
     return int(simserve.main(args) or 0)
 

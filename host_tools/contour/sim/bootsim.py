@@ -23,18 +23,6 @@ class SimDriveLink:
 
         self.lib = native.load()
         lib = self.lib
-        lib.boot_sim_init.argtypes = [ctypes.c_char_p, ctypes.c_uint8, ctypes.c_uint32]
-        lib.boot_sim_init.restype = ctypes.c_bool
-        lib.boot_sim_drive_handle.argtypes = [
-            ctypes.c_char_p,
-            ctypes.c_size_t,
-            ctypes.c_char_p,
-            ctypes.c_size_t,
-        ]
-        lib.boot_sim_drive_handle.restype = ctypes.c_size_t
-        lib.flash_sim_power_cut_after.argtypes = [ctypes.c_long]
-        lib.flash_sim_powered.restype = ctypes.c_bool
-        lib.hal_sim_set_time_ns.argtypes = [ctypes.c_uint64]
         path = flash_path.encode() if flash_path else None
         if not lib.boot_sim_init(path, node, window_us):
             raise UserError(f"simulated flash {flash_path}: cannot open")

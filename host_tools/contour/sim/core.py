@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import ctypes as c
-from functools import lru_cache
 
 import numpy as np
 
@@ -39,75 +38,10 @@ FAULT_BITS = {
 }
 CEC_MODES = {"off": 0, "tangent": 1, "curvature": 2, "exact": 3}
 
-_PROTOS = {
-    "sim_setup": (c.c_int, [c.c_double, c.c_uint]),
-    "sim_axis_set": (c.c_int, [c.c_uint, c.c_char_p, c.c_double]),
-    "sim_axis_get": (c.c_int, [c.c_uint, c.c_char_p, c.POINTER(c.c_double)]),
-    "sim_axis_pitch": (
-        c.c_int,
-        [c.c_uint, c.c_uint, c.c_void_p, c.c_void_p, c.c_void_p],
-    ),
-    "sim_set_substep": (c.c_int, [c.c_double]),
-    "sim_gain_set": (c.c_int, [c.c_int, c.c_char_p, c.c_double]),
-    "sim_servo_set": (c.c_int, [c.c_uint, c.c_char_p, c.c_double]),
-    "sim_plan_set": (c.c_int, [c.c_uint, c.c_char_p, c.c_double]),
-    "sim_cec_mode": (c.c_int, [c.c_int]),
-    "sim_set_link": (
-        c.c_int,
-        [c.c_uint, c.c_int, c.c_int, c.c_uint32, c.c_uint32, c.c_uint32, c.c_int],
-    ),
-    "sim_start": (c.c_int, []),
-    "sim_enable": (c.c_int, [c.c_int]),
-    "sim_run": (c.c_long, [c.c_uint64, c.c_void_p, c.c_size_t, c.c_uint]),
-    "sim_run_until_free": (
-        c.c_long,
-        [c.c_uint64, c.c_uint, c.c_void_p, c.c_size_t, c.c_uint, c.POINTER(c.c_uint64)],
-    ),
-    "drive_param_get": (c.c_int, [c.c_int, c.c_uint, c.POINTER(c.c_int64)]),
-    "drive_arc_chords": (
-        c.c_uint32,
-        [c.c_void_p, c.c_void_p, c.c_uint, c.c_uint32, c.c_int64, c.c_void_p, c.c_uint32],
-    ),
-    "sim_trace_cols": (c.c_uint, []),
-    "sim_tick_hz": (c.c_uint32, []),
-    "sim_ticks": (c.c_uint64, []),
-    "sim_time_s": (c.c_double, []),
-    "sim_edges": (c.c_uint64, []),
-    "sim_edge_mismatches": (c.c_uint64, []),
-    "sim_substeps": (c.c_uint, []),
-    "sim_table_pos": (c.c_double, [c.c_uint]),
-    "sim_queue_line": (
-        c.c_int,
-        [c.c_void_p, c.c_int64, c.c_uint32, c.c_int, c.POINTER(c.c_int)],
-    ),
-    "sim_queue_arc": (
-        c.c_int,
-        [
-            c.c_void_p,
-            c.c_int64,
-            c.c_int,
-            c.c_int64,
-            c.c_int64,
-            c.c_int,
-            c.c_uint32,
-            c.POINTER(c.c_int),
-        ],
-    ),
-    "sim_drive_status": (c.c_int, [c.c_void_p]),
-    "sim_queue_dwell": (c.c_int, [c.c_uint32, c.c_uint32, c.POINTER(c.c_int)]),
-}
 
-
-@lru_cache(maxsize=1)
 def lib() -> c.CDLL:
-    so = native.load()
-    for name, (res, args) in _PROTOS.items():
-        fn = getattr(so, name, None)
-        if fn is None:
-            raise UserError(f"{native.library_path()} lacks {name}: rebuild it with `make host`")
-        fn.restype = res
-        fn.argtypes = args
-    return so
+    """The host library, bound and checked (contour.native)."""
+    return native.load()
 
 
 def check(rc: int, what: str) -> int:
@@ -116,18 +50,7 @@ def check(rc: int, what: str) -> int:
     return rc
 
 
-class Status(c.Structure):
-    """The part of drive_status_t that sim_drive_status copies (sim.h)."""
-
-    _fields_ = [
-        ("state", c.c_int),
-        ("faults", c.c_uint32),
-        ("queue_free", c.c_uint32),
-        ("blocks_done", c.c_uint32),
-        ("tag", c.c_uint32),
-        ("tick", c.c_uint64),
-        ("queued_time_ns", c.c_int64),
-    ]
+Status = native.SimStatus  # sim_status_t (hil_sim/sim.h)
 
 
 def status() -> Status:
@@ -194,21 +117,7 @@ def drive_param(name: str, axis: int = 0) -> int:
     return v.value
 
 
-class DriveBlock(c.Structure):
-    """drive_block_t of firmware/core/drive.h (arc fields used here)."""
-
-    _fields_ = [
-        ("kind", c.c_int),
-        ("tag", c.c_uint32),
-        ("target", c.c_int64 * 3),
-        ("feed_nm_s", c.c_int64),
-        ("exact_stop", c.c_bool),
-        ("plane", c.c_int),
-        ("centre_u", c.c_int64),
-        ("centre_v", c.c_int64),
-        ("sense", c.c_int8),
-        ("dwell_ms", c.c_uint32),
-    ]
+DriveBlock = native.DriveBlock  # drive_block_t (firmware/core/drive.h)
 
 
 def arc_chords(

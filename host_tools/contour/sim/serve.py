@@ -62,44 +62,6 @@ def fw_version() -> int:
     return parts[0] << 16 | parts[1] << 8 | parts[2]
 
 
-def _bind(lib: ctypes.CDLL) -> None:
-    c = ctypes
-    sig = {
-        "sim_setup": (c.c_int, [c.c_double, c.c_uint]),
-        "sim_start": (c.c_int, []),
-        "sim_run": (c.c_long, [c.c_uint64, c.c_void_p, c.c_size_t, c.c_uint]),
-        "sim_set_link": (
-            c.c_int,
-            [c.c_uint, c.c_int, c.c_int, c.c_uint32, c.c_uint32, c.c_uint32, c.c_int],
-        ),
-        "proto_link_poll": (None, []),
-        "boot_sim_serve_link": (c.c_bool, []),
-        "boot_sim_init": (c.c_bool, [c.c_char_p, c.c_uint8, c.c_uint32]),
-        "boot_sim_reset": (c.c_int, []),
-        "boot_sim_poll": (None, []),
-        "boot_sim_mode": (c.c_int, []),
-        "boot_sim_resets": (c.c_uint32, []),
-        "boot_sim_app_version": (c.c_uint32, []),
-        "boot_sim_app_build_id": (c.c_uint32, []),
-        "boot_sim_handle": (c.c_size_t, [c.c_char_p, c.c_size_t, c.c_char_p, c.c_size_t]),
-        "hal_sim_take_reset_request": (c.c_bool, []),
-        "hal_sim_time_ns": (c.c_uint64, []),
-        "hal_sim_set_time_ns": (None, [c.c_uint64]),
-        "sim_tick_hz": (c.c_uint32, []),
-        "hal_sim_uart_inject": (c.c_size_t, [c.c_char_p, c.c_size_t]),
-        "hal_sim_uart_drain": (c.c_size_t, [c.c_char_p, c.c_size_t]),
-        "hal_sim_can_inject": (c.c_bool, [c.c_uint32, c.c_char_p, c.c_uint8]),
-        "hal_sim_can_drain": (
-            c.c_bool,
-            [c.POINTER(c.c_uint32), c.c_char_p, c.POINTER(c.c_uint8)],
-        ),
-    }
-    for name, (res, args) in sig.items():
-        fn = getattr(lib, name)
-        fn.restype = res
-        fn.argtypes = args
-
-
 class SlcanParser:
     """The drive side of SLCAN (Lawicel ASCII): commands in, replies out."""
 
@@ -240,7 +202,6 @@ class SimServer:
         if not 0 <= boot_window_ms <= 60000:
             raise UserError(f"--boot-window-ms {boot_window_ms}: must be 0..60000")
         lib = native.load()
-        _bind(lib)
         self.lib = lib
         # the bootloader runs first (flash attached before the application
         # reads its stores from it); docs/bootloader.md "Simulated drive"
@@ -437,7 +398,7 @@ def spawn(extra_args=(), timeout: float = 20.0, env=None) -> Spawned:
     For tests, benches and scripts: ``with spawn() as s: connect(port=s.serial)``.
     The child is stopped (SIGTERM, then SIGKILL) on exit of the context.
     """
-    cmd = [sys.executable, "-m", "contour.simserve", *map(str, extra_args)]
+    cmd = [sys.executable, "-m", "contour.sim.serve", *map(str, extra_args)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     paths: dict = {}
     buf = b""
@@ -531,7 +492,7 @@ def main(args: argparse.Namespace) -> int:
     return 0
 
 
-if __name__ == "__main__":  # python -m contour.simserve (same as `contour sim serve`)
+if __name__ == "__main__":  # python -m contour.sim.serve (same as `contour sim serve`)
     _p = argparse.ArgumentParser(prog="contour sim serve", description=__doc__.splitlines()[0])
     add_arguments(_p)
     try:
