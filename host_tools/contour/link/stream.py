@@ -113,7 +113,11 @@ class Progress:
 
 
 DEFAULT_IN_POSITION_NM = 5000  # when the drive has no in_position_window parameter
-TELEM_PERIOD_MS = 10  # following-error samples during a job
+# Following-error samples during a job: a telemetry cycle is 2 + 2 x axes
+# frames; on CAN every 10 ms would take most of a 500 kbit/s bus from the
+# blocks, so there the job samples every 100 ms.
+TELEM_PERIOD_MS = 10
+TELEM_PERIOD_MS_CAN = 100
 
 
 class Streamer:
@@ -135,7 +139,7 @@ class Streamer:
         source: str = "program",
         in_position_nm: Optional[int] = None,
         settle_s: float = 10.0,
-        telem_period_ms: int = TELEM_PERIOD_MS,
+        telem_period_ms: Optional[int] = None,
         on_telemetry: Optional[Callable] = None,
     ) -> None:
         self.c = client
@@ -147,6 +151,11 @@ class Streamer:
         self.source = source
         self.in_position_nm = in_position_nm
         self.settle_s = settle_s
+        if telem_period_ms is None:
+            from contour.link.transport import CanTransport
+
+            on_can = isinstance(getattr(client, "t", None), CanTransport)
+            telem_period_ms = TELEM_PERIOD_MS_CAN if on_can else TELEM_PERIOD_MS
         self.telem_period_ms = telem_period_ms
         self.on_telemetry = on_telemetry
         self.cum = np.cumsum([b.est_s for b in blocks]) if blocks else np.zeros(0)
