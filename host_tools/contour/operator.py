@@ -235,7 +235,12 @@ class Operator:
                 f"cannot clear {', '.join(still)}: its cause is still present (cause_present)",
                 still,
             ) from None
+        # the tick applies the reset: wait for it to show (briefly)
+        end = time.monotonic() + 1.0
         after = self.snapshot()
+        while after.latched and time.monotonic() < end:
+            time.sleep(0.01)
+            after = self.snapshot()
         return [f for f in before.faults if f not in after.faults], after
 
     def stop(self, timeout: float = 10.0) -> Snapshot:
