@@ -13,9 +13,9 @@ controlled stop (homing aborted), exit code 130 / 143.
 from __future__ import annotations
 
 import json
-import sys
 
-from contour.errors import Terminated, UsageError
+from contour.commands import interrupted
+from contour.errors import UsageError
 from contour.link.client import AXIS_NAMES
 from contour.link.options import connect_from_args, link_options
 from contour.operator import HomeParams, Operator, feed_to_nm_s, mm_to_nm, parse_axes
@@ -65,21 +65,7 @@ def run(args) -> int:
         try:
             res = op.home(mask, params)
         except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated): stopped already
-            snap = op.snapshot()
-            term = isinstance(exc, Terminated)
-            what = f"signal {exc.signum}" if term else "Ctrl-C"
-            code = 128 + exc.signum if term else 130
-            text = f"homing stopped by {what} at {snap.position_text()} mm (state {snap.state})"
-            if args.json:
-                err = {
-                    "kind": "terminated" if term else "interrupted",
-                    "message": text,
-                    "exit_code": code,
-                }
-                print(json.dumps({"error": err, **snap.as_dict()}))
-            else:
-                print(f"contour home: {text}", file=sys.stderr)
-            return code
+            return interrupted.report(op, exc, "home", "homing stopped", args.json)
     if args.json:
         print(json.dumps(res))
     else:

@@ -11,9 +11,9 @@ it. Ctrl-C or SIGTERM: controlled stop, then exit code 130 / 143.
 from __future__ import annotations
 
 import json
-import sys
 
-from contour.errors import Terminated, UsageError
+from contour.commands import interrupted
+from contour.errors import UsageError
 from contour.link.options import connect_from_args, link_options
 from contour.operator import Operator, feed_to_nm_s, mm_to_nm, parse_axis
 
@@ -34,21 +34,7 @@ def run(args) -> int:
         try:
             res = op.jog(axis, feed, distance_nm=dist, to_nm=to)
         except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (Terminated): stopped already
-            snap = op.snapshot()
-            term = isinstance(exc, Terminated)
-            what = f"signal {exc.signum}" if term else "Ctrl-C"
-            code = 128 + exc.signum if term else 130
-            text = f"stopped by {what} at {snap.position_text()} mm (state {snap.state})"
-            if args.json:
-                err = {
-                    "kind": "terminated" if term else "interrupted",
-                    "message": text,
-                    "exit_code": code,
-                }
-                print(json.dumps({"error": err, **snap.as_dict()}))
-            else:
-                print(f"contour jog: {text}", file=sys.stderr)
-            return code
+            return interrupted.report(op, exc, "jog", "stopped", args.json)
     if args.json:
         print(json.dumps(res))
     else:
