@@ -472,7 +472,7 @@ static DRV_NOINLINE void apply_requests(const servo_fb_t *fb)
         }
         drv.req_disable = false;
     }
-    if (drv.req_enable) {
+    if (drv.req_enable && !drv.req_reset) { /* a deferred reset retries both */
         /* never after a fault latched in this same tick (e.g. an e-stop
          * that arrived together with the enable); a refused enable leaves
          * the drive DISABLED (main then drops what was queued) */
@@ -644,8 +644,10 @@ static drive_state_t main_view(drive_state_t s, bool en, bool dis, bool stop)
 static drive_state_t main_state(void)
 {
     bool en = drv.req_enable, dis = drv.req_disable, stop = drv.req_stop;
-    bool home = drv.req_home;
+    bool home = drv.req_home, rst = drv.req_reset;
+    /* a pending fault reset counts as done: an enable then waits for it */
     drive_state_t s = main_view(drv.state_pub, en, dis, stop);
+    s = (rst && s == DRIVE_FAULT) ? DRIVE_DISABLED : s;
     /* a pending home: HOMING (no block is queued under it) */
     return (home && s == DRIVE_IDLE) ? DRIVE_HOMING : s;
 }

@@ -192,6 +192,17 @@ class Operator:
         if bad:
             raise UsageError(f"axis {', '.join(bad)}: this drive has {self.axes} axes")
 
+    def ready_to_move(self) -> Snapshot:
+        """The status, if the drive can take a motion command now: no fault
+        latched (FaultError), enabled and at rest (UserError otherwise)."""
+        snap = self.snapshot()
+        self.refuse_if_latched(snap)
+        if snap.state == "disabled":
+            raise UserError("the drive is disabled: `contour enable` first")
+        if snap.state in MOVING_NAMES:
+            raise UserError(f"the drive is moving (state {snap.state}): `contour stop` first")
+        return snap
+
     def refuse_if_latched(self, snap: Snapshot) -> None:
         if snap.latched:
             raise FaultError(latched_text(snap), snap.faults)
@@ -307,12 +318,7 @@ class Operator:
                 f"--feed {feed_nm_s * 60 / NM_PER_MM:g} mm/min is above axis "
                 f"{AXIS_NAMES[axis]}'s limit {vmax * 60 / NM_PER_MM:g} mm/min"
             )
-        snap = self.snapshot()
-        self.refuse_if_latched(snap)
-        if snap.state == "disabled":
-            raise UserError("the drive is disabled: `contour enable` first")
-        if snap.state in MOVING_NAMES:
-            raise UserError(f"the drive is moving (state {snap.state}): `contour stop` first")
+        snap = self.ready_to_move()
         start = snap.position_nm[axis]
         if distance_nm is None:
             distance_nm = to_nm - start
@@ -391,12 +397,7 @@ class Operator:
                     f"--search-feed {params.search_nm_s * 60 / NM_PER_MM:g} mm/min is above "
                     f"axis {AXIS_NAMES[a]}'s limit {limit:g} mm/min"
                 )
-        snap = self.snapshot()
-        self.refuse_if_latched(snap)
-        if snap.state == "disabled":
-            raise UserError("the drive is disabled: `contour enable` first")
-        if snap.state in MOVING_NAMES:
-            raise UserError(f"the drive is moving (state {snap.state}): `contour stop` first")
+        snap = self.ready_to_move()
         if timeout is None:
             # search, back-off and index phases at their feeds, plus ramps and margin
             timeout = (

@@ -522,6 +522,39 @@ static void test_reset_during_ramp_down_applies_once_stopped(void)
     TEST_ASSERT_FALSE(hal_sim_motor_enabled(0));
 }
 
+/* A host sends fault_reset and then enable before the tick has applied the
+ * reset (a round trip shorter than a tick, or the reset deferred while the
+ * servo ramps down): the enable is accepted and waits for the reset, never
+ * refused as "faulted" nor dropped. */
+static void test_enable_right_after_a_reset_waits_for_it(void)
+{
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    drive_estop();
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_fault_reset());
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true)); /* no tick between */
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_UINT32(0, st.faults);
+    TEST_ASSERT_TRUE(hal_sim_motor_enabled(0));
+    /* the reset deferred while the servo ramps down: the enable follows it */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(30000000, 40000000, 20000000, true, 1));
+    run(2000);
+    drive_raise_fault(DRIVE_FAULT_COMM);
+    run(1);
+    TEST_ASSERT_TRUE(hal_sim_motor_enabled(0)); /* still ramping down */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_fault_reset());
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_FAULT, st.state); /* the reset is not applied yet */
+    run(3000);
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    TEST_ASSERT_EQUAL_UINT32(0, st.faults);
+    TEST_ASSERT_TRUE(hal_sim_motor_enabled(0));
+}
+
 static void test_amplifier_fault_reset_refused_while_present(void)
 {
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
@@ -1039,6 +1072,7 @@ int main(void)
     RUN_TEST(test_estop_disables_at_once_and_needs_a_reset);
     RUN_TEST(test_estop_with_enable_in_the_same_tick_keeps_motors_off);
     RUN_TEST(test_external_fault_stops_in_a_controlled_way);
+    RUN_TEST(test_enable_right_after_a_reset_waits_for_it);
     RUN_TEST(test_amplifier_fault_reset_refused_while_present);
     RUN_TEST(test_reset_during_ramp_down_applies_once_stopped);
     RUN_TEST(test_following_error_disables);
