@@ -47,20 +47,14 @@ from typing import Optional
 import numpy as np
 
 from contour.errors import UserError
-
-# Block kinds (Program.kind).
-RAPID = 0
-LINEAR = 1
-ARC_CW = 2
-ARC_CCW = 3
-DWELL = 4
-KIND_NAMES = {
-    RAPID: "rapid",
-    LINEAR: "linear",
-    ARC_CW: "arc_cw",
-    ARC_CCW: "arc_ccw",
-    DWELL: "dwell",
-}
+from contour.gcode.moves import (  # noqa: F401 - re-exported
+    ARC_CCW,
+    ARC_CW,
+    DWELL,
+    KIND_NAMES,
+    LINEAR,
+    RAPID,
+)
 
 INCH_MM = 25.4
 
