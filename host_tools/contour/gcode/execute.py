@@ -1,0 +1,428 @@
+"""One block through the interpreter (:class:`BlockExecutor`, mixed into
+:class:`~contour.gcode.interp.Interpreter`): the words sorted by modal group
+with the one-per-group checks, then executed in the order of RS-274/NGC.
+"""
+
+from __future__ import annotations
+
+import math
+
+from contour.gcode import policy
+from contour.gcode.cycles import CYCLES, expand
+from contour.gcode.moves import DWELL, LINEAR, RAPID
+
+INCH_MM = 25.4
+AXES = "XYZABC"
+_NAN = math.nan
+_ROTARY_FUNCS = ("DC", "ACP", "ACN", "AC", "IC")
+# Letters that are only parameters of some command: an error when nothing on
+# the line uses them (LinuxCNC: "I word with no G2 or G3 ... to use it").
+_PARAM_LETTERS = "IJKLPQR"
+_SYSTEM_OF_KEY = {k: n for n, k in enumerate((540, 550, 560, 570, 580, 590, 591, 592, 593), 1)}
+
+
+class Words:
+    """The words of one block, sorted."""
+
+    __slots__ = ("g", "m", "w", "axes", "feed_text", "calls")
+
+    def __init__(self):
+        self.g = {}  # modal group -> code key
+        self.m = {}  # M group -> M number
+        self.w = {}  # letter -> value (not G, M, axes)
+        self.axes = {}  # axis index -> (value, func)
+        self.feed_text = None  # F=<text> that could not be evaluated
+        self.calls = []
+
+
+class BlockExecutor:
+    """Mixin: needs the interpreter's state, ``emit``, ``arc``, ``skip``,
+    ``error``, ``refuse``, ``units_used``."""
+
+    # ---- sorting --------------------------------------------------------------
+    def sort_words(self, line, words):  # noqa: C901 - one dispatch over the letters
+        bw = Words()
+        m_count = 0
+        for letter, value in words:
+            if len(letter) == 1:
+                if letter == "G":
+                    k = policy.code_key(value)
+                    grp = policy.G_GROUP.get(k)
+                    name = policy.code_name("G", value)
+                    if grp is None:
+                        raise self.refuse(line, name)
+                    if k in policy.G_REFUSED:
+                        raise self.refuse(line, policy.G_REFUSED[k])
+                    if grp in bw.g:
+                        other = policy.code_name("G", bw.g[grp] / 10)
+                        raise self.error(
+                            line,
+                            f"{other} and {name} on one line: two G codes of the same modal group",
+                        )
+                    bw.g[grp] = k
+                elif letter == "M":
+                    self.sort_m(line, value, bw)
+                    m_count += 1
+                    if m_count > 4:
+                        raise self.error(line, "more than four M codes on one line")
+                elif letter in AXES:
+                    i = AXES.index(letter)
+                    if i in bw.axes:
+                        raise self.error(line, f"two {letter} words on one line")
+                    bw.axes[i] = (value, None)
+                elif letter in "UVW":
+                    raise self.refuse(line, f"{letter} axis")
+                elif letter == "E":
+                    raise self.error(line, "unknown address letter 'E'")
+                else:
+                    if letter in bw.w:
+                        raise self.error(line, f"two {letter} words on one line")
+                    bw.w[letter] = value
+            elif letter[0] == "=":
+                self.sort_assignment(line, letter[1], value, bw)
+            elif letter == "CALL":
+                bw.calls.append(value)
+            elif letter == "IDENT":
+                self.skip(value, line, policy.IDENT_NOTES.get(value, policy.IDENT_NOTE))
+            else:
+                raise self.error(line, f"unexpected word {letter}")
+        return bw
+
+    def sort_m(self, line, value, bw):
+        if value != int(value) or value < 0:
+            raise self.refuse(line, policy.code_name("M", value))
+        m = int(value)
+        grp = policy.M_GROUP.get(m, 1000 + m)
+        if m == 8:
+            grp = 80  # M7 and M8 may share a line; M9 may not with either
+            if 8 in bw.m:
+                raise self.error(line, "M9 and M8 on one line: two M codes of the same group")
+        if m == 9 and 80 in bw.m:
+            raise self.error(line, "M8 and M9 on one line: two M codes of the same group")
+        if grp in bw.m:
+            raise self.error(
+                line, f"M{bw.m[grp]} and M{m} on one line: two M codes of the same modal group"
+            )
+        if m in policy.M_REFUSED:
+            raise self.refuse(line, policy.M_REFUSED[m])
+        if m in policy.M_USER:
+            raise self.refuse(line, f"M{m} (user-defined M code)")
+        bw.m[grp] = m
+
+    def sort_assignment(self, line, a, payload, bw):
+        value, func = payload
+        if a in AXES:
+            i = AXES.index(a)
+            if i in bw.axes:
+                raise self.error(line, f"two {a} words on one line")
+            if value is None:
+                raise self.error(line, f"cannot evaluate {a}={func}")
+            bw.axes[i] = (value, func)
+        elif a == "F":
+            if "F" in bw.w:
+                raise self.error(line, "two F words on one line")
+            if value is None:
+                bw.feed_text = func
+            else:
+                bw.w["F"] = value
+        else:
+            self.skip(a + "=", line, policy.WORD_NOTES.get(a + "=", ""))
+
+    # ---- execution --------------------------------------------------------------
+    def block(self, line, words, messages=(), call_args=None):  # noqa: C901
+        for text in messages:
+            self.skip("(MSG)", line, f"message: {text}")
+        bw = self.sort_words(line, words)
+        g = bw.g
+        w = bw.w
+        used = set()
+        for name in bw.calls:
+            self.call(line, name, (call_args or {}).get(name, ""))
+        # Reported codes and words.
+        for k in g.values():
+            if k in policy.G_REPORTED:
+                note = policy.G_REPORTED[k]
+                if note:
+                    self.skip(policy.code_name("G", k / 10), line, note)
+        for letter in "STDH":
+            if letter in w:
+                used.add(letter)
+                self.skip(letter, line, policy.WORD_NOTES[letter])
+        for m in bw.m.values():
+            if m not in (2, 30):
+                self.skip(f"M{m}", line, policy.M_REPORTED.get(m, policy.M_NOTE))
+            if m in (50, 51, 52, 53, 62, 63, 64, 65, 67, 68, 19):
+                used.update("PQR")
+        # Units first: F and every length on the line are in the line's units.
+        u = g.get(6)
+        if u is not None:
+            self.scale = INCH_MM if u in (200, 700, 7000) else 1.0
+            self.units_set = True
+        has_length = bw.axes or "F" in w or bw.feed_text is not None
+        if has_length or any(c in w for c in "IJKR") or 0 in g:
+            self.units_used(line)
+        g0 = g.get(0)
+        # Feed (G4 F<s> is the Sinumerik dwell: the feed stays).
+        if g0 != 40:
+            self.set_feed(line, w, bw.feed_text)
+        # Plane, cutter comp, tool length, coordinate system, path, distance.
+        if 2 in g:
+            self.plane = (170, 180, 190).index(g[2])
+        if 7 in g:
+            self.cutter_comp(line, g[7], w, used)
+        if 12 in g:
+            n = _SYSTEM_OF_KEY[g[12]]
+            self.offsets.select(n, line)
+            if n not in self.offsets.set_in_program:
+                self.skip(
+                    policy.code_name("G", g[12] / 10),
+                    line,
+                    "work offset: zero unless set by G10 L2/L20 in the program",
+                )
+        p13 = g.get(13)
+        if p13 is not None:
+            self.exact_stop_modal = p13 in (600, 610, 611)
+            if p13 == 640 and ("P" in w or "Q" in w):
+                used.update("PQ")
+                self.skip("G64 P", line, "path tolerance: the profile's business")
+        if 3 in g:
+            self.absolute = g[3] == 900
+        if 4 in g:
+            self.arc_absolute = g[4] == 901
+        if 10 in g:
+            self.cycle.retract = 98 if g[10] == 980 else 99
+        # Dwell (LinuxCNC runs it before the modal settings; nothing above moves).
+        if g0 == 40:
+            self.dwell(line, w, bw.axes, used)
+            bw.axes = {}
+        g9 = g.get(100) == 90
+        stop = self.exact_stop_modal or g9
+        motion_g = g.get(1)
+        axis_user = g0 in policy.G_AXIS_USERS
+        if bw.axes and axis_user and motion_g is not None and motion_g != 800:
+            raise self.error(
+                line,
+                f"{policy.code_name('G', motion_g / 10)} and "
+                f"{policy.code_name('G', g0 / 10)} both use the axis words",
+            )
+        if g0 is not None and g0 != 40 and g0 != 530:
+            self.non_modal(line, g0, w, bw.axes, used, stop)
+        if motion_g is not None:
+            if motion_g == 800 and bw.axes and not axis_user:
+                raise self.error(line, "axis words with G80 (canned cycle off)")
+            self.motion = motion_g // 10
+            if self.motion not in CYCLES:
+                self.cycle.cancel()
+        if bw.axes and not axis_user and g0 != 40:
+            self.motion_block(line, bw, g0 == 530, stop, used)
+        elif motion_g in (20, 30):
+            raise self.error(line, "arc without end point (no axis word)")
+        elif motion_g is not None and motion_g // 10 in CYCLES:
+            self.motion_block(line, bw, False, stop, used)
+        for letter in _PARAM_LETTERS:
+            if letter in w and letter not in used:
+                raise self.error(line, f"{letter} word with nothing on the line to use it")
+        if 4 in bw.m and bw.m[4] in (2, 30):
+            self.ended = True
+
+    def set_feed(self, line, w, feed_text):
+        f = w.get("F")
+        if f is not None:
+            if f <= 0:
+                raise self.error(line, f"feed must be positive, got F{f:g}")
+            self.feed = f * self.scale
+        elif feed_text is not None:
+            if self.default_feed is None:
+                raise self.error(
+                    line,
+                    f"cannot evaluate F={feed_text} (its value is set outside "
+                    "the file); give a default feed with --feed",
+                )
+            self.feed = self.default_feed
+            self.substituted += 1
+            self.skip(f"F={feed_text}", line, f"replaced by the default feed {self.default_feed:g}")
+
+    def dwell(self, line, w, axes, used):
+        if "P" in w:
+            t = w["P"]
+            used.add("P")
+        elif 0 in axes:
+            t = axes[0][0]  # Fanuc/Sinumerik G4 X<s>
+        elif "F" in w:
+            t = w["F"]  # Sinumerik G4 F<s>
+        else:
+            raise self.error(line, "G4 dwell without a time (P or X, seconds)")
+        if not 0 <= t < 1e7:
+            raise self.error(line, f"dwell time {t:g} s out of range")
+        self.emit(DWELL, self.pos, _NAN, line, False, dwell=t)
+
+    def cutter_comp(self, line, k, w, used):
+        if k == 400:
+            if self.comp is not None:
+                for mv in self.comp.flush():
+                    self.add_move(mv)
+                self.comp = None
+            return
+        raise self.refuse(line, "cutter radius compensation " + policy.code_name("G", k / 10))
+
+    def call(self, line, name, args):
+        if name == "CYCLE832":
+            # Sinumerik high-speed cycle: with a tolerance it selects continuous
+            # path (G642); empty, the previous mode returns.
+            if args.strip(", "):
+                if self.before_cycle832 is None:
+                    self.before_cycle832 = self.exact_stop_modal
+                self.exact_stop_modal = False
+            elif self.before_cycle832 is not None:
+                self.exact_stop_modal = self.before_cycle832
+                self.before_cycle832 = None
+        self.skip(name, line, policy.IDENT_NOTES.get(name, policy.IDENT_NOTE))
+
+    # ---- group 0 ----------------------------------------------------------------
+    def axis_values(self, axes):
+        """Axis words as mm/deg by axis index (absolute values, no offsets)."""
+        out = {}
+        for i, (v, _func) in axes.items():
+            out[i] = v * self.scale if i < 3 else v
+        return out
+
+    def target_of(self, axes, machine=False):
+        """Machine target of axis words (G90/G91, offsets, Sinumerik forms)."""
+        target = list(self.pos)
+        origin = [0.0] * 6 if machine else self.offsets.origin
+        for i, (v, func) in axes.items():
+            if i < 3:
+                v *= self.scale
+            if func in ("DC", "ACP", "ACN"):
+                cur = self.pos[i] - origin[i]
+                d = (v - cur) % 360.0
+                if func == "DC" and d > 180.0 or func == "ACN" and d > 0:
+                    d -= 360.0
+                target[i] = self.pos[i] + d
+            elif func == "IC" or (func is None and not self.absolute and not machine):
+                target[i] = self.pos[i] + v
+            else:
+                target[i] = v + origin[i]
+        return target
+
+    def non_modal(self, line, k, w, axes, used, stop):
+        if k == 100:
+            self.g10(line, w, axes, used)
+        elif k in (280, 300):
+            if self.comp is not None:
+                raise self.error(line, f"G{k // 10} with cutter compensation on")
+            which = k // 10
+            inter = self.target_of(axes)
+            if inter != self.pos:
+                self.emit(RAPID, inter, _NAN, line, stop)
+            home = self.offsets.home(which, line)
+            target = list(self.pos)
+            for i in axes if axes else range(6):
+                target[i] = home[i]
+            if not self.offsets.home_set[which]:
+                first = 5161 if which == 28 else 5181
+                self.skip(
+                    f"G{which}",
+                    line,
+                    f"stored position not set by G{which}.1 in the "
+                    f"program: #{first}-#{first + 5} used (zero unless assigned)",
+                )
+            self.emit(RAPID, target, _NAN, line, stop)
+        elif k in (281, 301):
+            self.offsets.store_home(k // 10, self.pos)
+        elif k == 920:
+            if not axes:
+                raise self.error(line, "G92 without axis words")
+            self.offsets.g92(self.axis_values(axes), self.pos, line)
+        elif k == 921:
+            self.offsets.g92_1()
+        elif k == 922:
+            self.offsets.g92_2()
+        elif k == 923:
+            self.offsets.g92_restore(line)
+
+    def g10(self, line, w, axes, used):
+        used.update("LPR")
+        lv = w.get("L")
+        if lv not in (2.0, 20.0):
+            raise self.refuse(line, "G10" + ("" if lv is None else f" L{lv:g}"))
+        p = w.get("P")
+        if p is None or p != int(p) or not 0 <= p <= 9:
+            raise self.error(line, "G10 L2/L20: P must be an integer 0 to 9 (0: the active system)")
+        if w.get("R", 0.0) != 0.0:
+            raise self.refuse(line, "coordinate system rotation (G10 L2 R)")
+        values = self.axis_values(axes)
+        if lv == 2.0:
+            self.offsets.set_system(int(p), values, line)
+        else:
+            self.offsets.set_system_here(int(p), values, self.pos, line)
+
+    # ---- motion -----------------------------------------------------------------
+    def motion_block(self, line, bw, g53, stop, used):
+        motion = self.motion
+        w = bw.w
+        if motion == 80:  # G80 modal
+            raise self.error(
+                line, "axis words without a motion mode (G0/G1/G2/G3 or a canned cycle)"
+            )
+        if g53:
+            if motion not in (0, 1):
+                raise self.error(line, "G53 needs G0 or G1")
+            if not self.absolute:
+                raise self.error(line, "G53 in incremental distance mode (G91)")
+            if self.comp is not None:
+                raise self.error(line, "G53 with cutter compensation on")
+        if motion in CYCLES:
+            used.update("RQPL")
+            self.canned_cycle(line, motion, bw, stop)
+            return
+        target = self.target_of(bw.axes, machine=g53)
+        if motion == 0:
+            self.emit(RAPID, target, _NAN, line, stop)
+            return
+        if self.feed != self.feed:
+            if self.default_feed is None:
+                raise self.error(line, "feed move before any feed rate (F); give --feed")
+            self.feed = self.default_feed
+            self.substituted += 1
+            self.skip("missing F", line, f"default feed {self.default_feed:g} used")
+        if motion == 1:
+            self.emit(LINEAR, target, self.feed, line, stop)
+            return
+        ijk = {c: w[c] for c in "IJK" if c in w}
+        used.update("IJKRP")
+        self.arc(line, motion, target, ijk, w.get("R"), w.get("P"), stop)
+
+    def canned_cycle(self, line, code, bw, stop):
+        words = {AXES[i]: v for i, (v, _f) in bw.axes.items()}
+        for c in "RQPL":
+            if c in bw.w:
+                words[c] = bw.w[c]
+        if self.feed != self.feed and self.default_feed is not None:
+            self.feed = self.default_feed
+        origin = self.offsets.origin
+        pos = [p - o for p, o in zip(self.pos, origin)]
+        moves = expand(
+            code,
+            words,
+            self.cycle,
+            pos,
+            self.plane,
+            not self.absolute,
+            line,
+            self.error,
+            unit_mm=self.scale,
+            comp_on=self.comp is not None,
+        )
+        for kind, target, dwell in moves:
+            tgt = [t + o for t, o in zip(target, origin)]
+            if kind == LINEAR and self.feed != self.feed:
+                raise self.error(line, "feed move before any feed rate (F); give --feed")
+            self.emit(
+                kind,
+                tgt,
+                self.feed if kind == LINEAR else _NAN,
+                line,
+                stop if kind != DWELL else False,
+                dwell=dwell,
+            )
