@@ -21,6 +21,10 @@ MAX_TURNS = 1000
 MAX_CHORDS = 1_000_000
 
 
+# A centre beyond this (mm) is no arc a machine can cut (I1e15, R1e300).
+MAX_CENTRE = 1e9
+
+
 class ArcError(ValueError):
     """A message for the caller to turn into a file:line error."""
 
@@ -31,10 +35,10 @@ def centre_ijk(su, sv, eu, ev, ou, ov, absolute, tol):
         cu, cv = ou, ov
     else:
         cu, cv = su + ou, sv + ov
+    if not (abs(cu) < MAX_CENTRE and abs(cv) < MAX_CENTRE):
+        raise ArcError(f"arc centre out of range (beyond {MAX_CENTRE:g} mm)")
     r0 = math.hypot(su - cu, sv - cv)
     r1 = math.hypot(eu - cu, ev - cv)
-    if not (math.isfinite(r0) and math.isfinite(r1)):
-        raise ArcError("arc centre out of range")
     if r0 < 1e-9:
         raise ArcError("arc of zero radius (centre on the start point)")
     if abs(r0 - r1) > max(tol, 1e-3 * r0):
@@ -49,8 +53,8 @@ def centre_r(su, sv, eu, ev, r_signed, ccw, tol):
     r = abs(r_signed)
     du, dv = eu - su, ev - sv
     d = math.hypot(du, dv)
-    if not (math.isfinite(r) and math.isfinite(d)):
-        raise ArcError("arc radius out of range")
+    if not (r < MAX_CENTRE and d < MAX_CENTRE):
+        raise ArcError(f"arc radius out of range (beyond {MAX_CENTRE:g} mm)")
     if d < 1e-9:
         raise ArcError("R-form arc with identical start and end points")
     if d > 2 * r + tol:
@@ -61,8 +65,8 @@ def centre_r(su, sv, eu, ev, r_signed, ccw, tol):
     s = 1.0 if ccw == (r_signed > 0) else -1.0  # centre left of the chord
     cu = su + du / 2 - s * h * dv / d
     cv = sv + dv / 2 + s * h * du / d
-    if not (math.isfinite(cu) and math.isfinite(cv)):
-        raise ArcError("arc centre out of range")
+    if not (abs(cu) < MAX_CENTRE and abs(cv) < MAX_CENTRE):
+        raise ArcError(f"arc centre out of range (beyond {MAX_CENTRE:g} mm)")
     return cu, cv
 
 

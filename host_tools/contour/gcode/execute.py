@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 from contour.gcode import policy
+from contour.gcode.cutcomp import CutterComp
 from contour.gcode.cycles import CYCLES, expand
 from contour.gcode.moves import DWELL, LINEAR, RAPID
 
@@ -95,7 +96,7 @@ class BlockExecutor:
         grp = policy.M_GROUP.get(m, 1000 + m)
         if m == 8:
             grp = 80  # M7 and M8 may share a line; M9 may not with either
-            if 8 in bw.m:
+            if 9 in bw.m.values():
                 raise self.error(line, "M9 and M8 on one line: two M codes of the same group")
         if m == 9 and 80 in bw.m:
             raise self.error(line, "M8 and M9 on one line: two M codes of the same group")
@@ -144,10 +145,12 @@ class BlockExecutor:
                 note = policy.G_REPORTED[k]
                 if note:
                     self.skip(policy.code_name("G", k / 10), line, note)
+        comp_d = g.get(7) in (410, 420, 411, 421)
         for letter in "STDH":
-            if letter in w:
+            if letter in w and not (letter == "D" and comp_d):
                 used.add(letter)
                 self.skip(letter, line, policy.WORD_NOTES[letter])
+        self.tool_words(line, w, bw.m.values(), used)
         for m in bw.m.values():
             if m not in (2, 30):
                 self.skip(f"M{m}", line, policy.M_REPORTED.get(m, policy.M_NOTE))
@@ -168,6 +171,8 @@ class BlockExecutor:
         # Plane, cutter comp, tool length, coordinate system, path, distance.
         if 2 in g:
             self.plane = (170, 180, 190).index(g[2])
+            if self.comp is not None:
+                self.comp.plane_change(self.plane, line)
         if 7 in g:
             self.cutter_comp(line, g[7], w, used)
         if 12 in g:
@@ -224,6 +229,14 @@ class BlockExecutor:
                 raise self.error(line, f"{letter} word with nothing on the line to use it")
         if 4 in bw.m and bw.m[4] in (2, 30):
             self.ended = True
+            self.finish()
+        elif (
+            self.comp is not None
+            and not self.comp.active
+            and not self.comp.held
+            and (self.comp.tool is None or list(self.comp.tool) == self.pos)
+        ):
+            self.comp = None  # back on the plain path: the fast path again
 
     def set_feed(self, line, w, feed_text):
         f = w.get("F")
@@ -259,11 +272,47 @@ class BlockExecutor:
     def cutter_comp(self, line, k, w, used):
         if k == 400:
             if self.comp is not None:
-                for mv in self.comp.flush():
-                    self.add_move(mv)
-                self.comp = None
+                self.comp.off(line)
             return
-        raise self.refuse(line, "cutter radius compensation " + policy.code_name("G", k / 10))
+        name = policy.code_name("G", k / 10)
+        d = w.get("D")
+        if k in (410, 420):
+            if d is None:
+                n = self.current_tool
+            else:
+                used.add("D")
+                if d != int(d) or d < 0:
+                    raise self.error(line, f"{name} D{d:g}: a tool number must be an integer >= 0")
+                n = int(d)
+            tool = self.tools.get(n)
+            if tool is None:
+                hint = "" if self.tools else " (give one with --tool-table, or use G41.1/G42.1 D)"
+                raise self.error(line, f"{name}: tool {n} is not in the tool table{hint}")
+            radius = tool.radius
+        else:
+            if d is None:
+                raise self.error(line, f"{name} without D (the tool diameter)")
+            used.add("D")
+            radius = d * self.scale / 2.0
+        if self.comp is None:
+            self.comp = CutterComp(self.error)
+        self.comp.on("left" if k in (410, 411) else "right", radius, self.plane, line)
+
+    def tool_words(self, line, w, m_codes, used):
+        """T selects, M6 makes the selected tool current, M61 Q sets it."""
+        t = w.get("T")
+        if t is not None:
+            if t != int(t) or t < 0:
+                raise self.error(line, f"T{t:g}: a tool number must be an integer >= 0")
+            self.selected_tool = int(t)
+        if 6 in m_codes:
+            self.current_tool = self.selected_tool
+        if 61 in m_codes:
+            q = w.get("Q")
+            if q is None or q != int(q) or q < 0:
+                raise self.error(line, "M61 needs Q, the tool number (an integer >= 0)")
+            used.add("Q")
+            self.current_tool = int(q)
 
     def call(self, line, name, args):
         if name == "CYCLE832":

@@ -76,7 +76,9 @@ class Interpreter(BlockExecutor):
         self.before_cycle832 = None
         self.feed = _NAN  # mm/min
         self.cycle = CycleState()
-        self.comp = None  # cutter compensation, while G41/G42 is on
+        self.comp = None  # cutter compensation, from G41/G42 until its exit move
+        self.selected_tool = 0
+        self.current_tool = 0
         pos = [0.0] * 6
         if start is not None:
             for i, v in enumerate(start):
@@ -126,84 +128,90 @@ class Interpreter(BlockExecutor):
             yield text
         self.lines_read = n
 
-    def run(self, blocks, rows=None):
-        """Execute ``blocks``; yields the columns each time ``rows`` rows are
+    def run(self, blocks, rows=None):  # noqa: C901 - the hot loop, inlined on purpose
+        """Execute ``blocks``; yields full columns each time ``rows`` rows are
         ready (never when ``rows`` is None), the caller takes them."""
         cols = self.cols
-        limit = rows if rows else 0
+        limit = rows or 0
         fast_keys = _FAST_KEYS
+        fast = self.comp is None and self.units_set
+        k_add, e_add, f_add, s_add, l_add = (
+            cols.kind.append,
+            cols.end.extend,
+            cols.feed.append,
+            cols.stop.append,
+            cols.line.append,
+        )
         for b in blocks:
-            if len(cols) >= limit > 0:
+            if limit and len(cols.kind) >= limit:
                 while len(cols) >= limit:
                     head, cols = cols.split(limit)
                     yield head
                 self.cols = cols
+                k_add, e_add, f_add, s_add, l_add = (
+                    cols.kind.append,
+                    cols.end.extend,
+                    cols.feed.append,
+                    cols.stop.append,
+                    cols.line.append,
+                )
             words = b.words
-            if self.ended:
+            if fast:
+                d = dict(words)
+                if len(d) == len(words) and d.keys() <= fast_keys and not b.messages:
+                    # Plain straight moves: the bulk of CAM output.
+                    g = d.get("G")
+                    motion = self.motion if g is None else g
+                    f = d.get("F")
+                    if motion == 0 or (motion == 1 and (f is not None or self.feed == self.feed)):
+                        if g is not None:
+                            self.motion = int(g)
+                            self.cycle.cancel()
+                        if f is not None:
+                            if f <= 0:
+                                raise self.error(b.line, f"feed must be positive, got F{f:g}")
+                            self.feed = f * self.scale
+                        x = d.get("X")
+                        y = d.get("Y")
+                        z = d.get("Z")
+                        if x is None and y is None and z is None:
+                            continue
+                        target = self.pos[:]
+                        sc = self.scale
+                        if self.absolute:
+                            o = self.offsets.origin
+                            if x is not None:
+                                target[0] = x * sc + o[0]
+                            if y is not None:
+                                target[1] = y * sc + o[1]
+                            if z is not None:
+                                target[2] = z * sc + o[2]
+                        else:
+                            if x is not None:
+                                target[0] += x * sc
+                            if y is not None:
+                                target[1] += y * sc
+                            if z is not None:
+                                target[2] += z * sc
+                        if motion:
+                            k_add(1)
+                            f_add(self.feed)
+                        else:
+                            k_add(0)
+                            f_add(_NAN)
+                        e_add(target)
+                        s_add(self.exact_stop_modal)
+                        l_add(b.line)
+                        self.pos = target
+                        continue
+            elif self.ended:
                 self.skip("after M2/M30", b.line, "lines after the end of program")
                 continue
-            d = dict(words)
-            if (
-                len(d) == len(words)
-                and d.keys() <= fast_keys
-                and self.comp is None
-                and self.units_set
-                and not b.messages
-            ):
-                # Plain straight moves: the bulk of CAM output.
-                g = d.get("G")
-                motion = self.motion if g is None else g
-                f = d.get("F")
-                if (motion == 0 or motion == 1) and (
-                    motion == 0 or f is not None or self.feed == self.feed
-                ):
-                    if g is not None:
-                        self.motion = int(g)
-                        self.cycle.cancel()
-                    if f is not None:
-                        if f <= 0:
-                            raise self.error(b.line, f"feed must be positive, got F{f:g}")
-                        self.feed = f * self.scale
-                    x = d.get("X")
-                    y = d.get("Y")
-                    z = d.get("Z")
-                    if x is None and y is None and z is None:
-                        continue
-                    target = self.pos[:]
-                    sc = self.scale
-                    if self.absolute:
-                        o = self.offsets.origin
-                        if x is not None:
-                            target[0] = x * sc + o[0]
-                        if y is not None:
-                            target[1] = y * sc + o[1]
-                        if z is not None:
-                            target[2] = z * sc + o[2]
-                    else:
-                        if x is not None:
-                            target[0] += x * sc
-                        if y is not None:
-                            target[1] += y * sc
-                        if z is not None:
-                            target[2] += z * sc
-                    if not (
-                        abs(target[0]) < 1e15 and abs(target[1]) < 1e15 and abs(target[2]) < 1e15
-                    ):
-                        raise self.error(b.line, "coordinate out of range")
-                    if motion:
-                        cols.add(1, target, self.feed, self.exact_stop_modal, b.line)
-                    else:
-                        cols.add(0, target, _NAN, self.exact_stop_modal, b.line)
-                    self.pos = target
-                    continue
             self.block(b.line, words, b.messages, b.call_args)
-            cols = self.cols
+            fast = self.comp is None and self.units_set and not self.ended
 
     # ---- emitting rows -----------------------------------------------------------
     def emit(self, kind, target, feed, line, stop, centre=None, turns=0, dwell=0.0):
-        for v in target:
-            if not abs(v) < 1e15:
-                raise self.error(line, "coordinate out of range")
         if self.comp is not None:
             for mv in self.comp.push(
                 self.make_move(kind, target, feed, line, stop, centre, turns, dwell)
@@ -301,9 +309,13 @@ class Interpreter(BlockExecutor):
         """A length is read before any G20/G21: millimetres, reported once."""
         if not self.units_set:
             self.units_set = True
-            self.skip(
-                "no G20/G21", line, "the program sets neither G20 nor G21: millimetres assumed"
-            )
+            self.skip("G20/G21", line, "the program sets neither G20 nor G21: millimetres assumed")
+
+
+def _ccomp(comp) -> float:
+    if comp is None or not comp.active:
+        return 400.0
+    return 410.0 if comp.side > 0 else 420.0
 
 
 _SYSTEM_NAMES = {
@@ -314,7 +326,9 @@ _SYSTEM_NAMES = {
     "_coord_system": lambda it: SYSTEM_KEYS[it.offsets.system - 1],
     "_motion_mode": lambda it: it.motion * 10.0,
     "_plane": lambda it: (170.0, 180.0, 190.0)[it.plane],
-    "_ccomp": lambda it: 400.0 if it.comp is None else it.comp_code,
+    "_ccomp": lambda it: _ccomp(it.comp),
+    "_current_tool": lambda it: float(it.current_tool),
+    "_selected_tool": lambda it: float(it.selected_tool),
     "_feed": lambda it: 0.0 if it.feed != it.feed else it.feed / it.scale,
     "_retract_r": lambda it: 1.0 if it.cycle.retract == 99 else 0.0,
     "_retract_old_z": lambda it: 1.0 if it.cycle.retract == 98 else 0.0,

@@ -17,6 +17,9 @@ import numpy as np
 
 from contour.errors import UserError
 
+# Beyond this a position is no machine's (and squares of it overflow).
+MAX_COORDINATE = 1e12
+
 
 class GcodeError(UserError):
     """A G-code error at ``file:line``; nothing is estimated or run."""
@@ -145,6 +148,15 @@ class Columns:
 
     def program(self, path, start, lines_read, skipped, substituted) -> Program:
         n = len(self.kind)
+        end = np.frombuffer(self.end, dtype=float).reshape(n, 6) if n else np.zeros((0, 6))
+        if n and not (end.min() > -MAX_COORDINATE and end.max() < MAX_COORDINATE):
+            row = int(np.argmax(~(np.abs(end) < MAX_COORDINATE).all(axis=1)))
+            raise GcodeError(
+                path,
+                int(self.line[row]),
+                "coordinate out of range "
+                f"(a machine position beyond {MAX_COORDINATE:g} mm or degrees)",
+            )
         if self.arc_row:
             rows = np.frombuffer(self.arc_row, dtype=np.int64)
             centre = np.full((n, 3), np.nan)
@@ -167,7 +179,7 @@ class Columns:
             path=path,
             start=np.array(start, dtype=float),
             kind=np.frombuffer(self.kind, dtype=np.int8) if n else np.zeros(0, np.int8),
-            end=np.frombuffer(self.end, dtype=float).reshape(n, 6) if n else np.zeros((0, 6)),
+            end=end,
             feed=np.frombuffer(self.feed, dtype=float) if n else np.zeros(0),
             centre=centre,
             plane=plane,
