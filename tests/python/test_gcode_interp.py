@@ -244,3 +244,47 @@ def test_feature_program(path):
     for kind in expect.get("reported", "").split():
         assert kind in p.skipped, kind
     assert math.isfinite(float(np.abs(p.end).sum()))
+
+
+def _interpreter(lines):
+    from contour.gcode.interp import Interpreter
+    from contour.gcode.lexer import Block
+
+    it = Interpreter("t.nc", None, None)
+    blocks = [Block(i, words) for i, words in enumerate(lines, 1)]
+    for _ in it.run(iter(blocks)):
+        pass
+    return it
+
+
+def test_offsets_live_in_linuxcnc_parameters():
+    it = _interpreter(
+        [
+            [("G", 21.0), ("G", 90.0)],
+            [("G", 10.0), ("L", 2.0), ("P", 2.0), ("X", 100.0), ("Z", -5.0)],
+            [("G", 55.0), ("G", 0.0), ("X", 1.0), ("Y", 2.0)],
+            [("G", 92.0), ("X", 0.0)],
+            [("G", 28.1)],
+            [("G", 20.0)],
+        ]
+    )
+    get = it.params.get
+    assert (get(5241, 0), get(5243, 0)) == (100.0, -5.0)  # G55 X, Z
+    assert get(5220, 0) == 2.0  # G55 selected
+    assert (get(5210, 0), get(5211, 0)) == (1.0, 1.0)  # G92 on, X offset 1 mm
+    assert (get(5161, 0), get(5162, 0), get(5163, 0)) == (101.0, 2.0, 0.0)  # machine
+    # Current position in program coordinates and units (G20 now): X0, Y 2 mm, Z +5 mm.
+    assert get(5420, 0) == 0.0
+    assert get(5421, 0) == pytest.approx(2 / 25.4)
+    assert get(5422, 0) == pytest.approx(5 / 25.4)
+    assert it.params.system("_x") == 0.0 and it.params.system("_metric") == 0.0
+    assert it.params.system("_coord_system") == 550
+    with pytest.raises(GcodeError, match="read-only"):
+        it.params.set(5420, 1.0, 7)
+
+
+def test_parameter_assigned_before_selection_takes_effect():
+    it = _interpreter([[("G", 21.0)], [("G", 54.0)], [("G", 0.0), ("X", 0.0)]])
+    it.params.set(5221, 7.0)
+    it.block(4, [("G", 54.0), ("G", 0.0), ("X", 1.0)])
+    assert it.pos[0] == 8.0
