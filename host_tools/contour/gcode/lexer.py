@@ -1,47 +1,150 @@
-"""G-code front end: text lines -> evaluated :class:`Block` s.
+"""G-code front end: text lines -> evaluated :class:`Block` s (RS-274/NGC as
+LinuxCNC reads it, plus the Sinumerik words the reader has always taken).
 
-Interface (seam 1 of issue #17): :func:`blocks` reads lines lazily and yields
-one :class:`Block` per line that carries words or messages; the interpreter
-executes block k before block k+1 is evaluated. Errors are raised through
-the :class:`Reporter` (``rep.error(line, message)``), reports of ignored
-things through ``rep.skip(kind, line, note)``.
+Interface (seam 1 of issue #17)::
 
-(First version: plain word lines, comments and messages.)
+    blocks(lines, params, rep) -> Iterator[Block]
+
+``lines`` yields ``str`` or ``bytes`` (decoded as UTF-8; :func:`file_lines`
+reads a file that way with the line-length cap). The generator is lazy: the
+interpreter executes block k before block k+1 is evaluated, so ``#5420`` or
+``#<_x>`` read on a line see the state after the blocks before it. A block is
+yielded for every line that has words or messages; parameter assignments,
+O-word control flow and comments are handled here.
+
+Errors go through ``rep.error(line, message)`` (the reporter returns the
+exception to raise); things read and deliberately ignored (block delete
+switch, LinuxCNC log comments, program numbers) through ``rep.skip``.
+
+Line rules: spaces are allowed anywhere outside comments (``G0X +0. 12 34Y
+7`` is ``G0 X0.1234 Y7``); case is folded outside comments; ``( )`` comments
+may not nest and must close on their line; ``;`` comments the rest; of
+several comments on a line only the last is active (``(MSG,..)``,
+``(DEBUG,..)``, ``(PRINT,..)``, the last two with ``#`` substitution);
+``/`` first on a line is block delete (the switch is off: the block runs,
+reported once); a word is a letter and a real value (number, ``#n``,
+``#<name>``, ``[expr]`` or a function); ``#..=value`` sets a parameter after
+the whole line is read.
 """
 
 from __future__ import annotations
 
 import re
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
 from typing import Protocol
 
+from contour.gcode import dialect
+from contour.gcode.expr import FUNCTIONS, Evaluator, ExprError, number_at
 from contour.gcode.params import Params
 
-LINE_CAP = 256 * 1024
+LINE_CAP = 256 * 1024  # characters (bytes for bytes input) in one line
 
 _NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)"
-_SIMPLE_LINE = re.compile(r"(?:[A-NP-Z]\s*" + _NUM + r"\s*)+")
-_SIMPLE_WORD = re.compile(r"([A-Z])\s*(" + _NUM + r")")
+# Fast path: a token that is a plain word; N (line number) and O
+# (control flow) are not plain words.
+_TOKEN = re.compile(r"([A-MP-Za-mp-z])(" + _NUM + r")")
+_N_TOKEN = re.compile(r"[Nn]\d+(?:\.\d*)?")
+
+_IDENT_AT = re.compile(r"[A-Z_$][A-Z0-9_$]*")
+_IDENT_END = re.compile(r"[A-Za-z_$]{2,}[A-Za-z0-9_$]*$")
+_FUNC_NAME = re.compile("|".join(sorted(FUNCTIONS, key=len, reverse=True)) + r"(?=[ \t]*\[)")
+_SPECIAL = re.compile(r"[(;]")
+_SINU_VALUE = re.compile(r"(" + _NUM + r")|R(\d+)|(DC|ACP|ACN|AC|IC)\((" + _NUM + r")\)")
+_GAP = " \t\x01"  # \x01 stands for a comment: it separates words
+_OKEYS = {
+    "SUB",
+    "ENDSUB",
+    "CALL",
+    "RETURN",
+    "IF",
+    "ELSEIF",
+    "ELSE",
+    "ENDIF",
+    "WHILE",
+    "ENDWHILE",
+    "DO",
+    "REPEAT",
+    "ENDREPEAT",
+    "BREAK",
+    "CONTINUE",
+}
 
 
-@dataclass
 class Block:
     """One evaluated line.
 
     ``words``: ``(letter, value)`` in written order, ``letter`` 'A'..'Z' and
-    ``value`` a finite float; Sinumerik forms as ``("=X", (value, func))``
+    ``value`` a finite float (``N`` line numbers are not words and are left
+    out, as RS-274/NGC says); Sinumerik forms as ``("=X", (value, func))``
     (func None/"DC"/"ACP"/"ACN"/"AC"/"IC"; value None when it cannot be
-    evaluated, func then holds the source text), ``("CALL", name)`` for
-    ``NAME(...)`` (its argument text in ``call_args[name]``) and
-    ``("IDENT", name)`` for bare identifiers (``TRAORI``).
-    ``messages``: texts of ``(MSG,...)``, ``(PRINT,...)``, ``(DEBUG,...)``.
+    evaluated here, func then holds the source text, e.g. ``F=R7`` with R7
+    unknown), ``("CALL", name)`` for ``NAME(...)`` (argument text in
+    ``call_args[name]``), ``("IDENT", name)`` for a bare Sinumerik word
+    (``TRAORI``) and ``("IDENT", name + "=")`` for ``NAME=...``.
+    ``messages``: texts of ``(MSG,...)``, ``(PRINT,...)``, ``(DEBUG,...)``
+    (an empty tuple when there are none: blocks share it, do not append).
     """
 
-    line: int
-    words: list
-    messages: list = field(default_factory=list)
-    call_args: dict = field(default_factory=dict)
+    __slots__ = ("line", "words", "messages", "call_args")
+
+    def __init__(self, line: int, words: list, messages=(), call_args=None):
+        self.line = line
+        self.words = words
+        self.messages = messages
+        self.call_args = _NO_ARGS if call_args is None else call_args
+
+    def __eq__(self, other):
+        return isinstance(other, Block) and (
+            self.line,
+            self.words,
+            list(self.messages),
+            self.call_args,
+        ) == (other.line, other.words, list(other.messages), other.call_args)
+
+    def __repr__(self):
+        return f"Block(line={self.line}, words={self.words!r}, messages={list(self.messages)!r}" + (
+            f", call_args={self.call_args!r})" if self.call_args else ")"
+        )
+
+
+_NO_ARGS: dict = {}
+
+
+class NotSimple(Exception):
+    """A token of the fast path that is not a plain ``letter number`` word."""
+
+
+class WordCache(dict):
+    """Plain word token (``X12.5``, ``g1``) -> ``("X", 12.5)``; real files
+    repeat their G, F and many coordinate words, and a dict hit is far
+    cheaper than parsing. Bounded: cleared when full."""
+
+    def __missing__(self, tok: str):
+        m = _TOKEN.fullmatch(tok)
+        if m is None:
+            raise NotSimple
+        v = (m.group(1).upper(), float(m.group(2)))
+        if len(self) >= 65536:
+            self.clear()
+        self[tok] = v
+        return v
+
+
+def simple_words(text: str, get):
+    """Words of a line made only of blank-separated plain words (and an
+    ``N`` number first), or None; ``get`` is a :class:`WordCache` getter."""
+    toks = text.split()
+    if not toks:
+        return None
+    t = toks[0]
+    if t[0] == "N" or t[0] == "n":
+        if not _N_TOKEN.fullmatch(t):
+            return None
+        del toks[0]
+    try:
+        return list(map(get, toks))
+    except NotSimple:
+        return None
 
 
 class Reporter(Protocol):
@@ -54,45 +157,402 @@ class Reporter(Protocol):
 
 def blocks(lines: Iterable, params: Params, rep: Reporter) -> Iterator[Block]:
     """Evaluated blocks of ``lines`` (str, or bytes decoded as UTF-8)."""
+    from contour.gcode.flow import Runner  # flow builds on this module
+
     if params.rep is None:
         params.rep = rep
-    simple = _SIMPLE_LINE.fullmatch
-    findall = _SIMPLE_WORD.findall
-    lineno = 0
-    for raw in lines:
-        lineno += 1
-        if type(raw) is not str:
-            raw = raw.decode("utf-8")
-        text = raw.strip().upper()
-        if not text:
+    return Runner(lines, params, rep).run()
+
+
+def file_lines(fh, cap: int = LINE_CAP) -> Iterator[bytes]:
+    """Lines of a binary file object, each at most ``cap + 1`` bytes: a longer
+    line is cut there (and :func:`blocks` refuses it), so memory stays
+    bounded whatever the file holds."""
+    readline = fh.readline
+    limit = cap + 1
+    while True:
+        line = readline(limit)
+        if not line:
+            return
+        yield line
+        if len(line) == limit and not line.endswith(b"\n"):
+            return  # blocks() stops at this line
+
+
+class Line:
+    """What one line says, evaluated. ``oword``: None or ``(label, keyword,
+    values)`` with label ``"100"`` or ``"<name>"``."""
+
+    __slots__ = ("words", "messages", "assigns", "oword", "call_args")
+
+    def __init__(self):
+        self.words = []
+        self.messages = []
+        self.assigns = []
+        self.oword = None
+        self.call_args = {}
+
+
+class Malformed(ExprError):
+    pass
+
+
+def _split(text: str):
+    """Code (comments replaced by \\x01) and the comment texts of a line."""
+    if "(" not in text and ";" not in text:
+        return text, ()
+    out = []
+    comments = []
+    i = 0
+    n = len(text)
+    while i < n:
+        m = _SPECIAL.search(text, i)
+        if m is None:
+            out.append(text[i:])
+            break
+        j = m.start()
+        out.append(text[i:j])
+        if text[j] == ";":
+            comments.append(text[j + 1 :])
+            break
+        ident = _IDENT_END.search(text, i, j)
+        if ident is not None and ident.group(0).upper() not in _OKEYS:
+            k = _balanced(text, j)  # Sinumerik NAME(...): arguments, not a comment
+            out.append(text[j:k])
+            i = k
             continue
-        if simple(text):
-            yield Block(lineno, [(a, float(b)) for a, b in findall(text)])
-            continue
-        words = []
-        messages = []
+        k = text.find(")", j + 1)
+        if k < 0:
+            raise Malformed("unclosed comment '(' (no ')' on the line)")
+        body = text[j + 1 : k]
+        if "(" in body:
+            raise Malformed("'(' inside a comment (comments do not nest)")
+        comments.append(body)
+        out.append("\x01")
+        i = k + 1
+    return "".join(out), comments
+
+
+def _balanced(text: str, i: int) -> int:
+    depth = 0
+    quoted = False
+    for k in range(i, len(text)):
+        c = text[k]
+        if c == '"':
+            quoted = not quoted
+        elif not quoted:
+            if c == "(":
+                depth += 1
+            elif c == ")":
+                depth -= 1
+                if depth == 0:
+                    return k + 1
+    raise Malformed("unbalanced parentheses")
+
+
+def _skip(s: str, i: int) -> int:
+    n = len(s)
+    while i < n and s[i] in _GAP:
+        i += 1
+    return i
+
+
+def _token(s: str, i: int) -> str:
+    j = i
+    while j < len(s) and s[j] not in _GAP and s[j] != ";":
+        j += 1
+    return s[i:j] if j > i else s[i : i + 1]
+
+
+class Tokenizer:
+    """Reads one line into a :class:`Line`."""
+
+    def __init__(self, params: Params, rep: Reporter):
+        self.params = params
+        self.rep = rep
+        self.ev = Evaluator(params)
+
+    def parse(self, text: str, lineno: int) -> Line:
+        """``text``: one stripped line (original case)."""
+        try:
+            return self._parse(text, lineno)
+        except ExprError as exc:
+            hint = dialect.hint(text)
+            raise self.rep.error(lineno, hint or str(exc)) from None
+
+    def _parse(self, text: str, lineno: int) -> Line:
+        self.ev.line = lineno
+        line = Line()
+        code, comments = _split(text)
+        if comments:
+            self._active_comment(comments[-1], line, lineno)
+        s = code.upper()
+        n = len(s)
+        i = _skip(s, 0)
+        if i < n and s[i] == "/":
+            self.rep.skip("/ (block delete)", lineno, "block delete switch off: block executed")
+            i = _skip(s, i + 1)
+        if i < n and s[i] == "N":
+            # Line number: N, an unsigned integer, optionally .digits.
+            r = number_at(s, _skip(s, i + 1))
+            if r is None:
+                raise Malformed(f"malformed line number '{_token(s, i)}'")
+            i = _skip(s, r[1])
+        if i < n and s[i] == "O":
+            self._oword(s, i, line, lineno)
+            return line
+        while True:
+            i = _skip(s, i)
+            if i >= n:
+                return line
+            c = s[i]
+            if c == "#":
+                key, j = self.ev.param_key(s, i)
+                j = _skip(s, j)
+                if j >= n or s[j] != "=":
+                    raise Malformed(f"'=' expected after parameter '{_token(s, i)}'")
+                v, i = self.ev.value(s, j + 1)
+                line.assigns.append((key, v))
+            elif "A" <= c <= "Z":
+                nxt = s[i + 1] if i + 1 < n else ""
+                if "A" <= nxt <= "Z" or nxt == "_" or nxt == "$":
+                    m = _FUNC_NAME.match(s, i + 1)
+                    if m is not None and c != "O":
+                        v, i = self.ev.function(m.group(0), s, _skip(s, m.end()))
+                        line.words.append((c, v))
+                    else:
+                        i = self._identifier(s, i, line, lineno)
+                else:
+                    i = self._word(s, c, i, line)
+            elif c == "_" or c == "$":
+                i = self._identifier(s, i, line, lineno)
+            elif c == "@" or c == "^":
+                raise Malformed("polar coordinates (@ ^) are not supported")
+            elif c < " " or c == "\x7f":
+                raise Malformed(f"control character 0x{ord(c):02x} in the line (binary file?)")
+            else:
+                raise Malformed(f"unexpected character '{c}'")
+
+    # ---- words ------------------------------------------------------------
+    def _word(self, s: str, c: str, i: int, line: Line) -> int:
+        n = len(s)
+        j = _skip(s, i + 1)
+        if j < n and s[j] == "=":
+            return self._sinumerik_assign(s, c, j + 1, line)
+        if c == "O":
+            raise Malformed("an O-word must begin its line (O-words are control flow)")
+        if c == "N":
+            raise Malformed(f"line number '{_token(s, i)}' must begin the line")
+        start = j
+        if j >= n or s[j] in "-+.0123456789":
+            # Plain number: keep the old messages for its faults.
+            try:
+                v, j = self.ev.value(s, j)
+            except ExprError:
+                raise Malformed(f"malformed number in '{_token(s, i)}'") from None
+            if j < n and s[j] in "-+.0123456789" and s[start] not in "[#":
+                raise Malformed(f"malformed number in '{_token(s, i)}'")
+        else:
+            v, j = self.ev.value(s, j)
+        if c == "R":
+            k = _skip(s, j)
+            if k < n and s[k] == "=":
+                return self._r_assign(v, s, k + 1, line)
+        line.words.append((c, v))
+        return j
+
+    def _identifier(self, s: str, i: int, line: Line, lineno: int) -> int:
+        m = _IDENT_AT.match(s, i)
+        name = m.group(0)
+        j = m.end()
+        n = len(s)
+        why = dialect.identifier(name, s[j : j + 1])
+        if why:
+            raise Malformed(why)
+        if j < n and s[j] == "(":
+            k = _balanced(s, j)
+            line.words.append(("CALL", name))
+            line.call_args[name] = s[j + 1 : k - 1].strip()
+            return k
+        k = _skip(s, j)
+        if k < n and s[k] == "=":
+            line.words.append(("IDENT", name + "="))
+            return _value_end(s, k + 1)
+        if name in dialect.SINUMERIK_WORDS or name[0] in "_$":
+            line.words.append(("IDENT", name))
+            return j
+        raise Malformed(_bad_word(name))
+
+    def _sinumerik_assign(self, s: str, c: str, j: int, line: Line) -> int:
+        """``X=value`` (Sinumerik): number, known R parameter or FUNC(number)."""
+        end = _value_end(s, j)
+        text = s[j:end].strip(_GAP)
+        if c == "R":
+            raise Malformed(f"malformed R parameter assignment 'R={text}'")
+        m = _SINU_VALUE.fullmatch(text)
+        if m is None:
+            line.words.append(("=" + c, (None, text)))
+        elif m.group(1) is not None:
+            line.words.append(("=" + c, (float(m.group(1)), None)))
+        elif m.group(2) is not None:
+            v = self.params.r.get(int(m.group(2)))
+            line.words.append(("=" + c, (v, None) if v is not None else (None, text)))
+        else:
+            line.words.append(("=" + c, (float(m.group(4)), m.group(3))))
+        return end
+
+    def _r_assign(self, index: float, s: str, j: int, line: Line) -> int:
+        """``R<n>=value``: a constant (or a known R) is remembered, anything
+        else forgotten (and reported)."""
+        end = _value_end(s, j)
+        text = s[j:end].strip(_GAP)
+        if index != int(index) or index < 0:
+            raise Malformed(f"malformed R parameter number 'R{index:g}'")
+        m = _SINU_VALUE.fullmatch(text)
+        v = None
+        if m is not None and m.group(1) is not None:
+            v = float(m.group(1))
+        elif m is not None and m.group(2) is not None:
+            v = self.params.r.get(int(m.group(2)))
+        if v is None:
+            self.params.r.pop(int(index), None)
+            self.rep.skip(
+                "R= expression", self.ev.line, "R parameter set from an expression: left unknown"
+            )
+        else:
+            self.params.r[int(index)] = v
+        return end
+
+    # ---- O-words ------------------------------------------------------------
+    def _oword(self, s: str, i: int, line: Line, lineno: int) -> None:
+        n = len(s)
+        j = _skip(s, i + 1)
+        if j < n and s[j] == "<":
+            k = s.find(">", j)
+            if k < 0:
+                raise Malformed("unclosed O-word name 'O<' (no '>')")
+            label = "<" + s[j + 1 : k].replace(" ", "").replace("\t", "").lower() + ">"
+            if label == "<>":
+                raise Malformed("empty O-word name O<>")
+            j = k + 1
+        elif j < n and s[j] == "[":
+            v, j = self.ev.bracket(s, j)
+            label = str(self.params.index(v, lineno))
+        else:
+            r = number_at(s, j)
+            if r is None or r[0] != int(r[0]):
+                raise Malformed(f"malformed O-word '{_token(s, i)}'")
+            label = str(int(r[0]))
+            j = r[1]
+        j = _skip(s, j)
+        m = re.compile(r"[A-Z]+").match(s, j)
+        if m is None:
+            if j >= n and not line.words:
+                # A program number (O1000 at the top of CAM output).
+                self.rep.skip("O (program number)", lineno, "program number, no effect")
+                return
+            raise Malformed(f"O{_show_label(label)} without a keyword (sub, call, if, while ...)")
+        key = m.group(0)
+        if key not in _OKEYS:
+            raise Malformed(f"unknown O-word keyword '{key.lower()}'")
+        values = []
+        j = _skip(s, m.end())
+        while j < n:
+            if s[j] != "[":
+                raise Malformed(
+                    f"O{_show_label(label)} {key.lower()}: unexpected '{_token(s, j)}' "
+                    "(other words are not allowed on an O-word line; arguments go in [ ])"
+                )
+            v, j = self.ev.bracket(s, j)
+            values.append(v)
+            j = _skip(s, j)
+        need = {"IF": 1, "ELSEIF": 1, "WHILE": 1, "REPEAT": 1}.get(key)
+        most = 30 if key == "CALL" else (1 if key in ("RETURN", "ENDSUB") else (need or 0))
+        if need and len(values) != need:
+            raise Malformed(f"O{_show_label(label)} {key.lower()} needs a condition [..]")
+        if len(values) > most:
+            raise Malformed(f"O{_show_label(label)} {key.lower()}: too many values in [ ]")
+        line.oword = (label, key, values)
+
+    # ---- comments -----------------------------------------------------------
+    def _active_comment(self, body: str, line: Line, lineno: int) -> None:
+        head, comma, rest = body.partition(",")
+        key = head.replace(" ", "").replace("\t", "").upper()
+        if not comma:
+            if key in ("LOGCLOSE", "PROBECLOSE") or key.startswith("PROBEOPEN"):
+                self.rep.skip("(" + key + ")", lineno, "LinuxCNC log/probe file: not written")
+            return
+        if key == "MSG":
+            line.messages.append(rest.strip())
+        elif key in ("DEBUG", "PRINT"):
+            line.messages.append(self._substitute(rest.strip()))
+        elif key in ("LOG", "LOGOPEN", "LOGAPPEND"):
+            self.rep.skip("(" + key + ",...)", lineno, "LinuxCNC log file: not written")
+        elif key == "ABORT":
+            raise Malformed(f"(ABORT) the program aborts here: {rest.strip()}")
+
+    def _substitute(self, text: str) -> str:
+        """``#n`` and ``#<name>`` in DEBUG/PRINT text, with LinuxCNC's
+        ``%d``, ``%f``, ``%.Nf`` and ``%lf`` formats."""
+        out = []
+        fmt = 6
         i = 0
         n = len(text)
         while i < n:
             c = text[i]
-            if c in " \t":
-                i += 1
-            elif c == ";":
-                break
-            elif c == "(":
-                j = text.find(")", i + 1)
-                if j < 0:
-                    raise rep.error(lineno, "unclosed comment '(' (no ')' on the line)")
-                body = raw.strip()[i + 1 : j]
-                head = body.lstrip()[:6].upper()
-                if head.startswith(("MSG,", "PRINT,", "DEBUG,")):
-                    messages.append(body.split(",", 1)[1].strip())
-                i = j + 1
-            else:
-                m = _SIMPLE_WORD.match(text, i)
-                if m is None:
-                    raise rep.error(lineno, f"unexpected character '{c}'")
-                words.append((m.group(1), float(m.group(2))))
-                i = m.end()
-        if words or messages:
-            yield Block(lineno, words, messages)
+            if c == "%":
+                m = re.compile(r"%(?:d|f|lf|\.(\d)f)").match(text, i)
+                if m is not None:
+                    g = m.group(0)
+                    fmt = (
+                        0 if g == "%d" else 4 if g == "%f" else 6 if g == "%lf" else int(m.group(1))
+                    )
+                    i = m.end()
+                    continue
+            if c == "#":
+                m = re.compile(r"#\s*(?:<([^>]*)>|(\d+))").match(text, i)
+                if m is not None:
+                    if m.group(1) is not None:
+                        key = m.group(1).replace(" ", "").replace("\t", "").lower()
+                        ok = bool(key) and self.params.exists(key)
+                        out.append(f"{self.params.get(key, 0):.{fmt}f}" if ok else "######")
+                    else:
+                        k = int(m.group(2))
+                        ok = 1 <= k <= 5602
+                        out.append(f"{self.params.get(k, 0):.{fmt}f}" if ok else "######")
+                    i = m.end()
+                    continue
+            out.append(c)
+            i += 1
+        return "".join(out)
+
+
+def _value_end(s: str, j: int) -> int:
+    """End of a Sinumerik ``=`` value: the next blank outside ( ) and quotes."""
+    n = len(s)
+    j = _skip(s, j)
+    while j < n and s[j] not in _GAP and s[j] != ";":
+        if s[j] == "(":
+            j = _balanced(s, j)
+            continue
+        if s[j] == '"':
+            k = s.find('"', j + 1)
+            if k < 0:
+                raise Malformed("unclosed string")
+            j = k + 1
+            continue
+        j += 1
+    return j
+
+
+def _bad_word(name: str) -> str:
+    if "A" <= name[0] <= "Z" and not ("A" <= name[1] <= "Z") and name[1] not in "_$":
+        return f"unknown word '{name}'"
+    note = f"{name[0]} has no value"
+    if name[1] == "O" and len(name) > 2 and name[2] in "O0123456789":
+        note += " (letter O written for zero?)"
+    return f"malformed word '{name}': {note}"
+
+
+def _show_label(label: str) -> str:
+    return label

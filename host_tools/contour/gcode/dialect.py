@@ -1,0 +1,90 @@
+"""Other controls' languages: what the reader takes and what it refuses
+with a hint.
+
+- Sinumerik words the reader has always taken (``TRAORI``, ``FNORM``,
+  ``CYCLE832(...)``, ``$A_...``): passed on as identifiers; the interpreter
+  decides (report or refuse).
+- Sinumerik control flow (``GOTOF``, ``IF .. GOTO``, ``DEF``, ``PROC``,
+  ``REPEAT .. P=``, labels ``NAME:``) and frames (``TRANS``, ``ROT`` ...,
+  which move the path): refused, naming the construct.
+- Heidenhain conversational (Klartext) programs (``BEGIN PGM``, ``L X+10 R0
+  FMAX``, ``TOOL CALL``, ``CYCL DEF``): refused as a whole with a hint.
+"""
+
+from __future__ import annotations
+
+import re
+
+
+def _split(text: str) -> list:
+    return text.split()
+
+
+SINUMERIK_WORDS = frozenset(
+    _split(
+        """
+    TRAORI TRAFOOF TRACYL TRANSMIT TRAANG TRACON TRAF00F FNORM FLIN FCUB FPRAON FPRAOF
+    FFWON FFWOF SOFT BRISK DRIVE SOFTA BRISKA DRIVEA CFC CFTCP CFIN ORIWKS ORIMKS ORIAXES
+    ORIVECT ORIEULER ORIRPY ORIPLANE ORICONCW ORICONCCW ORICONIO ORICONTO ORICURVE ORIPATH
+    ORIPATHS ORIROTA ORIROTR ORIROTT ORIROTC OSOF OST OSC OSS OSSE UPATH SPATH COMPON
+    COMPOF COMPCURV COMPCAD COMPSURF STOPRE SUPA CUT2D CUT2DF CUT3DC CUT3DFS CUT3DF
+    CUT3DFF DIAMON DIAMOF DIAM90 WAITM WAITS SBLOF SBLON DISPLOF DISPLON PTP CP PTPG0
+    FGREF FGROUP G642 CPRECON CPRECOF FIFOCTRL
+        """
+    )
+)
+
+_CONTROL_FLOW = frozenset(
+    _split(
+        """
+    IF ELSE ENDIF WHILE ENDWHILE FOR ENDFOR LOOP ENDLOOP REPEAT REPEATB UNTIL CASE DEF
+    PROC RET EXTERN CALL PCALL MCALL SAVE DEFINE GOTO GOTOF GOTOB GOTOC GOTOS
+        """
+    )
+)
+
+_FRAMES = frozenset(
+    _split(
+        """
+    TRANS ATRANS CTRANS ROT AROT ROTS AROTS CROT SCALE ASCALE CSCALE MIRROR AMIRROR
+    CMIRROR TOFRAME TOROT TOFRAMEX TOFRAMEY TOFRAMEZ TOROTX TOROTY TOROTZ
+        """
+    )
+)
+
+_HEIDENHAIN = re.compile(
+    r"^\s*(?:\d+\s+)?(?:BEGIN\s+PGM|END\s+PGM|BLK\s+FORM|TOOL\s+(?:CALL|DEF)|"
+    r"CYCL\s+(?:DEF|CALL)|CALL\s+(?:LBL|PGM)|LBL\s+\S|FN\s*\d+\s*:|"
+    r"(?:L|LN|LP|C|CC|CR|CT|CP|RND|CHF|APPR\s*\w*|DEP\s*\w*)\s+"
+    r"(?:I?[XYZABC]\s*[+-]|PR\s*[+-]|PA\s*[+-]|R[LR0]\b|R\s*[+-]?\d|F\s*MAX\b)|"
+    r"Q\d+\s*=)|\bFMAX\b",
+    re.IGNORECASE,
+)
+
+HEIDENHAIN_HINT = (
+    "Heidenhain conversational (Klartext) program: this reader takes RS-274/NGC G-code "
+    "(LinuxCNC dialect); output ISO/DIN G-code from the CAM post-processor instead"
+)
+
+
+def identifier(name: str, after: str):
+    """Why the identifier ``name`` (followed by the character ``after``) is
+    refused, or None."""
+    if after == ":":
+        return f"Sinumerik jump label '{name}:' is not supported (no GOTO in RS-274/NGC)"
+    if name in _CONTROL_FLOW or name.startswith("GOTO"):
+        shown = "GOTO" if name.startswith("GOTO") and name not in _CONTROL_FLOW else name
+        return (
+            f"Sinumerik control flow '{shown}' is not supported; the reader executes "
+            "RS-274/NGC O-word control flow (O100 if/while/repeat/call)"
+        )
+    if name in _FRAMES:
+        return f"Sinumerik frame '{name}' (it shifts, rotates or scales the path) is not supported"
+    return None
+
+
+def hint(text: str):
+    """A dialect hint for a line the reader could not read, or None."""
+    if _HEIDENHAIN.search(text):
+        return HEIDENHAIN_HINT
+    return None
