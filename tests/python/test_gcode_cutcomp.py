@@ -1,0 +1,341 @@
+"""Cutter radius compensation (gcode/cutcomp.py) on hand-computed paths."""
+
+import math
+
+import pytest
+from contour.gcode.cutcomp import CutterComp
+from contour.gcode.moves import ARC_CCW, ARC_CW, DWELL, LINEAR, RAPID, Move
+
+NAN = math.nan
+
+
+class Err(Exception):
+    pass
+
+
+def err(line, msg):
+    return Err(f"t.ngc:{line}: {msg}")
+
+
+def p6(x, y, z=0.0):
+    return (float(x), float(y), float(z), 0.0, 0.0, 0.0)
+
+
+class Prog:
+    """Feed programmed moves (program order) through a CutterComp."""
+
+    def __init__(self, x, y, z=0.0, plane=0):
+        self.pos = p6(x, y, z)
+        self.comp = CutterComp(err)
+        self.out = []
+        self.plane = plane
+        self.line = 0
+
+    def _push(self, m):
+        self.out += self.comp.push(m)
+        self.pos = m.end
+
+    def g1(self, x=None, y=None, z=None, kind=LINEAR):
+        self.line += 1
+        end = list(self.pos)
+        for i, v in enumerate((x, y, z)):
+            if v is not None:
+                end[i] = float(v)
+        feed = NAN if kind == RAPID else 100.0
+        self._push(Move(kind, self.pos, tuple(end), feed, self.line, plane=self.plane))
+
+    def g0(self, **kw):
+        self.g1(kind=RAPID, **kw)
+
+    def arc(self, kind, x, y, cx, cy):
+        self.line += 1
+        end = (float(x), float(y)) + self.pos[2:]
+        m = Move(kind, self.pos, end, 100.0, self.line, centre=(cx, cy, NAN), plane=self.plane)
+        self._push(m)
+
+    def dwell(self, s):
+        self.line += 1
+        self._push(Move(DWELL, self.pos, self.pos, NAN, self.line, dwell_s=s))
+
+    def on(self, side, r):
+        self.line += 1
+        self.comp.on(side, r, self.plane, self.line)
+
+    def off(self):
+        self.line += 1
+        self.comp.off(self.line)
+
+    def done(self):
+        self.out += self.comp.flush()
+        return self.out
+
+
+def simple(moves):
+    """[(kind, (x0, y0), (x1, y1), centre or None)] rounded."""
+    res = []
+    for m in moves:
+        c = None if m.centre is None else (round(m.centre[0], 6), round(m.centre[1], 6))
+        res.append(
+            (
+                m.kind,
+                (round(m.start[0], 6), round(m.start[1], 6)),
+                (round(m.end[0], 6), round(m.end[1], 6)),
+                c,
+            )
+        )
+    return res
+
+
+def length(moves, kinds=(LINEAR, ARC_CW, ARC_CCW)):
+    total = 0.0
+    for m in moves:
+        if m.kind not in kinds:
+            continue
+        if m.kind in (ARC_CW, ARC_CCW):
+            c = m.centre
+            a0 = math.atan2(m.start[1] - c[1], m.start[0] - c[0])
+            a1 = math.atan2(m.end[1] - c[1], m.end[0] - c[0])
+            sweep = (a1 - a0) if m.kind == ARC_CCW else (a0 - a1)
+            sweep %= 2 * math.pi
+            total += sweep * math.hypot(m.start[0] - c[0], m.start[1] - c[1])
+        else:
+            total += math.dist(m.start[:3], m.end[:3])
+    return total
+
+
+def continuous(moves):
+    for a, b in zip(moves, moves[1:]):
+        assert a.end == b.start
+
+
+def square_outside():
+    # 20 mm square run clockwise with G41 and r = 3: the tool stays outside.
+    p = Prog(0, -10)
+    p.on("left", 3.0)
+    p.g1(x=0, y=0)  # entry, going +Y: ends at (-3, 0)
+    p.g1(y=20)
+    p.g1(x=20)
+    p.g1(y=0)
+    p.g1(x=0)
+    p.off()
+    p.g1(x=-10, y=-10)  # exit
+    return p.done()
+
+
+def test_square_outside_g41_cw_gets_corner_arcs_of_radius_3():
+    moves = square_outside()
+    continuous(moves)
+    assert simple(moves) == [
+        (LINEAR, (0, -10), (-3, 0), None),  # entry
+        (LINEAR, (-3, 0), (-3, 20), None),  # tangent: no corner
+        (ARC_CW, (-3, 20), (0, 23), (0, 20)),  # convex corner: arc r=3 round the corner
+        (LINEAR, (0, 23), (20, 23), None),
+        (ARC_CW, (20, 23), (23, 20), (20, 20)),
+        (LINEAR, (23, 20), (23, 0), None),
+        (ARC_CW, (23, 0), (20, -3), (20, 0)),
+        (LINEAR, (20, -3), (0, -3), None),
+        (LINEAR, (0, -3), (-10, -10), None),  # exit after G40
+    ]
+    # entry sqrt(109) + 4 sides' offsets 20 each + 3 quarter circles of r 3 + exit sqrt(149)
+    expect = math.sqrt(109) + 80 + 3 * (math.pi / 2 * 3) + math.sqrt(149)
+    assert length(moves) == pytest.approx(expect, abs=1e-9)
+    for m in moves:
+        if m.kind == ARC_CW:
+            assert math.dist(m.start[:2], m.centre[:2]) == pytest.approx(3.0)
+            assert math.dist(m.end[:2], m.centre[:2]) == pytest.approx(3.0)
+
+
+def test_g42_mirrors_g41():
+    # The square counter-clockwise with G42: outside again, arcs counter-clockwise.
+    p = Prog(-10, 0)
+    p.on("right", 3.0)
+    p.g1(x=0, y=0)  # entry going +X: ends at (0, -3)
+    p.g1(x=20)
+    p.g1(y=20)
+    moves = p.done()
+    assert simple(moves) == [
+        (LINEAR, (-10, 0), (0, -3), None),
+        (LINEAR, (0, -3), (20, -3), None),
+        (ARC_CCW, (20, -3), (23, 0), (20, 0)),
+        (LINEAR, (23, 0), (23, 20), None),
+    ]
+
+
+def test_concave_entry_corner_pulls_the_entry_back():
+    # G42 entry going +Y then a right turn: concave, the entry ends on both offsets.
+    p = Prog(0, -10)
+    p.on("right", 3.0)
+    p.g1(x=0, y=0)
+    p.g1(x=20)
+    assert simple(p.done()) == [
+        (LINEAR, (0, -10), (3, -3), None),
+        (LINEAR, (3, -3), (20, -3), None),
+    ]
+
+
+def test_pocket_inside_corners_are_intersections_and_z_moves_follow():
+    # The square counter-clockwise with G41: the tool inside, every corner concave.
+    p = Prog(10, 10)
+    p.on("left", 3.0)
+    p.g1(x=10, y=0)  # entry going -Y: offset (13, 0), then pulled back to (13, 3)
+    p.g1(z=-1)  # plunge: keeps the tool's XY, and follows the corner
+    p.g1(x=20)
+    p.g1(y=20)
+    p.g1(x=0)
+    p.g1(y=0)
+    p.g1(x=10)
+    p.off()
+    p.g1(y=10)
+    moves = p.done()
+    continuous(moves)
+    assert simple(moves) == [
+        (LINEAR, (10, 10), (13, 3), None),
+        (LINEAR, (13, 3), (13, 3), None),  # the plunge, moved with the corner
+        (LINEAR, (13, 3), (17, 3), None),
+        (LINEAR, (17, 3), (17, 17), None),
+        (LINEAR, (17, 17), (3, 17), None),
+        (LINEAR, (3, 17), (3, 3), None),
+        (LINEAR, (3, 3), (10, 3), None),
+        (LINEAR, (10, 3), (10, 10), None),
+    ]
+    assert moves[1].start[2] == 0 and moves[1].end[2] == -1
+    expect = math.sqrt(58) + 1 + 4 + 14 * 3 + 7 + 7
+    assert length(moves) == pytest.approx(expect, abs=1e-9)
+
+
+def test_arc_offset_outside_and_inside():
+    # Upper half circle R10 round (10, 0), clockwise from (0, 0) to (20, 0).
+    p = Prog(0, -10)
+    p.on("left", 3.0)  # tool outside a clockwise arc: R 13
+    p.g1(x=0, y=0)
+    p.arc(ARC_CW, 20, 0, 10, 0)
+    out = simple(p.done())
+    assert out == [(LINEAR, (0, -10), (-3, 0), None), (ARC_CW, (-3, 0), (23, 0), (10, 0))]
+
+    p = Prog(0, -10)
+    p.on("right", 3.0)  # tool inside: R 7
+    p.g1(x=0, y=0)
+    p.arc(ARC_CW, 20, 0, 10, 0)
+    moves = p.done()
+    assert simple(moves) == [(LINEAR, (0, -10), (3, 0), None), (ARC_CW, (3, 0), (17, 0), (10, 0))]
+    assert length(moves) == pytest.approx(math.sqrt(109) + 7 * math.pi)
+
+
+def test_line_to_arc_concave_corner_is_on_the_offset_circle():
+    # G41 r 2: +X along Y=0, then a counter-clockwise quarter R10 round
+    # (10, 10) (tangent, tool inside: R 8), then a line back along Y=10
+    # going -X: a left turn at (20, 10), concave. The offset line is Y = 8;
+    # it meets the offset circle where (x - 10)^2 + 2^2 = 64.
+    p = Prog(0, -10)
+    p.on("left", 2.0)
+    p.g1(x=0, y=0)
+    p.g1(x=10)
+    p.arc(ARC_CCW, 20, 10, 10, 10)
+    p.g1(x=0)
+    moves = p.done()
+    continuous(moves)
+    x = round(10 + math.sqrt(60), 6)
+    assert simple(moves) == [
+        (LINEAR, (0, -10), (-2, 0), None),
+        (ARC_CW, (-2, 0), (0, 2), (0, 0)),  # convex corner at the origin
+        (LINEAR, (0, 2), (10, 2), None),  # tangent into the arc
+        (ARC_CCW, (10, 2), (x, 8), (10, 10)),  # the arc, cut short at the corner
+        (LINEAR, (x, 8), (0, 8), None),
+    ]
+
+
+def test_gouge_slot_narrower_than_the_tool_is_refused():
+    p = Prog(0, -10)
+    p.on("left", 3.0)
+    p.g1(x=0, y=0)
+    p.g1(x=10)
+    with pytest.raises(Err) as e:
+        p.g1(y=2)  # a 2 mm step then back: the r 3 tool cannot get into it
+        p.g1(x=0)
+    assert "t.ngc:4:" in str(e.value)
+    assert "without gouging" in str(e.value)
+
+
+def test_tool_too_big_for_a_concave_arc():
+    p = Prog(0, -30)
+    p.on("right", 10.0)  # G42 on a clockwise arc: the tool inside an R10 arc
+    p.g1(x=0, y=0)
+    with pytest.raises(Err, match="t.ngc:3: tool radius too big"):
+        p.arc(ARC_CW, 20, 0, 10, 0)
+
+
+def test_entry_rules():
+    p = Prog(0, 0)
+    p.on("left", 3.0)
+    with pytest.raises(Err, match="entry move .2 mm. is not longer than the tool radius"):
+        p.g1(x=2)
+    p = Prog(0, 0)
+    p.on("left", 3.0)
+    with pytest.raises(Err, match="arc as the first move after G41/G42"):
+        p.arc(ARC_CW, 20, 0, 10, 0)
+
+
+def test_z_only_and_dwell_before_the_entry_pass_unchanged():
+    p = Prog(0, -10, 5)
+    p.on("left", 3.0)
+    p.g1(z=-1)
+    p.dwell(0.5)
+    p.g1(x=0, y=0)
+    moves = p.done()
+    assert [(m.kind, m.start[:3], m.end[:3]) for m in moves] == [
+        (LINEAR, (0, -10, 5), (0, -10, -1)),
+        (DWELL, (0, -10, -1), (0, -10, -1)),
+        (LINEAR, (0, -10, -1), (-3, 0, -1)),
+    ]
+
+
+def test_rapid_round_a_convex_corner_is_straight():
+    p = Prog(0, -10)
+    p.on("left", 3.0)
+    p.g1(x=0, y=0)
+    p.g1(y=20)
+    p.g0(x=20)
+    moves = p.done()
+    assert simple(moves)[2:] == [
+        (RAPID, (-3, 20), (0, 23), None),
+        (RAPID, (0, 23), (20, 23), None),
+    ]
+
+
+def test_errors_on_planes_and_modes():
+    c = CutterComp(err)
+    with pytest.raises(Err, match="t.ngc:5: cutter compensation in the G19 .YZ. plane"):
+        c.on("left", 3, 2, 5)
+    c.on("left", 3, 0, 6)
+    with pytest.raises(Err, match="t.ngc:7: cutter compensation is already on"):
+        c.on("right", 3, 0, 7)
+    with pytest.raises(Err, match="t.ngc:8: cannot change plane"):
+        c.plane_change(1, 8)
+    c.plane_change(0, 9)  # the same plane is fine
+    with pytest.raises(Err, match="t.ngc:4: cannot change plane"):
+        c.push(Move(LINEAR, p6(0, 0), p6(10, 0), 100.0, 4, plane=1))
+
+
+def test_negative_radius_swaps_the_side():
+    p = Prog(0, -10)
+    p.on("left", -3.0)
+    p.g1(x=0, y=0)
+    assert simple(p.done())[0][2] == (3, 0)
+
+
+def test_xz_plane_offsets_in_z_x_order():
+    # G18: the plane's axes in arc-sense order are (Z, X); the left of a
+    # move going +Z is +X.
+    p = Prog(0, 0, 0, plane=1)
+    p.on("left", 2.0)
+    p.g1(z=10)  # in-plane move (Z), entry
+    moves = p.done()
+    assert moves[0].end[:3] == pytest.approx((2.0, 0.0, 10.0))
+
+
+def test_zero_radius_is_the_programmed_path():
+    p = Prog(0, -10)
+    p.on("left", 0.0)
+    p.g1(x=0, y=0)
+    p.g1(x=10)
+    assert [m.end[:2] for m in p.done()] == [(0, 0), (10, 0)]
