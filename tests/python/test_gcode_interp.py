@@ -288,3 +288,17 @@ def test_parameter_assigned_before_selection_takes_effect():
     it.params.set(5221, 7.0)
     it.block(4, [("G", 54.0), ("G", 0.0), ("X", 1.0)])
     assert it.pos[0] == 8.0
+
+
+def test_g41_takes_the_radius_from_the_tool_table(tmp_path):
+    table = tmp_path / "tools.tbl"
+    table.write_text("T1 P1 D4.0 ;4 mm end mill\nT2 P2 D10\n")
+    text = "G21 G90\nG0 X0 Y0\nG41 D1\nG1 X10 Y0 F100\nX20\nG40\nG0 X30 Y5\n"
+    p = read(text, tool_table=table)
+    np.testing.assert_allclose(p.end[1:3, :2], [[10, 2], [20, 2]], atol=1e-9)
+    # Without D: the current tool (T2 M6), radius 5, on the right for G42.
+    p = read(text.replace("G41 D1", "T2 M6\nG42"), tool_table=table)
+    np.testing.assert_allclose(p.end[1:3, :2], [[10, -5], [20, -5]], atol=1e-9)
+    assert "D" not in p.skipped  # D of G41/G42 is used, not reported
+    with pytest.raises(GcodeError, match="t.nc:3: G41: tool 7 is not in the tool table"):
+        read(text.replace("D1", "D7"), tool_table=table)

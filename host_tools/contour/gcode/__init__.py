@@ -83,7 +83,7 @@ def _chunks(path, default_feed, start, text, tool_table, rows) -> Iterator[Progr
         raise UserError(f"cannot read {name}: {exc.strerror}") from exc
     with fh:
         try:
-            yield from drain(fh)
+            yield from drain(lexer.file_lines(fh))
         except OSError as exc:
             raise UserError(f"cannot read {name}: {exc.strerror}") from exc
 
