@@ -22,6 +22,7 @@ yields a long program in pieces of bounded size.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterator
 from pathlib import Path
@@ -78,12 +79,15 @@ def _chunks(path, default_feed, start, text, tool_table, rows) -> Iterator[Progr
         yield from drain(text.splitlines())
         return
     try:
-        fh = open(Path(path), "rb")  # noqa: SIM115 - closed by the with below
+        # Text with undecodable bytes kept as surrogates (the front end
+        # refuses them with the line); lines cut at the front end's cap + 1
+        # so that memory stays bounded whatever the file holds.
+        fh = open(Path(path), encoding="utf-8", errors="surrogateescape")  # noqa: SIM115
     except OSError as exc:
         raise UserError(f"cannot read {name}: {exc.strerror}") from exc
     with fh:
         try:
-            yield from drain(lexer.file_lines(fh))
+            yield from drain(iter(functools.partial(fh.readline, lexer.LINE_CAP + 1), ""))
         except OSError as exc:
             raise UserError(f"cannot read {name}: {exc.strerror}") from exc
 

@@ -29,7 +29,6 @@ from contour.gcode.program import Columns, GcodeError, Skipped
 
 INCH_MM = 25.4
 AXES = "XYZABC"
-_FAST_KEYS = frozenset("NGXYZF")
 _NAN = math.nan
 
 
@@ -133,8 +132,7 @@ class Interpreter(BlockExecutor):
         ready (never when ``rows`` is None), the caller takes them."""
         cols = self.cols
         limit = rows or 0
-        fast_keys = _FAST_KEYS
-        fast = self.comp is None and self.units_set
+        fast, motion, feed, scale, absolute, origin, stop = self._modes()
         k_add, e_add, f_add, s_add, l_add = (
             cols.kind.append,
             cols.end.extend,
@@ -156,59 +154,81 @@ class Interpreter(BlockExecutor):
                     cols.line.append,
                 )
             words = b.words
-            if fast:
-                d = dict(words)
-                if len(d) == len(words) and d.keys() <= fast_keys and not b.messages:
+            if fast and not b.messages:
+                x = y = z = f = g = None
+                for letter, value in words:
+                    if letter == "X" and x is None:
+                        x = value
+                    elif letter == "Y" and y is None:
+                        y = value
+                    elif letter == "Z" and z is None:
+                        z = value
+                    elif letter == "F" and f is None:
+                        f = value
+                    elif letter == "G" and g is None:
+                        g = value
+                    elif letter != "N":
+                        break
+                else:
                     # Plain straight moves: the bulk of CAM output.
-                    g = d.get("G")
-                    motion = self.motion if g is None else g
-                    f = d.get("F")
-                    if motion == 0 or (motion == 1 and (f is not None or self.feed == self.feed)):
-                        if g is not None:
-                            self.motion = int(g)
-                            self.cycle.cancel()
-                        if f is not None:
-                            if f <= 0:
-                                raise self.error(b.line, f"feed must be positive, got F{f:g}")
-                            self.feed = f * self.scale
-                        x = d.get("X")
-                        y = d.get("Y")
-                        z = d.get("Z")
+                    if g is not None and g != motion:
+                        if g != 0 and g != 1:
+                            self.block(b.line, words, b.messages, b.call_args)
+                            fast, motion, feed, scale, absolute, origin, stop = self._modes()
+                            continue
+                        motion = self.motion = int(g)
+                        self.cycle.cancel()
+                    if f is not None:
+                        if f <= 0:
+                            raise self.error(b.line, f"feed must be positive, got F{f:g}")
+                        feed = self.feed = f * scale
+                    if motion == 0 or (motion == 1 and feed == feed):
                         if x is None and y is None and z is None:
                             continue
                         target = self.pos[:]
-                        sc = self.scale
-                        if self.absolute:
-                            o = self.offsets.origin
+                        if absolute:
                             if x is not None:
-                                target[0] = x * sc + o[0]
+                                target[0] = x * scale + origin[0]
                             if y is not None:
-                                target[1] = y * sc + o[1]
+                                target[1] = y * scale + origin[1]
                             if z is not None:
-                                target[2] = z * sc + o[2]
+                                target[2] = z * scale + origin[2]
                         else:
                             if x is not None:
-                                target[0] += x * sc
+                                target[0] += x * scale
                             if y is not None:
-                                target[1] += y * sc
+                                target[1] += y * scale
                             if z is not None:
-                                target[2] += z * sc
+                                target[2] += z * scale
                         if motion:
                             k_add(1)
-                            f_add(self.feed)
+                            f_add(feed)
                         else:
                             k_add(0)
                             f_add(_NAN)
                         e_add(target)
-                        s_add(self.exact_stop_modal)
+                        s_add(stop)
                         l_add(b.line)
                         self.pos = target
                         continue
+                    # G1 without a feed, G80 ...: the general path says what is wrong.
             elif self.ended:
                 self.skip("after M2/M30", b.line, "lines after the end of program")
                 continue
             self.block(b.line, words, b.messages, b.call_args)
-            fast = self.comp is None and self.units_set and not self.ended
+            fast, motion, feed, scale, absolute, origin, stop = self._modes()
+
+    def _modes(self):
+        """The state the fast path keeps in locals, after a general block."""
+        return (
+            self.comp is None and self.units_set and not self.ended,
+            self.motion,
+            self.feed,
+            self.scale,
+            self.absolute,
+            self.offsets.origin,
+            self.exact_stop_modal,
+        )
 
     # ---- emitting rows -----------------------------------------------------------
     def emit(self, kind, target, feed, line, stop, centre=None, turns=0, dwell=0.0):
