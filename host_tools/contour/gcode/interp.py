@@ -22,6 +22,7 @@ import math
 from contour.gcode import arcs
 from contour.gcode.cycles import CycleState
 from contour.gcode.execute import BlockExecutor
+from contour.gcode.motion import MotionExecutor
 from contour.gcode.moves import ARC_CCW, ARC_CW, PLANE_AXES
 from contour.gcode.offsets import SYSTEM_KEYS, Offsets
 from contour.gcode.params import Params
@@ -49,7 +50,7 @@ class MachineParams(Params):
         super().set(key, value, line)
 
 
-class Interpreter(BlockExecutor):
+class Interpreter(BlockExecutor, MotionExecutor):
     """State of one read; also the :class:`~contour.gcode.lexer.Reporter`."""
 
     def __init__(self, path, default_feed, start, params=None, tool_table=None):
