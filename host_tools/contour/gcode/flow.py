@@ -36,7 +36,8 @@ MAX_CALL_DEPTH = 10
 ITERATION_CAP = 1_000_000
 
 _HEAD = re.compile(
-    r"(?:/\s*)?(?:N\s*[\d.][\d.\s]*)?O\s*(<[^>]*>|\d[\d\s]*)\s*([A-Z]+)", re.IGNORECASE
+    r"(?:/\s*)?(?:N\s*[\d.][\d.\s]*)?O\s*(<[^>]*>|\d[\d\s]*)\s*([A-Z]+)",
+    re.IGNORECASE | re.ASCII,
 )
 
 

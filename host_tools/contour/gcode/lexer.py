@@ -34,7 +34,7 @@ from collections.abc import Iterable, Iterator
 from typing import Protocol
 
 from contour.gcode import dialect
-from contour.gcode.expr import FUNCTIONS, Evaluator, ExprError, number_at
+from contour.gcode.expr import FUNCTIONS, Evaluator, ExprError, TooLarge, number_at
 from contour.gcode.params import Params
 
 LINE_CAP = 256 * 1024  # characters (bytes for bytes input) in one line
@@ -42,11 +42,10 @@ LINE_CAP = 256 * 1024  # characters (bytes for bytes input) in one line
 _NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)"
 # Fast path: a token that is a plain word; N (line number) and O
 # (control flow) are not plain words.
-_TOKEN = re.compile(r"([A-MP-Za-mp-z])(" + _NUM + r")")
-_N_TOKEN = re.compile(r"[Nn]\d+(?:\.\d*)?")
+_TOKEN = re.compile(r"([A-MP-Za-mp-z])(" + _NUM + r")", re.ASCII)
+_N_TOKEN = re.compile(r"[Nn]\d+(?:\.\d*)?", re.ASCII)
 
 _IDENT_AT = re.compile(r"[A-Z_$][A-Z0-9_$]*")
-_IDENT_END = re.compile(r"[A-Za-z_$]{2,}[A-Za-z0-9_$]*$")
 _FUNC_NAME = re.compile("|".join(sorted(FUNCTIONS, key=len, reverse=True)) + r"(?=[ \t]*\[)")
 _SPECIAL = re.compile(r"[(;]")
 _SINU_VALUE = re.compile(r"(" + _NUM + r")|R(\d+)|(DC|ACP|ACN|AC|IC)\((" + _NUM + r")\)")
@@ -108,6 +107,7 @@ class Block:
 
 
 _NO_ARGS: dict = {}
+_INF = float("inf")
 
 
 class NotSimple(Exception):
@@ -124,7 +124,9 @@ class WordCache(dict):
         if m is None:
             raise NotSimple
         v = (m.group(1).upper(), float(m.group(2)))
-        if len(self) >= 65536:
+        if v[1] in (_INF, -_INF):
+            raise NotSimple  # the general path says what is wrong
+        if len(self) >= 16384:
             self.clear()
         self[tok] = v
         return v
@@ -215,8 +217,8 @@ def _split(text: str):
         if text[j] == ";":
             comments.append(text[j + 1 :])
             break
-        ident = _IDENT_END.search(text, i, j)
-        if ident is not None and ident.group(0).upper() not in _OKEYS:
+        ident = _ident_before(text, i, j)
+        if ident is not None and ident.upper() not in _OKEYS:
             k = _balanced(text, j)  # Sinumerik NAME(...): arguments, not a comment
             out.append(text[j:k])
             i = k
@@ -231,6 +233,19 @@ def _split(text: str):
         out.append("\x01")
         i = k + 1
     return "".join(out), comments
+
+
+def _ident_before(text: str, i: int, j: int):
+    """The identifier (2+ letters, then letters/digits) ending at text[j], if
+    any: ``CYCLE832`` in ``N10CYCLE832(``."""
+    k = j
+    while k > i and (text[k - 1].isalnum() or text[k - 1] in "_$") and text[k - 1].isascii():
+        k -= 1
+    for p in range(k, j - 1):
+        a, b = text[p], text[p + 1]
+        if (a.isalpha() or a in "_$") and (b.isalpha() or b in "_$"):
+            return text[p:j]
+    return None
 
 
 def _balanced(text: str, i: int) -> int:
@@ -258,10 +273,13 @@ def _skip(s: str, i: int) -> int:
 
 
 def _token(s: str, i: int) -> str:
+    """The text from s[i] to the next blank, for messages (cut at 40)."""
     j = i
-    while j < len(s) and s[j] not in _GAP and s[j] != ";":
+    n = min(len(s), i + 40)
+    while j < n and s[j] not in _GAP and s[j] != ";":
         j += 1
-    return s[i:j] if j > i else s[i : i + 1]
+    t = s[i:j] if j > i else s[i : i + 1]
+    return t + "..." if j == i + 40 else t
 
 
 class Tokenizer:
@@ -284,6 +302,9 @@ class Tokenizer:
         self.ev.line = lineno
         line = Line()
         code, comments = _split(text)
+        if not code.isascii():
+            c = next(c for c in code if not c.isascii())
+            raise Malformed(f"unexpected character '{c}' (U+{ord(c):04X})")
         if comments:
             self._active_comment(comments[-1], line, lineno)
         s = code.upper()
@@ -336,21 +357,27 @@ class Tokenizer:
     # ---- words ------------------------------------------------------------
     def _word(self, s: str, c: str, i: int, line: Line) -> int:
         n = len(s)
-        j = _skip(s, i + 1)
+        j = i + 1
+        while j < n and (s[j] == " " or s[j] == "\t"):
+            j += 1  # a comment may not stand between a letter and its value
         if j < n and s[j] == "=":
             return self._sinumerik_assign(s, c, j + 1, line)
         if c == "O":
             raise Malformed("an O-word must begin its line (O-words are control flow)")
         if c == "N":
             raise Malformed(f"line number '{_token(s, i)}' must begin the line")
-        start = j
-        if j >= n or s[j] in "-+.0123456789":
-            # Plain number: keep the old messages for its faults.
+        k = j
+        if k < n and s[k] in "+-":
+            k = _skip(s, k + 1)
+        if k >= n or s[k] in ".0123456789" or (s[k] not in "[#" and not _FUNC_NAME.match(s, k)):
+            # A number (or nothing usable): one message for its faults.
             try:
                 v, j = self.ev.value(s, j)
+            except TooLarge:
+                raise
             except ExprError:
                 raise Malformed(f"malformed number in '{_token(s, i)}'") from None
-            if j < n and s[j] in "-+.0123456789" and s[start] not in "[#":
+            if j < n and s[j] in "-+.0123456789":
                 raise Malformed(f"malformed number in '{_token(s, i)}'")
         else:
             v, j = self.ev.value(s, j)
@@ -378,7 +405,7 @@ class Tokenizer:
         if k < n and s[k] == "=":
             line.words.append(("IDENT", name + "="))
             return _value_end(s, k + 1)
-        if name in dialect.SINUMERIK_WORDS or name[0] in "_$":
+        if name in dialect.SINUMERIK_WORDS or (name[0] in "_$" and len(name) > 1):
             line.words.append(("IDENT", name))
             return j
         raise Malformed(_bad_word(name))
@@ -546,7 +573,7 @@ def _value_end(s: str, j: int) -> int:
 
 
 def _bad_word(name: str) -> str:
-    if "A" <= name[0] <= "Z" and not ("A" <= name[1] <= "Z") and name[1] not in "_$":
+    if len(name) < 2 or not ("A" <= name[0] <= "Z"):
         return f"unknown word '{name}'"
     note = f"{name[0]} has no value"
     if name[1] == "O" and len(name) > 2 and name[2] in "O0123456789":
