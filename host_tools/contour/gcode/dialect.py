@@ -27,8 +27,8 @@ SINUMERIK_WORDS = frozenset(
     FFWON FFWOF SOFT BRISK DRIVE SOFTA BRISKA DRIVEA CFC CFTCP CFIN ORIWKS ORIMKS ORIAXES
     ORIVECT ORIEULER ORIRPY ORIPLANE ORICONCW ORICONCCW ORICONIO ORICONTO ORICURVE ORIPATH
     ORIPATHS ORIROTA ORIROTR ORIROTT ORIROTC OSOF OST OSC OSS OSSE UPATH SPATH COMPON
-    COMPOF COMPCURV COMPCAD COMPSURF STOPRE SUPA CUT2D CUT2DF CUT3DC CUT3DFS CUT3DF
-    CUT3DFF DIAMON DIAMOF DIAM90 WAITM WAITS SBLOF SBLON DISPLOF DISPLON PTP CP PTPG0
+    COMPOF COMPCURV COMPCAD COMPSURF STOPRE CUT2D CUT2DF CUT3DC CUT3DFS CUT3DF
+    CUT3DFF DIAMOF WAITM WAITS SBLOF SBLON DISPLOF DISPLON PTP CP PTPG0
     FGREF FGROUP G642 CPRECON CPRECOF FIFOCTRL
         """
     )
@@ -51,6 +51,14 @@ _FRAMES = frozenset(
         """
     )
 )
+
+# Words that change where the axes go in ways this reader does not model.
+_PATH_WORDS = {
+    "SUPA": "SUPA (machine coordinates, all offsets suppressed)",
+    "DIAMON": "DIAMON (diameter programming)",
+    "DIAM90": "DIAM90 (diameter programming)",
+    "DIAMCYCOF": "DIAMCYCOF (diameter programming)",
+}
 
 _HEIDENHAIN = re.compile(
     r"^\s*(?:\d+\s+)?(?:BEGIN\s+PGM|END\s+PGM|BLK\s+FORM|TOOL\s+(?:CALL|DEF)|"
@@ -78,6 +86,8 @@ def identifier(name: str, after: str):
             f"Sinumerik control flow '{shown}' is not supported; the reader executes "
             "RS-274/NGC O-word control flow (O100 if/while/repeat/call)"
         )
+    if name in _PATH_WORDS:
+        return f"Sinumerik {_PATH_WORDS[name]} is not supported"
     if name in _FRAMES:
         return f"Sinumerik frame '{name}' (it shifts, rotates or scales the path) is not supported"
     return None

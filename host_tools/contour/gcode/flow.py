@@ -235,6 +235,8 @@ class Runner:
                 lineno = f.lineno
                 for raw in f.it:
                     lineno += 1
+                    if type(raw) is not str and raw.isascii():
+                        raw = raw.decode("ascii")  # others: clean() decodes
                     if type(raw) is str and len(raw) <= LINE_CAP:
                         toks = raw.split()
                         if not toks:

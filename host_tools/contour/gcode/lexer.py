@@ -38,6 +38,7 @@ from contour.gcode.expr import FUNCTIONS, Evaluator, ExprError, TooLarge, number
 from contour.gcode.params import Params
 
 LINE_CAP = 256 * 1024  # characters (bytes for bytes input) in one line
+WORD_CACHE_SIZE = 16384  # plain word tokens remembered (a few MB at most)
 
 _NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)"
 # Fast path: a token that is a plain word; N (line number) and O
@@ -126,7 +127,7 @@ class WordCache(dict):
         v = (m.group(1).upper(), float(m.group(2)))
         if v[1] in (_INF, -_INF):
             raise NotSimple  # the general path says what is wrong
-        if len(self) >= 16384:
+        if len(self) >= WORD_CACHE_SIZE:
             self.clear()
         self[tok] = v
         return v
