@@ -211,6 +211,8 @@ def test_line_just_under_the_cap_is_read():
         ("[1 XOR 1]", 0.0),
         ("[2 GT 1 AND 3 LT 2]", 0.0),
         ("[7 MOD 3]", 1.0),
+        ("[10-7 MOD 4]", 7.0),  # MOD above -
+        ("[2*3 GT 5]", 1.0),
         ("[-7 MOD 3]", 2.0),
         ("[7.5 MOD 2]", 1.5),
         ("[1 EQ 1.0000001]", 1.0),  # TOLERANCE_EQUAL 1e-6
