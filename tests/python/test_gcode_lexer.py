@@ -145,7 +145,12 @@ def test_percent_marks_the_program():
 
 def test_percent_without_closing_percent_is_an_error():
     e = err("%\nG0 X1\nG0 X2")
-    assert "no closing % line" in e.message
+    assert "neither a closing % line nor M2/M30" in e.message
+
+
+@pytest.mark.parametrize("end", ["M30", "m2", "M02 (end)", "G0 X0 M30 ; done"])
+def test_percent_without_closing_percent_but_m2_m30_is_a_program(end):
+    assert len(run(f"%\nG0 X1\n{end}\nG0 X3")) == 3
 
 
 def test_percent_inside_the_program_is_reported():

@@ -160,7 +160,8 @@ class Runner:
         self.frames = [_Frame(self.file, None, None, 0)]
         self.subs = {}
         self.iterations = 0
-        self.get_word = WordCache().__getitem__
+        self.words_cache = WordCache()
+        self.get_word = self.words_cache.__getitem__
 
     def error(self, line: int, message: str):
         return self.rep.error(line, message)
@@ -287,10 +288,13 @@ class Runner:
             kind, label, line = fr.ctl[-1][:3]
             close = {"if": "endif", "while": "endwhile", "do": "while", "repeat": "endrepeat"}
             raise self.error(line, f"{_o(label)} {kind} without {close[kind]}")
-        if self.file.percent == 1:
+        if self.file.percent == 1 and not (self.tok.ended or self.words_cache.ended):
+            # LinuxCNC: a program that opens with % and has no M2/M30 must
+            # close with %; without either, the file may have been cut short.
             raise self.error(
                 self.file.lineno,
-                "the program opens with a % line but has no closing % line (file cut short?)",
+                "the program opens with a % line but has neither a closing % line nor M2/M30 "
+                "(file cut short?)",
             )
 
     # ---- control flow -----------------------------------------------------

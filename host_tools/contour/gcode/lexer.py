@@ -109,6 +109,7 @@ class Block:
 
 _NO_ARGS: dict = {}
 _INF = float("inf")
+_ENDS = (("M", 2.0), ("M", 30.0))
 
 
 class NotSimple(Exception):
@@ -120,6 +121,8 @@ class WordCache(dict):
     repeat their G, F and many coordinate words, and a dict hit is far
     cheaper than parsing. Bounded: cleared when full."""
 
+    ended = False  # an M2 or M30 went through (ends a program without %)
+
     def __missing__(self, tok: str):
         m = _TOKEN.fullmatch(tok)
         if m is None:
@@ -127,6 +130,8 @@ class WordCache(dict):
         v = (m.group(1).upper(), float(m.group(2)))
         if v[1] in (_INF, -_INF):
             raise NotSimple  # the general path says what is wrong
+        if v in _ENDS:
+            self.ended = True
         if len(self) >= WORD_CACHE_SIZE:
             self.clear()
         self[tok] = v
@@ -290,6 +295,7 @@ class Tokenizer:
         self.params = params
         self.rep = rep
         self.ev = Evaluator(params)
+        self.ended = False  # an M2 or M30 was read
 
     def parse(self, text: str, lineno: int) -> Line:
         """``text``: one stripped line (original case)."""
@@ -386,6 +392,8 @@ class Tokenizer:
             k = _skip(s, j)
             if k < n and s[k] == "=":
                 return self._r_assign(v, s, k + 1, line)
+        if c == "M" and (v == 2.0 or v == 30.0):
+            self.ended = True
         line.words.append((c, v))
         return j
 
