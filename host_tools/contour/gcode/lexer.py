@@ -47,7 +47,9 @@ _TOKEN = re.compile(r"([A-MP-Za-mp-z])(" + _NUM + r")", re.ASCII)
 _N_TOKEN = re.compile(r"[Nn]\d+(?:\.\d*)?", re.ASCII)
 
 _IDENT_AT = re.compile(r"[A-Z_$][A-Z0-9_$]*")
-_FUNC_NAME = re.compile("|".join(sorted(FUNCTIONS, key=len, reverse=True)) + r"(?=[ \t]*\[)")
+_FUNC_NAME = re.compile(
+    "(?:" + "|".join(sorted(FUNCTIONS, key=len, reverse=True)) + r")(?=[ \t]*\[)"
+)
 _SPECIAL = re.compile(r"[(;]")
 _SINU_VALUE = re.compile(r"(" + _NUM + r")|R(\d+)|(DC|ACP|ACN|AC|IC)\((" + _NUM + r")\)")
 _GAP = " \t\x01"  # \x01 stands for a comment: it separates words
@@ -376,6 +378,8 @@ class Tokenizer:
         k = j
         if k < n and s[k] in "+-":
             k = _skip(s, k + 1)
+        if k < n and "A" <= s[k] <= "Z" and not _FUNC_NAME.match(s, k):
+            raise Malformed(f"value expected at '{_token(s, k)}' after {c}")
         if k >= n or s[k] in ".0123456789" or (s[k] not in "[#" and not _FUNC_NAME.match(s, k)):
             # A number (or nothing usable): one message for its faults.
             try:
