@@ -82,6 +82,7 @@ def test_compact_words():
         ("GOO", "malformed word 'GOO': G has no value (letter O written for zero?)"),
         ("G1 X1.2.3", "malformed number in 'X1.2.3'"),
         ("G1 X-", "malformed number in 'X-'"),
+        ("G1 X- F100", "malformed number in 'X-'"),
         ("G1 X F100", "value expected at 'F100' after X"),
         ("G1 X", "malformed number in 'X'"),
         ("G1 X12-3", "malformed number in 'X12-3'"),

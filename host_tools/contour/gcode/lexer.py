@@ -378,7 +378,7 @@ class Tokenizer:
         k = j
         if k < n and s[k] in "+-":
             k = _skip(s, k + 1)
-        if k < n and "A" <= s[k] <= "Z" and not _FUNC_NAME.match(s, k):
+        if k == j and k < n and "A" <= s[k] <= "Z" and not _FUNC_NAME.match(s, k):
             raise Malformed(f"value expected at '{_token(s, k)}' after {c}")
         if k >= n or s[k] in ".0123456789" or (s[k] not in "[#" and not _FUNC_NAME.match(s, k)):
             # A number (or nothing usable): one message for its faults.
