@@ -192,13 +192,20 @@ def test_ten_million_character_line_is_refused_without_holding_it():
     # From a file, at most cap+1 bytes of the line are ever read.
     data = b"G0 X1\n" + b"(" + b"x" * 10_000_000 + b")\nG0 X2\n"
     chunks = list(file_lines(io.BytesIO(data)))
-    assert max(len(c) for c in chunks) == LINE_CAP + 1
+    assert max(len(c) for c in chunks) == LINE_CAP + 2
     assert err(chunks).line == 2
 
 
-def test_line_just_under_the_cap_is_read():
-    long_comment = "G0 X1 (" + "x" * (LINE_CAP - 10) + ")"
-    assert words([long_comment]) == [(1, [("G", 0.0), ("X", 1.0)])]
+def test_line_at_the_cap_is_read():
+    at_cap = "G0 X1 (" + "x" * (LINE_CAP - 8) + ")"
+    assert len(at_cap) == LINE_CAP
+    assert words([at_cap + "\r\n"]) == [(1, [("G", 0.0), ("X", 1.0)])]
+    data = (at_cap + "\r\nG0 X2\r\n").encode()
+    assert words(list(file_lines(io.BytesIO(data)))) == [
+        (1, [("G", 0.0), ("X", 1.0)]),
+        (2, [("G", 0.0), ("X", 2.0)]),
+    ]
+    assert "longer than" in err([at_cap + "x"]).message
 
 
 # ---- expressions ------------------------------------------------------------
@@ -284,6 +291,10 @@ def test_expression_errors_name_the_problem(expr, message):
     e = err(f"G0 X0\nG1 X{expr}")
     assert e.line == 2
     assert message in e.message
+
+
+def test_value_of_the_last_call_reads_zero_before_any_call():
+    assert value("[#<_value> + #<_value_returned>]") == 0.0
 
 
 def test_exists_sees_named_parameters():
@@ -608,7 +619,7 @@ def test_heidenhain_conversational_is_refused_with_a_hint(line):
 )
 def test_sinumerik_control_flow_is_refused_with_a_hint(line, shown):
     e = err("G0 X0\n" + line)
-    assert e.line == 2 and f"Sinumerik control flow {shown}" in e.message
+    assert e.line == 2 and f"Sinumerik/Fanuc control flow {shown}" in e.message
     assert "O-word" in e.message
 
 

@@ -83,7 +83,7 @@ def identifier(name: str, after: str):
     if name in _CONTROL_FLOW or name.startswith("GOTO"):
         shown = "GOTO" if name.startswith("GOTO") and name not in _CONTROL_FLOW else name
         return (
-            f"Sinumerik control flow '{shown}' is not supported; the reader executes "
+            f"Sinumerik/Fanuc control flow '{shown}' is not supported; the reader executes "
             "RS-274/NGC O-word control flow (O100 if/while/repeat/call)"
         )
     if name in _PATH_WORDS:

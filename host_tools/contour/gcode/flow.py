@@ -170,7 +170,10 @@ class Runner:
     def clean(self, raw, lineno: int):
         """Stripped text of a raw line, or None for a line with nothing
         (blank, or a % tape mark)."""
-        if len(raw) > LINE_CAP:
+        if (
+            len(raw) > LINE_CAP
+            and len(raw.rstrip(b"\r\n" if type(raw) is bytes else "\r\n")) > LINE_CAP
+        ):
             raise self.error(lineno, f"line longer than {LINE_CAP} characters")
         if type(raw) is not str:
             try:

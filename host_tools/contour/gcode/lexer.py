@@ -175,11 +175,11 @@ def blocks(lines: Iterable, params: Params, rep: Reporter) -> Iterator[Block]:
 
 
 def file_lines(fh, cap: int = LINE_CAP) -> Iterator[bytes]:
-    """Lines of a binary file object, each at most ``cap + 1`` bytes: a longer
+    """Lines of a binary file object, each at most ``cap + 2`` bytes: a longer
     line is cut there (and :func:`blocks` refuses it), so memory stays
     bounded whatever the file holds."""
     readline = fh.readline
-    limit = cap + 1
+    limit = cap + 2  # the line and its CR LF
     while True:
         line = readline(limit)
         if not line:
