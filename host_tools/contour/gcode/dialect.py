@@ -15,6 +15,13 @@ from __future__ import annotations
 
 import re
 
+from contour.gcode.comments import balanced
+from contour.gcode.expr import Malformed
+
+_NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)"
+_SINU_VALUE = re.compile(r"(" + _NUM + r")|R(\d+)|(DC|ACP|ACN|AC|IC)\((" + _NUM + r")\)", re.ASCII)
+_GAP = " \t\x01"
+
 
 def _split(text: str) -> list:
     return text.split()
@@ -98,3 +105,71 @@ def hint(text: str):
     if _HEIDENHAIN.search(text):
         return HEIDENHAIN_HINT
     return None
+
+
+# ---- Sinumerik assignments ----------------------------------------------
+
+
+def sinumerik_assign(s: str, c: str, j: int, words: list, params) -> int:
+    """``X=value`` (Sinumerik): number, known R parameter or FUNC(number)."""
+    end = value_end(s, j)
+    text = s[j:end].strip(_GAP)
+    if c == "R":
+        raise Malformed(f"malformed R parameter assignment 'R={text}'")
+    m = _SINU_VALUE.fullmatch(text)
+    if m is None:
+        words.append(("=" + c, (None, text)))
+    elif m.group(1) is not None:
+        words.append(("=" + c, (float(m.group(1)), None)))
+    elif m.group(2) is not None:
+        v = params.r.get(int(m.group(2)))
+        words.append(("=" + c, (v, None) if v is not None else (None, text)))
+    else:
+        words.append(("=" + c, (float(m.group(4)), m.group(3))))
+    return end
+
+
+def r_assign(index: float, s: str, j: int, params, rep, lineno: int) -> int:
+    """``R<n>=value``: a constant (or a known R) is remembered, anything
+    else forgotten (and reported)."""
+    end = value_end(s, j)
+    text = s[j:end].strip(_GAP)
+    if index != int(index) or index < 0:
+        raise Malformed(f"malformed R parameter number 'R{index:g}'")
+    m = _SINU_VALUE.fullmatch(text)
+    v = None
+    if m is not None and m.group(1) is not None:
+        v = float(m.group(1))
+    elif m is not None and m.group(2) is not None:
+        v = params.r.get(int(m.group(2)))
+    if v is None:
+        params.r.pop(int(index), None)
+        rep.skip("R= expression", lineno, "R parameter set from an expression: left unknown")
+    else:
+        params.r[int(index)] = v
+    return end
+
+
+def value_end(s: str, j: int) -> int:
+    """End of a Sinumerik ``=`` value: the next blank outside ( ) and quotes."""
+    n = len(s)
+    j = _skip(s, j)
+    while j < n and s[j] not in _GAP and s[j] != ";":
+        if s[j] == "(":
+            j = balanced(s, j)
+            continue
+        if s[j] == '"':
+            k = s.find('"', j + 1)
+            if k < 0:
+                raise Malformed("unclosed string")
+            j = k + 1
+            continue
+        j += 1
+    return j
+
+
+def _skip(s: str, i: int) -> int:
+    n = len(s)
+    while i < n and s[i] in _GAP:
+        i += 1
+    return i

@@ -76,6 +76,10 @@ class TooLarge(ExprError):
     pass
 
 
+class Malformed(ExprError):
+    """A line that does not follow the syntax."""
+
+
 def _round(v: float) -> float:
     # LinuxCNC rounds halves away from zero.
     return float(math.floor(abs(v) + 0.5)) * (1.0 if v >= 0 else -1.0)
