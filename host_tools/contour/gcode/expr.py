@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import re
 
-_NUMBER = re.compile(r"[0-9][0-9 \t]*(?:\.[0-9 \t]*)?|\.[ \t]*[0-9][0-9 \t]*")
+_NUMBER = re.compile(r"[0-9][0-9 \t]*(?:\.[0-9 \t]*)?|\.[ \t]*[0-9][0-9 \t]*", re.ASCII)
 _WS = " \t"
 TOLERANCE_EQUAL = 1e-6
 MAX_DEPTH = 32  # brackets, indirections and signs nested in one value
@@ -70,6 +70,14 @@ _NAME_END = re.compile(r"[^>]*>")
 
 class ExprError(Exception):
     """Raised with a message; the caller adds ``file:line``."""
+
+
+class TooLarge(ExprError):
+    pass
+
+
+class Malformed(ExprError):
+    """A line that does not follow the syntax."""
 
 
 def _round(v: float) -> float:
@@ -177,12 +185,12 @@ def number_at(s: str, i: int):
     if m is None:
         return None
     text = m.group(0)
-    end = m.end()
     # Trailing blanks belong to the gap, not to the number.
-    while text and text[-1] in _WS:
-        text = text[:-1]
-        end -= 1
-    return float(text.replace(" ", "").replace("\t", "")), end
+    end = m.start() + len(text.rstrip(_WS))
+    v = float(text.replace(" ", "").replace("\t", ""))
+    if v == math.inf:
+        raise TooLarge(f"number too large: {text[:20].strip()}...")
+    return v, end
 
 
 def name_at(s: str, i: int):

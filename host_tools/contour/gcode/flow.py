@@ -31,12 +31,14 @@ from contour.gcode.lexer import (
     WordCache,
     simple_words,
 )
+from contour.gcode.source import BodySource, FileSource
 
 MAX_CALL_DEPTH = 10
 ITERATION_CAP = 1_000_000
 
 _HEAD = re.compile(
-    r"(?:/\s*)?(?:N\s*[\d.][\d.\s]*)?O\s*(<[^>]*>|\d[\d\s]*)\s*([A-Z]+)", re.IGNORECASE
+    r"(?:/\s*)?(?:N\s*[\d.][\d.\s]*)?O\s*(<[^>]*>|\d[\d\s]*)\s*([A-Z]+)",
+    re.IGNORECASE | re.ASCII,
 )
 
 
@@ -59,86 +61,6 @@ def _o(label: str) -> str:
     return "O" + label
 
 
-class _File:
-    """The program file: streamed, with the lines of running loops kept."""
-
-    def __init__(self, lines, runner):
-        self.it = iter(lines)
-        self.runner = runner
-        self.lineno = 0
-        self.buf = []
-        self.base = 0  # stream index of buf[0]
-        self.pos = 0  # stream index of the next line
-        self.hold = 0  # running loops that need their lines again
-        self.percent = 0  # 1: opened by a % line, 2: closed
-        self.started = False
-
-    def next(self):
-        k = self.pos - self.base
-        if k < len(self.buf):
-            self.pos += 1
-            return self.buf[k]
-        if self.percent == 2:
-            return None
-        clean = self.runner.clean
-        for raw in self.it:
-            self.lineno += 1
-            text = clean(raw, self.lineno)
-            if text is None:
-                if self.percent == 2:
-                    return None
-                continue
-            item = (self.lineno, text)
-            self.pos += 1
-            if self.hold:
-                self.buf.append(item)
-            else:
-                if self.buf:
-                    self.buf.clear()
-                self.base = self.pos
-            return item
-        return None
-
-    def mark(self) -> int:
-        if not self.hold and self.pos - self.base >= len(self.buf):
-            self.buf.clear()
-            self.base = self.pos
-        self.hold += 1
-        return self.pos
-
-    def release(self) -> None:
-        self.hold -= 1
-        if not self.hold:
-            del self.buf[: self.pos - self.base]
-            self.base = self.pos
-
-    def seek(self, pos: int) -> None:
-        self.pos = pos
-
-
-class _Body:
-    """A subroutine body (its lines, ``endsub`` last)."""
-
-    def __init__(self, items):
-        self.items = items
-        self.pos = 0
-
-    def next(self):
-        if self.pos < len(self.items):
-            self.pos += 1
-            return self.items[self.pos - 1]
-        return None
-
-    def mark(self) -> int:
-        return self.pos
-
-    def release(self) -> None:
-        pass
-
-    def seek(self, pos: int) -> None:
-        self.pos = pos
-
-
 class _Frame:
     __slots__ = ("src", "label", "saved", "ctl", "line")
 
@@ -155,53 +77,15 @@ class Runner:
         self.params = params
         self.rep = rep
         self.tok = Tokenizer(params, rep)
-        self.file = _File(lines, self)
+        self.file = FileSource(lines, rep)
         self.frames = [_Frame(self.file, None, None, 0)]
         self.subs = {}
         self.iterations = 0
-        self.get_word = WordCache().__getitem__
+        self.words_cache = WordCache()
+        self.get_word = self.words_cache.__getitem__
 
     def error(self, line: int, message: str):
         return self.rep.error(line, message)
-
-    # ---- lines ------------------------------------------------------------
-    def clean(self, raw, lineno: int):
-        """Stripped text of a raw line, or None for a line with nothing
-        (blank, or a % tape mark)."""
-        if len(raw) > LINE_CAP:
-            raise self.error(lineno, f"line longer than {LINE_CAP} characters")
-        if type(raw) is not str:
-            try:
-                raw = raw.decode("utf-8")
-            except UnicodeDecodeError as exc:
-                raise self.error(
-                    lineno,
-                    f"not UTF-8 text (byte 0x{raw[exc.start]:02x} at column {exc.start + 1}); "
-                    "a binary file?",
-                ) from None
-        text = raw.strip()
-        if lineno == 1 and text.startswith("\ufeff"):
-            text = text[1:].strip()
-        if not text:
-            return None
-        f = self.file
-        if text == "%":
-            if not f.started:
-                f.started = True
-                f.percent = 1
-            elif f.percent == 1:
-                f.percent = 2
-            else:
-                self.rep.skip("%", lineno, "% line inside the program: ignored")
-            return None
-        f.started = True
-        if not text.isascii():
-            for k, c in enumerate(text):
-                if c == "\ufffd" or "\ud800" <= c <= "\udfff":
-                    raise self.error(lineno, f"undecodable byte at column {k + 1}; a binary file?")
-                if c == "\ufeff":
-                    raise self.error(lineno, "byte order mark (U+FEFF) inside the file")
-        return text
 
     def handle(self, lineno: int, text: str):
         """Evaluate one line; a Block to yield, or None."""
@@ -225,7 +109,7 @@ class Runner:
         f = self.file
         frames = self.frames
         get = self.get_word
-        clean = self.clean
+        clean = f.clean
         handle = self.handle
         while True:
             if f.started and len(frames) == 1 and not f.hold and f.pos - f.base >= len(f.buf):
@@ -234,6 +118,8 @@ class Runner:
                 lineno = f.lineno
                 for raw in f.it:
                     lineno += 1
+                    if type(raw) is not str and raw.isascii():
+                        raw = raw.decode("ascii")  # others: clean() decodes
                     if type(raw) is str and len(raw) <= LINE_CAP:
                         toks = raw.split()
                         if not toks:
@@ -284,10 +170,13 @@ class Runner:
             kind, label, line = fr.ctl[-1][:3]
             close = {"if": "endif", "while": "endwhile", "do": "while", "repeat": "endrepeat"}
             raise self.error(line, f"{_o(label)} {kind} without {close[kind]}")
-        if self.file.percent == 1:
+        if self.file.percent == 1 and not (self.tok.ended or self.words_cache.ended):
+            # LinuxCNC: a program that opens with % and has no M2/M30 must
+            # close with %; without either, the file may have been cut short.
             raise self.error(
                 self.file.lineno,
-                "the program opens with a % line but has no closing % line (file cut short?)",
+                "the program opens with a % line but has neither a closing % line nor M2/M30 "
+                "(file cut short?)",
             )
 
     # ---- control flow -----------------------------------------------------
@@ -348,7 +237,7 @@ class Runner:
             p.globals["_value"] = 0.0
             p.globals["_value_returned"] = 0.0
             saved = p.enter(values)
-            self.frames.append(_Frame(_Body(body), label, saved, line))
+            self.frames.append(_Frame(BodySource(body), label, saved, line))
         elif key == "RETURN" or key == "ENDSUB":
             if fr.label is None:
                 raise self.error(line, f"{_o(label)} {key.lower()} outside a subroutine")

@@ -34,40 +34,25 @@ from collections.abc import Iterable, Iterator
 from typing import Protocol
 
 from contour.gcode import dialect
-from contour.gcode.expr import FUNCTIONS, Evaluator, ExprError, number_at
+from contour.gcode.comments import OKEYS, active, balanced, split
+from contour.gcode.expr import FUNCTIONS, Evaluator, ExprError, Malformed, TooLarge, number_at
 from contour.gcode.params import Params
 
 LINE_CAP = 256 * 1024  # characters (bytes for bytes input) in one line
+WORD_CACHE_SIZE = 16384  # plain word tokens remembered (a few MB at most)
 
 _NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)"
 # Fast path: a token that is a plain word; N (line number) and O
 # (control flow) are not plain words.
-_TOKEN = re.compile(r"([A-MP-Za-mp-z])(" + _NUM + r")")
-_N_TOKEN = re.compile(r"[Nn]\d+(?:\.\d*)?")
+_TOKEN = re.compile(r"([A-MP-Za-mp-z])(" + _NUM + r")", re.ASCII)
+_N_TOKEN = re.compile(r"[Nn]\d+(?:\.\d*)?", re.ASCII)
 
 _IDENT_AT = re.compile(r"[A-Z_$][A-Z0-9_$]*")
-_IDENT_END = re.compile(r"[A-Za-z_$]{2,}[A-Za-z0-9_$]*$")
-_FUNC_NAME = re.compile("|".join(sorted(FUNCTIONS, key=len, reverse=True)) + r"(?=[ \t]*\[)")
-_SPECIAL = re.compile(r"[(;]")
-_SINU_VALUE = re.compile(r"(" + _NUM + r")|R(\d+)|(DC|ACP|ACN|AC|IC)\((" + _NUM + r")\)")
+_KEYWORD = re.compile(r"[A-Z]+")
+_FUNC_NAME = re.compile(
+    "(?:" + "|".join(sorted(FUNCTIONS, key=len, reverse=True)) + r")(?=[ \t]*\[)"
+)
 _GAP = " \t\x01"  # \x01 stands for a comment: it separates words
-_OKEYS = {
-    "SUB",
-    "ENDSUB",
-    "CALL",
-    "RETURN",
-    "IF",
-    "ELSEIF",
-    "ELSE",
-    "ENDIF",
-    "WHILE",
-    "ENDWHILE",
-    "DO",
-    "REPEAT",
-    "ENDREPEAT",
-    "BREAK",
-    "CONTINUE",
-}
 
 
 class Block:
@@ -108,6 +93,8 @@ class Block:
 
 
 _NO_ARGS: dict = {}
+_INF = float("inf")
+_ENDS = (("M", 2.0), ("M", 30.0))
 
 
 class NotSimple(Exception):
@@ -119,12 +106,18 @@ class WordCache(dict):
     repeat their G, F and many coordinate words, and a dict hit is far
     cheaper than parsing. Bounded: cleared when full."""
 
+    ended = False  # an M2 or M30 went through (ends a program without %)
+
     def __missing__(self, tok: str):
         m = _TOKEN.fullmatch(tok)
         if m is None:
             raise NotSimple
         v = (m.group(1).upper(), float(m.group(2)))
-        if len(self) >= 65536:
+        if v[1] in (_INF, -_INF):
+            raise NotSimple  # the general path says what is wrong
+        if v in _ENDS:
+            self.ended = True
+        if len(self) >= WORD_CACHE_SIZE:
             self.clear()
         self[tok] = v
         return v
@@ -165,11 +158,11 @@ def blocks(lines: Iterable, params: Params, rep: Reporter) -> Iterator[Block]:
 
 
 def file_lines(fh, cap: int = LINE_CAP) -> Iterator[bytes]:
-    """Lines of a binary file object, each at most ``cap + 1`` bytes: a longer
+    """Lines of a binary file object, each at most ``cap + 2`` bytes: a longer
     line is cut there (and :func:`blocks` refuses it), so memory stays
     bounded whatever the file holds."""
     readline = fh.readline
-    limit = cap + 1
+    limit = cap + 2  # the line and its CR LF
     while True:
         line = readline(limit)
         if not line:
@@ -193,63 +186,6 @@ class Line:
         self.call_args = {}
 
 
-class Malformed(ExprError):
-    pass
-
-
-def _split(text: str):
-    """Code (comments replaced by \\x01) and the comment texts of a line."""
-    if "(" not in text and ";" not in text:
-        return text, ()
-    out = []
-    comments = []
-    i = 0
-    n = len(text)
-    while i < n:
-        m = _SPECIAL.search(text, i)
-        if m is None:
-            out.append(text[i:])
-            break
-        j = m.start()
-        out.append(text[i:j])
-        if text[j] == ";":
-            comments.append(text[j + 1 :])
-            break
-        ident = _IDENT_END.search(text, i, j)
-        if ident is not None and ident.group(0).upper() not in _OKEYS:
-            k = _balanced(text, j)  # Sinumerik NAME(...): arguments, not a comment
-            out.append(text[j:k])
-            i = k
-            continue
-        k = text.find(")", j + 1)
-        if k < 0:
-            raise Malformed("unclosed comment '(' (no ')' on the line)")
-        body = text[j + 1 : k]
-        if "(" in body:
-            raise Malformed("'(' inside a comment (comments do not nest)")
-        comments.append(body)
-        out.append("\x01")
-        i = k + 1
-    return "".join(out), comments
-
-
-def _balanced(text: str, i: int) -> int:
-    depth = 0
-    quoted = False
-    for k in range(i, len(text)):
-        c = text[k]
-        if c == '"':
-            quoted = not quoted
-        elif not quoted:
-            if c == "(":
-                depth += 1
-            elif c == ")":
-                depth -= 1
-                if depth == 0:
-                    return k + 1
-    raise Malformed("unbalanced parentheses")
-
-
 def _skip(s: str, i: int) -> int:
     n = len(s)
     while i < n and s[i] in _GAP:
@@ -258,10 +194,13 @@ def _skip(s: str, i: int) -> int:
 
 
 def _token(s: str, i: int) -> str:
+    """The text from s[i] to the next blank, for messages (cut at 40)."""
     j = i
-    while j < len(s) and s[j] not in _GAP and s[j] != ";":
+    n = min(len(s), i + 40)
+    while j < n and s[j] not in _GAP and s[j] != ";":
         j += 1
-    return s[i:j] if j > i else s[i : i + 1]
+    t = s[i:j] if j > i else s[i : i + 1]
+    return t + "..." if j == i + 40 else t
 
 
 class Tokenizer:
@@ -271,6 +210,7 @@ class Tokenizer:
         self.params = params
         self.rep = rep
         self.ev = Evaluator(params)
+        self.ended = False  # an M2 or M30 was read
 
     def parse(self, text: str, lineno: int) -> Line:
         """``text``: one stripped line (original case)."""
@@ -283,9 +223,12 @@ class Tokenizer:
     def _parse(self, text: str, lineno: int) -> Line:
         self.ev.line = lineno
         line = Line()
-        code, comments = _split(text)
+        code, comments = split(text)
+        if not code.isascii():
+            c = next(c for c in code if not c.isascii())
+            raise Malformed(f"unexpected character '{c}' (U+{ord(c):04X})")
         if comments:
-            self._active_comment(comments[-1], line, lineno)
+            active(comments[-1], line.messages, lineno, self.params, self.rep)
         s = code.upper()
         n = len(s)
         i = _skip(s, 0)
@@ -336,28 +279,38 @@ class Tokenizer:
     # ---- words ------------------------------------------------------------
     def _word(self, s: str, c: str, i: int, line: Line) -> int:
         n = len(s)
-        j = _skip(s, i + 1)
+        j = i + 1
+        while j < n and (s[j] == " " or s[j] == "\t"):
+            j += 1  # a comment may not stand between a letter and its value
         if j < n and s[j] == "=":
-            return self._sinumerik_assign(s, c, j + 1, line)
+            return dialect.sinumerik_assign(s, c, j + 1, line.words, self.params)
         if c == "O":
             raise Malformed("an O-word must begin its line (O-words are control flow)")
         if c == "N":
             raise Malformed(f"line number '{_token(s, i)}' must begin the line")
-        start = j
-        if j >= n or s[j] in "-+.0123456789":
-            # Plain number: keep the old messages for its faults.
+        k = j
+        if k < n and s[k] in "+-":
+            k = _skip(s, k + 1)
+        if k == j and k < n and "A" <= s[k] <= "Z" and not _FUNC_NAME.match(s, k):
+            raise Malformed(f"value expected at '{_token(s, k)}' after {c}")
+        if k >= n or s[k] in ".0123456789" or (s[k] not in "[#" and not _FUNC_NAME.match(s, k)):
+            # A number (or nothing usable): one message for its faults.
             try:
                 v, j = self.ev.value(s, j)
+            except TooLarge:
+                raise
             except ExprError:
                 raise Malformed(f"malformed number in '{_token(s, i)}'") from None
-            if j < n and s[j] in "-+.0123456789" and s[start] not in "[#":
+            if j < n and s[j] in "-+.0123456789":
                 raise Malformed(f"malformed number in '{_token(s, i)}'")
         else:
             v, j = self.ev.value(s, j)
         if c == "R":
             k = _skip(s, j)
             if k < n and s[k] == "=":
-                return self._r_assign(v, s, k + 1, line)
+                return dialect.r_assign(v, s, k + 1, self.params, self.rep, self.ev.line)
+        if c == "M" and (v == 2.0 or v == 30.0):
+            self.ended = True
         line.words.append((c, v))
         return j
 
@@ -370,58 +323,18 @@ class Tokenizer:
         if why:
             raise Malformed(why)
         if j < n and s[j] == "(":
-            k = _balanced(s, j)
+            k = balanced(s, j)
             line.words.append(("CALL", name))
             line.call_args[name] = s[j + 1 : k - 1].strip()
             return k
         k = _skip(s, j)
         if k < n and s[k] == "=":
             line.words.append(("IDENT", name + "="))
-            return _value_end(s, k + 1)
-        if name in dialect.SINUMERIK_WORDS or name[0] in "_$":
+            return dialect.value_end(s, k + 1)
+        if name in dialect.SINUMERIK_WORDS or (name[0] in "_$" and len(name) > 1):
             line.words.append(("IDENT", name))
             return j
         raise Malformed(_bad_word(name))
-
-    def _sinumerik_assign(self, s: str, c: str, j: int, line: Line) -> int:
-        """``X=value`` (Sinumerik): number, known R parameter or FUNC(number)."""
-        end = _value_end(s, j)
-        text = s[j:end].strip(_GAP)
-        if c == "R":
-            raise Malformed(f"malformed R parameter assignment 'R={text}'")
-        m = _SINU_VALUE.fullmatch(text)
-        if m is None:
-            line.words.append(("=" + c, (None, text)))
-        elif m.group(1) is not None:
-            line.words.append(("=" + c, (float(m.group(1)), None)))
-        elif m.group(2) is not None:
-            v = self.params.r.get(int(m.group(2)))
-            line.words.append(("=" + c, (v, None) if v is not None else (None, text)))
-        else:
-            line.words.append(("=" + c, (float(m.group(4)), m.group(3))))
-        return end
-
-    def _r_assign(self, index: float, s: str, j: int, line: Line) -> int:
-        """``R<n>=value``: a constant (or a known R) is remembered, anything
-        else forgotten (and reported)."""
-        end = _value_end(s, j)
-        text = s[j:end].strip(_GAP)
-        if index != int(index) or index < 0:
-            raise Malformed(f"malformed R parameter number 'R{index:g}'")
-        m = _SINU_VALUE.fullmatch(text)
-        v = None
-        if m is not None and m.group(1) is not None:
-            v = float(m.group(1))
-        elif m is not None and m.group(2) is not None:
-            v = self.params.r.get(int(m.group(2)))
-        if v is None:
-            self.params.r.pop(int(index), None)
-            self.rep.skip(
-                "R= expression", self.ev.line, "R parameter set from an expression: left unknown"
-            )
-        else:
-            self.params.r[int(index)] = v
-        return end
 
     # ---- O-words ------------------------------------------------------------
     def _oword(self, s: str, i: int, line: Line, lineno: int) -> None:
@@ -445,22 +358,22 @@ class Tokenizer:
             label = str(int(r[0]))
             j = r[1]
         j = _skip(s, j)
-        m = re.compile(r"[A-Z]+").match(s, j)
+        m = _KEYWORD.match(s, j)
         if m is None:
             if j >= n and not line.words:
                 # A program number (O1000 at the top of CAM output).
                 self.rep.skip("O (program number)", lineno, "program number, no effect")
                 return
-            raise Malformed(f"O{_show_label(label)} without a keyword (sub, call, if, while ...)")
+            raise Malformed(f"O{label} without a keyword (sub, call, if, while ...)")
         key = m.group(0)
-        if key not in _OKEYS:
+        if key not in OKEYS:
             raise Malformed(f"unknown O-word keyword '{key.lower()}'")
         values = []
         j = _skip(s, m.end())
         while j < n:
             if s[j] != "[":
                 raise Malformed(
-                    f"O{_show_label(label)} {key.lower()}: unexpected '{_token(s, j)}' "
+                    f"O{label} {key.lower()}: unexpected '{_token(s, j)}' "
                     "(other words are not allowed on an O-word line; arguments go in [ ])"
                 )
             v, j = self.ev.bracket(s, j)
@@ -469,90 +382,16 @@ class Tokenizer:
         need = {"IF": 1, "ELSEIF": 1, "WHILE": 1, "REPEAT": 1}.get(key)
         most = 30 if key == "CALL" else (1 if key in ("RETURN", "ENDSUB") else (need or 0))
         if need and len(values) != need:
-            raise Malformed(f"O{_show_label(label)} {key.lower()} needs a condition [..]")
+            raise Malformed(f"O{label} {key.lower()} needs a condition [..]")
         if len(values) > most:
-            raise Malformed(f"O{_show_label(label)} {key.lower()}: too many values in [ ]")
+            raise Malformed(f"O{label} {key.lower()}: too many values in [ ]")
         line.oword = (label, key, values)
-
-    # ---- comments -----------------------------------------------------------
-    def _active_comment(self, body: str, line: Line, lineno: int) -> None:
-        head, comma, rest = body.partition(",")
-        key = head.replace(" ", "").replace("\t", "").upper()
-        if not comma:
-            if key in ("LOGCLOSE", "PROBECLOSE") or key.startswith("PROBEOPEN"):
-                self.rep.skip("(" + key + ")", lineno, "LinuxCNC log/probe file: not written")
-            return
-        if key == "MSG":
-            line.messages.append(rest.strip())
-        elif key in ("DEBUG", "PRINT"):
-            line.messages.append(self._substitute(rest.strip()))
-        elif key in ("LOG", "LOGOPEN", "LOGAPPEND"):
-            self.rep.skip("(" + key + ",...)", lineno, "LinuxCNC log file: not written")
-        elif key == "ABORT":
-            raise Malformed(f"(ABORT) the program aborts here: {rest.strip()}")
-
-    def _substitute(self, text: str) -> str:
-        """``#n`` and ``#<name>`` in DEBUG/PRINT text, with LinuxCNC's
-        ``%d``, ``%f``, ``%.Nf`` and ``%lf`` formats."""
-        out = []
-        fmt = 6
-        i = 0
-        n = len(text)
-        while i < n:
-            c = text[i]
-            if c == "%":
-                m = re.compile(r"%(?:d|f|lf|\.(\d)f)").match(text, i)
-                if m is not None:
-                    g = m.group(0)
-                    fmt = (
-                        0 if g == "%d" else 4 if g == "%f" else 6 if g == "%lf" else int(m.group(1))
-                    )
-                    i = m.end()
-                    continue
-            if c == "#":
-                m = re.compile(r"#\s*(?:<([^>]*)>|(\d+))").match(text, i)
-                if m is not None:
-                    if m.group(1) is not None:
-                        key = m.group(1).replace(" ", "").replace("\t", "").lower()
-                        ok = bool(key) and self.params.exists(key)
-                        out.append(f"{self.params.get(key, 0):.{fmt}f}" if ok else "######")
-                    else:
-                        k = int(m.group(2))
-                        ok = 1 <= k <= 5602
-                        out.append(f"{self.params.get(k, 0):.{fmt}f}" if ok else "######")
-                    i = m.end()
-                    continue
-            out.append(c)
-            i += 1
-        return "".join(out)
-
-
-def _value_end(s: str, j: int) -> int:
-    """End of a Sinumerik ``=`` value: the next blank outside ( ) and quotes."""
-    n = len(s)
-    j = _skip(s, j)
-    while j < n and s[j] not in _GAP and s[j] != ";":
-        if s[j] == "(":
-            j = _balanced(s, j)
-            continue
-        if s[j] == '"':
-            k = s.find('"', j + 1)
-            if k < 0:
-                raise Malformed("unclosed string")
-            j = k + 1
-            continue
-        j += 1
-    return j
 
 
 def _bad_word(name: str) -> str:
-    if "A" <= name[0] <= "Z" and not ("A" <= name[1] <= "Z") and name[1] not in "_$":
+    if len(name) < 2 or not ("A" <= name[0] <= "Z"):
         return f"unknown word '{name}'"
     note = f"{name[0]} has no value"
     if name[1] == "O" and len(name) > 2 and name[2] in "O0123456789":
         note += " (letter O written for zero?)"
     return f"malformed word '{name}': {note}"
-
-
-def _show_label(label: str) -> str:
-    return label

@@ -32,7 +32,8 @@ class Params:
 
     def __init__(self, system: Optional[Callable[[str], Optional[float]]] = None):
         self.numbered: dict[int, float] = {}
-        self.globals: dict[str, float] = {}
+        # Return value of the last O-word call (LinuxCNC: 0 at program start).
+        self.globals: dict[str, float] = {"_value": 0.0, "_value_returned": 0.0}
         # Named locals of the main program and of each active call.
         self.locals: list[dict[str, float]] = [{}]
         self.system = system
