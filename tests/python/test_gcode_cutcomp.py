@@ -339,3 +339,22 @@ def test_zero_radius_is_the_programmed_path():
     p.g1(x=0, y=0)
     p.g1(x=10)
     assert [m.end[:2] for m in p.done()] == [(0, 0), (10, 0)]
+
+
+def test_acute_inside_corner_is_an_intersection():
+    # G41 r 1: +X along Y=0, then a 135 degree left turn towards (0, 10).
+    # Offsets: Y = 1 and X + Y = 10 - sqrt(2); they meet at X = 9 - sqrt(2).
+    p = Prog(0, -10)
+    p.on("left", 1.0)
+    p.g1(x=0, y=0)
+    p.g1(x=10)
+    p.g1(x=0, y=10)
+    moves = p.done()
+    x = round(9 - math.sqrt(2), 6)
+    h = round(math.sqrt(0.5), 6)
+    assert simple(moves) == [
+        (LINEAR, (0, -10), (-1, 0), None),
+        (ARC_CW, (-1, 0), (0, 1), (0, 0)),
+        (LINEAR, (0, 1), (x, 1), None),
+        (LINEAR, (x, 1), (-h, round(10 - math.sqrt(0.5), 6)), None),
+    ]
