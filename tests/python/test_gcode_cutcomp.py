@@ -358,3 +358,10 @@ def test_acute_inside_corner_is_an_intersection():
         (LINEAR, (0, 1), (x, 1), None),
         (LINEAR, (x, 1), (-h, round(10 - math.sqrt(0.5), 6)), None),
     ]
+
+
+def test_overflowing_offsets_are_an_error():
+    p = Prog(-1e308, 0)
+    p.on("left", 3.0)
+    with pytest.raises(Err, match="t.ngc:2: cutter compensation: the offset path is out of range"):
+        p.g1(x=1e308, y=0)
