@@ -339,3 +339,82 @@ def test_zero_radius_is_the_programmed_path():
     p.g1(x=0, y=0)
     p.g1(x=10)
     assert [m.end[:2] for m in p.done()] == [(0, 0), (10, 0)]
+
+
+def test_acute_inside_corner_is_an_intersection():
+    # G41 r 1: +X along Y=0, then a 135 degree left turn towards (0, 10).
+    # Offsets: Y = 1 and X + Y = 10 - sqrt(2); they meet at X = 9 - sqrt(2).
+    p = Prog(0, -10)
+    p.on("left", 1.0)
+    p.g1(x=0, y=0)
+    p.g1(x=10)
+    p.g1(x=0, y=10)
+    moves = p.done()
+    x = round(9 - math.sqrt(2), 6)
+    h = round(math.sqrt(0.5), 6)
+    assert simple(moves) == [
+        (LINEAR, (0, -10), (-1, 0), None),
+        (ARC_CW, (-1, 0), (0, 1), (0, 0)),
+        (LINEAR, (0, 1), (x, 1), None),
+        (LINEAR, (x, 1), (-h, round(10 - math.sqrt(0.5), 6)), None),
+    ]
+
+
+def test_overflowing_offsets_are_an_error():
+    p = Prog(-1e308, 0)
+    p.on("left", 3.0)
+    with pytest.raises(Err, match="t.ngc:2: cutter compensation: the offset path is out of range"):
+        p.g1(x=1e308, y=0)
+
+
+def test_random_programs_give_continuous_moves_or_a_clear_error():
+    # Seeded random lines, arcs, Z moves, dwells, G41/G42/G40: every outcome is
+    # a continuous path or an Err naming a line; never another exception.
+    import random
+
+    rnd = random.Random(17)
+    for _ in range(3000):
+        c = CutterComp(err)
+        pos = p6(0, 0)
+        out = []
+        try:
+            for i in range(1, rnd.randint(2, 12)):
+                r = rnd.random()
+                if r < 0.1:
+                    if c.active:
+                        c.off(i)
+                    else:
+                        c.on(rnd.choice(["left", "right"]), rnd.choice([0, 0.5, 1, 3, 10]), 0, i)
+                    continue
+                kind = rnd.choice([LINEAR, LINEAR, RAPID, ARC_CW, ARC_CCW, DWELL])
+                if kind == DWELL:
+                    m = Move(DWELL, pos, pos, NAN, i, dwell_s=1.0)
+                elif kind in (LINEAR, RAPID):
+                    end = list(pos)
+                    if rnd.random() < 0.2:
+                        end[2] += rnd.uniform(-5, 5)
+                    else:
+                        end[0] = rnd.choice([0, 10, 20, pos[0] + rnd.uniform(-20, 20)])
+                        end[1] = rnd.choice([0, 10, 20, pos[1] + rnd.uniform(-20, 20)])
+                    m = Move(kind, pos, tuple(end), 100.0, i)
+                else:
+                    cen = (pos[0] + rnd.uniform(-10, 10), pos[1] + rnd.uniform(-10, 10))
+                    rad = math.hypot(pos[0] - cen[0], pos[1] - cen[1])
+                    a = rnd.uniform(0, 2 * math.pi)
+                    end = (cen[0] + rad * math.cos(a), cen[1] + rad * math.sin(a)) + pos[2:]
+                    m = Move(kind, pos, end, 100.0, i, centre=cen + (NAN,))
+                out += c.push(m)
+                pos = m.end
+            out += c.flush()
+        except Err as e:
+            assert str(e).startswith("t.ngc:")
+            continue
+        if not out:
+            continue
+        assert out[0].start == p6(0, 0)
+        continuous(out)
+        for m in out:
+            if m.kind in (ARC_CW, ARC_CCW):
+                r0 = math.dist(m.start[:2], m.centre[:2])
+                r1 = math.dist(m.end[:2], m.centre[:2])
+                assert abs(r0 - r1) < 1e-6 * max(1.0, r0)

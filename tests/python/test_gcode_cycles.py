@@ -239,3 +239,9 @@ def test_initial_level_survives_a_switch_to_g99_and_back():
     m3 = expand(81, {"X": 3}, st, m2[-1][1], 0, False, 3, err)
     assert m3[-1][1][2] == 10
     assert moves[0] == R(1, 0, 10)
+
+
+def test_overflowing_positions_are_an_error():
+    with pytest.raises(Err, match="t.ngc:2: G81: a cycle position is out of range"):
+        expand(81, {"X": 1e308, "Z": -1, "R": 1}, CycleState(), (0,) * 6, 0, False, 2, err,
+               unit_mm=25.4)  # fmt: skip

@@ -14,7 +14,11 @@ feeds, arcs, dwells), compensated or not, and returns the moves ready to
 emit; it holds back the last in-plane move (with any out-of-plane moves
 after it) until the next in-plane move decides the corner between them.
 The moves returned are continuous (each starts where the one before ends)
-and carry the line of the move they come from. ``radius_mm`` is the tool
+and carry the line of the move they come from. ``Move.plane`` must be the
+interpreter's current plane on every move (lines too): that is how a plane
+change under compensation is caught. The attributes ``active`` (on),
+``held`` (moves not yet released) and ``tool`` (the tool position, 6
+floats, None before the first move) may be read. ``radius_mm`` is the tool
 radius: half the diameter of the tool-table entry selected by ``D`` (or of
 the current tool), or half of ``G41.1``/``G42.1``'s ``D``; a negative
 radius swaps the side, as LinuxCNC does for a negative diameter.
@@ -185,6 +189,13 @@ class CutterComp:
         return out
 
     def push(self, move: Move) -> list:
+        out = self._push(move)
+        for m in out + self.held:
+            if not all(math.isfinite(c) for c in m.end[:3]):
+                raise self.error(m.line, "cutter compensation: the offset path is out of range")
+        return out
+
+    def _push(self, move: Move) -> list:
         if self.tool is None:
             self.tool = tuple(move.start)
         if self.side and move.kind != DWELL and move.plane != self.plane:

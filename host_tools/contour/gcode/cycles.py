@@ -202,6 +202,8 @@ def expand(
         inc_a = inc_b = 0.0
         a = float(words[la]) * unit_mm if la in words else pos[ia]
         b = float(words[lb]) * unit_mm if lb in words else pos[ib]
+    if not all(math.isfinite(x) for x in (r, bottom, a, b, inc_a, inc_b)):
+        raise _err(error, line, code, "a cycle position is out of range")
     if r < bottom:
         raise _err(
             error,
