@@ -18,7 +18,7 @@ def read(text, **kw):
 
 
 def lengths(p):
-    s = gcode.segments(p, 1e-4)
+    s = gcode.segments(p, 1e-7)
     moving = ~np.isin(p.kind[s.block], [DWELL])
     feed = float(s.length[moving & ~s.rapid].sum())
     rapid = float(s.length[moving & s.rapid].sum())
