@@ -302,3 +302,27 @@ def test_g41_takes_the_radius_from_the_tool_table(tmp_path):
     assert "D" not in p.skipped  # D of G41/G42 is used, not reported
     with pytest.raises(GcodeError, match="t.nc:3: G41: tool 7 is not in the tool table"):
         read(text.replace("D1", "D7"), tool_table=table)
+
+
+def test_any_arc_is_read_or_a_gcode_error():
+    rng = np.random.default_rng(17)
+    values = ["0", "0.0000001", "1", "-1", "2.5", "-400", "1000000", "99999999999", "1" + "0" * 40]
+    errors = 0
+    for _ in range(400):
+        w = {c: rng.choice(values) for c in "XYIJR"}
+        form = f"I{w['I']} J{w['J']}" if rng.random() < 0.5 else f"R{w['R']}"
+        turns = f" P{rng.integers(1, 4)}" if rng.random() < 0.2 else ""
+        plane = rng.choice(["G17", "G18", "G19"])
+        letters = {"G17": "XY", "G18": "ZX", "G19": "YZ"}[plane]
+        form = form.replace("I", {"G17": "I", "G18": "K", "G19": "J"}[plane] + "@", 1)
+        form = form.replace("J", {"G17": "J", "G18": "I", "G19": "K"}[plane], 1).replace("@", "")
+        text = (
+            f"G21 {plane}\nG1 X1 Y1 Z1 F100\n"
+            f"{rng.choice(['G2', 'G3'])} {letters[0]}{w['X']} {letters[1]}{w['Y']} {form}{turns}\n"
+        )
+        try:
+            gcode.segments(read(text), 0.01)
+        except GcodeError as exc:
+            assert exc.line == 3, text
+            errors += 1
+    assert 0 < errors < 400
