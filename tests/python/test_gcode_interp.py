@@ -326,3 +326,22 @@ def test_any_arc_is_read_or_a_gcode_error():
             assert exc.line == 3, text
             errors += 1
     assert 0 < errors < 400
+
+
+@pytest.mark.parametrize(
+    "code,message",
+    [
+        ("G55", "cannot change the coordinate system with cutter compensation on"),
+        ("G92 X0", "cannot change the G92 offsets with cutter compensation on"),
+        ("G10 L2 P1 X5", "cannot change the active coordinate system with cutter compensation"),
+        ("G28", "G28 with cutter compensation on"),
+        ("G53 G0 X0", "G53 with cutter compensation on"),
+        ("G81 X1 Y1 Z-1 R1", "canned cycles cannot be used with cutter compensation on"),
+    ],
+)
+def test_offsets_cannot_change_under_cutter_compensation(code, message):
+    with pytest.raises(GcodeError) as exc:
+        read(f"G21 G90\nG0 X0 Y0\nG41.1 D2\nG1 X10 F100\n{code}\n")
+    assert str(exc.value).startswith("t.nc:5: ") and message in str(exc.value)
+    # After G40 the same line is fine (G10 L2 P2 for another system always is).
+    read(f"G21 G90\nG0 X0 Y0\nG41.1 D2\nG1 X10 F100\nG10 L2 P2 X5\nG40\nG0 X20\n{code}\n")

@@ -176,6 +176,7 @@ class BlockExecutor:
             self.cutter_comp(line, g[7], w, used)
         if 12 in g:
             n = _SYSTEM_OF_KEY[g[12]]
+            self.no_comp(line, "change the coordinate system")
             self.offsets.select(n, line)
             if n not in self.offsets.set_in_program:
                 self.skip(
@@ -236,6 +237,11 @@ class BlockExecutor:
             and (self.comp.tool is None or list(self.comp.tool) == self.pos)
         ):
             self.comp = None  # back on the plain path: the fast path again
+
+    def no_comp(self, line, what):
+        """LinuxCNC refuses offset changes while cutter compensation is on."""
+        if self.comp is not None and self.comp.active:
+            raise self.error(line, f"cannot {what} with cutter compensation on (G40 first)")
 
     def set_feed(self, line, w, feed_text):
         f = w.get("F")

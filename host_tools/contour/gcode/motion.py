@@ -51,7 +51,7 @@ class MotionExecutor:
         if k == 100:
             self.g10(line, w, axes, used)
         elif k in (280, 300):
-            if self.comp is not None:
+            if self.comp is not None and self.comp.active:
                 raise self.error(line, f"G{k // 10} with cutter compensation on")
             which = k // 10
             inter = self.target_of(axes)
@@ -72,7 +72,9 @@ class MotionExecutor:
             self.emit(RAPID, target, _NAN, line, stop)
         elif k in (281, 301):
             self.offsets.store_home(k // 10, self.pos)
-        elif k == 920:
+        elif k in (920, 921, 922, 923):
+            self.no_comp(line, "change the G92 offsets")
+        if k == 920:
             if not axes:
                 raise self.error(line, "G92 without axis words")
             self.offsets.g92(self.axis_values(axes), self.pos, line)
@@ -94,6 +96,8 @@ class MotionExecutor:
         if w.get("R", 0.0) != 0.0:
             raise self.refuse(line, "coordinate system rotation (G10 L2 R)")
         values = self.axis_values(axes)
+        if int(p) in (0, self.offsets.system):
+            self.no_comp(line, "change the active coordinate system")
         if lv == 2.0:
             self.offsets.set_system(int(p), values, line)
         else:
@@ -112,7 +116,7 @@ class MotionExecutor:
                 raise self.error(line, "G53 needs G0 or G1")
             if not self.absolute:
                 raise self.error(line, "G53 in incremental distance mode (G91)")
-            if self.comp is not None:
+            if self.comp is not None and self.comp.active:
                 raise self.error(line, "G53 with cutter compensation on")
         if motion in CYCLES:
             used.update("RQPL")
@@ -154,7 +158,7 @@ class MotionExecutor:
             line,
             self.error,
             unit_mm=self.scale,
-            comp_on=self.comp is not None,
+            comp_on=self.comp is not None and self.comp.active,
         )
         for kind, target, dwell in moves:
             tgt = [t + o for t, o in zip(target, origin)]
