@@ -283,10 +283,15 @@ def test_offsets_live_in_linuxcnc_parameters():
         it.params.set(5420, 1.0, 7)
 
 
-def test_parameter_assigned_before_selection_takes_effect():
+def test_parameter_assignment_takes_effect_when_the_system_is_selected_again():
     it = _interpreter([[("G", 21.0)], [("G", 54.0)], [("G", 0.0), ("X", 0.0)]])
     it.params.set(5221, 7.0)
+    # G54 while G54 is active: LinuxCNC does not reload ("continuing to use
+    # same coordinate system"), checked against its rs274.
     it.block(4, [("G", 54.0), ("G", 0.0), ("X", 1.0)])
+    assert it.pos[0] == 1.0
+    it.block(5, [("G", 55.0)])
+    it.block(6, [("G", 54.0), ("G", 0.0), ("X", 1.0)])
     assert it.pos[0] == 8.0
 
 

@@ -176,8 +176,9 @@ class BlockExecutor:
             self.cutter_comp(line, g[7], w, used)
         if 12 in g:
             n = _SYSTEM_OF_KEY[g[12]]
-            self.no_comp(line, "change the coordinate system")
-            self.offsets.select(n, line)
+            if n != self.offsets.system:  # LinuxCNC: the active one is not reloaded
+                self.no_comp(line, "change the coordinate system")
+                self.offsets.select(n, line)
             if n not in self.offsets.set_in_program:
                 self.skip(
                     policy.code_name("G", g[12] / 10),
