@@ -21,8 +21,9 @@ stay zero.
 
 The parameter store is any object with ``get(key, line)`` and ``set(key,
 value)`` (the front end's :class:`~contour.gcode.params.Params`). Selecting
-a system reads its parameters, as LinuxCNC does, so ``#5221 = 5`` followed
-by ``G54`` takes effect.
+another system reads its parameters, as LinuxCNC does (``#5221 = 5`` takes
+effect at the next ``G54`` after another system); selecting the active one
+again does not (the interpreter does not call :meth:`Offsets.select` then).
 """
 
 from __future__ import annotations
