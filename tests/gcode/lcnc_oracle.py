@@ -49,7 +49,12 @@ def canon(path):
             timeout=60,
             cwd=d,
         )
-    return r.stdout + r.stderr
+    text = r.stdout + r.stderr
+    if r.returncode != 0:
+        # The message and the offending line follow "executing".
+        tail = text.split("executing", 1)[-1].strip().replace("\n", " | ")
+        text += f"\nRS274 ERROR: {tail}\n"
+    return text
 
 
 def nums(args):

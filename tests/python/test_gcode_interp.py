@@ -139,6 +139,7 @@ def test_refusals_name_the_feature_and_the_line(code, feature):
         ("G80 X1", "axis words with G80"),
         ("M3 M4", "M3 and M4 on one line"),
         ("M8 M9", "M8 and M9 on one line"),
+        ("M7 M8", "M7 and M8 on one line"),
         ("M0 M1", "M0 and M1 on one line"),
         ("G1 X1 X2 F10", "two X words on one line"),
         ("G1 X1 I5 F10", "I word with nothing on the line to use it"),
@@ -151,11 +152,6 @@ def test_modal_group_and_word_conflicts_are_errors(code, message):
     with pytest.raises(GcodeError) as exc:
         read(f"G21\n{code}\n")
     assert str(exc.value).startswith(f"t.nc:2: {message}")
-
-
-def test_m7_and_m8_may_share_a_line():
-    p = read("G21\nM7 M8\nG0 X1\n")
-    assert {"M7", "M8"} <= set(p.skipped)
 
 
 def test_axis_words_before_a_motion_mode_are_an_error():

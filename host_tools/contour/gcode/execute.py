@@ -93,12 +93,6 @@ class BlockExecutor:
             raise self.refuse(line, policy.code_name("M", value))
         m = int(value)
         grp = policy.M_GROUP.get(m, 1000 + m)
-        if m == 8:
-            grp = 80  # M7 and M8 may share a line; M9 may not with either
-            if 9 in bw.m.values():
-                raise self.error(line, "M9 and M8 on one line: two M codes of the same group")
-        if m == 9 and 80 in bw.m:
-            raise self.error(line, "M8 and M9 on one line: two M codes of the same group")
         if grp in bw.m:
             raise self.error(
                 line, f"M{bw.m[grp]} and M{m} on one line: two M codes of the same modal group"

@@ -92,7 +92,7 @@ for _m, _grp in (
     ((0, 1, 2, 30, 60), 4),
     ((6, 61), 6),
     ((3, 4, 5), 7),
-    ((7, 9), 8),  # M8 is checked apart: M7 and M8 may share a line
+    ((7, 8, 9), 8),  # LinuxCNC 2.9's rs274 refuses M7 M8 on one line too
     ((48, 49, 50, 51, 52, 53), 9),
 ):
     for _c in _m:
