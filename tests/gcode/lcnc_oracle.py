@@ -34,12 +34,16 @@ ENV = dict(os.environ, LD_LIBRARY_PATH=f"{ROOT}/usr/lib:{ROOT}/usr/lib/x86_64-li
 CALL = re.compile(r"^\s*\d+ N\S* +([A-Z_0-9]+)\((.*)\)\s*$")
 
 
+TOOL_TABLE = None  # --tool-table FILE: the same table for both (inch tables: ';units: inch')
+
+
 def canon(path):
     with tempfile.TemporaryDirectory() as d:
         var = os.path.join(d, "rs274ngc.var")
         Path(var).write_text("5220 1.0\n")
         tbl = os.path.join(d, "tool.tbl")
-        Path(tbl).write_text("T1 P1 D4 ;\nT2 P2 D10 ;\n")
+        table = Path(TOOL_TABLE).read_text() if TOOL_TABLE else "T1 P1 D4 ;\nT2 P2 D10 ;\n"
+        Path(tbl).write_text(table)
         r = subprocess.run(
             [RS, "-v", var, "-t", tbl, "-g", os.path.abspath(path)],
             capture_output=True,
@@ -135,7 +139,7 @@ def simulate(text):
 
 def ours(path):
     try:
-        p = gcode.read(path)
+        p = gcode.read(path, tool_table=TOOL_TABLE)
     except gcode.GcodeError as e:
         return None, str(e)
     s = gcode.segments(p, 1e-7)
@@ -174,4 +178,8 @@ def main(paths):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    args = sys.argv[1:]
+    if args[:1] == ["--tool-table"]:
+        TOOL_TABLE = args[1]
+        args = args[2:]
+    main(args)

@@ -121,6 +121,9 @@ def test_dwell_is_a_row_in_seconds():
         ("M101", "M101 (user-defined M code)"),
         ("G1 W1 F100", "W axis"),
         ("G12 X1", "G12"),
+        ("G70 Q100 X15 Z4 D1 P1", "G70 lathe finishing cycle"),
+        ("G71 Q100 X-5 Z-14 D0.5 I1 R0.3", "G71 lathe roughing cycle"),
+        ("G72 Q100 X-5 Z-14", "G72"),
     ],
 )
 def test_refusals_name_the_feature_and_the_line(code, feature):
@@ -152,6 +155,18 @@ def test_modal_group_and_word_conflicts_are_errors(code, message):
     with pytest.raises(GcodeError) as exc:
         read(f"G21\n{code}\n")
     assert str(exc.value).startswith(f"t.nc:2: {message}")
+
+
+def test_g2_with_a_centre_and_no_axis_word_is_a_full_circle():
+    # As LinuxCNC's rs274 reads its own 3dtest.ngc.
+    p = read("G20 F30\nG0 X1 Y1\nG17 G2 I.5 J.5\n")
+    assert p.kind[1] == gcode.ARC_CW
+    np.testing.assert_allclose(p.end[1, :2], [25.4, 25.4])
+    np.testing.assert_allclose(p.centre[1, :2], [38.1, 38.1])
+    s = gcode.segments(p, 1e-6)
+    assert s.length[s.block == 1].sum() == pytest.approx(2 * math.pi * 25.4 / math.sqrt(2))
+    with pytest.raises(GcodeError, match="t.nc:3: arc without end point"):
+        read("G21\nG1 X1 F10\nG2\n")
 
 
 def test_axis_words_before_a_motion_mode_are_an_error():

@@ -151,6 +151,11 @@ class BlockExecutor:
                 used.update("PQR")
         # Units first: F and every length on the line are in the line's units.
         u = g.get(6)
+        if u in (700, 710) and "Q" in w:
+            # G70/G71 with a Q profile are LinuxCNC's lathe cycles, not the
+            # Sinumerik inch/metric codes.
+            name = "G70 lathe finishing cycle" if u == 700 else "G71 lathe roughing cycle"
+            raise self.refuse(line, name)
         if u is not None:
             self.scale = INCH_MM if u in (200, 700, 7000) else 1.0
             self.units_set = True
@@ -216,7 +221,10 @@ class BlockExecutor:
         if bw.axes and not axis_user and g0 != 40:
             self.motion_block(line, bw, g0 == 530, stop, used)
         elif motion_g in (20, 30):
-            raise self.error(line, "arc without end point (no axis word)")
+            if not any(c in w for c in "IJK"):
+                raise self.error(line, "arc without end point (no axis word)")
+            # LinuxCNC: G2/G3 with a centre and no axis word is a full circle.
+            self.motion_block(line, bw, False, stop, used)
         elif motion_g is not None and motion_g // 10 in CYCLES:
             self.motion_block(line, bw, False, stop, used)
         for letter in _PARAM_LETTERS:
