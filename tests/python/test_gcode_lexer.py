@@ -371,6 +371,22 @@ def test_while_loop():
     ]
 
 
+def test_lines_run_again_keep_their_parameters_and_own_word_lists():
+    bs = run("#1=0\no1 repeat [3]\nG1 X[1] Y2\nG1 X#1\n/G1 Z#1\n#1=[#1+1]\no1 endrepeat")
+    assert [b.words for b in bs] == [
+        [("G", 1.0), ("X", 1.0), ("Y", 2.0)],
+        [("G", 1.0), ("X", 0.0)],
+        [("G", 1.0), ("Z", 0.0)],
+        [("G", 1.0), ("X", 1.0), ("Y", 2.0)],
+        [("G", 1.0), ("X", 1.0)],
+        [("G", 1.0), ("Z", 1.0)],
+        [("G", 1.0), ("X", 1.0), ("Y", 2.0)],
+        [("G", 1.0), ("X", 2.0)],
+        [("G", 1.0), ("Z", 2.0)],
+    ]
+    assert bs[0].words is not bs[3].words
+
+
 def test_while_false_skips_the_body():
     assert xs("o1 while [0]\nG1 X1\no1 endwhile\nG0 X2") == [2.0]
 
