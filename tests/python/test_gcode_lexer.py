@@ -156,6 +156,14 @@ def test_percent_without_closing_percent_but_m2_m30_is_a_program(end):
     assert len(run(f"%\nG0 X1\n{end}\nG0 X3")) == 3
 
 
+def test_sinumerik_file_header_is_reported():
+    rep = Rep()
+    assert words("%_N_PART_MPF\n;$PATH=/_N_MPF_DIR\nG0 X1", rep=rep) == [
+        (3, [("G", 0.0), ("X", 1.0)])
+    ]
+    assert rep.skipped == [("%_N_ (file header)", 1)]
+
+
 def test_percent_inside_the_program_is_reported():
     rep = Rep()
     assert words("G0 X1\n%\nG0 X2", rep=rep) == [
