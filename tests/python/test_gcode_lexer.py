@@ -156,6 +156,14 @@ def test_percent_without_closing_percent_but_m2_m30_is_a_program(end):
     assert len(run(f"%\nG0 X1\n{end}\nG0 X3")) == 3
 
 
+def test_sinumerik_file_header_is_reported():
+    rep = Rep()
+    assert words("%_N_PART_MPF\n;$PATH=/_N_MPF_DIR\nG0 X1", rep=rep) == [
+        (3, [("G", 0.0), ("X", 1.0)])
+    ]
+    assert rep.skipped == [("%_N_ (file header)", 1)]
+
+
 def test_percent_inside_the_program_is_reported():
     rep = Rep()
     assert words("G0 X1\n%\nG0 X2", rep=rep) == [
@@ -369,6 +377,22 @@ def test_while_loop():
         2.0,
         9.0,
     ]
+
+
+def test_lines_run_again_keep_their_parameters_and_own_word_lists():
+    bs = run("#1=0\no1 repeat [3]\nG1 X[1] Y2\nG1 X#1\n/G1 Z#1\n#1=[#1+1]\no1 endrepeat")
+    assert [b.words for b in bs] == [
+        [("G", 1.0), ("X", 1.0), ("Y", 2.0)],
+        [("G", 1.0), ("X", 0.0)],
+        [("G", 1.0), ("Z", 0.0)],
+        [("G", 1.0), ("X", 1.0), ("Y", 2.0)],
+        [("G", 1.0), ("X", 1.0)],
+        [("G", 1.0), ("Z", 1.0)],
+        [("G", 1.0), ("X", 1.0), ("Y", 2.0)],
+        [("G", 1.0), ("X", 2.0)],
+        [("G", 1.0), ("Z", 2.0)],
+    ]
+    assert bs[0].words is not bs[3].words
 
 
 def test_while_false_skips_the_body():

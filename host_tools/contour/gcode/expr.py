@@ -25,6 +25,7 @@ import math
 import re
 
 _NUMBER = re.compile(r"[0-9][0-9 \t]*(?:\.[0-9 \t]*)?|\.[ \t]*[0-9][0-9 \t]*", re.ASCII)
+_PLAIN_NUMBER = re.compile(r"[0-9]+(?:\.[0-9]*)?|\.[0-9]+", re.ASCII)
 _WS = " \t"
 TOLERANCE_EQUAL = 1e-6
 MAX_DEPTH = 32  # brackets, indirections and signs nested in one value
@@ -47,7 +48,7 @@ _GROUP = {
     "OR": 0,
     "XOR": 0,
 }
-_WORD_OPS = ("MOD", "EQ", "NE", "GT", "GE", "LT", "LE", "AND", "OR", "XOR")
+_OPERATOR = re.compile(r"\*\*|[*/+-]|MOD|EQ|NE|GT|GE|LT|LE|AND|OR|XOR")
 FUNCTIONS = (
     "ABS",
     "ACOS",
@@ -181,6 +182,14 @@ def _skip(s: str, i: int) -> int:
 
 def number_at(s: str, i: int):
     """Unsigned number at ``s[i]`` (spaces inside allowed): (value, end) or None."""
+    m = _PLAIN_NUMBER.match(s, i)
+    if m is not None:
+        end = m.end()
+        if end >= len(s) or s[end] not in _WS:
+            v = float(m.group(0))
+            if v == math.inf:
+                raise TooLarge(f"number too large: {m.group(0)[:20]}...")
+            return v, end
     m = _NUMBER.match(s, i)
     if m is None:
         return None
@@ -291,7 +300,7 @@ class Evaluator:
         """Expression ``[ ... ]`` with ``s[i]`` the '['."""
         self._enter()
         try:
-            v, i = self._binary(s, i + 1, 0)
+            v, i = self._binary(s, i + 1)
         finally:
             self.depth -= 1
         i = _skip(s, i)
@@ -301,35 +310,29 @@ class Evaluator:
             raise ExprError(f"operator or ']' expected at '{_show(s, i)}'")
         return v, i + 1
 
-    def _operator(self, s: str, i: int):
-        i = _skip(s, i)
-        if i >= len(s):
-            return None, i
-        c = s[i]
-        if c == "*":
-            if s.startswith("**", i):
-                return "**", i + 2
-            return "*", i + 1
-        if c in "/+-":
-            return c, i + 1
-        if "A" <= c <= "Z":
-            for op in _WORD_OPS:
-                if s.startswith(op, i):
-                    return op, i + len(op)
-        return None, i
-
-    def _binary(self, s: str, i: int, level: int):
-        """Operands joined by operators of group ``level`` or higher, left
-        to right within a group."""
-        if level > 4:
-            return self.value(s, i)
-        v, i = self._binary(s, i, level + 1)
+    def _binary(self, s: str, i: int):
+        """Operands and binary operators up to the closing ']': operator
+        precedence with a stack, left to right within a group."""
+        values = []
+        ops = []
+        v, i = self.value(s, i)
+        n = len(s)
         while True:
-            op, j = self._operator(s, i)
-            if op is None or _GROUP[op] != level:
-                return v, i
-            w, i = self._binary(s, j, level + 1)
-            v = _binary(op, v, w)
+            while i < n and (s[i] == " " or s[i] == "\t"):
+                i += 1
+            m = _OPERATOR.match(s, i)
+            if m is None:
+                break
+            op = m.group(0)
+            g = _GROUP[op]
+            while ops and _GROUP[ops[-1]] >= g:
+                v = _binary(ops.pop(), values.pop(), v)
+            values.append(v)
+            ops.append(op)
+            v, i = self.value(s, m.end())
+        while ops:
+            v = _binary(ops.pop(), values.pop(), v)
+        return v, i
 
 
 def _show(s: str, i: int) -> str:

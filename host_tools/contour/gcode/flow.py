@@ -35,6 +35,10 @@ from contour.gcode.source import BodySource, FileSource
 
 MAX_CALL_DEPTH = 10
 ITERATION_CAP = 1_000_000
+LINE_CACHE_SIZE = 4096
+# A line with any of these may read or set state (parameters, R parameters,
+# block delete and log reports, messages): it is parsed each time it runs.
+_VARYING = re.compile(r"[#=/(;]")
 
 _HEAD = re.compile(
     r"(?:/\s*)?(?:N\s*[\d.][\d.\s]*)?O\s*(<[^>]*>|\d[\d\s]*)\s*([A-Z]+)",
@@ -83,6 +87,7 @@ class Runner:
         self.iterations = 0
         self.words_cache = WordCache()
         self.get_word = self.words_cache.__getitem__
+        self.lines = {}  # text -> Line, for lines that evaluate the same each time
 
     def error(self, line: int, message: str):
         return self.rep.error(line, message)
@@ -92,7 +97,12 @@ class Runner:
         words = simple_words(text, self.get_word)
         if words is not None:
             return Block(lineno, words) if words else None
-        line = self.tok.parse(text, lineno)
+        if len(self.frames) > 1 or self.file.hold:
+            line = self.parse_again(text, lineno)
+            if line.words and not line.assigns and not line.messages:
+                return Block(lineno, list(line.words), (), line.call_args)
+        else:
+            line = self.tok.parse(text, lineno)
         if line.oword is not None:
             self.control(line.oword, lineno, text)
             return None
@@ -103,6 +113,18 @@ class Runner:
         if line.words or line.messages:
             return Block(lineno, line.words, line.messages, line.call_args)
         return None
+
+    def parse_again(self, text: str, lineno: int):
+        """Parse a line that runs again (loop, subroutine); one that reads
+        no parameter and sets nothing evaluates the same every time."""
+        line = self.lines.get(text)
+        if line is None:
+            line = self.tok.parse(text, lineno)
+            if not _VARYING.search(text):
+                if len(self.lines) >= LINE_CACHE_SIZE:
+                    self.lines.clear()
+                self.lines[text] = line
+        return line
 
     # ---- the loop ---------------------------------------------------------
     def run(self):
@@ -348,4 +370,4 @@ class Runner:
             self.control(self.tok.parse(text, ln).oword, ln, text)
 
     def _condition(self, rec) -> float:
-        return self.tok.parse(rec[4], rec[2]).oword[2][0]
+        return self.parse_again(rec[4], rec[2]).oword[2][0]

@@ -77,6 +77,11 @@ class FileSource:
         if not text:
             return None
         f = self
+        if text[0] == "%" and text[1:4].upper() == "_N_":
+            # Sinumerik file header (%_N_PART_MPF): names the file.
+            self.rep.skip("%_N_ (file header)", lineno, "Sinumerik file name line")
+            self.started = True
+            return None
         if text == "%":
             if not f.started:
                 f.started = True
