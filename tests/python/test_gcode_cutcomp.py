@@ -590,3 +590,24 @@ def test_after_g40_a_z_move_returns_to_the_programmed_xy_and_an_arc_is_refused()
     p.off()
     with pytest.raises(Err, match="t.ngc:4: the first move after G40 must be a straight line"):
         p.arc(ARC_CW, 20, 0, 10, 0)
+
+
+def test_h_shape_reversal_off_the_outside_of_an_arc_stays_on_the_near_side():
+    # G42 over the top of a half circle, then straight back up beside it: the
+    # 180 degree turn is taken as concave (the arc is cut where X = 1 meets R 6).
+    p = Prog(10, -10)
+    p.on("right", 1.0)
+    p.g1(x=10, y=0)
+    p.arc(ARC_CCW, 0, 0, 5, 0)
+    p.g1(x=0, y=10)
+    p.off()
+    p.g1(x=-5, y=15)
+    assert_points(
+        p.done(),
+        [
+            (LINEAR, (11, 0, 0), None),
+            (ARC_CCW, (1, math.sqrt(20), 0), (5, 0)),
+            (LINEAR, (1, 10, 0), None),
+            (LINEAR, (-5, 15, 0), None),
+        ],
+    )
