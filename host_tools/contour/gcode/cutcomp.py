@@ -50,9 +50,9 @@ the left of the programmed path, looking along the motion, for G41):
   line must not run against its programmed direction (the entry: against
   its offset direction) and an arc must not sweep more than programmed
   (+0.0254 rad); no intersection at a concave corner is an error too.
-  Checked against LinuxCNC 2.9's rs274 on 2800 random programs
-  (tests/gcode/linuxcnc_oracle.py): the same moves (to 3e-4 mm) or the
-  same refusal, except exact tangencies that LinuxCNC's rounding refuses.
+  Checked against LinuxCNC 2.9's rs274 (tests/gcode/lcnc_oracle.py) on
+  2800 random programs: the same moves (to 3e-4 mm) or the same refusal,
+  except exact tangencies that LinuxCNC's rounding refuses.
 - Moves with no motion in the plane (Z only, dwells) keep the tool's
   in-plane position and pass through unchanged otherwise.
 - Exit: after G40, the next move goes straight from the compensated
