@@ -78,6 +78,13 @@ ARC_SWEEP_SLACK = 0.0254
 _PLANE_NAMES = ("G17 (XY)", "G18 (XZ)", "G19 (YZ)")
 
 
+def _with(m: Move, start, end) -> Move:
+    """m from start to end (dataclasses.replace, without its cost)."""
+    return Move(
+        m.kind, start, end, m.feed, m.line, m.centre, m.plane, m.turns, m.exact_stop, m.dwell_s
+    )
+
+
 def _perp(v):
     """v turned +90 degrees (to the left)."""
     return (-v[1], v[0])
@@ -214,7 +221,8 @@ class CutterComp:
     def push(self, move: Move) -> list:
         out = self._push(move)
         for m in out + self.held:
-            if not all(math.isfinite(c) for c in m.end[:3]):
+            e = m.end
+            if not (math.isfinite(e[0]) and math.isfinite(e[1]) and math.isfinite(e[2])):
                 raise self.error(m.line, "cutter compensation: the offset path is out of range")
         return out
 
@@ -254,7 +262,7 @@ class CutterComp:
     def _passthrough(self, move: Move, u: int, v: int) -> list:
         tool = self.tool
         end = self._at(move.end, u, v, (tool[u], tool[v]))
-        m = replace(move, start=tool, end=end)
+        m = _with(move, tool, end)
         self.tool = end
         if self.held:
             self.held.append(m)
@@ -273,7 +281,7 @@ class CutterComp:
                 )
         else:
             self.exit_pending = False
-        m = replace(move, start=tool)
+        m = _with(move, tool, move.end)
         self.tool = tuple(move.end)
         out.append(m)
         return out
@@ -299,7 +307,7 @@ class CutterComp:
         t = _unit(_sub(e, c))
         n = _mul(_perp(t), self.side)
         tend = _add(e, _mul(n, r))
-        m = replace(move, start=self.tool, end=self._at(move.end, u, v, tend))
+        m = _with(move, self.tool, self._at(move.end, u, v, tend))
         self.held = [m]
         self.geom = _Geom("line", c, tend, t)
         # LinuxCNC records the entry's direction as the offset normal, not the
@@ -389,7 +397,7 @@ class CutterComp:
                 x = self._intersect(prev, new, p, move.line)
                 self._check_gouge(prev, x, move)
                 held0 = self.held[0]
-                self.held[0] = replace(held0, end=self._at(held0.end, u, v, x))
+                self.held[0] = _with(held0, held0.start, self._at(held0.end, u, v, x))
                 for i in range(1, len(self.held)):
                     m = self.held[i]
                     self.held[i] = replace(
@@ -429,7 +437,7 @@ class CutterComp:
                 out = self._release()
                 start = tp
         new.start = start
-        m = replace(move, start=tool, end=self._at(move.end, u, v, new.end))
+        m = _with(move, tool, self._at(move.end, u, v, new.end))
         self.held = [m]
         self.geom = new
         self.corner = (move.end[u], move.end[v])
