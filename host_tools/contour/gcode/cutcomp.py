@@ -37,18 +37,27 @@ the left of the programmed path, looking along the motion, for G41):
   (G41 with G3, G42 with G2) needs a radius larger than ``r``: "tool radius
   too big" otherwise.
 - Corners, by the turn from the end tangent of one move to the start
-  tangent of the next (tolerance 0.01 rad): a convex corner (turning away
-  from the tool side) gets an arc of radius ``r`` round ``P`` at the feed of
-  the next move (a straight rapid when the next move is a rapid); a concave
-  corner moves the end of the held move and the start of the next one to
-  the intersection of the two offset paths; it is an error (gouging) when
-  there is no intersection or when it lies beyond the start of the held
-  move or the end of the next one. A corner within the tolerance is joined
-  straight.
+  tangent of the next (tolerance 0.05 rad): a convex corner (turning away
+  from the tool side, a reversal included) gets an arc of radius ``r``
+  round ``P`` at the feed of the next move (a straight rapid when the next
+  move is a rapid); a concave corner moves the end of the held move and
+  the start of the next one to the intersection of the two offset paths
+  (the one that shortens both); a reversal onto or off the outside of an
+  arc counts as concave (the top of an "h"); a corner within the
+  tolerance is joined straight.
+- Gouging, as LinuxCNC checks it: when the end of the held move is set
+  (at the next corner, at a convex corner before a line, and at G40), a
+  line must not run against its programmed direction (the entry: against
+  its offset direction) and an arc must not sweep more than programmed
+  (+0.0254 rad); no intersection at a concave corner is an error too.
+  Checked against LinuxCNC 2.9's rs274 (tests/gcode/lcnc_oracle.py) on
+  2800 random programs: the same moves (to 3e-4 mm) or the same refusal,
+  except exact tangencies that LinuxCNC's rounding refuses.
 - Moves with no motion in the plane (Z only, dwells) keep the tool's
   in-plane position and pass through unchanged otherwise.
-- Exit: after G40, the next in-plane move goes straight from the
-  compensated position to its programmed end (an arc there is refused).
+- Exit: after G40, the next move goes straight from the compensated
+  position to its programmed end, in the plane too even if it is
+  programmed along Z only; an arc there is refused.
 """
 
 from __future__ import annotations
@@ -60,10 +69,20 @@ from typing import Optional
 
 from contour.gcode.moves import ARC_CCW, ARC_CW, DWELL, LINEAR, PLANE_AXES, RAPID, Move
 
-SMALL = 0.01  # rad: LinuxCNC's TOLERANCE_CONCAVE_CORNER
+SMALL = 0.05  # rad: LinuxCNC's TOLERANCE_CONCAVE_CORNER
 _EPS = 1e-9  # mm: points closer than this are the same point
-_GOUGE_TOL = 1e-6  # mm / rad: slack of the gouging checks
+# rad: how much further than programmed a held arc may sweep once its end
+# moves (LinuxCNC 2.9 as packaged in Debian 12, in mm mode; 0.001 in inch
+# mode and in later versions).
+ARC_SWEEP_SLACK = 0.0254
 _PLANE_NAMES = ("G17 (XY)", "G18 (XZ)", "G19 (YZ)")
+
+
+def _with(m: Move, start, end) -> Move:
+    """m from start to end (dataclasses.replace, without its cost)."""
+    return Move(
+        m.kind, start, end, m.feed, m.line, m.centre, m.plane, m.turns, m.exact_stop, m.dwell_s
+    )
 
 
 def _perp(v):
@@ -123,7 +142,10 @@ class _Geom:
         self.radius = radius  # offset radius (arcs)
         self.ccw = ccw
         self.turns = turns
-        self.direction = tangent  # lines: programmed direction, for the gouging test
+        # Lines: the direction the gouging test compares with (the programmed
+        # one). Arcs: the programmed sweep (radians) it must not exceed.
+        self.direction = tangent
+        self.sweep0 = 0.0
 
 
 class CutterComp:
@@ -139,6 +161,7 @@ class CutterComp:
         self.held: list[Move] = []
         self.geom: Optional[_Geom] = None
         self.corner = None  # programmed end of the held in-plane move
+        self.exit_pending = False  # G40 given, no straight move since
 
     # ---- modal words --------------------------------------------------------
     @property
@@ -170,6 +193,13 @@ class CutterComp:
         self.first = True
 
     def off(self, line: int) -> None:
+        if self.side and self.radius > 0.0:
+            self.exit_pending = True
+        if self.side and self.held and self.geom is not None:
+            # As LinuxCNC: the held move, turned back by its corner, is a gouge.
+            u, v = PLANE_AXES[self.plane]
+            end = self.held[0].end
+            self._check_gouge(self.geom, (end[u], end[v]), Move(0, end, end, 0.0, line))
         self.side = 0
         self.first = False
         # The held move ends where it is; the next in-plane move exits.
@@ -191,7 +221,8 @@ class CutterComp:
     def push(self, move: Move) -> list:
         out = self._push(move)
         for m in out + self.held:
-            if not all(math.isfinite(c) for c in m.end[:3]):
+            e = m.end
+            if not (math.isfinite(e[0]) and math.isfinite(e[1]) and math.isfinite(e[2])):
                 raise self.error(m.line, "cutter compensation: the offset path is out of range")
         return out
 
@@ -201,14 +232,18 @@ class CutterComp:
         if self.side and move.kind != DWELL and move.plane != self.plane:
             raise self.error(move.line, "cannot change plane with cutter compensation on")
         u, v = PLANE_AXES[self.plane] if self.side else PLANE_AXES[move.plane]
-        if move.kind == DWELL or (
+        if move.kind == DWELL:
+            return self._passthrough(move, u, v)
+        if not self.side or self.radius == 0.0:
+            # After G40 every motion goes to its programmed end, a Z move
+            # included: the tool leaves the offset path (as LinuxCNC).
+            return self._uncompensated(move, u, v)
+        if (
             move.kind not in (ARC_CW, ARC_CCW)
             and move.start[u] == move.end[u]
             and move.start[v] == move.end[v]
         ):
             return self._passthrough(move, u, v)
-        if not self.side or self.radius == 0.0:
-            return self._uncompensated(move, u, v)
         if self.first:
             return self._entry(move, u, v)
         return self._corner(move, u, v)
@@ -227,7 +262,7 @@ class CutterComp:
     def _passthrough(self, move: Move, u: int, v: int) -> list:
         tool = self.tool
         end = self._at(move.end, u, v, (tool[u], tool[v]))
-        m = replace(move, start=tool, end=end)
+        m = _with(move, tool, end)
         self.tool = end
         if self.held:
             self.held.append(m)
@@ -238,14 +273,15 @@ class CutterComp:
         out = self._release()
         self.geom = None
         tool = self.tool
-        if move.kind in (ARC_CW, ARC_CCW) and (
-            abs(tool[u] - move.start[u]) > _EPS or abs(tool[v] - move.start[v]) > _EPS
-        ):
-            raise self.error(
-                move.line,
-                "the first move after G40 must be a straight line (it leaves the offset path)",
-            )
-        m = replace(move, start=tool)
+        if move.kind in (ARC_CW, ARC_CCW):
+            if self.exit_pending:
+                raise self.error(
+                    move.line,
+                    "the first move after G40 must be a straight line (it leaves the offset path)",
+                )
+        else:
+            self.exit_pending = False
+        m = _with(move, tool, move.end)
         self.tool = tuple(move.end)
         out.append(m)
         return out
@@ -271,9 +307,12 @@ class CutterComp:
         t = _unit(_sub(e, c))
         n = _mul(_perp(t), self.side)
         tend = _add(e, _mul(n, r))
-        m = replace(move, start=self.tool, end=self._at(move.end, u, v, tend))
+        m = _with(move, self.tool, self._at(move.end, u, v, tend))
         self.held = [m]
         self.geom = _Geom("line", c, tend, t)
+        # LinuxCNC records the entry's direction as the offset normal, not the
+        # motion; a concave corner right after the entry is checked with it.
+        self.geom.direction = n
         self.corner = e
         self.first = False
         self.tool = m.end
@@ -312,6 +351,7 @@ class CutterComp:
             t_start = _mul(_perp(ps), k)
             t_end = _mul(_perp(pe), k)
             g = _Geom("arc", start, end, t_end, c, rn, ccw, move.turns)
+            g.sweep0 = _sweep(c, p, e, ccw, move.turns)
             return g, t_start, start, inside
         t = _unit(_sub(e, p))
         n = _mul(_perp(t), s)
@@ -345,19 +385,19 @@ class CutterComp:
             if beta < -SMALL or beta > math.pi + SMALL:
                 concave = True
             elif beta > math.pi - SMALL and (
-                (move.kind in (ARC_CW, ARC_CCW) and not inside)
-                or (prev.kind == "arc" and s * (1 if prev.ccw else -1) < 0)
+                (new.kind == "arc" and not inside)
+                or (new.kind == "line" and prev.kind == "arc" and s * (1 if prev.ccw else -1) < 0)
             ):
-                # Reversal over the outside of an arc ("h" shape): LinuxCNC
-                # stays on the near side.
+                # A reversal onto (or off) the outside of an arc, the top of
+                # an "h" or "m": LinuxCNC stays on the near side.
                 concave = True
             else:
                 concave = False
             if concave:
                 x = self._intersect(prev, new, p, move.line)
-                self._check_gouge(prev, new, x, move)
+                self._check_gouge(prev, x, move)
                 held0 = self.held[0]
-                self.held[0] = replace(held0, end=self._at(held0.end, u, v, x))
+                self.held[0] = _with(held0, held0.start, self._at(held0.end, u, v, x))
                 for i in range(1, len(self.held)):
                     m = self.held[i]
                     self.held[i] = replace(
@@ -367,6 +407,10 @@ class CutterComp:
                 tool = self._at(tool, u, v, x)
                 start = x
             elif beta > SMALL:
+                if new.kind == "line":
+                    # LinuxCNC checks the held move here too (it may have been
+                    # turned back by the corner before it).
+                    self._check_gouge(prev, tp, move)
                 out = self._release()
                 corner_end = tuple(
                     s2[0] if i == u else s2[1] if i == v else tool[i] if i < 3 else move.end[i]
@@ -393,7 +437,7 @@ class CutterComp:
                 out = self._release()
                 start = tp
         new.start = start
-        m = replace(move, start=tool, end=self._at(move.end, u, v, new.end))
+        m = _with(move, tool, self._at(move.end, u, v, new.end))
         self.held = [m]
         self.geom = new
         self.corner = (move.end[u], move.end[v])
@@ -417,26 +461,25 @@ class CutterComp:
             pts = _circle_circle(a.centre, a.radius, b.centre, b.radius)
         if not pts:
             raise self._gouge(line)
-        return min(pts, key=lambda q: _norm(_sub(q, p)))
 
-    def _check_gouge(self, a: _Geom, b: _Geom, x, move: Move) -> None:
-        """The corner point x must not run back past the start of the held
-        move nor past the end of the next one."""
+        def key(q):
+            # Prefer the point that shortens the held move and the next one
+            # (a concave corner cuts both back), then the nearest to the corner.
+            ok = _behind(a, q, a.end, True) and _behind(b, b.start, q, False)
+            return (not ok, _norm(_sub(q, p)))
+
+        return min(pts, key=key)
+
+    def _check_gouge(self, a: _Geom, x, move: Move) -> None:
+        """Moving the end of the held move to x must not turn it back (a
+        line) or make it sweep further than programmed (an arc), as in
+        LinuxCNC; the next move is checked when its own end moves."""
         if a.kind == "line":
-            if _dot(_sub(x, a.start), a.direction) < -_GOUGE_TOL:
+            if _dot(_sub(x, a.start), a.direction) < 0.0:
                 raise self._gouge(move.line)
-        else:
-            full = _sweep(a.centre, a.start, a.end, a.ccw, a.turns)
+        elif a.sweep0 > 0.0:
             cut = _sweep(a.centre, a.start, x, a.ccw, a.turns)
-            if cut > full + _GOUGE_TOL:
-                raise self._gouge(move.line)
-        if b.kind == "line":
-            if _dot(_sub(b.end, x), b.tangent) < -_GOUGE_TOL:
-                raise self._gouge(move.line)
-        else:
-            full = _sweep(b.centre, b.start, b.end, b.ccw, b.turns)
-            cut = _sweep(b.centre, x, b.end, b.ccw, b.turns)
-            if cut > full + _GOUGE_TOL:
+            if cut > a.sweep0 + ARC_SWEEP_SLACK:
                 raise self._gouge(move.line)
 
     def _gouge(self, line: int) -> Exception:
@@ -445,6 +488,15 @@ class CutterComp:
             f"cutter compensation: the tool (radius {self.radius:.4g} mm) cannot reach this "
             "concave corner without gouging the path",
         )
+
+
+def _behind(g: _Geom, q0, q1, held: bool) -> bool:
+    """q1 lies ahead of q0 along g (by less than half a turn on an arc)."""
+    if g.kind == "line":
+        return _dot(_sub(q1, q0), g.tangent) >= -1e-9
+    if _norm(_sub(q1, q0)) <= 1e-9:
+        return True
+    return _sweep(g.centre, q0, q1, g.ccw, 0) < math.pi
 
 
 def _line_circle(p, t, c, rad):
