@@ -164,7 +164,7 @@ def main(paths):
             print(f"{name:32} LinuxCNC: {theirs} | ours: {myerr or 'ok'}")
             continue
         ok = (
-            np.allclose(lc[0][:3], mine[0][:3], atol=1e-4)
+            np.allclose(lc[0][:6], mine[0][:6], atol=1e-4)
             and abs(lc[1] - mine[1]) < 1e-3
             and abs(lc[2] - mine[2]) < 1e-3
             and abs(lc[3] - mine[3]) < 1e-6
