@@ -629,6 +629,12 @@ def test_heidenhain_conversational_is_refused_with_a_hint(line):
     assert e.line == 1 and "Heidenhain conversational" in e.message
 
 
+@pytest.mark.parametrize("line", ["%PART G71 *", "N10 G00 G40 G90 *", "N20 G01 X+10 F500 *"])
+def test_heidenhain_iso_is_refused_with_a_hint(line):
+    e = err(line)
+    assert e.line == 1 and "Heidenhain ISO program" in e.message
+
+
 @pytest.mark.parametrize(
     "line,shown",
     [
