@@ -586,12 +586,8 @@ def test_loop_buffer_is_released_after_the_loop():
         assert len(runner.file.buf) == 0
 
 
-def test_memory_stays_flat_for_a_long_plain_file(monkeypatch):
+def test_memory_stays_flat_for_a_long_plain_file():
     import tracemalloc
-
-    from contour.gcode import lexer
-
-    monkeypatch.setattr(lexer, "WORD_CACHE_SIZE", 500)
 
     def peak(n):
         def lines():
