@@ -136,10 +136,10 @@ class Runner:
                     lineno += 1
                     if type(raw) is not str and raw.isascii():
                         raw = raw.decode("ascii")  # others: clean() decodes
-                    if type(raw) is str and len(raw) <= LINE_CAP:
+                    if len(raw) <= LINE_CAP and type(raw) is str:
                         m = plain(raw)
                         if m is not None:
-                            body = m.group(1)
+                            body = m[1]
                             words = [(t[0], float(t[1:])) for t in body.split()]
                             if "M" in body and (ENDS[0] in words or ENDS[1] in words):
                                 self.plain_ended = True
