@@ -29,6 +29,8 @@ AXIS_NAMES = "xyza"
 
 _REPLY_NAMES = {m.reply for m in pg.MESSAGES if m.reply} | {"ack", "error"}
 _SESSION_OPEN_ID = pg.MSG_BY_NAME["session_open"].id
+# (id, message length) of the session_reply of a protocol-1 drive
+_SESSION_REPLY_V1 = (bytes([pg.MSG_BY_NAME["session_reply"].id]), pg.MSG_HDR + 6)
 
 
 def _answers(reply: codec.Decoded, request: pg.Message) -> bool:
@@ -131,6 +133,7 @@ class Client:
         self.retried = 0
         self.stale_replies = 0  # replies of an earlier session or request, dropped
         self.session: Optional[int] = None  # the nonce of the open session
+        self.drive_protocol = pg.PROTOCOL_VERSION  # from session_reply
         self._opening: Optional[tuple[int, int, threading.Event, list]] = None
         self._synced = False
         self.t.start(self._on_message)
@@ -141,8 +144,21 @@ class Client:
         try:
             m = codec.decode(data)
         except codec.ProtocolError:
-            self.bad_messages += 1
-            return
+            if data[:1] == _SESSION_REPLY_V1[:1] and len(data) == _SESSION_REPLY_V1[1]:
+                # a drive of protocol 1: its session_reply has no version
+                m = codec.Decoded(
+                    "session_reply",
+                    data[0],
+                    data[1],
+                    {
+                        "nonce": int.from_bytes(data[2:6], "little"),
+                        "sessions": int.from_bytes(data[6:8], "little"),
+                        "protocol_version": 1,
+                    },
+                )
+            else:
+                self.bad_messages += 1
+                return
         with self._lock:
             opening = self._opening
             slot = self._pending.get(m.seq) if opening is None else None
@@ -228,25 +244,59 @@ class Client:
             ev: threading.Event = threading.Event()
             box: list = []
             self._opening = (nonce, seq, ev, box)
-        try:
-            data = codec.encode("session_open", seq, nonce=nonce)
-            self._exchange("session_open", data, ev, timeout, retries)
-        finally:
+        data = codec.encode("session_open", seq, nonce=nonce, protocol_version=pg.PROTOCOL_VERSION)
+        reply = self._open_exchange(data, ev, box, timeout, retries)
+        if reply.name == "error" and reply.fields["code"] == pg.ErrorCode.BAD_LENGTH:
+            # a drive of protocol 1 (its session_open has no version): open
+            # its way; what needs protocol 2 refuses it (require_protocol)
             with self._lock:
-                self._opening = None
-        self.drain_unsolicited()  # queued before the session: none of ours
-        reply = box[0]
+                self._seq = (self._seq + 1) & 0xFF
+                seq = self._seq
+                ev, box = threading.Event(), []
+                self._opening = (nonce, seq, ev, box)
+            data = codec.encode("session_open", seq, nonce=nonce, protocol_version=0)[:-2]
+            reply = self._open_exchange(data, ev, box, timeout, retries)
+            self.drive_protocol = 1
         if reply.name == "error":
             code = reply.fields["code"]
+            if code == pg.ErrorCode.NOT_SUPPORTED:
+                raise DriveError(
+                    "session_open",
+                    reply.fields,
+                    f"the drive speaks protocol version {reply.fields['arg']}, this contour "
+                    f"speaks {pg.PROTOCOL_VERSION}: use a contour of the drive's version, or "
+                    "update the drive's firmware from its bootloader (contour flash)",
+                )
             if code != pg.ErrorCode.UNKNOWN_MESSAGE:
                 raise DriveError(
                     "session_open", reply.fields, describe_error("session_open", reply.fields)
                 )
             # firmware older than sessions: at least no command of this
             # session can be taken for a replay of the last one
+            self.drive_protocol = 1
             self.request("status_get", timeout=timeout, retries=retries)
             return
+        self.drive_protocol = reply.fields.get("protocol_version", 1)
         self.session = nonce
+
+    def _open_exchange(self, data: bytes, ev, box: list, timeout, retries) -> codec.Decoded:
+        try:
+            self._exchange("session_open", data, ev, timeout, retries)
+        finally:
+            with self._lock:
+                self._opening = None
+        self.drain_unsolicited()  # queued before the session: none of ours
+        return box[0]
+
+    def require_protocol(self, what: str, version: int = pg.PROTOCOL_VERSION) -> None:
+        """Refuse a drive whose protocol is older than `version` for `what`."""
+        if not self._synced:
+            self.request("status_get")
+        if self.drive_protocol < version:
+            raise UserError(
+                f"{what} needs a drive of protocol version {version}; this drive speaks "
+                f"version {self.drive_protocol}: update its firmware (contour flash)"
+            )
 
     def unsolicited(self, timeout: float = 0.0):
         """Next (timestamp, Decoded) status/telemetry message, or None."""
