@@ -496,7 +496,6 @@ size_t proto_batch_request(proto_batch_t *s, unsigned axes, uint8_t seq, const u
     r.status = PROTO_ERROR_CODE_NONE;
     r.arg = 0;
     drive_status(&st);
-    PREEMPT_POINT();
     if (start) {
         /* a new stream: whatever the ring held of the last one is dropped
          * only if the drive is not executing it (a restart while it runs
@@ -509,18 +508,18 @@ size_t proto_batch_request(proto_batch_t *s, unsigned axes, uint8_t seq, const u
         } else {
             r.status = PROTO_ERROR_CODE_BUSY;
         }
+    } else if (s->broken != PROTO_ERROR_CODE_NONE) {
+        r.status = s->broken; /* the stream ended: whatever block this is */
+        r.arg = s->broken_arg;
     } else if (!s->started || q.first_seq != s->next_seq) {
         r.status = PROTO_ERROR_CODE_SEQUENCE;
-    } else if (s->broken != PROTO_ERROR_CODE_NONE) {
-        r.status = s->broken;
-        r.arg = s->broken_arg;
     }
     if (r.status == PROTO_ERROR_CODE_NONE && q.count > 0u) {
-        if (st.state == DRIVE_DISABLED) {
-            r.status = PROTO_ERROR_CODE_DISABLED;
-        } else if (st.state == DRIVE_FAULT) {
-            r.status = PROTO_ERROR_CODE_FAULTED;
-            r.arg = (uint16_t)st.faults;
+        drive_result_t dr = drive_accepting();
+
+        PREEMPT_POINT();
+        if (dr != DRIVE_OK) {
+            r.status = refusal(dr, &r.arg);
         } else {
             take(s, &q, axes, &r);
             proto_batch_pump(s);

@@ -34,7 +34,8 @@
  * (a prefix), the block expected next, the refusal of the first one not
  * taken (status, arg), and the window after them: the ring's free bytes,
  * the planned time queued, blocks done and the state, read once. A drive
- * that is disabled or faulted takes nothing (status disabled / faulted).
+ * that would refuse any block now (drive_accepting: disabled, faulted,
+ * stopping, homing) takes nothing (status disabled / faulted / busy).
  *
  * The ring holds about 1000 short blocks (4 bytes each for a 10 um move
  * of one axis at the stream's feed) in the RAM of 28 host-FIFO entries.
