@@ -84,6 +84,8 @@ static bool get_svar(proto_batch_rd_t *rd, int64_t *v)
 
 int proto_batch_rd_next(proto_batch_rd_t *rd, proto_batch_block_t *b)
 {
+    bool origin = false;
+
     for (;;) {
         uint8_t head;
         uint8_t kind;
@@ -98,10 +100,11 @@ int proto_batch_rd_next(proto_batch_rd_t *rd, proto_batch_block_t *b)
         rd->record++;
         kind = (uint8_t)(head >> PROTO_BATCH_HEAD_KIND);
         if (kind == PROTO_BATCH_KIND_ORIGIN) {
-            if ((head & ((1u << PROTO_BATCH_HEAD_FEED) | (1u << PROTO_BATCH_HEAD_EXACT_STOP))) !=
-                0u) {
-                return -1;
+            if (origin || (head & ((1u << PROTO_BATCH_HEAD_FEED) |
+                                   (1u << PROTO_BATCH_HEAD_EXACT_STOP))) != 0u) {
+                return -1; /* two in a row, or flags an origin has not */
             }
+            origin = true;
             for (i = 0; i < PROTO_MAX_AXES; i++) {
                 rd->pt[i] = 0;
                 if ((head & (1u << i)) != 0u && !get_svar(rd, &rd->pt[i])) {
@@ -369,7 +372,7 @@ void proto_batch_flush(proto_batch_t *s, uint8_t code)
 
 void proto_batch_pump(proto_batch_t *s)
 {
-    uint8_t rec[PROTO_BATCH_RECORD_MAX];
+    uint8_t rec[2u * PROTO_BATCH_RECORD_MAX]; /* an origin record and a block */
 
     while (s->used > 0u) {
         proto_batch_rd_t rd;
@@ -387,6 +390,10 @@ void proto_batch_pump(proto_batch_t *s)
         proto_batch_rd_init(&rd, rec, n, s->pump_pt, s->pump_feed);
         k = proto_batch_rd_next(&rd, &b); /* origin records are applied on the way */
         took = n - rd.left;
+        if (k < 0) { /* never: the records were checked (one origin at most) */
+            proto_batch_flush(s, PROTO_ERROR_CODE_INTERNAL);
+            return;
+        }
         if (k != 1) {
             /* only origin records left (k == 0); never malformed: checked */
             s->head = (uint16_t)((s->head + took) % PROTO_BATCH_RING);

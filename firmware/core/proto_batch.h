@@ -16,7 +16,8 @@
  * without a delta keeps its coordinate. A line without a feed runs at the
  * stream's feed (the last line feed given). An origin record is no block:
  * its masked axes take the absolute values that follow (zigzag LEB128), the
- * other axes 0 (origin records after a batch's last block are ignored). Integers are at most 10
+ * other axes 0; two origin records in a row are malformed, and origin
+ * records after a batch's last block are ignored. Integers are at most 10
  * bytes, the last byte's high bit clear; a value above 2^64 - 1 is malformed.
  *
  * Intake (proto_batch_request, main context): the whole batch is parsed

@@ -112,15 +112,18 @@ def decode(data: bytes, point=(0, 0, 0, 0), feed: int = 0) -> list[Record]:
         z = uvar()
         return (z >> 1) ^ -(z & 1)
 
+    origin = False
     while i < len(data):
         head = data[i]
         i += 1
         kind = head >> KIND_SHIFT
         if kind == pg.BatchKind.ORIGIN:
-            if head & (HEAD_FEED | HEAD_EXACT):
-                raise BatchError("origin with feed or exact stop")
+            if origin or head & (HEAD_FEED | HEAD_EXACT):
+                raise BatchError("two origins in a row, or an origin with feed or exact stop")
+            origin = True
             pt = [svar() if head & (1 << k) else 0 for k in range(pg.MAX_AXES)]
             continue
+        origin = False
         for k in range(pg.MAX_AXES):
             if head & (1 << k):
                 pt[k] += svar()

@@ -187,29 +187,35 @@ class Client:
     def request(
         self, name: str, timeout: Optional[float] = None, retries: Optional[int] = None, **fields
     ) -> codec.Decoded:
+        return self.submit(name, **fields).result(timeout, retries)
+
+    def submit(self, name: str, **fields) -> Pending:
+        """Send request `name` now and return at once; :meth:`Pending.result`
+        waits for its reply (sending the same bytes again on a timeout, as
+        :meth:`request` does). Several may be in flight: replies are matched
+        by sequence number."""
         msg = pg.MSG_BY_NAME.get(name)
         if msg is None or msg.dir != "h2d":
             raise UserError(f"{name!r} is not a request")
         if not self._synced:
             self._synced = True
-            self._open_session(timeout, retries)
+            self._open_session(None, None)
         with self._lock:
             self._seq = (self._seq + 1) & 0xFF
             seq = self._seq
+            if seq in self._pending:
+                raise UserError(f"{name}: more than 255 requests in flight")
             ev: threading.Event = threading.Event()
             box: list = []
             self._pending[seq] = (ev, box, msg)
+        data = codec.encode(name, seq, **fields)
         try:
-            self._exchange(name, codec.encode(name, seq, **fields), ev, timeout, retries)
-        finally:
+            self.t.send(data)
+        except BaseException:
             with self._lock:
                 self._pending.pop(seq, None)
-        reply = box[0]
-        if reply.name == "error":
-            raise DriveError(name, reply.fields, describe_error(name, reply.fields))
-        if msg.reply and reply.name != msg.reply:
-            raise codec.ProtocolError(f"{name}: drive answered {reply.name}, expected {msg.reply}")
-        return reply
+            raise
+        return Pending(self, name, msg, seq, data, ev, box)
 
     def _exchange(
         self,
@@ -218,15 +224,18 @@ class Client:
         ev: threading.Event,
         timeout: Optional[float],
         retries: Optional[int],
+        sent: bool = False,
     ) -> None:
         """Send `data` until `ev` is set (the reply arrived), the same bytes
-        each try (the drive answers a repeat from its replay cache)."""
+        each try (the drive answers a repeat from its replay cache); `sent`:
+        the first try was sent already."""
         tries = 1 + (self.retries if retries is None else retries)
         wait = self.timeout if timeout is None else timeout
         for attempt in range(tries):
             if attempt:
                 self.retried += 1
-            self.t.send(data)
+            if attempt or not sent:
+                self.t.send(data)
             if ev.wait(wait):
                 return
         raise LinkError(
@@ -338,6 +347,37 @@ class Client:
         if axes is None:
             axes = self.identify()["axes"]
         self.request("enable", axis_mask=(1 << axes) - 1, on=int(on))
+
+
+class Pending:
+    """A request in flight (:meth:`Client.submit`)."""
+
+    def __init__(self, client, name, msg, seq, data, ev, box) -> None:
+        self.c, self.name, self.msg, self.seq = client, name, msg, seq
+        self._data, self._ev, self._box = data, ev, box
+
+    def cancel(self) -> None:
+        """Forget it (its reply, if any, is dropped as stale)."""
+        with self.c._lock:
+            self.c._pending.pop(self.seq, None)
+
+    def result(
+        self, timeout: Optional[float] = None, retries: Optional[int] = None
+    ) -> codec.Decoded:
+        c = self.c
+        try:
+            c._exchange(self.name, self._data, self._ev, timeout, retries, sent=True)
+        finally:
+            with c._lock:
+                c._pending.pop(self.seq, None)
+        reply = self._box[0]
+        if reply.name == "error":
+            raise DriveError(self.name, reply.fields, describe_error(self.name, reply.fields))
+        if self.msg.reply and reply.name != self.msg.reply:
+            raise codec.ProtocolError(
+                f"{self.name}: drive answered {reply.name}, expected {self.msg.reply}"
+            )
+        return reply
 
 
 def connect(

@@ -124,6 +124,9 @@ DEFAULT_IN_POSITION_NM = 5000  # when the drive has no in_position_window parame
 TELEM_PERIOD_MS = 10
 TELEM_PERIOD_MS_CAN = 100
 PROGRESS_PERIOD_S = 0.1  # on_progress at most this often while batches flow
+# batches in flight: the drive's CAN link queues 4 replies (PROTO_LINK_REPLY_MAX)
+INFLIGHT_SERIAL = 8
+INFLIGHT_CAN = 3
 
 
 class Streamer:
@@ -162,6 +165,7 @@ class Streamer:
         total: Optional[int] = None,
         est_total_s: Optional[float] = None,
         batch_max: int = bt.COUNT_MAX,
+        inflight_max: Optional[int] = None,
     ) -> None:
         self.c = client
         self.blocks = blocks
@@ -186,6 +190,7 @@ class Streamer:
         self.telem_period_ms = telem_period_ms
         self.on_telemetry = on_telemetry
         self.batch_max = max(1, min(int(batch_max), bt.COUNT_MAX))
+        self.inflight_max = inflight_max
         self.queue_full_replies = 0
         self.batches = 0
         self.resent_blocks = 0
@@ -198,7 +203,11 @@ class Streamer:
         self._last: Optional[Block] = None
 
     def _where_seq(self, seq: int) -> str:
-        for s, b, _ in self._held:
+        items = list(self._held) + list(getattr(self, "_retake", []))
+        items += list(getattr(self, "_unsent", []))
+        for _, _, batch_items, _ in getattr(self, "_inflight", []):
+            items += batch_items
+        for s, b, _ in items:
             if s == seq:
                 return f"{self.source}:{b.line}"
         if self._last is not None:
@@ -277,6 +286,8 @@ class Streamer:
             self.c.set_param("telem_period_ms", self.telem_period_ms)
             return self._run()
         except KeyboardInterrupt:
+            for item in getattr(self, "_inflight", ()):
+                item[0].cancel()
             self.stop_and_wait()
             raise
         finally:
@@ -294,69 +305,99 @@ class Streamer:
         return st
 
     # ---- batches -------------------------------------------------------------
+    #
+    # Up to `inflight_max` batches are in flight: the window is the ring's
+    # free bytes of the last reply less the bytes sent since. Replies are
+    # handled in order. A batch the drive could not take whole makes every
+    # later batch in flight fail its sequence check (nothing of them is
+    # taken); once they are answered the blocks not taken are sent again
+    # from the block the drive expects, after an origin record. A retried
+    # batch (lost reply) that the replay cache no longer holds is refused
+    # as out of sequence: its next_seq then says how much of it was taken.
 
-    def _encode(self, pending: deque, room: int) -> tuple[bytes, int]:
-        """Records of as many pending blocks as fit `room` bytes (from the
-        stream's point and feed after the last block the drive took)."""
-        point = list(self._point)
-        state = {"feed": self._feed}
+    def _encode(self, room: int) -> tuple[bytes, list, list, Optional[int]]:
+        """Records of as many unsent blocks as fit `room` bytes, from the
+        encoder's point and feed (after the last block sent)."""
+        point = list(self._enc_point)
+        state = {"feed": self._enc_feed}
         out = bytearray()
         if self._need_origin:
             bt.encode_origin(point, out)
-        k = 0
-        for _, b, _ in pending:
-            if k >= self.batch_max:
+        items = []
+        for item in self._unsent:
+            if len(items) >= self.batch_max:
                 break
+            b = item[1]
+            before = (list(point), state["feed"])
             rec = bt.encode_block(b.kind, b.target_nm, b.feed_nm_s, b.exact_stop, point, state)
             if len(out) + len(rec) > room:
+                point, state["feed"] = before  # not sent: the stream stays before it
                 break
             out += rec
-            k += 1
-        return bytes(out), k
+            items.append(item)
+        return bytes(out), items, point, state["feed"]
 
-    def _taken(self, blocks: list) -> None:
-        """The stream's point and feed after `blocks` (taken in order)."""
-        for b in blocks:
-            if b.kind != pg.BlockKind.DWELL:
-                t = list(b.target_nm)
-                self._point = t + [0] * (pg.MAX_AXES - len(t))
-            if b.kind == pg.BlockKind.LINE:
-                self._feed = b.feed_nm_s
-
-    def _batch(self, pending: deque, room: int) -> dict:
-        """One queue_batch of what fits `room` (room 0: an empty batch, which
-        only reads the window); the blocks the drive took move to _held."""
-        data, k = self._encode(pending, min(room, bt.DATA_MAX)) if room > 0 else (b"", 0)
-        if k == 0:
-            data = b""
-        first = pending[0][0] if pending else self._next
+    def _send(self, room: int) -> bool:
+        """Send one batch into `room` bytes; False when nothing fits."""
+        data, items, point, feed = self._encode(min(room, bt.DATA_MAX))
+        if not items:
+            return False
+        first = items[0][0]
         flags = (1 << pg.BatchFlag.START) if self._start else 0
+        p = self.c.submit(
+            "queue_batch", first_seq=first & 0xFFFFFFFF, count=len(items), flags=flags, data=data
+        )
+        for _ in items:
+            self._unsent.popleft()
+        self._inflight.append((p, first, items, len(data)))
+        self._inflight_bytes += len(data)
+        self._enc_point, self._enc_feed = point, feed
+        self._need_origin = False
+        self._start = False
+        self.batches += 1
+        return True
+
+    def _poll(self) -> dict:
+        """An empty batch: only the window."""
+        return self.c.request(
+            "queue_batch", first_seq=self._acc_next & 0xFFFFFFFF, count=0, flags=0, data=b""
+        ).fields
+
+    def _collect(self) -> dict:
+        """The reply of the oldest batch in flight, accounted."""
+        p, first, items, nbytes = self._inflight.popleft()
+        self._inflight_bytes -= nbytes
         try:
-            r = self.c.request(
-                "queue_batch", first_seq=first & 0xFFFFFFFF, count=k, flags=flags, data=data
-            ).fields
+            r = p.result().fields
         except DriveError as exc:  # a malformed batch: a bug here, not in the program
             raise UserError(f"{self._where_seq(first)}: {exc}") from None
-        a = r["accepted"]
-        if k:
-            self.batches += 1
-            self._start = False
-            taken = [pending[i][1] for i in range(a)]
-            self._taken(taken)
-            for _ in range(a):
-                self._held.append(pending.popleft())
-            self._next = first + a
-            self._need_origin = a < k
-            self.resent_blocks += k - a
+        k = len(items)
         status = r["status"]
         if status == pg.ErrorCode.SEQUENCE:
-            raise UserError(
-                f"{self._where_seq(first)}: the drive expected block {r['next_seq']}, "
-                f"not {first} (another host streamed to it?)"
-            )
+            taken = min(max(r["next_seq"] - first, 0), k) if r["next_seq"] >= first else 0
+            if taken == 0 and not self._resync and r["next_seq"] != first:
+                raise UserError(
+                    f"{self._where_seq(first)}: the drive expected block {r['next_seq']}, "
+                    f"not {first} (another host streamed to it?)"
+                )
+        else:
+            taken = r["accepted"]
+        for item in items[:taken]:
+            self._held.append(item)
+            b = item[1]
+            if b.kind != pg.BlockKind.DWELL:
+                t = list(b.target_nm)
+                self._acc_point = t + [0] * (pg.MAX_AXES - len(t))
+            if b.kind == pg.BlockKind.LINE:
+                self._acc_feed = b.feed_nm_s
+        self._acc_next = first + taken
+        if taken < k:
+            self._resync = True
+            self._retake.extend(items[taken:])
+            self.resent_blocks += k - taken
         if status == pg.ErrorCode.QUEUE_FULL:
             self.queue_full_replies += 1
-        elif status != pg.ErrorCode.NONE:
+        elif status not in (pg.ErrorCode.NONE, pg.ErrorCode.SEQUENCE):
             seq = r["next_seq"]
             if status == pg.ErrorCode.FAULTED or r["state"] in (pg.State.FAULT, pg.State.ESTOP):
                 st = self.c.status()
@@ -373,6 +414,13 @@ class Streamer:
                 fields = {"code": status, "arg": r["arg"], "lo": 0, "hi": 0, "req": 0}
                 text = describe_error("queue_batch", fields)
             raise UserError(f"{self._where_seq(seq)}: {text}")
+        if self._resync and not self._inflight:
+            # every batch sent is answered: the rest again, from what was taken
+            self._unsent.extendleft(reversed(self._retake))
+            self._retake = []
+            self._resync = False
+            self._need_origin = True
+            self._enc_point, self._enc_feed = list(self._acc_point), self._acc_feed
         return r
 
     def _run(self) -> dict:
@@ -383,17 +431,25 @@ class Streamer:
             st = self.c.status()
         self._done0 = done0 = st["blocks_done"]
         it = iter(self.blocks)
-        pending: deque = deque()  # (seq, block, cum_est) not yet taken by the drive
-        self._point = [0] * pg.MAX_AXES
-        self._feed: Optional[int] = None
+        self._unsent: deque = deque()  # (seq, block, cum_est) read, not yet sent
+        self._inflight: deque = deque()  # (pending, first, items, bytes)
+        self._inflight_bytes = 0
+        self._retake: list = []
+        self._resync = False
+        self._acc_point = [0] * pg.MAX_AXES
+        self._acc_feed: Optional[int] = None
+        self._acc_next = 0
+        self._enc_point = list(self._acc_point)
+        self._enc_feed: Optional[int] = None
         self._need_origin = True
         self._start = True
-        self._next = 0
         self._end_target = None
+        on_can = type(getattr(self.c, "t", None)).__name__ == "CanTransport"
+        inflight_max = self.inflight_max or (INFLIGHT_CAN if on_can else INFLIGHT_SERIAL)
         taken = 0
         cum = 0.0
         exhausted = False
-        room = bt.DATA_MAX  # the drive's free bytes, from its last reply
+        free = bt.DATA_MAX  # the ring's free bytes in the last reply
         queued = st["queued_us"]
         state = st["state"]
         t0 = time.monotonic()
@@ -404,34 +460,44 @@ class Streamer:
         done = 0
         done_est = 0.0
         while True:
-            # read the iterator only as far as one batch needs
-            while not exhausted and len(pending) < self.batch_max:
+            # read the iterator only as far as the window needs
+            while not exhausted and len(self._unsent) < self.batch_max:
                 try:
                     b = next(it)
                 except StopIteration:
                     exhausted = True
                     break
                 cum += b.est_s
-                pending.append((taken, b, cum))
+                self._unsent.append((taken, b, cum))
                 self._last = b
                 if b.kind != pg.BlockKind.DWELL:
                     self._end_target = b.target_nm
                 taken += 1
+            # send while the window is open
+            sent = False
+            if (
+                not self._resync
+                and self._unsent
+                and len(self._inflight) < inflight_max
+                and (queued < self.queue_us or not self._held)
+            ):
+                room = free - self._inflight_bytes
+                if room >= min(bt.DATA_MAX, 64) or (not self._inflight and room > 0):
+                    sent = self._send(room)
+            if sent and len(self._inflight) < inflight_max and self._unsent:
+                continue  # fill the pipe first
+            r = self._collect() if self._inflight else self._poll()
             now = time.monotonic()
-            # send while the window is open; else an empty batch reads it
-            opening = pending and room >= min(bt.DATA_MAX, 64)
-            sending = opening and (queued < self.queue_us or self._start)
-            r = self._batch(pending, room if sending else 0)
-            room, queued, state = r["free_bytes"], r["queued_us"], r["state"]
+            free, queued, state = r["free_bytes"], r["queued_us"], r["state"]
             new_done = (r["blocks_done"] - done0) & 0xFFFFFFFF
-            if now - last_t >= 0.1:  # live feed, telemetry
+            if now - last_t >= 0.1:  # live feed, telemetry, faults
                 st = self.c.status()
                 self._check(st)
                 self._telemetry()
                 d = math.dist(st["pos"][:3], last_pos) / NM_PER_MM
                 feed = d / (now - last_t) * 60.0
                 last_pos, last_t = st["pos"][:3], now
-            sent_all = exhausted and not pending
+            sent_all = exhausted and not self._unsent and not self._inflight and not self._resync
             self._done = new_done
             # mid-job: after the first block is done, before the last is sent
             if (
@@ -448,7 +514,7 @@ class Streamer:
                 last_report = now
                 self.on_progress(
                     Progress(
-                        taken - len(pending),
+                        self._acc_next,
                         min(done, taken),
                         self.total,
                         now - t0,
@@ -467,9 +533,11 @@ class Streamer:
                     f"drive made no progress for {self.stall_s:g} s "
                     f"({done} of {taken} blocks done, state {pg.State(state).name.lower()})"
                 )
+            if self._inflight:
+                continue
             if sent_all or queued >= self.queue_us // 2:
                 time.sleep(self.poll_s)
-            elif not sending:
+            elif free < min(bt.DATA_MAX, 64):
                 time.sleep(min(self.poll_s, 0.0005))
         motion_s = time.monotonic() - t0
         st = self._settle(3)
