@@ -17,6 +17,7 @@ void proto_batch_reset(proto_batch_t *s)
     s->started = false;
     s->broken = PROTO_ERROR_CODE_NONE;
     s->broken_arg = 0;
+    s->start_seq = 0;
     s->next_seq = 0;
     for (i = 0; i < PROTO_MAX_AXES; i++) {
         s->pt[i] = 0;
@@ -503,13 +504,26 @@ size_t proto_batch_request(proto_batch_t *s, unsigned axes, uint8_t seq, const u
     r.status = PROTO_ERROR_CODE_NONE;
     r.arg = 0;
     drive_status(&st);
-    if (start) {
-        /* a new stream: whatever the ring held of the last one is dropped
-         * only if the drive is not executing it (a restart while it runs
-         * is refused below as busy) */
+    if (q.count > 0u) {
+        drive_result_t dr = drive_accepting(); /* first: a refused start starts nothing */
+
+        PREEMPT_POINT();
+        if (dr != DRIVE_OK) {
+            r.status = refusal(dr, &r.arg);
+        }
+    }
+    if (r.status != PROTO_ERROR_CODE_NONE) {
+        /* the drive takes nothing now */
+    } else if (start && s->started && q.first_seq == s->start_seq) {
+        /* the start batch again (a retry the replay cache no longer
+         * holds): not a new stream, never its blocks twice */
+        r.status = PROTO_ERROR_CODE_SEQUENCE;
+    } else if (start) {
+        /* a new stream, unless the ring still holds blocks of the last */
         if (s->used == 0u) {
             proto_batch_reset(s);
             s->started = true;
+            s->start_seq = q.first_seq;
             s->next_seq = q.first_seq;
             s->pump_seq = q.first_seq;
         } else {
@@ -522,16 +536,9 @@ size_t proto_batch_request(proto_batch_t *s, unsigned axes, uint8_t seq, const u
         r.status = PROTO_ERROR_CODE_SEQUENCE;
     }
     if (r.status == PROTO_ERROR_CODE_NONE && q.count > 0u) {
-        drive_result_t dr = drive_accepting();
-
-        PREEMPT_POINT();
-        if (dr != DRIVE_OK) {
-            r.status = refusal(dr, &r.arg);
-        } else {
-            take(s, &q, axes, &r);
-            proto_batch_pump(s);
-            drive_status(&st);
-        }
+        take(s, &q, axes, &r);
+        proto_batch_pump(s);
+        drive_status(&st);
     }
     r.next_seq = s->next_seq;
     r.free_bytes = proto_batch_free(s);

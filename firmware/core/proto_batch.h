@@ -25,8 +25,12 @@
  * (error bad_value with the record index, bad_length when the count
  * differs) and changes nothing. A batch without PROTO_BATCH_FLAG_START
  * must begin at the block the drive expects (next_seq), else nothing is
- * taken (status sequence). Then its blocks are checked in order against
- * what the planner would refuse whatever its state (positions within
+ * taken (status sequence). A start batch begins a new stream at its
+ * first_seq - unless it starts where the current stream started (the same
+ * start batch again, a retry its replay cache no longer holds: status
+ * sequence; hosts start each job at a new, random block number) or the
+ * ring still holds blocks of the current stream (status busy). Then its blocks are checked in order
+ * against what the planner would refuse whatever its state (positions within
  * +-PROTO_POS_LIMIT_NM and 0 on axes the drive does not have, line feed
  * 1..SC_V_LIMIT, dwell 1..PROTO_DWELL_MAX_MS, a move shorter than
  * SC_LEN_MAX, the soft travel limits) and their records copied, as they
@@ -92,6 +96,7 @@ typedef struct {
     bool started;               /* a start batch was taken this session */
     uint8_t broken;             /* error code that ended the stream, 0 none */
     uint16_t broken_arg;        /* its arg */
+    uint32_t start_seq;         /* first_seq of the start batch */
     uint32_t next_seq;          /* block number expected next */
     int64_t pt[PROTO_MAX_AXES]; /* the stream's point after block next_seq - 1 */
     uint64_t feed;              /* the stream's feed after it, nm/s */

@@ -594,8 +594,9 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
             r.code = PROTO_ERROR_CODE_NOT_SUPPORTED;
             break;
         }
-        proto_replay_reset(&d->replay); /* nothing of an earlier session is replayed */
-        proto_batch_reset(&d->batch);
+        /* nothing of an earlier session is replayed; the block stream goes
+         * on (a second host may watch a job: status, monitor) */
+        proto_replay_reset(&d->replay);
         d->sessions++;
         rep.nonce = o.nonce;
         rep.sessions = d->sessions;

@@ -33,7 +33,9 @@
  *     refused with error{not_supported, arg = PROTO_VERSION, lo = hi =
  *     PROTO_VERSION} and opens no session. session_reply and identify
  *     carry the drive's version.
- *   - queue_batch: proto_batch.h (the stream is forgotten at session_open).
+ *   - queue_batch: proto_batch.h. The stream is the drive's, not a
+ *     session's: a second host opening a session (to watch a job) does not
+ *     end it; a new job starts it again (start flag).
  *   - Rapid blocks are queued at PROTO_RAPID_FEED_NM_S; the planner's axis
  *     limits cap it. Target positions must lie within +-PROTO_POS_LIMIT_NM.
  *   - Parameters: the table in proto_msgs.c gives type, range and access;

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import random
 import time
 from collections import deque
 from collections.abc import Iterable
@@ -345,7 +346,11 @@ class Streamer:
         first = items[0][0]
         flags = (1 << pg.BatchFlag.START) if self._start else 0
         p = self.c.submit(
-            "queue_batch", first_seq=first & 0xFFFFFFFF, count=len(items), flags=flags, data=data
+            "queue_batch",
+            first_seq=(self._base + first) & 0xFFFFFFFF,
+            count=len(items),
+            flags=flags,
+            data=data,
         )
         for _ in items:
             self._unsent.popleft()
@@ -360,7 +365,11 @@ class Streamer:
     def _poll(self) -> dict:
         """An empty batch: only the window."""
         return self.c.request(
-            "queue_batch", first_seq=self._acc_next & 0xFFFFFFFF, count=0, flags=0, data=b""
+            "queue_batch",
+            first_seq=(self._base + self._acc_next) & 0xFFFFFFFF,
+            count=0,
+            flags=0,
+            data=b"",
         ).fields
 
     def _collect(self) -> dict:
@@ -373,11 +382,12 @@ class Streamer:
             raise UserError(f"{self._where_seq(first)}: {exc}") from None
         k = len(items)
         status = r["status"]
+        nseq = (r["next_seq"] - self._base) & 0xFFFFFFFF  # as a block index of this job
         if status == pg.ErrorCode.SEQUENCE:
-            taken = min(max(r["next_seq"] - first, 0), k) if r["next_seq"] >= first else 0
-            if taken == 0 and not self._resync and r["next_seq"] != first:
+            taken = min(nseq - first, k) if first <= nseq < first + (1 << 31) else 0
+            if taken == 0 and not self._resync and nseq != first:
                 raise UserError(
-                    f"{self._where_seq(first)}: the drive expected block {r['next_seq']}, "
+                    f"{self._where_seq(first)}: the drive expected block {nseq}, "
                     f"not {first} (another host streamed to it?)"
                 )
         else:
@@ -398,7 +408,7 @@ class Streamer:
         if status == pg.ErrorCode.QUEUE_FULL:
             self.queue_full_replies += 1
         elif status not in (pg.ErrorCode.NONE, pg.ErrorCode.SEQUENCE):
-            seq = r["next_seq"]
+            seq = nseq
             if status == pg.ErrorCode.FAULTED or r["state"] in (pg.State.FAULT, pg.State.ESTOP):
                 st = self.c.status()
                 self._done = (st["blocks_done"] - self._done0) & 0xFFFFFFFF
@@ -443,6 +453,9 @@ class Streamer:
         self._enc_feed: Optional[int] = None
         self._need_origin = True
         self._start = True
+        # each job starts at a new block number: a late retry of its start
+        # batch is then never taken for the start of another stream
+        self._base = random.getrandbits(32)
         self._end_target = None
         on_can = type(getattr(self.c, "t", None)).__name__ == "CanTransport"
         inflight_max = self.inflight_max or (INFLIGHT_CAN if on_can else INFLIGHT_SERIAL)
@@ -555,5 +568,6 @@ class Streamer:
             "batches": self.batches,
             "resent_blocks": self.resent_blocks,
             "min_queued_s": None if self.min_queued_us is None else self.min_queued_us / 1e6,
+            "first_block_tag": self._base,
             "retries": self.c.retried,
         }

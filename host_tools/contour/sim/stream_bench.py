@@ -88,7 +88,7 @@ class JobResult:
     seconds: float  # first send to the last block done
     blocks_per_second: float
     blocks_done: int
-    last_block_seq: int
+    last_block_seq: int  # as a block index of the job (tags start at a random base)
     end_error_nm: int
     min_queued_s: Optional[float]
     feed_ratio: Optional[float]  # mid-job speed / programmed (cam job)
@@ -152,7 +152,7 @@ def run(c, params: dict, make_blocks, total: int, end_window_nm: int = 5000) -> 
         seconds=dt,
         blocks_per_second=total / dt if dt > 0 else 0.0,
         blocks_done=(st["blocks_done"] - done0) & 0xFFFFFFFF,
-        last_block_seq=st["last_block_seq"],
+        last_block_seq=(st["last_block_seq"] - res["first_block_tag"]) & 0xFFFFFFFF,
         end_error_nm=err,
         min_queued_s=res["min_queued_s"],
         feed_ratio=ratio,
