@@ -144,7 +144,7 @@ class Client:
         try:
             m = codec.decode(data)
         except codec.ProtocolError:
-            if data[:1] == _SESSION_REPLY_V1[:1] and len(data) == _SESSION_REPLY_V1[1]:
+            if data[:1] == _SESSION_REPLY_V1[0] and len(data) == _SESSION_REPLY_V1[1]:
                 # a drive of protocol 1: its session_reply has no version
                 m = codec.Decoded(
                     "session_reply",

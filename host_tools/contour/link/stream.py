@@ -462,7 +462,8 @@ class Streamer:
         taken = 0
         cum = 0.0
         exhausted = False
-        free = bt.DATA_MAX  # the ring's free bytes in the last reply
+        r = self._poll()  # the window before any block is sent
+        free = r["free_bytes"]  # the ring's free bytes in the last reply
         queued = st["queued_us"]
         state = st["state"]
         t0 = time.monotonic()
