@@ -539,6 +539,17 @@ size_t proto_batch_request(proto_batch_t *s, unsigned axes, uint8_t seq, const u
         take(s, &q, axes, &r);
         proto_batch_pump(s);
         drive_status(&st);
+        if (s->broken != PROTO_ERROR_CODE_NONE) {
+            /* the drive refused a block the ring held (its own checks, from
+             * where it really is): the stream ends at that block */
+            uint32_t kept = s->next_seq - q.first_seq;
+
+            r.status = s->broken;
+            r.arg = s->broken_arg;
+            if (kept < r.accepted) {
+                r.accepted = (uint8_t)kept;
+            }
+        }
     }
     r.next_seq = s->next_seq;
     r.free_bytes = proto_batch_free(s);
