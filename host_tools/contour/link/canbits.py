@@ -1,5 +1,5 @@
 """Bits a CAN 2.0A data frame takes on the wire, for bus-load figures and
-the simulated bus of `sim serve` (docs/fast-paths.md, "Streaming").
+the simulated bus of `sim serve` (protocol/README.md, "Throughput and bus capacity").
 
 A frame is SOF, 11-bit id, RTR, IDE, r0, DLC (4), 8 x n data bits and the
 15-bit CRC - 34 + 8n bits that are bit-stuffed (after five equal bits a

@@ -9,7 +9,7 @@ Two jobs on the real-time simulated drive (`sim serve`):
   blocks is 0.64 mm of 10 um blocks, and the distance to stop from 15 m/min
   must fit it (at the tuned machine's 10 m/s^2 the planner alone caps
   10 um blocks at about 11 000 blocks/s, and the per-block S-curve at
-  about 1 700, whatever the link: docs/fast-paths.md, "Streaming").
+  about 1 700, whatever the link: protocol/README.md, "Throughput and bus capacity").
 - :func:`cam_circle`: a circle of 0.05 mm chords at 10 m/min (3333
   blocks/s), the shape of CAM output, with the drive's own limits and
   ``scurve_at_rest``.
