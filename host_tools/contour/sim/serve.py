@@ -270,6 +270,7 @@ class SimServer:
         self._clen = ctypes.c_uint8()
         self._bus: collections.deque = collections.deque()  # (t_ns, to_drive, id, data, bits)
         self._bus_free_ns = 0
+        self._bus_now_ns = 0
         self.bus_bits = 0
 
     def _pump_in(self) -> None:
@@ -293,8 +294,10 @@ class SimServer:
         passed on the simulated clock."""
         now = self.lib.hal_sim_time_ns()
         out = bytearray()
-        if self._bus_free_ns > now + 1_000_000_000:  # the clock restarted
+        if now < self._bus_now_ns:  # the clock restarted (a reset): frames on their way go on
+            self._bus = collections.deque((now,) + f[1:] for f in self._bus)
             self._bus_free_ns = now
+        self._bus_now_ns = now
         while self._bus:
             t, to_drive, cid, payload, bits = self._bus[0]
             start = max(self._bus_free_ns, t)
