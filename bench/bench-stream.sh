@@ -8,7 +8,8 @@
 # with every block done once, in order, at the program's end point, else
 # the figure is 0 and the bench fails. Then a CAM-like job over serial: a
 # circle of 0.05 mm chords at 10 m/min, with the smallest planned time the
-# drive had queued mid-job and the speed reached (mid-job, / programmed).
+# drive had queued mid-job and the median path speed its telemetry reported
+# while moving, of the programmed feed.
 # The simulated CAN bus carries each frame in its exact bit time at the
 # bitrate (1 Mbit/s here; contour.sim.serve); the SLCAN job's frames are
 # counted by the host, and their load on the bus is given with worst-case
@@ -60,7 +61,7 @@ with spawn() as server:
         print(f"bench-stream: cam job: {exc}", file=sys.stderr)
         failed = True
     print(f"stream_cam_min_queued_ms: {r.min_queued_s * 1000:.1f} ms", flush=True)
-    feed = (r.feed_ratio or 0.0) * sb.CAM_SEG_NM / sb.CAM_FEED * 100
+    feed = (r.feed_mm_min or 0.0) / (sb.CAM_FEED * 60 / 1e6) * 100
     print(f"stream_cam_feed_percent: {feed:.1f} %", flush=True)
 sys.exit(1 if failed else 0)
 PY

@@ -91,7 +91,7 @@ class JobResult:
     last_block_seq: int  # as a block index of the job (tags start at a random base)
     end_error_nm: int
     min_queued_s: Optional[float]
-    feed_ratio: Optional[float]  # mid-job speed / programmed (cam job)
+    feed_mm_min: Optional[float]  # median path speed the drive reported while moving
     stream: dict = field(default_factory=dict)
     bus_frames: int = 0  # CAN frames of this node, both ways (0: serial)
 
@@ -125,8 +125,14 @@ def run(c, params: dict, make_blocks, total: int, end_window_nm: int = 5000) -> 
             end_target[:] = list(b.target_nm)
             yield b
 
+    feeds: list = []
+
     def progress(p) -> None:
         marks.append((time.monotonic(), p.done))
+
+    def telemetry(m) -> None:
+        if m.name == "path":
+            feeds.append(m.fields["feed"])
 
     s = Streamer(
         c,
@@ -136,15 +142,18 @@ def run(c, params: dict, make_blocks, total: int, end_window_nm: int = 5000) -> 
         poll_s=0.002,
         on_progress=progress,
         in_position_nm=end_window_nm,
+        on_telemetry=telemetry,
     )
     res = s.run()
     dt = res["motion_s"]
     st = c.status()
-    err = max(abs(st["pos"][a] - end_target[a]) for a in range(3))
-    ratio = None
-    mid = [m for m in marks if total * 0.2 <= m[1] <= total * 0.8]
-    if len(mid) >= 2 and mid[-1][0] > mid[0][0]:
-        ratio = (mid[-1][1] - mid[0][1]) / (mid[-1][0] - mid[0][0])
+    # where the streamer found the axes settled (two readings in a row
+    # within the window); a later reading may show the servo still ringing
+    err = max(abs(res["position_nm"][a] - end_target[a]) for a in range(3))
+    # the path speed the drive reported (telemetry, on its own clock: a host
+    # or simulator lagging behind the wall clock does not show here)
+    moving = sorted(f for f in feeds if f > 0)
+    feed_mm_min = moving[len(moving) // 2] if moving else None
     t = getattr(c, "t", None)
     frames = getattr(t, "bus_tx_frames", 0) + getattr(t, "bus_rx_frames", 0)
     return JobResult(
@@ -155,7 +164,7 @@ def run(c, params: dict, make_blocks, total: int, end_window_nm: int = 5000) -> 
         last_block_seq=(st["last_block_seq"] - res["first_block_tag"]) & 0xFFFFFFFF,
         end_error_nm=err,
         min_queued_s=res["min_queued_s"],
-        feed_ratio=ratio,
+        feed_mm_min=feed_mm_min,
         stream=res,
         bus_frames=frames,
     )
