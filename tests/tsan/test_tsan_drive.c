@@ -202,7 +202,7 @@ static void batch_job(pos_nm_t q[AXES], unsigned *s, unsigned round)
         for (a = 0; a < PROTO_MAX_AXES; a++) {
             pt[a] = next == 0u ? pt0[a] : (a < AXES ? tg[next - 1u][a] : 0);
         }
-        m.first_seq = next;
+        m.first_seq = round * 1000u + next; /* each job at a new block number */
         m.flags = next == 0u ? (uint8_t)(1u << PROTO_BATCH_FLAG_START) : 0u;
         b.kind = PROTO_BATCH_KIND_LINE;
         b.feed = FEED;
@@ -228,7 +228,7 @@ static void batch_job(pos_nm_t q[AXES], unsigned *s, unsigned round)
               "queue_batch not answered", round, &st);
         check(r.status == PROTO_ERROR_CODE_NONE || r.status == PROTO_ERROR_CODE_QUEUE_FULL,
               "queue_batch refused", round, &st);
-        next = r.next_seq;
+        next = r.next_seq - round * 1000u;
         if (r.status != PROTO_ERROR_CODE_NONE) {
             polls(64u);
         }
@@ -238,7 +238,8 @@ static void batch_job(pos_nm_t q[AXES], unsigned *s, unsigned round)
     for (a = 0; a < AXES; a++) {
         check(st.ref[a] == q[a], "batch job ended off its end point", round, &st);
     }
-    check(st.tag == BATCH_BLOCKS - 1u, "batch job's last block is not the last done", round, &st);
+    check(st.tag == round * 1000u + BATCH_BLOCKS - 1u,
+          "batch job's last block is not the last done", round, &st);
 }
 
 static void polls(unsigned n)
