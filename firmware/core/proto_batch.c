@@ -381,14 +381,18 @@ void proto_batch_pump(proto_batch_t *s)
         drive_block_t db;
         drive_result_t dr;
         size_t n = s->used < sizeof(rec) ? s->used : sizeof(rec);
+        const uint8_t *src = &s->ring[s->head];
         size_t i;
         size_t took;
         int k;
 
-        for (i = 0; i < n; i++) {
-            rec[i] = s->ring[(s->head + i) % PROTO_BATCH_RING];
+        if ((size_t)s->head + n > PROTO_BATCH_RING) { /* wraps: a straight copy */
+            for (i = 0; i < n; i++) {
+                rec[i] = s->ring[(s->head + i) % PROTO_BATCH_RING];
+            }
+            src = rec;
         }
-        proto_batch_rd_init(&rd, rec, n, s->pump_pt, s->pump_feed);
+        proto_batch_rd_init(&rd, src, n, s->pump_pt, s->pump_feed);
         k = proto_batch_rd_next(&rd, &b); /* origin records are applied on the way */
         took = n - rd.left;
         if (k < 0) { /* never: the records were checked (one origin at most) */
