@@ -713,6 +713,11 @@ static drive_result_t accept_check(void)
     return DRIVE_OK;
 }
 
+drive_result_t drive_accepting(void)
+{
+    return accept_check();
+}
+
 drive_result_t drive_queue_block(const drive_block_t *b)
 {
     drive_result_t r;

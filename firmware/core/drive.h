@@ -326,6 +326,10 @@ const drive_tick_out_t *drive_tick(bool ref_sampling);
 void drive_poll(void);
 
 drive_result_t drive_queue_block(const drive_block_t *b);
+/* Whether drive_queue_block would take a valid block now, queue room
+ * aside: DRIVE_OK, DRIVE_E_DISABLED, DRIVE_E_FAULTED or DRIVE_E_BUSY (main's
+ * view: pending requests count as applied). Main. */
+drive_result_t drive_accepting(void);
 /* Free host-block slots (the status's queue_free, without the O(queued)
  * planned time). Main. */
 uint32_t drive_queue_free(void);

@@ -342,18 +342,22 @@ static IP_NOINLINE void ip_tick_general(interp_t *ip, motion_ref_t *ref)
     }
     /* finish every segment this tick passes the end of */
     while (ip->busy && ip->t_ns >= ip_cur(ip)->total_ns) {
+        bool moving;
+
         s = ip_cur(ip);
         for (i = 0; i < CORE_AXES; i++) {
             ip->pos[i] = s->end[i];
         }
         ip->t_ns -= s->total_ns;
+        /* read before rd moves: main may refill the slot from then on */
+        moving = s->dwell_ns == 0 && s->prof.v1 > 0;
         ip->blocks_done++;
         ip->rd = (uint16_t)(ip->rd + 1u);
         if (ip_queued(ip) > 0) {
             ip_begin(ip);
         } else {
             ip->busy = false;
-            if (s->dwell_ns == 0 && s->prof.v1 > 0) {
+            if (moving) {
                 ip->underruns++;
             }
         }

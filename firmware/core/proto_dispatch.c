@@ -35,7 +35,7 @@ static refusal_t range_error(uint16_t arg, int64_t lo, int64_t hi)
     return r;
 }
 
-static uint8_t map_state(const drive_status_t *st)
+uint8_t proto_dispatch_state(const drive_status_t *st)
 {
     switch (st->state) {
     case DRIVE_DISABLED:
@@ -522,7 +522,7 @@ static size_t put_drive_state(const proto_dispatch_t *d, uint8_t *out, uint8_t s
     unsigned i;
 
     drive_status(&st);
-    s.state = map_state(&st);
+    s.state = proto_dispatch_state(&st);
     s.enabled = enabled_mask(d, &st);
     s.faults = map_faults(&st);
     s.free_slots = fx_sat_u16(st.queue_free);
@@ -589,10 +589,18 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
         proto_session_reply_t rep;
 
         (void)proto_session_open_decode(p, n, &o);
-        proto_replay_reset(&d->replay); /* nothing of an earlier session is replayed */
+        if (o.protocol_version != PROTO_VERSION) {
+            r = range_error(PROTO_VERSION, PROTO_VERSION, PROTO_VERSION);
+            r.code = PROTO_ERROR_CODE_NOT_SUPPORTED;
+            break;
+        }
+        /* nothing of an earlier session is replayed; the block stream goes
+         * on (a second host may watch a job: status, monitor) */
+        proto_replay_reset(&d->replay);
         d->sessions++;
         rep.nonce = o.nonce;
         rep.sessions = d->sessions;
+        rep.protocol_version = PROTO_VERSION;
         out[0] = PROTO_MSG_SESSION_REPLY;
         out[1] = seq;
         return PROTO_MSG_HDR +
@@ -680,6 +688,8 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
         }
         break;
     }
+    case PROTO_MSG_QUEUE_BATCH:
+        return proto_batch_request(&d->batch, AXES_OF(d), seq, p, n, out);
     case PROTO_MSG_HOME: {
         proto_home_t h;
 
@@ -691,9 +701,11 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
         break;
     }
     case PROTO_MSG_STOP:
+        proto_batch_flush(&d->batch, PROTO_ERROR_CODE_BUSY); /* nothing of it after the stop */
         drive_stop();
         return proto_reply_ack(out, seq, id);
     case PROTO_MSG_ESTOP:
+        proto_batch_flush(&d->batch, PROTO_ERROR_CODE_BUSY);
         drive_estop();
         return proto_reply_ack(out, seq, id);
     case PROTO_MSG_PARAM_SAVE: {
@@ -704,8 +716,9 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
             return proto_reply_ack(out, seq, id);
         }
         drive_status(&st);
-        r = ps == PARAM_STORE_E_STATE ? refuse(PROTO_ERROR_CODE_BAD_STATE, map_state(&st))
-                                      : refuse(PROTO_ERROR_CODE_INTERNAL, (uint16_t)detail);
+        r = ps == PARAM_STORE_E_STATE
+                ? refuse(PROTO_ERROR_CODE_BAD_STATE, proto_dispatch_state(&st))
+                : refuse(PROTO_ERROR_CODE_INTERNAL, (uint16_t)detail);
         break;
     }
     case PROTO_MSG_FAULT_RESET:
@@ -749,6 +762,7 @@ bool proto_dispatch_init(proto_dispatch_t *d, const proto_identity_t *ident, uin
     d->heartbeat_on = false;
     d->cec_mode = 0;
     proto_replay_reset(&d->replay);
+    proto_batch_reset(&d->batch);
     d->sessions = 0;
     d->last_rx_us = now_us;
     d->wd_stopping = false;
@@ -792,6 +806,13 @@ size_t proto_dispatch_handle(proto_dispatch_t *d, const uint8_t *msg, size_t len
         refusal_t r = refuse(PROTO_ERROR_CODE_UNKNOWN_MESSAGE, id);
 
         d->stats.unknown++;
+        d->stats.refused++;
+        rlen = put_error(out, seq, id, &r);
+    } else if (id == PROTO_MSG_SESSION_OPEN && n == 4u) {
+        /* a host of protocol 1 (no version): refused, it says not_supported */
+        refusal_t r = range_error(PROTO_VERSION, PROTO_VERSION, PROTO_VERSION);
+
+        r.code = PROTO_ERROR_CODE_NOT_SUPPORTED;
         d->stats.refused++;
         rlen = put_error(out, seq, id, &r);
     } else if (n < info->min_len || n > info->max_len) {
@@ -839,7 +860,7 @@ static void emit_cycle(proto_dispatch_t *d, bool full, proto_emit_fn emit, void 
         proto_status_t s;
 
         s.seq = seq;
-        s.state = map_state(&st);
+        s.state = proto_dispatch_state(&st);
         s.enabled = enabled_mask(d, &st);
         s.faults = map_faults(&st);
         s.free_slots = fx_sat_u16(st.queue_free);
@@ -914,6 +935,7 @@ static void watchdog(proto_dispatch_t *d, uint32_t now_us)
     if ((uint32_t)(now_us - d->last_rx_us) / 1000u >= d->comm_timeout_ms) {
         d->stats.watchdog_stops++;
         d->wd_stopping = true;
+        proto_batch_flush(&d->batch, PROTO_ERROR_CODE_BUSY);
         drive_stop();
     }
 }
@@ -922,6 +944,7 @@ void proto_dispatch_poll(proto_dispatch_t *d, uint32_t now_us, proto_emit_fn emi
 {
     uint32_t since = now_us - d->last_cycle_us;
 
+    proto_batch_pump(&d->batch); /* the host FIFO takes from the intake ring */
     watchdog(d, now_us);
     if (d->telem_period_ms != 0u && since >= (uint32_t)d->telem_period_ms * 1000u) {
         d->last_cycle_us = now_us;
@@ -942,7 +965,7 @@ void proto_dispatch_poll(proto_dispatch_t *d, uint32_t now_us, proto_emit_fn emi
 
         d->last_hb_us = now_us;
         drive_status(&st);
-        h.state = map_state(&st);
+        h.state = proto_dispatch_state(&st);
         h.axes = d->ident.axes;
         h.protocol_version = PROTO_VERSION;
         h.fw_version = d->ident.fw_version;

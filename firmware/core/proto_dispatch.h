@@ -28,6 +28,14 @@
  *     the drive's transmit backlog and replies to an earlier session's
  *     requests can then never be taken for this session's (the link is
  *     FIFO per direction).
+ *   - Versions: session_open carries the host's PROTO_VERSION; another
+ *     version, or a session_open without one (a host of protocol 1), is
+ *     refused with error{not_supported, arg = PROTO_VERSION, lo = hi =
+ *     PROTO_VERSION} and opens no session. session_reply and identify
+ *     carry the drive's version.
+ *   - queue_batch: proto_batch.h. The stream is the drive's, not a
+ *     session's: a second host opening a session (to watch a job) does not
+ *     end it; a new job starts it again (start flag).
  *   - Rapid blocks are queued at PROTO_RAPID_FEED_NM_S; the planner's axis
  *     limits cap it. Target positions must lie within +-PROTO_POS_LIMIT_NM.
  *   - Parameters: the table in proto_msgs.c gives type, range and access;
@@ -56,6 +64,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "drive.h"
+#include "proto_batch.h"
 #include "proto_msgs.h"
 #include "proto_replay.h"
 
@@ -102,6 +112,7 @@ typedef struct {
     uint8_t cec_mode;
     proto_replay_t replay; /* last request and its reply (proto_replay.h) */
     uint16_t sessions;     /* session_open requests executed (wraps) */
+    proto_batch_t batch;   /* the host's block stream (queue_batch) */
     /* watchdog */
     uint32_t last_rx_us;
     bool wd_stopping;
@@ -123,6 +134,9 @@ bool proto_dispatch_init(proto_dispatch_t *d, const proto_identity_t *ident, uin
  * PROTO_MSG_MAX) and returns its length; 0 = no reply. */
 size_t proto_dispatch_handle(proto_dispatch_t *d, const uint8_t *msg, size_t len, uint32_t now_us,
                              uint8_t *out, size_t cap);
+
+/* The protocol's state enum of a drive status. */
+uint8_t proto_dispatch_state(const drive_status_t *st);
 
 /* Watchdog and cyclic messages; call often from the main loop. */
 void proto_dispatch_poll(proto_dispatch_t *d, uint32_t now_us, proto_emit_fn emit, void *ctx);

@@ -192,6 +192,7 @@ size_t proto_session_open_encode(const proto_session_open_t *m, uint8_t *buf, si
         return 0;
     }
     proto_put_le(buf + 0, (uint64_t)m->nonce, 4u);
+    proto_put_le(buf + 4, (uint64_t)m->protocol_version, 2u);
     return PROTO_SESSION_OPEN_LEN;
 }
 
@@ -201,6 +202,7 @@ bool proto_session_open_decode(const uint8_t *buf, size_t len, proto_session_ope
         return false;
     }
     m->nonce = (uint32_t)proto_get_le(buf + 0, 4u);
+    m->protocol_version = (uint16_t)proto_get_le(buf + 4, 2u);
     return true;
 }
 
@@ -237,6 +239,39 @@ bool proto_home_decode(const uint8_t *buf, size_t len, proto_home_t *m)
     m->home_pos[1] = (int64_t)proto_get_sle(buf + 23, 8u);
     m->home_pos[2] = (int64_t)proto_get_sle(buf + 31, 8u);
     m->home_pos[3] = (int64_t)proto_get_sle(buf + 39, 8u);
+    return true;
+}
+
+size_t proto_queue_batch_encode(const proto_queue_batch_t *m, uint8_t *buf, size_t cap)
+{
+    uint16_t i;
+
+    if (m->data_len > 244u || cap < PROTO_QUEUE_BATCH_LEN + (size_t)m->data_len) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->first_seq, 4u);
+    proto_put_le(buf + 4, (uint64_t)m->count, 1u);
+    proto_put_le(buf + 5, (uint64_t)m->flags, 1u);
+    for (i = 0; i < m->data_len; i++) {
+        buf[6u + i] = m->data[i];
+    }
+    return PROTO_QUEUE_BATCH_LEN + (size_t)m->data_len;
+}
+
+bool proto_queue_batch_decode(const uint8_t *buf, size_t len, proto_queue_batch_t *m)
+{
+    uint16_t i;
+
+    if (len < PROTO_QUEUE_BATCH_LEN || len > PROTO_QUEUE_BATCH_MAX_LEN) {
+        return false;
+    }
+    m->first_seq = (uint32_t)proto_get_le(buf + 0, 4u);
+    m->count = (uint8_t)proto_get_le(buf + 4, 1u);
+    m->flags = (uint8_t)proto_get_le(buf + 5, 1u);
+    m->data_len = (uint16_t)(len - PROTO_QUEUE_BATCH_LEN);
+    for (i = 0; i < m->data_len; i++) {
+        m->data[i] = buf[6u + i];
+    }
     return true;
 }
 
@@ -513,6 +548,7 @@ size_t proto_session_reply_encode(const proto_session_reply_t *m, uint8_t *buf, 
     }
     proto_put_le(buf + 0, (uint64_t)m->nonce, 4u);
     proto_put_le(buf + 4, (uint64_t)m->sessions, 2u);
+    proto_put_le(buf + 6, (uint64_t)m->protocol_version, 2u);
     return PROTO_SESSION_REPLY_LEN;
 }
 
@@ -523,6 +559,41 @@ bool proto_session_reply_decode(const uint8_t *buf, size_t len, proto_session_re
     }
     m->nonce = (uint32_t)proto_get_le(buf + 0, 4u);
     m->sessions = (uint16_t)proto_get_le(buf + 4, 2u);
+    m->protocol_version = (uint16_t)proto_get_le(buf + 6, 2u);
+    return true;
+}
+
+size_t proto_batch_reply_encode(const proto_batch_reply_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_BATCH_REPLY_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->first_seq, 4u);
+    proto_put_le(buf + 4, (uint64_t)m->accepted, 1u);
+    proto_put_le(buf + 5, (uint64_t)m->status, 1u);
+    proto_put_le(buf + 6, (uint64_t)m->arg, 2u);
+    proto_put_le(buf + 8, (uint64_t)m->next_seq, 4u);
+    proto_put_le(buf + 12, (uint64_t)m->free_bytes, 2u);
+    proto_put_le(buf + 14, (uint64_t)m->queued_us, 4u);
+    proto_put_le(buf + 18, (uint64_t)m->blocks_done, 4u);
+    proto_put_le(buf + 22, (uint64_t)m->state, 1u);
+    return PROTO_BATCH_REPLY_LEN;
+}
+
+bool proto_batch_reply_decode(const uint8_t *buf, size_t len, proto_batch_reply_t *m)
+{
+    if (len != PROTO_BATCH_REPLY_LEN) {
+        return false;
+    }
+    m->first_seq = (uint32_t)proto_get_le(buf + 0, 4u);
+    m->accepted = (uint8_t)proto_get_le(buf + 4, 1u);
+    m->status = (uint8_t)proto_get_le(buf + 5, 1u);
+    m->arg = (uint16_t)proto_get_le(buf + 6, 2u);
+    m->next_seq = (uint32_t)proto_get_le(buf + 8, 4u);
+    m->free_bytes = (uint16_t)proto_get_le(buf + 12, 2u);
+    m->queued_us = (uint32_t)proto_get_le(buf + 14, 4u);
+    m->blocks_done = (uint32_t)proto_get_le(buf + 18, 4u);
+    m->state = (uint8_t)proto_get_le(buf + 22, 1u);
     return true;
 }
 
@@ -1289,8 +1360,9 @@ const proto_msg_info_t proto_msg_table[] = {
     {0x09u, PROTO_DIR_H2D, 0x70u, 0u, 0u, 0u, "fault_reset"},
     {0x0Au, PROTO_DIR_H2D, 0x4Au, 0u, 0u, 0u, "status_get"},
     {0x0Bu, PROTO_DIR_H2D, 0x46u, 0u, 59u, 59u, "queue_arc"},
-    {0x0Cu, PROTO_DIR_H2D, 0x4Cu, 0u, 4u, 4u, "session_open"},
+    {0x0Cu, PROTO_DIR_H2D, 0x4Cu, 0u, 6u, 6u, "session_open"},
     {0x0Du, PROTO_DIR_H2D, 0x70u, 0u, 47u, 47u, "home"},
+    {0x0Eu, PROTO_DIR_H2D, 0x4Du, 0u, 6u, 250u, "queue_batch"},
     {0x2Eu, PROTO_DIR_H2D, 0x70u, 0u, 0u, 0u, "param_save"},
     {0x30u, PROTO_DIR_D2H, 0x00u, 31u, 8u, 8u, "heartbeat"},
     {0x31u, PROTO_DIR_D2H, 0x00u, 4u, 8u, 8u, "status"},
@@ -1308,7 +1380,8 @@ const proto_msg_info_t proto_msg_table[] = {
     {0x42u, PROTO_DIR_D2H, 0x00u, 0u, 10u, 10u, "param_value"},
     {0x46u, PROTO_DIR_D2H, 0x00u, 0u, 10u, 10u, "queue_reply"},
     {0x4Au, PROTO_DIR_D2H, 0x00u, 0u, 87u, 87u, "drive_state"},
-    {0x4Cu, PROTO_DIR_D2H, 0x00u, 0u, 6u, 6u, "session_reply"},
+    {0x4Cu, PROTO_DIR_D2H, 0x00u, 0u, 8u, 8u, "session_reply"},
+    {0x4Du, PROTO_DIR_D2H, 0x00u, 0u, 23u, 23u, "batch_reply"},
     {0x70u, PROTO_DIR_D2H, 0x00u, 0u, 1u, 1u, "ack"},
     {0x7Fu, PROTO_DIR_D2H, 0x00u, 0u, 20u, 20u, "error"},
     {0x80u, PROTO_DIR_H2D, 0x90u, 0u, 0u, 0u, "boot_connect"},

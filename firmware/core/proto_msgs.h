@@ -20,7 +20,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define PROTO_VERSION 1u
+#define PROTO_VERSION 2u
 #define PROTO_MAX_PAYLOAD 250u
 /* A message on either transport: msg_id (u8) | seq (u8) | payload. */
 #define PROTO_MSG_HDR 2u
@@ -66,6 +66,7 @@
 #define PROTO_ERROR_CODE_FAULTED 13u /* a fault is latched: fault_reset first */
 #define PROTO_ERROR_CODE_BUSY 14u /* not allowed while moving */
 #define PROTO_ERROR_CODE_CAUSE_PRESENT 15u /* fault_reset refused: the cause is still present */
+#define PROTO_ERROR_CODE_SEQUENCE 16u /* queue_batch: first_seq is not the block the drive expects next (batch_reply.next_seq); nothing queued */
 #define PROTO_ERROR_CODE_BOOT 32u /* bootloader refused the request (arg = boot_status, lo = detail; docs/bootloader.md) */
 #define PROTO_ERROR_CODE_CALIB 33u /* calibration or compensation refused (arg = calib_status, lo = detail; docs/calibration.md) */
 
@@ -106,6 +107,20 @@
 
 /* queue_block.flags bits (bit numbers) */
 #define PROTO_BLOCK_FLAG_EXACT_STOP 0u /* stop exactly at the end of this block (G61/G60) */
+
+/* queue_batch record kind: bits 6..7 of the record's head byte (protocol/README.md, Block batches) */
+#define PROTO_BATCH_KIND_LINE 0u /* straight move at the stream's feed to the stream's point plus the deltas */
+#define PROTO_BATCH_KIND_RAPID 1u /* straight move at the axes' maximum speed */
+#define PROTO_BATCH_KIND_DWELL 2u /* pause of `feed` milliseconds (feed varint required; the stream's feed is unchanged) */
+#define PROTO_BATCH_KIND_ORIGIN 3u /* not a block: the axes of the mask take the absolute positions that follow (zigzag varints, nm), the others 0 */
+
+/* queue_batch record head byte: bit numbers (bits 0..3 are the axis mask of the deltas that follow) */
+#define PROTO_BATCH_HEAD_FEED 4u /* a feed varint follows the deltas: line nm/s (becomes the stream's feed), dwell ms */
+#define PROTO_BATCH_HEAD_EXACT_STOP 5u /* stop exactly at the end of this block (line, rapid) */
+#define PROTO_BATCH_HEAD_KIND 6u /* bits 6..7: batch_kind */
+
+/* queue_batch.flags bits (bit numbers) */
+#define PROTO_BATCH_FLAG_START 0u /* a new stream: first_seq becomes the expected block number (without it first_seq must equal batch_reply.next_seq) */
 
 /* Bootloader refusal reason: error.arg when error.code = boot (firmware/core/boot/boot.h). */
 #define PROTO_BOOT_STATUS_OK 0u /* no error */
@@ -211,6 +226,7 @@
 #define PROTO_MSG_QUEUE_ARC 0x0Bu
 #define PROTO_MSG_SESSION_OPEN 0x0Cu
 #define PROTO_MSG_HOME 0x0Du
+#define PROTO_MSG_QUEUE_BATCH 0x0Eu
 #define PROTO_MSG_PARAM_SAVE 0x2Eu
 #define PROTO_MSG_HEARTBEAT 0x30u
 #define PROTO_MSG_STATUS 0x31u
@@ -229,6 +245,7 @@
 #define PROTO_MSG_QUEUE_REPLY 0x46u
 #define PROTO_MSG_DRIVE_STATE 0x4Au
 #define PROTO_MSG_SESSION_REPLY 0x4Cu
+#define PROTO_MSG_BATCH_REPLY 0x4Du
 #define PROTO_MSG_ACK 0x70u
 #define PROTO_MSG_ERROR 0x7Fu
 #define PROTO_MSG_BOOT_CONNECT 0x80u
@@ -378,9 +395,10 @@ size_t proto_queue_arc_encode(const proto_queue_arc_t *m, uint8_t *buf, size_t c
 bool proto_queue_arc_decode(const uint8_t *buf, size_t len, proto_queue_arc_t *m);
 
 /* session_open (h2d): A host starts a session: the drive forgets its replay cache and echoes the nonce. Everything the drive sent before this reply belongs to an earlier session: the host discards it. The bootloader answers it too. */
-#define PROTO_SESSION_OPEN_LEN 4u
+#define PROTO_SESSION_OPEN_LEN 6u
 typedef struct {
     uint32_t nonce; /* random, chosen by the host for this session */
+    uint16_t protocol_version; /* the host's PROTO_VERSION; the application refuses another (not_supported, arg = its own version), the bootloader takes any */
 } proto_session_open_t;
 size_t proto_session_open_encode(const proto_session_open_t *m, uint8_t *buf, size_t cap);
 bool proto_session_open_decode(const uint8_t *buf, size_t len, proto_session_open_t *m);
@@ -398,6 +416,19 @@ typedef struct {
 } proto_home_t;
 size_t proto_home_encode(const proto_home_t *m, uint8_t *buf, size_t cap);
 bool proto_home_decode(const uint8_t *buf, size_t len, proto_home_t *m);
+
+/* queue_batch (h2d): Append `count` blocks numbered first_seq.. (records in `data`: protocol/README.md, Block batches) to the drive's intake ring, in order, until one is refused or the ring is full; the reply says how many were taken (accepted) and carries the window (free_bytes, queued_us, blocks_done, state). An empty batch (count 0) only reads the window. A malformed batch is refused whole (bad_value, arg = record index; bad_length: count differs). */
+#define PROTO_QUEUE_BATCH_LEN 6u
+#define PROTO_QUEUE_BATCH_MAX_LEN 250u
+typedef struct {
+    uint32_t first_seq; /* block number of the first block */
+    uint8_t count; /* blocks in data (origin records not counted) */
+    uint8_t flags; /* batch_flag bits */
+    uint16_t data_len;
+    uint8_t data[244]; /* records: head byte, zigzag LEB128 deltas (nm) of the mask's axes, LEB128 feed if the head says so */
+} proto_queue_batch_t;
+size_t proto_queue_batch_encode(const proto_queue_batch_t *m, uint8_t *buf, size_t cap);
+bool proto_queue_batch_decode(const uint8_t *buf, size_t len, proto_queue_batch_t *m);
 
 /* param_save (h2d): Store the drive parameters in flash (loaded at start-up; docs/parameters.md). Only while disabled (bad_state, arg = state); a flash failure is internal (arg = comp_store result). */
 #define PROTO_PARAM_SAVE_LEN 0u
@@ -520,13 +551,30 @@ size_t proto_drive_state_encode(const proto_drive_state_t *m, uint8_t *buf, size
 bool proto_drive_state_decode(const uint8_t *buf, size_t len, proto_drive_state_t *m);
 
 /* session_reply (d2h): Reply to session_open. */
-#define PROTO_SESSION_REPLY_LEN 6u
+#define PROTO_SESSION_REPLY_LEN 8u
 typedef struct {
     uint32_t nonce; /* the nonce of the session_open answered */
     uint16_t sessions; /* sessions opened since power-on (wraps) */
+    uint16_t protocol_version; /* the drive's (or bootloader's) PROTO_VERSION */
 } proto_session_reply_t;
 size_t proto_session_reply_encode(const proto_session_reply_t *m, uint8_t *buf, size_t cap);
 bool proto_session_reply_decode(const uint8_t *buf, size_t len, proto_session_reply_t *m);
+
+/* batch_reply (d2h): Reply to queue_batch: the blocks queued and the window after them. */
+#define PROTO_BATCH_REPLY_LEN 23u
+typedef struct {
+    uint32_t first_seq; /* echo */
+    uint8_t accepted; /* blocks of the batch queued (a prefix of it) */
+    uint8_t status; /* error_code: none (all taken), queue_full (the ring is full), sequence, or the refusal of block next_seq (also when the stream ended: stopped, faulted) */
+    uint16_t arg; /* field / axis index of a refusal (as error.arg) */
+    uint32_t next_seq; /* block number the drive expects next */
+    uint16_t free_bytes; /* [byte] room in the intake ring for batch records (the window) */
+    uint32_t queued_us; /* [us] planned time queued (saturates) */
+    uint32_t blocks_done; /* blocks completed since start (as drive_state) */
+    uint8_t state; /* state enum */
+} proto_batch_reply_t;
+size_t proto_batch_reply_encode(const proto_batch_reply_t *m, uint8_t *buf, size_t cap);
+bool proto_batch_reply_decode(const uint8_t *buf, size_t len, proto_batch_reply_t *m);
 
 /* ack (d2h): Request done. */
 #define PROTO_ACK_LEN 1u

@@ -9,7 +9,7 @@ from __future__ import annotations
 from enum import IntEnum
 from typing import NamedTuple, Optional
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
 MAX_PAYLOAD = 250
 MSG_HDR = 2
 MAX_AXES = 4
@@ -96,6 +96,7 @@ class ErrorCode(IntEnum):
     FAULTED = 13
     BUSY = 14
     CAUSE_PRESENT = 15
+    SEQUENCE = 16
     BOOT = 32
     CALIB = 33
 
@@ -151,6 +152,29 @@ class BlockFlag(IntEnum):
     """queue_block.flags bits (bit numbers)"""
 
     EXACT_STOP = 0
+
+
+class BatchKind(IntEnum):
+    """queue_batch record kind: bits 6..7 of the record's head byte (protocol/README.md, Block batches)"""
+
+    LINE = 0
+    RAPID = 1
+    DWELL = 2
+    ORIGIN = 3
+
+
+class BatchHead(IntEnum):
+    """queue_batch record head byte: bit numbers (bits 0..3 are the axis mask of the deltas that follow)"""
+
+    FEED = 4
+    EXACT_STOP = 5
+    KIND = 6
+
+
+class BatchFlag(IntEnum):
+    """queue_batch.flags bits (bit numbers)"""
+
+    START = 0
 
 
 class BootStatus(IntEnum):
@@ -435,9 +459,10 @@ MESSAGES = (
         None,
         (
             Field("nonce", "u32", 4, 1, 0, 0, ""),
+            Field("protocol_version", "u16", 2, 1, 0, 4, ""),
         ),
-        4,
-        4,
+        6,
+        6,
         'A host starts a session: the drive forgets its replay cache and echoes the nonce. Everything the drive sent before this reply belongs to an earlier session: the host discards it. The bootloader answers it too.',
     ),
     Message(
@@ -458,6 +483,22 @@ MESSAGES = (
         47,
         47,
         'Home the axes of axis_mask (ready only, nothing queued): per axis, toward the home switch at search_feed until it triggers, back off at latch_feed until it releases, on to the next encoder index (axes in index_mask; else the switch edge), stop; the position there becomes home_pos. The drive is homing (state) until every axis is homed (drive_state.homed), then ready; stop aborts; a switch or index not found within max_distance latches the homing fault. docs/operating.md, Homing.',
+    ),
+    Message(
+        "queue_batch",
+        0x0E,
+        "h2d",
+        'batch_reply',
+        None,
+        (
+            Field("first_seq", "u32", 4, 1, 0, 0, ""),
+            Field("count", "u8", 1, 1, 0, 4, ""),
+            Field("flags", "u8", 1, 1, 0, 5, ""),
+            Field("data", "bytes", 1, 1, 244, 6, ""),
+        ),
+        6,
+        250,
+        "Append `count` blocks numbered first_seq.. (records in `data`: protocol/README.md, Block batches) to the drive's intake ring, in order, until one is refused or the ring is full; the reply says how many were taken (accepted) and carries the window (free_bytes, queued_us, blocks_done, state). An empty batch (count 0) only reads the window. A malformed batch is refused whole (bad_value, arg = record index; bad_length: count differs).",
     ),
     Message(
         "param_save",
@@ -734,10 +775,32 @@ MESSAGES = (
         (
             Field("nonce", "u32", 4, 1, 0, 0, ""),
             Field("sessions", "u16", 2, 1, 0, 4, ""),
+            Field("protocol_version", "u16", 2, 1, 0, 6, ""),
         ),
-        6,
-        6,
+        8,
+        8,
         'Reply to session_open.',
+    ),
+    Message(
+        "batch_reply",
+        0x4D,
+        "d2h",
+        None,
+        None,
+        (
+            Field("first_seq", "u32", 4, 1, 0, 0, ""),
+            Field("accepted", "u8", 1, 1, 0, 4, ""),
+            Field("status", "u8", 1, 1, 0, 5, ""),
+            Field("arg", "u16", 2, 1, 0, 6, ""),
+            Field("next_seq", "u32", 4, 1, 0, 8, ""),
+            Field("free_bytes", "u16", 2, 1, 0, 12, "byte"),
+            Field("queued_us", "u32", 4, 1, 0, 14, "us"),
+            Field("blocks_done", "u32", 4, 1, 0, 18, ""),
+            Field("state", "u8", 1, 1, 0, 22, ""),
+        ),
+        23,
+        23,
+        'Reply to queue_batch: the blocks queued and the window after them.',
     ),
     Message(
         "ack",

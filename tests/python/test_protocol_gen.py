@@ -43,7 +43,9 @@ def test_check_detects_a_stale_file(tmp_path):
         (tmp_path / rel).write_text(text)
     assert gen.main(["--check", "--out", str(tmp_path)]) == 0
     victim = tmp_path / "firmware/core/proto_msgs.h"
-    victim.write_text(victim.read_text().replace("PROTO_VERSION 1u", "PROTO_VERSION 2u"))
+    text = victim.read_text()
+    assert "#define PROTO_VERSION " in text
+    victim.write_text(text.replace("#define PROTO_VERSION ", "#define PROTO_VERSION 9"))
     assert gen.main(["--check", "--out", str(tmp_path)]) == 1
 
 

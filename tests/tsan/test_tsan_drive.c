@@ -18,6 +18,10 @@
  *     between 0 and all of its blocks done, and a new block from the stop
  *     point runs to its end;
  *   - disable ends DISABLED, e-stop FAULT, fault_reset DISABLED;
+ *   - every third round first runs a job of BATCH_BLOCKS lines sent as
+ *     queue_batch messages through the dispatcher (proto_dispatch_handle;
+ *     the main loop also runs proto_dispatch_poll, which pumps the intake
+ *     ring): it ends IDLE with every block done, at its end point;
  *   - no fault other than the e-stop's, and TSan reports no data race
  *     (halt_on_error: the run fails on the first report).
  */
@@ -33,12 +37,18 @@
 #include "drive_test.h"
 #include "hal_flash_sim.h"
 #include "hal_sim.h"
+#include "proto_batch.h"
+#include "proto_dispatch.h"
 
-#define AXES       3u
-#define TICK_HZ    10000u
-#define ROUNDS     120u
-#define WAIT_TICKS 400000u  /* bound of every wait, in ticks (40 s simulated) */
-#define FEED       50000000 /* 50 mm/s */
+#define AXES         3u
+#define TICK_HZ      10000u
+#define ROUNDS       120u
+#define WAIT_TICKS   400000u  /* bound of every wait, in ticks (40 s simulated) */
+#define FEED         50000000 /* 50 mm/s */
+#define BATCH_BLOCKS 150u     /* more than the host FIFO and the planner take */
+
+static proto_dispatch_t disp;
+static uint8_t msg_seq;
 
 static atomic_bool quit;
 static atomic_ullong ticks_run;
@@ -105,6 +115,7 @@ static void poll(void)
 {
     calib_poll();
     drive_poll();
+    proto_dispatch_poll(&disp, (uint32_t)(now() * 100u), NULL, NULL);
 }
 
 /* Poll until the status says `want` and blocks_done `done` (< 0: any). */
@@ -152,6 +163,85 @@ static void queue_line(pos_nm_t q[AXES], unsigned *s, unsigned round, uint32_t t
     check(r == DRIVE_OK, "queue_block refused", round, &st);
 }
 
+static void polls(unsigned n);
+
+/* A job of BATCH_BLOCKS random small lines from q in queue_batch messages
+ * (sent again from the block expected while the ring is full); q becomes
+ * its end. */
+static void batch_job(pos_nm_t q[AXES], unsigned *s, unsigned round)
+{
+    static pos_nm_t tg[BATCH_BLOCKS][AXES];
+    drive_status_t st;
+    uint32_t next = 0, base;
+    unsigned i, a;
+    uint64_t t0 = now();
+    int64_t pt0[PROTO_MAX_AXES] = {0, 0, 0, 0};
+
+    drive_status(&st);
+    base = st.blocks_done;
+    for (i = 0; i < AXES; i++) {
+        pt0[i] = q[i];
+    }
+    for (i = 0; i < BATCH_BLOCKS; i++) {
+        for (a = 0; a < AXES; a++) {
+            q[a] += (pos_nm_t)(rnd(s) % 20001u) - 10000;
+            tg[i][a] = q[a];
+        }
+    }
+    while (next < BATCH_BLOCKS) {
+        proto_queue_batch_t m;
+        proto_batch_reply_t r;
+        proto_batch_block_t b;
+        uint8_t in[PROTO_MSG_MAX], out[PROTO_MSG_MAX];
+        int64_t pt[PROTO_MAX_AXES];
+        uint64_t feed = 0;
+        size_t n;
+
+        memset(&b, 0, sizeof b);
+        memset(&m, 0, sizeof m);
+        for (a = 0; a < PROTO_MAX_AXES; a++) {
+            pt[a] = next == 0u ? pt0[a] : (a < AXES ? tg[next - 1u][a] : 0);
+        }
+        m.first_seq = round * 1000u + next; /* each job at a new block number */
+        m.flags = next == 0u ? (uint8_t)(1u << PROTO_BATCH_FLAG_START) : 0u;
+        b.kind = PROTO_BATCH_KIND_LINE;
+        b.feed = FEED;
+        for (i = next; i < BATCH_BLOCKS && m.count < 40u; i++) {
+            for (a = 0; a < AXES; a++) {
+                b.target[a] = tg[i][a];
+            }
+            n = proto_batch_put(m.data + m.data_len, sizeof m.data - m.data_len, &b, pt, &feed,
+                                i == next);
+            if (n == 0u) {
+                break; /* the batch is full */
+            }
+            m.data_len = (uint16_t)(m.data_len + n);
+            m.count++;
+        }
+        in[0] = PROTO_MSG_QUEUE_BATCH;
+        in[1] = ++msg_seq;
+        n = proto_queue_batch_encode(&m, in + 2, sizeof in - 2);
+        n = proto_dispatch_handle(&disp, in, n + 2u, (uint32_t)(now() * 100u), out, sizeof out);
+        drive_status(&st);
+        check(n > 2u && out[0] == PROTO_MSG_BATCH_REPLY &&
+                  proto_batch_reply_decode(out + 2, n - 2u, &r),
+              "queue_batch not answered", round, &st);
+        check(r.status == PROTO_ERROR_CODE_NONE || r.status == PROTO_ERROR_CODE_QUEUE_FULL,
+              "queue_batch refused", round, &st);
+        next = r.next_seq - round * 1000u;
+        if (r.status != PROTO_ERROR_CODE_NONE) {
+            polls(64u);
+        }
+        check(now() - t0 < WAIT_TICKS, "batch job stalled", round, &st);
+    }
+    st = wait_for(DRIVE_IDLE, (long)(base + BATCH_BLOCKS), round, "batch job did not finish");
+    for (a = 0; a < AXES; a++) {
+        check(st.ref[a] == q[a], "batch job ended off its end point", round, &st);
+    }
+    check(st.tag == round * 1000u + BATCH_BLOCKS - 1u,
+          "batch job's last block is not the last done", round, &st);
+}
+
 static void polls(unsigned n)
 {
     while (n-- > 0u) {
@@ -180,6 +270,10 @@ static void round_run(unsigned round, unsigned *s)
     }
     drive_status(&st);
     check(r == DRIVE_OK, "enable refused", round, &st);
+    if (round % 3u == 0u) {
+        batch_job(q, s, round);
+        drive_status(&st);
+    }
     base = st.blocks_done;
     for (i = 0; i < k; i++) {
         queue_line(q, s, round, round * 4u + i);
@@ -247,6 +341,14 @@ int main(void)
         return 1;
     }
     calib_init();
+    {
+        proto_identity_t id = {0x000100u, 0u, 0u, TICK_HZ, 1u, 0u, 1u, (uint8_t)AXES};
+
+        if (!proto_dispatch_init(&disp, &id, 0u)) {
+            return 1;
+        }
+        disp.comm_timeout_ms = 0; /* the rounds send no keep-alive */
+    }
     if (pthread_create(&th, NULL, tick_thread, NULL) != 0) {
         return 1;
     }

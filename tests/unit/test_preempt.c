@@ -22,7 +22,14 @@
  *   E. a planner parameter set while idle is accepted and read back;
  *   F. a block queued right after a stop (before any tick) is refused, not
  *      dropped by the stop; a new job after it runs;
- *   G. a calibration run of two points, one cycle: DONE with every sample.
+ *   G. a calibration run of two points, one cycle: DONE with every sample;
+ *   H. homing stopped, homing, a job in the new frame;
+ *   I. a job of three queue_batch messages of 50 blocks (more than the
+ *      host FIFO and the planner take: the rest waits in the intake ring
+ *      and proto_dispatch_poll pumps it): every block runs, in order, to
+ *      the last one's end point;
+ *   J. a stop while the intake ring holds blocks: none of them runs after
+ *      the stop, the stream answers busy, a new stream runs.
  * A failure names the point (file:line) and the phase.
  */
 #include <stdio.h>
@@ -32,6 +39,7 @@
 #include "drive.h"
 #include "hal_sim.h"
 #include "preempt.h"
+#include "proto_batch.h"
 #include "proto_dispatch.h"
 #include "proto_msgs.h"
 #include "sim.h"
@@ -193,6 +201,39 @@ static void queue_line(uint32_t seq, int64_t x)
     uint8_t p[64];
     request(PROTO_MSG_QUEUE_BLOCK, p, proto_queue_block_encode(&q, p, sizeof p));
     expect_reply(PROTO_MSG_QUEUE_REPLY);
+}
+
+/* A queue_batch of n lines of `step` nm along X from x (an origin record
+ * first); the reply into *r. */
+static void batch(uint32_t first, int64_t x, unsigned n, int64_t step, bool start,
+                  proto_batch_reply_t *r)
+{
+    proto_queue_batch_t q;
+    proto_batch_block_t b;
+    int64_t pt[PROTO_MAX_AXES] = {x, 0, 0, 0};
+    uint64_t feed = 0;
+    uint8_t p[PROTO_MSG_MAX];
+    unsigned i;
+
+    memset(&b, 0, sizeof b);
+    q.first_seq = first;
+    q.count = (uint8_t)n;
+    q.flags = start ? (uint8_t)(1u << PROTO_BATCH_FLAG_START) : 0u;
+    q.data_len = 0;
+    b.kind = PROTO_BATCH_KIND_LINE;
+    b.feed = FEED;
+    for (i = 0; i < n; i++) {
+        size_t k;
+
+        b.target[0] = x + (int64_t)(i + 1u) * step;
+        k = proto_batch_put(q.data + q.data_len, sizeof q.data - q.data_len, &b, pt, &feed,
+                            i == 0u);
+        TEST_ASSERT_TRUE(k > 0u);
+        q.data_len = (uint16_t)(q.data_len + k);
+    }
+    request(PROTO_MSG_QUEUE_BATCH, p, proto_queue_batch_encode(&q, p, sizeof p));
+    expect_reply(PROTO_MSG_BATCH_REPLY);
+    TEST_ASSERT_TRUE(proto_batch_reply_decode(out + 2, out_len - 2, r));
 }
 
 /* Run until the drive is in state `want` with blocks_done `done` (< 0: any). */
@@ -390,6 +431,54 @@ static void scenario(void)
      * table's frame) */
     TEST_ASSERT_INT64_WITHIN_MESSAGE(1250, -1000000, st.home_shift[0], where);
     job(30, -15000000, st.blocks_done + 1u);
+
+    phase = "I a job of three batches through the intake ring";
+    {
+        proto_batch_reply_t r;
+        uint32_t done0 = st.blocks_done + 1u;
+        unsigned i;
+
+        for (i = 0; i < 3u; i++) {
+            batch(100u + 50u * i, -15000000 + 500000 * (int64_t)i, 50, 10000, i == 0u, &r);
+            msg();
+            TEST_ASSERT_EQUAL_UINT8_MESSAGE(50, r.accepted, where);
+            TEST_ASSERT_EQUAL_UINT32_MESSAGE(150u + 50u * i, r.next_seq, where);
+        }
+        st = wait_for(DRIVE_IDLE, (long)(done0 + 150u));
+        msg();
+        TEST_ASSERT_EQUAL_INT64_MESSAGE(-13500000, st.ref[0], where);
+        TEST_ASSERT_EQUAL_UINT32_MESSAGE(249u, st.tag, where);
+
+        phase = "J stop with blocks in the intake ring";
+        batch(300u, -13500000, 50, 10000, true, &r);
+        batch(350u, -13000000, 50, 10000, false, &r);
+        msg();
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(50, r.accepted, where);
+        TEST_ASSERT_TRUE_MESSAGE(d.batch.used > 0u, where); /* the ring holds some */
+        run(20);
+        request(PROTO_MSG_STOP, NULL, 0);
+        expect_reply(PROTO_MSG_ACK);
+        /* to rest without a link poll: the ring must not wait for the
+         * pump to find the drive stopping */
+        for (i = 0; i < WAIT_TICKS && status().state != DRIVE_IDLE; i++) {
+            TEST_ASSERT_TRUE(sim_run(1, NULL, 0, 0) >= 0);
+            now_us += 100u;
+        }
+        run(2000); /* nothing left to run */
+        st = wait_for(DRIVE_IDLE, (long)st.blocks_done);
+        msg();
+        TEST_ASSERT_TRUE_MESSAGE(st.blocks_done < done0 + 250u, where);
+        TEST_ASSERT_TRUE_MESSAGE(st.ref[0] < -12500000, where);
+        batch(400u, -12500000, 1, 10000, false, &r);
+        msg();
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(0, r.accepted, where);
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(PROTO_ERROR_CODE_BUSY, r.status, where);
+        batch(500u, st.ref[0], 2, 10000, true, &r);
+        msg();
+        TEST_ASSERT_EQUAL_UINT8_MESSAGE(2, r.accepted, where);
+        st = wait_for(DRIVE_IDLE, (long)(st.blocks_done + 2u));
+        TEST_ASSERT_EQUAL_UINT32_MESSAGE(501u, st.tag, where);
+    }
 }
 
 void setUp(void)
@@ -421,13 +510,15 @@ static void test_scenario_reaches_the_points_of_every_module(void)
     target = NULL;
     scenario();
     recording = false;
-    printf("preempt: %u points: drive.c %u, feed.c %u, proto_dispatch.c %u, calib.c %u\n", npts,
-           points_in("drive.c"), points_in("feed.c"), points_in("proto_dispatch.c"),
-           points_in("calib.c"));
+    printf("preempt: %u points: drive.c %u, feed.c %u, proto_dispatch.c %u, calib.c %u, "
+           "proto_batch.c %u\n",
+           npts, points_in("drive.c"), points_in("feed.c"), points_in("proto_dispatch.c"),
+           points_in("calib.c"), points_in("proto_batch.c"));
     TEST_ASSERT_TRUE(points_in("drive.c") >= 10u);
     TEST_ASSERT_TRUE(points_in("feed.c") >= 3u);
     TEST_ASSERT_TRUE(points_in("proto_dispatch.c") >= 3u);
     TEST_ASSERT_TRUE(points_in("calib.c") >= 4u);
+    TEST_ASSERT_TRUE(points_in("proto_batch.c") >= 2u);
 }
 
 /* The scenario's invariants hold with the tick run at each point. */

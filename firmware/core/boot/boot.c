@@ -515,15 +515,21 @@ static size_t dispatch(boot_t *b, uint8_t id, uint8_t seq, const uint8_t *p, siz
 
     switch (id) {
     case PROTO_MSG_SESSION_OPEN: {
-        proto_session_open_t so;
+        proto_session_open_t so = {0};
         proto_session_reply_t r;
-        if (!proto_session_open_decode(p, n, &so)) {
+        /* any host version (protocol 1 had no version field): the
+         * bootloader is the way back to a matching application */
+        if (n == 4u) {
+            so.nonce =
+                (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+        } else if (!proto_session_open_decode(p, n, &so)) {
             break;
         }
         proto_replay_reset(&b->replay);
         b->link_sessions++;
         r.nonce = so.nonce;
         r.sessions = b->link_sessions;
+        r.protocol_version = PROTO_VERSION;
         return reply_head(out, PROTO_MSG_SESSION_REPLY, seq) +
                proto_session_reply_encode(&r, o, ocap);
     }

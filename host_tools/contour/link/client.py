@@ -29,6 +29,8 @@ AXIS_NAMES = "xyza"
 
 _REPLY_NAMES = {m.reply for m in pg.MESSAGES if m.reply} | {"ack", "error"}
 _SESSION_OPEN_ID = pg.MSG_BY_NAME["session_open"].id
+# (id, message length) of the session_reply of a protocol-1 drive
+_SESSION_REPLY_V1 = (bytes([pg.MSG_BY_NAME["session_reply"].id]), pg.MSG_HDR + 6)
 
 
 def _answers(reply: codec.Decoded, request: pg.Message) -> bool:
@@ -131,6 +133,7 @@ class Client:
         self.retried = 0
         self.stale_replies = 0  # replies of an earlier session or request, dropped
         self.session: Optional[int] = None  # the nonce of the open session
+        self.drive_protocol = pg.PROTOCOL_VERSION  # from session_reply
         self._opening: Optional[tuple[int, int, threading.Event, list]] = None
         self._synced = False
         self.t.start(self._on_message)
@@ -141,8 +144,21 @@ class Client:
         try:
             m = codec.decode(data)
         except codec.ProtocolError:
-            self.bad_messages += 1
-            return
+            if data[:1] == _SESSION_REPLY_V1[0] and len(data) == _SESSION_REPLY_V1[1]:
+                # a drive of protocol 1: its session_reply has no version
+                m = codec.Decoded(
+                    "session_reply",
+                    data[0],
+                    data[1],
+                    {
+                        "nonce": int.from_bytes(data[2:6], "little"),
+                        "sessions": int.from_bytes(data[6:8], "little"),
+                        "protocol_version": 1,
+                    },
+                )
+            else:
+                self.bad_messages += 1
+                return
         with self._lock:
             opening = self._opening
             slot = self._pending.get(m.seq) if opening is None else None
@@ -171,29 +187,35 @@ class Client:
     def request(
         self, name: str, timeout: Optional[float] = None, retries: Optional[int] = None, **fields
     ) -> codec.Decoded:
+        return self.submit(name, **fields).result(timeout, retries)
+
+    def submit(self, name: str, **fields) -> Pending:
+        """Send request `name` now and return at once; :meth:`Pending.result`
+        waits for its reply (sending the same bytes again on a timeout, as
+        :meth:`request` does). Several may be in flight: replies are matched
+        by sequence number."""
         msg = pg.MSG_BY_NAME.get(name)
         if msg is None or msg.dir != "h2d":
             raise UserError(f"{name!r} is not a request")
         if not self._synced:
             self._synced = True
-            self._open_session(timeout, retries)
+            self._open_session(None, None)
         with self._lock:
             self._seq = (self._seq + 1) & 0xFF
             seq = self._seq
+            if seq in self._pending:
+                raise UserError(f"{name}: more than 255 requests in flight")
             ev: threading.Event = threading.Event()
             box: list = []
             self._pending[seq] = (ev, box, msg)
+        data = codec.encode(name, seq, **fields)
         try:
-            self._exchange(name, codec.encode(name, seq, **fields), ev, timeout, retries)
-        finally:
+            self.t.send(data)
+        except BaseException:
             with self._lock:
                 self._pending.pop(seq, None)
-        reply = box[0]
-        if reply.name == "error":
-            raise DriveError(name, reply.fields, describe_error(name, reply.fields))
-        if msg.reply and reply.name != msg.reply:
-            raise codec.ProtocolError(f"{name}: drive answered {reply.name}, expected {msg.reply}")
-        return reply
+            raise
+        return Pending(self, name, msg, seq, data, ev, box)
 
     def _exchange(
         self,
@@ -202,15 +224,18 @@ class Client:
         ev: threading.Event,
         timeout: Optional[float],
         retries: Optional[int],
+        sent: bool = False,
     ) -> None:
         """Send `data` until `ev` is set (the reply arrived), the same bytes
-        each try (the drive answers a repeat from its replay cache)."""
+        each try (the drive answers a repeat from its replay cache); `sent`:
+        the first try was sent already."""
         tries = 1 + (self.retries if retries is None else retries)
         wait = self.timeout if timeout is None else timeout
         for attempt in range(tries):
             if attempt:
                 self.retried += 1
-            self.t.send(data)
+            if attempt or not sent:
+                self.t.send(data)
             if ev.wait(wait):
                 return
         raise LinkError(
@@ -228,25 +253,59 @@ class Client:
             ev: threading.Event = threading.Event()
             box: list = []
             self._opening = (nonce, seq, ev, box)
-        try:
-            data = codec.encode("session_open", seq, nonce=nonce)
-            self._exchange("session_open", data, ev, timeout, retries)
-        finally:
+        data = codec.encode("session_open", seq, nonce=nonce, protocol_version=pg.PROTOCOL_VERSION)
+        reply = self._open_exchange(data, ev, box, timeout, retries)
+        if reply.name == "error" and reply.fields["code"] == pg.ErrorCode.BAD_LENGTH:
+            # a drive of protocol 1 (its session_open has no version): open
+            # its way; what needs protocol 2 refuses it (require_protocol)
             with self._lock:
-                self._opening = None
-        self.drain_unsolicited()  # queued before the session: none of ours
-        reply = box[0]
+                self._seq = (self._seq + 1) & 0xFF
+                seq = self._seq
+                ev, box = threading.Event(), []
+                self._opening = (nonce, seq, ev, box)
+            data = codec.encode("session_open", seq, nonce=nonce, protocol_version=0)[:-2]
+            reply = self._open_exchange(data, ev, box, timeout, retries)
+            self.drive_protocol = 1
         if reply.name == "error":
             code = reply.fields["code"]
+            if code == pg.ErrorCode.NOT_SUPPORTED:
+                raise DriveError(
+                    "session_open",
+                    reply.fields,
+                    f"the drive speaks protocol version {reply.fields['arg']}, this contour "
+                    f"speaks {pg.PROTOCOL_VERSION}: use a contour of the drive's version, or "
+                    "update the drive's firmware from its bootloader (contour flash)",
+                )
             if code != pg.ErrorCode.UNKNOWN_MESSAGE:
                 raise DriveError(
                     "session_open", reply.fields, describe_error("session_open", reply.fields)
                 )
             # firmware older than sessions: at least no command of this
             # session can be taken for a replay of the last one
+            self.drive_protocol = 1
             self.request("status_get", timeout=timeout, retries=retries)
             return
+        self.drive_protocol = reply.fields.get("protocol_version", 1)
         self.session = nonce
+
+    def _open_exchange(self, data: bytes, ev, box: list, timeout, retries) -> codec.Decoded:
+        try:
+            self._exchange("session_open", data, ev, timeout, retries)
+        finally:
+            with self._lock:
+                self._opening = None
+        self.drain_unsolicited()  # queued before the session: none of ours
+        return box[0]
+
+    def require_protocol(self, what: str, version: int = pg.PROTOCOL_VERSION) -> None:
+        """Refuse a drive whose protocol is older than `version` for `what`."""
+        if not self._synced:
+            self.request("status_get")
+        if self.drive_protocol < version:
+            raise UserError(
+                f"{what} needs a drive of protocol version {version}; this drive speaks "
+                f"version {self.drive_protocol}: update its firmware (contour flash)"
+            )
 
     def unsolicited(self, timeout: float = 0.0):
         """Next (timestamp, Decoded) status/telemetry message, or None."""
@@ -288,6 +347,37 @@ class Client:
         if axes is None:
             axes = self.identify()["axes"]
         self.request("enable", axis_mask=(1 << axes) - 1, on=int(on))
+
+
+class Pending:
+    """A request in flight (:meth:`Client.submit`)."""
+
+    def __init__(self, client, name, msg, seq, data, ev, box) -> None:
+        self.c, self.name, self.msg, self.seq = client, name, msg, seq
+        self._data, self._ev, self._box = data, ev, box
+
+    def cancel(self) -> None:
+        """Forget it (its reply, if any, is dropped as stale)."""
+        with self.c._lock:
+            self.c._pending.pop(self.seq, None)
+
+    def result(
+        self, timeout: Optional[float] = None, retries: Optional[int] = None
+    ) -> codec.Decoded:
+        c = self.c
+        try:
+            c._exchange(self.name, self._data, self._ev, timeout, retries, sent=True)
+        finally:
+            with c._lock:
+                c._pending.pop(self.seq, None)
+        reply = self._box[0]
+        if reply.name == "error":
+            raise DriveError(self.name, reply.fields, describe_error(self.name, reply.fields))
+        if self.msg.reply and reply.name != self.msg.reply:
+            raise codec.ProtocolError(
+                f"{self.name}: drive answered {reply.name}, expected {self.msg.reply}"
+            )
+        return reply
 
 
 def connect(

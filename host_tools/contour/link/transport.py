@@ -258,6 +258,10 @@ class CanTransport:
         self.tx_dropped = 0
         self.isotp_errors = 0
         self.rx_frames = 0
+        # every frame of this node on the bus, both ways (bus load figures)
+        self.bus_tx_frames = 0
+        self.bus_rx_frames = 0
+        self._rx_id = pg.can_id(pg.CAN_FUNC["response"], node)
         self._run = False
         self._thread: Optional[threading.Thread] = None
         self._cyclic_ids = {
@@ -285,6 +289,7 @@ class CanTransport:
         while True:
             try:
                 self.bus.send(frame)
+                self.bus_tx_frames += 1
                 return
             except (can.CanError, OSError) as exc:
                 if not tx_buffer_full(exc) or time.monotonic() > deadline:
@@ -303,10 +308,13 @@ class CanTransport:
         self._thread.start()
 
     def _on_frame(self, frame) -> None:
+        if frame.arbitration_id == self._rx_id:
+            self.bus_rx_frames += 1
         func = self._cyclic_ids.get(frame.arbitration_id)
         if func is None or frame.is_extended_id or self._on is None:
             return
         self.rx_frames += 1
+        self.bus_rx_frames += 1
         msg = codec.CYCLIC_BY_FUNC[func]
         self._on(bytes([msg.id, 0]) + bytes(frame.data), frame.timestamp or time.time())
 

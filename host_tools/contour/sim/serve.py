@@ -7,7 +7,10 @@ thread runs a loop every ~1 ms of wall time:
    (``hal_sim_uart_inject``); SLCAN lines arriving on the SLCAN pty are
    parsed (the Lawicel ASCII protocol python-can's ``slcan`` interface and
    USB-CAN adapters speak) and their frames go to the simulated CAN
-   controller (``hal_sim_can_inject``);
+   controller (``hal_sim_can_inject``) through a simulated bus: each frame
+   of either direction takes its exact bits (stuffing included,
+   ``contour.link.canbits``) at the bitrate the SLCAN ``S`` command set
+   (1 Mbit/s until one does), in the order sent;
 2. the firmware's own host link runs (``proto_link_poll`` of
    firmware/core/proto_link.c: framing, ISO-TP, dispatcher, watchdog,
    telemetry), exactly as a drive's background loop would;
@@ -33,6 +36,7 @@ on their own lines (flushed) and runs until SIGINT/SIGTERM.
 from __future__ import annotations
 
 import argparse
+import collections
 import contextlib
 import ctypes
 import os
@@ -49,6 +53,7 @@ from typing import Optional
 from contour import __version__
 from contour import protocol_gen as pg
 from contour.errors import UserError
+from contour.link.canbits import frame_bits
 
 BOARD_SIM = 1  # BOOT_BOARD_SIM in firmware/core/boot/boot.h
 MAX_BACKLOG = 256 * 1024
@@ -63,15 +68,24 @@ def fw_version() -> int:
 
 
 class SlcanParser:
-    """The drive side of SLCAN (Lawicel ASCII): commands in, replies out."""
+    """The drive side of SLCAN (Lawicel ASCII): commands in, replies out.
+    ``S0``..``S8`` set the CAN bitrate of the simulated bus (`bitrate`)."""
 
     BITRATES = {f"S{i}" for i in range(9)}
+    # Lawicel's S0..S8
+    BITRATE_OF = dict(
+        zip(
+            (f"S{i}" for i in range(9)),
+            (10_000, 20_000, 50_000, 100_000, 125_000, 250_000, 500_000, 800_000, 1_000_000),
+        )
+    )
 
     def __init__(self) -> None:
         self.buf = bytearray()
         self.open = False
         self.frames_in = 0
         self.errors = 0
+        self.bitrate = 1_000_000  # until an S command says otherwise
 
     def feed(self, data: bytes) -> tuple[list[tuple[int, bytes]], bytes]:
         """Returns (frames to put on the bus, bytes to answer)."""
@@ -102,7 +116,10 @@ class SlcanParser:
         if c == "C":
             self.open = False
             return None, b"\r"
-        if line in self.BITRATES or c in "sYZMmX":
+        if line in self.BITRATES:
+            self.bitrate = self.BITRATE_OF[line]
+            return None, b"\r"
+        if c in "sYZMmX":
             return None, b"\r"
         if c == "V":
             return None, b"V1013\r"
@@ -251,6 +268,10 @@ class SimServer:
         self._cdata = ctypes.create_string_buffer(8)
         self._cid = ctypes.c_uint32()
         self._clen = ctypes.c_uint8()
+        self._bus: collections.deque = collections.deque()  # (t_ns, to_drive, id, data, bits)
+        self._bus_free_ns = 0
+        self._bus_now_ns = 0
+        self.bus_bits = 0
 
     def _pump_in(self) -> None:
         data = self.serial.read()
@@ -259,24 +280,52 @@ class SimServer:
         data = self.slcan.read()
         if data:
             frames, reply = self.parser.feed(data)
+            now = self.lib.hal_sim_time_ns()
             for cid, payload in frames:
-                self.lib.hal_sim_can_inject(cid, payload, len(payload))
+                self._bus.append((now, True, cid, payload, frame_bits(cid, payload)))
             if reply:
                 self.slcan.write(reply)
+        self._bus_deliver()
+
+    def _bus_deliver(self) -> None:
+        """The simulated CAN bus: frames of both directions in the order they
+        were sent, each taking its exact bits (canbits.frame_bits) at the
+        SLCAN bitrate; a frame reaches the other side when its last bit has
+        passed on the simulated clock."""
+        now = self.lib.hal_sim_time_ns()
+        out = bytearray()
+        if now < self._bus_now_ns:  # the clock restarted (a reset): frames on their way go on
+            self._bus = collections.deque((now,) + f[1:] for f in self._bus)
+            self._bus_free_ns = now
+        self._bus_now_ns = now
+        while self._bus:
+            t, to_drive, cid, payload, bits = self._bus[0]
+            start = max(self._bus_free_ns, t)
+            end = start + bits * 1_000_000_000 // self.parser.bitrate
+            if end > now:
+                break
+            self._bus.popleft()
+            self._bus_free_ns = end
+            self.bus_bits += bits
+            if to_drive:
+                self.lib.hal_sim_can_inject(cid, payload, len(payload))
+            elif self.parser.open:
+                out += slcan_line(cid, payload)
+        if out:
+            self.slcan.write(out)
 
     def _pump_out(self) -> None:
         n = self.lib.hal_sim_uart_drain(self._ubuf, len(self._ubuf))
         while n:
             self.serial.write(self._ubuf.raw[:n])
             n = self.lib.hal_sim_uart_drain(self._ubuf, len(self._ubuf))
-        out = bytearray()
+        now = self.lib.hal_sim_time_ns()
         while self.lib.hal_sim_can_drain(
             ctypes.byref(self._cid), self._cdata, ctypes.byref(self._clen)
         ):
-            if self.parser.open:
-                out += slcan_line(self._cid.value, self._cdata.raw[: self._clen.value])
-        if out:
-            self.slcan.write(out)
+            cid, payload = self._cid.value, self._cdata.raw[: self._clen.value]
+            self._bus.append((now, False, cid, payload, frame_bits(cid, payload)))
+        self._bus_deliver()
 
     def _sync_boot(self) -> None:
         """After a reset or a jump: start the firmware the bootloader chose
