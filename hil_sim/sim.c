@@ -42,6 +42,7 @@ static struct {
                                    * at or above, 0: no switch           */
     double enc_index[SIM_AXES];   /* 1: an index pulse per motor turn    */
     double index_phase[SIM_AXES]; /* counts from position 0 to an index  */
+    int enc_model;                /* SIM_ENC_*: how edges reach the decoder */
 } S;
 
 /* The simulator's own per-axis settings (not axis_model parameters). */
@@ -89,6 +90,7 @@ int sim_setup(double tick_hz, unsigned axes)
     }
     S.dcfg.servo.cec.pid.out_max_mv = 10000;
     S.dcfg.servo.cec.pid.i_max_mv = 10000;
+    S.enc_model = SIM_ENC_FAST;
     S.board.board_id = BOOT_BOARD_SIM;
     S.board.node_id = 1u;
     S.board.capabilities = 1u << PROTO_CAPABILITY_SIMULATED;
@@ -430,6 +432,32 @@ static void emit_edge(void *ctx, uint32_t lines, uint32_t t_ns)
     drive_encoder_edge((unsigned)(uintptr_t)ctx, lines, t_ns);
 }
 
+static bool run_edges(void *ctx, int32_t steps, uint32_t t_last_ns)
+{
+    return drive_encoder_run((unsigned)(uintptr_t)ctx, steps, t_last_ns);
+}
+
+int sim_encoder_model(int model)
+{
+    unsigned i;
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (model != SIM_ENC_EDGES && model != SIM_ENC_FAST) {
+        return SIM_E_ARG;
+    }
+    S.enc_model = model;
+    for (i = 0; S.started && i < S.axes; i++) {
+        qgen_set_run(&S.gen[i], model == SIM_ENC_FAST ? run_edges : NULL);
+    }
+    return 0;
+}
+
+int sim_encoder_model_get(void)
+{
+    return S.enc_model;
+}
+
 static qgen_pos_t to_qgen(double counts)
 {
     return (qgen_pos_t)floor(counts * (double)QGEN_ONE);
@@ -505,6 +533,7 @@ int sim_start(void)
             qgen_set_index(&S.gen[i], S.count0[i] + (int64_t)floor(S.index_phase[i] + 0.5), per, 0,
                            0);
         }
+        qgen_set_run(&S.gen[i], S.enc_model == SIM_ENC_FAST ? run_edges : NULL);
         cfg.enc_initial_lines[i] = qgen_lines(&S.gen[i]);
         hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)axis_ref_count(&S.ax[i]), true);
         if (!encoder_scale(S.par[i].l * 2.0 * PI_D, S.par[i].enc_counts_per_rev,

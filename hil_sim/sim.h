@@ -95,6 +95,20 @@ int sim_axis_pitch(unsigned axis, unsigned n, const double *pos, const double *e
                    const double *err_rev);
 int sim_set_substep(double max_s);
 
+/* How the encoder edges reach the firmware's decoder (docs/simulator.md,
+ * "Encoder models"); sim_setup sets SIM_ENC_FAST; takes effect at once.
+ *   SIM_ENC_EDGES  the reference: every edge through drive_encoder_edge.
+ *   SIM_ENC_FAST   each substep's edges as one run (drive_encoder_run:
+ *                  the count and the last edge's time the edges would
+ *                  leave, computed from the reading), edge by edge only
+ *                  where Z changes or the decoder refuses a run. The
+ *                  decoder's state at every sample, and so every trace,
+ *                  is bit-identical to SIM_ENC_EDGES. */
+#define SIM_ENC_EDGES 0
+#define SIM_ENC_FAST  1
+int sim_encoder_model(int model);
+int sim_encoder_model_get(void);
+
 /* The drive's configuration before sim_start (SI units, converted here):
  *   sim_gain_set(loop, name, v)  loop 0..axes-1: that axis's PID, -1: the
  *       CEC's PID. kp (V/m), ki (V/(m s)), kd (V s/m), kvff (V/(m/s)),

@@ -879,6 +879,12 @@ void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns)
     }
 }
 
+bool drive_encoder_run(unsigned ch, int32_t steps, uint32_t t_last_ns)
+{
+    return drv.ready && ch < drv.cfg.axes && !drv.cfg.enc_counter[ch] &&
+           qdec_edge_run(&drv.in.enc[ch], steps, t_last_ns);
+}
+
 int64_t drive_encoder_count(unsigned ch)
 {
     if (!drv.ready || ch >= drv.cfg.axes) {
