@@ -43,6 +43,7 @@ static struct {
     double enc_index[SIM_AXES];   /* 1: an index pulse per motor turn    */
     double index_phase[SIM_AXES]; /* counts from position 0 to an index  */
     int enc_model;                /* SIM_ENC_*: how edges reach the decoder */
+    uint64_t run_edges;           /* edges delivered in runs (SIM_ENC_FAST)  */
 } S;
 
 /* The simulator's own per-axis settings (not axis_model parameters). */
@@ -434,7 +435,11 @@ static void emit_edge(void *ctx, uint32_t lines, uint32_t t_ns)
 
 static bool run_edges(void *ctx, int32_t steps, uint32_t t_last_ns)
 {
-    return drive_encoder_run((unsigned)(uintptr_t)ctx, steps, t_last_ns);
+    if (!drive_encoder_run((unsigned)(uintptr_t)ctx, steps, t_last_ns)) {
+        return false;
+    }
+    S.run_edges += (uint64_t)(steps < 0 ? -(int64_t)steps : (int64_t)steps);
+    return true;
 }
 
 int sim_encoder_model(int model)
@@ -514,6 +519,7 @@ int sim_start(void)
     S.t_ns = 0;
     S.ticks = 0;
     S.edges = 0;
+    S.run_edges = 0;
     S.mismatches = 0;
     cfg = S.dcfg;
     cfg.tick_hz = S.tick_hz;
@@ -681,6 +687,11 @@ double sim_time_s(void)
 uint64_t sim_edges(void)
 {
     return S.edges;
+}
+
+uint64_t sim_run_edges(void)
+{
+    return S.run_edges;
 }
 
 uint64_t sim_edge_mismatches(void)

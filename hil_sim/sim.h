@@ -157,6 +157,8 @@ uint32_t sim_tick_hz(void);
 uint64_t sim_ticks(void);
 double sim_time_s(void);
 uint64_t sim_edges(void);
+/* Of sim_edges(), those delivered in runs (SIM_ENC_FAST; 0 with edges). */
+uint64_t sim_run_edges(void);
 uint64_t sim_edge_mismatches(void);
 unsigned sim_substeps(void);
 double sim_table_pos(unsigned axis);

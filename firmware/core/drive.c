@@ -957,6 +957,11 @@ void drive_test_arc_exact(bool on)
     interp_set_fast_skip(&drv.ip, 0);
 }
 
+const qdec_t *drive_test_encoder(unsigned ch)
+{
+    return (ch < CORE_AXES) ? &drv.in.enc[ch] : NULL;
+}
+
 const motion_ref_t *drive_test_ref(void)
 {
     return &drv.ref;
