@@ -44,6 +44,7 @@ static struct {
     double index_phase[SIM_AXES]; /* counts from position 0 to an index  */
     int enc_model;                /* SIM_ENC_*: how edges reach the decoder */
     uint64_t run_edges;           /* edges delivered in runs (SIM_ENC_FAST)  */
+    double table[SIM_AXES];       /* axis_table_pos after the last substep */
 } S;
 
 /* The simulator's own per-axis settings (not axis_model parameters). */
@@ -529,6 +530,7 @@ int sim_start(void)
             return SIM_E_MODEL;
         }
         axis_set_position(&S.ax[i], 0.0);
+        S.table[i] = axis_table_pos(&S.ax[i]);
         /* the decoder's zero is the true position 0, not a noisy reading */
         qgen_init(&S.gen[i], to_qgen(axis_encoder_counts(&S.ax[i])), 0, emit_edge,
                   (void *)(uintptr_t)i);
@@ -568,7 +570,7 @@ int sim_start(void)
 /* The home switch of axis i from the table position. */
 static void sim_home_switch(unsigned i)
 {
-    double x = axis_table_pos(&S.ax[i]) - S.home_switch[i];
+    double x = S.table[i] - S.home_switch[i];
     hal_sim_set_home_switch(i, (S.home_side[i] < 0.0 && x <= 0.0) ||
                                    (S.home_side[i] > 0.0 && x >= 0.0));
 }
@@ -585,7 +587,7 @@ static void write_row(double *row)
     row[3] = (double)st.contour_error_nm * 1e-9;
     for (i = 0; i < S.axes; i++) {
         row[4 + 4 * i] = (double)st.ref[i] * 1e-9;
-        row[5 + 4 * i] = axis_table_pos(&S.ax[i]);
+        row[5 + 4 * i] = S.table[i];
         row[6 + 4 * i] = (double)st.pos[i] * 1e-9;
         row[7 + 4 * i] = (double)hal_sim_motor_mv(i) * 1e-3;
     }
@@ -608,7 +610,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
     for (k = 0; k < ticks; k++) {
         hal_sim_set_time_ns(S.t_ns);
         for (i = 0; i < S.axes; i++) {
-            int64_t rc = axis_ref_reading(&S.ax[i]);
+            int64_t rc = axis_ref_reading_at(&S.ax[i], S.table[i]);
             hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
             sim_home_switch(i);
         }
@@ -635,6 +637,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
                 S.edges += qgen_move_to(&S.gen[i], to_qgen(axis_encoder_reading(&S.ax[i])),
                                         S.t_ns + S.sub_ns[s + 1]);
             }
+            S.table[i] = axis_table_pos(&S.ax[i]);
         }
         S.t_ns += S.period_ns;
         S.ticks++;
@@ -709,7 +712,7 @@ double sim_table_pos(unsigned axis)
     if (!S.started || axis >= S.axes) {
         return 0.0;
     }
-    return axis_table_pos(&S.ax[axis]);
+    return S.table[axis];
 }
 
 int sim_drive_status(sim_status_t *out)
