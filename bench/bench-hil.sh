@@ -12,10 +12,10 @@ bin=build/bench/bench_hil
 src=$(find firmware/core -name '*.c' | sort)
 cc -std=c99 -O2 -g -D_DEFAULT_SOURCE -Ifirmware/core -Ifirmware/hal -Ifirmware -Ihil_sim \
   -Ifirmware/ports/sim -o "$bin" bench/bench_hil.c $src hil_sim/*.c firmware/ports/sim/*.c -lm
-echo "hil_load_average_1min: $(cut -d' ' -f1 /proc/loadavg) (before the wall-clock runs)"
+echo "hil_load_average_1min_before: $(cut -d' ' -f1 /proc/loadavg) runnable"
 "$bin" fast
 "$bin" edges
-echo "hil_load_average_1min: $(cut -d' ' -f1 /proc/loadavg) (after)"
+echo "hil_load_average_1min_after: $(cut -d' ' -f1 /proc/loadavg) runnable"
 n=20000
 bash bench/callgrind.sh hil_tick_instructions_x86 "$bin" sim_run "$n" ticks "$n" fast
 bash bench/callgrind.sh hil_tick_instructions_x86_edges "$bin" sim_run "$n" ticks "$n" edges
