@@ -46,9 +46,11 @@
  *   6. each axis model advances over [t_k, t_k+1) in substeps with the motor
  *      command held (ZOH); after each substep the encoder reading (counts,
  *      with noise when configured) is quantised (floor) and every count
- *      change is delivered to the firmware as a quadrature edge through
- *      drive_encoder_edge(), time-stamped by linear interpolation of the
- *      reading within the substep (ns clock, wrapping uint32).
+ *      change is a quadrature edge, time-stamped by linear interpolation of
+ *      the reading within the substep (ns clock, wrapping uint32), that
+ *      reaches the firmware as the encoder model says (sim_encoder_model):
+ *      one by one through drive_encoder_edge(), or the substep's edges as
+ *      one run through drive_encoder_run() (the same decoder state).
  * The motor command is read as millivolts at the amplifier input
  * (hal_sim_motor_mv: 0 when the amplifier is disabled); the model applies
  * the amplifier gain kx and the +-vmax limit.
