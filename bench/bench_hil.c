@@ -2,10 +2,16 @@
  * bench_hil.c - realtime factor of the HIL simulator: simulated seconds per
  * wall-clock second, three axes at 10 kHz, the circle scenario (R 20 mm at
  * 10 m/min, full feed-forward, exact CEC, trace of every tick written).
- * Best of three runs of 20 simulated seconds.
+ *   bench_hil [fast|edges]        best of three runs of 20 simulated
+ *                                 seconds with that encoder model (default
+ *                                 fast, the simulator's default)
+ *   bench_hil ticks N [fast|edges]  one run of N ticks (for callgrind:
+ *                                 instructions in sim_run per tick)
  */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 #include <time.h>
 
 #include "drive.h"
@@ -18,16 +24,17 @@ static double now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static double one_run(double sim_s)
+static double one_run(uint64_t ticks, int model)
 {
     static double row[4000 * SIM_TRACE_COLS];
     const int64_t feed = 166666667; /* 10 m/min */
     int64_t on_circle[3] = {0, 5000000, 0};
     double t0, t1;
     int r = 0;
-    uint64_t ticks = (uint64_t)(sim_s * 10000.0), done = 0;
+    uint64_t done = 0;
 
     sim_setup(10000.0, 3);
+    sim_encoder_model(model);
     sim_gain_set(0, "kvff", 16.49);
     sim_gain_set(1, "kvff", 16.49);
     sim_gain_set(0, "kaff", 0.1247);
@@ -39,11 +46,12 @@ static double one_run(double sim_s)
     t0 = now();
     sim_queue_line(on_circle, feed, 1, 0, &r);
     while (done < ticks) {
+        uint64_t n = (ticks - done < 4000u) ? ticks - done : 4000u;
         /* keep full circles queued */
         while (sim_queue_arc(on_circle, feed, 0, -20000000, 5000000, 1, 2, &r) == 0) {
         }
-        sim_run(4000, row, 4000, 1);
-        done += 4000;
+        sim_run(n, row, 4000, 1);
+        done += n;
     }
     t1 = now();
     if (sim_edge_mismatches() != 0) {
@@ -52,12 +60,22 @@ static double one_run(double sim_s)
     return (double)done / 10000.0 / (t1 - t0);
 }
 
-int main(void)
+static int model_arg(const char *s)
+{
+    return (s != NULL && strcmp(s, "edges") == 0) ? SIM_ENC_EDGES : SIM_ENC_FAST;
+}
+
+int main(int argc, char **argv)
 {
     double best = 0.0;
-    int i;
+    int i, model;
+
+    if (argc > 2 && strcmp(argv[1], "ticks") == 0) {
+        return one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL)) < 0.0;
+    }
+    model = model_arg(argc > 1 ? argv[1] : NULL);
     for (i = 0; i < 3; i++) {
-        double f = one_run(20.0);
+        double f = one_run(200000u, model);
         if (f < 0) {
             fprintf(stderr, "bench_hil: simulator failed\n");
             return 1;
@@ -66,6 +84,6 @@ int main(void)
             best = f;
         }
     }
-    printf("hil_realtime_factor: %.0f x\n", best);
+    printf("hil_realtime_factor%s: %.0f x\n", model == SIM_ENC_EDGES ? "_edges" : "", best);
     return 0;
 }

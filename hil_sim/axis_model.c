@@ -523,7 +523,11 @@ void axis_set_position(axis_t *ax, double x)
 
 int64_t axis_ref_reading(axis_t *ax)
 {
-    double x = axis_table_pos(ax);
+    return axis_ref_reading_at(ax, axis_table_pos(ax));
+}
+
+int64_t axis_ref_reading_at(axis_t *ax, double x)
+{
     if (ax->p.ref_noise > 0.0) {
         double u1 = uniform01(&ax->ref_rng), u2 = uniform01(&ax->ref_rng);
         x += ax->p.ref_noise * sqrt(-2.0 * log(u1)) * cos(2.0 * PI_D * u2);

@@ -155,6 +155,9 @@ int64_t axis_ref_count(const axis_t *ax);
  * plus the reading noise (ref_noise, Gaussian, independent per call). The
  * same as axis_ref_count when ref_noise is 0. */
 int64_t axis_ref_reading(axis_t *ax);
+/* The same with the true table position x = axis_table_pos(ax) the caller
+ * already has (the simulator computes it once per tick). */
+int64_t axis_ref_reading_at(axis_t *ax, double x);
 
 /* Place both inertias at table position x (m), at rest, current zero. */
 void axis_set_position(axis_t *ax, double x);

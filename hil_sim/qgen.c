@@ -34,6 +34,48 @@ uint32_t qgen_lines_at(const qgen_t *g, int64_t c)
     return lines;
 }
 
+/* The counts around g->count with Z low, as z_lo..z_hi (empty, z_lo >
+ * z_hi, when Z is high at the count): one modulo, then two compares per
+ * move while the count stays inside. */
+static void qgen_z_span(qgen_t *g)
+{
+    int64_t c = g->count, d, w;
+
+    g->z_lo = INT64_MIN;
+    g->z_hi = INT64_MAX;
+    if (!g->has_index) {
+        return;
+    }
+    d = c - g->index_pos + (int64_t)g->z_before; /* as qgen_lines_at */
+    w = (int64_t)g->z_before + (int64_t)g->z_after;
+    if (g->index_period != 0u) {
+        int64_t p = (int64_t)g->index_period;
+        d %= p;
+        if (d < 0) {
+            d += p;
+        }
+    }
+    if (d >= 0 && d <= w) {
+        g->z_lo = INT64_MAX;
+        g->z_hi = INT64_MIN;
+        return;
+    }
+    if (g->index_period != 0u) {
+        /* d in (w, p): the windows at c - (d - w) and c + (p - d) */
+        g->z_lo = c - (d - w) + 1;
+        g->z_hi = c + ((int64_t)g->index_period - d) - 1;
+    } else if (d < 0) {
+        g->z_hi = c - d - 1;
+    } else {
+        g->z_lo = c - (d - w) + 1;
+    }
+}
+
+static bool qgen_z_low(const qgen_t *g, int64_t c)
+{
+    return c >= g->z_lo && c <= g->z_hi;
+}
+
 uint32_t qgen_lines(const qgen_t *g)
 {
     return g->lines;
@@ -49,6 +91,12 @@ void qgen_init(qgen_t *g, qgen_pos_t x0, uint64_t t0_ns, qgen_emit_fn emit, void
     g->ctx = ctx;
     g->lines = qgen_lines_at(g, g->count);
     g->last_edge_t = t0_ns;
+    qgen_z_span(g);
+}
+
+void qgen_set_run(qgen_t *g, qgen_run_fn run)
+{
+    g->run = run;
 }
 
 void qgen_set_index(qgen_t *g, int64_t index_pos, uint64_t period, uint32_t before, uint32_t after)
@@ -59,6 +107,7 @@ void qgen_set_index(qgen_t *g, int64_t index_pos, uint64_t period, uint32_t befo
     g->z_before = before;
     g->z_after = after;
     g->lines = qgen_lines_at(g, g->count);
+    qgen_z_span(g);
 }
 
 static void qgen_emit(qgen_t *g, uint32_t lines, uint64_t t)
@@ -215,15 +264,61 @@ static uint64_t qgen_ideal_setup(const qgen_t *g, qgen_pos_t x1, uint64_t dt, qg
     return n;
 }
 
+/* The fast path as one run (qgen_set_run): false when the move has an event
+ * with Z high, more than 2^31 - 1 events, or the callback refuses it; *n
+ * the events of a move taken. The last crossing is of boundary c1
+ * (forward) or c1 + 1 (backward), at the time the stepper reaches: t +
+ * floor(distance * dt / |dx|). */
+static bool qgen_move_run(qgen_t *g, qgen_pos_t x1, uint64_t dt, uint64_t *n)
+{
+    qgen_pos_t x0 = g->x;
+    bool fwd = x1 > x0;
+    int64_t c0 = g->count, c1 = qgen_floor_count(x1);
+    uint64_t k = fwd ? (uint64_t)(c1 - c0) : (uint64_t)(c0 - c1);
+    uint64_t den, dist, t_last;
+    qgen_u128 q, r;
+
+    *n = 0u;
+    if (k == 0u) {
+        return true;
+    }
+    if (k > (uint64_t)INT32_MAX) {
+        return false;
+    }
+    if (!qgen_z_low(g, c0)) {
+        qgen_z_span(g);
+    }
+    if (!qgen_z_low(g, c0) || !qgen_z_low(g, c1)) {
+        return false; /* the span is contiguous: both ends inside, all inside */
+    }
+    den = fwd ? (uint64_t)(x1 - x0) : (uint64_t)(x0 - x1);
+    dist = fwd ? (uint64_t)(c1 * QGEN_ONE - x0) : (uint64_t)(x0 - (c1 + 1) * QGEN_ONE);
+    qgen_divmod((qgen_u128)dist * dt, den, &q, &r);
+    t_last = g->t + (uint64_t)q;
+    if (!g->run(g->ctx, fwd ? (int32_t)k : -(int32_t)k, (uint32_t)t_last)) {
+        return false;
+    }
+    g->count = c1;
+    g->lines = qgen_ab[(uint64_t)c1 & 3u];
+    g->last_edge_t = t_last;
+    g->edges += k;
+    *n = k;
+    return true;
+}
+
 /* The fast path with the callback. Without an index window, the loop keeps
  * everything in locals and writes the generator's fields back once at the
  * end (the callback must not read them; it gets the lines and the time). */
 static uint64_t qgen_move_ideal(qgen_t *g, qgen_pos_t x1, uint64_t dt)
 {
     qgen_edge_step_t st;
-    uint64_t n = qgen_ideal_setup(g, x1, dt, &st), k, t, rem;
+    uint64_t n, k, t, rem;
     bool fwd = x1 > g->x;
 
+    if (g->run != NULL && qgen_move_run(g, x1, dt, &n)) {
+        return n;
+    }
+    n = qgen_ideal_setup(g, x1, dt, &st);
     if (n == 0u) {
         return 0u;
     }
@@ -239,11 +334,15 @@ static uint64_t qgen_move_ideal(qgen_t *g, qgen_pos_t x1, uint64_t dt)
     }
     t = st.t;
     rem = st.rem;
+    if (g->has_index && !qgen_z_low(g, g->count)) {
+        qgen_z_span(g);
+    }
     for (k = n; k > 0u; k--) {
         int64_t c = g->count + (fwd ? 1 : -1);
 
         g->count = c;
-        qgen_emit(g, g->has_index ? qgen_lines_at(g, c) : qgen_ab[(uint64_t)c & 3u], t);
+        /* Z from the cached span where it holds, else the modulo */
+        qgen_emit(g, qgen_z_low(g, c) ? qgen_ab[(uint64_t)c & 3u] : qgen_lines_at(g, c), t);
         g->edges++;
         qgen_step(&t, &rem, &st);
     }

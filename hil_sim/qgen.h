@@ -44,7 +44,10 @@
  * 2^61, steps < 2^38 ns) the per-event loop keeps its state in locals and
  * brings count, lines, edges and last_edge_t up to date when qgen_move_to
  * returns: the callback gets the lines and the time and must not read or
- * change the generator.
+ * change the generator. With a run callback (qgen_set_run) a move whose
+ * events all have Z low costs one division and one call, whatever the
+ * number of events; the index window is found from a cached range of
+ * counts with Z low, not a modulo per event.
  */
 #ifndef QGEN_H
 #define QGEN_H
@@ -62,6 +65,11 @@ typedef int64_t qgen_pos_t;
 
 /* Receives each event: the new lines and the time (low 32 bits of ns). */
 typedef void (*qgen_emit_fn)(void *ctx, uint32_t lines, uint32_t t_ns);
+
+/* Receives a whole move as one run (qgen_set_run): steps (+-n) A/B events
+ * in one direction with Z low throughout, the last at t_last_ns (low 32
+ * bits); returns false to have them emitted one by one instead. */
+typedef bool (*qgen_run_fn)(void *ctx, int32_t steps, uint32_t t_last_ns);
 
 typedef struct {
     qgen_pos_t x;   /* current position                               */
@@ -82,6 +90,10 @@ typedef struct {
     /* internal (fast path): time per count of the current move, quotient + 1,
      * remainder - divisor (mod 2^64) and divisor */
     uint64_t step_q1, step_r1, step_den;
+    qgen_run_fn run; /* qgen_set_run; NULL: every event through emit     */
+    /* internal: counts z_lo..z_hi all have Z low (a cache: recomputed when
+     * the count is outside it; z_lo > z_hi: Z high at the count) */
+    int64_t z_lo, z_hi;
 } qgen_t;
 
 /* Start at position x0, time t0, no index. Emits nothing. */
@@ -104,6 +116,13 @@ uint32_t qgen_lines_at(const qgen_t *g, int64_t c);
  * re-derives the current count without emitting. False (nothing changed)
  * when an offset is out of range. */
 bool qgen_set_edge_offsets(qgen_t *g, const qgen_pos_t off[4]);
+
+/* Whole moves as runs: a move on the fast path (no edge offsets) whose
+ * events all have Z low and number at most 2^31 - 1 goes to run(ctx,
+ * steps, t_last) instead of emit, with t_last the time the per-event path
+ * would give its last event (the same formula, one division); count,
+ * lines, edges and last_edge_t end as after the events. NULL: off. */
+void qgen_set_run(qgen_t *g, qgen_run_fn run);
 
 /* Move to x1 arriving at t1_ns (>= current time; earlier is taken as the
  * current time). Returns the number of events emitted. */

@@ -42,6 +42,9 @@ static struct {
                                    * at or above, 0: no switch           */
     double enc_index[SIM_AXES];   /* 1: an index pulse per motor turn    */
     double index_phase[SIM_AXES]; /* counts from position 0 to an index  */
+    int enc_model;                /* SIM_ENC_*: how edges reach the decoder */
+    uint64_t run_edges;           /* edges delivered in runs (SIM_ENC_FAST)  */
+    double table[SIM_AXES];       /* axis_table_pos after the last substep */
 } S;
 
 /* The simulator's own per-axis settings (not axis_model parameters). */
@@ -89,6 +92,7 @@ int sim_setup(double tick_hz, unsigned axes)
     }
     S.dcfg.servo.cec.pid.out_max_mv = 10000;
     S.dcfg.servo.cec.pid.i_max_mv = 10000;
+    S.enc_model = SIM_ENC_FAST;
     S.board.board_id = BOOT_BOARD_SIM;
     S.board.node_id = 1u;
     S.board.capabilities = 1u << PROTO_CAPABILITY_SIMULATED;
@@ -430,6 +434,36 @@ static void emit_edge(void *ctx, uint32_t lines, uint32_t t_ns)
     drive_encoder_edge((unsigned)(uintptr_t)ctx, lines, t_ns);
 }
 
+static bool run_edges(void *ctx, int32_t steps, uint32_t t_last_ns)
+{
+    if (!drive_encoder_run((unsigned)(uintptr_t)ctx, steps, t_last_ns)) {
+        return false;
+    }
+    S.run_edges += (uint64_t)(steps < 0 ? -(int64_t)steps : (int64_t)steps);
+    return true;
+}
+
+int sim_encoder_model(int model)
+{
+    unsigned i;
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (model != SIM_ENC_EDGES && model != SIM_ENC_FAST) {
+        return SIM_E_ARG;
+    }
+    S.enc_model = model;
+    for (i = 0; S.started && i < S.axes; i++) {
+        qgen_set_run(&S.gen[i], model == SIM_ENC_FAST ? run_edges : NULL);
+    }
+    return 0;
+}
+
+int sim_encoder_model_get(void)
+{
+    return S.enc_model;
+}
+
 static qgen_pos_t to_qgen(double counts)
 {
     return (qgen_pos_t)floor(counts * (double)QGEN_ONE);
@@ -486,6 +520,7 @@ int sim_start(void)
     S.t_ns = 0;
     S.ticks = 0;
     S.edges = 0;
+    S.run_edges = 0;
     S.mismatches = 0;
     cfg = S.dcfg;
     cfg.tick_hz = S.tick_hz;
@@ -495,6 +530,7 @@ int sim_start(void)
             return SIM_E_MODEL;
         }
         axis_set_position(&S.ax[i], 0.0);
+        S.table[i] = axis_table_pos(&S.ax[i]);
         /* the decoder's zero is the true position 0, not a noisy reading */
         qgen_init(&S.gen[i], to_qgen(axis_encoder_counts(&S.ax[i])), 0, emit_edge,
                   (void *)(uintptr_t)i);
@@ -505,6 +541,7 @@ int sim_start(void)
             qgen_set_index(&S.gen[i], S.count0[i] + (int64_t)floor(S.index_phase[i] + 0.5), per, 0,
                            0);
         }
+        qgen_set_run(&S.gen[i], S.enc_model == SIM_ENC_FAST ? run_edges : NULL);
         cfg.enc_initial_lines[i] = qgen_lines(&S.gen[i]);
         hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)axis_ref_count(&S.ax[i]), true);
         if (!encoder_scale(S.par[i].l * 2.0 * PI_D, S.par[i].enc_counts_per_rev,
@@ -533,7 +570,7 @@ int sim_start(void)
 /* The home switch of axis i from the table position. */
 static void sim_home_switch(unsigned i)
 {
-    double x = axis_table_pos(&S.ax[i]) - S.home_switch[i];
+    double x = S.table[i] - S.home_switch[i];
     hal_sim_set_home_switch(i, (S.home_side[i] < 0.0 && x <= 0.0) ||
                                    (S.home_side[i] > 0.0 && x >= 0.0));
 }
@@ -550,7 +587,7 @@ static void write_row(double *row)
     row[3] = (double)st.contour_error_nm * 1e-9;
     for (i = 0; i < S.axes; i++) {
         row[4 + 4 * i] = (double)st.ref[i] * 1e-9;
-        row[5 + 4 * i] = axis_table_pos(&S.ax[i]);
+        row[5 + 4 * i] = S.table[i];
         row[6 + 4 * i] = (double)st.pos[i] * 1e-9;
         row[7 + 4 * i] = (double)hal_sim_motor_mv(i) * 1e-3;
     }
@@ -573,7 +610,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
     for (k = 0; k < ticks; k++) {
         hal_sim_set_time_ns(S.t_ns);
         for (i = 0; i < S.axes; i++) {
-            int64_t rc = axis_ref_reading(&S.ax[i]);
+            int64_t rc = axis_ref_reading_at(&S.ax[i], S.table[i]);
             hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
             sim_home_switch(i);
         }
@@ -600,6 +637,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
                 S.edges += qgen_move_to(&S.gen[i], to_qgen(axis_encoder_reading(&S.ax[i])),
                                         S.t_ns + S.sub_ns[s + 1]);
             }
+            S.table[i] = axis_table_pos(&S.ax[i]);
         }
         S.t_ns += S.period_ns;
         S.ticks++;
@@ -654,6 +692,11 @@ uint64_t sim_edges(void)
     return S.edges;
 }
 
+uint64_t sim_run_edges(void)
+{
+    return S.run_edges;
+}
+
 uint64_t sim_edge_mismatches(void)
 {
     return S.mismatches;
@@ -669,7 +712,7 @@ double sim_table_pos(unsigned axis)
     if (!S.started || axis >= S.axes) {
         return 0.0;
     }
-    return axis_table_pos(&S.ax[axis]);
+    return S.table[axis];
 }
 
 int sim_drive_status(sim_status_t *out)

@@ -46,9 +46,11 @@
  *   6. each axis model advances over [t_k, t_k+1) in substeps with the motor
  *      command held (ZOH); after each substep the encoder reading (counts,
  *      with noise when configured) is quantised (floor) and every count
- *      change is delivered to the firmware as a quadrature edge through
- *      drive_encoder_edge(), time-stamped by linear interpolation of the
- *      reading within the substep (ns clock, wrapping uint32).
+ *      change is a quadrature edge, time-stamped by linear interpolation of
+ *      the reading within the substep (ns clock, wrapping uint32), that
+ *      reaches the firmware as the encoder model says (sim_encoder_model):
+ *      one by one through drive_encoder_edge(), or the substep's edges as
+ *      one run through drive_encoder_run() (the same decoder state).
  * The motor command is read as millivolts at the amplifier input
  * (hal_sim_motor_mv: 0 when the amplifier is disabled); the model applies
  * the amplifier gain kx and the +-vmax limit.
@@ -94,6 +96,20 @@ int sim_axis_get(unsigned axis, const char *name, double *value);
 int sim_axis_pitch(unsigned axis, unsigned n, const double *pos, const double *err_fwd,
                    const double *err_rev);
 int sim_set_substep(double max_s);
+
+/* How the encoder edges reach the firmware's decoder (docs/simulator.md,
+ * "Encoder models"); sim_setup sets SIM_ENC_FAST; takes effect at once.
+ *   SIM_ENC_EDGES  the reference: every edge through drive_encoder_edge.
+ *   SIM_ENC_FAST   each substep's edges as one run (drive_encoder_run:
+ *                  the count and the last edge's time the edges would
+ *                  leave, computed from the reading), edge by edge only
+ *                  where Z changes or the decoder refuses a run. The
+ *                  decoder's state at every sample, and so every trace,
+ *                  is bit-identical to SIM_ENC_EDGES. */
+#define SIM_ENC_EDGES 0
+#define SIM_ENC_FAST  1
+int sim_encoder_model(int model);
+int sim_encoder_model_get(void);
 
 /* The drive's configuration before sim_start (SI units, converted here):
  *   sim_gain_set(loop, name, v)  loop 0..axes-1: that axis's PID, -1: the
@@ -143,6 +159,8 @@ uint32_t sim_tick_hz(void);
 uint64_t sim_ticks(void);
 double sim_time_s(void);
 uint64_t sim_edges(void);
+/* Of sim_edges(), those delivered in runs (SIM_ENC_FAST; 0 with edges). */
+uint64_t sim_run_edges(void);
 uint64_t sim_edge_mismatches(void);
 unsigned sim_substeps(void);
 double sim_table_pos(unsigned axis);

@@ -884,6 +884,12 @@ void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns)
     }
 }
 
+bool drive_encoder_run(unsigned ch, int32_t steps, uint32_t t_last_ns)
+{
+    return drv.ready && ch < drv.cfg.axes && !drv.cfg.enc_counter[ch] &&
+           qdec_edge_run(&drv.in.enc[ch], steps, t_last_ns);
+}
+
 int64_t drive_encoder_count(unsigned ch)
 {
     if (!drv.ready || ch >= drv.cfg.axes) {
@@ -954,6 +960,11 @@ void drive_test_arc_exact(bool on)
     drv.arc.exact = on;
     arc_ref_stop(&drv.arc);
     interp_set_fast_skip(&drv.ip, 0);
+}
+
+const qdec_t *drive_test_encoder(unsigned ch)
+{
+    return (ch < CORE_AXES) ? &drv.in.enc[ch] : NULL;
 }
 
 const motion_ref_t *drive_test_ref(void)

@@ -26,7 +26,7 @@
  *                                         with blocks queued as RUNNING).
  *   drive_param_*(), drive_queue_free()   main.
  *   drive_arc_chords()                    any (pure).
- *   drive_encoder_edge()                  edge interrupt / simulator, between
+ *   drive_encoder_edge(), _run()          edge interrupt / simulator, between
  *                                         ticks (never concurrently with tick
  *                                         on the simulator; on hardware the
  *                                         decoder's own rules apply).
@@ -364,6 +364,13 @@ void drive_snapshot(drive_status_t *out);
  * Channels out of range, and axes read as counters (enc_counter), are
  * ignored. */
 void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns);
+
+/* A run of |steps| encoder edges in one direction on channel ch, the last
+ * at t_last_ns (qdec_edge_run: Z low throughout). False when the channel
+ * cannot take it as a run (out of range or a counter: ignored as
+ * drive_encoder_edge ignores it; or qdec_edge_run refuses): deliver the
+ * edges one by one instead. Same context as drive_encoder_edge. */
+bool drive_encoder_run(unsigned ch, int32_t steps, uint32_t t_last_ns);
 
 /* Decoded position of channel ch in counts (0 for a channel not in use). */
 int64_t drive_encoder_count(unsigned ch);

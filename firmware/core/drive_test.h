@@ -8,6 +8,7 @@
 #include <stdbool.h>
 
 #include "motion_ref.h"
+#include "qdec.h"
 
 /* Test hook: when on, every tick rebuilds the reference from the
  * interpolator's in full (no pos-only copy on its fast-path ticks); the
@@ -21,5 +22,9 @@ void drive_test_full_ref(bool on);
 void drive_test_arc_exact(bool on);
 /* Test hook: the reference the last tick handed the servo. */
 const motion_ref_t *drive_test_ref(void);
+
+/* Test hook: the decoder of encoder channel ch (NULL when out of range), to
+ * compare its whole state. Main, with the tick stopped. */
+const qdec_t *drive_test_encoder(unsigned ch);
 
 #endif /* DRIVE_TEST_H */

@@ -84,6 +84,21 @@ static uint32_t fx_div64by32n(uint32_t u1, uint32_t u0, uint32_t v, uint32_t *re
     return (qh << 16) | ql;
 }
 
+/* The 64/32 step of the tick's own callers (fx_isqrt64, fx_udiv64by32), the
+ * same contract: the hardware's 64-bit divider where it exists (one
+ * instruction instead of two 16-bit digit estimates; the same quotient),
+ * the digits above on 32-bit targets. The long divisions below keep the
+ * digit step on every host: their test hooks are what 32-bit targets run. */
+static inline uint32_t fx_div64by32q(uint32_t u1, uint32_t u0, uint32_t v)
+{
+#ifdef FX_NATIVE_DIV
+    return (uint32_t)((((uint64_t)u1 << 32) | u0) / v);
+#else
+    uint32_t rem;
+    return fx_div64by32n(u1, u0, v, &rem);
+#endif
+}
+
 /* The same for a divisor with a precomputed reciprocal v = floor((2^64 - 1)
  * / d) - 2^32 (Moller and Granlund, "Improved division by invariant
  * integers", 2011, algorithm 4): one multiply, at most two corrections. */
@@ -413,7 +428,7 @@ uint32_t fx_isqrt64(uint64_t v)
 {
     unsigned sh;
     uint64_t x, y;
-    uint32_t r0, q, rem;
+    uint32_t r0, q;
 
     if (v <= UINT32_MAX) {
         return fx_isqrt32((uint32_t)v);
@@ -424,7 +439,7 @@ uint32_t fx_isqrt64(uint64_t v)
     if ((uint32_t)(x >> 32) >= r0) {
         return UINT32_MAX >> (sh / 2u); /* only when R = 2^32 - 1 */
     }
-    q = fx_div64by32n((uint32_t)(x >> 32), (uint32_t)x, r0, &rem);
+    q = fx_div64by32q((uint32_t)(x >> 32), (uint32_t)x, r0);
     y = ((uint64_t)r0 + q) >> 1;
     if (y > UINT32_MAX) {
         y = UINT32_MAX;
@@ -528,7 +543,7 @@ uint64_t fx_recip62(uint32_t d)
 
 uint32_t fx_udiv64by32(uint64_t n, uint32_t d)
 {
-    uint32_t nh = (uint32_t)(n >> 32), rem;
+    uint32_t nh = (uint32_t)(n >> 32);
     unsigned s;
 
     if (nh >= d) { /* quotient >= 2^32, or d == 0 */
@@ -539,5 +554,5 @@ uint32_t fx_udiv64by32(uint64_t n, uint32_t d)
     }
     s = fx_clz32(d); /* nh < d: the shifted numerator's top word stays below d */
     n <<= s;
-    return fx_div64by32n((uint32_t)(n >> 32), (uint32_t)n, d << s, &rem);
+    return fx_div64by32q((uint32_t)(n >> 32), (uint32_t)n, d << s);
 }

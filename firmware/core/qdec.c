@@ -236,6 +236,30 @@ void qdec_edge(qdec_t *q, uint32_t lines, uint32_t t_ns)
     e->seq = seq + 2u;
 }
 
+bool qdec_edge_run(qdec_t *q, int32_t steps, uint32_t t_last_ns)
+{
+    qdec_edge_state_t *e = &q->e;
+    uint32_t n = (steps < 0) ? 0u - (uint32_t)steps : (uint32_t)steps;
+    uint32_t seq, i;
+
+    if (n == 0u || q->cfg.glitch_ns != 0u || q->cfg.mode != QDEC_X4 || q->cfg.vel_cycle ||
+        e->z != 0u) {
+        return false;
+    }
+    /* position in the forward cycle 00, A, AB, B: the Gray code's value */
+    i = (uint32_t)e->ab ^ ((uint32_t)e->ab >> 1);
+    i = (i + (uint32_t)steps) & 3u;
+    seq = e->seq;
+    e->seq = seq + 1u;
+    e->count = e->count + (uint32_t)steps;
+    e->nedge = e->nedge + n;
+    e->t_last = t_last_ns;
+    e->dir = (int8_t)((steps > 0) ? 1 : -1);
+    e->ab = (uint8_t)(i ^ (i >> 1));
+    e->seq = seq + 2u;
+    return true;
+}
+
 void qdec_index_capture(qdec_t *q, uint32_t raw, uint32_t t_ns)
 {
     qdec_edge_state_t *e = &q->e;
@@ -840,6 +864,18 @@ pos_nm_t qdec_counts_to_nm_any(const qdec_t *q, int64_t counts)
     uint64_t uw, ur;
     int64_t nm;
 
+    if (counts == (int64_t)(int32_t)counts && q->cfg.offset_nm > -((int64_t)1 << 62) &&
+        q->cfg.offset_nm < ((int64_t)1 << 62)) {
+        /* |counts * num| <= 2^62 and |offset| < 2^62: nothing saturates, and
+         * rounding the whole quotient equals whole * num + round(rem * num /
+         * den) below (whole and rem share the sign of counts: the same
+         * half-away-from-zero rounding of the same value) */
+        nm = (int64_t)(int32_t)counts * num;
+        if (den != 1) {
+            nm = fx_div_round64(nm, den);
+        }
+        return nm + q->cfg.offset_nm;
+    }
     if (den != 1) { /* C division (toward zero), without the 64-bit divider */
         uw = fx_udivmod64(fx_uabs64(counts), (uint64_t)den, &ur);
         whole = (int64_t)((counts < 0) ? (uint64_t)0 - uw : uw);

@@ -330,6 +330,21 @@ bool qdec_init(qdec_t *q, const qdec_config_t *cfg, uint32_t initial, uint32_t n
 /* Edge input: new levels (QDEC_LINE_* bits) at time t_ns. Edge context. */
 void qdec_edge(qdec_t *q, uint32_t lines, uint32_t t_ns);
 
+/* Edge input: a run of |steps| (1 .. 2^31 - 1) legal x4 edges in one
+ * direction (steps > 0: forward), Z low before, during and after it, the
+ * last one at t_last_ns. Leaves every field a sample reads (count, nedge,
+ * t_last, dir, ab; seq odd, then even) as the |steps| qdec_edge() calls of
+ * that run would, whatever their earlier times: with no filter, x4 and no
+ * vel_cycle a sample reads only the last counted edge's time. The
+ * cycle-aligned fields (cyc_*, ncyc), read only with vel_cycle, are left
+ * as they are. Returns false and changes nothing when it cannot stand for
+ * the run: steps 0, glitch filter on, mode not x4, vel_cycle, or Z high
+ * now; the caller then delivers the edges one by one. For a source that
+ * knows the count and the last edge's time without the edges (the
+ * simulator's encoder; a timer in encoder mode with a capture of the last
+ * edge). Edge context. */
+bool qdec_edge_run(qdec_t *q, int32_t steps, uint32_t t_last_ns);
+
 /* Counter input: hardware captured `raw` at the index edge at t_ns. The
  * direction is taken from the last sample. Edge/capture context. */
 void qdec_index_capture(qdec_t *q, uint32_t raw, uint32_t t_ns);

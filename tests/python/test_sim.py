@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from contour import cli
 from contour.errors import UserError
-from contour.sim import circle, job, machine, tuning
+from contour.sim import circle, core, job, machine, tuning
 
 
 def test_x_axis_eigenvalues_match_spec():
@@ -42,6 +42,49 @@ def test_circle_is_deterministic_and_edges_agree():
     assert a.result.edges > 10000
     assert a.result.edge_mismatch_ticks == 0
     assert a.result.faults == []
+
+
+def test_encoder_models_agree():
+    """The fast encoder model (a substep's edges as one update) and the
+    edge-accurate reference give the same run, bit for bit: every trace row
+    and the scores (docs/simulator.md, "Encoder models")."""
+    so = core.lib()
+    runs = {}
+    for model in ("edges", "fast"):
+        runs[model] = circle.run_circle(
+            20,
+            10000,
+            controller="cec-exact",
+            feedforward="full",
+            settle_s=0.1,
+            encoder_model=model,
+        )
+        assert so.sim_encoder_model_get() == core.ENCODER_MODELS[model]
+        runs[model + "_run_edges"] = int(so.sim_run_edges())
+    a, b = runs["edges"], runs["fast"]
+    assert runs["edges_run_edges"] == 0
+    assert runs["fast_run_edges"] > 0.9 * b.result.edges
+    assert np.array_equal(a.full, b.full)
+    assert a.result == b.result
+    assert a.result.edge_mismatch_ticks == 0
+
+
+def test_encoder_model_from_machine_file_and_cli(tmp_path, capsys):
+    so = core.lib()
+    src = (machine.MACHINES / "default.toml").read_text()
+    f = tmp_path / "m.toml"
+    f.write_text('encoder_model = "edges"\n' + src)
+    assert machine.load(str(f)).encoder_model == "edges"
+    assert machine.load("default").encoder_model == "fast"
+    circle.run_circle(20, 10000, controller="pid", settle_s=0.1, machine_file=str(f))
+    assert so.sim_encoder_model_get() == core.ENCODER_MODELS["edges"]
+    argv = ["sim", "circle", "--radius", "20", "--feed", "10000", "--controller", "pid"]
+    assert cli.main([*argv, "--machine", str(f), "--encoder-model", "fast", "--json"]) == 0
+    capsys.readouterr()
+    assert so.sim_encoder_model_get() == core.ENCODER_MODELS["fast"]
+    f.write_text('encoder_model = "exact"\n' + src)
+    with pytest.raises(UserError, match="encoder_model"):
+        machine.load(str(f))
 
 
 def test_cec_removes_the_radius_error_of_the_pids():

@@ -925,6 +925,35 @@ static void test_isqrt32_exhaustive_and_boundaries(void)
     TEST_ASSERT_EQUAL_UINT32(2, fx_isqrt32(4));
 }
 
+/* fx_udiv64by32: floor(n / d) when it fits 32 bits, else (and for d == 0)
+ * UINT32_MAX; numerators with a high word (the 64/32 step) and without,
+ * quotients at both ends of the 32-bit range. */
+static void test_udiv64by32_exact(void)
+{
+    unsigned i;
+    rng_seed(11);
+    for (i = 0; i < 200000; i++) {
+        uint32_t d = (uint32_t)(rng() >> (32 + (i % 32)));
+        uint64_t n = rnd_u64() >> (i % 64);
+        uint64_t q;
+        if (i % 5 == 0 && d != 0u) {
+            /* quotient just below 2^32 and just above */
+            n = (uint64_t)d * (0xFFFFFFFFull - (i % 3)) + (rng() % d);
+            if (i % 10 == 0) {
+                n += d;
+            }
+        }
+        q = d == 0u ? UINT32_MAX : n / d;
+        if (q > UINT32_MAX) {
+            q = UINT32_MAX;
+        }
+        TEST_ASSERT_EQUAL_UINT32((uint32_t)q, fx_udiv64by32(n, d));
+    }
+    TEST_ASSERT_EQUAL_UINT32(UINT32_MAX, fx_udiv64by32(5, 0));
+    TEST_ASSERT_EQUAL_UINT32(0xFFFFFFFFu, fx_udiv64by32(0xFFFFFFFEFFFFFFFFull, 0xFFFFFFFFu));
+    TEST_ASSERT_EQUAL_UINT32(2u, fx_udiv64by32(0x100000000ull, 0x80000000u));
+}
+
 static void test_isqrt64_boundaries_and_random(void)
 {
     uint64_t r;
@@ -1716,6 +1745,7 @@ int main(void)
     RUN_TEST(test_muldiv64);
     RUN_TEST(test_recip_q16);
     RUN_TEST(test_udiv_digits_against_native);
+    RUN_TEST(test_udiv64by32_exact);
     RUN_TEST(test_isqrt32_exhaustive_and_boundaries);
     RUN_TEST(test_isqrt64_boundaries_and_random);
     RUN_TEST(test_icbrt64_every_cube_boundary);

@@ -10,6 +10,7 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
 
 #define TS_NS 100000u /* 10 kHz control tick */
 
@@ -889,6 +890,157 @@ __extension__ typedef __int128 i128;
 /* The inline 32-bit scaling (den 1, |counts| < 2^31, |offset| < 2^62)
  * equals the general form and the exact saturated value over its whole
  * range, and its edges fall back to the general form. */
+/* ---- runs (qdec_edge_run) ------------------------------------------------------------- */
+
+static unsigned runs_taken;
+
+static void run_dec_emit(void *ctx, uint32_t lines, uint32_t t_ns)
+{
+    qdec_edge(ctx, lines, t_ns);
+}
+
+static bool run_dec_run(void *ctx, int32_t steps, uint32_t t_last_ns)
+{
+    bool ok = qdec_edge_run(ctx, steps, t_last_ns);
+    runs_taken += ok ? 1u : 0u;
+    return ok;
+}
+
+static void check_same_decoders(qdec_t *a, qdec_t *b)
+{
+    TEST_ASSERT_EQUAL_UINT32(a->e.count, b->e.count);
+    TEST_ASSERT_EQUAL_UINT32(a->e.nedge, b->e.nedge);
+    TEST_ASSERT_EQUAL_UINT32(a->e.t_last, b->e.t_last);
+    TEST_ASSERT_EQUAL_INT8(a->e.dir, b->e.dir);
+    TEST_ASSERT_EQUAL_UINT8(a->e.ab, b->e.ab);
+    TEST_ASSERT_EQUAL_UINT8(a->e.z, b->e.z);
+    TEST_ASSERT_EQUAL_INT64(a->out.pos, b->out.pos);
+    TEST_ASSERT_EQUAL_INT64(a->out.pos_nm, b->out.pos_nm);
+    TEST_ASSERT_EQUAL_INT8(a->out.dir, b->out.dir);
+    TEST_ASSERT_EQUAL(a->out.stopped, b->out.stopped);
+    TEST_ASSERT_EQUAL_UINT32(a->out.faults, b->out.faults);
+    TEST_ASSERT_EQUAL_UINT32(a->out.index_events, b->out.index_events);
+    TEST_ASSERT_EQUAL_INT64(a->out.index_pos, b->out.index_pos);
+    TEST_ASSERT_EQUAL_UINT32(a->out.index_t_ns, b->out.index_t_ns);
+    TEST_ASSERT_EQUAL_INT8(a->out.index_dir, b->out.index_dir);
+    TEST_ASSERT_EQUAL_INT64(qdec_velocity(a), qdec_velocity(b));
+}
+
+/* The decoder fed runs (the simulator's fast encoder) against the same
+ * decoder fed every edge of the same trajectory: speeds from standstill to
+ * 2e6 counts/s, reversals inside a tick, an index every 1000 counts (the
+ * ticks through its window go edge by edge): every output and the edge
+ * state equal after every sample. */
+static void test_edge_run_equals_edges(void)
+{
+    qgen_t ga, gb;
+    qdec_t da, db;
+    qdec_config_t c = edge_cfg(QDEC_X4);
+    uint64_t t = 5000, k;
+    double v = 0.0;
+    qgen_pos_t x = QGEN_ONE / 2;
+
+    c.nm_per_count_num = 1250;
+    c.index_qual = 0;
+    qgen_init(&ga, x, t, run_dec_emit, &da);
+    qgen_init(&gb, x, t, run_dec_emit, &db);
+    qgen_set_index(&ga, 300, 1000, 0, 0);
+    qgen_set_index(&gb, 300, 1000, 0, 0);
+    qgen_set_run(&gb, run_dec_run);
+    TEST_ASSERT_TRUE(qdec_init(&da, &c, qgen_lines(&ga), (uint32_t)t));
+    TEST_ASSERT_TRUE(qdec_init(&db, &c, qgen_lines(&gb), (uint32_t)t));
+    runs_taken = 0;
+    for (k = 0; k < 60000; k++) {
+        unsigned s;
+        if (k % 500 == 0) {
+            /* a new speed, counts per tick: +-200 (2e6 counts/s), some stops */
+            v = (k % 3500 == 0) ? 0.0 : ((double)(rnd() % 40001u) - 20000.0) / 100.0;
+        }
+        for (s = 1; s <= 4; s++) {
+            /* four substeps, one of them sometimes against the motion */
+            double dv = (s == 3 && (k % 7 == 0)) ? -0.6 * v : 0.25 * v;
+            x += (qgen_pos_t)(dv * (double)QGEN_ONE);
+            qgen_move_to(&ga, x, t + 25000u * s);
+            qgen_move_to(&gb, x, t + 25000u * s);
+        }
+        t += TS_NS;
+        qdec_sample(&da, (uint32_t)t);
+        qdec_sample(&db, (uint32_t)t);
+        check_same_decoders(&da, &db);
+    }
+    TEST_ASSERT_TRUE(runs_taken > 100000u);
+    TEST_ASSERT_TRUE(da.out.index_events > 100u);
+    TEST_ASSERT_EQUAL_UINT64(ga.edges, gb.edges);
+}
+
+/* Constant velocity through runs alone: at every sample the position is
+ * floor(x(t_k)) - floor(x0) and the last edge's time the crossing of that
+ * count, t0 + floor((c ONE - x0) T / S) with S the q24 step per tick T. */
+static void test_edge_run_constant_velocity_closed_form(void)
+{
+    static const int64_t steps[] = {(int64_t)(37.3 * 16777216.0), -(int64_t)(0.71 * 16777216.0),
+                                    (int64_t)(1999.9 * 16777216.0), QGEN_ONE + 1};
+    qgen_t g;
+    qdec_t d;
+    qdec_config_t c = edge_cfg(QDEC_X4);
+    unsigned j;
+
+    for (j = 0; j < 4; j++) {
+        int64_t S = steps[j];
+        qgen_pos_t x0 = -QGEN_COUNTS(777) + 12345;
+        uint64_t t0 = 0xFFF00000ull, k; /* across the 32-bit wrap */
+        int64_t c0 = floor_div(x0, QGEN_ONE);
+
+        qgen_init(&g, x0, t0, NULL, &d); /* no edge callback: runs only */
+        qgen_set_run(&g, run_dec_run);
+        TEST_ASSERT_TRUE(qdec_init(&d, &c, qgen_lines(&g), (uint32_t)t0));
+        runs_taken = 0;
+        for (k = 1; k <= 3000; k++) {
+            int64_t ck = floor_div(x0 + (int64_t)k * S, QGEN_ONE);
+            qgen_move_to(&g, x0 + (int64_t)k * S, t0 + k * TS_NS);
+            qdec_sample(&d, (uint32_t)(t0 + k * TS_NS));
+            TEST_ASSERT_EQUAL_INT64(ck - c0, d.out.pos);
+            if (ck != c0) {
+                /* the boundary last crossed: ck (forward) or ck + 1 */
+                int64_t b = (S > 0) ? ck : ck + 1;
+                __extension__ __int128 dist = (__int128)b * QGEN_ONE - x0;
+                uint64_t tl = t0 + (uint64_t)(dist * TS_NS / S);
+                TEST_ASSERT_EQUAL_UINT32((uint32_t)tl, d.e.t_last);
+            }
+        }
+        TEST_ASSERT_TRUE(runs_taken > 0u);
+    }
+}
+
+/* qdec_edge_run refuses (returns false, changes nothing) what it cannot
+ * stand for: no steps, x2/x1, the glitch filter, vel_cycle, Z high. */
+static void test_edge_run_refusals(void)
+{
+    qdec_t d, before;
+    qdec_config_t c;
+    unsigned k;
+
+    for (k = 0; k < 6; k++) {
+        c = edge_cfg(k == 1 ? QDEC_X2 : k == 2 ? QDEC_X1 : QDEC_X4);
+        c.glitch_ns = (k == 3) ? 500u : 0u;
+        c.vel_cycle = (k == 4);
+        TEST_ASSERT_TRUE(qdec_init(&d, &c, (k == 5) ? QDEC_LINE_Z : 0u, 0));
+        before = d;
+        TEST_ASSERT_FALSE(qdec_edge_run(&d, (k == 0) ? 0 : 5, 1000));
+        TEST_ASSERT_EQUAL_INT(0, memcmp(&before, &d, sizeof d));
+    }
+    /* and takes the others: 5 forward from 00 ends in A (0, A, AB, B, 0, A) */
+    c = edge_cfg(QDEC_X4);
+    TEST_ASSERT_TRUE(qdec_init(&d, &c, 0u, 0));
+    TEST_ASSERT_TRUE(qdec_edge_run(&d, 5, 1000));
+    TEST_ASSERT_EQUAL_UINT8(QDEC_LINE_A, d.e.ab);
+    TEST_ASSERT_TRUE(qdec_edge_run(&d, -7, 2000)); /* -2 from 00: AB */
+    TEST_ASSERT_EQUAL_UINT8(QDEC_LINE_A | QDEC_LINE_B, d.e.ab);
+    TEST_ASSERT_EQUAL_UINT32(12, d.e.nedge);
+    TEST_ASSERT_EQUAL_INT8(-1, d.e.dir);
+    TEST_ASSERT_EQUAL_UINT32(4, d.e.seq);
+}
+
 static void test_scaling_fast_path(void)
 {
     static const int32_t nums[] = {1, 1250, -1250, INT32_MAX, INT32_MIN};
@@ -980,6 +1132,54 @@ static void test_scaling_exact(void)
         if (nums[k] > 1000) {
             TEST_ASSERT_EQUAL_INT64(INT64_MAX, qdec_counts_to_nm(&d, INT64_MAX));
             TEST_ASSERT_EQUAL_INT64(INT64_MIN, qdec_counts_to_nm(&d, INT64_MIN + 1));
+        }
+    }
+}
+
+/* den != 1 with |counts| < 2^31 (the counter-input sample's usual case):
+ * round(counts * num / den) + offset, half away from zero, saturated, at
+ * offsets on both sides of +-2^62 (where the short path stops). */
+static void test_scaling_den_short_path(void)
+{
+    static const int32_t nums[] = {5000000, -5000000, 1, -3, INT32_MAX, INT32_MIN};
+    static const int32_t dens[] = {4096, 2, 3, 7, 1000, INT32_MAX};
+    static const int64_t offs[] = {0,
+                                   -12345,
+                                   ((int64_t)1 << 62) - 1,
+                                   -((int64_t)1 << 62) + 1,
+                                   (int64_t)1 << 62,
+                                   -((int64_t)1 << 62),
+                                   INT64_MAX,
+                                   INT64_MIN};
+    static const int64_t fixed[] = {0, 1, -1, 2, -2, INT32_MAX, INT32_MIN, 2048, -2048};
+    qdec_t d;
+    qdec_config_t c = edge_cfg(QDEC_X4);
+    unsigned k, m, o, j;
+
+    for (k = 0; k < 6; k++) {
+        for (m = 0; m < 6; m++) {
+            for (o = 0; o < 8; o++) {
+                c.nm_per_count_num = nums[k];
+                c.nm_per_count_den = dens[m];
+                c.offset_nm = offs[o];
+                TEST_ASSERT_TRUE(qdec_init(&d, &c, 0, 0));
+                for (j = 0; j < 300; j++) {
+                    int64_t counts = (j < 9) ? fixed[j] : (int64_t)(int32_t)(rnd() ^ (rnd() << 16));
+                    i128 p = (i128)counts * nums[k];
+                    i128 qq = p / dens[m], rr = p % dens[m];
+                    if (2 * (rr < 0 ? -rr : rr) >= dens[m]) {
+                        qq += (p < 0) ? -1 : 1;
+                    }
+                    qq += offs[o];
+                    if (qq > INT64_MAX) {
+                        qq = INT64_MAX;
+                    } else if (qq < INT64_MIN) {
+                        qq = INT64_MIN;
+                    }
+                    TEST_ASSERT_EQUAL_INT64((int64_t)qq, qdec_counts_to_nm_any(&d, counts));
+                    TEST_ASSERT_EQUAL_INT64((int64_t)qq, qdec_counts_to_nm(&d, counts));
+                }
+            }
         }
     }
 }
@@ -1324,11 +1524,15 @@ int main(void)
     RUN_TEST(test_velocity_on_demand_equals_every_sample);
     RUN_TEST(test_scaling_fast_path);
     RUN_TEST(test_scaling_exact);
+    RUN_TEST(test_scaling_den_short_path);
     RUN_TEST(test_nm_outputs_and_identity_comp);
     RUN_TEST(test_config_rejected);
     RUN_TEST(test_time_fault);
     RUN_TEST(test_sample_fast_equals_reference);
     RUN_TEST(test_idle_sample_follows_offset_and_comp);
     RUN_TEST(test_velocity_short_record_stays);
+    RUN_TEST(test_edge_run_equals_edges);
+    RUN_TEST(test_edge_run_constant_velocity_closed_form);
+    RUN_TEST(test_edge_run_refusals);
     return UNITY_END();
 }

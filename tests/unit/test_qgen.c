@@ -2,6 +2,8 @@
 #include "qgen.h"
 #include "unity.h"
 
+#include <string.h>
+
 #define MAXEV 4096
 
 typedef struct {
@@ -219,6 +221,121 @@ static void test_fast_path_matches_formula(void)
     fast_path_case(-lim + QGEN_COUNTS(200000) + 1, 5);
 }
 
+/* Runs (qgen_set_run) against the events of the same moves: a run stands
+ * for exactly the events the reference generator emits (steps = +-their
+ * number, t_last = the last one's time, no event emitted), the moves with
+ * an index event and those the callback refuses come as the same events,
+ * and the state after every move is the reference's. */
+typedef struct {
+    int32_t steps;
+    uint32_t t_last;
+    unsigned calls, taken;
+} run_rec_t;
+
+static rec_t rec_b;
+static run_rec_t runs;
+
+static void rec_b_emit(void *ctx, uint32_t lines, uint32_t t_ns)
+{
+    (void)ctx;
+    TEST_ASSERT_TRUE(rec_b.n < MAXEV);
+    rec_b.lines[rec_b.n] = lines;
+    rec_b.t[rec_b.n] = t_ns;
+    rec_b.n++;
+}
+
+static bool run_take(void *ctx, int32_t steps, uint32_t t_last_ns)
+{
+    (void)ctx;
+    runs.calls++;
+    runs.steps = steps;
+    runs.t_last = t_last_ns;
+    if (runs.calls % 7u == 0u) {
+        return false; /* refused: the events follow one by one */
+    }
+    runs.taken++;
+    return true;
+}
+
+static void runs_case(qgen_pos_t x0, uint64_t t0, bool index)
+{
+    qgen_t a, b;
+    unsigned m, z_moves = 0, taken_before;
+
+    qgen_init(&a, x0, t0, rec_emit, &rec);
+    qgen_init(&b, x0, t0, rec_b_emit, NULL);
+    qgen_set_run(&b, run_take);
+    if (index) {
+        qgen_set_index(&a, count_of(x0) + 150, 397, 1, 2);
+        qgen_set_index(&b, count_of(x0) + 150, 397, 1, 2);
+    }
+    memset(&runs, 0, sizeof runs);
+    for (m = 0; m < 3000; m++) {
+        qgen_pos_t dx = (qgen_pos_t)(rnd64() % (120u * (uint64_t)QGEN_ONE));
+        uint64_t dt = (m % 13 == 4) ? 0u : rnd64() % 200000u;
+        qgen_pos_t xa = a.x, x1 = (rnd64() % 3u == 0u) ? xa - dx : xa + dx;
+        uint64_t n;
+        unsigned k, z = 0;
+
+        if (m % 17 == 6) {
+            x1 = QGEN_COUNTS(count_of(xa) + 5); /* onto a whole count */
+            dt = 1000u;
+        }
+        if (index && (m % 23 == 9 || m % 23 == 10 || m % 23 == 11 || m % 23 == 12)) {
+            /* onto the edges of the index windows (counts ip - 1 .. ip + 2
+             * around ip = index + j * 397) and the counts just outside */
+            int64_t ip = count_of(x0) + 150, c = count_of(xa) - ip;
+            int64_t j = (c >= 0 ? c : c - 396) / 397;
+            int64_t lo_top = ip + j * 397 + 2, hi_first = ip + (j + 1) * 397 - 1;
+            int64_t to = (m % 23 == 9)    ? lo_top
+                         : (m % 23 == 10) ? hi_first
+                         : (m % 23 == 11) ? lo_top + 1
+                                          : hi_first - 1;
+            x1 = QGEN_COUNTS(to) + QGEN_ONE / 2;
+        }
+        rec.n = 0;
+        rec_b.n = 0;
+        taken_before = runs.taken;
+        n = qgen_move_to(&a, x1, a.t + dt);
+        TEST_ASSERT_EQUAL_UINT64(n, qgen_move_to(&b, x1, b.t + dt));
+        for (k = 0; k < rec.n; k++) {
+            /* the levels of the count entered, from the spec's formula */
+            int64_t c = count_of(xa) + (x1 > xa ? (int64_t)k + 1 : -(int64_t)k - 1);
+            TEST_ASSERT_EQUAL_UINT32(qgen_lines_at(&a, c), rec.lines[k]);
+            z |= rec.lines[k] & QDEC_LINE_Z;
+        }
+        if (runs.taken != taken_before) {
+            TEST_ASSERT_TRUE(n > 0u);
+            TEST_ASSERT_EQUAL_UINT32(0, z);
+            TEST_ASSERT_EQUAL_UINT32(0, rec_b.n);
+            TEST_ASSERT_EQUAL_INT32(x1 > xa ? (int32_t)n : -(int32_t)n, runs.steps);
+            TEST_ASSERT_EQUAL_UINT32(rec.t[rec.n - 1u], runs.t_last);
+        } else {
+            z_moves += z ? 1u : 0u;
+            TEST_ASSERT_EQUAL_UINT32(rec.n, rec_b.n);
+            TEST_ASSERT_EQUAL_INT(0, memcmp(rec.t, rec_b.t, sizeof(uint32_t) * rec.n));
+            TEST_ASSERT_EQUAL_INT(0, memcmp(rec.lines, rec_b.lines, sizeof(uint32_t) * rec.n));
+        }
+        TEST_ASSERT_EQUAL_INT64(a.count, b.count);
+        TEST_ASSERT_EQUAL_UINT32(a.lines, b.lines);
+        TEST_ASSERT_EQUAL_UINT64(a.edges, b.edges);
+        TEST_ASSERT_EQUAL_UINT64(a.last_edge_t, b.last_edge_t);
+        TEST_ASSERT_EQUAL_UINT64(a.t, b.t);
+    }
+    TEST_ASSERT_TRUE(runs.taken > 1000u);
+    TEST_ASSERT_TRUE(runs.calls > runs.taken); /* some refused */
+    if (index) {
+        TEST_ASSERT_TRUE(z_moves > 50u); /* moves through the index window */
+    }
+}
+
+static void test_runs_match_events(void)
+{
+    runs_case(QGEN_ONE / 3, 1000, false);
+    runs_case(QGEN_ONE / 3, 1000, true);
+    runs_case(-QGEN_COUNTS(123457) - 77, 0xFFFF0000ull, true);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -228,5 +345,6 @@ int main(void)
     RUN_TEST(test_injections);
     RUN_TEST(test_edge_offsets);
     RUN_TEST(test_fast_path_matches_formula);
+    RUN_TEST(test_runs_match_events);
     return UNITY_END();
 }

@@ -3,7 +3,7 @@
 contour sim circle --radius MM --feed MM_PER_MIN [--direction cw|ccw]
     --controller pid|cec-tangent|cec-curvature|cec-exact
     [--feedforward none|velocity|full] [--machine FILE.toml] [--tick-hz N]
-    [--json] [--plot PNG] [--trace CSV]
+    [--encoder-model fast|edges] [--json] [--plot PNG] [--trace CSV]
 contour sim run FILE.nc [--machine ...] [--controller ...] [--json]
 contour sim demo --out DIR        (what `make run` runs)
 contour sim serve                 (the simulated drive on pseudo-terminals)
@@ -19,6 +19,7 @@ from contour.errors import UserError, usage_errors
 
 
 def _common(p: argparse.ArgumentParser, controller_required: bool = False) -> None:
+    from contour.sim import machine
     from contour.sim.circle import CONTROLLERS, FEEDFORWARD
 
     p.add_argument(
@@ -42,6 +43,7 @@ def _common(p: argparse.ArgumentParser, controller_required: bool = False) -> No
         "looks in hil_sim/machines/)",
     )
     p.add_argument("--tick-hz", type=float, default=None, metavar="N", help="control tick rate, Hz")
+    machine.add_encoder_model_argument(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -93,6 +95,7 @@ def cmd_circle(args) -> int:
         feedforward=args.feedforward,
         machine_file=args.machine,
         tick_hz=args.tick_hz,
+        encoder_model=args.encoder_model,
     )
     res = run.result
     if args.trace:
@@ -126,6 +129,7 @@ def cmd_run(args) -> int:
         machine_file=args.machine,
         tick_hz=args.tick_hz,
         default_feed=args.feed,
+        encoder_model=args.encoder_model,
     )
     if args.json:
         print(json.dumps(rep))

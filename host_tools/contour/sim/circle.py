@@ -100,12 +100,19 @@ def run_circle(
     tick_hz: float | None = None,
     settle_s: float = 0.5,
     mach: machine.Machine | None = None,
+    encoder_model: str | None = None,
 ) -> CircleRun:
     check_args(radius_mm, feed_mm_min, direction, controller, feedforward)
     m = mach if mach is not None else machine.load(machine_file)
     if m.axes < 2:
         raise UserError(f"{m.path}: the circle test needs 2 axes")
-    machine.apply(m, tick_hz=tick_hz, feedforward=feedforward, controller=controller)
+    machine.apply(
+        m,
+        tick_hz=tick_hz,
+        feedforward=feedforward,
+        controller=controller,
+        encoder_model=encoder_model,
+    )
     so = core.lib()
     hz = so.sim_tick_hz()
     r = radius_mm * 1e-3

@@ -37,6 +37,10 @@ FAULT_BITS = {
     32: "comm_timeout",
 }
 CEC_MODES = {"off": 0, "tangent": 1, "curvature": 2, "exact": 3}
+# how encoder edges reach the decoder (sim_encoder_model, docs/simulator.md
+# "Encoder models"): "fast" (a substep's edges as one run, the same decoder
+# state) or "edges" (every edge: the reference)
+ENCODER_MODELS = {"edges": 0, "fast": 1}
 
 
 def lib() -> c.CDLL:

@@ -110,13 +110,20 @@ def run_job(
     default_feed: float | None = None,
     max_s: float = 600.0,
     contour_error: bool = True,
+    encoder_model: str | None = None,
 ) -> dict:
     m = machine.load(machine_file)
     prog = gcode.read(path, default_feed=default_feed)
     blocks = _blocks(prog, m)
     if not blocks:
         raise UserError(f"{path}: no motion blocks")
-    machine.apply(m, tick_hz=tick_hz, feedforward=feedforward, controller=controller)
+    machine.apply(
+        m,
+        tick_hz=tick_hz,
+        feedforward=feedforward,
+        controller=controller,
+        encoder_model=encoder_model,
+    )
     so = core.lib()
     hz = so.sim_tick_hz()
     if so.sim_enable(1) != 0:

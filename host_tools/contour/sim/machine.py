@@ -7,6 +7,8 @@ optional except where noted; units SI unless the name says otherwise)::
     name = "default"
     tick_hz = 10000                 # control tick, Hz (the thesis ran 333 Hz = 3 ms)
     axes = 3                        # 1..3
+    encoder_model = "fast"          # fast|edges: how encoder edges reach the
+                                    # decoder (docs/simulator.md, "Encoder models")
 
     [axis.all]                      # applied to every axis, then [axis.x] etc.
     model = "lacerda1998"           # the only model so far (5th-order two-inertia)
@@ -122,6 +124,7 @@ TOP_KEYS = {
     "servo",
     "gains",
     "feedforward",
+    "encoder_model",
 }
 
 
@@ -137,6 +140,7 @@ class Machine:
     gains: dict = field(default_factory=dict)  # "x"/"y"/"z"/"cec" -> gains
     feedforward: dict = field(default_factory=dict)
     ff_mode: str = "none"  # [feedforward] mode: apply()'s default
+    encoder_model: str = "fast"  # sim_encoder_model: "fast" or "edges" (the reference)
     description: str = ""
 
     def l(self, ax: str) -> float:  # noqa: E743 - the model's name for it
@@ -200,12 +204,35 @@ def load(name_or_path: str | None = None) -> Machine:
     return from_dict(data, str(path))
 
 
+def check_encoder_model(name, where: str) -> str:
+    from contour.sim.core import ENCODER_MODELS
+
+    if name not in ENCODER_MODELS:
+        raise UserError(
+            f"{where}: encoder_model must be one of {', '.join(ENCODER_MODELS)}, got {name!r}"
+        )
+    return str(name)
+
+
+def add_encoder_model_argument(parser) -> None:
+    """--encoder-model of `sim circle`, `sim run` and `sim serve`."""
+    parser.add_argument(
+        "--encoder-model",
+        choices=("fast", "edges"),
+        default=None,
+        help="how encoder edges reach the drive's decoder: fast (a substep's edges as one "
+        "update, the same decoder state) or edges (every edge: the reference); default: the "
+        "machine file's, fast if it says nothing",
+    )
+
+
 def from_dict(data: dict, path: str = "<machine>") -> Machine:
     _check_keys(data, TOP_KEYS, "the top level", path)
     m = Machine(name=str(data.get("name", Path(path).stem)), path=path)
     m.description = str(data.get("description", ""))
     m.tick_hz = _num(data.get("tick_hz", 10000), "tick_hz", path, 100, 100000)
     m.axes = int(_num(data.get("axes", 3), "axes", path, 1, 3))
+    m.encoder_model = check_encoder_model(data.get("encoder_model", "fast"), path)
     axis = data.get("axis", {})
     if not isinstance(axis, dict):
         raise UserError(f"{path}: [axis] must be a table")
@@ -286,10 +313,12 @@ def apply(
     feedforward: str | None = "none",
     controller: str = "pid",
     link: SimLink | None = None,
+    encoder_model: str | None = None,
 ) -> None:
     """Set up the simulator with machine `m` (sim_setup ... sim_start); with
     `link`, the simulated drive also serves its host link (sim_set_link).
-    `feedforward` None: the machine file's [feedforward] mode."""
+    `feedforward` None: the machine file's [feedforward] mode;
+    `encoder_model` None: the machine file's (default "fast")."""
     from contour.sim import core
 
     if feedforward is None:
@@ -300,6 +329,10 @@ def apply(
     if not 100 <= hz <= 100000:
         raise UserError(f"tick rate {hz:g} Hz is outside 100..100000")
     core.check(so.sim_setup(hz, m.axes), "setup")
+    enc = check_encoder_model(
+        m.encoder_model if encoder_model is None else encoder_model, "encoder model"
+    )
+    core.check(so.sim_encoder_model(core.ENCODER_MODELS[enc]), "encoder model")
 
     def axset(i: int, key: str, v: float) -> None:
         core.check(so.sim_axis_set(i, key.encode(), float(v)), f"axis {AXES[i]} {key}")

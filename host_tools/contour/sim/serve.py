@@ -207,6 +207,7 @@ class SimServer:
         feedforward: Optional[str] = None,
         flash: Optional[str] = None,
         boot_window_ms: Optional[int] = None,
+        encoder_model: Optional[str] = None,
     ) -> None:
         from contour import native
 
@@ -250,7 +251,9 @@ class SimServer:
             if not 1 <= axes <= m.axes:
                 raise UserError(f"--axes {axes}: machine {m.name} has {m.axes} axes")
             m.axes = axes
-        mach.apply(m, tick_hz=tick_hz, feedforward=feedforward, link=link)
+        mach.apply(
+            m, tick_hz=tick_hz, feedforward=feedforward, link=link, encoder_model=encoder_model
+        )
         tick_hz = int(lib.sim_tick_hz())
         self.tick_hz = tick_hz
         self.period_ns = round(1e9 / tick_hz)
@@ -509,6 +512,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="feed-forward of the axis loops (default: the machine file's, none if it says none)",
     )
+    from contour.sim import machine as mach
+
+    mach.add_encoder_model_argument(parser)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -520,6 +526,7 @@ def main(args: argparse.Namespace) -> int:
         feedforward=getattr(args, "feedforward", None),
         flash=getattr(args, "flash", None),
         boot_window_ms=getattr(args, "boot_window_ms", None),
+        encoder_model=getattr(args, "encoder_model", None),
     )
 
     def _stop(signum, frame) -> None:  # noqa: ARG001

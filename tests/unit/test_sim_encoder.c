@@ -1,0 +1,264 @@
+/*
+ * test_sim_encoder.c - the simulator's fast encoder model (SIM_ENC_FAST:
+ * each substep's edges as one run) against the edge-accurate reference
+ * (SIM_ENC_EDGES), on the bench circle (three axes, 10 kHz, R 20 mm at
+ * 10 m/min, full feed-forward, exact CEC) and on a homing to the encoder
+ * index. The model claims exactness at every sample, so the tolerance is
+ * zero: the decoders' states (count, edge count, last edge time,
+ * direction, velocity, index latch) after every tick, every trace row and
+ * the contour error figures are identical.
+ */
+#include <math.h>
+#include <stdbool.h>
+#include <string.h>
+
+#include "drive.h"
+#include "drive_test.h"
+#include "sim.h"
+#include "unity.h"
+
+#define AXES      3u
+#define MAX_TICKS 40000u
+
+typedef struct {
+    int64_t pos, vel, index_pos;
+    uint32_t count, nedge, t_last, index_events;
+    int8_t dir;
+    uint8_t ab;
+} enc_rec_t;
+
+typedef struct {
+    enc_rec_t enc[MAX_TICKS][AXES];
+    double trace[MAX_TICKS][SIM_TRACE_COLS];
+    unsigned ticks;
+    uint64_t edges, run_edges, mismatches;
+} run_rec_t;
+
+static run_rec_t rec[2]; /* [SIM_ENC_EDGES], [SIM_ENC_FAST] */
+
+void setUp(void)
+{
+}
+
+void tearDown(void)
+{
+}
+
+/* One tick with its trace row, then every decoder's state (the velocity
+ * from a copy: qdec_velocity brings the copy's lazy estimate up to date). */
+static void tick(run_rec_t *r)
+{
+    unsigned i;
+    TEST_ASSERT_TRUE(r->ticks < MAX_TICKS);
+    TEST_ASSERT_EQUAL_INT(1, sim_run(1, r->trace[r->ticks], 1, 1));
+    for (i = 0; i < AXES; i++) {
+        qdec_t d = *drive_test_encoder(i);
+        enc_rec_t *e = &r->enc[r->ticks][i];
+        e->pos = d.out.pos;
+        e->vel = qdec_velocity(&d);
+        e->index_pos = d.out.index_pos;
+        e->count = d.e.count;
+        e->nedge = d.e.nedge;
+        e->t_last = d.e.t_last;
+        e->index_events = d.out.index_events;
+        e->dir = d.out.dir;
+        e->ab = d.e.ab;
+    }
+    r->ticks++;
+}
+
+static void finish(run_rec_t *r)
+{
+    r->edges = sim_edges();
+    r->run_edges = sim_run_edges();
+    r->mismatches = sim_edge_mismatches();
+}
+
+static void start(int model)
+{
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, AXES));
+    TEST_ASSERT_EQUAL_INT(0, sim_encoder_model(model));
+}
+
+/* The scenario of bench/bench_hil.c, 1.5 s; at tick switch_at the other
+ * model takes over; rough: encoder reading noise (1 and 0.3 counts rms: the
+ * reading goes back and forth within a tick) and Coulomb friction (ten
+ * substeps per tick). */
+static bool rough;
+
+static void circle(int model, run_rec_t *r, unsigned switch_at)
+{
+    const int64_t feed = 166666667; /* 10 m/min */
+    int64_t on_circle[3] = {0, 5000000, 0};
+    int res = 0;
+    unsigned k;
+
+    memset(r, 0, sizeof *r);
+    start(model);
+    sim_gain_set(0, "kvff", 16.49);
+    sim_gain_set(1, "kvff", 16.49);
+    sim_gain_set(0, "kaff", 0.1247);
+    sim_gain_set(1, "kaff", 0.1078);
+    sim_cec_mode(DRIVE_CEC_EXACT);
+    if (rough) {
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "enc_noise_counts", 1.0));
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_set(1, "enc_noise_counts", 0.3));
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "coulomb_motor", 0.01));
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_set(1, "coulomb_table", 10.0));
+    }
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_EQUAL_INT(rough ? 10u : 1u, sim_substeps());
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, sim_enable(1));
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_line(on_circle, feed, 1, 0, &res));
+    for (k = 0; k < 15000u; k++) {
+        while (sim_queue_arc(on_circle, feed, 0, -20000000, 5000000, 1, 2, &res) == 0) {
+        }
+        if (k == switch_at) {
+            TEST_ASSERT_EQUAL_INT(0, sim_encoder_model(SIM_ENC_EDGES + SIM_ENC_FAST - model));
+        }
+        tick(r);
+    }
+    finish(r);
+}
+
+/* Max |radial error| of the table (trace columns 5, 9) about the circle's
+ * centre (-20, 5) mm over the last second, and the CEC estimate's max. */
+static void circle_figures(const run_rec_t *r, double *table_um, double *cec_um)
+{
+    unsigned k;
+    *table_um = 0.0;
+    *cec_um = 0.0;
+    for (k = r->ticks - 10000u; k < r->ticks; k++) {
+        double e = hypot(r->trace[k][5] + 0.020, r->trace[k][9] - 0.005) - 0.020;
+        *table_um = fmax(*table_um, fabs(e) * 1e6);
+        *cec_um = fmax(*cec_um, fabs(r->trace[k][3]) * 1e6);
+    }
+}
+
+static void check_same(const run_rec_t *a, const run_rec_t *b)
+{
+    unsigned k, i;
+    TEST_ASSERT_EQUAL_UINT(a->ticks, b->ticks);
+    TEST_ASSERT_EQUAL_UINT64(0, a->mismatches);
+    TEST_ASSERT_EQUAL_UINT64(0, b->mismatches);
+    TEST_ASSERT_EQUAL_UINT64(a->edges, b->edges);
+    for (k = 0; k < a->ticks; k++) {
+        for (i = 0; i < AXES; i++) {
+            const enc_rec_t *x = &a->enc[k][i], *y = &b->enc[k][i];
+            TEST_ASSERT_EQUAL_INT64(x->pos, y->pos);
+            TEST_ASSERT_EQUAL_UINT32(x->count, y->count);
+            TEST_ASSERT_EQUAL_UINT32(x->nedge, y->nedge);
+            TEST_ASSERT_EQUAL_UINT32(x->t_last, y->t_last);
+            TEST_ASSERT_EQUAL_INT8(x->dir, y->dir);
+            TEST_ASSERT_EQUAL_UINT8(x->ab, y->ab);
+            TEST_ASSERT_EQUAL_INT64(x->vel, y->vel);
+            TEST_ASSERT_EQUAL_UINT32(x->index_events, y->index_events);
+            TEST_ASSERT_EQUAL_INT64(x->index_pos, y->index_pos);
+        }
+        TEST_ASSERT_EQUAL_INT(0, memcmp(a->trace[k], b->trace[k], sizeof a->trace[k]));
+    }
+}
+
+static void test_circle_same_in_both_models(void)
+{
+    double ta, ca, tb, cb;
+
+    rough = false;
+    circle(SIM_ENC_EDGES, &rec[0], MAX_TICKS);
+    circle(SIM_ENC_FAST, &rec[1], MAX_TICKS);
+    /* the runs did the work (the rest: substeps through the index) */
+    TEST_ASSERT_EQUAL_UINT64(0, rec[0].run_edges);
+    TEST_ASSERT_TRUE(rec[1].run_edges > rec[1].edges * 9u / 10u);
+    TEST_ASSERT_TRUE(rec[0].edges > 100000u);
+    check_same(&rec[0], &rec[1]);
+    circle_figures(&rec[0], &ta, &ca);
+    circle_figures(&rec[1], &tb, &cb);
+    TEST_ASSERT_TRUE(ta > 1.0 && ca > 1.0); /* um: figures that can differ */
+    TEST_ASSERT_EQUAL_DOUBLE(ta, tb);
+    TEST_ASSERT_EQUAL_DOUBLE(ca, cb);
+}
+
+static void test_rough_circle_same_in_both_models(void)
+{
+    rough = true;
+    circle(SIM_ENC_EDGES, &rec[0], MAX_TICKS);
+    circle(SIM_ENC_FAST, &rec[1], MAX_TICKS);
+    rough = false;
+    TEST_ASSERT_TRUE(rec[1].run_edges > rec[1].edges / 2u);
+    check_same(&rec[0], &rec[1]);
+}
+
+/* Homing of X to the index (switch at -21.3 mm, index at -20 mm, the
+ * sequence of test_home.c), then a move back: the index window goes edge
+ * by edge, the rest in runs. */
+static void homing(int model, run_rec_t *r)
+{
+    drive_home_t h = {0};
+    drive_status_t st;
+    int64_t t[3] = {5000000, 0, 0};
+    int res = 0;
+    unsigned k;
+
+    memset(r, 0, sizeof *r);
+    start(model);
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, sim_enable(1));
+    for (k = 0; k < 10u; k++) {
+        tick(r);
+    }
+    h.axes = 1u;
+    h.negative = 1u;
+    h.index = 1u;
+    h.search_nm_s = 20000000;
+    h.latch_nm_s = 2000000;
+    h.max_dist_nm = 100000000;
+    h.home_pos[0] = -21000000;
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_home(&h));
+    for (k = 0; k < 35000u; k++) {
+        tick(r);
+        drive_status(&st);
+        if (st.state == DRIVE_IDLE && st.homed == 1u) {
+            break;
+        }
+    }
+    TEST_ASSERT_EQUAL_UINT32(1u, st.homed);
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_line(t, 20000000, 7, 1, &res));
+    for (k = 0; k < 2500u; k++) {
+        tick(r);
+    }
+    finish(r);
+}
+
+static void test_homing_to_index_same_in_both_models(void)
+{
+    homing(SIM_ENC_EDGES, &rec[0]);
+    homing(SIM_ENC_FAST, &rec[1]);
+    TEST_ASSERT_TRUE(rec[0].enc[rec[0].ticks - 1u][0].index_events > 0u);
+    TEST_ASSERT_TRUE(rec[1].run_edges > 0u && rec[1].run_edges < rec[1].edges);
+    check_same(&rec[0], &rec[1]);
+}
+
+/* Switching the model on a running simulator takes effect at once and
+ * keeps the decoders exact; unknown models are refused. */
+static void test_model_switch_while_running(void)
+{
+    rough = false;
+    circle(SIM_ENC_EDGES, &rec[0], MAX_TICKS);
+    circle(SIM_ENC_FAST, &rec[1], 7000u);
+    TEST_ASSERT_EQUAL_INT(SIM_ENC_EDGES, sim_encoder_model_get());
+    TEST_ASSERT_TRUE(rec[1].run_edges > 0u && rec[1].run_edges < rec[1].edges / 2u);
+    check_same(&rec[0], &rec[1]);
+    TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_encoder_model(2));
+    TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_encoder_model(-1));
+    TEST_ASSERT_EQUAL_INT(SIM_ENC_EDGES, sim_encoder_model_get());
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_circle_same_in_both_models);
+    RUN_TEST(test_rough_circle_same_in_both_models);
+    RUN_TEST(test_homing_to_index_same_in_both_models);
+    RUN_TEST(test_model_switch_while_running);
+    return UNITY_END();
+}
