@@ -1,0 +1,50 @@
+"""Issue 21: the circle test's conditions (the scored revolution at the
+stated feed, or a refusal naming the planner limit) and curvature from the
+reference history on G1 chords."""
+
+import json
+
+import pytest
+from contour import cli
+from contour.errors import UserError
+from contour.sim import circle
+
+
+@pytest.mark.parametrize("radius", [20, 50])
+def test_scored_revolution_runs_at_the_stated_feed(radius):
+    """R 20 and R 50 at 30 m/min on the default machine (a_max 20 m/s^2):
+    the final slowdown is off the scored revolution."""
+    res = circle.run_circle(radius, 30000, controller="pid", settle_s=0.1).result
+    assert res.min_feed_mm_min >= 0.99 * 30000, res
+    assert res.mean_feed_mm_min == pytest.approx(30000, rel=0.005)
+    assert res.limited_by == ""
+
+
+def test_circle_beyond_the_planner_limits_is_refused_naming_the_limit():
+    """R 10 at 30 m/min needs 25 m/s^2 centripetal > a_max 20 m/s^2."""
+    with pytest.raises(UserError, match=r"a_max 20 m/s\^2 < centripetal"):
+        circle.run_circle(10, 30000, controller="pid")
+
+
+def test_limited_circle_runs_only_when_allowed_and_is_flagged():
+    res = circle.run_circle(10, 30000, controller="pid", settle_s=0.1, allow_limited=True).result
+    assert "a_max" in res.limited_by
+    assert res.min_feed_mm_min < 0.99 * 30000  # measured, not the stated feed
+    assert res.feed_mm_min == 30000
+
+
+def test_json_reports_the_measured_feed(capsys):
+    rc = cli.main(
+        ["sim", "circle", "--radius", "20", "--feed", "30000", "--controller", "pid", "--json"]
+    )
+    d = json.loads(capsys.readouterr().out)
+    assert rc == 0
+    assert d["min_feed_mm_min"] >= 0.99 * 30000
+    assert d["mean_feed_mm_min"] == pytest.approx(30000, rel=0.005)
+    assert d["limited_by"] == ""
+
+
+def test_stop_distance_of_a_jerk_limited_stop():
+    # 0.5 m/s, 20 m/s^2, 2000 m/s^3: v/a = 25 ms, a/j = 10 ms
+    assert circle.stop_distance(0.5, 20, 2000) == pytest.approx(0.5 * 0.5 * 0.035)
+    assert circle.stop_distance(0.1, 20, 2000) == pytest.approx(0.1 * (0.1 / 2000) ** 0.5)
