@@ -407,7 +407,7 @@ int sim_cec_mode(int mode)
     if (!S.setup) {
         return SIM_E_STATE;
     }
-    if (mode < (int)DRIVE_CEC_OFF || mode > (int)DRIVE_CEC_EXACT) {
+    if (mode < (int)DRIVE_CEC_OFF || mode >= (int)DRIVE_CEC_COUNT) {
         return SIM_E_ARG;
     }
     S.cec_mode = mode;

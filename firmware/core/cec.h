@@ -32,6 +32,11 @@
               then no longer adds its own ~ d^2 / (2 r) to the estimate (the
               thesis's form does), and the pure-lag error drops from
               ~5|E|^4/(24 r^3) to ~|E|^4/(12 r^3).
+ *              LINE (or any segment in CURV_HISTORY): r and the side from
+ *              the reference history (below); TANGENT while it has fewer
+ *              than three samples or the path is straight.
+ *   CURV_HISTORY as CURVATURE with r and s always from the reference
+ *              history, also on an ARC (the thesis's `calcr` block).
  *   EXACT      LINE: EC1 = (start - P) . n1 (distance of P from the line).
  *              ARC:  EC1 = s * (|P_uv - C| - r)  (radial deviation).
  * Errors against the exact value on a circle, pure lag |E| (tests assert):
@@ -39,6 +44,21 @@
    (+ quantisation, 3 nm); with a radial deviation d as well: thesis form
    within d^2 / (2 r) + |E|^4 / (4 r^3), lag_from_tangent within
    |d| g^2 + |E|^4 / (4 r^3).
+ * Reference history (CURVATURE on a LINE, CURV_HISTORY): the reference
+ * point is sampled in the plane (u, v) each time it has moved at least
+ * span = p.curv_span_nm (0: CEC_CURV_SPAN_NM) from the last sample (path
+ * length, not time, so the estimate does not depend on the feed); from the
+ * last three samples a, b, c: r = |b-a| |c-b| |c-a| / (2 |(b-a) x (c-b)|)
+ * (circumscribed circle), s = -1 for a left turn ((b-a) x (c-b) > 0, the
+ * centre on the -n1 side) and +1 for a right turn. r above CEC_CURV_R_MAX
+ * counts as straight (no correction). Computed only when a sample is taken
+ * (on a circle of G1 chords the samples lie within the chords' sagitta of
+ * the circle: R 20 mm, 720 chords, span 1 mm: r within 1 %). The history
+ * restarts when the CEC stops, the mode or plane changes, or a LINE's
+ * tangent turns by more than 30 degrees at a join (a corner, not a curve).
+ * Cost: the per-tick check is a few multiplies; a sample ~600 cycles
+ * (three roots and a division); every tick a division for g. CEC off
+ * (control_tick_instructions_m4) is not affected.
  * The second channel (only when the segment leaves the plane: |t_w| > 2^-20,
  * a three-axis line or helix) uses EC2 = E . n2 (EXACT on a LINE:
  * (start - P) . n2), so the controlled error is the whole part of E
@@ -89,6 +109,7 @@ typedef enum {
     CEC_MODE_CURVATURE = 2,
     CEC_MODE_EXACT = 3,
     CEC_MODE_KOREN = 4,
+    CEC_MODE_CURV_HISTORY = 5,
     CEC_MODE_COUNT
 } cec_mode_t;
 
@@ -107,7 +128,11 @@ typedef struct {
     bool handover;         /* hand the integral to the axis loops (bumpless)    */
     bool lag_from_tangent; /* CURVATURE: g = |E . t| / r (the lag only) instead
                             * of the thesis's |E_uv| / r; see below        */
+    int32_t curv_span_nm;  /* history sample spacing, nm (0: CEC_CURV_SPAN_NM) */
 } cec_params_t;
+
+#define CEC_CURV_SPAN_NM 1000000            /* 1 mm */
+#define CEC_CURV_R_MAX   ((int64_t)1 << 32) /* 4.3 m: straight above */
 
 typedef struct {
     cec_params_t p;
@@ -135,6 +160,13 @@ typedef struct {
                        * the next inactive tick has nothing to do (tick) */
     bool out_zero;    /* idle, and out_u / handover_u already 0: an inactive
                        * tick returns at once (tick) */
+    /* reference history (tick): samples h[0] newest .. h[2], in the plane
+     * (u, v) of normal axis hist_w; hist_r 0: no curvature known */
+    uint8_t hist_n;
+    uint8_t hist_w;
+    int8_t hist_s;
+    pos_nm_t hist[3][2];
+    pos_nm_t hist_r;
 } cec_t;
 
 /* Validate and apply (nothing changes on error; *pid_err gets the detail
@@ -160,6 +192,10 @@ int32_t cec_est_koren(int32_t ex, int32_t ey, int64_t rx, int64_t ry);
 int32_t cec_curv_correction(int32_t e_abs, pos_nm_t radius);
 /* s * (|P - C| - r) in the plane, nm (|P - C| to the nearest nm below). */
 int32_t cec_exact_arc(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius, int s);
+/* Radius (nm, 0: straight or degenerate) and side s (+1 right turn, -1
+ * left turn) of the circle through a, b, c (plane points, nm, in order of
+ * travel). */
+pos_nm_t cec_circle3(const pos_nm_t a[2], const pos_nm_t b[2], const pos_nm_t c[2], int8_t *s);
 /* (start - p) . n, nm. */
 int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30_t n[3]);
 

@@ -214,7 +214,10 @@ typedef enum {
     DRIVE_CEC_OFF = 0,
     DRIVE_CEC_TANGENT,
     DRIVE_CEC_CURVATURE,
-    DRIVE_CEC_EXACT
+    DRIVE_CEC_EXACT,
+    DRIVE_CEC_KOREN,        /* Koren's straight-line estimate (cec.h)            */
+    DRIVE_CEC_CURV_HISTORY, /* curvature from the reference history only (calcr) */
+    DRIVE_CEC_COUNT
 } drive_cec_mode_t;
 
 typedef struct {

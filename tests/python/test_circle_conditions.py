@@ -7,7 +7,7 @@ import json
 import pytest
 from contour import cli
 from contour.errors import UserError
-from contour.sim import circle
+from contour.sim import circle, machine
 
 
 @pytest.mark.parametrize("radius", [20, 50])
@@ -48,3 +48,39 @@ def test_stop_distance_of_a_jerk_limited_stop():
     # 0.5 m/s, 20 m/s^2, 2000 m/s^3: v/a = 25 ms, a/j = 10 ms
     assert circle.stop_distance(0.5, 20, 2000) == pytest.approx(0.5 * 0.5 * 0.035)
     assert circle.stop_distance(0.1, 20, 2000) == pytest.approx(0.1 * (0.1 / 2000) ** 0.5)
+
+
+def _jerk_machine(j_max: float):
+    m = machine.load("default")
+    m.planner["j_max"] = j_max
+    return m
+
+
+def test_curvature_from_history_on_g1_chords():
+    """Issue 21 figure: R 20 mm, 10 m/min, no feed-forward, 10 kHz; the
+    circle as 720 G1 chords. j_max 20000 m/s^3 so that the planner runs the
+    0.17 mm chords at the stated feed (with the default 2000 it does not:
+    see the next test)."""
+    m = _jerk_machine(20000.0)
+
+    def run(ctl, chords):
+        res = circle.run_circle(20, 10000, controller=ctl, chords=chords, mach=m).result
+        assert res.limited_by == "" and res.min_feed_mm_min >= 0.99 * 10000, res
+        assert res.faults == []
+        return res.max_contour_error_mm
+
+    curv_arc = run("cec-curvature", 0)
+    curv_chords = run("cec-curvature", 720)
+    tang_chords = run("cec-tangent", 720)
+    assert curv_chords <= 2 * curv_arc, (curv_chords, curv_arc)
+    assert tang_chords >= 5 * curv_chords, (tang_chords, curv_chords)
+    # the thesis's calcr (history even on arcs) on the arc path
+    assert run("cec-calcr", 0) <= 2 * curv_arc
+
+
+def test_chords_below_the_stated_feed_are_flagged():
+    """Default machine (j_max 2000): the planner slows the 0.17 mm chords;
+    the run is flagged, not scored under the stated feed's name."""
+    res = circle.run_circle(20, 10000, controller="pid", chords=720, settle_s=0.1).result
+    assert res.min_feed_mm_min < 0.99 * 10000
+    assert "measured min feed" in res.limited_by

@@ -49,7 +49,10 @@ import numpy as np
 from contour.errors import UserError
 from contour.sim import core, machine
 
-CONTROLLERS = ("pid", "cec-tangent", "cec-curvature", "cec-exact")
+# cec-curvature: r from the arc geometry on arcs, from the reference history
+# on lines; cec-calcr: from the history always (the thesis's calcr block);
+# cec-koren: Koren's straight line through the segment start
+CONTROLLERS = ("pid", "cec-tangent", "cec-curvature", "cec-exact", "cec-calcr", "cec-koren")
 FEEDFORWARD = ("none", "velocity", "full")
 
 
