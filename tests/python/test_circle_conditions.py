@@ -84,3 +84,24 @@ def test_chords_below_the_stated_feed_are_flagged():
     res = circle.run_circle(20, 10000, controller="pid", chords=720, settle_s=0.1).result
     assert res.min_feed_mm_min < 0.99 * 10000
     assert "measured min feed" in res.limited_by
+
+
+def test_ballbar_plot_conventions(tmp_path):
+    """Fixed 1-2-5 scale in um per division, conditions in the file name,
+    both directions overlaid."""
+    from contour.sim import plots
+
+    assert plots.scale_for(7.63) == 2.0  # 4 divisions of 2 um hold 7.63 um
+    assert plots.scale_for(843.0) == 500.0
+    assert plots.scale_for(0.3) == 0.1
+    ccw = circle.run_circle(20, 10000, "ccw", controller="cec-curvature", settle_s=0.1)
+    cw = circle.run_circle(20, 10000, "cw", controller="cec-curvature", settle_s=0.1)
+    name = plots.plot_name("ballbar_A", ccw.result)
+    assert name == "ballbar_A_R20mm_F10000_cec-curvature_ff-none_10000Hz.png"
+    out = tmp_path / name
+    sc = plots.ballbar(str(out), [(ccw.trace, ccw.result), (cw.trace, cw.result)])
+    assert sc == plots.scale_for(
+        max(ccw.result.max_contour_error_mm, cw.result.max_contour_error_mm) * 1e3
+    )
+    assert out.stat().st_size > 10000
+    assert plots.ballbar(str(out), [(ccw.trace, ccw.result)], 5.0) == 5.0

@@ -68,7 +68,18 @@ def register(sub) -> None:
         metavar="N",
         help="run the circle as N G1 chords (as CAM writes it) instead of arc blocks",
     )
-    c.add_argument("--plot", metavar="PNG", help="ballbar-style plot (radial error amplified)")
+    c.add_argument(
+        "--plot",
+        metavar="PNG",
+        help="ballbar plot (ISO 230-4): both directions overlaid (runs the other one too)",
+    )
+    c.add_argument(
+        "--scale",
+        type=float,
+        default=None,
+        metavar="UM_PER_DIV",
+        help="ballbar plot scale, um per division (default: 1-2-5 ladder from the largest error)",
+    )
     c.add_argument("--trace", metavar="CSV", help="scored revolution: t, x, y, contour error")
     c.set_defaults(func=cmd_circle)
 
@@ -112,8 +123,19 @@ def cmd_circle(args) -> int:
     res = run.result
     if args.trace:
         plots.write_trace(args.trace, run.trace)
-    if args.plot:
-        plots.ballbar(args.plot, run.trace, res)
+    if args.plot:  # both directions overlaid, as a ballbar report shows them
+        other = circle.run_circle(
+            args.radius,
+            args.feed,
+            direction="cw" if args.direction == "ccw" else "ccw",
+            controller=args.controller,
+            feedforward=args.feedforward,
+            machine_file=args.machine,
+            tick_hz=args.tick_hz,
+            allow_limited=args.allow_limited,
+            chords=args.chords,
+        )
+        plots.ballbar(args.plot, [(run.trace, res), (other.trace, other.result)], args.scale)
     if args.json:
         print(json.dumps(res.as_dict()))
     else:

@@ -27,6 +27,7 @@ REPO = Path(__file__).resolve().parents[3]
 THESIS_CSV = REPO.parent / "shared" / "data" / "lacerda1998" / "circle_tests.csv"
 CASES = [(r, f) for r in (10, 20, 50) for f in (10, 20, 30)]
 CTRL = ("pid", "cec-tangent", "cec-curvature", "cec-exact")
+PLOT_CASE = (20, 10)  # R mm, m/min: ballbar plots, both directions
 THESIS_CTRL = {"pid": "pid", "cec-tangent": "pid+cec_tangent", "cec-curvature": "pid+cec_curvature"}
 SETUPS = [
     ("A", "no feed-forward, 10 kHz", "default", "none"),
@@ -60,6 +61,7 @@ def run_all(quick: bool = False, out: Path | None = None, log=print) -> list:
         m = machine.load(mfile)
         for r, f in cases:
             res = {}
+            plot_runs = {}
             for ctl in CTRL:
                 # cases the machine's planner cannot run at the stated feed
                 # (R 10 at 30 m/min: centripetal 25 m/s^2 > a_max) run
@@ -68,8 +70,23 @@ def run_all(quick: bool = False, out: Path | None = None, log=print) -> list:
                     r, f * 1000, controller=ctl, feedforward=ff, mach=m, allow_limited=True
                 )
                 res[ctl] = run.result
-                if out is not None and (r, f) == (20, 10):
-                    plots.ballbar(str(out / f"ballbar_{sid}_{ctl}.png"), run.trace, run.result)
+                if out is not None and (r, f) == PLOT_CASE:
+                    cw = circle.run_circle(
+                        r,
+                        f * 1000,
+                        "cw",
+                        controller=ctl,
+                        feedforward=ff,
+                        mach=m,
+                        allow_limited=True,
+                    )
+                    plot_runs[ctl] = [(run.trace, run.result), (cw.trace, cw.result)]
+            if plot_runs:
+                # one fixed scale for every controller of the set-up (stated in each plot)
+                emax = max(abs(tr[:, 3]).max() * 1e6 for v in plot_runs.values() for tr, _ in v)
+                sc = plots.scale_for(emax)
+                for pr in plot_runs.values():
+                    plots.ballbar(str(out / plots.plot_name(f"ballbar_{sid}", pr[0][1])), pr, sc)
             worst = max(x.iae_mm_s for x in res.values()) or 1.0
             for ctl, x in res.items():
                 rows.append(
