@@ -528,6 +528,26 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
             }
         }
         break;
+    case CEC_MODE_CHUANG_LIU: {
+        unsigned u = (w + 1u) % 3u, v = (w + 2u) % 3u;
+        pos_nm_t rr = 0;
+        int s = 0;
+        ec1 = cec_dot(e, n1);
+        if (g->kind == MOTION_GEOM_ARC) {
+            rr = g->radius;
+            s = c->s;
+        } else {
+            hist_step(c, ref, w);
+            rr = c->hist_r;
+            s = c->hist_s;
+        }
+        if (rr > 0) {
+            int64_t e2 = (int64_t)e[u] * e[u] + (int64_t)e[v] * e[v];
+            int32_t corr = fx_sat32_fast(fx_div_round64(e2, 2 * rr));
+            ec1 = fx_sat_add32(ec1, (s > 0) ? corr : -corr);
+        }
+        break;
+    }
     case CEC_MODE_CURVATURE:
     case CEC_MODE_CURV_HISTORY:
         ec1 = cec_dot(e, n1);

@@ -37,6 +37,10 @@
  *              than three samples or the path is straight.
  *   CURV_HISTORY as CURVATURE with r and s always from the reference
  *              history, also on an ARC (the thesis's `calcr` block).
+ *   CHUANG_LIU EC1 = E . n1 + s * |E_uv|^2 / (2 r) (Chuang & Liu 1991: the
+ *              second-order term of the same geometry; exact for a pure lag
+ *              on a circle, since E . n1 = -s |E|^2 / (2 r) there); r, s
+ *              as in CURVATURE (arc geometry, or the history on a LINE).
  *   EXACT      LINE: EC1 = (start - P) . n1 (distance of P from the line).
  *              ARC:  EC1 = s * (|P_uv - C| - r)  (radial deviation).
  * Errors against the exact value on a circle, pure lag |E| (tests assert):
@@ -110,6 +114,7 @@ typedef enum {
     CEC_MODE_EXACT = 3,
     CEC_MODE_KOREN = 4,
     CEC_MODE_CURV_HISTORY = 5,
+    CEC_MODE_CHUANG_LIU = 6,
     CEC_MODE_COUNT
 } cec_mode_t;
 

@@ -217,6 +217,7 @@ typedef enum {
     DRIVE_CEC_EXACT,
     DRIVE_CEC_KOREN,        /* Koren's straight-line estimate (cec.h)            */
     DRIVE_CEC_CURV_HISTORY, /* curvature from the reference history only (calcr) */
+    DRIVE_CEC_CHUANG_LIU,   /* Chuang & Liu's second-order estimate (cec.h)     */
     DRIVE_CEC_COUNT
 } drive_cec_mode_t;
 

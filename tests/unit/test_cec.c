@@ -173,8 +173,9 @@ static void test_circle_pure_lag_grid(void)
 {
     static const double radii[] = {5e5, 5e6, 1e7, 2e7, 5e7, 2e8, 1e9};
     static const double lags[] = {1e2, 1e3, 1e4, 5e4, 1e5, 5e5, 1e6, 2e6};
-    cec_t ct, cc, ce, cl;
+    cec_t ct, cc, ce, cl, cj;
     unsigned ir, il, pl;
+    config(&cj, CEC_MODE_CHUANG_LIU, 0, 0);
     config(&ct, CEC_MODE_TANGENT, 0, 0);
     config(&cc, CEC_MODE_CURVATURE, 0, 0);
     config(&ce, CEC_MODE_EXACT, 0, 0);
@@ -204,6 +205,8 @@ static void test_circle_pure_lag_grid(void)
                         TEST_ASSERT_DOUBLE_WITHIN(bound + 3.0, exact, estimate(&cc, &a));
                         TEST_ASSERT_DOUBLE_WITHIN(bound + 3.0, exact, estimate(&cl, &a));
                         TEST_ASSERT_DOUBLE_WITHIN(1.0, exact, estimate(&ce, &a));
+                        /* Chuang-Liu: tangent + s|E|^2/(2r), exact for a pure lag */
+                        TEST_ASSERT_DOUBLE_WITHIN(4.0, exact, estimate(&cj, &a));
                         worst_t = fmax(worst_t, fabs(tan_err));
                         worst_c = fmax(worst_c, fabs(estimate(&cc, &a) - exact));
                         worst_b = fmax(worst_b, bound);

@@ -51,8 +51,17 @@ from contour.sim import core, machine
 
 # cec-curvature: r from the arc geometry on arcs, from the reference history
 # on lines; cec-calcr: from the history always (the thesis's calcr block);
-# cec-koren: Koren's straight line through the segment start
-CONTROLLERS = ("pid", "cec-tangent", "cec-curvature", "cec-exact", "cec-calcr", "cec-koren")
+# cec-koren: Koren's straight line through the segment start; cec-chuang-liu:
+# tangent + |E|^2 / (2 r) (r as cec-curvature)
+CONTROLLERS = (
+    "pid",
+    "cec-tangent",
+    "cec-curvature",
+    "cec-exact",
+    "cec-calcr",
+    "cec-koren",
+    "cec-chuang-liu",
+)
 FEEDFORWARD = ("none", "velocity", "full")
 
 

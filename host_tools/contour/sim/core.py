@@ -36,7 +36,15 @@ FAULT_BITS = {
     16: "estop",
     32: "comm_timeout",
 }
-CEC_MODES = {"off": 0, "tangent": 1, "curvature": 2, "exact": 3, "koren": 4, "calcr": 5}
+CEC_MODES = {
+    "off": 0,
+    "tangent": 1,
+    "curvature": 2,
+    "exact": 3,
+    "koren": 4,
+    "calcr": 5,
+    "chuang-liu": 6,
+}
 
 
 def lib() -> c.CDLL:
