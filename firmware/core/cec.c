@@ -251,6 +251,8 @@ cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err)
         c->hist_n = 0;
     }
     c->p = *p;
+    c->oscillating = false;
+    c->osc_ticks = 0;
     return CEC_OK;
 }
 
@@ -264,6 +266,8 @@ cec_err_t cec_set_mode(cec_t *c, cec_mode_t mode)
         c->reseg = true;
         c->hist_n = 0;
     }
+    c->oscillating = false;
+    c->osc_ticks = 0;
     return CEC_OK;
 }
 
@@ -310,6 +314,9 @@ static void deactivate(cec_t *c)
     c->active = false;
     c->ch2_on = false;
     c->hist_n = 0;
+    c->osc_n = 0;
+    c->osc_avg = 0;
+    c->osc_ticks = 0;
     c->ec_nm[0] = 0;
     c->ec_nm[1] = 0;
 }
@@ -456,6 +463,27 @@ static void hist_step(cec_t *c, const motion_ref_t *ref, unsigned w)
     }
 }
 
+/* The oscillation watch of one active tick (cec.h). */
+static void osc_watch(cec_t *c)
+{
+    int32_t u = c->ch[0].out_mv;
+    if (c->osc_n == 2) {
+        int64_t d2 = fx_sat_abs64((int64_t)u - 2 * (int64_t)c->osc_u[0] + c->osc_u[1]);
+        c->osc_avg += ((d2 << 8) - c->osc_avg) / (1 << CEC_OSC_SHIFT);
+        if (c->osc_avg > ((int64_t)CEC_OSC_LIMIT_MV << 8)) {
+            if (++c->osc_ticks > c->ch[0].p.tick_hz / 10u) {
+                c->oscillating = true;
+            }
+        } else {
+            c->osc_ticks = 0;
+        }
+    } else {
+        c->osc_n++;
+    }
+    c->osc_u[1] = c->osc_u[0];
+    c->osc_u[0] = u;
+}
+
 void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
 {
     const motion_geom_t *g;
@@ -595,6 +623,7 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
         c->ch[1].saturated = false;
     }
     c->saturated = c->ch[0].saturated || c->ch[1].saturated;
+    osc_watch(c);
     {
         int32_t u1 = (int32_t)fx_round_shift64(c->ch[0].out, 22); /* mV q10 */
         int32_t u2 = (int32_t)fx_round_shift64(c->ch[1].out, 22);

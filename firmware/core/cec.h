@@ -89,6 +89,16 @@
  * of the commands does not step; with handover = false it is dropped.
  * Within an ARC the integrals turn with the normal (scalar integrators).
  *
+ * Oscillation watch (a sustained limit cycle is a fault, not a result):
+ * while active, avg = the mean of |u1(k) - 2 u1(k-1) + u1(k-2)| (first
+ * channel's output, mV; exponential, 2^CEC_OSC_SHIFT ticks). Slow
+ * corrections have a tiny second difference (R 20 mm at 30 m/min, default
+ * gains: 5-7 mV on the axis commands), a limit cycle a large one (the
+ * thesis's CEC gains at 10 kHz: a 666 Hz cycle, 800-1600 mV). avg above
+ * CEC_OSC_LIMIT_MV for more than tick_hz / 10 ticks in a row (0.1 s) sets
+ * `oscillating` (latched until cec_config or cec_set_mode); the servo
+ * raises SERVO_FAULT_OSCILLATION.
+ *
  * Units and Q formats: positions nm (pos_nm_t), errors int32 nm, unit vectors
  * q1_30, outputs U (int64, mV * 2^-32). Internally u_k is taken at 2^-10 mV
  * resolution for the distribution.
@@ -138,6 +148,8 @@ typedef struct {
 
 #define CEC_CURV_SPAN_NM 1000000            /* 1 mm */
 #define CEC_CURV_R_MAX   ((int64_t)1 << 32) /* 4.3 m: straight above */
+#define CEC_OSC_SHIFT    6                  /* oscillation watch: mean over 2^6 ticks */
+#define CEC_OSC_LIMIT_MV 200                /* mean |second difference| of u1, mV */
 
 typedef struct {
     cec_params_t p;
@@ -172,6 +184,12 @@ typedef struct {
     int8_t hist_s;
     pos_nm_t hist[3][2];
     pos_nm_t hist_r;
+    /* oscillation watch (tick) */
+    int32_t osc_u[2];   /* u1 of the last two ticks, mV            */
+    uint8_t osc_n;      /* ticks in osc_u (0..2)                   */
+    int64_t osc_avg;    /* mean |second difference|, mV * 2^8      */
+    uint32_t osc_ticks; /* consecutive ticks over the limit        */
+    bool oscillating;   /* latched: a sustained limit cycle        */
 } cec_t;
 
 /* Validate and apply (nothing changes on error; *pid_err gets the detail

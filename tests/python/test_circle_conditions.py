@@ -105,3 +105,13 @@ def test_ballbar_plot_conventions(tmp_path):
     )
     assert out.stat().st_size > 10000
     assert plots.ballbar(str(out), [(ccw.trace, ccw.result)], 5.0) == 5.0
+
+
+def test_thesis_gains_limit_cycle_is_a_fault():
+    """Table 4.1's CEC gains at 10 kHz limit-cycle (666 Hz): the servo's
+    oscillation watch faults instead of scoring; the PIDs alone run."""
+    cec = circle.run_circle(10, 10000, controller="cec-curvature", machine_file="thesis_table41")
+    assert cec.result.faults == ["oscillation"]
+    assert "faulted" in cec.result.limited_by
+    pid = circle.run_circle(10, 10000, controller="pid", machine_file="thesis_table41").result
+    assert pid.faults == [] and pid.max_contour_error_mm > 0

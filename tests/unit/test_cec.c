@@ -695,6 +695,36 @@ static void test_near_tangent_join_keeps_integral(void)
     TEST_ASSERT_TRUE(fabs(UMV(c.handover_u[0])) > 1.0);
 }
 
+/* Oscillation watch: a CEC output alternating tick by tick (a limit
+ * cycle) latches `oscillating` after 0.1 s; a slow correction of the same
+ * size never does; cec_set_mode clears it. */
+static void test_oscillation_watch(void)
+{
+    cec_t c;
+    motion_ref_t ref;
+    pos_nm_t meas[CORE_AXES] = {0, 0, 0};
+    int k;
+    config(&c, CEC_MODE_TANGENT, 4e4, 0); /* 10 um -> 400 mV */
+    line_ref(&ref, 0.0);
+    for (k = 0; k < 5000; k++) {
+        meas[1] = (pos_nm_t)llround(10000.0 * sin(2 * M_PI * k / 2000.0)); /* 5 Hz */
+        cec_step(&c, &ref, meas);
+    }
+    TEST_ASSERT_FALSE(c.oscillating);
+    for (k = 0; k < 1000; k++) { /* 0.1 s of a 5 kHz cycle: not yet */
+        meas[1] = (k & 1) ? 10000 : -10000;
+        cec_step(&c, &ref, meas);
+    }
+    TEST_ASSERT_FALSE(c.oscillating);
+    for (k = 0; k < 200; k++) {
+        meas[1] = (k & 1) ? 10000 : -10000;
+        cec_step(&c, &ref, meas);
+    }
+    TEST_ASSERT_TRUE(c.oscillating);
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&c, CEC_MODE_TANGENT));
+    TEST_ASSERT_FALSE(c.oscillating);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -712,5 +742,6 @@ int main(void)
     RUN_TEST(test_circle3);
     RUN_TEST(test_history_curvature_on_chords);
     RUN_TEST(test_near_tangent_join_keeps_integral);
+    RUN_TEST(test_oscillation_watch);
     return UNITY_END();
 }

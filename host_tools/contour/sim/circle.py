@@ -91,11 +91,13 @@ class CircleResult:
     def as_dict(self) -> dict:
         """JSON fields (docs/conventions.md: errors in um as in `sim run`; the
         `_mm` error fields are kept for readers of earlier output)."""
-        d = asdict(self)
-        d["iae_um_s"] = self.iae_mm_s * 1e3
-        d["max_contour_error_um"] = self.max_contour_error_mm * 1e3
-        d["circular_deviation_um"] = self.circular_deviation_mm * 1e3
-        d["mean_radial_error_um"] = self.mean_radial_error_mm * 1e3
+        d = {
+            k: (None if isinstance(v, float) and math.isnan(v) else v)
+            for k, v in asdict(self).items()
+        }
+        for k in ("iae", "max_contour_error", "circular_deviation", "mean_radial_error"):
+            v = getattr(self, k + ("_mm_s" if k == "iae" else "_mm")) * 1e3
+            d[k + ("_um_s" if k == "iae" else "_um")] = None if math.isnan(v) else v
         return d
 
 
@@ -249,8 +251,29 @@ def run_circle(
     full = np.vstack(rows)
     # a chord's reference lies inside the circle by up to its sagitta
     sag = r * (1 - math.cos(math.pi / chords)) if chords else 0.0
-    res = score(full, cx, cy, r, sense, settle, sag)
     st = core.status()
+    try:
+        res = score(full, cx, cy, r, sense, settle, sag)
+    except UserError:
+        if not st.faults:
+            raise
+        # faulted before the scored revolution ended (e.g. a limit cycle,
+        # fault "oscillation"): no scores, the faults say why
+        nan = float("nan")
+        res = {
+            "scores": {
+                k: nan
+                for k in (
+                    "iae_mm_s",
+                    "max_contour_error_mm",
+                    "circular_deviation_mm",
+                    "mean_radial_error_mm",
+                    "min_feed_mm_min",
+                    "mean_feed_mm_min",
+                )
+            },
+            "trace": np.zeros((0, 4)),
+        }
     result = CircleResult(
         radius_mm=radius_mm,
         feed_mm_min=feed_mm_min,
@@ -268,7 +291,9 @@ def run_circle(
         **res["scores"],
     )
     flags = list(over)
-    if result.min_feed_mm_min < FEED_TOLERANCE * feed_mm_min:
+    if math.isnan(result.min_feed_mm_min):
+        flags.append("no scored revolution: faulted (" + ", ".join(result.faults) + ")")
+    elif result.min_feed_mm_min < FEED_TOLERANCE * feed_mm_min:
         flags.append(
             f"measured min feed {result.min_feed_mm_min:.0f} mm/min < "
             f"{FEED_TOLERANCE:.0%} of {feed_mm_min:g}"

@@ -35,6 +35,8 @@ FAULT_BITS = {
     8: "amplifier",
     16: "estop",
     32: "comm_timeout",
+    64: "homing",
+    128: "oscillation",
 }
 CEC_MODES = {
     "off": 0,
