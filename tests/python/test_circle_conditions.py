@@ -115,3 +115,17 @@ def test_thesis_gains_limit_cycle_is_a_fault():
     assert "faulted" in cec.result.limited_by
     pid = circle.run_circle(10, 10000, controller="pid", machine_file="thesis_table41").result
     assert pid.faults == [] and pid.max_contour_error_mm > 0
+
+
+def test_make_run_has_the_experimental_3ms_tests_in_both_directions():
+    from contour.sim import demo
+
+    cases = demo.thesis_experiments()
+    assert sorted(c[0] for c in cases) == [f"5.{k}" for k in range(10, 19)]
+    rows = demo.run_experiments(log=lambda *_: None)
+    assert len(rows) == 9 * 2 * len(demo.EXP_CTRL)
+    for t in {r["table"] for r in rows}:
+        assert {r["direction"] for r in rows if r["table"] == t} == {"cw", "ccw"}
+    md = demo.format_experiments(rows)
+    assert "| 5.18 | 50 | 20.6 | cw | cec-curvature |" in md
+    assert all(r["faults"] == "" for r in rows)

@@ -54,6 +54,95 @@ def thesis_table() -> dict:
     return out
 
 
+def thesis_experiments() -> list:
+    """The thesis's experimental circle tests (Tables 5.10-5.18, 3 ms):
+    [(table, R mm, feed m/min, direction cw|ccw, {controller: (iae, circ)})]."""
+    out: dict = {}
+    if not THESIS_CSV.exists():
+        return []
+    with open(THESIS_CSV, newline="") as fh:
+        for row in csv.DictReader(fh):
+            if row["kind"] != "experiment":
+                continue
+            key = (
+                row["table"],
+                float(row["radius_mm"]),
+                float(row["feed_m_per_min"]),
+                "cw" if row["direction"] == "SH" else "ccw",  # horario / anti-horario
+            )
+            out.setdefault(key, {})[row["controller"]] = (
+                row["iae_normalized"] or "-",
+                row["circularity_error_mm"] or "-",
+            )
+    return [(*k, v) for k, v in out.items()]
+
+
+EXP_CTRL = ("pid", "cec-tangent", "cec-curvature")
+
+
+def run_experiments(log=print) -> list:
+    """Set-up E: the thesis's experimental cases on thesis.toml (3 ms, no
+    feed-forward), in the thesis's direction and the other one."""
+    rows = []
+    m = machine.load("thesis")
+    for table, r, f, tdir, _th in thesis_experiments():
+        for d in (tdir, "ccw" if tdir == "cw" else "cw"):
+            res = {
+                ctl: circle.run_circle(
+                    r, f * 1000, d, controller=ctl, feedforward="none", mach=m, allow_limited=True
+                ).result
+                for ctl in EXP_CTRL
+            }
+            worst = max((x.iae_mm_s for x in res.values() if x.iae_mm_s == x.iae_mm_s), default=1.0)
+            for ctl, x in res.items():
+                rows.append(
+                    {
+                        "table": table,
+                        "radius_mm": r,
+                        "feed_m_min": f,
+                        "direction": d,
+                        "thesis_direction": d == tdir,
+                        "controller": ctl,
+                        "iae_normalized": x.iae_mm_s / worst,
+                        "circular_deviation_um": x.circular_deviation_mm * 1e3,
+                        "max_contour_error_um": x.max_contour_error_mm * 1e3,
+                        "limited_by": x.limited_by,
+                        "faults": ";".join(x.faults),
+                    }
+                )
+            log(
+                f"  E   {table} R {r:g} mm {f:g} m/min {d:3s}: "
+                + "  ".join(f"{c} {res[c].circular_deviation_mm * 1e3:8.2f}" for c in EXP_CTRL)
+            )
+    return rows
+
+
+def format_experiments(rows: list) -> str:
+    th = {(t, d): v for t, _r, _f, d, v in thesis_experiments()}
+    lines = [
+        "\n### E: the thesis's experimental tests (Tables 5.10-5.18) on the simulated "
+        "table, 3 ms tick (machine thesis), no feed-forward, both directions\n",
+        "Thesis: measured on its machine (circularity error, mm, undefined there; "
+        "IAE normalised to the worst controller). Ours: circular deviation "
+        "(ISO 230-4) and max |contour error| in um, IAE normalised per case and "
+        "direction. The thesis ran each case in one direction (SH = cw, SAH = ccw).\n",
+        "| table | R mm | m/min | dir | controller | circular dev. um | max error um | "
+        "IAE norm. | thesis IAE norm. | thesis circularity mm | flags |",
+        "|---|---:|---:|---|---|---:|---:|---:|---:|---:|---|",
+    ]
+    for x in rows:
+        t = th.get((x["table"], x["direction"]), {}).get(THESIS_CTRL[x["controller"]], ("", ""))
+        lines.append(
+            f"| {x['table']} | {x['radius_mm']:g} | {x['feed_m_min']:g} | {x['direction']}"
+            f"{'' if x['thesis_direction'] else ' (other)'} | {x['controller']} | "
+            f"{x['circular_deviation_um']:.2f} | {x['max_contour_error_um']:.2f} | "
+            f"{x['iae_normalized']:.3f} | {t[0]} | {t[1]} | "
+            + "; ".join(v for v in (x["limited_by"], x["faults"]) if v)
+            + " |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def run_all(quick: bool = False, out: Path | None = None, log=print) -> list:
     rows = []
     cases = [(20, 10)] if quick else CASES
@@ -161,7 +250,15 @@ def main(out_dir: str, quick: bool = False) -> int:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
+    exp = [] if quick else run_experiments()
+    if exp:
+        with open(out / "experiments.csv", "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=list(exp[0]))
+            w.writeheader()
+            w.writerows(exp)
     md = format_tables(rows)
+    if exp:
+        md += format_experiments(exp)
     limited = sorted(
         {
             (x["setup"], x["radius_mm"], x["feed_m_min"], x["limited_by"])
