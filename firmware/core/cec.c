@@ -214,8 +214,8 @@ int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30
 
 cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err)
 {
-    pid_params_t pp;
-    pid_loop_t tmp[2];
+    pid_params_t pp, pl;
+    pid_loop_t tmp[2], spare[2];
     pid_err_t err;
     int k;
 
@@ -229,9 +229,21 @@ cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err)
     pp.kvff = 0;
     pp.kaff = 0;
     pp.d_on_measurement = false;
+    pl = p->line_gains ? p->pid_line : pp;
+    pl.kvff = 0;
+    pl.kaff = 0;
+    pl.d_on_measurement = false;
+    if (!p->line_gains && c->on_line) {
+        /* back to one gain set: ch[] takes the curve gains below */
+        c->on_line = false;
+    }
     for (k = 0; k < 2; k++) {
         tmp[k] = c->ch[k];
-        err = pid_config(&tmp[k], &pp);
+        spare[k] = c->spare[k];
+        err = pid_config(&tmp[k], c->on_line ? &pl : &pp);
+        if (err == PID_OK) {
+            err = pid_config(&spare[k], c->on_line ? &pp : &pl);
+        }
         if (err != PID_OK) {
             if (pid_err != NULL) {
                 *pid_err = err;
@@ -242,9 +254,15 @@ cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err)
             pid_enable(&tmp[k], 0);
             pid_reset(&tmp[k], false);
         }
+        if (!spare[k].enabled) {
+            pid_enable(&spare[k], 0);
+            pid_reset(&spare[k], false);
+        }
     }
     c->ch[0] = tmp[0];
     c->ch[1] = tmp[1];
+    c->spare[0] = spare[0];
+    c->spare[1] = spare[1];
     c->idle = false;
     if (c->p.mode != p->mode) {
         c->reseg = true;
@@ -463,6 +481,23 @@ static void hist_step(cec_t *c, const motion_ref_t *ref, unsigned w)
     }
 }
 
+/* Swap in the other gain set, continuing from the last outputs (cec.h). */
+static void switch_gains(cec_t *c)
+{
+    int k;
+    for (k = 0; k < 2; k++) {
+        pid_loop_t old = c->ch[k];
+        c->ch[k] = c->spare[k];
+        c->spare[k] = old;
+        c->ch[k].out = old.out;
+        c->ch[k].out_mv = old.out_mv;
+        c->ch[k].integ = old.integ;
+        c->ch[k].primed = false; /* no derivative kick */
+        pid_reset(&c->ch[k], true);
+    }
+    c->on_line = !c->on_line;
+}
+
 /* The oscillation watch of one active tick (cec.h). */
 static void osc_watch(cec_t *c)
 {
@@ -614,6 +649,12 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     }
     c->ec_nm[0] = ec1;
     c->ec_nm[1] = ec2;
+    if (c->p.line_gains) {
+        bool line = g->kind == MOTION_GEOM_LINE && c->hist_r == 0;
+        if (line != c->on_line) {
+            switch_gains(c);
+        }
+    }
 
     pid_step(&c->ch[0], 0, -(pos_nm_t)ec1, 0, 0, 0);
     if (ch2) {

@@ -89,6 +89,15 @@
  * of the commands does not step; with handover = false it is dropped.
  * Within an ARC the integrals turn with the normal (scalar integrators).
  *
+ * Gain switching (the thesis's line and curve gain sets), with
+ * p.line_gains: the channels run p.pid_line's gains while the path is
+ * straight (a LINE whose curvature is not known from the history: always
+ * in TANGENT, EXACT and KOREN, and in the history modes while hist_r is 0)
+ * and p.pid's on curves (an ARC, or hist_r > 0). A switch is bumpless: the
+ * loop with the other gains continues from the output of the last tick
+ * (pid_reset bumpless) with its derivative restarted. The other set waits in
+ * spare[] (same validation by cec_config; nothing changes on error).
+ *
  * Oscillation watch (a sustained limit cycle is a fault, not a result):
  * while active, avg = the mean of |u1(k) - 2 u1(k-1) + u1(k-2)| (first
  * channel's output, mV; exponential, 2^CEC_OSC_SHIFT ticks). Slow
@@ -144,6 +153,8 @@ typedef struct {
     bool lag_from_tangent; /* CURVATURE: g = |E . t| / r (the lag only) instead
                             * of the thesis's |E_uv| / r; see below        */
     int32_t curv_span_nm;  /* history sample spacing, nm (0: CEC_CURV_SPAN_NM) */
+    bool line_gains;       /* use pid_line on straight path (see Gain switching) */
+    pid_params_t pid_line; /* CEC gains on straight path, as pid                 */
 } cec_params_t;
 
 #define CEC_CURV_SPAN_NM 1000000            /* 1 mm */
@@ -154,6 +165,8 @@ typedef struct {
 typedef struct {
     cec_params_t p;
     pid_loop_t ch[2];
+    pid_loop_t spare[2]; /* the other gain set (line_gains) */
+    bool on_line;        /* ch[] holds the line gains (tick) */
     /* tick outputs */
     bool active;
     bool saturated;

@@ -43,6 +43,10 @@ void servo_params_default(servo_params_t *p, uint32_t tick_hz)
     p->cec.pid.ki = SI(2000000);
     p->cec.pid.kd = SI(100);
     p->cec.pid.d_on_measurement = false;
+    p->cec.line_gains = false;
+    p->cec.lag_from_tangent = false;
+    p->cec.pid_line = p->cec.pid;
+    p->cec.curv_span_nm = 0;
     p->sat_limit_ticks = tick_hz / 2;
     p->on_following = SERVO_REACT_DISABLE;
     p->on_saturation = SERVO_REACT_STOP;

@@ -129,3 +129,20 @@ def test_make_run_has_the_experimental_3ms_tests_in_both_directions():
     md = demo.format_experiments(rows)
     assert "| 5.18 | 50 | 20.6 | cw | cec-curvature |" in md
     assert all(r["faults"] == "" for r in rows)
+
+
+def test_line_curve_gain_switching_end_to_end():
+    """[gains.cec_line] with zero gains: the CEC is silent on straight path
+    (tangent CEC on G1 chords = PIDs alone) and unchanged on arcs."""
+    m = machine.load("default")
+    m.gains["cec_line"] = {"kp": 0.0, "ki": 0.0, "kd": 0.0, "d_tau": 1e-3}
+    base = machine.load("default")
+
+    def mx(ctl, chords, mach):
+        r = circle.run_circle(20, 10000, controller=ctl, chords=chords, mach=mach, settle_s=0.1)
+        return r.result.max_contour_error_mm
+
+    pid = mx("pid", 720, base)
+    assert mx("cec-tangent", 720, m) == pytest.approx(pid, rel=1e-3)
+    assert mx("cec-tangent", 720, base) < 0.5 * pid
+    assert mx("cec-curvature", 0, m) == pytest.approx(mx("cec-curvature", 0, base), rel=0.05)

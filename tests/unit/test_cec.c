@@ -725,6 +725,61 @@ static void test_oscillation_watch(void)
     TEST_ASSERT_FALSE(c.oscillating);
 }
 
+/* Line/curve gain switching: Kp 4000 V/m on a LINE, 1000 V/m on an ARC;
+ * the switch continues from the last output. */
+static void test_line_curve_gain_switching(void)
+{
+    cec_t c;
+    cec_params_t p;
+    motion_ref_t ref;
+    arc_case_t a;
+    pos_nm_t meas[CORE_AXES] = {0, 0, 0};
+    int32_t o1, o2;
+    memset(&c, 0, sizeof c);
+    memset(&p, 0, sizeof p);
+    p.mode = CEC_MODE_TANGENT;
+    p.handover = true;
+    p.pid.kp = Q32(1000);
+    p.pid.out_max_mv = 160000;
+    p.pid.i_max_mv = 160000;
+    p.pid.tick_hz = 10000;
+    p.pid_line = p.pid;
+    p.pid_line.kp = Q32(4000);
+    p.line_gains = true;
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&c, &p, NULL));
+    line_ref(&ref, 0.0); /* n1 = (0, -1): meas[1] = -10 um -> EC = -10 um */
+    meas[1] = 10000;
+    cec_step(&c, &ref, meas);
+    cec_step(&c, &ref, meas);
+    o1 = c.ch[0].out_mv;
+    meas[1] = 20000;
+    cec_step(&c, &ref, meas);
+    o2 = c.ch[0].out_mv;
+    TEST_ASSERT_TRUE(c.on_line);
+    TEST_ASSERT_INT_WITHIN(1, 40, o2 - o1); /* 4000 V/m * 10 um */
+    /* onto an arc with the same error: no step, then the curve gain */
+    arc_case(&a, 0, 2e7, 0.0, 1, 0.0, 20000.0);
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_FALSE(c.on_line);
+    TEST_ASSERT_INT_WITHIN(1, o2, c.ch[0].out_mv);
+    o1 = c.ch[0].out_mv;
+    arc_case(&a, 0, 2e7, 0.0, 1, 0.0, 30000.0);
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_INT_WITHIN(1, 10, abs(c.ch[0].out_mv - o1)); /* 1000 V/m * 10 um */
+    /* without line_gains the line runs the curve gains */
+    p.line_gains = false;
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&c, &p, NULL));
+    line_ref(&ref, 0.0);
+    meas[1] = 10000;
+    cec_step(&c, &ref, meas);
+    cec_step(&c, &ref, meas);
+    o1 = c.ch[0].out_mv;
+    meas[1] = 20000;
+    cec_step(&c, &ref, meas);
+    TEST_ASSERT_FALSE(c.on_line);
+    TEST_ASSERT_INT_WITHIN(1, 10, c.ch[0].out_mv - o1);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -743,5 +798,6 @@ int main(void)
     RUN_TEST(test_history_curvature_on_chords);
     RUN_TEST(test_near_tangent_join_keeps_integral);
     RUN_TEST(test_oscillation_watch);
+    RUN_TEST(test_line_curve_gain_switching);
     return UNITY_END();
 }
