@@ -146,3 +146,17 @@ def test_line_curve_gain_switching_end_to_end():
     assert mx("cec-tangent", 720, m) == pytest.approx(pid, rel=1e-3)
     assert mx("cec-tangent", 720, base) < 0.5 * pid
     assert mx("cec-curvature", 0, m) == pytest.approx(mx("cec-curvature", 0, base), rel=0.05)
+
+
+def test_results_list_where_the_cec_is_worse_than_the_pids():
+    from contour.sim import demo
+
+    def row(ctl, dev, mx):
+        return {"setup": "C3", "radius_mm": 20, "feed_m_min": 10, "controller": ctl,
+                "circular_deviation_um": dev, "max_contour_error_um": mx}  # fmt: skip
+
+    rows = [row("pid", 0.89, 29.4), row("cec-curvature", 1.60, 1.11), row("cec-exact", 0.5, 1.2)]
+    md = demo.format_cec_worse(rows)
+    assert "C3 R 20 mm 10 m/min cec-curvature: circular dev. 1.60 vs 0.89 um" in md
+    assert "cec-exact" not in md
+    assert demo.format_cec_worse(rows[:1] + rows[2:]).strip().endswith("none")

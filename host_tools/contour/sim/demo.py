@@ -54,6 +54,34 @@ def thesis_table() -> dict:
     return out
 
 
+def format_cec_worse(rows: list) -> str:
+    """The cases where a CEC (curvature or exact) is worse than the PIDs
+    alone, in circular deviation or in max |contour error| (issue 21: the
+    CEC should never be worse; it is not yet)."""
+    by = {}
+    for x in rows:
+        by.setdefault((x["setup"], x["radius_mm"], x["feed_m_min"]), {})[x["controller"]] = x
+    out = []
+    for (sid, r, f), v in by.items():
+        p = v.get("pid")
+        for ctl in ("cec-curvature", "cec-exact"):
+            c = v.get(ctl)
+            if p is None or c is None:
+                continue
+            worse = [
+                f"{name} {c[k]:.2f} vs {p[k]:.2f} um"
+                for name, k in (
+                    ("circular dev.", "circular_deviation_um"),
+                    ("max error", "max_contour_error_um"),
+                )
+                if c[k] > p[k]
+            ]
+            if worse:
+                out.append(f"- {sid} R {r} mm {f} m/min {ctl}: " + ", ".join(worse))
+    head = "\n### CEC worse than the PIDs alone\n\n"
+    return head + ("\n".join(out) if out else "none") + "\n"
+
+
 def thesis_experiments() -> list:
     """The thesis's experimental circle tests (Tables 5.10-5.18, 3 ms):
     [(table, R mm, feed m/min, direction cw|ccw, {controller: (iae, circ)})]."""
@@ -257,6 +285,7 @@ def main(out_dir: str, quick: bool = False) -> int:
             w.writeheader()
             w.writerows(exp)
     md = format_tables(rows)
+    md += format_cec_worse(rows)
     if exp:
         md += format_experiments(exp)
     limited = sorted(
