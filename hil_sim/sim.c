@@ -285,10 +285,17 @@ int sim_gain_set(int loop, const char *name, double v)
     if (!S.setup) {
         return SIM_E_STATE;
     }
-    if (name == NULL || loop < -1 || loop >= (int)CORE_AXES) {
+    if (name == NULL || loop < -2 || loop >= (int)CORE_AXES) {
         return SIM_E_ARG;
     }
-    p = loop < 0 ? &S.dcfg.servo.cec.pid : &S.dcfg.servo.axis[loop];
+    /* -2: the CEC's straight-path gains (cec.h "Gain switching"), which turns
+     * the switching on */
+    p = loop == -2 ? &S.dcfg.servo.cec.pid_line
+        : loop < 0 ? &S.dcfg.servo.cec.pid
+                   : &S.dcfg.servo.axis[loop];
+    if (loop == -2) {
+        S.dcfg.servo.cec.line_gains = true;
+    }
     S.started = 0;
     if (strcmp(name, "kp") == 0 || strcmp(name, "ki") == 0 || strcmp(name, "kd") == 0 ||
         strcmp(name, "kvff") == 0 || strcmp(name, "kaff") == 0 || strcmp(name, "kt") == 0) {
@@ -411,7 +418,7 @@ int sim_cec_mode(int mode)
     if (!S.setup) {
         return SIM_E_STATE;
     }
-    if (mode < (int)DRIVE_CEC_OFF || mode > (int)DRIVE_CEC_EXACT) {
+    if (mode < (int)DRIVE_CEC_OFF || mode >= (int)DRIVE_CEC_COUNT) {
         return SIM_E_ARG;
     }
     S.cec_mode = mode;

@@ -113,7 +113,8 @@ int sim_encoder_model_get(void);
 
 /* The drive's configuration before sim_start (SI units, converted here):
  *   sim_gain_set(loop, name, v)  loop 0..axes-1: that axis's PID, -1: the
- *       CEC's PID. kp (V/m), ki (V/(m s)), kd (V s/m), kvff (V/(m/s)),
+ *       CEC's PID, -2: the CEC's straight-path gains (turns the line/curve
+ *       gain switching on). kp (V/m), ki (V/(m s)), kd (V s/m), kvff (V/(m/s)),
  *       kaff (V/(m/s^2)), kt (1/s), d_tau (s), deadband (m), i_max (V),
  *       out_max (V), d_on_measurement (0/1). Volts at the amplifier input.
  *   sim_servo_set(axis, name, v)  ferr_limit (m, 0 off), stop_decel (m/s^2),

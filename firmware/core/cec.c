@@ -18,6 +18,8 @@
 #define PLUNGE_LEN2   ((int64_t)1 << 40) /* |t x e_w|^2 below (2^-10)^2 in q60 */
 #define UNIT_TOL2     ((int64_t)1 << 33) /* |len^2 - 1| tolerated without normalising */
 #define OFFPLANE_Q30  1024               /* |t_w| above 2^-20: second channel on */
+/* cos 30 degrees, q60: a LINE join turning more restarts the history */
+#define HIST_CORNER_COS_Q60 ((int64_t)998459311558907264)
 
 /* ---- estimators ------------------------------------------------------------ */
 
@@ -103,13 +105,10 @@ int32_t cec_est_koren(int32_t ex, int32_t ey, int64_t rx, int64_t ry)
     return fx_sat32_fast(fx_div_round64(num, den));
 }
 
-static int32_t curv_corr(int32_t e_abs, pos_nm_t r, pid_coef_t inv_r)
+/* r (sec g - 1) for g = x = e / r (q1_30), e = e_abs > 0, r > 0. */
+static int32_t curv_corr_x(int32_t e_abs, pos_nm_t r, int64_t x)
 {
-    int64_t x, x2, h, xh, e_eff = e_abs;
-    if (e_abs <= 0 || r <= 0) {
-        return 0;
-    }
-    x = pid_coef_apply(inv_r, e_abs); /* e / r, q1_30 */
+    int64_t x2, h, xh, e_eff = e_abs;
     if (x > GAMMA_MAX_Q30) {
         x = GAMMA_MAX_Q30;
         e_eff = (r / 2 < e_abs) ? r / 2 : e_abs;
@@ -122,6 +121,57 @@ static int32_t curv_corr(int32_t e_abs, pos_nm_t r, pid_coef_t inv_r)
     h = SEC_C0 + fx_round_shift64(x2 * h, 30);
     xh = fx_round_shift64(x * h, 30); /* r (sec g - 1) / e, q1_30 */
     return (int32_t)fx_round_shift64(e_eff * xh, 30);
+}
+
+static int32_t curv_corr(int32_t e_abs, pos_nm_t r, pid_coef_t inv_r)
+{
+    if (e_abs <= 0 || r <= 0) {
+        return 0;
+    }
+    return curv_corr_x(e_abs, r, pid_coef_apply(inv_r, e_abs)); /* e / r, q1_30 */
+}
+
+/* As curv_corr for a radius that changes in the tick: one division. */
+static int32_t curv_corr_div(int32_t e_abs, pos_nm_t r)
+{
+    if (e_abs <= 0 || r <= 0) {
+        return 0;
+    }
+    return curv_corr_x(e_abs, r, fx_div_round64((int64_t)e_abs << 30, r));
+}
+
+#define CIRCLE3_LIM   ((int64_t)1 << 20) /* components scaled below this      */
+#define CIRCLE3_SHIFT 20                 /* q of |b-a| |c-b| / (2 |cross|)     */
+
+pos_nm_t cec_circle3(const pos_nm_t a[2], const pos_nm_t b[2], const pos_nm_t c[2], int8_t *s)
+{
+    int64_t d1u = b[0] - a[0], d1v = b[1] - a[1], d2u = c[0] - b[0], d2v = c[1] - b[1];
+    int64_t cr, l1, l2, l3, q;
+    unsigned sh = 0;
+
+    *s = 0;
+    while (fx_sat_abs64(d1u) >= CIRCLE3_LIM || fx_sat_abs64(d1v) >= CIRCLE3_LIM ||
+           fx_sat_abs64(d2u) >= CIRCLE3_LIM || fx_sat_abs64(d2v) >= CIRCLE3_LIM) {
+        d1u /= 2;
+        d1v /= 2;
+        d2u /= 2;
+        d2v /= 2;
+        sh++;
+    }
+    cr = d1u * d2v - d1v * d2u; /* below 2^41 */
+    l1 = fx_hypot2(d1u, d1v);
+    l2 = fx_hypot2(d2u, d2v);
+    l3 = fx_hypot2(d1u + d2u, d1v + d2v);
+    if (cr == 0 || l1 == 0 || l2 == 0 || l3 == 0) {
+        return 0;
+    }
+    /* q = |b-a| |c-b| / (2 |cross|) = 1 / (2 sin(turn)), q20; r = q |c-a| */
+    q = fx_div_round64((l1 * l2) << CIRCLE3_SHIFT, 2 * fx_sat_abs64(cr));
+    if (sh > 40 || q > ((CEC_CURV_R_MAX << CIRCLE3_SHIFT) >> sh) / l3) {
+        return 0; /* straight */
+    }
+    *s = (int8_t)((cr > 0) ? -1 : 1);
+    return (pos_nm_t)(((q * l3) >> CIRCLE3_SHIFT) << sh);
 }
 
 int32_t cec_curv_correction(int32_t e_abs, pos_nm_t radius)
@@ -164,8 +214,8 @@ int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30
 
 cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err)
 {
-    pid_params_t pp;
-    pid_loop_t tmp[2];
+    pid_params_t pp, pl;
+    pid_loop_t tmp[2], spare[2];
     pid_err_t err;
     int k;
 
@@ -179,9 +229,21 @@ cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err)
     pp.kvff = 0;
     pp.kaff = 0;
     pp.d_on_measurement = false;
+    pl = p->line_gains ? p->pid_line : pp;
+    pl.kvff = 0;
+    pl.kaff = 0;
+    pl.d_on_measurement = false;
+    if (!p->line_gains && c->on_line) {
+        /* back to one gain set: ch[] takes the curve gains below */
+        c->on_line = false;
+    }
     for (k = 0; k < 2; k++) {
         tmp[k] = c->ch[k];
-        err = pid_config(&tmp[k], &pp);
+        spare[k] = c->spare[k];
+        err = pid_config(&tmp[k], c->on_line ? &pl : &pp);
+        if (err == PID_OK) {
+            err = pid_config(&spare[k], c->on_line ? &pp : &pl);
+        }
         if (err != PID_OK) {
             if (pid_err != NULL) {
                 *pid_err = err;
@@ -192,14 +254,23 @@ cec_err_t cec_config(cec_t *c, const cec_params_t *p, pid_err_t *pid_err)
             pid_enable(&tmp[k], 0);
             pid_reset(&tmp[k], false);
         }
+        if (!spare[k].enabled) {
+            pid_enable(&spare[k], 0);
+            pid_reset(&spare[k], false);
+        }
     }
     c->ch[0] = tmp[0];
     c->ch[1] = tmp[1];
+    c->spare[0] = spare[0];
+    c->spare[1] = spare[1];
     c->idle = false;
     if (c->p.mode != p->mode) {
         c->reseg = true;
+        c->hist_n = 0;
     }
     c->p = *p;
+    c->oscillating = false;
+    c->osc_ticks = 0;
     return CEC_OK;
 }
 
@@ -211,7 +282,10 @@ cec_err_t cec_set_mode(cec_t *c, cec_mode_t mode)
     if (c->p.mode != mode) {
         c->p.mode = mode;
         c->reseg = true;
+        c->hist_n = 0;
     }
+    c->oscillating = false;
+    c->osc_ticks = 0;
     return CEC_OK;
 }
 
@@ -257,6 +331,10 @@ static void deactivate(cec_t *c)
     c->ch[1].out_mv = 0;
     c->active = false;
     c->ch2_on = false;
+    c->hist_n = 0;
+    c->osc_n = 0;
+    c->osc_avg = 0;
+    c->osc_ticks = 0;
     c->ec_nm[0] = 0;
     c->ec_nm[1] = 0;
 }
@@ -299,8 +377,25 @@ static void new_segment(cec_t *c, const motion_ref_t *ref, unsigned w, const q1_
     const motion_geom_t *g = &ref->geom;
     int64_t i1 = 0, i2 = 0;
     int k;
+    bool keep = false;
 
-    if (c->active) {
+    if (c->active && c->kind == MOTION_GEOM_LINE && g->kind == MOTION_GEOM_LINE) {
+        int64_t dot = 0;
+        for (k = 0; k < 3 && k < CORE_AXES; k++) {
+            dot += (int64_t)c->key_t[k] * g->tangent[k];
+        }
+        if (dot < HIST_CORNER_COS_Q60) {
+            c->hist_n = 0; /* a corner: the samples before it are not a curve */
+        } else if (!ch2 && !c->ch2_on && c->w == w && !c->reseg) {
+            /* a join of a curve cut into lines: the integral turns with the
+             * normal as on an arc (projecting it would hand sin(turn) of it
+             * to the axes at every join, which over a revolution cancels
+             * the CEC's whole integral) */
+            keep = true;
+            i1 = c->ch[0].integ;
+        }
+    }
+    if (c->active && !keep) {
         int64_t iv[3], rem[3];
         integral_vector(c, iv);
         for (k = 0; k < 3; k++) {
@@ -348,6 +443,80 @@ static void new_segment(cec_t *c, const motion_ref_t *ref, unsigned w, const q1_
             c->inv_r.sh = 0;
         }
     }
+}
+
+/* Sample the reference into the history (see cec.h) and, with a new
+ * sample, the circle through the last three. */
+static void hist_step(cec_t *c, const motion_ref_t *ref, unsigned w)
+{
+    unsigned u = (w + 1u) % 3u, v = (w + 2u) % 3u;
+    pos_nm_t pu = (u < CORE_AXES) ? ref->pos[u] : 0, pv = (v < CORE_AXES) ? ref->pos[v] : 0;
+    int64_t span = (c->p.curv_span_nm > 0) ? c->p.curv_span_nm : CEC_CURV_SPAN_NM;
+    int64_t du, dv;
+
+    if (c->hist_n == 0 || c->hist_w != w) {
+        c->hist_n = 1;
+        c->hist_w = (uint8_t)w;
+        c->hist_r = 0;
+        c->hist[0][0] = pu;
+        c->hist[0][1] = pv;
+        return;
+    }
+    du = pu - c->hist[0][0];
+    dv = pv - c->hist[0][1];
+    if (fx_sat_abs64(du) < span && fx_sat_abs64(dv) < span && du * du + dv * dv < span * span) {
+        return;
+    }
+    c->hist[2][0] = c->hist[1][0];
+    c->hist[2][1] = c->hist[1][1];
+    c->hist[1][0] = c->hist[0][0];
+    c->hist[1][1] = c->hist[0][1];
+    c->hist[0][0] = pu;
+    c->hist[0][1] = pv;
+    if (c->hist_n < 3) {
+        c->hist_n++;
+    }
+    if (c->hist_n == 3) {
+        c->hist_r = cec_circle3(c->hist[2], c->hist[1], c->hist[0], &c->hist_s);
+    }
+}
+
+/* Swap in the other gain set, continuing from the last outputs (cec.h). */
+static void switch_gains(cec_t *c)
+{
+    int k;
+    for (k = 0; k < 2; k++) {
+        pid_loop_t old = c->ch[k];
+        c->ch[k] = c->spare[k];
+        c->spare[k] = old;
+        c->ch[k].out = old.out;
+        c->ch[k].out_mv = old.out_mv;
+        c->ch[k].integ = old.integ;
+        c->ch[k].primed = false; /* no derivative kick */
+        pid_reset(&c->ch[k], true);
+    }
+    c->on_line = !c->on_line;
+}
+
+/* The oscillation watch of one active tick (cec.h). */
+static void osc_watch(cec_t *c)
+{
+    int32_t u = c->ch[0].out_mv;
+    if (c->osc_n == 2) {
+        int64_t d2 = fx_sat_abs64((int64_t)u - 2 * (int64_t)c->osc_u[0] + c->osc_u[1]);
+        c->osc_avg += ((d2 << 8) - c->osc_avg) / (1 << CEC_OSC_SHIFT);
+        if (c->osc_avg > ((int64_t)CEC_OSC_LIMIT_MV << 8)) {
+            if (++c->osc_ticks > c->ch[0].p.tick_hz / 10u) {
+                c->oscillating = true;
+            }
+        } else {
+            c->osc_ticks = 0;
+        }
+    } else {
+        c->osc_n++;
+    }
+    c->osc_u[1] = c->osc_u[0];
+    c->osc_u[0] = u;
 }
 
 void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
@@ -422,13 +591,43 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
             }
         }
         break;
-    case CEC_MODE_CURVATURE:
+    case CEC_MODE_CHUANG_LIU: {
+        unsigned u = (w + 1u) % 3u, v = (w + 2u) % 3u;
+        pos_nm_t rr = 0;
+        int s = 0;
         ec1 = cec_dot(e, n1);
         if (g->kind == MOTION_GEOM_ARC) {
+            rr = g->radius;
+            s = c->s;
+        } else {
+            hist_step(c, ref, w);
+            rr = c->hist_r;
+            s = c->hist_s;
+        }
+        if (rr > 0) {
+            int64_t e2 = (int64_t)e[u] * e[u] + (int64_t)e[v] * e[v];
+            int32_t corr = fx_sat32_fast(fx_div_round64(e2, 2 * rr));
+            ec1 = fx_sat_add32(ec1, (s > 0) ? corr : -corr);
+        }
+        break;
+    }
+    case CEC_MODE_CURVATURE:
+    case CEC_MODE_CURV_HISTORY:
+        ec1 = cec_dot(e, n1);
+        if (g->kind == MOTION_GEOM_ARC && c->p.mode == CEC_MODE_CURVATURE) {
             int64_t eabs = c->p.lag_from_tangent ? fx_sat_abs64(cec_dot(e, t))
                                                  : fx_hypot2(e[g->plane_u], e[g->plane_v]);
             int32_t corr = curv_corr(fx_sat32_fast(eabs), g->radius, c->inv_r);
             ec1 = fx_sat_add32(ec1, (c->s > 0) ? corr : -corr);
+        } else {
+            hist_step(c, ref, w);
+            if (c->hist_r > 0) {
+                unsigned u = (w + 1u) % 3u, v = (w + 2u) % 3u;
+                int64_t eabs =
+                    c->p.lag_from_tangent ? fx_sat_abs64(cec_dot(e, t)) : fx_hypot2(e[u], e[v]);
+                int32_t corr = curv_corr_div(fx_sat32_fast(eabs), c->hist_r);
+                ec1 = fx_sat_add32(ec1, (c->hist_s > 0) ? corr : -corr);
+            }
         }
         break;
     case CEC_MODE_KOREN:
@@ -450,6 +649,12 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     }
     c->ec_nm[0] = ec1;
     c->ec_nm[1] = ec2;
+    if (c->p.line_gains) {
+        bool line = g->kind == MOTION_GEOM_LINE && c->hist_r == 0;
+        if (line != c->on_line) {
+            switch_gains(c);
+        }
+    }
 
     pid_step(&c->ch[0], 0, -(pos_nm_t)ec1, 0, 0, 0);
     if (ch2) {
@@ -459,6 +664,7 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
         c->ch[1].saturated = false;
     }
     c->saturated = c->ch[0].saturated || c->ch[1].saturated;
+    osc_watch(c);
     {
         int32_t u1 = (int32_t)fx_round_shift64(c->ch[0].out, 22); /* mV q10 */
         int32_t u2 = (int32_t)fx_round_shift64(c->ch[1].out, 22);

@@ -32,6 +32,15 @@
               then no longer adds its own ~ d^2 / (2 r) to the estimate (the
               thesis's form does), and the pure-lag error drops from
               ~5|E|^4/(24 r^3) to ~|E|^4/(12 r^3).
+ *              LINE (or any segment in CURV_HISTORY): r and the side from
+ *              the reference history (below); TANGENT while it has fewer
+ *              than three samples or the path is straight.
+ *   CURV_HISTORY as CURVATURE with r and s always from the reference
+ *              history, also on an ARC (the thesis's `calcr` block).
+ *   CHUANG_LIU EC1 = E . n1 + s * |E_uv|^2 / (2 r) (Chuang & Liu 1991: the
+ *              second-order term of the same geometry; exact for a pure lag
+ *              on a circle, since E . n1 = -s |E|^2 / (2 r) there); r, s
+ *              as in CURVATURE (arc geometry, or the history on a LINE).
  *   EXACT      LINE: EC1 = (start - P) . n1 (distance of P from the line).
  *              ARC:  EC1 = s * (|P_uv - C| - r)  (radial deviation).
  * Errors against the exact value on a circle, pure lag |E| (tests assert):
@@ -39,6 +48,21 @@
    (+ quantisation, 3 nm); with a radial deviation d as well: thesis form
    within d^2 / (2 r) + |E|^4 / (4 r^3), lag_from_tangent within
    |d| g^2 + |E|^4 / (4 r^3).
+ * Reference history (CURVATURE on a LINE, CURV_HISTORY): the reference
+ * point is sampled in the plane (u, v) each time it has moved at least
+ * span = p.curv_span_nm (0: CEC_CURV_SPAN_NM) from the last sample (path
+ * length, not time, so the estimate does not depend on the feed); from the
+ * last three samples a, b, c: r = |b-a| |c-b| |c-a| / (2 |(b-a) x (c-b)|)
+ * (circumscribed circle), s = -1 for a left turn ((b-a) x (c-b) > 0, the
+ * centre on the -n1 side) and +1 for a right turn. r above CEC_CURV_R_MAX
+ * counts as straight (no correction). Computed only when a sample is taken
+ * (on a circle of G1 chords the samples lie within the chords' sagitta of
+ * the circle: R 20 mm, 720 chords, span 1 mm: r within 1 %). The history
+ * restarts when the CEC stops, the mode or plane changes, or a LINE's
+ * tangent turns by more than 30 degrees at a join (a corner, not a curve).
+ * Cost: the per-tick check is a few multiplies; a sample ~600 cycles
+ * (three roots and a division); every tick a division for g. CEC off
+ * (control_tick_instructions_m4) is not affected.
  * The second channel (only when the segment leaves the plane: |t_w| > 2^-20,
  * a three-axis line or helix) uses EC2 = E . n2 (EXACT on a LINE:
  * (start - P) . n2), so the controlled error is the whole part of E
@@ -65,6 +89,25 @@
  * of the commands does not step; with handover = false it is dropped.
  * Within an ARC the integrals turn with the normal (scalar integrators).
  *
+ * Gain switching (the thesis's line and curve gain sets), with
+ * p.line_gains: the channels run p.pid_line's gains while the path is
+ * straight (a LINE whose curvature is not known from the history: always
+ * in TANGENT, EXACT and KOREN, and in the history modes while hist_r is 0)
+ * and p.pid's on curves (an ARC, or hist_r > 0). A switch is bumpless: the
+ * loop with the other gains continues from the output of the last tick
+ * (pid_reset bumpless) with its derivative restarted. The other set waits in
+ * spare[] (same validation by cec_config; nothing changes on error).
+ *
+ * Oscillation watch (a sustained limit cycle is a fault, not a result):
+ * while active, avg = the mean of |u1(k) - 2 u1(k-1) + u1(k-2)| (first
+ * channel's output, mV; exponential, 2^CEC_OSC_SHIFT ticks). Slow
+ * corrections have a tiny second difference (R 20 mm at 30 m/min, default
+ * gains: 5-7 mV on the axis commands), a limit cycle a large one (the
+ * thesis's CEC gains at 10 kHz: a 666 Hz cycle, 800-1600 mV). avg above
+ * CEC_OSC_LIMIT_MV for more than tick_hz / 10 ticks in a row (0.1 s) sets
+ * `oscillating` (latched until cec_config or cec_set_mode); the servo
+ * raises SERVO_FAULT_OSCILLATION.
+ *
  * Units and Q formats: positions nm (pos_nm_t), errors int32 nm, unit vectors
  * q1_30, outputs U (int64, mV * 2^-32). Internally u_k is taken at 2^-10 mV
  * resolution for the distribution.
@@ -89,6 +132,8 @@ typedef enum {
     CEC_MODE_CURVATURE = 2,
     CEC_MODE_EXACT = 3,
     CEC_MODE_KOREN = 4,
+    CEC_MODE_CURV_HISTORY = 5,
+    CEC_MODE_CHUANG_LIU = 6,
     CEC_MODE_COUNT
 } cec_mode_t;
 
@@ -107,11 +152,21 @@ typedef struct {
     bool handover;         /* hand the integral to the axis loops (bumpless)    */
     bool lag_from_tangent; /* CURVATURE: g = |E . t| / r (the lag only) instead
                             * of the thesis's |E_uv| / r; see below        */
+    int32_t curv_span_nm;  /* history sample spacing, nm (0: CEC_CURV_SPAN_NM) */
+    bool line_gains;       /* use pid_line on straight path (see Gain switching) */
+    pid_params_t pid_line; /* CEC gains on straight path, as pid                 */
 } cec_params_t;
+
+#define CEC_CURV_SPAN_NM 1000000            /* 1 mm */
+#define CEC_CURV_R_MAX   ((int64_t)1 << 32) /* 4.3 m: straight above */
+#define CEC_OSC_SHIFT    6                  /* oscillation watch: mean over 2^6 ticks */
+#define CEC_OSC_LIMIT_MV 200                /* mean |second difference| of u1, mV */
 
 typedef struct {
     cec_params_t p;
     pid_loop_t ch[2];
+    pid_loop_t spare[2]; /* the other gain set (line_gains) */
+    bool on_line;        /* ch[] holds the line gains (tick) */
     /* tick outputs */
     bool active;
     bool saturated;
@@ -135,6 +190,19 @@ typedef struct {
                        * the next inactive tick has nothing to do (tick) */
     bool out_zero;    /* idle, and out_u / handover_u already 0: an inactive
                        * tick returns at once (tick) */
+    /* reference history (tick): samples h[0] newest .. h[2], in the plane
+     * (u, v) of normal axis hist_w; hist_r 0: no curvature known */
+    uint8_t hist_n;
+    uint8_t hist_w;
+    int8_t hist_s;
+    pos_nm_t hist[3][2];
+    pos_nm_t hist_r;
+    /* oscillation watch (tick) */
+    int32_t osc_u[2];   /* u1 of the last two ticks, mV            */
+    uint8_t osc_n;      /* ticks in osc_u (0..2)                   */
+    int64_t osc_avg;    /* mean |second difference|, mV * 2^8      */
+    uint32_t osc_ticks; /* consecutive ticks over the limit        */
+    bool oscillating;   /* latched: a sustained limit cycle        */
 } cec_t;
 
 /* Validate and apply (nothing changes on error; *pid_err gets the detail
@@ -160,6 +228,10 @@ int32_t cec_est_koren(int32_t ex, int32_t ey, int64_t rx, int64_t ry);
 int32_t cec_curv_correction(int32_t e_abs, pos_nm_t radius);
 /* s * (|P - C| - r) in the plane, nm (|P - C| to the nearest nm below). */
 int32_t cec_exact_arc(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius, int s);
+/* Radius (nm, 0: straight or degenerate) and side s (+1 right turn, -1
+ * left turn) of the circle through a, b, c (plane points, nm, in order of
+ * travel). */
+pos_nm_t cec_circle3(const pos_nm_t a[2], const pos_nm_t b[2], const pos_nm_t c[2], int8_t *s);
 /* (start - p) . n, nm. */
 int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30_t n[3]);
 

@@ -906,9 +906,10 @@ static bool moving(void)
 
 drive_result_t drive_set_cec_mode(drive_cec_mode_t mode)
 {
-    static const cec_mode_t map[] = {CEC_MODE_OFF, CEC_MODE_TANGENT, CEC_MODE_CURVATURE,
-                                     CEC_MODE_EXACT};
-    if ((unsigned)mode > (unsigned)DRIVE_CEC_EXACT) {
+    static const cec_mode_t map[] = {CEC_MODE_OFF,       CEC_MODE_TANGENT, CEC_MODE_CURVATURE,
+                                     CEC_MODE_EXACT,     CEC_MODE_KOREN,   CEC_MODE_CURV_HISTORY,
+                                     CEC_MODE_CHUANG_LIU};
+    if ((unsigned)mode >= (unsigned)DRIVE_CEC_COUNT) {
         return DRIVE_E_INVALID;
     }
     if (moving()) {

@@ -177,13 +177,14 @@ typedef enum {
  * servo's (servo.h SERVO_FAULT_*, same values), with its reactions:
  * following error, encoder and amplifier faults disable, saturation makes a
  * controlled stop. ESTOP disables at once. */
-#define DRIVE_FAULT_FOLLOWING  (1u << 0) /* following error over its limit   */
-#define DRIVE_FAULT_ENCODER    (1u << 1) /* decoder reported illegal edges    */
-#define DRIVE_FAULT_SATURATION (1u << 2) /* output saturated too long         */
-#define DRIVE_FAULT_AMPLIFIER  (1u << 3) /* amplifier fault input             */
-#define DRIVE_FAULT_ESTOP      (1u << 4) /* emergency stop requested          */
-#define DRIVE_FAULT_COMM       (1u << 5) /* host link watchdog (protocol)     */
-#define DRIVE_FAULT_HOMING     (1u << 6) /* home switch or index not found    */
+#define DRIVE_FAULT_FOLLOWING   (1u << 0) /* following error over its limit   */
+#define DRIVE_FAULT_ENCODER     (1u << 1) /* decoder reported illegal edges    */
+#define DRIVE_FAULT_SATURATION  (1u << 2) /* output saturated too long         */
+#define DRIVE_FAULT_AMPLIFIER   (1u << 3) /* amplifier fault input             */
+#define DRIVE_FAULT_ESTOP       (1u << 4) /* emergency stop requested          */
+#define DRIVE_FAULT_COMM        (1u << 5) /* host link watchdog (protocol)     */
+#define DRIVE_FAULT_HOMING      (1u << 6) /* home switch or index not found    */
+#define DRIVE_FAULT_OSCILLATION (1u << 7) /* CEC limit cycle (servo.h)        */
 
 typedef enum {
     DRIVE_BLOCK_LINE = 1,
@@ -214,7 +215,11 @@ typedef enum {
     DRIVE_CEC_OFF = 0,
     DRIVE_CEC_TANGENT,
     DRIVE_CEC_CURVATURE,
-    DRIVE_CEC_EXACT
+    DRIVE_CEC_EXACT,
+    DRIVE_CEC_KOREN,        /* Koren's straight-line estimate (cec.h)            */
+    DRIVE_CEC_CURV_HISTORY, /* curvature from the reference history only (calcr) */
+    DRIVE_CEC_CHUANG_LIU,   /* Chuang & Liu's second-order estimate (cec.h)     */
+    DRIVE_CEC_COUNT
 } drive_cec_mode_t;
 
 typedef struct {

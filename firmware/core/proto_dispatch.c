@@ -78,9 +78,12 @@ static uint16_t map_faults(const drive_status_t *st)
     if ((st->faults & DRIVE_FAULT_HOMING) != 0u) {
         f |= 1u << PROTO_FAULT_HOMING;
     }
+    if ((st->faults & DRIVE_FAULT_OSCILLATION) != 0u) {
+        f |= 1u << PROTO_FAULT_OSCILLATION;
+    }
     if ((st->faults & ~(uint32_t)(DRIVE_FAULT_COMM | DRIVE_FAULT_FOLLOWING | DRIVE_FAULT_AMPLIFIER |
                                   DRIVE_FAULT_ENCODER | DRIVE_FAULT_ESTOP | DRIVE_FAULT_SATURATION |
-                                  DRIVE_FAULT_HOMING)) != 0u) {
+                                  DRIVE_FAULT_HOMING | DRIVE_FAULT_OSCILLATION)) != 0u) {
         f |= 1u << PROTO_FAULT_INTERNAL;
     }
     return f;

@@ -89,6 +89,7 @@
 #define PROTO_FAULT_ESTOP 5u /* emergency stop requested */
 #define PROTO_FAULT_SATURATION 6u /* motor command saturated too long */
 #define PROTO_FAULT_HOMING 7u /* home switch or index not found within max_distance */
+#define PROTO_FAULT_OSCILLATION 8u /* sustained contour-error controller limit cycle */
 #define PROTO_FAULT_INTERNAL 15u /* other application fault */
 
 /* Capability bits in identify_reply.capabilities. */
@@ -192,6 +193,9 @@
 #define PROTO_CEC_MODE_TANGENT 1u /* tangent estimate */
 #define PROTO_CEC_MODE_CURVATURE 2u /* curvature estimate */
 #define PROTO_CEC_MODE_EXACT 3u /* exact contour error */
+#define PROTO_CEC_MODE_KOREN 4u /* Koren's straight-line estimate */
+#define PROTO_CEC_MODE_CALCR 5u /* curvature from the reference history only (the thesis's calcr) */
+#define PROTO_CEC_MODE_CHUANG_LIU 6u /* Chuang and Liu's second-order estimate */
 
 /* Planner cornering rule (param corner_rule). */
 #define PROTO_CORNER_RULE_JUNCTION_DEVIATION 0u /* junction deviation */

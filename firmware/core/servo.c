@@ -43,6 +43,10 @@ void servo_params_default(servo_params_t *p, uint32_t tick_hz)
     p->cec.pid.ki = SI(2000000);
     p->cec.pid.kd = SI(100);
     p->cec.pid.d_on_measurement = false;
+    p->cec.line_gains = false;
+    p->cec.lag_from_tangent = false;
+    p->cec.pid_line = p->cec.pid;
+    p->cec.curv_span_nm = 0;
     p->sat_limit_ticks = tick_hz / 2;
     p->on_following = SERVO_REACT_DISABLE;
     p->on_saturation = SERVO_REACT_STOP;
@@ -297,6 +301,8 @@ servo_err_t servo_clear_faults(servo_t *s)
     }
     s->faults = 0;
     s->fault_axes = 0;
+    s->cec.oscillating = false;
+    s->cec.osc_ticks = 0;
     return SERVO_OK;
 }
 
@@ -538,6 +544,9 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
      * its outputs at 0 has nothing to do (cec_step would return at once) */
     if (!(s->cec.p.mode == CEC_MODE_OFF && s->cec.idle && s->cec.out_zero)) {
         cec_step(&s->cec, (s->state == SERVO_RUN && run) ? ref : NULL, fb->pos);
+        if (s->cec.oscillating && !(s->faults & SERVO_FAULT_OSCILLATION)) {
+            raise_fault(s, SERVO_FAULT_OSCILLATION, 0, false);
+        }
     }
     /* idle with outputs known to be 0 (cec.h): nothing to read */
     quiet = s->cec.idle && s->cec.out_zero;

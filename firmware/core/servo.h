@@ -56,6 +56,9 @@
  *                           is disabled at once (its position is unknown),
  *                           the others make a controlled stop.
  *   SERVO_FAULT_AMPLIFIER   io.amp_fault(axis): as ENCODER.
+ *   SERVO_FAULT_OSCILLATION the CEC's output has oscillated for 0.1 s (a
+ *                           limit cycle, cec.h "Oscillation watch"; e.g.
+ *                           the thesis's CEC gains at 10 kHz): on_saturation.
  * SERVO_REACT_DISABLE: every axis output 0 and enable off in the same tick,
  * state OFF. SERVO_REACT_STOP: controlled stop: from the last reference
  * position p0 and velocity v0, every axis decelerates linearly to rest in the
@@ -96,10 +99,11 @@
 #include "pid.h"
 #include "qdec.h"
 
-#define SERVO_FAULT_FOLLOWING  (1u << 0)
-#define SERVO_FAULT_ENCODER    (1u << 1)
-#define SERVO_FAULT_SATURATION (1u << 2)
-#define SERVO_FAULT_AMPLIFIER  (1u << 3)
+#define SERVO_FAULT_FOLLOWING   (1u << 0)
+#define SERVO_FAULT_ENCODER     (1u << 1)
+#define SERVO_FAULT_SATURATION  (1u << 2)
+#define SERVO_FAULT_AMPLIFIER   (1u << 3)
+#define SERVO_FAULT_OSCILLATION (1u << 7) /* DRIVE_FAULT_OSCILLATION (6: homing) */
 
 #define SERVO_STOP_TICKS_MAX (1u << 24)         /* longest controlled stop, ticks */
 #define SERVO_VEL_MAX        ((int64_t)1 << 34) /* |reference velocity| used by the stop ramp, nm/s */

@@ -125,6 +125,7 @@ class Fault(IntEnum):
     ESTOP = 5
     SATURATION = 6
     HOMING = 7
+    OSCILLATION = 8
     INTERNAL = 15
 
 
@@ -267,6 +268,9 @@ class CecMode(IntEnum):
     TANGENT = 1
     CURVATURE = 2
     EXACT = 3
+    KOREN = 4
+    CALCR = 5
+    CHUANG_LIU = 6
 
 
 class CornerRule(IntEnum):
@@ -1370,12 +1374,12 @@ PARAMS = (
         'u8',
         '',
         0,
-        3,
+        6,
         0,
         'rw',
         False,
         'drive',
-        'Contour-error controller: 0 off, 1 tangent, 2 curvature, 3 exact (refused while moving).',
+        'Contour-error controller: 0 off, 1 tangent, 2 curvature, 3 exact, 4 koren, 5 calcr, 6 chuang_liu (refused while moving).',
         '',
         1,
         'cec_mode',

@@ -241,7 +241,7 @@ def test_link_option_mistakes_are_usage_errors(monkeypatch, tmp_path, capsys, ar
 UNIT_SUFFIXES = ("_mm", "_um", "_nm", "_s", "_ms", "_us", "_hz", "_mm_min", "_mm_s", "_um_s")
 UNITLESS = {
     "blocks", "edges", "edge_mismatch_ticks", "planner_blocks", "ticks",  # counts
-    "segments", "lines", "program_blocks", "lookahead_blocks",
+    "segments", "lines", "program_blocks", "lookahead_blocks", "chords",
 }  # fmt: skip
 
 

@@ -173,8 +173,9 @@ static void test_circle_pure_lag_grid(void)
 {
     static const double radii[] = {5e5, 5e6, 1e7, 2e7, 5e7, 2e8, 1e9};
     static const double lags[] = {1e2, 1e3, 1e4, 5e4, 1e5, 5e5, 1e6, 2e6};
-    cec_t ct, cc, ce, cl;
+    cec_t ct, cc, ce, cl, cj;
     unsigned ir, il, pl;
+    config(&cj, CEC_MODE_CHUANG_LIU, 0, 0);
     config(&ct, CEC_MODE_TANGENT, 0, 0);
     config(&cc, CEC_MODE_CURVATURE, 0, 0);
     config(&ce, CEC_MODE_EXACT, 0, 0);
@@ -204,6 +205,8 @@ static void test_circle_pure_lag_grid(void)
                         TEST_ASSERT_DOUBLE_WITHIN(bound + 3.0, exact, estimate(&cc, &a));
                         TEST_ASSERT_DOUBLE_WITHIN(bound + 3.0, exact, estimate(&cl, &a));
                         TEST_ASSERT_DOUBLE_WITHIN(1.0, exact, estimate(&ce, &a));
+                        /* Chuang-Liu: tangent + s|E|^2/(2r), exact for a pure lag */
+                        TEST_ASSERT_DOUBLE_WITHIN(4.0, exact, estimate(&cj, &a));
                         worst_t = fmax(worst_t, fabs(tan_err));
                         worst_c = fmax(worst_c, fabs(estimate(&cc, &a) - exact));
                         worst_b = fmax(worst_b, bound);
@@ -571,6 +574,212 @@ static void test_saturation_flag(void)
     TEST_ASSERT_FALSE(c.saturated);
 }
 
+/* Circle through three points (the history's calcr): radius and side on
+ * circles from 1 mm to 2 m, samples 1 mm apart, both senses; straight and
+ * degenerate samples give 0. */
+static void test_circle3(void)
+{
+    static const double radii[] = {1e6, 5e6, 2e7, 5e7, 2e8, 2e9};
+    unsigned i, k;
+    for (i = 0; i < sizeof radii / sizeof radii[0]; i++) {
+        double r = radii[i], dth = 1e6 / r;
+        for (k = 0; k < 16; k++) {
+            int dir = (k & 1) ? 1 : -1;
+            double th0 = 0.41 * k;
+            pos_nm_t p[3][2];
+            int8_t s = 0;
+            int j;
+            for (j = 0; j < 3; j++) {
+                double th = th0 + dir * dth * j;
+                p[j][0] = llround(123456789.0 + r * cos(th));
+                p[j][1] = llround(-98765432.0 + r * sin(th));
+            }
+            pos_nm_t got = cec_circle3(p[0], p[1], p[2], &s);
+            /* 1 nm rounding of a 1 mm span: sagitta 1e12 / (2 r) nm */
+            TEST_ASSERT_DOUBLE_WITHIN(r * (1e-4 + 4.0 * r / 1e12) + 2.0, r, (double)got);
+            TEST_ASSERT_EQUAL_INT8(dir > 0 ? -1 : 1, s); /* ccw: centre on -n1 */
+        }
+    }
+    {
+        pos_nm_t a[2] = {0, 0}, b[2] = {1000000, 2000000}, c[2] = {2000000, 4000000};
+        int8_t s = 5;
+        TEST_ASSERT_EQUAL_INT64(0, cec_circle3(a, b, c, &s));
+        TEST_ASSERT_EQUAL_INT8(0, s);
+        TEST_ASSERT_EQUAL_INT64(0, cec_circle3(a, a, c, &s));
+        c[1] = 4000001; /* 5 km radius: straight */
+        TEST_ASSERT_EQUAL_INT64(0, cec_circle3(a, b, c, &s));
+    }
+}
+
+/* A circle cut into 720 G1 chords (LINE geometry only), the machine on the
+ * true circle lagging 2 mm behind the reference: CURVATURE (r from the
+ * reference history) stays within 10 um of the exact error (about 0, the
+ * chords' sagitta is 0.19 um), where TANGENT is off by |E|^2 / (2 r)
+ * = 100 um; both directions. */
+static void test_history_curvature_on_chords(void)
+{
+    const double r = 2e7, lag = 2e6;
+    const int n = 720, steps = 10; /* ticks per chord */
+    int dir, mode;
+    for (dir = -1; dir <= 1; dir += 2) {
+        for (mode = 0; mode < 2; mode++) {
+            cec_t c;
+            double worst = 0.0;
+            int k, j;
+            config(&c, mode ? CEC_MODE_CURVATURE : CEC_MODE_TANGENT, 0, 0);
+            for (k = 0; k < n; k++) {
+                double a0 = dir * 2.0 * M_PI * k / n, a1 = dir * 2.0 * M_PI * (k + 1) / n;
+                double x0 = r * cos(a0), y0 = r * sin(a0), x1 = r * cos(a1), y1 = r * sin(a1);
+                double len = hypot(x1 - x0, y1 - y0);
+                for (j = 0; j < steps; j++) {
+                    motion_ref_t ref;
+                    pos_nm_t meas[CORE_AXES] = {0, 0, 0};
+                    double f = (double)j / steps, rx = x0 + f * (x1 - x0), ry = y0 + f * (y1 - y0);
+                    double th = atan2(ry, rx) - dir * lag / r;
+                    memset(&ref, 0, sizeof ref);
+                    ref.active = true;
+                    ref.geom.kind = MOTION_GEOM_LINE;
+                    ref.geom.tangent[0] = Q30((x1 - x0) / len);
+                    ref.geom.tangent[1] = Q30((y1 - y0) / len);
+                    ref.geom.start[0] = llround(x0);
+                    ref.geom.start[1] = llround(y0);
+                    ref.pos[0] = llround(rx);
+                    ref.pos[1] = llround(ry);
+                    meas[0] = llround(r * cos(th));
+                    meas[1] = llround(r * sin(th));
+                    cec_step(&c, &ref, meas);
+                    if (k >= n / 8) { /* history warmed up (3 samples, 2 mm) */
+                        double e = fabs((double)c.ec_nm[0]);
+                        worst = e > worst ? e : worst;
+                    }
+                }
+            }
+            if (mode) {
+                TEST_ASSERT_TRUE_MESSAGE(c.hist_r > 0, "no curvature from the history");
+                TEST_ASSERT_DOUBLE_WITHIN(0.01 * r, r, (double)c.hist_r);
+                TEST_ASSERT_TRUE_MESSAGE(worst <= 10000.0, "curvature estimate on chords");
+            } else {
+                TEST_ASSERT_TRUE(worst >= 90000.0);
+            }
+        }
+    }
+}
+
+/* A join of lines turning by 0.5 degree (a curve cut into chords) keeps the
+ * integral whole and hands nothing over; a 45 degree join projects it. */
+static void test_near_tangent_join_keeps_integral(void)
+{
+    cec_t c;
+    motion_ref_t ref;
+    pos_nm_t meas[CORE_AXES] = {0, 10000, 0};
+    int64_t i1;
+    int k;
+    config(&c, CEC_MODE_TANGENT, 0, 2e6);
+    line_ref(&ref, 0.0);
+    for (k = 0; k < 100; k++) {
+        cec_step(&c, &ref, meas);
+    }
+    i1 = c.ch[0].integ;
+    meas[1] = 0;
+    line_ref(&ref, 0.5 * M_PI / 180.0);
+    ref.geom.start[0] = 1000;
+    cec_step(&c, &ref, meas);
+    TEST_ASSERT_EQUAL_INT64(i1, c.ch[0].integ);
+    for (k = 0; k < CORE_AXES; k++) {
+        TEST_ASSERT_EQUAL_INT64(0, c.handover_u[k]);
+    }
+    line_ref(&ref, M_PI / 4 + 0.5 * M_PI / 180.0);
+    ref.geom.start[0] = 2000;
+    cec_step(&c, &ref, meas);
+    TEST_ASSERT_DOUBLE_WITHIN(1e-3, UMV(i1) * cos(M_PI / 4), UMV(c.ch[0].integ));
+    TEST_ASSERT_TRUE(fabs(UMV(c.handover_u[0])) > 1.0);
+}
+
+/* Oscillation watch: a CEC output alternating tick by tick (a limit
+ * cycle) latches `oscillating` after 0.1 s; a slow correction of the same
+ * size never does; cec_set_mode clears it. */
+static void test_oscillation_watch(void)
+{
+    cec_t c;
+    motion_ref_t ref;
+    pos_nm_t meas[CORE_AXES] = {0, 0, 0};
+    int k;
+    config(&c, CEC_MODE_TANGENT, 4e4, 0); /* 10 um -> 400 mV */
+    line_ref(&ref, 0.0);
+    for (k = 0; k < 5000; k++) {
+        meas[1] = (pos_nm_t)llround(10000.0 * sin(2 * M_PI * k / 2000.0)); /* 5 Hz */
+        cec_step(&c, &ref, meas);
+    }
+    TEST_ASSERT_FALSE(c.oscillating);
+    for (k = 0; k < 1000; k++) { /* 0.1 s of a 5 kHz cycle: not yet */
+        meas[1] = (k & 1) ? 10000 : -10000;
+        cec_step(&c, &ref, meas);
+    }
+    TEST_ASSERT_FALSE(c.oscillating);
+    for (k = 0; k < 200; k++) {
+        meas[1] = (k & 1) ? 10000 : -10000;
+        cec_step(&c, &ref, meas);
+    }
+    TEST_ASSERT_TRUE(c.oscillating);
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&c, CEC_MODE_TANGENT));
+    TEST_ASSERT_FALSE(c.oscillating);
+}
+
+/* Line/curve gain switching: Kp 4000 V/m on a LINE, 1000 V/m on an ARC;
+ * the switch continues from the last output. */
+static void test_line_curve_gain_switching(void)
+{
+    cec_t c;
+    cec_params_t p;
+    motion_ref_t ref;
+    arc_case_t a;
+    pos_nm_t meas[CORE_AXES] = {0, 0, 0};
+    int32_t o1, o2;
+    memset(&c, 0, sizeof c);
+    memset(&p, 0, sizeof p);
+    p.mode = CEC_MODE_TANGENT;
+    p.handover = true;
+    p.pid.kp = Q32(1000);
+    p.pid.out_max_mv = 160000;
+    p.pid.i_max_mv = 160000;
+    p.pid.tick_hz = 10000;
+    p.pid_line = p.pid;
+    p.pid_line.kp = Q32(4000);
+    p.line_gains = true;
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&c, &p, NULL));
+    line_ref(&ref, 0.0); /* n1 = (0, -1): meas[1] = -10 um -> EC = -10 um */
+    meas[1] = 10000;
+    cec_step(&c, &ref, meas);
+    cec_step(&c, &ref, meas);
+    o1 = c.ch[0].out_mv;
+    meas[1] = 20000;
+    cec_step(&c, &ref, meas);
+    o2 = c.ch[0].out_mv;
+    TEST_ASSERT_TRUE(c.on_line);
+    TEST_ASSERT_INT_WITHIN(1, 40, o2 - o1); /* 4000 V/m * 10 um */
+    /* onto an arc with the same error: no step, then the curve gain */
+    arc_case(&a, 0, 2e7, 0.0, 1, 0.0, 20000.0);
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_FALSE(c.on_line);
+    TEST_ASSERT_INT_WITHIN(1, o2, c.ch[0].out_mv);
+    o1 = c.ch[0].out_mv;
+    arc_case(&a, 0, 2e7, 0.0, 1, 0.0, 30000.0);
+    cec_step(&c, &a.ref, a.meas);
+    TEST_ASSERT_INT_WITHIN(1, 10, abs(c.ch[0].out_mv - o1)); /* 1000 V/m * 10 um */
+    /* without line_gains the line runs the curve gains */
+    p.line_gains = false;
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&c, &p, NULL));
+    line_ref(&ref, 0.0);
+    meas[1] = 10000;
+    cec_step(&c, &ref, meas);
+    cec_step(&c, &ref, meas);
+    o1 = c.ch[0].out_mv;
+    meas[1] = 20000;
+    cec_step(&c, &ref, meas);
+    TEST_ASSERT_FALSE(c.on_line);
+    TEST_ASSERT_INT_WITHIN(1, 10, c.ch[0].out_mv - o1);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -585,5 +794,10 @@ int main(void)
     RUN_TEST(test_segment_change_and_handover);
     RUN_TEST(test_modes_and_bad_geometry);
     RUN_TEST(test_saturation_flag);
+    RUN_TEST(test_circle3);
+    RUN_TEST(test_history_curvature_on_chords);
+    RUN_TEST(test_near_tangent_join_keeps_integral);
+    RUN_TEST(test_oscillation_watch);
+    RUN_TEST(test_line_curve_gain_switching);
     return UNITY_END();
 }

@@ -836,6 +836,12 @@ static void full_ref_job(int full, bool friction)
 
     TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 3));
     TEST_ASSERT_EQUAL_INT(0, sim_gain_set(0, "kaff", 0.002));
+    /* robust CEC gains (default.toml): the servo's defaults are the thesis's,
+     * which limit-cycle at 10 kHz and now fault (oscillation) */
+    TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "kp", 2000.0));
+    TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "ki", 2e5));
+    TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "kd", 2.0));
+    TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "d_tau", 1e-3));
     if (friction) {
         TEST_ASSERT_EQUAL_INT(0, sim_servo_set(0, "friction_ff", 0.3));
     }

@@ -140,8 +140,12 @@ static void test_parameters_are_range_checked_and_never_half_applied(void)
     TEST_ASSERT_EQUAL_INT64(250, get_param(PROTO_PARAM_COMM_TIMEOUT_MS));
     expect_error(set_param(PROTO_PARAM_NODE_ID, 3), PROTO_ERROR_CODE_READ_ONLY);
     expect_error(set_param(0x7777, 3), PROTO_ERROR_CODE_UNKNOWN_PARAM);
-    expect_error(set_param(PROTO_PARAM_CEC_MODE, 4), PROTO_ERROR_CODE_OUT_OF_RANGE);
+    expect_error(set_param(PROTO_PARAM_CEC_MODE, 7), PROTO_ERROR_CODE_OUT_OF_RANGE);
     TEST_ASSERT_EQUAL_INT64(0, get_param(PROTO_PARAM_CEC_MODE));
+    /* the history-only and second-order estimates are reachable over the link */
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, (set_param(PROTO_PARAM_CEC_MODE, 6), out[0]));
+    TEST_ASSERT_EQUAL_INT64(6, get_param(PROTO_PARAM_CEC_MODE));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, (set_param(PROTO_PARAM_CEC_MODE, 0), out[0]));
     TEST_ASSERT_EQUAL_INT64(3, get_param(PROTO_PARAM_AXES));
     {
         proto_param_get_t g = {PROTO_PARAM_POSITION + 3}; /* axis 3 of 3 */

@@ -57,7 +57,31 @@ def register(sub) -> None:
     c.add_argument("--feed", type=float, required=True, metavar="MM_PER_MIN")
     c.add_argument("--direction", choices=("cw", "ccw"), default="ccw")
     _common(c, controller_required=True)
-    c.add_argument("--plot", metavar="PNG", help="ballbar-style plot (radial error amplified)")
+    c.add_argument(
+        "--allow-limited",
+        action="store_true",
+        help="run a circle the planner limits cannot run at the stated feed (flagged in "
+        "limited_by) instead of refusing it",
+    )
+    c.add_argument(
+        "--chords",
+        type=int,
+        default=0,
+        metavar="N",
+        help="run the circle as N G1 chords (as CAM writes it) instead of arc blocks",
+    )
+    c.add_argument(
+        "--plot",
+        metavar="PNG",
+        help="ballbar plot (ISO 230-4): both directions overlaid (runs the other one too)",
+    )
+    c.add_argument(
+        "--scale",
+        type=float,
+        default=None,
+        metavar="UM_PER_DIV",
+        help="ballbar plot scale, um per division (default: 1-2-5 ladder from the largest error)",
+    )
     c.add_argument("--trace", metavar="CSV", help="scored revolution: t, x, y, contour error")
     c.set_defaults(func=cmd_circle)
 
@@ -96,12 +120,25 @@ def cmd_circle(args) -> int:
         machine_file=args.machine,
         tick_hz=args.tick_hz,
         encoder_model=args.encoder_model,
+        allow_limited=args.allow_limited,
+        chords=args.chords,
     )
     res = run.result
     if args.trace:
         plots.write_trace(args.trace, run.trace)
-    if args.plot:
-        plots.ballbar(args.plot, run.trace, res)
+    if args.plot:  # both directions overlaid, as a ballbar report shows them
+        other = circle.run_circle(
+            args.radius,
+            args.feed,
+            direction="cw" if args.direction == "ccw" else "ccw",
+            controller=args.controller,
+            feedforward=args.feedforward,
+            machine_file=args.machine,
+            tick_hz=args.tick_hz,
+            allow_limited=args.allow_limited,
+            chords=args.chords,
+        )
+        plots.ballbar(args.plot, [(run.trace, res), (other.trace, other.result)], args.scale)
     if args.json:
         print(json.dumps(res.as_dict()))
     else:
@@ -114,6 +151,12 @@ def cmd_circle(args) -> int:
         print(f"  max contour error   {res.max_contour_error_mm * 1e3:.3f} um")
         print(f"  circular deviation  {res.circular_deviation_mm * 1e3:.3f} um (ISO 230-4)")
         print(f"  mean radial error   {res.mean_radial_error_mm * 1e3:+.3f} um")
+        print(
+            f"  feed (measured)     min {res.min_feed_mm_min:.0f}, mean "
+            f"{res.mean_feed_mm_min:.0f} mm/min"
+        )
+        if res.limited_by:
+            print(f"  NOT AT STATED FEED  {res.limited_by}")
         if res.faults:
             print(f"  faults              {', '.join(res.faults)}")
     return 1 if res.faults else 0

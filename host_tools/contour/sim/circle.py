@@ -9,16 +9,32 @@ coordinates shifted so that the axes start at 0):
 2. a tangential lead-in line of length ``max(5 mm, 2 v^2 / a_max)`` ending on
    the circle at angle 0, in the direction of travel;
 3. ``settle + 1`` full-circle arc blocks (the drive cuts them into chords and
-   interpolates the exact arc); ``settle`` = the revolutions needed for at
-   least ``settle_s`` seconds (at least one);
-4. a short tangential lead-out line so that the final deceleration is off
-   the circle.
+   interpolates the exact arc), or with ``chords = N`` the same revolutions
+   as N G1 lines each, as a CAM system writes a circle (the firmware then
+   sees straight lines only: no arc geometry reaches the CEC);
+   ``settle`` = the revolutions needed for at least ``settle_s`` seconds
+   (at least one);
+4. a tangential lead-out line at least 1.5 times the planner's stopping
+   distance from the feed (``stop_distance``), so that the final
+   deceleration is off the circle.
+
+Honest conditions: before anything runs, ``limits`` checks the stated feed
+against the machine description's planner limits on the circle (v_max,
+centripetal acceleration v^2/R <= a_max, jerk v^3/R^2 <= j_max, per axis).
+A circle the planner cannot run at the stated feed is refused (UserError
+naming the limit) unless ``allow_limited`` is given; then it runs and the
+result's ``limited_by`` names the limit. Either way the result reports the
+reference's measured path speed over the scored revolution
+(``min_feed_mm_min``, ``mean_feed_mm_min``); a revolution whose minimum is
+below 99 % of the stated feed is always flagged in ``limited_by``.
 
 Scoring, over the last full revolution of the reference (the interval in
 which the unwrapped reference angle sweeps its last 2 pi before the
 lead-out): contour error ``e = |P - C| - R`` of the true table position P
 (positive outside), ``iae_mm_s`` = integral of |e| dt (mm s),
-``max_contour_error_mm`` = max |e|, ``circular_deviation_mm`` = max e - min e
+``max_contour_error_mm`` = max |e| (with chords, e includes the chords'
+sagitta R (1 - cos(pi / N)), the path as programmed),
+``circular_deviation_mm`` = max e - min e
 (ISO 230-4 circular deviation about the nominal centre: the thesis's
 "circularity error", which it does not define).
 """
@@ -33,7 +49,19 @@ import numpy as np
 from contour.errors import UserError
 from contour.sim import core, machine
 
-CONTROLLERS = ("pid", "cec-tangent", "cec-curvature", "cec-exact")
+# cec-curvature: r from the arc geometry on arcs, from the reference history
+# on lines; cec-calcr: from the history always (the thesis's calcr block);
+# cec-koren: Koren's straight line through the segment start; cec-chuang-liu:
+# tangent + |E|^2 / (2 r) (r as cec-curvature)
+CONTROLLERS = (
+    "pid",
+    "cec-tangent",
+    "cec-curvature",
+    "cec-exact",
+    "cec-calcr",
+    "cec-koren",
+    "cec-chuang-liu",
+)
 FEEDFORWARD = ("none", "velocity", "full")
 
 
@@ -55,15 +83,21 @@ class CircleResult:
     edges: int
     edge_mismatch_ticks: int
     faults: list
+    min_feed_mm_min: float = 0.0
+    mean_feed_mm_min: float = 0.0
+    limited_by: str = ""  # empty: the scored revolution ran at the stated feed
+    chords: int = 0  # 0: arc blocks; N: the circle as N G1 chords
 
     def as_dict(self) -> dict:
         """JSON fields (docs/conventions.md: errors in um as in `sim run`; the
         `_mm` error fields are kept for readers of earlier output)."""
-        d = asdict(self)
-        d["iae_um_s"] = self.iae_mm_s * 1e3
-        d["max_contour_error_um"] = self.max_contour_error_mm * 1e3
-        d["circular_deviation_um"] = self.circular_deviation_mm * 1e3
-        d["mean_radial_error_um"] = self.mean_radial_error_mm * 1e3
+        d = {
+            k: (None if isinstance(v, float) and math.isnan(v) else v)
+            for k, v in asdict(self).items()
+        }
+        for k in ("iae", "max_contour_error", "circular_deviation", "mean_radial_error"):
+            v = getattr(self, k + ("_mm_s" if k == "iae" else "_mm")) * 1e3
+            d[k + ("_um_s" if k == "iae" else "_um")] = None if math.isnan(v) else v
         return d
 
 
@@ -90,6 +124,35 @@ def check_args(
         raise UserError(f"feedforward must be one of {', '.join(FEEDFORWARD)}")
 
 
+FEED_TOLERANCE = 0.99  # min feed over the scored revolution / stated feed
+
+
+def stop_distance(v: float, a: float, j: float) -> float:
+    """Distance (m) of a jerk-limited stop from speed v (m/s) with limits a, j."""
+    if v * j >= a * a:  # reaches a
+        return 0.5 * v * (v / a + a / j)
+    return v * math.sqrt(v / j)
+
+
+def limits(radius_mm: float, feed_mm_min: float, planner: dict) -> list[str]:
+    """The planner limits (machine description) that a circle of this radius
+    at this feed exceeds; empty if it can run at the stated feed."""
+    r = radius_mm * 1e-3
+    v = feed_mm_min / 60000.0
+    out = []
+    if v > planner["v_max"]:
+        out.append(f"v_max {planner['v_max']:g} m/s < feed {v:g} m/s")
+    if v * v / r > planner["a_max"]:
+        out.append(
+            f"a_max {planner['a_max']:g} m/s^2 < centripetal v^2/R = {v * v / r:.4g} m/s^2 "
+            f"(max feed on R {radius_mm:g} mm: "
+            f"{math.sqrt(planner['a_max'] * r) * 60000:.0f} mm/min)"
+        )
+    if v**3 / (r * r) > planner["j_max"]:
+        out.append(f"j_max {planner['j_max']:g} m/s^3 < v^3/R^2 = {v**3 / r**2:.4g} m/s^3")
+    return out
+
+
 def run_circle(
     radius_mm: float,
     feed_mm_min: float,
@@ -101,8 +164,12 @@ def run_circle(
     settle_s: float = 0.5,
     mach: machine.Machine | None = None,
     encoder_model: str | None = None,
+    allow_limited: bool = False,
+    chords: int = 0,
 ) -> CircleRun:
     check_args(radius_mm, feed_mm_min, direction, controller, feedforward)
+    if chords and not 8 <= chords <= 100000:
+        raise UserError(f"chords must be 0 (arcs) or in [8, 100000], got {chords}")
     m = mach if mach is not None else machine.load(machine_file)
     if m.axes < 2:
         raise UserError(f"{m.path}: the circle test needs 2 axes")
@@ -117,12 +184,19 @@ def run_circle(
     hz = so.sim_tick_hz()
     r = radius_mm * 1e-3
     v = feed_mm_min / 60000.0
-    if v > m.planner["v_max"]:
-        raise UserError(f"feed {feed_mm_min} mm/min exceeds the planner's v_max")
+    over = limits(radius_mm, feed_mm_min, m.planner)
+    if over and not allow_limited:
+        raise UserError(
+            f"R {radius_mm:g} mm at {feed_mm_min:g} mm/min cannot run at the stated feed on "
+            f"{m.name}: " + "; ".join(over)
+        )
     sense = 1 if direction == "ccw" else -1
     t_rev = 2 * math.pi * r / v
     settle = max(1, math.ceil(settle_s / t_rev))
-    lead = max(5e-3, 2 * v * v / m.planner["a_max"])
+    a_max, j_max = m.planner["a_max"], m.planner["j_max"]
+    d_stop = stop_distance(v, a_max, j_max)
+    lead = max(5e-3, 2 * v * v / a_max, 1.5 * d_stop)
+    lead_out = max(2e-3, 1.5 * d_stop)
     # path frame: centre (0, 0), circle start (r, 0), travel +y (ccw) / -y (cw)
     # machine frame: the start of the lead-in is the machine origin
     cx, cy = -r, sense * lead  # centre in machine coordinates
@@ -138,13 +212,21 @@ def run_circle(
     pending.append(("dwell", None, 0, False))
     pending.append(("line", on_circle, 0, False))
     for _ in range(settle + 1):
-        pending.append(("arc", on_circle, 0, False))
-    out_y = on_circle[1] + int(round(sense * 2e-3 * nm))
+        if chords:
+            for k in range(1, chords + 1):
+                th = sense * 2 * math.pi * k / chords
+                p = (cx + r * math.cos(th), cy + r * math.sin(th))
+                pending.append(
+                    ("line", (int(round(p[0] * nm)), int(round(p[1] * nm)), 0), 0, False)
+                )
+        else:
+            pending.append(("arc", on_circle, 0, False))
+    out_y = on_circle[1] + int(round(sense * lead_out * nm))
     pending.append(("line", (0, out_y, 0), 0, True))
 
     rows = []
     tag = 1
-    max_ticks = int((t_rev * (settle + 1) + 4 * lead / v + 10.0) * hz)
+    max_ticks = int((t_rev * (settle + 1) + 4 * (lead + lead_out) / v + 10.0) * hz)
     ticks = 0
     while True:
         while pending:
@@ -163,7 +245,7 @@ def run_circle(
                 raise UserError(f"simulator: block refused: {core.DRIVE_RESULT.get(res, res)}")
             pending.pop(0)
             tag += 1
-        chunk = core.run(max(1, hz // 20))
+        chunk = core.run(max(1, hz // 1000))  # keep the host queue fed (short G1 chords)
         rows.append(chunk)
         ticks += chunk.shape[0]
         st = core.status()
@@ -174,8 +256,31 @@ def run_circle(
         if ticks > max_ticks:
             raise UserError("simulator: the circle did not finish in time")
     full = np.vstack(rows)
-    res = score(full, cx, cy, r, sense, settle)
+    # a chord's reference lies inside the circle by up to its sagitta
+    sag = r * (1 - math.cos(math.pi / chords)) if chords else 0.0
     st = core.status()
+    try:
+        res = score(full, cx, cy, r, sense, settle, sag)
+    except UserError:
+        if not st.faults:
+            raise
+        # faulted before the scored revolution ended (e.g. a limit cycle,
+        # fault "oscillation"): no scores, the faults say why
+        nan = float("nan")
+        res = {
+            "scores": {
+                k: nan
+                for k in (
+                    "iae_mm_s",
+                    "max_contour_error_mm",
+                    "circular_deviation_mm",
+                    "mean_radial_error_mm",
+                    "min_feed_mm_min",
+                    "mean_feed_mm_min",
+                )
+            },
+            "trace": np.zeros((0, 4)),
+        }
     result = CircleResult(
         radius_mm=radius_mm,
         feed_mm_min=feed_mm_min,
@@ -189,17 +294,29 @@ def run_circle(
         edges=int(so.sim_edges()),
         edge_mismatch_ticks=int(so.sim_edge_mismatches()),
         faults=core.fault_names(st.faults),
+        chords=chords,
         **res["scores"],
     )
+    flags = list(over)
+    if math.isnan(result.min_feed_mm_min):
+        flags.append("no scored revolution: faulted (" + ", ".join(result.faults) + ")")
+    elif result.min_feed_mm_min < FEED_TOLERANCE * feed_mm_min:
+        flags.append(
+            f"measured min feed {result.min_feed_mm_min:.0f} mm/min < "
+            f"{FEED_TOLERANCE:.0%} of {feed_mm_min:g}"
+        )
+    result.limited_by = "; ".join(flags)
     return CircleRun(result=result, trace=res["trace"], full=full)
 
 
-def score(full: np.ndarray, cx: float, cy: float, r: float, sense: int, settle: int) -> dict:
+def score(
+    full: np.ndarray, cx: float, cy: float, r: float, sense: int, settle: int, sag: float = 0.0
+) -> dict:
     """Scores of the last full revolution of the reference (see module doc)."""
     t = full[:, 0]
     rx, ry = full[:, 4] - cx, full[:, 8] - cy
     px, py = full[:, 5] - cx, full[:, 9] - cy
-    on = np.abs(np.hypot(rx, ry) - r) < 1e-6 * max(r, 1e-3) + 2e-9
+    on = np.abs(np.hypot(rx, ry) - r + sag / 2) < sag / 2 + 1e-6 * max(r, 1e-3) + 2e-9
     ang = np.unwrap(np.arctan2(ry, rx)) * sense
     idx = np.nonzero(on)[0]
     if idx.size < 10:
@@ -213,11 +330,17 @@ def score(full: np.ndarray, cx: float, cy: float, r: float, sense: int, settle: 
     e = np.hypot(px, py) - r
     es = e[sel]
     dt = np.diff(t).mean() if t.size > 1 else 0.0
+    # path speed of the reference between consecutive ticks of the revolution
+    isel = np.nonzero(sel)[0]
+    i0, i1 = isel[0], isel[-1]
+    seg = np.hypot(np.diff(rx[i0 : i1 + 1]), np.diff(ry[i0 : i1 + 1])) / np.diff(t[i0 : i1 + 1])
     scores = {
         "iae_mm_s": float(np.abs(es).sum() * dt * 1e3),
         "max_contour_error_mm": float(np.abs(es).max() * 1e3),
         "circular_deviation_mm": float((es.max() - es.min()) * 1e3),
         "mean_radial_error_mm": float(es.mean() * 1e3),
+        "min_feed_mm_min": float(seg.min() * 60000),
+        "mean_feed_mm_min": float(seg.mean() * 60000),
     }
     trace = np.column_stack([t[sel], px[sel], py[sel], es])
     return {"scores": scores, "trace": trace}

@@ -35,8 +35,18 @@ FAULT_BITS = {
     8: "amplifier",
     16: "estop",
     32: "comm_timeout",
+    64: "homing",
+    128: "oscillation",
 }
-CEC_MODES = {"off": 0, "tangent": 1, "curvature": 2, "exact": 3}
+CEC_MODES = {
+    "off": 0,
+    "tangent": 1,
+    "curvature": 2,
+    "exact": 3,
+    "koren": 4,
+    "calcr": 5,
+    "chuang-liu": 6,
+}
 # how encoder edges reach the decoder (sim_encoder_model, docs/simulator.md
 # "Encoder models"): "fast" (a substep's edges as one run, the same decoder
 # state) or "edges" (every edge: the reference)

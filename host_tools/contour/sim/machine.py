@@ -45,6 +45,8 @@ optional except where noted; units SI unless the name says otherwise)::
     [gains.axis_y]                  # ... per-axis overrides (axis_x, axis_y, axis_z)
     [gains.cec]                     # the contour-error controller's PID
     kp = 0.0  ki = 0.0  kd = 0.0  d_tau = 0.0
+    [gains.cec_line]                # optional: the CEC's gains on straight path
+                                    # (the thesis's line/curve switching, cec.h)
 
     [feedforward]                   # used by --feedforward velocity|full
     mode = "none"                   # none|velocity|full: used when the caller
@@ -276,7 +278,7 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
     m.servo = {"ferr_limit_mm": 50.0, "sat_limit_s": 0.5, "stop_decel": 1.0}
     m.servo.update({k: _num(v, f"servo.{k}", path, 0) for k, v in servo.items()})
     gains = data.get("gains", {})
-    _check_keys(gains, {"axis", "axis_x", "axis_y", "axis_z", "cec"}, "[gains]", path)
+    _check_keys(gains, {"axis", "axis_x", "axis_y", "axis_z", "cec", "cec_line"}, "[gains]", path)
     base = {"kp": 1500.0, "ki": 8000.0, "kd": 5.0, "d_tau": 1e-4, "d_on_measurement": False}
     base.update(gains.get("axis", {}))
     for ax in AXES[: m.axes]:
@@ -294,6 +296,14 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
         k: (bool(v) if k == "d_on_measurement" else _num(v, f"gains.cec.{k}", path, 0))
         for k, v in cec.items()
     }
+    if "cec_line" in gains:  # the thesis's line/curve gain switching (cec.h)
+        cl = {"kp": 0.0, "ki": 0.0, "kd": 0.0, "d_tau": 0.0}
+        cl.update(gains["cec_line"])
+        _check_keys(cl, GAIN_KEYS, "[gains.cec_line]", path)
+        m.gains["cec_line"] = {
+            k: (bool(v) if k == "d_on_measurement" else _num(v, f"gains.cec_line.{k}", path, 0))
+            for k, v in cl.items()
+        }
     ff = data.get("feedforward", {})
     _check_keys(ff, FF_KEYS, "[feedforward]", path)
     ff = dict(ff)
@@ -386,6 +396,8 @@ def apply(
     core.check(so.sim_servo_set(0, b"sat_limit", m.servo["sat_limit_s"]), "sat_limit")
     core.check(so.sim_plan_set(0, b"stop_decel", m.servo["stop_decel"]), "stop_decel")
     _gains(so, -1, m.gains["cec"], "cec")
+    if "cec_line" in m.gains:
+        _gains(so, -2, m.gains["cec_line"], "cec_line")
     mode = {"pid": "off", "cec-tangent": "tangent", "cec-curvature": "curvature"}.get(
         controller, controller.replace("cec-", "")
     )
