@@ -117,6 +117,7 @@ def cmd_circle(args) -> int:
 
 
 def cmd_run(args) -> int:
+    from contour.program import report_text
     from contour.sim import job
 
     rep = job.run_job(
@@ -137,8 +138,7 @@ def cmd_run(args) -> int:
         )
         print(f"  following error: max {rep['max_following_error_um']:.3f} um")
         print(f"  faults: {', '.join(rep['faults']) or 'none'}")
-        for s in rep["skipped"]:
-            print(f"  skipped: {s}")
+        print("\n".join(report_text(rep["skipped"])))
     return 1 if rep["faults"] else 0
 
 

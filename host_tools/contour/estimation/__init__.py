@@ -10,12 +10,14 @@ fields) and ``estimate(moves, profile, options) -> Estimate``.
 
 from __future__ import annotations
 
+import numpy as np
+
 from contour import gcode
 from contour.errors import UserError
 from contour.estimation import camargo2017, feed, mrt
 from contour.estimation import planner as planner_model
 from contour.estimation.profile import Profile
-from contour.estimation.result import Estimate, Moves
+from contour.estimation.result import CsvWriter, Estimate, Moves, merge_summaries
 
 MODELS = {
     "planner": planner_model,
@@ -25,7 +27,15 @@ MODELS = {
 }
 DEFAULT_MODEL = "planner"
 
-__all__ = ["MODELS", "DEFAULT_MODEL", "Estimate", "Moves", "estimate_moves", "estimate_program"]
+__all__ = [
+    "MODELS",
+    "DEFAULT_MODEL",
+    "Estimate",
+    "Moves",
+    "estimate_file",
+    "estimate_moves",
+    "estimate_program",
+]
 
 
 def _model(name: str):
@@ -74,5 +84,74 @@ def estimate_program(
     program: gcode.Program, profile: Profile, model: str = DEFAULT_MODEL, options=None
 ) -> Estimate:
     seg = gcode.segments(program, profile.motion["arc_chord_tolerance_mm"])
-    moves = Moves.from_segments(seg, profile.motion["rapid_feed_mm_min"])
+    moves = Moves.from_segments(
+        seg,
+        profile.motion["rapid_feed_mm_min"],
+        profile.rotary_values("max_velocity_deg_min"),
+    )
     return estimate_moves(moves, profile, model, options)
+
+
+def estimate_file(
+    path,
+    profile: Profile,
+    model: str = DEFAULT_MODEL,
+    options=None,
+    default_feed=None,
+    per_block_csv=None,
+):
+    """Estimate a G-code file chunk by chunk (:func:`contour.program.chunks`:
+    the program is never held whole). Returns (summary, report). Each chunk
+    is planned on its own: the planner comes to rest at a chunk's end (one
+    stop per 65536 program blocks)."""
+    from contour.program import Report, chunks
+
+    report = Report()
+    parts = []
+    writer = CsvWriter(per_block_csv) if per_block_csv else None
+    if writer is not None:
+        writer.__enter__()
+    try:
+        for prog in chunks(path, default_feed=default_feed):
+            report.take(prog)
+            if len(prog) == 0:
+                continue
+            est = estimate_program(prog, profile, model, options)
+            parts.append(est.summary())
+            _rotary_notes(est, report)
+            if writer is not None:
+                writer.write(est)
+            del est
+    finally:
+        if writer is not None:
+            writer.__exit__(None, None, None)
+    if not parts:
+        parts.append(
+            estimate_moves(
+                Moves.from_arrays(np.zeros((0, 3)), 1.0), profile, model, options
+            ).summary()
+        )
+    return merge_summaries(parts), report
+
+
+def _rotary_notes(est: Estimate, report) -> None:
+    """Say how the model timed blocks that move rotary axes."""
+    m = est.moves
+    if m.rotary is None:
+        return
+    moved = np.any(np.abs(m.rotary) > 1e-9, axis=1)
+    if not np.any(moved):
+        return
+    mixed = moved & (np.einsum("ij,ij->i", m.delta, m.delta) > 0)
+    notes = {
+        "rotary+linear": "rotary axes moved with X Y Z: machine-axis kinematics, the feed is "
+        "the X Y Z path speed, capped so that each rotary axis stays within its velocity "
+        "limit; no tool-tip transformation",
+        "rotary only": "rotary axes alone: the feed in deg/min within the rotary velocity "
+        + ("and acceleration limits, rest to rest" if est.model == "planner" else "limits"),
+    }
+    for kind, sel in (("rotary+linear", mixed), ("rotary only", moved & ~mixed)):
+        idx = np.nonzero(sel)[0]
+        if idx.size:
+            report.note(kind, int(m.line[idx[0]]), notes[kind])
+            report.items[kind].count += int(idx.size) - 1
