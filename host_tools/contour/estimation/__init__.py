@@ -107,6 +107,7 @@ def estimate_file(
     from contour.program import Report, chunks
 
     report = Report()
+    end = [0.0] * 6
     parts = []
     writer = CsvWriter(per_block_csv) if per_block_csv else None
     if writer is not None:
@@ -116,6 +117,8 @@ def estimate_file(
             report.take(prog)
             if len(prog) == 0:
                 continue
+            _check_positions(path, prog)
+            end = [float(v) for v in prog.end[-1]]
             est = estimate_program(prog, profile, model, options)
             parts.append(est.summary())
             _rotary_notes(est, report)
@@ -131,7 +134,21 @@ def estimate_file(
                 Moves.from_arrays(np.zeros((0, 3)), 1.0), profile, model, options
             ).summary()
         )
-    return merge_summaries(parts), report
+    summary = merge_summaries(parts)
+    summary["end_mm"] = end
+    return summary, report
+
+
+def _check_positions(path, prog) -> None:
+    """Targets beyond the drive's position range are refused here as by
+    ``contour run`` (contour.link.blocks.check_position)."""
+    from contour.link.blocks import POS_MAX_NM, check_position
+
+    lin = np.abs(prog.end[:, :3])
+    bad = ~(lin <= POS_MAX_NM / 1e6)
+    if np.any(bad):
+        i, a = (int(k[0]) for k in np.nonzero(bad))
+        check_position(f"{path}:{int(prog.line[i])}", a, float(prog.end[i, a]))
 
 
 def _rotary_notes(est: Estimate, report) -> None:

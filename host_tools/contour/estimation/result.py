@@ -175,6 +175,15 @@ class Estimate:
             "options": dict(self.options),
         }
 
+    def kinds(self) -> np.ndarray:
+        """Per segment: rapid, feed, dwell (no motion) or rotary (only
+        rotary axes move; its length is in degrees)."""
+        m = self.moves
+        k = np.where(m.rapid, "rapid", "feed").astype(object)
+        k[(m.length == 0) & (m.dwell_s > 0)] = "dwell"
+        k[m.rotary_only] = "rotary"
+        return k
+
     def csv_columns(self, offset: int = 0) -> list:
         """(name, array) columns of the per-segment CSV; segments numbered
         from `offset` (a chunk of a longer program)."""
@@ -182,7 +191,7 @@ class Estimate:
         cols = [
             ("segment", np.arange(offset, offset + len(m))),
             ("line", m.line),
-            ("kind", np.where(m.rapid, "rapid", np.where(m.dwell_s > 0, "dwell", "feed"))),
+            ("kind", self.kinds()),
             ("length_mm", m.length),
             ("feed_mm_min", m.feed),
             ("time_s", self.time_s),

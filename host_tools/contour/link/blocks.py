@@ -98,6 +98,17 @@ def _mm(nm: int) -> str:
     return f"{nm / NM_PER_MM:.6g}"
 
 
+def check_position(where: str, axis: int, v_mm: float) -> None:
+    """Refuse a target beyond the drive's position range (``estimate``
+    refuses the same)."""
+    nm = v_mm * NM_PER_MM
+    if not (math.isfinite(nm) and abs(nm) <= POS_MAX_NM):
+        raise UserError(
+            f"{where}: {'XYZ'[axis]} target {v_mm:g} mm is out of range "
+            f"(|position| <= {POS_MAX_NM / NM_PER_MM:.6f} mm)"
+        )
+
+
 def _estimate(seg, feed, dwell, start_mm) -> np.ndarray:
     n = len(seg)
     try:
@@ -170,13 +181,8 @@ def blocks_from_gcode(
             target = []
             for a in range(3):
                 v = float(seg.end[i, a])
-                nm = v * NM_PER_MM
-                if not (math.isfinite(nm) and abs(nm) <= POS_MAX_NM):
-                    raise UserError(
-                        f"{where}: {'XYZ'[a]} target {v:g} mm does not fit the drive "
-                        f"(|position| <= {_mm(POS_MAX_NM)} mm)"
-                    )
-                target.append(int(round(nm)))
+                check_position(where, a, v)
+                target.append(int(round(v * NM_PER_MM)))
             target = tuple(target)
             d = [t - p for t, p in zip(target, prev)]
             if math.sqrt(sum(float(x) * x for x in d)) > POS_MAX_NM:
