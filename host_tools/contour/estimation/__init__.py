@@ -10,6 +10,8 @@ fields) and ``estimate(moves, profile, options) -> Estimate``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from contour import gcode
@@ -135,6 +137,11 @@ def estimate_file(
             ).summary()
         )
     summary = merge_summaries(parts)
+    if not math.isfinite(summary["total_s"]):
+        raise UserError(
+            f"{path}: the estimate is not a finite time with this profile "
+            "(a limit too close to zero?)"
+        )
     summary["end_mm"] = end
     return summary, report
 

@@ -41,6 +41,7 @@ AXIS_FIELDS = (
         "Highest speed of the axis (its rapid rate).",
         "Machine data sheet, or time a long G0 move on this axis alone and "
         "divide its length by the time once the speed is constant.",
+        low=1e-3,
         high=1e6,
     ),
     Field(
@@ -51,6 +52,7 @@ AXIS_FIELDS = (
         "Run the reversal test (+S/-S repeated, exp3 of camargo2017) for S of "
         "0.2 to 1 mm: a rest-to-rest move takes about 2*sqrt(S/a). Or fit it "
         "with `contour fit-profile`.",
+        low=1e-6,
         high=1e7,
     ),
     Field(
@@ -59,6 +61,7 @@ AXIS_FIELDS = (
         50000.0,
         "Jerk limit of the axis (S-curve profiles).",
         "The reversal test with S of 0.001 to 0.05 mm: short moves take about (32*S/j)^(1/3).",
+        low=1e-6,
         high=1e10,
     ),
     Field(
@@ -96,6 +99,7 @@ ROTARY_FIELDS = (
         "(machine-axis kinematics: the rotary motion is synchronised with the "
         "linear one, no tool-tip transformation).",
         "Machine data sheet, or time a G0 of several turns and divide.",
+        low=1e-3,
         high=1e7,
     ),
     Field(
@@ -106,6 +110,7 @@ ROTARY_FIELDS = (
         "axes is timed rest to rest with it.",
         "Time short indexing moves (G0 C5, G0 C0 ...): a rest-to-rest move of "
         "D degrees takes about 2*sqrt(D/a).",
+        low=1e-6,
         high=1e8,
     ),
 )
@@ -117,6 +122,7 @@ MOTION_FIELDS = (
         30000.0,
         "Path speed of G0 moves (each axis is still held to its own limit).",
         "Machine data sheet (rapid traverse), or time a long G0 move.",
+        low=1e-3,
         high=1e6,
     ),
     Field(

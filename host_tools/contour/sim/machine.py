@@ -108,19 +108,21 @@ AXIS_KEYS = {
     "index_phase_counts",
 }
 # Physical ranges of the axis keys (inclusive): beyond them the model or the
-# drive's fixed-point scales (encoder counts, lead in pm) would overflow.
+# drive's fixed-point scales (encoder counts, lead in pm) overflow, or the
+# model's time constants become so short that setting it up never ends
+# (I1 = 1e-308).
 AXIS_RANGES = {
-    "lead_mm": (0.0, 1e6),
+    "lead_mm": (1e-3, 1e6),
     "B": (0.0, 1e3),
     "K": (0.0, 1e9),
-    "kb": (0.0, 1e3),
-    "kt": (0.0, 1e3),
-    "La": (0.0, 1e3),
-    "I1": (0.0, 1e3),
-    "I2": (0.0, 1e3),
-    "Ra": (0.0, 1e6),
-    "kx": (0.0, 1e6),
-    "vmax": (0.0, 1e6),
+    "kb": (1e-6, 1e3),
+    "kt": (1e-6, 1e3),
+    "La": (1e-7, 1e3),
+    "I1": (1e-9, 1e3),
+    "I2": (1e-9, 1e3),
+    "Ra": (1e-4, 1e6),
+    "kx": (1e-6, 1e6),
+    "vmax": (1e-3, 1e6),
     "encoder_lines": (1.0, 2.5e11),
     "encoder_noise_counts": (0.0, 1e6),
     "ref_resolution_nm": (1e-6, 1e6),
