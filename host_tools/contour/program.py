@@ -27,15 +27,19 @@ def chunks(
     default_feed: Optional[float] = None,
     start=None,
     rows: int = CHUNK_ROWS,
+    tool_table=None,
 ) -> Iterator[gcode.Program]:
     """The program of `path` in chunks of at most `rows` blocks; each
     chunk's ``start`` is the previous chunk's end, the last chunk's
-    ``skipped`` is the report of the whole file."""
+    ``skipped`` is the report of the whole file. `tool_table`: a LinuxCNC
+    tool table file (``--tool-table``)."""
     read_chunks = getattr(gcode, "read_chunks", None)
     if read_chunks is None:  # before the reader streams: one chunk
         yield gcode.read(path, default_feed=default_feed, start=start)
         return
-    yield from read_chunks(path, rows=rows, default_feed=default_feed, start=start)
+    yield from read_chunks(
+        path, rows=rows, default_feed=default_feed, start=start, tool_table=tool_table
+    )
 
 
 class Report:

@@ -38,6 +38,7 @@ PROFILE = str(ROOT / "profiles" / "generic.toml")
 AXES = "XYZABC"
 # Notes a command adds about its own machine, not about the program.
 COMMAND_NOTES = {"feed capped", "rotary+linear", "rotary only"}
+STILL_NM = 5000  # the drive's in-position window
 END_TOL_MM = 0.006  # the drive's 5 um in-position window, and rounding
 _EXPECT = re.compile(r"^\s*;\s*expect\s+([a-z_ ]+?)\s*:\s*(.*?)\s*$", re.IGNORECASE)
 
@@ -116,6 +117,11 @@ def _reader_kinds(items) -> set:
     return {s["kind"] for s in items} - COMMAND_NOTES
 
 
+def _still(before: dict, after: dict) -> bool:
+    """The axes have not moved beyond a few encoder counts (1.25 um each)."""
+    return all(abs(a - b) <= STILL_NM for a, b in zip(before["pos"][:3], after["pos"][:3]))
+
+
 def _close(a, b, tol=END_TOL_MM) -> bool:
     return abs(a - b) <= tol
 
@@ -139,9 +145,10 @@ def test_program_through_estimate_sim_run_and_run(path, server, tmp_path, capsys
         rapid_mm = sum(float(r["length_mm"]) for r in rows if r["kind"] == "rapid")
         dwell_rows = sum(float(r["dwell_s"]) for r in rows)
         if "feed_mm" in exp:
-            assert feed_mm == pytest.approx(exp["feed_mm"], abs=1e-3), rows
+            # arcs are chords within 0.001 mm: up to tol / (3 r) shorter
+            assert feed_mm == pytest.approx(exp["feed_mm"], rel=1e-3, abs=1e-3), rows
         if "rapid_mm" in exp:
-            assert rapid_mm == pytest.approx(exp["rapid_mm"], abs=1e-3), rows
+            assert rapid_mm == pytest.approx(exp["rapid_mm"], rel=1e-3, abs=1e-3), rows
         assert dwell_rows == pytest.approx(est["dwell_s"], abs=1e-9)
         if "dwell_s" in exp:
             assert est["dwell_s"] == pytest.approx(exp["dwell_s"], abs=1e-9)
@@ -167,9 +174,10 @@ def test_program_through_estimate_sim_run_and_run(path, server, tmp_path, capsys
         after = c.status()
     if refused or drive_refused:
         assert rc == 1 and (refused or drive_refused) in err, f"run: rc {rc}, {err!r}"
-        # refused before the first block: nothing moved, nothing was done
-        assert after["pos"][:3] == before["pos"][:3]
+        # refused before the first block: no block done, the axes where they
+        # were (within the encoder count the servo dithers by at rest)
         assert after["blocks_done"] == before["blocks_done"]
+        assert _still(before, after), (before["pos"], after["pos"])
         assert after["state"] in (pg.State.READY, pg.State.DISABLED)
     else:
         assert rc == 0, f"run: {err}"
@@ -181,7 +189,8 @@ def test_program_through_estimate_sim_run_and_run(path, server, tmp_path, capsys
         assert _reader_kinds(res["skipped"]) == _reader_kinds(est["skipped"])
         # the job took at least its dwells, and about what the simulator took
         assert res["motion_s"] >= est["dwell_s"]
-        assert res["motion_s"] == pytest.approx(sim["executed_s"], abs=0.3)
+        # sim serve runs in real time on a shared machine: 5 % and 0.3 s
+        assert res["motion_s"] == pytest.approx(sim["executed_s"], rel=0.05, abs=0.3)
 
 
 def test_dwell_is_timed_alike_by_estimate_sim_run_and_run(server, tmp_path, capsys):
@@ -238,5 +247,5 @@ def test_soft_limit_on_the_last_line_refused_before_anything_moves(
             c.set_param("soft_limit_max.x", 0)
     assert rc == 1 and not streamed
     assert f"{prog}:5: X 60 mm is outside the drive's soft limits -50..50 mm" in err
-    assert after["pos"][:3] == before["pos"][:3]
     assert after["blocks_done"] == before["blocks_done"]
+    assert _still(before, after), (before["pos"], after["pos"])

@@ -37,6 +37,11 @@ def register(sub) -> None:
         metavar="KEY=VALUE",
         help="model option (camargo2017: see docs/estimation.md); repeatable",
     )
+    p.add_argument(
+        "--tool-table",
+        metavar="FILE",
+        help="LinuxCNC tool table for cutter compensation (G41/G42 with D)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--per-block", metavar="CSV", help="write the time of every segment to CSV")
     p.set_defaults(func=run)
@@ -64,6 +69,7 @@ def run(args) -> int:
         options,
         default_feed=args.feed,
         per_block_csv=args.per_block,
+        tool_table=args.tool_table,
     )
     skipped = report.as_dicts()
     if args.json:

@@ -52,13 +52,18 @@ def run(args) -> int:
         st = client.status()
         start = [p / 1e6 for p in st["pos"][:3]]
         limits = DriveLimits.read(client, axes=client.identify()["axes"])
-        checked = check_gcode(args.file, start, args.chord_mm, args.feed, limits)
+        checked = check_gcode(
+            args.file, start, args.chord_mm, args.feed, limits, tool_table=args.tool_table
+        )
         if not checked.blocks:
             raise UserError(f"{args.file}: no motion blocks")
         if not args.json:
             print("\n".join(checked.report.text()), flush=True)
         blocks, extra = _streamable(
-            blocks_from_gcode(args.file, start, args.chord_mm, args.feed, limits), checked
+            blocks_from_gcode(
+                args.file, start, args.chord_mm, args.feed, limits, tool_table=args.tool_table
+            ),
+            checked,
         )
         total = checked.est_s
         bar = Bar(
@@ -132,6 +137,11 @@ def register(sub) -> None:
         default=None,
         metavar="F",
         help="default feed (mm/min) for feeds the file does not define (F=R0, no F)",
+    )
+    p.add_argument(
+        "--tool-table",
+        metavar="FILE",
+        help="LinuxCNC tool table for cutter compensation (G41/G42 with D)",
     )
     p.add_argument(
         "--in-position-um",

@@ -63,6 +63,11 @@ def register(sub) -> None:
     r.add_argument("file", metavar="FILE.nc")
     _common(r)
     r.add_argument("--feed", type=float, default=None, help="default feed, mm/min")
+    r.add_argument(
+        "--tool-table",
+        metavar="FILE",
+        help="LinuxCNC tool table for cutter compensation (G41/G42 with D)",
+    )
     r.set_defaults(func=cmd_run)
 
     d = ss.add_parser("demo", help="the thesis's nine circle cases beside its numbers")
@@ -127,6 +132,7 @@ def cmd_run(args) -> int:
         machine_file=args.machine,
         tick_hz=args.tick_hz,
         default_feed=args.feed,
+        tool_table=args.tool_table,
     )
     if args.json:
         print(json.dumps(rep))

@@ -101,6 +101,7 @@ def estimate_file(
     options=None,
     default_feed=None,
     per_block_csv=None,
+    tool_table=None,
 ):
     """Estimate a G-code file chunk by chunk (:func:`contour.program.chunks`:
     the program is never held whole). Returns (summary, report). Each chunk
@@ -115,7 +116,7 @@ def estimate_file(
     if writer is not None:
         writer.__enter__()
     try:
-        for prog in chunks(path, default_feed=default_feed):
+        for prog in chunks(path, default_feed=default_feed, tool_table=tool_table):
             report.take(prog)
             if len(prog) == 0:
                 continue

@@ -137,6 +137,7 @@ def blocks_from_gcode(
     default_feed: Optional[float] = None,
     limits: Optional[DriveLimits] = None,
     report: Optional[Report] = None,
+    tool_table=None,
 ) -> Iterator[Block]:
     """Drive blocks of `path`, checked one by one (see the module doc);
     `report` (if given) collects the reader's report and the notes."""
@@ -147,7 +148,9 @@ def blocks_from_gcode(
     vmax = None
     if limits is not None and all(v is not None for v in limits.max_velocity_nm_s):
         vmax = np.array(limits.max_velocity_nm_s, dtype=float)
-    for prog in chunks(path, default_feed=default_feed, start=start + [0.0, 0.0, 0.0]):
+    for prog in chunks(
+        path, default_feed=default_feed, start=start + [0.0, 0.0, 0.0], tool_table=tool_table
+    ):
         if report is not None:
             report.take(prog)
         seg = gcode.segments(prog, chord_mm)
@@ -248,6 +251,7 @@ def check_gcode(
     chord_mm: float = 0.001,
     default_feed: Optional[float] = None,
     limits: Optional[DriveLimits] = None,
+    tool_table=None,
 ) -> Checked:
     """The first pass: every block built and checked, none kept."""
     report = Report()
@@ -255,7 +259,9 @@ def check_gcode(
     t = 0.0
     dw = 0.0
     end = tuple(int(round(v * NM_PER_MM)) for v in start_mm)
-    for b in blocks_from_gcode(path, start_mm, chord_mm, default_feed, limits, report):
+    for b in blocks_from_gcode(
+        path, start_mm, chord_mm, default_feed, limits, report, tool_table=tool_table
+    ):
         n += 1
         t += b.est_s
         if b.kind == pg.BlockKind.DWELL:

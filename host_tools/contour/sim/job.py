@@ -43,9 +43,9 @@ def machine_limits(m) -> DriveLimits:
     return DriveLimits(max_velocity_nm_s=(v, v, v))
 
 
-def _all_blocks(path, m, default_feed) -> list:
+def _all_blocks(path, m, default_feed, tool_table=None) -> list:
     out = []
-    for prog in chunks(path, default_feed=default_feed):
+    for prog in chunks(path, default_feed=default_feed, tool_table=tool_table):
         out.extend(_blocks(prog, m))
     return out
 
@@ -128,10 +128,13 @@ def run_job(
     default_feed: float | None = None,
     max_s: float = 600.0,
     contour_error: bool = True,
+    tool_table=None,
 ) -> dict:
     m = machine.load(machine_file)
-    checked = check_gcode(path, default_feed=default_feed, limits=machine_limits(m))
-    blocks = _all_blocks(path, m, default_feed)
+    checked = check_gcode(
+        path, default_feed=default_feed, limits=machine_limits(m), tool_table=tool_table
+    )
+    blocks = _all_blocks(path, m, default_feed, tool_table)
     if not blocks:
         raise UserError(f"{path}: no motion blocks")
     machine.apply(m, tick_hz=tick_hz, feedforward=feedforward, controller=controller)
@@ -250,6 +253,7 @@ def estimate_job(
     machine_file: str | None = None,
     tick_hz: float | None = None,
     default_feed: float | None = None,
+    tool_table=None,
 ) -> dict:
     """The drive's planner estimate of `path` on the simulated machine: the
     blocks :func:`run_job` queues, arcs cut into the drive's chords, planned
@@ -260,8 +264,8 @@ def estimate_job(
     from contour.planner import Planner
 
     m = machine.load(machine_file)
-    check_gcode(path, default_feed=default_feed, limits=machine_limits(m))
-    blocks = _all_blocks(path, m, default_feed)
+    check_gcode(path, default_feed=default_feed, limits=machine_limits(m), tool_table=tool_table)
+    blocks = _all_blocks(path, m, default_feed, tool_table)
     if not blocks:
         raise UserError(f"{path}: no motion blocks")
     machine.apply(m, tick_hz=tick_hz)
