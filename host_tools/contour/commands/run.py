@@ -34,8 +34,12 @@ def _streamable(blocks, checked):
     sequence gets a list."""
     import inspect
 
-    if "total" in inspect.signature(Streamer).parameters:
-        return blocks, {"total": checked.blocks}
+    params = inspect.signature(Streamer).parameters
+    if "total" in params:
+        extra = {"total": checked.blocks}
+        if "est_total_s" in params:
+            extra["est_total_s"] = checked.est_s
+        return blocks, extra
     return list(blocks), {}
 
 
