@@ -26,13 +26,14 @@ def chunks(
     path,
     default_feed: Optional[float] = None,
     start=None,
-    rows: int = CHUNK_ROWS,
+    rows: Optional[int] = None,
     tool_table=None,
 ) -> Iterator[gcode.Program]:
     """The program of `path` in chunks of at most `rows` blocks; each
     chunk's ``start`` is the previous chunk's end, the last chunk's
     ``skipped`` is the report of the whole file. `tool_table`: a LinuxCNC
     tool table file (``--tool-table``)."""
+    rows = CHUNK_ROWS if rows is None else rows
     read_chunks = getattr(gcode, "read_chunks", None)
     if read_chunks is None:  # before the reader streams: one chunk
         yield gcode.read(path, default_feed=default_feed, start=start)

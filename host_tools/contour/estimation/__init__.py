@@ -85,13 +85,31 @@ def estimate_moves(moves: Moves, profile: Profile, model: str = DEFAULT_MODEL, o
 def estimate_program(
     program: gcode.Program, profile: Profile, model: str = DEFAULT_MODEL, options=None
 ) -> Estimate:
+    return estimate_moves(program_moves(program, profile), profile, model, options)
+
+
+def program_moves(program: gcode.Program, profile: Profile) -> Moves:
+    """The segments of `program` as the models read them (arcs split at the
+    profile's chord tolerance, rapids at its rapid feed, rotary caps)."""
     seg = gcode.segments(program, profile.motion["arc_chord_tolerance_mm"])
-    moves = Moves.from_segments(
+    return Moves.from_segments(
         seg,
         profile.motion["rapid_feed_mm_min"],
         profile.rotary_values("max_velocity_deg_min"),
     )
-    return estimate_moves(moves, profile, model, options)
+
+
+def _last_flagged(items):
+    """(item, is_last) for each item of an iterator."""
+    it = iter(items)
+    try:
+        prev = next(it)
+    except StopIteration:
+        return
+    for item in it:
+        yield prev, False
+        prev = item
+    yield prev, True
 
 
 def estimate_file(
@@ -104,30 +122,64 @@ def estimate_file(
     tool_table=None,
 ):
     """Estimate a G-code file chunk by chunk (:func:`contour.program.chunks`:
-    the program is never held whole). Returns (summary, report). Each chunk
-    is planned on its own: the planner comes to rest at a chunk's end (one
-    stop per 65536 program blocks)."""
+    the program is never held whole). Returns (summary, report).
+
+    Chunks overlap so that a chunk's end is no stop: the last ``OVERLAP``
+    segments of a chunk are held back and planned again at the head of the
+    next chunk, after ``OVERLAP`` segments of warm-up whose times are
+    dropped (four look-ahead depths: the planner sees no further)."""
     from contour.program import Report, chunks
 
     report = Report()
     end = [0.0] * 6
     parts = []
+    blocks = 0
+    overlap = 4 * int(profile.motion["lookahead_blocks"])
+    carry = None  # (warm-up, held back) segments of the chunk before
     writer = CsvWriter(per_block_csv) if per_block_csv else None
     if writer is not None:
         writer.__enter__()
+
+    def emit(est: Estimate) -> None:
+        if len(est.moves) == 0:
+            return
+        parts.append(est.summary())
+        _rotary_notes(est, report)
+        if writer is not None:
+            writer.write(est)
+
     try:
-        for prog in chunks(path, default_feed=default_feed, tool_table=tool_table):
+        flagged = _last_flagged(chunks(path, default_feed=default_feed, tool_table=tool_table))
+        for prog, last in flagged:
             report.take(prog)
             if len(prog) == 0:
+                if last and carry is not None:
+                    emit(
+                        estimate_moves(Moves.concat(carry), profile, model, options).take(
+                            slice(len(carry[0]), None)
+                        )
+                    )
                 continue
             _check_positions(path, prog)
             end = [float(v) for v in prog.end[-1]]
-            est = estimate_program(prog, profile, model, options)
-            parts.append(est.summary())
-            _rotary_notes(est, report)
-            if writer is not None:
-                writer.write(est)
-            del est
+            blocks += len(prog)
+            moves = program_moves(prog, profile)
+            skip = 0
+            if carry is not None:
+                skip = len(carry[0])
+                moves = Moves.concat([*carry, moves])
+            est = estimate_moves(moves, profile, model, options)
+            n = len(moves)
+            if last or n < skip + 2 * overlap:
+                emit(est.take(slice(skip, None)))
+                carry = None
+            else:
+                emit(est.take(slice(skip, n - overlap)))
+                carry = (
+                    moves.take(slice(n - 2 * overlap, n - overlap)),
+                    moves.take(slice(n - overlap, None)),
+                )
+            del est, moves
     finally:
         if writer is not None:
             writer.__exit__(None, None, None)
@@ -143,6 +195,7 @@ def estimate_file(
             f"{path}: the estimate is not a finite time with this profile "
             "(a limit too close to zero?)"
         )
+    summary["blocks"] = blocks
     summary["end_mm"] = end
     return summary, report
 

@@ -51,6 +51,24 @@ class Moves:
     def __len__(self) -> int:
         return int(self.length.shape[0])
 
+    _ARRAYS = ("delta", "length", "feed", "rapid", "exact_stop", "dwell_s", "line", "block")
+
+    def take(self, sl: slice) -> Moves:
+        """The segments of slice `sl`."""
+        kw = {k: getattr(self, k)[sl] for k in self._ARRAYS}
+        return Moves(**kw, rotary=None if self.rotary is None else self.rotary[sl])
+
+    @classmethod
+    def concat(cls, parts: list) -> Moves:
+        """Segments of `parts` one after the other."""
+        kw = {k: np.concatenate([getattr(p, k) for p in parts]) for k in cls._ARRAYS}
+        rot = None
+        if any(p.rotary is not None for p in parts):
+            rot = np.concatenate(
+                [p.rotary if p.rotary is not None else np.zeros((len(p), 3)) for p in parts]
+            )
+        return cls(**kw, rotary=rot)
+
     @property
     def rotary_only(self) -> np.ndarray:
         """Segments that move rotary axes and no linear one."""
@@ -137,6 +155,29 @@ class Estimate:
     @property
     def total_s(self) -> float:
         return float(self.time_s.sum())
+
+    def take(self, sl: slice) -> Estimate:
+        """The segments of slice `sl` with their times (planned in context)."""
+
+        def cut(a):
+            return None if a is None else a[sl]
+
+        opts = dict(self.options)
+        if "executed_s" in opts:  # the planner's whole-plan figure: this slice's time
+            opts["executed_s"] = float(self.time_s[sl].sum())
+        return Estimate(
+            model=self.model,
+            moves=self.moves.take(sl),
+            time_s=self.time_s[sl],
+            min_time_s=self.min_time_s[sl],
+            accel_s=cut(self.accel_s),
+            cruise_s=cut(self.cruise_s),
+            decel_s=cut(self.decel_s),
+            entry_mm_min=cut(self.entry_mm_min),
+            peak_mm_min=cut(self.peak_mm_min),
+            exit_mm_min=cut(self.exit_mm_min),
+            options=opts,
+        )
 
     def summary(self) -> dict:
         m = self.moves
