@@ -162,87 +162,173 @@ def blocks_from_gcode(
         dwell = np.where(is_dwell, seg.dwell_s, 0.0)
         est = _estimate(seg, feed, dwell, seg.start[0])
         moved_rot = np.any(np.abs(seg.rotary) > 1e-9, axis=1)
-        for i in range(n):
-            line = int(seg.line[i])
-            where = f"{path}:{line}"
-            if is_dwell[i]:
-                ms = int(round(float(seg.dwell_s[i]) * 1000))
-                if ms > DWELL_MAX_MS:
-                    raise UserError(
-                        f"{where}: dwell of {seg.dwell_s[i]:g} s does not fit the drive "
-                        f"(at most {DWELL_MAX_MS // 1000} s per G4)"
-                    )
-                if ms > 0:
-                    yield Block(pg.BlockKind.DWELL, prev, ms, False, float(est[i]), line)
-                continue
-            if moved_rot[i]:
-                axes = "".join("ABC"[k] for k in range(3) if abs(float(seg.rotary[i, k])) > 1e-9)
-                raise UserError(
-                    f"{where}: rotary axis motion ({' '.join(axes)}) is not supported by the "
-                    "drive (linear axes X Y Z only)"
-                )
-            target = []
+        fast = _fast(path, seg, is_dwell, feed, est, moved_rot, prev, limits, vmax, report)
+        if fast is None:  # something to refuse in this chunk: block by block, in order
+            prev = yield from _one_by_one(
+                path, seg, is_dwell, feed, est, moved_rot, prev, limits, vmax, report
+            )
+            continue
+        yield from fast
+        if fast:
+            prev = fast[-1].target_nm
+        del fast
+
+
+def _fast(path, seg, is_dwell, feed, est, moved_rot, prev, limits, vmax, report):
+    """The blocks of one chunk of segments, checked as arrays; None if a
+    segment must be refused (then :func:`_one_by_one` says which and why)."""
+    n = len(seg)
+    moves = ~is_dwell
+    with np.errstate(invalid="ignore", over="ignore"):
+        end_nm = seg.end * NM_PER_MM
+        bad = moves & ~np.all(np.abs(end_nm) <= POS_MAX_NM, axis=1)
+        bad |= moves & moved_rot
+        if np.any(bad):
+            return None
+        tgt = np.rint(end_nm)
+        d = tgt - np.vstack([np.array(prev, dtype=float)[None, :], tgt[:-1]])
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        bad |= moves & (length > POS_MAX_NM)
+        if limits is not None:
             for a in range(3):
-                v = float(seg.end[i, a])
-                check_position(where, a, v)
-                target.append(int(round(v * NM_PER_MM)))
-            target = tuple(target)
-            d = [t - p for t, p in zip(target, prev)]
-            if math.sqrt(sum(float(x) * x for x in d)) > POS_MAX_NM:
+                lo, hi = limits.soft_min_nm[a], limits.soft_max_nm[a]
+                if lo is not None:
+                    bad |= moves & (d[:, a] != 0) & ((tgt[:, a] < lo) | (tgt[:, a] > hi))
+        lin = moves & ~seg.rapid
+        f_nm = feed * (NM_PER_MM / 60.0)
+        bad |= lin & ~((f_nm >= FEED_MIN_NM_S) & (f_nm <= FEED_MAX_NM_S))
+        ms = np.rint(seg.dwell_s * 1000.0)
+        bad |= is_dwell & (ms > DWELL_MAX_MS)
+    if np.any(bad):
+        return None
+    if vmax is not None and report is not None:
+        sel = lin & (length > 0)
+        if np.any(sel):
+            u = np.abs(d[sel]) / length[sel, None]
+            with np.errstate(divide="ignore"):
+                cap = np.min(np.where(u > 0, vmax / u, np.inf), axis=1)
+            over = f_nm[sel] > cap * (1 + 1e-9)
+            if np.any(over):
+                k = int(np.argmax(over))
+                line = int(seg.line[np.nonzero(sel)[0][k]])
+                report.note(
+                    "feed capped",
+                    line,
+                    "feed above the drive's axis velocity limits on this path: "
+                    f"runs at {cap[k] * 60 / NM_PER_MM:.0f} mm/min here",
+                )
+                report.items["feed capped"].count += int(np.count_nonzero(over)) - 1
+    ti = tgt.astype(np.int64).tolist()
+    lines = seg.line.tolist()
+    stops = seg.exact_stop.tolist()
+    ests = est.tolist()
+    dw = is_dwell.tolist()
+    rapid = seg.rapid.tolist()
+    fi = np.maximum(1, np.rint(np.nan_to_num(f_nm))).astype(np.int64).tolist()
+    msl = ms.astype(np.int64).tolist()
+    out = []
+    cur = tuple(prev)
+    dwell_kind, rapid_kind, line_kind = pg.BlockKind.DWELL, pg.BlockKind.RAPID, pg.BlockKind.LINE
+    for i in range(n):
+        if dw[i]:
+            if msl[i] > 0:
+                out.append(Block(dwell_kind, cur, msl[i], False, ests[i], lines[i]))
+            continue
+        cur = tuple(ti[i])
+        if rapid[i]:
+            out.append(Block(rapid_kind, cur, 0, stops[i], ests[i], lines[i]))
+        else:
+            out.append(Block(line_kind, cur, fi[i], stops[i], ests[i], lines[i]))
+    return out
+
+
+def _one_by_one(path, seg, is_dwell, feed, est, moved_rot, prev, limits, vmax, report):
+    """The blocks of one chunk checked one at a time: raises at the first
+    segment the drive would refuse, with its line and reason; returns the
+    last target."""
+    n = len(seg)
+    for i in range(n):
+        line = int(seg.line[i])
+        where = f"{path}:{line}"
+        if is_dwell[i]:
+            ms = int(round(float(seg.dwell_s[i]) * 1000))
+            if ms > DWELL_MAX_MS:
                 raise UserError(
-                    f"{where}: a move of {math.dist(target, prev) / NM_PER_MM:g} mm is longer "
-                    f"than one drive block may be ({_mm(POS_MAX_NM)} mm)"
+                    f"{where}: dwell of {seg.dwell_s[i]:g} s does not fit the drive "
+                    f"(at most {DWELL_MAX_MS // 1000} s per G4)"
                 )
-            if limits is not None:
-                for a in range(3):
-                    lo, hi = limits.soft_min_nm[a], limits.soft_max_nm[a]
-                    if lo is None or d[a] == 0:
-                        continue
-                    if not lo <= target[a] <= hi:
-                        raise UserError(
-                            f"{where}: {'XYZ'[a]} {_mm(target[a])} mm is outside the drive's "
-                            f"soft limits {_mm(lo)}..{_mm(hi)} mm"
-                        )
-            if seg.rapid[i]:
-                yield Block(
-                    pg.BlockKind.RAPID,
-                    target,
-                    0,
-                    bool(seg.exact_stop[i]),
-                    float(est[i]),
-                    line,
-                )
-            else:
-                f = float(feed[i])
-                if not (math.isfinite(f) and f > 0):
-                    raise UserError(f"{where}: no feed for this move")
-                f_nm = f * NM_PER_MM / 60.0
-                if not FEED_MIN_NM_S <= f_nm <= FEED_MAX_NM_S:
+            if ms > 0:
+                yield Block(pg.BlockKind.DWELL, prev, ms, False, float(est[i]), line)
+            continue
+        if moved_rot[i]:
+            axes = "".join("ABC"[k] for k in range(3) if abs(float(seg.rotary[i, k])) > 1e-9)
+            raise UserError(
+                f"{where}: rotary axis motion ({' '.join(axes)}) is not supported by the "
+                "drive (linear axes X Y Z only)"
+            )
+        target = []
+        for a in range(3):
+            v = float(seg.end[i, a])
+            check_position(where, a, v)
+            target.append(int(round(v * NM_PER_MM)))
+        target = tuple(target)
+        d = [t - p for t, p in zip(target, prev)]
+        if math.sqrt(sum(float(x) * x for x in d)) > POS_MAX_NM:
+            raise UserError(
+                f"{where}: a move of {math.dist(target, prev) / NM_PER_MM:g} mm is longer "
+                f"than one drive block may be ({_mm(POS_MAX_NM)} mm)"
+            )
+        if limits is not None:
+            for a in range(3):
+                lo, hi = limits.soft_min_nm[a], limits.soft_max_nm[a]
+                if lo is None or d[a] == 0:
+                    continue
+                if not lo <= target[a] <= hi:
                     raise UserError(
-                        f"{where}: feed F{f:g} mm/min does not fit the drive "
-                        f"({FEED_MIN_NM_S * 60 / NM_PER_MM:g}..{FEED_MAX_NM_S * 60 // NM_PER_MM} "
-                        "mm/min)"
+                        f"{where}: {'XYZ'[a]} {_mm(target[a])} mm is outside the drive's "
+                        f"soft limits {_mm(lo)}..{_mm(hi)} mm"
                     )
-                if vmax is not None and any(d):
-                    u = np.abs(np.array(d, dtype=float)) / math.sqrt(sum(float(x) * x for x in d))
-                    with np.errstate(divide="ignore"):
-                        cap = float(np.min(np.where(u > 0, vmax / u, np.inf)))
-                    if f_nm > cap * (1 + 1e-9) and report is not None:
-                        report.note(
-                            "feed capped",
-                            line,
-                            "feed above the drive's axis velocity limits on this path: "
-                            f"runs at {cap * 60 / NM_PER_MM:.0f} mm/min here",
-                        )
-                yield Block(
-                    pg.BlockKind.LINE,
-                    target,
-                    max(1, int(round(f_nm))),
-                    bool(seg.exact_stop[i]),
-                    float(est[i]),
-                    line,
+        if seg.rapid[i]:
+            yield Block(
+                pg.BlockKind.RAPID,
+                target,
+                0,
+                bool(seg.exact_stop[i]),
+                float(est[i]),
+                line,
+            )
+        else:
+            f = float(feed[i])
+            if not (math.isfinite(f) and f > 0):
+                raise UserError(f"{where}: no feed for this move")
+            f_nm = f * NM_PER_MM / 60.0
+            if not FEED_MIN_NM_S <= f_nm <= FEED_MAX_NM_S:
+                raise UserError(
+                    f"{where}: feed F{f:g} mm/min does not fit the drive "
+                    f"({FEED_MIN_NM_S * 60 / NM_PER_MM:g}..{FEED_MAX_NM_S * 60 // NM_PER_MM} "
+                    "mm/min)"
                 )
-            prev = target
+            if vmax is not None and any(d):
+                u = np.abs(np.array(d, dtype=float)) / math.sqrt(sum(float(x) * x for x in d))
+                with np.errstate(divide="ignore"):
+                    cap = float(np.min(np.where(u > 0, vmax / u, np.inf)))
+                if f_nm > cap * (1 + 1e-9) and report is not None:
+                    report.note(
+                        "feed capped",
+                        line,
+                        "feed above the drive's axis velocity limits on this path: "
+                        f"runs at {cap * 60 / NM_PER_MM:.0f} mm/min here",
+                    )
+            yield Block(
+                pg.BlockKind.LINE,
+                target,
+                max(1, int(round(f_nm))),
+                bool(seg.exact_stop[i]),
+                float(est[i]),
+                line,
+            )
+        prev = target
+    return prev
 
 
 def check_gcode(
