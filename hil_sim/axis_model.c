@@ -309,7 +309,8 @@ bool axis_init(axis_t *ax, const axis_params_t *p, double h)
     memset(ax, 0, sizeof *ax);
     if (!(h > 0.0) || !(p->I1 > 0.0) || !(p->I2 > 0.0) || !(p->La > 0.0) || !(p->l > 0.0) ||
         !(p->K >= 0.0) || !(p->B >= 0.0) || !(p->kx > 0.0) || !(p->vmax > 0.0) ||
-        !(p->enc_counts_per_rev >= 1.0) || !(p->ref_resolution > 0.0) ||
+        !(p->enc_counts_per_rev >= 1.0) || !(p->enc_counts_per_rev <= AXIS_ENC_COUNTS_MAX) ||
+        !(p->l * 2.0 * PI_D <= AXIS_LEAD_MAX_M) || !(p->ref_resolution > 0.0) ||
         p->pitch_n > AXIS_PITCH_MAX || p->coulomb_motor < 0.0 || p->coulomb_table < 0.0 ||
         p->backlash < 0.0 || p->enc_noise_counts < 0.0 || p->pitch_dir_band < 0.0 ||
         !(p->ref_noise >= 0.0)) {

@@ -68,6 +68,10 @@
 #define AXIS_NINPUT      3
 #define AXIS_PITCH_MAX   64
 #define AXIS_SUBSTEP_MAX 1000
+/* Largest encoder resolution and screw lead axis_init takes: the drive's
+ * count scale (counts * 1000 and lead in pm, sim.c) must fit int64. */
+#define AXIS_ENC_COUNTS_MAX 1e12
+#define AXIS_LEAD_MAX_M     1e3
 
 typedef struct {
     /* plant, SI units (names as in the model spec) */

@@ -251,9 +251,13 @@ int sim_set_substep(double max_s)
  * does not fit the decoder's int32 scale. */
 static int encoder_scale(double lead_m, double counts, int32_t *num, int32_t *den)
 {
-    int64_t n = (int64_t)floor(lead_m * 1e12 + 0.5);
-    int64_t d = (int64_t)floor(counts + 0.5) * 1000;
-    int64_t g;
+    int64_t n, d, g;
+    /* both products must fit int64 before the casts (1e18 < 2^63) */
+    if (!(lead_m > 0.0 && lead_m <= 1e6) || !(counts >= 1.0 && counts <= 1e15)) {
+        return 0;
+    }
+    n = (int64_t)floor(lead_m * 1e12 + 0.5);
+    d = (int64_t)floor(counts + 0.5) * 1000;
     if (n <= 0 || d <= 0) {
         return 0;
     }

@@ -106,12 +106,12 @@ def _triple(name: str, values, scale: float, low: float, high: float) -> list:
             raise UserError(f"{name}: not a number: {v!r}") from exc
         if not math.isfinite(f):
             raise UserError(f"{name}: must be finite, got {v!r}")
-        n = int(round(f * scale))
-        if n < low or n > high:
+        x = f * scale
+        if not (math.isfinite(x) and low <= round(x) <= high):
             raise UserError(
                 f"{name}: {f:g} is outside the planner's range [{low / scale:g}, {high / scale:g}]"
             )
-        out.append(n)
+        out.append(int(round(x)))
     return out
 
 

@@ -90,7 +90,7 @@ def test_the_reported_moves_run_from_the_command_line(server, tuned, program, tm
     job.write_text("G90 G0 X0 Y0 Z0\n" + program)
     rc, out, err = run_cli(["run", str(job), "--port", server.serial, "--quiet"], capsys)
     assert rc == 0, err
-    target = blocks_from_gcode(str(job))[-1].target_nm
+    target = list(blocks_from_gcode(str(job)))[-1].target_nm
     with connect(port=server.serial) as c:
         st = settle(c, target, END_COUNTS * count_nm(tuned, "x"))
         assert st["state"] == pg.State.READY and st["faults"] == 0
@@ -139,7 +139,7 @@ def test_rapids_and_feeds_at_the_limits(server, tuned, tmp_path):
     with connect(port=server.serial) as c:
         ready(c)
         st = c.status()
-        blocks = blocks_from_gcode(str(job), start_mm=[p / 1e6 for p in st["pos"][:3]])
+        blocks = list(blocks_from_gcode(str(job), start_mm=[p / 1e6 for p in st["pos"][:3]]))
 
         def sample(d) -> None:
             nonlocal samples

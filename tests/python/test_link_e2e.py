@@ -202,7 +202,7 @@ def test_ctrl_c_during_a_job_stops_in_a_controlled_way(server, tmp_path):
         fresh(c)
         x0 = c.status()["pos"][0] / 1e6
         job.write_text(f"G21 G90\nG1 X{x0 + 30:.4f} F1200\n")
-        blocks = blocks_from_gcode(str(job), start_mm=[x0, 0, 0])
+        blocks = list(blocks_from_gcode(str(job), start_mm=[x0, 0, 0]))
         calls = []
 
         def interrupt(p):

@@ -518,4 +518,5 @@ def test_refused_block_names_the_program_line(server, transport, tmp_path, capsy
         "G21 G91\nG1 X0.1 F600\nG1 X10000000000\n"
     )  # 10 000 km: beyond the drive's range
     rc, _, err = run_cli(["run", str(job), "--quiet", *args], capsys)
-    assert rc == 1 and f"{job}:3: drive refused" in err, err
+    # refused by run's first pass, before any block is sent (issue 17)
+    assert rc == 1 and f"{job}:3: X target 1e+10 mm is out of range" in err, err

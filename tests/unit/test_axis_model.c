@@ -53,6 +53,22 @@ static void test_expm_of_rotation_generator(void)
     TEST_ASSERT_DOUBLE_WITHIN(1e-12, cos(4.17), e[3]);
 }
 
+/* A machine file's encoder_lines = 1e19 or a huge lead is refused here,
+ * before the drive's int64 count scale (sim.c) could overflow. */
+static void test_init_refuses_an_encoder_or_lead_out_of_range(void)
+{
+    axis_params_t p;
+    axis_t a;
+    axis_params_lacerda(&p, false);
+    p.enc_counts_per_rev = AXIS_ENC_COUNTS_MAX;
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-4));
+    p.enc_counts_per_rev = 4e19;
+    TEST_ASSERT_FALSE(axis_init(&a, &p, 1e-4));
+    p.enc_counts_per_rev = 4000.0;
+    p.l = 1e6;
+    TEST_ASSERT_FALSE(axis_init(&a, &p, 1e-4));
+}
+
 /* One step of h*n equals n steps of h (exact discretisation). */
 static void test_one_long_step_equals_many_short_steps(void)
 {
@@ -264,6 +280,7 @@ int main(void)
     RUN_TEST(test_x_axis_eigenvalues_match_spec);
     RUN_TEST(test_y_axis_has_stiffer_table_mode);
     RUN_TEST(test_expm_of_rotation_generator);
+    RUN_TEST(test_init_refuses_an_encoder_or_lead_out_of_range);
     RUN_TEST(test_one_long_step_equals_many_short_steps);
     RUN_TEST(test_steady_speed_from_back_emf);
     RUN_TEST(test_voltage_limit_clamps_command);

@@ -5,9 +5,8 @@ from __future__ import annotations
 import json
 import math
 
-from contour import gcode
 from contour.errors import UsageError
-from contour.estimation import DEFAULT_MODEL, MODELS, estimate_program, parse_options
+from contour.estimation import DEFAULT_MODEL, MODELS, estimate_file, parse_options
 from contour.estimation import profile as profiles
 
 
@@ -38,6 +37,11 @@ def register(sub) -> None:
         metavar="KEY=VALUE",
         help="model option (camargo2017: see docs/estimation.md); repeatable",
     )
+    p.add_argument(
+        "--tool-table",
+        metavar="FILE",
+        help="LinuxCNC tool table for cutter compensation (G41/G42 with D)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--per-block", metavar="CSV", help="write the time of every segment to CSV")
     p.set_defaults(func=run)
@@ -58,24 +62,30 @@ def run(args) -> int:
         raise UsageError(f"--feed must be a positive number (mm/min), got {args.feed}")
     profile = profiles.load(args.profile)
     options = parse_options(args.model, args.option)
-    program = gcode.read(args.file, default_feed=args.feed)
-    est = estimate_program(program, profile, args.model, options)
-    summary = est.summary()
-    skipped = [s.as_dict() for s in program.skipped_list()]
-    if args.per_block:
-        est.write_csv(args.per_block)
+    summary, report = estimate_file(
+        args.file,
+        profile,
+        args.model,
+        options,
+        default_feed=args.feed,
+        per_block_csv=args.per_block,
+        tool_table=args.tool_table,
+    )
+    skipped = report.as_dicts()
     if args.json:
         out = {
             "file": str(args.file),
             "profile": str(args.profile),
             **summary,
-            "lines": program.lines_read,
-            "program_blocks": len(program),
+            "lines": report.lines_read,
+            "program_blocks": summary["blocks"],
             "skipped": skipped,
         }
         print(json.dumps(out, allow_nan=False, default=float))
         return 0
-    print(f"file:        {args.file} ({program.lines_read} lines, {len(program)} motion blocks)")
+    print(
+        f"file:        {args.file} ({report.lines_read} lines, {summary['blocks']} motion blocks)"
+    )
     print(f"profile:     {args.profile}" + (f" ({profile.name})" if profile.name else ""))
     print(f"model:       {summary['model']}")
     print(f"total time:  {_fmt_s(summary['total_s'])}")
@@ -94,11 +104,5 @@ def run(args) -> int:
     opts = {k: v for k, v in summary["options"].items()}
     if opts:
         print("options:     " + ", ".join(f"{k}={v}" for k, v in opts.items()))
-    if skipped:
-        print("skipped (not interpreted), first line and count:")
-        for s in skipped:
-            note = f"  ({s['note']})" if s["note"] else ""
-            print(f"  {s['kind']:<16} line {s['first_line']:<6} x{s['count']}{note}")
-    else:
-        print("skipped:     nothing")
+    print("\n".join(report.text()))
     return 0

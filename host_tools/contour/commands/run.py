@@ -7,16 +7,24 @@ in-position window of the program's end point; the measured end position and
 the largest following error of the job are reported. A fault or a refused
 block names the program line (exit 1). Ctrl-C brings the axes to a
 controlled stop before exiting.
+
+Two passes over the file: the first builds and checks every block against
+the protocol and the drive's soft and velocity limits (read from the drive)
+and prints the report (:mod:`contour.program`); only a program that passes
+is streamed, by the second pass. Nothing moves for a program refused
+anywhere in it.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import sys
 
 from contour.errors import Terminated, UsageError, UserError
+from contour.link.blocks import DriveLimits, blocks_from_gcode, check_gcode
 from contour.link.options import connect_from_args, link_options
-from contour.link.stream import Streamer, blocks_from_gcode
+from contour.link.stream import Streamer
 from contour.progress import Bar
 
 
@@ -25,13 +33,26 @@ def run(args) -> int:
         raise UsageError("--queue-s must be 0.05..60 s")
     if args.in_position_um is not None and not 0.001 <= args.in_position_um <= 10000:
         raise UsageError("--in-position-um must be 0.001..10000")
+    if args.feed is not None and not (args.feed > 0 and math.isfinite(args.feed)):
+        raise UsageError(f"--feed must be a positive number (mm/min), got {args.feed}")
+    if not (args.chord_mm > 0 and math.isfinite(args.chord_mm)):
+        raise UsageError(f"--chord-mm must be a positive number, got {args.chord_mm}")
     with connect_from_args(args) as client:
         st = client.status()
         start = [p / 1e6 for p in st["pos"][:3]]
-        blocks = blocks_from_gcode(args.file, start_mm=start, chord_mm=args.chord_mm)
-        if not blocks:
+        limits = DriveLimits.read(client, axes=client.identify()["axes"])
+        checked = check_gcode(
+            args.file, start, args.chord_mm, args.feed, limits, tool_table=args.tool_table
+        )
+        if not checked.blocks:
             raise UserError(f"{args.file}: no motion blocks")
-        total = sum(b.est_s for b in blocks)
+        if not args.json:
+            print("\n".join(checked.report.text()), flush=True)
+        blocks = blocks_from_gcode(
+            args.file, start, args.chord_mm, args.feed, limits, tool_table=args.tool_table
+        )
+        extra = {"total": checked.blocks, "est_total_s": checked.est_s}
+        total = checked.est_s
         bar = Bar(
             total=round(total, 2),
             unit="s",
@@ -49,6 +70,7 @@ def run(args) -> int:
         streamer = Streamer(
             client,
             blocks,
+            **extra,
             queue_s=args.queue_s,
             on_progress=progress,
             source=args.file,
@@ -70,6 +92,8 @@ def run(args) -> int:
         finally:
             bar.close()
     result["position_mm"] = [p / 1e6 for p in result.pop("position_nm")]
+    result["dwell_s"] = checked.dwell_s
+    result["skipped"] = checked.report.as_dicts()
     if args.json:
         print(json.dumps(result, indent=2))
     else:
@@ -93,6 +117,18 @@ def register(sub) -> None:
     )
     p.add_argument(
         "--chord-mm", type=float, default=0.001, help="arc chord tolerance, mm (default 0.001)"
+    )
+    p.add_argument(
+        "--feed",
+        type=float,
+        default=None,
+        metavar="F",
+        help="default feed (mm/min) for feeds the file does not define (F=R0, no F)",
+    )
+    p.add_argument(
+        "--tool-table",
+        metavar="FILE",
+        help="LinuxCNC tool table for cutter compensation (G41/G42 with D)",
     )
     p.add_argument(
         "--in-position-um",

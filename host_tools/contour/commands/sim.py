@@ -89,6 +89,11 @@ def register(sub) -> None:
     r.add_argument("file", metavar="FILE.nc")
     _common(r)
     r.add_argument("--feed", type=float, default=None, help="default feed, mm/min")
+    r.add_argument(
+        "--tool-table",
+        metavar="FILE",
+        help="LinuxCNC tool table for cutter compensation (G41/G42 with D)",
+    )
     r.set_defaults(func=cmd_run)
 
     d = ss.add_parser("demo", help="the thesis's nine circle cases beside its numbers")
@@ -163,6 +168,7 @@ def cmd_circle(args) -> int:
 
 
 def cmd_run(args) -> int:
+    from contour.program import report_text
     from contour.sim import job
 
     rep = job.run_job(
@@ -173,6 +179,7 @@ def cmd_run(args) -> int:
         tick_hz=args.tick_hz,
         default_feed=args.feed,
         encoder_model=args.encoder_model,
+        tool_table=args.tool_table,
     )
     if args.json:
         print(json.dumps(rep))
@@ -184,8 +191,7 @@ def cmd_run(args) -> int:
         )
         print(f"  following error: max {rep['max_following_error_um']:.3f} um")
         print(f"  faults: {', '.join(rep['faults']) or 'none'}")
-        for s in rep["skipped"]:
-            print(f"  skipped: {s}")
+        print("\n".join(report_text(rep["skipped"])))
     return 1 if rep["faults"] else 0
 
 

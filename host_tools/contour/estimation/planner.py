@@ -23,8 +23,13 @@ motion.lookahead_blocks        depth
 =============================  ==========================================
 
 G0 moves run at ``rapid_feed_mm_min`` (the planner still holds each axis to
-its own limit). Segments that move only rotary axes have no length for the
-three-axis planner and take no time; their count is reported.
+its own limit). Rotary axes (machine-axis kinematics, no tool-tip
+transformation): a block that moves A/B/C with X/Y/Z is planned on its X Y Z
+path with its feed capped by the rotary velocity limits
+(:class:`~contour.estimation.result.Moves`; the rotary acceleration is not
+a constraint of the three-axis planner); a block that moves only rotary axes
+comes to rest before and after (the planner sees no motion) and is timed rest
+to rest with the rotary velocity and acceleration limits.
 """
 
 from __future__ import annotations
@@ -70,11 +75,16 @@ def run(moves: Moves, profile):
 
     planner = Planner(planner_profile(profile))
     ends = np.cumsum(moves.delta, axis=0)
+    stop = moves.exact_stop
+    ro = moves.rotary_only
+    if np.any(ro):  # the linear axes rest while only rotary axes move
+        stop = stop | ro
+        stop[:-1] |= ro[1:]
     try:
         return planner.estimate(
             ends,
             moves.feed,
-            exact_stop=moves.exact_stop,
+            exact_stop=stop,
             dwell_s=moves.dwell_s,
             tags=np.asarray(moves.line, dtype=np.uint32),
         )
@@ -86,23 +96,49 @@ def run(moves: Moves, profile):
         raise
 
 
+def rest_to_rest_s(distance, v, a) -> np.ndarray:
+    """Time of a rest-to-rest trapezoidal move (arrays, any unit)."""
+    d = np.abs(np.asarray(distance, dtype=float))
+    v = np.asarray(v, dtype=float)
+    a = np.asarray(a, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(d * a >= v * v, d / v + v / a, 2.0 * np.sqrt(d / a))
+    return np.where(d > 0, t, 0.0)
+
+
+def rotary_only_times(moves: Moves, profile) -> np.ndarray:
+    """Rest-to-rest time of each segment that moves only rotary axes (0
+    elsewhere): each rotary axis at its share of the feed (degrees/min along
+    the rotary move) and its acceleration limit; the slowest axis counts."""
+    out = np.zeros(len(moves))
+    sel = moves.rotary_only
+    if not np.any(sel):
+        return out
+    rot = np.abs(moves.rotary[sel])
+    norm = np.sqrt(np.einsum("ij,ij->i", rot, rot))
+    v = moves.feed[sel, None] / 60.0 * rot / norm[:, None]
+    vmax = np.asarray(profile.rotary_values("max_velocity_deg_min"), dtype=float) / 60.0
+    amax = np.asarray(profile.rotary_values("max_acceleration_deg_s2"), dtype=float)
+    v = np.minimum(v, vmax)
+    out[sel] = rest_to_rest_s(rot, np.maximum(v, 1e-12), amax).max(axis=1)
+    return out
+
+
 def estimate(moves: Moves, profile, options: dict) -> Estimate:
     res = run(moves, profile)
     b = res.blocks
-    rot_only = int(np.count_nonzero((moves.length > 0) & b["skipped"] & (moves.dwell_s == 0)))
+    t_rot = rotary_only_times(moves, profile)
     used = {
         "corner_rule": profile.motion["corner_rule"],
         "velocity_profile": profile.motion["velocity_profile"],
         "block_time_rule": profile.motion["block_time_rule"],
         "lookahead_blocks": profile.motion["lookahead_blocks"],
-        "executed_s": res.executed_s,
+        "executed_s": res.executed_s + float(t_rot.sum()),
     }
-    if rot_only:
-        used["rotary_only_segments_not_timed"] = rot_only
     return Estimate(
         model=NAME,
         moves=moves,
-        time_s=b["t_total_s"].copy(),
+        time_s=b["t_total_s"] + t_rot,
         min_time_s=b["t_mbt_s"].copy(),
         accel_s=b["t_acc_s"].copy(),
         cruise_s=b["t_cruise_s"].copy(),

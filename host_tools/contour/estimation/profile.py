@@ -1,7 +1,8 @@
 """Machine profiles: the limits and habits of one machine, in TOML.
 
 A profile has a ``[motion]`` table (path-level settings), one
-``[axes.<A>]`` table per linear axis (X, Y, Z) and optional per-model option
+``[axes.<A>]`` table per linear axis (X, Y, Z), optional tables of the rotary
+axes (A, B, C: velocity and acceleration limits) and optional per-model option
 tables (``[camargo2017]``). Every field is listed in :data:`MOTION_FIELDS`
 and :data:`AXIS_FIELDS` with its unit, its meaning and how to measure it;
 ``docs/estimation.md`` carries the same table. Unknown keys are an error (a
@@ -40,6 +41,8 @@ AXIS_FIELDS = (
         "Highest speed of the axis (its rapid rate).",
         "Machine data sheet, or time a long G0 move on this axis alone and "
         "divide its length by the time once the speed is constant.",
+        low=1e-3,
+        high=1e6,
     ),
     Field(
         "max_acceleration_mm_s2",
@@ -49,6 +52,8 @@ AXIS_FIELDS = (
         "Run the reversal test (+S/-S repeated, exp3 of camargo2017) for S of "
         "0.2 to 1 mm: a rest-to-rest move takes about 2*sqrt(S/a). Or fit it "
         "with `contour fit-profile`.",
+        low=1e-6,
+        high=1e7,
     ),
     Field(
         "max_jerk_mm_s3",
@@ -56,6 +61,8 @@ AXIS_FIELDS = (
         50000.0,
         "Jerk limit of the axis (S-curve profiles).",
         "The reversal test with S of 0.001 to 0.05 mm: short moves take about (32*S/j)^(1/3).",
+        low=1e-6,
+        high=1e10,
     ),
     Field(
         "corner_acceleration_mm_s2",
@@ -66,6 +73,7 @@ AXIS_FIELDS = (
         "the two blocks, du_i the change of the unit direction on axis i.",
         "Staircases with small direction changes (exp2 of camargo2017): run "
         "them and fit with `contour fit-profile`.",
+        high=1e7,
     ),
     Field(
         "corner_velocity_step_mm_min",
@@ -75,6 +83,35 @@ AXIS_FIELDS = (
         "allowed at a corner without slowing down (v = min_i step_i / |du_i|).",
         "The control's data (e.g. grbl-like 'jerk' settings), or fit it on "
         "corner tests with `contour fit-profile`.",
+        high=1e6,
+    ),
+)
+
+ROTARY_NAMES = ("A", "B", "C")
+
+ROTARY_FIELDS = (
+    Field(
+        "max_velocity_deg_min",
+        "deg/min",
+        7200.0,
+        "Highest speed of the rotary axis (20 rev/min by default). A block that "
+        "moves it with X Y Z runs no faster than lets the rotary axis keep up "
+        "(machine-axis kinematics: the rotary motion is synchronised with the "
+        "linear one, no tool-tip transformation).",
+        "Machine data sheet, or time a G0 of several turns and divide.",
+        low=1e-3,
+        high=1e7,
+    ),
+    Field(
+        "max_acceleration_deg_s2",
+        "deg/s²",
+        3600.0,
+        "Acceleration limit of the rotary axis: a block that moves only rotary "
+        "axes is timed rest to rest with it.",
+        "Time short indexing moves (G0 C5, G0 C0 ...): a rest-to-rest move of "
+        "D degrees takes about 2*sqrt(D/a).",
+        low=1e-6,
+        high=1e8,
     ),
 )
 
@@ -85,6 +122,8 @@ MOTION_FIELDS = (
         30000.0,
         "Path speed of G0 moves (each axis is still held to its own limit).",
         "Machine data sheet (rapid traverse), or time a long G0 move.",
+        low=1e-3,
+        high=1e6,
     ),
     Field(
         "min_block_time_s",
@@ -94,6 +133,7 @@ MOTION_FIELDS = (
         "Run a long staircase of tiny collinear blocks (0.001 mm at F15000, "
         "exp1 of camargo2017): time / blocks. 0 turns it off.",
         zero_ok=True,
+        high=10.0,
     ),
     Field(
         "block_time_rule",
@@ -139,6 +179,7 @@ MOTION_FIELDS = (
         "Cornering tolerance: the deviation from the corner allowed at the "
         "junction speed (junction-deviation rule).",
         "The path tolerance the user accepts (CAM tolerance order); larger is faster.",
+        high=1000.0,
     ),
     Field(
         "velocity_profile",
@@ -160,6 +201,7 @@ MOTION_FIELDS = (
         0.001,
         "Arcs are split into chords that deviate from the arc by at most this.",
         "The chord tolerance of the drive; CAM tolerance order.",
+        high=1000.0,
     ),
     Field(
         "lookahead_blocks",
@@ -167,6 +209,8 @@ MOTION_FIELDS = (
         64,
         "Depth of the planner's look-ahead buffer.",
         "Fixed by the drive's build (64); for another control, its data sheet.",
+        low=1.0,
+        high=65536.0,
     ),
 )
 
@@ -198,6 +242,10 @@ class Profile:
 
     def axis_values(self, key: str) -> list:
         return [self.data["axes"][a][key] for a in AXIS_NAMES]
+
+    def rotary_values(self, key: str) -> list:
+        """A rotary field of A, B, C (``max_velocity_deg_min`` ...)."""
+        return [self.data["axes"][a][key] for a in ROTARY_NAMES]
 
     def options(self, table: str) -> dict:
         return dict(self.data.get(table, {}))
@@ -279,8 +327,11 @@ def validate(data: dict, where: str) -> dict:
                 raise UserError(f"{where}: [axes] must hold one table per axis")
             axes = {}
             for axis, table in value.items():
+                if axis in ROTARY_NAMES:
+                    axes[axis] = _check_table(table, ROTARY_FIELDS, f"{where} [axes.{axis}]", True)
+                    continue
                 if axis not in AXIS_NAMES:
-                    names = ", ".join(AXIS_NAMES)
+                    names = ", ".join(AXIS_NAMES + ROTARY_NAMES)
                     raise UserError(f"{where}: unknown axis '{axis}' (profiles describe {names})")
                 axes[axis] = _check_table(table, AXIS_FIELDS, f"{where} [axes.{axis}]", True)
             out[key] = axes
@@ -296,6 +347,9 @@ def validate(data: dict, where: str) -> dict:
     for axis in AXIS_NAMES:
         if axis not in axes:
             axes[axis] = _check_table({}, AXIS_FIELDS, f"{where} [axes.{axis}]", True)
+    for axis in ROTARY_NAMES:
+        if axis not in axes:
+            axes[axis] = _check_table({}, ROTARY_FIELDS, f"{where} [axes.{axis}]", True)
     out["camargo2017"] = _check_table(
         out.get("camargo2017", {}), CAMARGO_FIELDS, f"{where} [camargo2017]", True
     )
@@ -373,6 +427,8 @@ def dumps(profile: Profile, header: str = "", comments: bool = True) -> str:
     _table(lines, "motion", data["motion"], MOTION_FIELDS, comments)
     for axis in AXIS_NAMES:
         _table(lines, f"axes.{axis}", data["axes"][axis], AXIS_FIELDS, comments and axis == "X")
+    for axis in ROTARY_NAMES:
+        _table(lines, f"axes.{axis}", data["axes"][axis], ROTARY_FIELDS, comments and axis == "A")
     _table(lines, "camargo2017", data["camargo2017"], CAMARGO_FIELDS, comments)
     return "\n".join(lines) + "\n"
 

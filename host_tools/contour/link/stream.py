@@ -1,13 +1,11 @@
 """Stream motion blocks to the drive: batches, windowed flow control.
 
-:func:`blocks_from_gcode` turns a G-code file into drive blocks (arcs split
-by the reader within a chord tolerance, dwells as dwell blocks) with each
-block's estimated time from the host build of the drive's planner
-(:mod:`contour.planner`), falling back to length / feed when it is not
-available. :class:`Streamer` keeps the drive's planned time queued between
-``queue_s`` and ``queue_s / 2`` (and never sends into a full planner), polls
-``status_get`` while waiting (which is also the keep-alive for the drive's
-communication watchdog) and reports progress, live feed and ETA. On
+The blocks come from :mod:`contour.link.blocks` (:func:`blocks_from_gcode`,
+:class:`Block`, re-exported here). :class:`Streamer` sends them in
+``queue_batch`` messages (:mod:`contour.link.batch`), several in flight,
+within the window the drive's replies report (free bytes of its intake ring,
+planned time queued), and reports progress, live feed and ETA. The batches
+are the keep-alive for the drive's communication watchdog. On
 KeyboardInterrupt it commands a controlled stop, waits for the axes to come
 to rest and re-raises.
 """
@@ -23,81 +21,16 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Callable, Optional
 
-import numpy as np
-
 from contour import protocol_gen as pg
 from contour.errors import UserError
 from contour.link import batch as bt
+from contour.link.blocks import (  # noqa: F401 - re-exported
+    NM_PER_MM,
+    RAPID_MM_MIN,
+    Block,
+    blocks_from_gcode,
+)
 from contour.link.client import Client, DriveError
-
-NM_PER_MM = 1_000_000
-RAPID_MM_MIN = 30000.0  # for the estimate only; the drive caps rapids at its limits
-
-
-@dataclass
-class Block:
-    kind: int  # pg.BlockKind
-    target_nm: tuple  # 3 ints
-    feed_nm_s: int  # line: nm/s; dwell: ms
-    exact_stop: bool
-    est_s: float
-    line: int
-
-
-def blocks_from_gcode(path: str, start_mm=(0.0, 0.0, 0.0), chord_mm: float = 0.001):
-    from contour import gcode
-
-    prog = gcode.read(path, start=list(start_mm) + [0.0, 0.0, 0.0])
-    seg = gcode.segments(prog, chord_mm)
-    n = len(seg)
-    feed = np.where(seg.rapid, RAPID_MM_MIN, seg.feed)
-    est = None
-    try:
-        from contour.planner import Planner, PlannerProfile
-
-        res = Planner(PlannerProfile()).estimate(
-            seg.end, feed, exact_stop=seg.exact_stop, start_mm=tuple(start_mm)
-        )
-        est = np.asarray(res.blocks["t_total_s"], dtype=float)
-    except Exception:  # noqa: BLE001 - estimator unavailable: a plain estimate
-        est = None
-    if est is None or len(est) != n:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            est = np.nan_to_num(seg.length / (feed / 60.0))
-    blocks = []
-    for i in range(n):
-        target = tuple(int(round(v * NM_PER_MM)) for v in seg.end[i])
-        if seg.rapid[i]:
-            blocks.append(
-                Block(
-                    pg.BlockKind.RAPID,
-                    target,
-                    0,
-                    bool(seg.exact_stop[i]),
-                    float(est[i]),
-                    int(seg.line[i]),
-                )
-            )
-        else:
-            f = feed[i]
-            if not (math.isfinite(f) and f > 0):
-                raise UserError(f"{path}:{int(seg.line[i])}: no feed for this move")
-            blocks.append(
-                Block(
-                    pg.BlockKind.LINE,
-                    target,
-                    max(1, int(round(f * NM_PER_MM / 60.0))),
-                    bool(seg.exact_stop[i]),
-                    float(est[i]),
-                    int(seg.line[i]),
-                )
-            )
-        if seg.dwell_s[i] > 0:
-            ms = int(round(seg.dwell_s[i] * 1000))
-            blocks.append(
-                Block(pg.BlockKind.DWELL, target, ms, False, ms / 1000.0, int(seg.line[i]))
-            )
-    return blocks
 
 
 @dataclass

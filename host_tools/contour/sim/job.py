@@ -1,9 +1,12 @@
 """`contour sim run FILE.nc`: a G-code job through the drive's planner and
 loops on the simulated machine.
 
-The file is read by :mod:`contour.gcode`; lines, rapids (at the planner's
-v_max), arcs (the drive's own arc blocks) and dwells are queued as the drive
-accepts them. Reported: executed time (first tick with motion to the last
+The file is read through :func:`contour.program.chunks` in two passes, as
+``contour run`` reads it: the first checks every block
+(:func:`contour.link.blocks.check_gcode`, against the protocol and the
+machine's velocity limit) and collects the report; the second queues lines,
+rapids (at the planner's v_max), arcs (the drive's own arc blocks) and dwells
+as the drive accepts them. Reported: executed time (first tick with motion to the last
 tick before idle), following error (|reference - table| per axis), contour
 error = the distance of the true table position from the reference path
 (the polyline of the reference positions of all ticks, searched in a window
@@ -27,9 +30,24 @@ import numpy as np
 
 from contour import gcode
 from contour.errors import UserError
+from contour.link.blocks import DriveLimits, check_gcode
+from contour.program import chunks
 from contour.sim import core, machine
 
 RAPID_M_S = 0.5
+
+
+def machine_limits(m) -> DriveLimits:
+    """What the simulated drive of machine `m` takes (no soft limits)."""
+    v = int(round(m.planner["v_max"] * 1e9))
+    return DriveLimits(max_velocity_nm_s=(v, v, v))
+
+
+def _all_blocks(path, m, default_feed, tool_table=None) -> list:
+    out = []
+    for prog in chunks(path, default_feed=default_feed, tool_table=tool_table):
+        out.extend(_blocks(prog, m))
+    return out
 
 
 def _blocks(prog, m) -> list:
@@ -111,10 +129,13 @@ def run_job(
     max_s: float = 600.0,
     contour_error: bool = True,
     encoder_model: str | None = None,
+    tool_table=None,
 ) -> dict:
     m = machine.load(machine_file)
-    prog = gcode.read(path, default_feed=default_feed)
-    blocks = _blocks(prog, m)
+    checked = check_gcode(
+        path, default_feed=default_feed, limits=machine_limits(m), tool_table=tool_table
+    )
+    blocks = _all_blocks(path, m, default_feed, tool_table)
     if not blocks:
         raise UserError(f"{path}: no motion blocks")
     machine.apply(
@@ -164,6 +185,18 @@ def run_job(
         t0, t1 = full[moving[0], 0], full[moving[-1] + 1, 0]
     else:
         t0 = t1 = 0.0
+    # dwells before the first and after the last motion take time too
+    lead = trail = 0.0
+    for b in blocks:
+        if b[0] != "dwell":
+            break
+        lead += max(1, b[3]) / 1000.0
+    for b in reversed(blocks):
+        if b[0] != "dwell":
+            break
+        trail += max(1, b[3]) / 1000.0
+    if not moving.size:
+        lead, trail = lead + trail, 0.0
     ferr = np.abs(ref - act).max(axis=1)
     speed = np.linalg.norm(np.diff(ref, axis=0), axis=1).max() * hz if ref.shape[0] > 1 else 0
     lag_ticks = int(ferr.max() / max(speed, 1e-9) * hz) if speed > 0 else 10
@@ -177,7 +210,9 @@ def run_job(
     return {
         "file": str(path),
         "blocks": len(blocks),
-        "executed_s": float(t1 - t0),
+        "executed_s": float(t1 - t0) + lead + trail,
+        "dwell_s": sum(max(1, b[3]) / 1000.0 for b in blocks if b[0] == "dwell"),
+        "end_mm": [float(v) * 1e3 for v in ref[-1]] if ref.shape[0] else [0.0] * n_ax,
         "max_contour_error_um": float(ec.max() * 1e6),
         "rms_contour_error_um": float(np.sqrt((ec**2).mean()) * 1e6),
         "max_following_error_um": float(ferr.max() * 1e6),
@@ -187,9 +222,7 @@ def run_job(
         "controller": controller,
         "feedforward": feedforward,
         "machine": m.name,
-        "skipped": [
-            f"{s.kind} (first at line {s.first_line}, {s.count}x)" for s in prog.skipped_list()
-        ],
+        "skipped": checked.report.as_dicts(),
     }
 
 
@@ -227,6 +260,7 @@ def estimate_job(
     machine_file: str | None = None,
     tick_hz: float | None = None,
     default_feed: float | None = None,
+    tool_table=None,
 ) -> dict:
     """The drive's planner estimate of `path` on the simulated machine: the
     blocks :func:`run_job` queues, arcs cut into the drive's chords, planned
@@ -237,8 +271,8 @@ def estimate_job(
     from contour.planner import Planner
 
     m = machine.load(machine_file)
-    prog = gcode.read(path, default_feed=default_feed)
-    blocks = _blocks(prog, m)
+    check_gcode(path, default_feed=default_feed, limits=machine_limits(m), tool_table=tool_table)
+    blocks = _all_blocks(path, m, default_feed, tool_table)
     if not blocks:
         raise UserError(f"{path}: no motion blocks")
     machine.apply(m, tick_hz=tick_hz)

@@ -111,6 +111,39 @@ AXIS_KEYS = {
     "encoder_index",
     "index_phase_counts",
 }
+# Physical ranges of the axis keys (inclusive): beyond them the model or the
+# drive's fixed-point scales (encoder counts, lead in pm) overflow, or the
+# model's time constants become so short that setting it up never ends
+# (I1 = 1e-308).
+AXIS_RANGES = {
+    "lead_mm": (1e-3, 1e6),
+    "B": (0.0, 1e3),
+    "K": (0.0, 1e9),
+    "kb": (1e-6, 1e3),
+    "kt": (1e-6, 1e3),
+    "La": (1e-7, 1e3),
+    "I1": (1e-9, 1e3),
+    "I2": (1e-9, 1e3),
+    "Ra": (1e-4, 1e6),
+    "kx": (1e-6, 1e6),
+    "vmax": (1e-3, 1e6),
+    "encoder_lines": (1.0, 2.5e11),
+    "encoder_noise_counts": (0.0, 1e6),
+    "ref_resolution_nm": (1e-6, 1e6),
+    "ref_noise_nm": (0.0, 1e6),
+    "load_torque": (-1e6, 1e6),
+    "coulomb_motor": (0.0, 1e6),
+    "coulomb_table": (0.0, 1e9),
+    "backlash_um": (0.0, 1e6),
+    "pitch_dir_band_um": (0.0, 1e6),
+    "seed": (0.0, 2.0**53),
+    "home_switch_mm": (-1e6, 1e6),
+    "home_side": (-1.0, 1.0),
+    "encoder_index": (0.0, 1.0),
+    "index_phase_counts": (0.0, 1e12),
+}
+PLAN_MAX = {"v_max": 4.29, "a_max": 1e6, "j_max": 1e8, "junction_dev": 1.0, "arc_chord": 1.0}
+GAIN_MAX = 1e12
 GAIN_KEYS = {"kp", "ki", "kd", "d_tau", "d_on_measurement", "kt", "i_max", "out_max"}
 PLAN_KEYS = {"v_max", "a_max", "j_max", "junction_dev", "arc_chord"}
 FF_KEYS = {"kvff", "kaff", "scale", "scale_x", "scale_y", "scale_z", "friction", "mode"}
@@ -174,6 +207,18 @@ def _check_keys(d: dict, allowed: set, where: str, path: str) -> None:
         raise UserError(f"{path}: unknown key(s) in {where}: {', '.join(unknown)}")
 
 
+def _bool(v, key: str, path: str) -> bool:
+    if not isinstance(v, bool):
+        raise UserError(f"{path}: {key} must be true or false, got {v!r}")
+    return v
+
+
+def _table(v, where: str, path: str) -> dict:
+    if not isinstance(v, dict):
+        raise UserError(f"{path}: {where} must be a table")
+    return v
+
+
 def _num(v, key: str, path: str, lo: float = -math.inf, hi: float = math.inf) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         raise UserError(f"{path}: {key} must be a number, got {v!r}")
@@ -198,9 +243,13 @@ def resolve(name_or_path: str | None) -> Path:
 def load(name_or_path: str | None = None) -> Machine:
     path = resolve(name_or_path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(path.read_bytes().decode("utf-8"))
     except OSError as exc:
         raise UserError(f"cannot read {path}: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise UserError(
+            f"{path}: not a text (UTF-8) TOML file: {exc.reason} at byte {exc.start}"
+        ) from exc
     except tomllib.TOMLDecodeError as exc:
         raise UserError(f"{path}: invalid TOML: {exc}") from exc
     return from_dict(data, str(path))
@@ -242,17 +291,23 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
     for ax in AXES[: m.axes]:
         p = dict(LACERDA)
         p.update({"I2": I2[ax], "lead_mm": 5.0, "encoder_lines": 1000, "model": "lacerda1998"})
-        for src in (axis.get("all", {}), axis.get(ax, {})):
+        for src in (
+            _table(axis.get("all", {}), "[axis.all]", path),
+            _table(axis.get(ax, {}), f"[axis.{ax}]", path),
+        ):
             _check_keys(src, AXIS_KEYS, f"[axis.{ax}]", path)
             p.update(src)
         if p["model"] != "lacerda1998":
             raise UserError(f"{path}: unknown axis model {p['model']!r} (known: lacerda1998)")
         for k, v in p.items():
             if k not in ("model", "pitch_map"):
-                p[k] = _num(v, f"axis.{ax}.{k}", path)
+                lo, hi = AXIS_RANGES.get(k, (-math.inf, math.inf))
+                p[k] = _num(v, f"axis.{ax}.{k}", path, lo, hi)
         for k in ("lead_mm", "I1", "I2", "La", "Ra", "kt", "kb", "kx", "vmax", "encoder_lines"):
             if p[k] <= 0:
                 raise UserError(f"{path}: axis.{ax}.{k} must be positive, got {p[k]}")
+        if p["encoder_lines"] != int(p["encoder_lines"]):
+            raise UserError(f"{path}: axis.{ax}.encoder_lines must be a whole number")
         if p.get("home_side", -1) not in (-1, 0, 1):
             raise UserError(f"{path}: axis.{ax}.home_side must be -1, 0 or 1")
         if p.get("encoder_index", 1) not in (0, 1):
@@ -263,48 +318,63 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
                 raise UserError(
                     f"{path}: axis.{ax}.pitch_map must be a list of [pos_mm, fwd_um, rev_um]"
                 )
-            pos = [_num(r[0], "pitch_map position", path) for r in pm]
+            pos = [_num(r[0], "pitch_map position", path, -1e6, 1e6) for r in pm]
+            for r in pm:
+                for e in r[1:]:
+                    _num(e, "pitch_map error", path, -1e4, 1e4)
             if any(b <= a for a, b in zip(pos, pos[1:])):
                 raise UserError(f"{path}: axis.{ax}.pitch_map positions must increase")
             if len(pm) > 64:
                 raise UserError(f"{path}: axis.{ax}.pitch_map has more than 64 points")
         m.axis[ax] = p
-    planner = data.get("planner", {})
+    planner = _table(data.get("planner", {}), "[planner]", path)
     _check_keys(planner, PLAN_KEYS, "[planner]", path)
     m.planner = {"v_max": 1.0, "a_max": 20.0, "j_max": 2000.0, "junction_dev": 1e-5}
-    m.planner.update({k: _num(v, f"planner.{k}", path, 0) for k, v in planner.items()})
-    servo = data.get("servo", {})
+    m.planner.update({k: _num(v, f"planner.{k}", path, 0, PLAN_MAX[k]) for k, v in planner.items()})
+    servo = _table(data.get("servo", {}), "[servo]", path)
     _check_keys(servo, SERVO_KEYS, "[servo]", path)
     m.servo = {"ferr_limit_mm": 50.0, "sat_limit_s": 0.5, "stop_decel": 1.0}
-    m.servo.update({k: _num(v, f"servo.{k}", path, 0) for k, v in servo.items()})
-    gains = data.get("gains", {})
+    m.servo.update({k: _num(v, f"servo.{k}", path, 0, 1e6) for k, v in servo.items()})
+    gains = _table(data.get("gains", {}), "[gains]", path)
     _check_keys(gains, {"axis", "axis_x", "axis_y", "axis_z", "cec", "cec_line"}, "[gains]", path)
     base = {"kp": 1500.0, "ki": 8000.0, "kd": 5.0, "d_tau": 1e-4, "d_on_measurement": False}
-    base.update(gains.get("axis", {}))
+    base.update(_table(gains.get("axis", {}), "[gains.axis]", path))
     for ax in AXES[: m.axes]:
         g = dict(base)
-        g.update(gains.get(f"axis_{ax}", {}))
+        g.update(_table(gains.get(f"axis_{ax}", {}), f"[gains.axis_{ax}]", path))
         _check_keys(g, GAIN_KEYS, f"[gains.axis_{ax}]", path)
         m.gains[ax] = {
-            k: (bool(v) if k == "d_on_measurement" else _num(v, f"gains.{ax}.{k}", path, 0))
+            k: (
+                _bool(v, f"gains.{ax}.{k}", path)
+                if k == "d_on_measurement"
+                else _num(v, f"gains.{ax}.{k}", path, 0, GAIN_MAX)
+            )
             for k, v in g.items()
         }
     cec = {"kp": 0.0, "ki": 0.0, "kd": 0.0, "d_tau": 0.0}
-    cec.update(gains.get("cec", {}))
+    cec.update(_table(gains.get("cec", {}), "[gains.cec]", path))
     _check_keys(cec, GAIN_KEYS, "[gains.cec]", path)
     m.gains["cec"] = {
-        k: (bool(v) if k == "d_on_measurement" else _num(v, f"gains.cec.{k}", path, 0))
+        k: (
+            _bool(v, f"gains.cec.{k}", path)
+            if k == "d_on_measurement"
+            else _num(v, f"gains.cec.{k}", path, 0, GAIN_MAX)
+        )
         for k, v in cec.items()
     }
     if "cec_line" in gains:  # the thesis's line/curve gain switching (cec.h)
         cl = {"kp": 0.0, "ki": 0.0, "kd": 0.0, "d_tau": 0.0}
-        cl.update(gains["cec_line"])
+        cl.update(_table(gains["cec_line"], "[gains.cec_line]", path))
         _check_keys(cl, GAIN_KEYS, "[gains.cec_line]", path)
         m.gains["cec_line"] = {
-            k: (bool(v) if k == "d_on_measurement" else _num(v, f"gains.cec_line.{k}", path, 0))
+            k: (
+                _bool(v, f"gains.cec_line.{k}", path)
+                if k == "d_on_measurement"
+                else _num(v, f"gains.cec_line.{k}", path, 0, GAIN_MAX)
+            )
             for k, v in cl.items()
         }
-    ff = data.get("feedforward", {})
+    ff = _table(data.get("feedforward", {}), "[feedforward]", path)
     _check_keys(ff, FF_KEYS, "[feedforward]", path)
     ff = dict(ff)
     mode = ff.pop("mode", "none")
@@ -313,7 +383,7 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
             f"{path}: feedforward.mode must be one of {', '.join(FF_MODES)}, got {mode!r}"
         )
     m.ff_mode = mode
-    m.feedforward = {k: _num(v, f"feedforward.{k}", path, 0) for k, v in ff.items()}
+    m.feedforward = {k: _num(v, f"feedforward.{k}", path, 0, 1e6) for k, v in ff.items()}
     return m
 
 
