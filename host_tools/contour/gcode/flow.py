@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import re
 
+from contour.gcode.fastscan import SCAN, SCAN_WORDS
 from contour.gcode.lexer import (
     LINE_CAP,
     Block,
@@ -157,6 +158,12 @@ class Runner:
                             if words:
                                 yield Block(lineno, words)
                             continue
+                    if raw is SCAN:
+                        # C takes the plain lines that follow (fastscan).
+                        blk = Block(lineno - 1, SCAN_WORDS)
+                        yield blk
+                        lineno = blk.line
+                        continue
                     f.lineno = lineno
                     text = clean(raw, lineno)
                     if text is None:
