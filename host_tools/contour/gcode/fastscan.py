@@ -24,13 +24,14 @@ from __future__ import annotations
 
 import ctypes
 import os
+import re
 from array import array
 
 from contour.gcode.lexer import LINE_CAP
 
 PIECE = 1 << 20  # characters read from the file at a time
 ROWS = 16384  # rows C writes before Python appends them to the columns
-_NAN = float("nan")
+_NON_ASCII = re.compile(r"[^\x00-\x7f]")
 
 
 class _Scan:
@@ -85,7 +86,8 @@ class FastSource:
         self.lib = lib
         self.limit = rows or 0
         self.buf = ""
-        self.bbuf = b""  # the ASCII prefix of buf, encoded
+        self.bbuf = b""  # buf[boff:boff + len(bbuf)], all ASCII, encoded
+        self.boff = 0
         self.pos = 0
         self.eof = False
         self.armed = True
@@ -121,14 +123,20 @@ class FastSource:
         if not more:
             self.eof = True
             return False
-        buf = self.buf[self.pos :] + more
-        self.buf = buf
+        self.buf = self.buf[self.pos :] + more
         self.pos = 0
-        try:
-            self.bbuf = buf.encode("ascii")
-        except UnicodeEncodeError as exc:
-            self.bbuf = buf[: exc.start].encode("ascii")
+        self._segment()
         return True
+
+    def _segment(self) -> None:
+        """bbuf: the ASCII run of buf from pos (C reads only ASCII; a line
+        with other characters goes to Python)."""
+        buf = self.buf
+        pos = self.pos
+        m = _NON_ASCII.search(buf, pos)
+        end = len(buf) if m is None else m.start()
+        self.bbuf = buf[pos:end].encode("ascii")
+        self.boff = pos
 
     def __next__(self):
         if self.armed:
@@ -190,9 +198,12 @@ class FastSource:
                     break  # the interpreter splits the chunk at the next block
             st.rows = 0
             st.cap = cap
+            if self.pos >= self.boff + len(self.bbuf):
+                self._segment()
             bbuf = self.bbuf
+            boff = self.boff
             n = len(bbuf)
-            self.pos = gcode_scan(bbuf, n, self.pos, ref)
+            self.pos = boff + gcode_scan(bbuf, n, self.pos - boff, ref)
             rows = st.rows
             if rows:
                 cols.kind.frombytes(self.kind_b[:rows])
@@ -204,7 +215,11 @@ class FastSource:
                 continue  # the row arrays were full
             # Stopped at a line it does not take (Python's), or at the end
             # of what is read so far (read on, unless the rest is not ASCII).
-            if bbuf.find(b"\n", self.pos) >= 0 or n < len(self.buf) or not self._fill():
+            if (
+                bbuf.find(b"\n", self.pos - boff) >= 0
+                or boff + n < len(self.buf)
+                or not self._fill()
+            ):
                 break
         taken = st.line - lineno
         self.lines_taken += taken

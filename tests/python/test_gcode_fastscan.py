@@ -1,0 +1,294 @@
+"""The C fast path of the G-code reader (contour.gcode.fastscan,
+hil_sim/gcode_scan.c) against the pure Python reader, its reference: seeded
+generated CAM-like files read both ways give the same Program, column by
+column and bit by bit, the same report and lines read, the same chunks from
+read_chunks, and the same error (message and line) for files with faults."""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+import pytest
+from contour import gcode
+from contour.gcode import fastscan
+
+pytestmark = pytest.mark.skipif(
+    fastscan.library() is None, reason="host library not built (make host)"
+)
+
+COLUMNS = (
+    "start",
+    "kind",
+    "end",
+    "feed",
+    "centre",
+    "plane",
+    "turns",
+    "exact_stop",
+    "dwell_s",
+    "line",
+)
+
+
+def _num(rng: random.Random, lo=-200.0, hi=200.0) -> str:
+    """A number as CAM and hand-written files write them."""
+    v = rng.uniform(lo, hi)
+    form = rng.random()
+    if form < 0.55:
+        return f"{v:.{rng.choice((3, 3, 4, 1, 0))}f}"
+    if form < 0.65:
+        return f"{v:+.3f}"
+    if form < 0.72:
+        return f"{int(v)}."
+    if form < 0.78:
+        return "." + str(rng.randrange(1, 99999))
+    if form < 0.82:
+        return "-." + str(rng.randrange(0, 999))
+    if form < 0.86:
+        return "00" + f"{abs(v):.3f}"
+    if form < 0.89:
+        return rng.choice(("0", "-0", "-0.000", "+0.", "0.0000000"))
+    if form < 0.93:
+        return repr(v)  # 17 significant digits
+    if form < 0.96:
+        return f"{v:.12f}"  # more digits than double precision after the point
+    return "0000" + str(rng.randrange(0, 10 ** rng.randrange(1, 4)))  # leading zeros
+
+
+def _move(rng: random.Random, n: int) -> str:
+    parts = []
+    if rng.random() < 0.7:
+        parts.append(f"N{n}")
+    if rng.random() < 0.15:
+        parts.append(rng.choice(("G0", "G1", "G01", "G00", "G1.0", "g1", "G1")))
+    axes = [a for a in "XYZ" if rng.random() < 0.6] or ["X"]
+    if rng.random() < 0.2:
+        rng.shuffle(axes)
+    for a in axes:
+        parts.append((a.lower() if rng.random() < 0.05 else a) + _num(rng))
+    if rng.random() < 0.12:
+        parts.append(
+            "F" + rng.choice(("{:.0f}", "{:.1f}", "{:.3f}", "{:.0f}.")).format(rng.uniform(1, 5000))
+        )
+    sep = rng.choice((" ", " ", " ", "  ", "\t"))
+    return sep.join(parts)
+
+
+def _special(rng: random.Random) -> str:
+    """Lines the fast path leaves to Python (valid ones)."""
+    return rng.choice(
+        (
+            "G91",
+            "G90",
+            "G20",
+            "G21",
+            "G0",
+            "G1",
+            "G1 F1500",
+            "F800",
+            "(a comment)",
+            "; a comment",
+            "G1 X5 (comment at the end)",
+            "G1 X1 Y2 A30",
+            "G0 Z5 B10 C-20",
+            "G17 G2 I5 J0\nG1",
+            "G17 G3 I-2 J1 F700\nG0",
+            "G18\nG17",
+            "G61",
+            "G64",
+            "G4 P0.25",
+            "M3 S12000",
+            "T1 M6",
+            "M8",
+            "G54",
+            "G55",
+            "G92 X10 Y-3",
+            "G92.1",
+            "G92 Z1",
+            "G90 G53 G0 Z0",
+            "G90.1",
+            "G91.1",
+            "",
+            "   ",
+            "\t",
+            "N5",
+            "G1X3Y4",
+            "n20 G1 X1",
+            "/G1 X2",
+            "#1 = 5",
+            "G1 X#1",
+            "G1 X[1 + 2]",
+            "G9 G1 X3",
+            "(caf\u00e9: non-ASCII comment)",
+        )
+    )
+
+
+def _program(seed: int, lines: int = 1500) -> tuple[str, str]:
+    rng = random.Random(seed)
+    out = []
+    head = rng.random()
+    if head < 0.8:
+        out.append(rng.choice(("G21 G90 G17 G64", "G20", "G21", "G21 G91")))
+    if rng.random() < 0.5:
+        out.append(f"G10 L2 P2 X{_num(rng)} Y{_num(rng)} Z{_num(rng, -5, 5)}")
+        out.append("G55")
+    if rng.random() < 0.3:
+        out.append(f"G92 X{_num(rng)} Y{_num(rng)}")
+    out.append(rng.choice(("G1 F3000", "G0 F200", "G1 F120.5", "F2500 G1")))
+    n = 10
+    for _ in range(lines):
+        n += rng.choice((1, 5, 10))
+        out.extend((_special(rng) if rng.random() < 0.06 else _move(rng, n)).split("\n"))
+    if rng.random() < 0.3:
+        out.append("M2")
+        out.append("G1 X1")
+    if rng.random() < 0.2:
+        out = ["%"] + out + ["%", "G1 X99"]
+    eol = "\r\n" if rng.random() < 0.2 else "\n"
+    text = eol.join(out)
+    if rng.random() < 0.8:
+        text += eol
+    return text, eol
+
+
+MALFORMED = (
+    "X1.2.3",
+    "XNAN",
+    "YINF",
+    "X-",
+    "X1e5",
+    "XY5",
+    "GOO",
+    "X" + "9" * 400,
+    "F0",
+    "F-5",
+    "X.",
+    "X+-1",
+    "N10.5.5 X1",
+    "G1 X5*",
+    "X1 N5",
+    "G2 X5",
+    "G7.5 X1",
+    "X1 X2",
+    "(open comment",
+    "X1\x0bY2",
+)
+
+
+def _read(monkeypatch, path, native: bool, rows=None):
+    monkeypatch.setenv("CONTOUR_GCODE_NATIVE", "1" if native else "0")
+    try:
+        if rows is None:
+            return [gcode.read(path)]
+        return list(gcode.read_chunks(path, rows=rows))
+    except gcode.GcodeError as exc:
+        return ("error", str(exc), exc.line)
+
+
+def _same(a, b):
+    if isinstance(a, tuple) or isinstance(b, tuple):
+        assert a == b
+        return
+    assert len(a) == len(b)
+    for pa, pb in zip(a, b):
+        for name in COLUMNS:
+            ca, cb = (
+                np.ascontiguousarray(getattr(pa, name)),
+                np.ascontiguousarray(getattr(pb, name)),
+            )
+            assert ca.dtype == cb.dtype and ca.shape == cb.shape, name
+            assert ca.tobytes() == cb.tobytes(), name  # bit for bit, NaN and -0.0 included
+        assert pa.lines_read == pb.lines_read
+        assert pa.substituted_feeds == pb.substituted_feeds
+        assert {k: v.as_dict() for k, v in pa.skipped.items()} == {
+            k: v.as_dict() for k, v in pb.skipped.items()
+        }
+
+
+@pytest.fixture
+def taken(monkeypatch):
+    """Lines the C scanner took, over every FastSource made in the test."""
+    made = []
+    real = fastscan.FastSource.__init__
+
+    def init(self, *a, **k):
+        real(self, *a, **k)
+        made.append(self)
+
+    monkeypatch.setattr(fastscan.FastSource, "__init__", init)
+    return lambda: sum(s.lines_taken for s in made)
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_generated_files_read_the_same(tmp_path, monkeypatch, taken, seed):
+    text, _ = _program(seed)
+    path = tmp_path / f"cam{seed}.ngc"
+    path.write_bytes(text.encode("utf-8"))
+    slow = _read(monkeypatch, path, False)
+    fast = _read(monkeypatch, path, True)
+    _same(fast, slow)
+    if not isinstance(fast, tuple):
+        assert taken() > 0.5 * fast[0].lines_read  # the fast path did the bulk
+    rows = 1 + seed * 7
+    _same(_read(monkeypatch, path, True, rows), _read(monkeypatch, path, False, rows))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_malformed_words_give_the_same_error(tmp_path, monkeypatch, seed):
+    text, eol = _program(1000 + seed, 400)
+    rng = random.Random(seed)
+    lines = text.split(eol)
+    k = rng.randrange(5, len(lines) - 3)
+    lines.insert(k, f"N{k} G1 " + MALFORMED[seed % len(MALFORMED)])
+    path = tmp_path / f"bad{seed}.ngc"
+    path.write_bytes(eol.join(lines).encode("utf-8"))
+    slow = _read(monkeypatch, path, False)
+    fast = _read(monkeypatch, path, True)
+    _same(fast, slow)
+
+
+def test_piece_boundaries_and_long_files(tmp_path, monkeypatch, taken):
+    """Lines that straddle the read pieces, a last line without newline,
+    more rows than the scanner's arrays."""
+    monkeypatch.setattr(fastscan, "PIECE", 97)
+    monkeypatch.setattr(fastscan, "ROWS", 13)
+    text, _ = _program(7, 3000)
+    path = tmp_path / "pieces.ngc"
+    path.write_bytes(text.rstrip("\r\n").encode("utf-8"))
+    _same(_read(monkeypatch, path, True), _read(monkeypatch, path, False))
+    _same(_read(monkeypatch, path, True, 50), _read(monkeypatch, path, False, 50))
+    assert taken() > 1000
+
+
+def test_numbers_convert_as_python_float(tmp_path, monkeypatch, taken):
+    """The decimal conversion in C against float() on awkward values: up to
+    19 significant digits and 22 after the point (C), more (Python)."""
+    rng = random.Random(5)
+    vals = [
+        "0.1",
+        "0.3",
+        "2.675",
+        "1.005",
+        "9007199.254740993",
+        "900719925474.0992",
+        "0.000000000000000000001",
+        "-0",
+        "+.5",
+        "5.",
+        "1.0000000000000000000000001",
+    ]
+    vals += [f"{rng.uniform(-1e6, 1e6):.{rng.randrange(0, 16)}f}" for _ in range(3000)]
+    for _ in range(1000):
+        d = str(rng.randrange(10**15, 10 ** rng.randrange(16, 21)))
+        k = rng.randrange(1, 9)
+        vals.append(rng.choice(("", "-")) + d[:k] + "." + d[k:])
+    text = "G21 G90\nG1 F100\n" + "".join(f"X{v}\n" for v in vals)
+    path = tmp_path / "nums.ngc"
+    path.write_text(text)
+    (prog,) = _read(monkeypatch, path, True)
+    want = np.array([float(v) * 1.0 + 0.0 for v in vals])  # X * scale + origin
+    assert prog.end[:, 0].tobytes() == want.tobytes()
+    _same([prog], _read(monkeypatch, path, False))
+    assert taken() > 2000  # the others have more digits than C converts
