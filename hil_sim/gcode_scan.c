@@ -9,6 +9,7 @@
 #define GS_Z 4u
 #define GS_F 8u
 #define GS_G 16u
+#define GS_IJK (32u | 64u | 128u)
 
 /* Exact powers of ten as doubles: 10^22 is the largest one. */
 static const double gs_pow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
@@ -87,12 +88,57 @@ static int gs_number(const char *p, const char *e, double *v, const char **q)
     return 1;
 }
 
+/* The arc centre (u, v) of Interpreter.arc / arcs.centre_ijk, or 0 when
+ * Python must read the line (out of range, or near an error threshold). */
+static int gs_centre(const gcode_scan_t *s, const double *w, unsigned have, const double *t,
+                     double *cu, double *cv)
+{
+    /* plane -> (u, v) axes and the I J K word (index in w) of each */
+    static const int axis_u[3] = {0, 2, 1};
+    static const int axis_v[3] = {1, 0, 2};
+    static const int word_u[3] = {5, 7, 6};
+    static const int word_v[3] = {6, 5, 7};
+    const int pl = s->plane;
+    const int u = axis_u[pl];
+    const int v = axis_v[pl];
+    const double su = s->pos[u];
+    const double sv = s->pos[v];
+    double ou;
+    double ov;
+    double r0;
+    double r1;
+    double lim;
+
+    if ((have & (1u << (unsigned)(18 - word_u[pl] - word_v[pl]))) != 0u) {
+        return 0; /* the offset letter of no axis of the plane: Python's error */
+    }
+    ou = ((have & (1u << (unsigned)word_u[pl])) != 0u ? w[word_u[pl]] : 0.0) * s->scale;
+    ov = ((have & (1u << (unsigned)word_v[pl])) != 0u ? w[word_v[pl]] : 0.0) * s->scale;
+    if (s->arc_abs) {
+        *cu = ou + s->origin[u];
+        *cv = ov + s->origin[v];
+    } else {
+        *cu = su + ou;
+        *cv = sv + ov;
+    }
+    if (!(fabs(*cu) < 1e9 && fabs(*cv) < 1e9)) {
+        return 0;
+    }
+    r0 = hypot(su - *cu, sv - *cv);
+    r1 = hypot(t[u] - *cu, t[v] - *cv);
+    lim = s->tol > 1e-3 * r0 ? s->tol : 1e-3 * r0;
+    return r0 >= 1e-6 && fabs(r0 - r1) <= 0.5 * lim;
+}
+
 /* One line [p, e) (without its '\n'): 1 when taken, 0 to leave it. */
 static int gs_line(const char *p, const char *e, gcode_scan_t *s)
 {
-    double w[5] = {0.0, 0.0, 0.0, 0.0, 0.0}; /* X Y Z F G */
+    double w[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}; /* X Y Z F G I J K */
     unsigned have = 0;
+    int32_t motion = s->motion;
     double feed;
+    double cu = 0.0;
+    double cv = 0.0;
     double *t;
     int32_t r;
 
@@ -112,7 +158,6 @@ static int gs_line(const char *p, const char *e, gcode_scan_t *s)
         }
     }
     for (;;) {
-        unsigned bit;
         int k;
 
         while (p < e && gs_blank(*p)) {
@@ -121,39 +166,38 @@ static int gs_line(const char *p, const char *e, gcode_scan_t *s)
         if (p >= e) {
             break;
         }
-        switch (*p) {
-        case 'X':
+        switch (*p | 0x20) {
         case 'x':
-            bit = GS_X;
             k = 0;
             break;
-        case 'Y':
         case 'y':
-            bit = GS_Y;
             k = 1;
             break;
-        case 'Z':
         case 'z':
-            bit = GS_Z;
             k = 2;
             break;
-        case 'F':
         case 'f':
-            bit = GS_F;
             k = 3;
             break;
-        case 'G':
         case 'g':
-            bit = GS_G;
             k = 4;
+            break;
+        case 'i':
+            k = 5;
+            break;
+        case 'j':
+            k = 6;
+            break;
+        case 'k':
+            k = 7;
             break;
         default:
             return 0;
         }
-        if ((have & bit) != 0u || !gs_number(p + 1, e, &w[k], &p)) {
+        if ((have & (1u << k)) != 0u || !gs_number(p + 1, e, &w[k], &p)) {
             return 0;
         }
-        have |= bit;
+        have |= 1u << k;
     }
     if (have == 0u) {
         s->line++; /* blank, or a line number alone: no block */
@@ -162,8 +206,15 @@ static int gs_line(const char *p, const char *e, gcode_scan_t *s)
     if (s->rows >= s->cap) {
         return 0; /* Python takes this block and splits the chunk */
     }
-    if ((have & GS_G) != 0u && w[4] != (double)s->motion) {
-        return 0; /* a change of motion mode (or G2, G80 ...) */
+    if ((have & GS_G) != 0u) {
+        if (w[4] == 0.0 || w[4] == 1.0 || w[4] == 2.0 || w[4] == 3.0) {
+            motion = (int32_t)w[4];
+        } else {
+            return 0; /* G80, G4, G17 ...: Python */
+        }
+    }
+    if ((have & GS_IJK) != 0u ? motion < 2 : motion >= 2) {
+        return 0; /* I J K unused, or an arc without them (R form): Python */
     }
     feed = s->feed;
     if ((have & GS_F) != 0u) {
@@ -172,12 +223,17 @@ static int gs_line(const char *p, const char *e, gcode_scan_t *s)
         }
         feed = w[3] * s->scale;
     }
-    if (!(s->motion == 0 || (s->motion == 1 && feed == feed))) {
-        return 0;
+    if (!(motion == 0 || feed == feed)) {
+        return 0; /* a feed move without a feed: Python's error or --feed */
     }
-    s->feed = feed;
-    s->line++;
-    if ((have & (GS_X | GS_Y | GS_Z)) == 0u) {
+    if ((have & (GS_X | GS_Y | GS_Z)) == 0u && motion >= 2 && (have & GS_G) == 0u) {
+        return 0; /* I J K without an axis word or G2/G3: Python's error */
+    }
+    if ((have & (GS_X | GS_Y | GS_Z)) == 0u && motion < 2) {
+        s->motion = motion;
+        s->gseen |= (have & GS_G) != 0u;
+        s->feed = feed;
+        s->line++;
         return 1;
     }
     r = s->rows;
@@ -204,8 +260,28 @@ static int gs_line(const char *p, const char *e, gcode_scan_t *s)
             t[2] = t[2] + w[2] * s->scale;
         }
     }
-    s->kind[r] = (int8_t)s->motion;
-    s->feeds[r] = s->motion != 0 ? feed : (double)NAN;
+    if (motion >= 2) {
+        double *c = &s->arc_centre[(size_t)s->arcs * 3u];
+        static const int axis_u[3] = {0, 2, 1};
+        static const int axis_v[3] = {1, 0, 2};
+
+        if (!gs_centre(s, w, have, t, &cu, &cv)) {
+            return 0;
+        }
+        c[0] = (double)NAN;
+        c[1] = (double)NAN;
+        c[2] = (double)NAN;
+        c[axis_u[s->plane]] = cu;
+        c[axis_v[s->plane]] = cv;
+        s->arc_row[s->arcs] = s->row_base + r;
+        s->arcs++;
+    }
+    s->motion = motion;
+    s->gseen |= (have & GS_G) != 0u;
+    s->feed = feed;
+    s->line++;
+    s->kind[r] = (int8_t)motion;
+    s->feeds[r] = motion != 0 ? feed : (double)NAN;
     s->stops[r] = (int8_t)(s->stop != 0);
     s->lines[r] = s->line;
     memcpy(s->pos, t, sizeof(s->pos));
@@ -215,7 +291,8 @@ static int gs_line(const char *p, const char *e, gcode_scan_t *s)
 
 size_t gcode_scan(const char *buf, size_t len, size_t pos, gcode_scan_t *s)
 {
-    if (buf == NULL || s == NULL || (s->motion != 0 && s->motion != 1)) {
+    if (buf == NULL || s == NULL || s->motion < 0 || s->motion > 3 || s->plane < 0 ||
+        s->plane > 2) {
         return pos;
     }
     while (pos < len) {

@@ -75,6 +75,26 @@ def _move(rng: random.Random, n: int) -> str:
     return sep.join(parts)
 
 
+def _arc(rng: random.Random, n: int) -> str:
+    """An arc the fast path takes, then G1 or G0: a full circle (any
+    distance mode, any plane), or quarter and half turns written
+    incrementally."""
+    rv = rng.choice((1.0, 2.5, 0.75, 10.0, 0.5))
+    r = f"{rv:g}"
+    d = rng.choice(("G2", "G3", "G02", "G03"))
+    pre = f"N{n} " if rng.random() < 0.6 else ""
+    back = rng.choice(("\nG1", "\nG0", "\nG01 X1", "\nN7 G1 F50"))
+    form = rng.random()
+    if form < 0.3:
+        return pre + f"{d} I{r} J-{r}" + rng.choice(("", " F900", " Z-1")) + back
+    if form < 0.45:
+        plane, words = rng.choice((("G18", f"I{r} K{r}"), ("G19", f"J-{r} K{r}"), ("G18", f"K{r}")))
+        return f"{plane}\n{pre}{d} {words}{back}\nG17"
+    if form < 0.8:
+        return f"G91\n{pre}{d} X{r} Y{r} I{r} J0 Z-0.1\nX{r} Y-{r} I0 J-{r}{back}\nG90"
+    return f"G91\n{pre}{d} X-{2 * rv:g} I-{r} J0{back}\nG90"  # half turn
+
+
 def _special(rng: random.Random) -> str:
     """Lines the fast path leaves to Python (valid ones)."""
     return rng.choice(
@@ -107,8 +127,8 @@ def _special(rng: random.Random) -> str:
             "G92.1",
             "G92 Z1",
             "G90 G53 G0 Z0",
-            "G90.1",
-            "G91.1",
+            "G90.1\nG2 I5 J-2\nG91.1\nG1",
+            "G90.1\nN3 G3 I0 J0 F100\nG91.1\nG0",
             "",
             "   ",
             "\t",
@@ -140,7 +160,9 @@ def _program(seed: int, lines: int = 1500) -> tuple[str, str]:
     n = 10
     for _ in range(lines):
         n += rng.choice((1, 5, 10))
-        out.extend((_special(rng) if rng.random() < 0.06 else _move(rng, n)).split("\n"))
+        x = rng.random()
+        line = _special(rng) if x < 0.06 else _arc(rng, n) if x < 0.12 else _move(rng, n)
+        out.extend(line.split("\n"))
     if rng.random() < 0.3:
         out.append("M2")
         out.append("G1 X1")
@@ -174,6 +196,25 @@ MALFORMED = (
     "X1 X2",
     "(open comment",
     "X1\x0bY2",
+)
+
+
+ARC_FAULTS = (
+    "G2 X500 Y500 I1 J0",
+    "G3 X500 Y500 I1 J0 F100",
+    "G2 I0 J0",
+    "G2 I2000000000 J0",
+    "G17 G2 X1 K1",
+    "G2 X1 Y2 K1",
+    "G3 R5 X1",
+    "G2 I1 J0\nX1 Y1",
+    "G2 I1 J0\nI5 J0",
+    "G2 I1 J0 P2",
+    "G1 I5",
+    "G0 X1 J2",
+    "G2",
+    "G18 G2 I1 J1",
+    "G90.1 G2 I0.0000001 J0",
 )
 
 
@@ -231,6 +272,7 @@ def test_generated_files_read_the_same(tmp_path, monkeypatch, taken, seed):
     _same(fast, slow)
     if not isinstance(fast, tuple):
         assert taken() > 0.5 * fast[0].lines_read  # the fast path did the bulk
+        assert (fast[0].kind >= 2).sum() > 20
     rows = 1 + seed * 7
     _same(_read(monkeypatch, path, True, rows), _read(monkeypatch, path, False, rows))
 
@@ -247,6 +289,17 @@ def test_malformed_words_give_the_same_error(tmp_path, monkeypatch, seed):
     slow = _read(monkeypatch, path, False)
     fast = _read(monkeypatch, path, True)
     _same(fast, slow)
+
+
+@pytest.mark.parametrize("seed", range(len(ARC_FAULTS)))
+def test_arc_faults_give_the_same_error_or_rows(tmp_path, monkeypatch, seed):
+    text, eol = _program(2000 + seed, 300)
+    lines = text.split(eol)
+    k = random.Random(seed).randrange(5, len(lines) - 3)
+    lines[k:k] = ARC_FAULTS[seed].split("\n")
+    path = tmp_path / f"arc{seed}.ngc"
+    path.write_bytes(eol.join(lines).encode("utf-8"))
+    _same(_read(monkeypatch, path, True), _read(monkeypatch, path, False))
 
 
 def test_piece_boundaries_and_long_files(tmp_path, monkeypatch, taken):

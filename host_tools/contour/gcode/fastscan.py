@@ -99,17 +99,23 @@ class FastSource:
         self.feeds = array("d", bytes(ROWS * 8))
         self.stops = array("b", bytes(ROWS))
         self.lines = array("i", bytes(ROWS * 4))
+        self.arc_row = array("q", bytes(ROWS * 8))
+        self.arc_centre = array("d", bytes(ROWS * 24))
         st.kind = self.kind.buffer_info()[0]
         st.end = self.end.buffer_info()[0]
         st.feeds = self.feeds.buffer_info()[0]
         st.stops = self.stops.buffer_info()[0]
         st.lines = self.lines.buffer_info()[0]
+        st.arc_row = self.arc_row.buffer_info()[0]
+        st.arc_centre = self.arc_centre.buffer_info()[0]
         self.st_ref = ctypes.byref(st)
         self.kind_b = memoryview(self.kind).cast("B")
         self.end_b = memoryview(self.end).cast("B")
         self.feeds_b = memoryview(self.feeds).cast("B")
         self.stops_b = memoryview(self.stops).cast("B")
         self.lines_b = memoryview(self.lines).cast("B")
+        self.arc_row_b = memoryview(self.arc_row).cast("B")
+        self.arc_centre_b = memoryview(self.arc_centre).cast("B")
         self.lines_taken = 0  # by C, for the profile in docs/fast-paths.md
 
     def __iter__(self):
@@ -146,7 +152,7 @@ class FastSource:
                 it.comp is None
                 and it.units_set
                 and not it.ended
-                and (it.motion == 0 or it.motion == 1)
+                and 0 <= it.motion <= 3
                 and not (self.limit and len(it.cols) >= self.limit)
             ):
                 return SCAN
@@ -170,9 +176,7 @@ class FastSource:
     def scan(self, it, lineno: int) -> int:
         """Take the plain lines after ``lineno`` in C; the number of the
         last line taken. ``it``: the interpreter, in its plain-move state."""
-        if not (
-            it.comp is None and it.units_set and not it.ended and (it.motion == 0 or it.motion == 1)
-        ):
+        if not (it.comp is None and it.units_set and not it.ended and 0 <= it.motion <= 3):
             return lineno
         st = self.st
         cols = it.cols
@@ -185,6 +189,10 @@ class FastSource:
         st.feed = it.feed
         st.motion = it.motion
         st.absolute = 1 if it.absolute else 0
+        st.arc_abs = 1 if it.arc_absolute else 0
+        st.plane = it.plane
+        st.tol = 0.002 * it.scale + 1e-9  # Interpreter.arc
+        st.gseen = 0
         st.stop = 1 if it.exact_stop_modal else 0
         st.line = lineno
         gcode_scan = self.lib.gcode_scan
@@ -197,7 +205,9 @@ class FastSource:
                 if cap <= 0:
                     break  # the interpreter splits the chunk at the next block
             st.rows = 0
+            st.arcs = 0
             st.cap = cap
+            st.row_base = len(cols)
             if self.pos >= self.boff + len(self.bbuf):
                 self._segment()
             bbuf = self.bbuf
@@ -211,6 +221,12 @@ class FastSource:
                 cols.feed.frombytes(self.feeds_b[: rows * 8])
                 cols.stop.frombytes(self.stops_b[:rows])
                 cols.line.frombytes(self.lines_b[: rows * 4])
+                arcs = st.arcs
+                if arcs:
+                    cols.arc_row.frombytes(self.arc_row_b[: arcs * 8])
+                    cols.arc_centre.frombytes(self.arc_centre_b[: arcs * 24])
+                    cols.arc_plane.frombytes(bytes((st.plane,)) * arcs)
+                    cols.arc_turns.frombytes(bytes(arcs * 8))
             if rows == cap:
                 continue  # the row arrays were full
             # Stopped at a line it does not take (Python's), or at the end
@@ -227,4 +243,7 @@ class FastSource:
         it.lines_read = self.count
         it.pos = list(st.pos)
         it.feed = st.feed
+        if st.gseen:
+            it.motion = st.motion
+            it.cycle.cancel()  # as every G0-G3 line does (idempotent here)
         return st.line
