@@ -345,3 +345,24 @@ def test_numbers_convert_as_python_float(tmp_path, monkeypatch, taken):
     assert prog.end[:, 0].tobytes() == want.tobytes()
     _same([prog], _read(monkeypatch, path, False))
     assert taken() > 2000  # the others have more digits than C converts
+
+
+def test_arcs_of_every_plane_are_taken(tmp_path, monkeypatch, taken):
+    """I J K of G17 G18 G19, G90.1 centres, G20: taken by C, as Python reads them."""
+    out = ["G20 G90 G17", "G1 F10", "G10 L2 P1 X3 Y4 Z5"]
+    for mode in ("G91.1", "G90.1"):
+        for plane, words, w in (
+            ("G17", "I2 J-1", "Z"),
+            ("G18", "K2 I-1", "Y"),
+            ("G19", "J2 K-1", "X"),
+        ):
+            out += [mode, plane]
+            for k in range(50):
+                out += [f"N{k} G2 {words}", f"G3 {words} {w}{k}", "G1 X0.5 Y0.25 Z0.125", "G0 Z1"]
+    path = tmp_path / "planes.ngc"
+    path.write_text("\n".join(out) + "\n")
+    fast = _read(monkeypatch, path, True)
+    _same(fast, _read(monkeypatch, path, False))
+    assert (fast[0].kind >= 2).sum() == 600
+    assert set(fast[0].plane[fast[0].kind >= 2]) == {0, 1, 2}
+    assert taken() == fast[0].lines_read - 15  # all but the mode lines
