@@ -4,14 +4,12 @@ A development tool, not part of the test run. LinuxCNC's stand-alone interpreter
 ``rs274`` (Debian package ``linuxcnc-uspace``) prints the canonical moves of a
 program; this script turns them into machine end point, feed length, rapid
 length and dwell, and prints them next to contour's. Unpack the package
-without installing it::
+without installing it (the way the build fetches Unity)::
 
-    mkdir -p build/lcnc && cd build/lcnc
-    apt-get download linuxcnc-uspace libboost-python1.74.0
-    for d in *.deb; do dpkg -x "$d" root; done
+    bash mk/debian-fetch.sh bookworm .cache/linuxcnc linuxcnc-uspace libboost-python1.74.0
 
-then ``.venv/bin/python tests/gcode/lcnc_oracle.py tests/gcode/programs/*.ngc``
-(``LCNC_ROOT`` overrides ``build/lcnc/root``). Differences to keep in mind:
+then ``.venv/bin/python tests/gcode/lcnc_oracle.py [--tool-table T] tests/gcode/programs/*.ngc``
+(``LCNC_ROOT`` overrides ``.cache/linuxcnc``). Differences to keep in mind:
 rs274 keeps its parameters in inches (so ``#5221 = 7`` is 7 in there and 7 mm
 here), and it accepts what contour refuses (G93, NURBS ...).
 """
@@ -28,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from contour import gcode
 
-ROOT = Path(os.environ.get("LCNC_ROOT", Path(__file__).resolve().parents[2] / "build/lcnc/root"))
+ROOT = Path(os.environ.get("LCNC_ROOT", Path(__file__).resolve().parents[2] / ".cache/linuxcnc"))
 RS = str(ROOT / "usr/bin/rs274")
 ENV = dict(os.environ, LD_LIBRARY_PATH=f"{ROOT}/usr/lib:{ROOT}/usr/lib/x86_64-linux-gnu")
 CALL = re.compile(r"^\s*\d+ N\S* +([A-Z_0-9]+)\((.*)\)\s*$")
