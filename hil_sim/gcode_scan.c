@@ -4,11 +4,11 @@
 #include <math.h>
 #include <string.h>
 
-#define GS_X 1u
-#define GS_Y 2u
-#define GS_Z 4u
-#define GS_F 8u
-#define GS_G 16u
+#define GS_X   1u
+#define GS_Y   2u
+#define GS_Z   4u
+#define GS_F   8u
+#define GS_G   16u
 #define GS_IJK (32u | 64u | 128u)
 
 /* Exact powers of ten as doubles: 10^22 is the largest one. */

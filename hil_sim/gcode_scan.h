@@ -44,8 +44,8 @@
 #include <stdint.h>
 
 typedef struct {
-    double pos[6];    /* in/out: machine position, mm / deg */
-    double origin[6]; /* in: the active total offset (machine - program) */
+    double pos[6];      /* in/out: machine position, mm / deg */
+    double origin[6];   /* in: the active total offset (machine - program) */
     double scale;       /* in: 1 (G21) or 25.4 (G20) */
     double feed;        /* in/out: mm/min, NaN: none yet */
     double tol;         /* in: arc end-point tolerance, mm (0.002 scale + 1e-9) */

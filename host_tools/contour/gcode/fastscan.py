@@ -139,9 +139,12 @@ class FastSource:
         with other characters goes to Python)."""
         buf = self.buf
         pos = self.pos
-        m = _NON_ASCII.search(buf, pos)
-        end = len(buf) if m is None else m.start()
-        self.bbuf = buf[pos:end].encode("ascii")
+        if buf.isascii():  # O(1): CPython knows it
+            self.bbuf = (buf[pos:] if pos else buf).encode("ascii")
+        else:
+            m = _NON_ASCII.search(buf, pos)
+            end = len(buf) if m is None else m.start()
+            self.bbuf = buf[pos:end].encode("ascii")
         self.boff = pos
 
     def __next__(self):
