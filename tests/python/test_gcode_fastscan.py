@@ -302,6 +302,16 @@ def test_arc_faults_give_the_same_error_or_rows(tmp_path, monkeypatch, seed):
     _same(_read(monkeypatch, path, True), _read(monkeypatch, path, False))
 
 
+def test_backing_off_changes_nothing_but_the_cost(tmp_path, monkeypatch, taken):
+    """Lines C does not take, then plain ones: C resumes within BACKOFF lines."""
+    out = ["G21 G90", "G1 F100"] + ["G1 X[1 + 1] (param)"] * 500 + ["X1 Y2", "Y3"] * 200
+    path = tmp_path / "backoff.ngc"
+    path.write_text("\n".join(out) + "\n")
+    fast = _read(monkeypatch, path, True)
+    _same(fast, _read(monkeypatch, path, False))
+    assert taken() >= 400 - fastscan.BACKOFF
+
+
 def test_piece_boundaries_and_long_files(tmp_path, monkeypatch, taken):
     """Lines that straddle the read pieces, a last line without newline,
     more rows than the scanner's arrays."""
@@ -318,6 +328,7 @@ def test_piece_boundaries_and_long_files(tmp_path, monkeypatch, taken):
 def test_numbers_convert_as_python_float(tmp_path, monkeypatch, taken):
     """The decimal conversion in C against float() on awkward values: up to
     19 significant digits and 22 after the point (C), more (Python)."""
+    monkeypatch.setattr(fastscan, "BACKOFF", 0)  # every line offered to C
     rng = random.Random(5)
     vals = [
         "0.1",
@@ -349,6 +360,7 @@ def test_numbers_convert_as_python_float(tmp_path, monkeypatch, taken):
 
 def test_arcs_of_every_plane_are_taken(tmp_path, monkeypatch, taken):
     """I J K of G17 G18 G19, G90.1 centres, G20: taken by C, as Python reads them."""
+    monkeypatch.setattr(fastscan, "BACKOFF", 0)  # every line offered to C
     out = ["G20 G90 G17", "G1 F10", "G10 L2 P1 X3 Y4 Z5"]
     for mode in ("G91.1", "G90.1"):
         for plane, words, w in (

@@ -31,6 +31,7 @@ from contour.gcode.lexer import LINE_CAP
 
 PIECE = 1 << 20  # characters read from the file at a time
 ROWS = 16384  # rows C writes before Python appends them to the columns
+BACKOFF = 63  # most lines given to Python between two scans that take nothing
 _NON_ASCII = re.compile(r"[^\x00-\x7f]")
 
 
@@ -92,6 +93,11 @@ class FastSource:
         self.eof = False
         self.armed = True
         self.count = 0
+        # Lines to give Python before SCAN is offered again: a file whose
+        # lines C does not take (parameters, comments on every line) pays
+        # for one scan every BACKOFF lines, not for one each line.
+        self.wait = 0
+        self.backoff = 0
         st = GcodeScan()
         self.st = st
         self.kind = array("b", bytes(ROWS))
@@ -151,7 +157,9 @@ class FastSource:
         if self.armed:
             self.armed = False
             it = self.interp
-            if (
+            if self.wait:
+                self.wait -= 1  # backing off after scans that took nothing
+            elif (
                 it.comp is None
                 and it.units_set
                 and not it.ended
@@ -241,6 +249,11 @@ class FastSource:
             ):
                 break
         taken = st.line - lineno
+        if taken:
+            self.backoff = 0
+        else:
+            self.backoff = min(2 * self.backoff + 1, BACKOFF)
+            self.wait = self.backoff
         self.lines_taken += taken
         self.count += taken
         it.lines_read = self.count
