@@ -4,12 +4,13 @@
 #include <math.h>
 #include <string.h>
 
-#define GS_X   1u
-#define GS_Y   2u
-#define GS_Z   4u
-#define GS_F   8u
-#define GS_G   16u
-#define GS_IJK (32u | 64u | 128u)
+#define GS_X    1u
+#define GS_Y    2u
+#define GS_Z    4u
+#define GS_F    8u
+#define GS_G    16u
+#define GS_IJK  (32u | 64u | 128u)
+#define GS_AXES (GS_X | GS_Y | GS_Z | 256u | 512u | 1024u) /* X Y Z A B C */
 
 /* Exact powers of ten as doubles: 10^22 is the largest one. */
 static const double gs_pow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
@@ -133,7 +134,7 @@ static int gs_centre(const gcode_scan_t *s, const double *w, unsigned have, cons
 /* One line [p, e) (without its '\n'): 1 when taken, 0 to leave it. */
 static int gs_line(const char *p, const char *e, gcode_scan_t *s)
 {
-    double w[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}; /* X Y Z F G I J K */
+    double w[11] = {0.0}; /* X Y Z F G I J K A B C */
     unsigned have = 0;
     int32_t motion = s->motion;
     double feed;
@@ -191,6 +192,11 @@ static int gs_line(const char *p, const char *e, gcode_scan_t *s)
         case 'k':
             k = 7;
             break;
+        case 'a':
+        case 'b':
+        case 'c':
+            k = 8 + ((*p | 0x20) - 'a');
+            break;
         default:
             return 0;
         }
@@ -226,19 +232,24 @@ static int gs_line(const char *p, const char *e, gcode_scan_t *s)
     if (!(motion == 0 || feed == feed)) {
         return 0; /* a feed move without a feed: Python's error or --feed */
     }
-    if ((have & (GS_X | GS_Y | GS_Z)) == 0u && motion >= 2 && (have & GS_G) == 0u) {
+    if ((have & GS_AXES) == 0u && motion >= 2 && (have & GS_G) == 0u) {
         return 0; /* I J K without an axis word or G2/G3: Python's error */
     }
-    if ((have & (GS_X | GS_Y | GS_Z)) == 0u && motion < 2) {
+    if ((have & GS_AXES) == 0u && motion < 2) {
         s->motion = motion;
         s->gseen |= (have & GS_G) != 0u;
         s->feed = feed;
         s->line++;
         return 1;
     }
-    r = s->rows;
-    t = &s->end[(size_t)r * 6u];
+    t = &s->end[(size_t)s->rows * 6u];
     memcpy(t, s->pos, sizeof(s->pos));
+    for (r = 0; r < 3; r++) {
+        /* A B C: degrees, not scaled (MotionExecutor.target_of) */
+        if ((have & (256u << (unsigned)r)) != 0u) {
+            t[3 + r] = s->absolute ? w[8 + r] + s->origin[3 + r] : t[3 + r] + w[8 + r];
+        }
+    }
     if (s->absolute) {
         if ((have & GS_X) != 0u) {
             t[0] = w[0] * s->scale + s->origin[0];
@@ -273,13 +284,14 @@ static int gs_line(const char *p, const char *e, gcode_scan_t *s)
         c[2] = (double)NAN;
         c[axis_u[s->plane]] = cu;
         c[axis_v[s->plane]] = cv;
-        s->arc_row[s->arcs] = s->row_base + r;
+        s->arc_row[s->arcs] = s->row_base + s->rows;
         s->arcs++;
     }
     s->motion = motion;
     s->gseen |= (have & GS_G) != 0u;
     s->feed = feed;
     s->line++;
+    r = s->rows;
     s->kind[r] = (int8_t)motion;
     s->feeds[r] = motion != 0 ? feed : (double)NAN;
     s->stops[r] = (int8_t)(s->stop != 0);

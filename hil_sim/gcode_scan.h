@@ -14,7 +14,7 @@
  *
  * A line it takes: blanks (space, tab) only, or blank-separated tokens: an
  * optional first `N<digits>`, then words `<letter><number>` with the letter
- * one of X Y Z I J K F G (either case, each at most once) and the number
+ * one of X Y Z A B C I J K F G (either case, each at most once) and the number
  * `[+-]?(digits[.digits]|.digits)` with at most 19 digits and at most 22
  * after the point (so that mantissa / 10^k is one correctly rounded
  * division, the value Python's float() gives). G is 0 1 2 3 (it sets the
@@ -28,9 +28,10 @@
  * which gives the same rows or the same error. Every line it takes counts
  * one in s->line (blank and N-only lines too).
  *
- * Rows: kind (0 rapid, 1 feed), end (6 doubles: the position with X Y Z
+ * Rows: kind (0 rapid, 1 feed, 2 3 arcs), end (6 doubles: the position with X Y Z
  * replaced by value * scale + origin (absolute) or added value * scale
- * (incremental); the same floating-point operations as Python, so the same
+ * (incremental), A B C the same without the scale; the same floating-point
+ * operations as Python, so the same
  * bits), feed (mm/min, NaN for rapids), stop (s->stop), line; arcs also
  * arc_row and arc_centre (u, v as Interpreter.arc computes them). When
  * s->rows reaches s->cap it stops before the next line that has words, so

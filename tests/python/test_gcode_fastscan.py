@@ -63,6 +63,8 @@ def _move(rng: random.Random, n: int) -> str:
     if rng.random() < 0.15:
         parts.append(rng.choice(("G0", "G1", "G01", "G00", "G1.0", "g1", "G1")))
     axes = [a for a in "XYZ" if rng.random() < 0.6] or ["X"]
+    if rng.random() < 0.1:
+        axes += rng.sample("ABC", rng.randrange(1, 4))  # rotary axes, degrees
     if rng.random() < 0.2:
         rng.shuffle(axes)
     for a in axes:
@@ -86,7 +88,7 @@ def _arc(rng: random.Random, n: int) -> str:
     back = rng.choice(("\nG1", "\nG0", "\nG01 X1", "\nN7 G1 F50"))
     form = rng.random()
     if form < 0.3:
-        return pre + f"{d} I{r} J-{r}" + rng.choice(("", " F900", " Z-1")) + back
+        return pre + f"{d} I{r} J-{r}" + rng.choice(("", " F900", " Z-1", " A-45 B10")) + back
     if form < 0.45:
         plane, words = rng.choice((("G18", f"I{r} K{r}"), ("G19", f"J-{r} K{r}"), ("G18", f"K{r}")))
         return f"{plane}\n{pre}{d} {words}{back}\nG17"
