@@ -586,12 +586,8 @@ def test_loop_buffer_is_released_after_the_loop():
         assert len(runner.file.buf) == 0
 
 
-def test_memory_stays_flat_for_a_long_plain_file(monkeypatch):
+def test_memory_stays_flat_for_a_long_plain_file():
     import tracemalloc
-
-    from contour.gcode import lexer
-
-    monkeypatch.setattr(lexer, "WORD_CACHE_SIZE", 500)
 
     def peak(n):
         def lines():
@@ -627,6 +623,12 @@ def test_memory_stays_flat_for_a_long_plain_file(monkeypatch):
 def test_heidenhain_conversational_is_refused_with_a_hint(line):
     e = err(line)
     assert e.line == 1 and "Heidenhain conversational" in e.message
+
+
+@pytest.mark.parametrize("line", ["%PART G71 *", "N10 G00 G40 G90 *", "N20 G01 X+10 F500 *"])
+def test_heidenhain_iso_is_refused_with_a_hint(line):
+    e = err(line)
+    assert e.line == 1 and "Heidenhain ISO program" in e.message
 
 
 @pytest.mark.parametrize(

@@ -76,6 +76,14 @@ _HEIDENHAIN = re.compile(
     re.IGNORECASE,
 )
 
+# Heidenhain ISO: blocks end with '*', the program opens with %NAME G71 *.
+_HEIDENHAIN_ISO = re.compile(r"^%\w+\s+G7[01]\b|\*\s*(?:;.*)?$", re.IGNORECASE)
+
+HEIDENHAIN_ISO_HINT = (
+    "Heidenhain ISO program (blocks end with '*'): this reader takes RS-274/NGC G-code "
+    "(LinuxCNC dialect); output it from the CAM post-processor instead"
+)
+
 HEIDENHAIN_HINT = (
     "Heidenhain conversational (Klartext) program: this reader takes RS-274/NGC G-code "
     "(LinuxCNC dialect); output ISO/DIN G-code from the CAM post-processor instead"
@@ -104,6 +112,8 @@ def hint(text: str):
     """A dialect hint for a line the reader could not read, or None."""
     if _HEIDENHAIN.search(text):
         return HEIDENHAIN_HINT
+    if _HEIDENHAIN_ISO.search(text):
+        return HEIDENHAIN_ISO_HINT
     return None
 
 

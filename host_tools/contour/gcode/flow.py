@@ -24,14 +24,7 @@ from __future__ import annotations
 import re
 
 from contour.gcode.fastscan import SCAN, SCAN_WORDS
-from contour.gcode.lexer import (
-    LINE_CAP,
-    Block,
-    NotSimple,
-    Tokenizer,
-    WordCache,
-    simple_words,
-)
+from contour.gcode.lexer import ENDS, LINE_CAP, PLAIN_LINE, Block, Tokenizer, plain_words
 from contour.gcode.source import BodySource, FileSource
 
 MAX_CALL_DEPTH = 10
@@ -86,8 +79,7 @@ class Runner:
         self.frames = [_Frame(self.file, None, None, 0)]
         self.subs = {}
         self.iterations = 0
-        self.words_cache = WordCache()
-        self.get_word = self.words_cache.__getitem__
+        self.plain_ended = False  # an M2 or M30 in a plain line
         self.lines = {}  # text -> Line, for lines that evaluate the same each time
 
     def error(self, line: int, message: str):
@@ -95,9 +87,11 @@ class Runner:
 
     def handle(self, lineno: int, text: str):
         """Evaluate one line; a Block to yield, or None."""
-        words = simple_words(text, self.get_word)
+        words = plain_words(text)
         if words is not None:
-            return Block(lineno, words) if words else None
+            if ("M", 2.0) in words or ("M", 30.0) in words:
+                self.plain_ended = True
+            return Block(lineno, words)
         if len(self.frames) > 1 or self.file.hold:
             line = self.parse_again(text, lineno)
             if line.words and not line.assigns and not line.messages:
@@ -131,7 +125,7 @@ class Runner:
     def run(self):
         f = self.file
         frames = self.frames
-        get = self.get_word
+        plain = PLAIN_LINE.fullmatch
         clean = f.clean
         handle = self.handle
         while True:
@@ -143,20 +137,14 @@ class Runner:
                     lineno += 1
                     if type(raw) is not str and raw.isascii():
                         raw = raw.decode("ascii")  # others: clean() decodes
-                    if type(raw) is str and len(raw) <= LINE_CAP:
-                        toks = raw.split()
-                        if not toks:
-                            continue
-                        t = toks[0]
-                        if t[0] == "N" and t[1:].isdigit() and t.isascii():
-                            del toks[0]
-                        try:
-                            words = list(map(get, toks))
-                        except NotSimple:
-                            pass
-                        else:
-                            if words:
-                                yield Block(lineno, words)
+                    if len(raw) <= LINE_CAP and type(raw) is str:
+                        m = plain(raw)
+                        if m is not None:
+                            body = m[1]
+                            words = [(t[0], float(t[1:])) for t in body.split()]
+                            if "M" in body and (ENDS[0] in words or ENDS[1] in words):
+                                self.plain_ended = True
+                            yield Block(lineno, words)
                             continue
                     if raw is SCAN:
                         # C takes the plain lines that follow (fastscan).
@@ -199,7 +187,7 @@ class Runner:
             kind, label, line = fr.ctl[-1][:3]
             close = {"if": "endif", "while": "endwhile", "do": "while", "repeat": "endrepeat"}
             raise self.error(line, f"{_o(label)} {kind} without {close[kind]}")
-        if self.file.percent == 1 and not (self.tok.ended or self.words_cache.ended):
+        if self.file.percent == 1 and not (self.tok.ended or self.plain_ended):
             # LinuxCNC: a program that opens with % and has no M2/M30 must
             # close with %; without either, the file may have been cut short.
             raise self.error(

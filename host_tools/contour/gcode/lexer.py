@@ -39,13 +39,16 @@ from contour.gcode.expr import FUNCTIONS, Evaluator, ExprError, Malformed, TooLa
 from contour.gcode.params import Params
 
 LINE_CAP = 256 * 1024  # characters (bytes for bytes input) in one line
-WORD_CACHE_SIZE = 16384  # plain word tokens remembered (a few MB at most)
 
 _NUM = r"[+-]?(?:\d+\.?\d*|\.\d+)"
-# Fast path: a token that is a plain word; N (line number) and O
-# (control flow) are not plain words.
-_TOKEN = re.compile(r"([A-MP-Za-mp-z])(" + _NUM + r")", re.ASCII)
-_N_TOKEN = re.compile(r"[Nn]\d+(?:\.\d*)?", re.ASCII)
+# Fast path: a line of blank-separated plain words, an N number first
+# perhaps; O (control flow) is not a plain word; at most 30 digits a side
+# so that every number is finite.
+_PLAIN_NUM = r"[+-]?(?:\d{1,30}(?:\.\d{0,30})?|\.\d{1,30})"
+PLAIN_LINE = re.compile(
+    r"\s*(?:N\d{1,30}\s*)?((?:[A-MP-Z]" + _PLAIN_NUM + r"\s+)*[A-MP-Z]" + _PLAIN_NUM + r")\s*",
+    re.ASCII,
+)
 
 _IDENT_AT = re.compile(r"[A-Z_$][A-Z0-9_$]*")
 _KEYWORD = re.compile(r"[A-Z]+")
@@ -93,51 +96,22 @@ class Block:
 
 
 _NO_ARGS: dict = {}
-_INF = float("inf")
-_ENDS = (("M", 2.0), ("M", 30.0))
+ENDS = (("M", 2.0), ("M", 30.0))
 
 
-class NotSimple(Exception):
-    """A token of the fast path that is not a plain ``letter number`` word."""
-
-
-class WordCache(dict):
-    """Plain word token (``X12.5``, ``g1``) -> ``("X", 12.5)``; real files
-    repeat their G, F and many coordinate words, and a dict hit is far
-    cheaper than parsing. Bounded: cleared when full."""
-
-    ended = False  # an M2 or M30 went through (ends a program without %)
-
-    def __missing__(self, tok: str):
-        m = _TOKEN.fullmatch(tok)
-        if m is None:
-            raise NotSimple
-        v = (m.group(1).upper(), float(m.group(2)))
-        if v[1] in (_INF, -_INF):
-            raise NotSimple  # the general path says what is wrong
-        if v in _ENDS:
-            self.ended = True
-        if len(self) >= WORD_CACHE_SIZE:
-            self.clear()
-        self[tok] = v
-        return v
-
-
-def simple_words(text: str, get):
-    """Words of a line made only of blank-separated plain words (and an
-    ``N`` number first), or None; ``get`` is a :class:`WordCache` getter."""
-    toks = text.split()
-    if not toks:
-        return None
-    t = toks[0]
-    if t[0] == "N" or t[0] == "n":
-        if not _N_TOKEN.fullmatch(t):
+def plain_words(raw: str):
+    """Words of a line made only of blank-separated plain words (after an
+    optional ``N`` number), or None: the fast path for CAM output. One
+    regex decides; the tokens are then split on blanks."""
+    m = PLAIN_LINE.fullmatch(raw)
+    if m is None:
+        u = raw.upper()
+        if u == raw:
             return None
-        del toks[0]
-    try:
-        return list(map(get, toks))
-    except NotSimple:
-        return None
+        m = PLAIN_LINE.fullmatch(u)
+        if m is None:
+            return None
+    return [(t[0], float(t[1:])) for t in m.group(1).split()]
 
 
 class Reporter(Protocol):
