@@ -7,6 +7,7 @@ read_chunks, and the same error (message and line) for files with faults."""
 from __future__ import annotations
 
 import random
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -380,3 +381,13 @@ def test_arcs_of_every_plane_are_taken(tmp_path, monkeypatch, taken):
     assert (fast[0].kind >= 2).sum() == 600
     assert set(fast[0].plane[fast[0].kind >= 2]) == {0, 1, 2}
     assert taken() == fast[0].lines_read - 15  # all but the mode lines
+
+
+PROGRAMS = sorted((Path(__file__).resolve().parents[1] / "gcode" / "programs").glob("*.ngc"))
+
+
+@pytest.mark.parametrize("path", PROGRAMS, ids=[p.name for p in PROGRAMS])
+def test_the_test_programs_read_the_same(monkeypatch, path):
+    """Every hand-written program of tests/gcode/programs, both ways."""
+    _same(_read(monkeypatch, path, True), _read(monkeypatch, path, False))
+    _same(_read(monkeypatch, path, True, 3), _read(monkeypatch, path, False, 3))
