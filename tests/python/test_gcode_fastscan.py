@@ -294,6 +294,29 @@ def test_malformed_words_give_the_same_error(tmp_path, monkeypatch, seed):
     _same(fast, slow)
 
 
+@pytest.mark.parametrize("seed", range(60))
+def test_mutated_characters_give_the_same_result(tmp_path, monkeypatch, seed):
+    """Fuzz: a few characters of a generated file replaced, inserted or
+    deleted (signs, points, exponents, letters, blanks, control bytes); both
+    readers give the same program or the same error."""
+    rng = random.Random(seed)
+    text, _ = _program(3000 + seed, 200)
+    chars = list(text)
+    for _ in range(rng.randrange(1, 6)):
+        k = rng.randrange(len(chars))
+        c = rng.choice("0123456789.-+eEXYZIJKFGNn ;(\t\x0b\x00\u00e9#[")
+        op = rng.random()
+        if op < 0.4:
+            chars[k] = c
+        elif op < 0.8:
+            chars.insert(k, c)
+        else:
+            del chars[k]
+    path = tmp_path / f"mut{seed}.ngc"
+    path.write_bytes("".join(chars).encode("utf-8"))
+    _same(_read(monkeypatch, path, True), _read(monkeypatch, path, False))
+
+
 @pytest.mark.parametrize("seed", range(len(ARC_FAULTS)))
 def test_arc_faults_give_the_same_error_or_rows(tmp_path, monkeypatch, seed):
     text, eol = _program(2000 + seed, 300)
