@@ -4,13 +4,14 @@
 #include <math.h>
 #include <string.h>
 
-#define GS_X    1u
-#define GS_Y    2u
-#define GS_Z    4u
-#define GS_F    8u
-#define GS_G    16u
-#define GS_IJK  (32u | 64u | 128u)
-#define GS_AXES (GS_X | GS_Y | GS_Z | 256u | 512u | 1024u) /* X Y Z A B C */
+#define GS_X      1u
+#define GS_Y      2u
+#define GS_Z      4u
+#define GS_F      8u
+#define GS_G      16u
+#define GS_IJK    (32u | 64u | 128u)
+#define GS_DIGITS 30 /* digits of a number (leading zeros too) it reads at most */
+#define GS_AXES   (GS_X | GS_Y | GS_Z | 256u | 512u | 1024u) /* X Y Z A B C */
 
 /* Exact powers of ten as doubles: 10^22 is the largest one. */
 static const double gs_pow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
@@ -52,7 +53,9 @@ static int gs_number(const char *p, const char *e, double *v, const char **q)
             }
         }
         m = m * 10u + (uint64_t)(*p - '0');
-        idig++;
+        if (++idig > GS_DIGITS) {
+            return 0;
+        }
         p++;
     }
     if (p < e && *p == '.') {
@@ -147,12 +150,13 @@ static int gs_line(const char *p, const char *e, gcode_scan_t *s)
         p++;
     }
     if (p < e && *p == 'N') {
-        p++;
-        if (p >= e || !gs_digit(*p)) {
-            return 0;
-        }
+        const char *d = ++p;
+
         while (p < e && gs_digit(*p)) {
             p++;
+        }
+        if (p == d || p - d > GS_DIGITS) {
+            return 0; /* N alone, or long enough for Python to look closer */
         }
         if (p < e && !gs_blank(*p)) {
             return 0;

@@ -13,10 +13,10 @@
  * and returns that offset; Python reads that line and calls again.
  *
  * A line it takes: blanks (space, tab) only, or blank-separated tokens: an
- * optional first `N<digits>`, then words `<letter><number>` with the letter
+ * optional first `N<digits>` (at most 30 digits), then words `<letter><number>` with the letter
  * one of X Y Z A B C I J K F G (either case, each at most once) and the number
- * `[+-]?(digits[.digits]|.digits)` with at most 19 digits and at most 22
- * after the point (so that mantissa / 10^k is one correctly rounded
+ * `[+-]?(digits[.digits]|.digits)` with at most 19 significant digits, 30
+ * before the point and 22 after it (so that mantissa / 10^k is one correctly rounded
  * division, the value Python's float() gives). G is 0 1 2 3 (it sets the
  * motion mode; Python cancels the canned-cycle state when gseen), F > 0,
  * G1-G3 need a feed; I J K only on G2/G3 and only the plane's two; an arc

@@ -218,6 +218,9 @@ ARC_FAULTS = (
     "G2",
     "G18 G2 I1 J1",
     "G90.1 G2 I0.0000001 J0",
+    "N" + "9" * 400 + " X1",  # a line number too large for a float
+    "N" + "0" * 35 + "5 X1",
+    "X" + "0" * 40 + "1.5",
 )
 
 

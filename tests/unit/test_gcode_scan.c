@@ -105,9 +105,32 @@ static void test_long_numbers_are_left_to_python(void)
 static void test_stops_at_the_first_line_it_does_not_take(void)
 {
     static const char *const other[] = {
-        "X1 (c)\n", "X1.2.3\n", "X1e5\n", "M3\n",   "X1 X2\n", "G1X1\n",     "N1.5 X1\n", "#1=2\n",
-        "X[1]\n",   "G4 P1\n",  "G17\n",  "F0\n",   "X1 R2\n", "x1\ty2\r\n", "I1\n",      "G2 X1\n",
-        "X\n",      "X.\n",     "X+-1\n", "X1\v\n", "N\n",     "n1 X1\n",    "%\n",       "X1*\n",
+        "X1 (c)\n",
+        "X1.2.3\n",
+        "X1e5\n",
+        "M3\n",
+        "X1 X2\n",
+        "G1X1\n",
+        "N1.5 X1\n",
+        "#1=2\n",
+        "X[1]\n",
+        "G4 P1\n",
+        "G17\n",
+        "F0\n",
+        "X1 R2\n",
+        "x1\ty2\r\n",
+        "I1\n",
+        "G2 X1\n",
+        "X\n",
+        "X.\n",
+        "X+-1\n",
+        "X1\v\n",
+        "N\n",
+        "n1 X1\n",
+        "%\n",
+        "X1*\n",
+        "N1234567890123456789012345678901 X1\n",
+        "X0000000000000000000000000000001\n",
     };
     const char *good = "N10 G1 X1 Y2 Z3 F50\n\n  \t\nN20\n";
     char buf[128];
