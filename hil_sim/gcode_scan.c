@@ -4,14 +4,16 @@
 #include <math.h>
 #include <string.h>
 
-#define GS_X      1u
-#define GS_Y      2u
-#define GS_Z      4u
-#define GS_F      8u
-#define GS_G      16u
-#define GS_IJK    (32u | 64u | 128u)
-#define GS_DIGITS 30 /* digits of a number (leading zeros too) it reads at most */
-#define GS_AXES   (GS_X | GS_Y | GS_Z | 256u | 512u | 1024u) /* X Y Z A B C */
+#define GS_X   1u
+#define GS_Y   2u
+#define GS_Z   4u
+#define GS_F   8u
+#define GS_G   16u
+#define GS_IJK (32u | 64u | 128u)
+/* Longer lines go to Python, which refuses those above its cap (lexer.LINE_CAP). */
+#define GS_LINE_MAX 4096
+#define GS_DIGITS   30 /* digits of a number (leading zeros too) it reads at most */
+#define GS_AXES     (GS_X | GS_Y | GS_Z | 256u | 512u | 1024u) /* X Y Z A B C */
 
 /* Exact powers of ten as doubles: 10^22 is the largest one. */
 static const double gs_pow10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,
@@ -315,7 +317,7 @@ size_t gcode_scan(const char *buf, size_t len, size_t pos, gcode_scan_t *s)
         const char *p = buf + pos;
         const char *nl = memchr(p, '\n', len - pos);
 
-        if (nl == NULL || !gs_line(p, nl, s)) {
+        if (nl == NULL || nl - p > GS_LINE_MAX || !gs_line(p, nl, s)) {
             break;
         }
         pos = (size_t)(nl - buf) + 1u;

@@ -24,7 +24,8 @@
  * and its end radius within half the tolerance Python allows (so that no
  * last-bit difference of hypot can change the verdict), otherwise Python
  * reads it (and gives its error). Anything else - R, P, other letters, comments,
- * parameters, other whitespace, a line without '\n' - is left to Python,
+ * parameters, other whitespace, a line without '\n' or longer than 4096
+ * characters - is left to Python,
  * which gives the same rows or the same error. Every line it takes counts
  * one in s->line (blank and N-only lines too).
  *

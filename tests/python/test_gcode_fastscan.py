@@ -221,6 +221,7 @@ ARC_FAULTS = (
     "N" + "9" * 400 + " X1",  # a line number too large for a float
     "N" + "0" * 35 + "5 X1",
     "X" + "0" * 40 + "1.5",
+    "X1" + " " * 300_000 + "Y2",  # beyond the line cap, plain words or not
 )
 
 
