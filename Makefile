@@ -32,7 +32,7 @@ WARN       := -std=c99 -Wall -Wextra -Werror -pedantic
 SAN        := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 UNIT_CFLAGS := $(WARN) $(SAN) -g -O1 $(INC) -I$(UNITY_DIR) -Itests/unit/support \
                -D_DEFAULT_SOURCE -DUNITY_INCLUDE_DOUBLE -DUNITY_SUPPORT_64 -DCORE_PREEMPT_TEST
-HOST_CFLAGS := $(WARN) -D_DEFAULT_SOURCE -O2 -g -fPIC $(INC)
+HOST_CFLAGS := $(WARN) -D_DEFAULT_SOURCE -O2 -g -fPIC -ffp-contract=off $(INC)
 M4_CFLAGS  := $(WARN) -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -O2 -ffreestanding \
               -ffunction-sections -fdata-sections $(INC)
 

@@ -6,6 +6,7 @@
 
 #include "drive.h"
 #include "estimator.h"
+#include "gcode_scan.h"
 #include "planner.h"
 #include "proto_msgs.h"
 #include "sim.h"
@@ -27,6 +28,7 @@ static const sim_abi_entry_t sim_abi_table[] = {
     {SIM_ABI_SIZE(plan_move_t)},
     {SIM_ABI_SIZE(plan_est_t)},
     {SIM_ABI_SIZE(proto_msg_info_t)},
+    {SIM_ABI_SIZE(gcode_scan_t)},
     {SIM_ABI_FIELD(sim_status_t, state)},
     {SIM_ABI_FIELD(sim_status_t, faults)},
     {SIM_ABI_FIELD(sim_status_t, queue_free)},
@@ -78,6 +80,29 @@ static const sim_abi_entry_t sim_abi_table[] = {
     {SIM_ABI_FIELD(proto_msg_info_t, min_len)},
     {SIM_ABI_FIELD(proto_msg_info_t, max_len)},
     {SIM_ABI_FIELD(proto_msg_info_t, name)},
+    {SIM_ABI_FIELD(gcode_scan_t, pos)},
+    {SIM_ABI_FIELD(gcode_scan_t, origin)},
+    {SIM_ABI_FIELD(gcode_scan_t, scale)},
+    {SIM_ABI_FIELD(gcode_scan_t, feed)},
+    {SIM_ABI_FIELD(gcode_scan_t, tol)},
+    {SIM_ABI_FIELD(gcode_scan_t, row_base)},
+    {SIM_ABI_FIELD(gcode_scan_t, motion)},
+    {SIM_ABI_FIELD(gcode_scan_t, absolute)},
+    {SIM_ABI_FIELD(gcode_scan_t, arc_abs)},
+    {SIM_ABI_FIELD(gcode_scan_t, plane)},
+    {SIM_ABI_FIELD(gcode_scan_t, stop)},
+    {SIM_ABI_FIELD(gcode_scan_t, line)},
+    {SIM_ABI_FIELD(gcode_scan_t, rows)},
+    {SIM_ABI_FIELD(gcode_scan_t, cap)},
+    {SIM_ABI_FIELD(gcode_scan_t, arcs)},
+    {SIM_ABI_FIELD(gcode_scan_t, gseen)},
+    {SIM_ABI_FIELD(gcode_scan_t, kind)},
+    {SIM_ABI_FIELD(gcode_scan_t, end)},
+    {SIM_ABI_FIELD(gcode_scan_t, feeds)},
+    {SIM_ABI_FIELD(gcode_scan_t, stops)},
+    {SIM_ABI_FIELD(gcode_scan_t, lines)},
+    {SIM_ABI_FIELD(gcode_scan_t, arc_row)},
+    {SIM_ABI_FIELD(gcode_scan_t, arc_centre)},
 };
 
 #define SIM_ABI_ROWS (sizeof(sim_abi_table) / sizeof(sim_abi_table[0]))

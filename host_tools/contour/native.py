@@ -95,6 +95,37 @@ class ProtoMsgInfo(c.Structure):
     ]
 
 
+class GcodeScan(c.Structure):
+    """gcode_scan_t (hil_sim/gcode_scan.h): the G-code reader's plain-line
+    fast path (contour.gcode.fastscan)."""
+
+    _fields_ = [
+        ("pos", c.c_double * 6),
+        ("origin", c.c_double * 6),
+        ("scale", c.c_double),
+        ("feed", c.c_double),
+        ("tol", c.c_double),
+        ("row_base", c.c_int64),
+        ("motion", c.c_int32),
+        ("absolute", c.c_int32),
+        ("arc_abs", c.c_int32),
+        ("plane", c.c_int32),
+        ("stop", c.c_int32),
+        ("line", c.c_int32),
+        ("rows", c.c_int32),
+        ("cap", c.c_int32),
+        ("arcs", c.c_int32),
+        ("gseen", c.c_int32),
+        ("kind", c.c_void_p),
+        ("end", c.c_void_p),
+        ("feeds", c.c_void_p),
+        ("stops", c.c_void_p),
+        ("lines", c.c_void_p),
+        ("arc_row", c.c_void_p),
+        ("arc_centre", c.c_void_p),
+    ]
+
+
 # plan_move_t (firmware/core/planner.h), as a numpy record for whole arrays
 PLAN_MOVE_DTYPE = np.dtype(
     [
@@ -134,6 +165,7 @@ MIRRORS: dict[str, Union[type, np.dtype]] = {
     "plan_move_t": PLAN_MOVE_DTYPE,
     "plan_est_t": PLAN_EST_DTYPE,
     "proto_msg_info_t": ProtoMsgInfo,
+    "gcode_scan_t": GcodeScan,
 }
 
 
@@ -250,6 +282,8 @@ SIGNATURES: dict[str, tuple] = {
         [c.c_void_p, c.c_uint8, _p(_p(c.c_uint8)), _p(c.c_size_t)],
     ),
     "proto_msg_info": (_p(ProtoMsgInfo), [c.c_uint8]),
+    # G-code plain-line fast path (hil_sim/gcode_scan.h)
+    "gcode_scan": (c.c_size_t, [c.c_char_p, c.c_size_t, c.c_size_t, _p(GcodeScan)]),
     # compensation tables (firmware/core/comp.h)
     "comp_record_decode": (c.c_int, [c.c_char_p, c.c_size_t, c.c_void_p]),
     # bootloader and flash of the simulated drive (firmware/ports/sim)

@@ -44,7 +44,7 @@ INCH_MM = 25.4
 
 
 def _chunks(path, default_feed, start, text, tool_table, rows) -> Iterator[Program]:
-    from contour.gcode import lexer
+    from contour.gcode import fastscan, lexer
     from contour.gcode.interp import Interpreter
 
     if default_feed is not None and not (default_feed > 0 and math.isfinite(default_feed)):
@@ -65,8 +65,9 @@ def _chunks(path, default_feed, start, text, tool_table, rows) -> Iterator[Progr
             start_pos = [float(v) for v in prog.end[-1]]
         return prog
 
-    def drain(lines):
-        for cols in it.run(lexer.blocks(it.count_lines(lines), it.params, it), rows):
+    def drain(lines, counted=False):
+        src = lines if counted else it.count_lines(lines)
+        for cols in it.run(lexer.blocks(src, it.params, it), rows):
             yield piece(cols, dict(it.skipped))
         it.finish()
         cols = it.cols
@@ -87,6 +88,11 @@ def _chunks(path, default_feed, start, text, tool_table, rows) -> Iterator[Progr
         raise UserError(f"cannot read {name}: {exc.strerror}") from exc
     with fh:
         try:
+            # Plain CAM lines in C when the host library is there (fastscan).
+            fast = fastscan.source(fh, it, rows)
+            if fast is not None:
+                yield from drain(fast, counted=True)
+                return
             yield from drain(iter(functools.partial(fh.readline, lexer.LINE_CAP + 1), ""))
         except OSError as exc:
             raise UserError(f"cannot read {name}: {exc.strerror}") from exc

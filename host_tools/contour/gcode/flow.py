@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import re
 
+from contour.gcode.fastscan import SCAN, SCAN_WORDS
 from contour.gcode.lexer import ENDS, LINE_CAP, PLAIN_LINE, Block, Tokenizer, plain_words
 from contour.gcode.source import BodySource, FileSource
 
@@ -145,6 +146,12 @@ class Runner:
                                 self.plain_ended = True
                             yield Block(lineno, words)
                             continue
+                    if raw is SCAN:
+                        # C takes the plain lines that follow (fastscan).
+                        blk = Block(lineno - 1, SCAN_WORDS)
+                        yield blk
+                        lineno = blk.line
+                        continue
                     f.lineno = lineno
                     text = clean(raw, lineno)
                     if text is None:

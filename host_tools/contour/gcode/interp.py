@@ -22,6 +22,7 @@ import math
 from contour.gcode import arcs
 from contour.gcode.cycles import CycleState
 from contour.gcode.execute import BlockExecutor
+from contour.gcode.fastscan import SCAN_WORDS
 from contour.gcode.motion import MotionExecutor
 from contour.gcode.moves import ARC_CCW, ARC_CW, PLANE_AXES
 from contour.gcode.offsets import SYSTEM_KEYS, Offsets
@@ -214,7 +215,14 @@ class Interpreter(BlockExecutor, MotionExecutor):
                         continue
                     # G1 without a feed, G80 ...: the general path says what is wrong.
             elif self.ended:
-                self.skip("after M2/M30", b.line, "lines after the end of program")
+                if words is not SCAN_WORDS:
+                    self.skip("after M2/M30", b.line, "lines after the end of program")
+                continue
+            if words is SCAN_WORDS:
+                # The plain lines that follow, in C (fastscan); b.line
+                # tells the front end how far it read.
+                b.line = self.fast_source.scan(self, b.line)
+                fast, motion, feed, scale, absolute, origin, stop = self._modes()
                 continue
             self.block(b.line, words, b.messages, b.call_args)
             fast, motion, feed, scale, absolute, origin, stop = self._modes()

@@ -11,6 +11,7 @@ open (:meth:`FileSource.mark` / :meth:`FileSource.release`).
 
 from __future__ import annotations
 
+from contour.gcode.fastscan import SCAN
 from contour.gcode.lexer import LINE_CAP
 
 
@@ -37,6 +38,8 @@ class FileSource:
             return None
         clean = self.clean
         for raw in self.it:
+            if raw is SCAN:
+                continue  # offered to the plain-line loop only (fastscan)
             self.lineno += 1
             text = clean(raw, self.lineno)
             if text is None:
