@@ -267,6 +267,5 @@ int64_t feed_queued_ns(const feed_t *f, uint16_t rd, int64_t rem_rd)
 
 void feed_set_profile(feed_t *f, const plan_profile_t *prof)
 {
-    f->plan.prof = *prof;
-    plan_reset(&f->plan, f->plan.pos);
+    (void)plan_set_profile(&f->plan, prof); /* checked by drive_apply_config */
 }

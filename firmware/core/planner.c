@@ -88,18 +88,10 @@ void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES])
     p->cruise_rec = 0;
 }
 
-plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
-                        const plan_profile_t *prof, const pos_nm_t start[CORE_AXES])
+/* The profile and what plan_push derives from it once (every field that
+ * depends on the limits: a profile change must go through here). */
+static void pl_derive(plan_t *p, const plan_profile_t *prof)
 {
-    plan_result_t rc;
-
-    if (p == NULL || storage == NULL || depth == 0 || start == NULL) {
-        return PLAN_E_ARG;
-    }
-    rc = plan_check_profile(prof);
-    if (rc != PLAN_OK) {
-        return rc;
-    }
     p->prof = *prof;
     p->same_limits = pl_same(prof->v_max) && pl_same(prof->a_max) && pl_same(prof->j_max);
     {
@@ -119,11 +111,42 @@ plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
         l0.shape = prof->shape;
         sc_limits_aaj(&l0, &p->aaj0, &qc0);
     }
+}
+
+plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
+                        const plan_profile_t *prof, const pos_nm_t start[CORE_AXES])
+{
+    plan_result_t rc;
+
+    if (p == NULL || storage == NULL || depth == 0 || start == NULL) {
+        return PLAN_E_ARG;
+    }
+    rc = plan_check_profile(prof);
+    if (rc != PLAN_OK) {
+        return rc;
+    }
+    pl_derive(p, prof);
     p->ring = storage;
     p->depth = depth;
     p->deferred = false;
     p->jd_fast_off = false;
     plan_reset(p, start);
+    return PLAN_OK;
+}
+
+plan_result_t plan_set_profile(plan_t *p, const plan_profile_t *prof)
+{
+    plan_result_t rc;
+
+    if (p == NULL) {
+        return PLAN_E_ARG;
+    }
+    rc = plan_check_profile(prof);
+    if (rc != PLAN_OK) {
+        return rc;
+    }
+    pl_derive(p, prof);
+    plan_reset(p, p->pos);
     return PLAN_OK;
 }
 

@@ -258,6 +258,14 @@ typedef struct {
 plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
                         const plan_profile_t *prof, const pos_nm_t start[CORE_AXES]);
 
+/* Replace the profile of an initialised planner and forget every queued
+ * block (plan_reset at the current position). Also recomputes what
+ * plan_init derives from the limits (equal-limits fast path, A^2/J bound,
+ * the junction-deviation bound): assigning p->prof directly leaves those
+ * stale (a pure-Y block then planned with X's limits). On an invalid
+ * profile nothing changes. Main. */
+plan_result_t plan_set_profile(plan_t *p, const plan_profile_t *prof);
+
 /* Check a profile without initialising anything. */
 plan_result_t plan_check_profile(const plan_profile_t *prof);
 

@@ -711,6 +711,30 @@ static void test_new_limits_are_what_the_planner_uses(void)
     TEST_ASSERT_INT64_WITHIN(2, (total + TICK_NS - 1) / TICK_NS, (int64_t)i - start + 1);
 }
 
+/* A limit raised on one axis only is what a block along that axis gets
+ * (the planner's equal-limits fast path and its other derived constants
+ * follow the new profile): Y at 50 m/s^2, X and Z at the default 10, a
+ * pure-Y move plans as plan_estimate with the new profile (with X's 10 m/s^2
+ * it takes 14 ms longer). */
+static void test_one_axis_limit_is_used_by_its_axis(void)
+{
+    plan_move_t m[1];
+    int64_t total, slow;
+
+    m[0] = move(0, 20000000, 1000000000, true); /* 20 mm at up to 1 m/s */
+    slow = estimate(m, 1, NULL);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_A_MAX, 1, 50000000000));
+    total = estimate(m, 1, NULL);
+    TEST_ASSERT_TRUE(total + 10000000 < slow);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 20000000, 1000000000, true, 1));
+    calib_poll();
+    drive_poll();
+    drive_status(&st);
+    TEST_ASSERT_EQUAL_INT64(total, st.queued_time_ns);
+}
+
 /* The arc overlay's chord fraction: fx_div_q30_rec (reciprocal, two
  * 32 x 32 products, exact remainder correction) equals the 64-bit division
  * round(n * 2^30 / d) it replaces over its whole stated range, 0 <= n <= d,
@@ -1085,5 +1109,6 @@ int main(void)
     RUN_TEST(test_parameters_are_checked_and_never_half_applied);
     RUN_TEST(test_parameters_are_refused_while_moving);
     RUN_TEST(test_new_limits_are_what_the_planner_uses);
+    RUN_TEST(test_one_axis_limit_is_used_by_its_axis);
     return UNITY_END();
 }
