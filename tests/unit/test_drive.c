@@ -753,8 +753,7 @@ static void test_arc_chords_join_at_the_arc_limit(void)
 
     /* at-rest S-curve: the per-block S-curve's own look-ahead limit
      * (docs/planner.md) would hide the joins' speed on 20 chords */
-    TEST_ASSERT_EQUAL_INT(DRIVE_OK,
-                          drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE_AT_REST));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE_AT_REST));
     for (k = 0; k < 2; k++) {
         memset(&b[k], 0, sizeof b[k]);
         b[k].kind = DRIVE_BLOCK_ARC;
