@@ -25,6 +25,7 @@ bool feed_init(feed_t *f, const drive_config_t *cfg, interp_t *ip, plan_block_t 
     }
     f->seq_next = 0;
     f->queued_at = 0;
+    f->arc_open = false;
     f->skipped = 0;
     f->queued = 0;
     return true;
@@ -37,6 +38,7 @@ void feed_flush(feed_t *f, const pos_nm_t pos[CORE_AXES])
     f->hq_head = 0;
     plan_reset(&f->plan, pos);
     interp_reset(f->ip, pos);
+    f->arc_open = false;
     f->queued = 0;
     for (i = 0; i < CORE_AXES; i++) {
         f->q_end[i] = pos[i];
@@ -77,11 +79,26 @@ static bool feed_one(feed_t *f)
         arc_seg_chord(&h->arc, &h->b, h->arc.done_seg, m.target, &g.c);
         last = h->arc.done_seg + 1 == h->arc.n_seg;
         m.flags = (last && h->b.exact_stop) ? PLAN_MOVE_EXACT_STOP : 0;
+        /* the join with the arc's previous chord, or with the last chord of
+         * an arc about the same centre (the next revolution of a circle) */
+        if (h->arc.done_seg > 0 ||
+            (f->arc_open && f->arc_plane == h->b.plane && f->arc_cu == h->b.centre_u &&
+             f->arc_cv == h->b.centre_v && f->arc_sense == h->b.sense)) {
+            m.flags |= PLAN_MOVE_ARC_JOIN;
+        }
         g.arc = true;
     }
     r = plan_push(&f->plan, &m);
     if (r == PLAN_E_FULL) {
         return false;
+    }
+    if (r == PLAN_OK || !g.arc) {
+        /* a line or dwell (even a skipped one) ends any arc */
+        f->arc_open = g.arc && (m.flags & PLAN_MOVE_EXACT_STOP) == 0;
+        f->arc_plane = h->b.plane;
+        f->arc_cu = h->b.centre_u;
+        f->arc_cv = h->b.centre_v;
+        f->arc_sense = h->b.sense;
     }
     if (r == PLAN_OK) {
         g.last = last;
@@ -267,6 +284,6 @@ int64_t feed_queued_ns(const feed_t *f, uint16_t rd, int64_t rem_rd)
 
 void feed_set_profile(feed_t *f, const plan_profile_t *prof)
 {
-    f->plan.prof = *prof;
-    plan_reset(&f->plan, f->plan.pos);
+    (void)plan_set_profile(&f->plan, prof); /* checked by drive_apply_config */
+    f->arc_open = false;
 }

@@ -63,10 +63,17 @@ typedef struct {
     interp_t *ip;              /* producer side only                */
     plan_t plan;
     feed_block_t hq[DRIVE_QUEUE_DEPTH];
-    uint16_t hq_head, hq_count;    /* main                            */
-    pos_nm_t q_end[CORE_AXES];     /* end point of the last accepted block */
-    uint32_t seq_next;             /* tag of the next planner block */
-    uint32_t queued_at;            /* tick count when the last block was accepted */
+    uint16_t hq_head, hq_count; /* main                            */
+    pos_nm_t q_end[CORE_AXES];  /* end point of the last accepted block */
+    uint32_t seq_next;          /* tag of the next planner block */
+    uint32_t queued_at;         /* tick count when the last block was accepted */
+    /* main: the last planner move was a chord of an arc that did not end in
+     * an exact stop, and that arc's plane, centre and sense (a next arc on
+     * the same circle continues it: PLAN_MOVE_ARC_JOIN at their join) */
+    bool arc_open;
+    drive_plane_t arc_plane;
+    pos_nm_t arc_cu, arc_cv;
+    int8_t arc_sense;
     feed_seg_t seg[FEED_SEG_RING]; /* main, before the segment's interp slot */
     CORE_SHARED uint32_t skipped;  /* main: host blocks done without a segment
                                     * (zero length or refused by the planner) */

@@ -4,7 +4,8 @@
 #include "planner.h"
 #include "planner_test.h"
 
-#define NS_PER_S ((int64_t)1000000000)
+#define NS_PER_S    ((int64_t)1000000000)
+#define PL_NOINLINE __attribute__((noinline))
 
 static bool pl_same(const int64_t *lim);
 
@@ -88,18 +89,10 @@ void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES])
     p->cruise_rec = 0;
 }
 
-plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
-                        const plan_profile_t *prof, const pos_nm_t start[CORE_AXES])
+/* The profile and what plan_push derives from it once (every field that
+ * depends on the limits: a profile change must go through here). */
+static void pl_derive(plan_t *p, const plan_profile_t *prof)
 {
-    plan_result_t rc;
-
-    if (p == NULL || storage == NULL || depth == 0 || start == NULL) {
-        return PLAN_E_ARG;
-    }
-    rc = plan_check_profile(prof);
-    if (rc != PLAN_OK) {
-        return rc;
-    }
     p->prof = *prof;
     p->same_limits = pl_same(prof->v_max) && pl_same(prof->a_max) && pl_same(prof->j_max);
     {
@@ -119,11 +112,42 @@ plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
         l0.shape = prof->shape;
         sc_limits_aaj(&l0, &p->aaj0, &qc0);
     }
+}
+
+plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
+                        const plan_profile_t *prof, const pos_nm_t start[CORE_AXES])
+{
+    plan_result_t rc;
+
+    if (p == NULL || storage == NULL || depth == 0 || start == NULL) {
+        return PLAN_E_ARG;
+    }
+    rc = plan_check_profile(prof);
+    if (rc != PLAN_OK) {
+        return rc;
+    }
+    pl_derive(p, prof);
     p->ring = storage;
     p->depth = depth;
     p->deferred = false;
     p->jd_fast_off = false;
     plan_reset(p, start);
+    return PLAN_OK;
+}
+
+plan_result_t plan_set_profile(plan_t *p, const plan_profile_t *prof)
+{
+    plan_result_t rc;
+
+    if (p == NULL) {
+        return PLAN_E_ARG;
+    }
+    rc = plan_check_profile(prof);
+    if (rc != PLAN_OK) {
+        return rc;
+    }
+    pl_derive(p, prof);
+    plan_reset(p, p->pos);
     return PLAN_OK;
 }
 
@@ -410,6 +434,74 @@ static bool pl_jd_above(const plan_t *p, int64_t c1, int64_t vcap)
     /* the exact comparison of the two 96-bit products */
     return fx_cmp128(fx_umul64x32((uint64_t)p->jd_amin_dev, h),
                      fx_umul64x32(vv, ((uint32_t)1 << 30) - h)) >= 0;
+}
+
+/* floor(cbrt(j r^2)) or a little less, j >= 0, r >= 0: r is cut by 3t
+ * bits until j r^2 fits 63 bits, then the root is scaled back by 2^(2t)
+ * (the cut only lowers it). */
+static int64_t pl_cbrt_jr2(int64_t j, int64_t r)
+{
+    unsigned t = 0, bj = fx_bitlen64((uint64_t)j);
+    uint64_t rs = (uint64_t)r;
+
+    while (rs != 0u && bj + 2u * fx_bitlen64(rs) > 63u) {
+        rs >>= 3;
+        t++;
+    }
+    return (int64_t)((uint64_t)fx_icbrt64((uint64_t)j * rs * rs) << (2u * t));
+}
+
+/* Join of two chords of one arc (PLAN_MOVE_ARC_JOIN): the arc's own
+ * centripetal limits at the radius of the join, v^2 / R <= a_n and (jerk
+ * shapes) v^3 / R^2 <= j_n, a_n and j_n the axis limits projected on the
+ * normal e = u2 - u1 (as the junction-deviation rule's a_j) and j_n = jt,
+ * the block's own jerk limit (the jerk of uniform circular motion, v^3/R^2,
+ * is along the tangent: the chord's direction). R = l / |e|
+ * with l the mean chord length: two chords of length l = 2 R sin(th/2)
+ * turning by th have |u2 - u1| = 2 sin(th/2). de, e: u2 - u1 and its
+ * length in q30. INT64_MAX when e = 0. */
+static int64_t pl_arc_join(const plan_t *p, const int64_t *de, int64_t e, int64_t l, int64_t jt)
+{
+    int64_t an, r, v;
+
+    if (e <= 0) {
+        return INT64_MAX;
+    }
+    an = pl_axis_limit(p->prof.a_max, de, e);
+    r = sc_muldiv(l, (int64_t)1 << 30, e);
+    /* an < 2^41, r < 2^63: the root is below 2^52 */
+    v = (int64_t)fx_isqrt128(fx_umul64((uint64_t)an, (uint64_t)r));
+    if (p->prof.shape != SC_SHAPE_TRAPEZOID) {
+        v = fx_min64(v, pl_cbrt_jr2(jt, r));
+    }
+    return v;
+}
+
+/* The join of two chords of one arc (PLAN_MOVE_ARC_JOIN; jt the new
+ * block's j_max): an axis reversal or PLAN_CORNER_STOP stops, as in
+ * pl_corner; otherwise pl_arc_join. Kept out of line: plan_push's usual
+ * path (lines) does not pay for it. */
+static PL_NOINLINE int64_t pl_arc_corner(const plan_t *p, const int32_t *w2, int64_t len2,
+                                         int64_t jt)
+{
+    const int32_t *w1 = p->last_q30;
+    int64_t de[CORE_AXES], e2 = 0;
+    int i;
+
+    for (i = 0; i < CORE_AXES; i++) {
+        if ((w1[i] ^ w2[i]) < 0) {
+            int32_t a1 = (w1[i] < 0) ? -w1[i] : w1[i], a2 = (w2[i] < 0) ? -w2[i] : w2[i];
+            if (a1 >= PLAN_REVERSAL_MIN_Q30 && a2 >= PLAN_REVERSAL_MIN_Q30) {
+                return 0; /* axis reversal: stop */
+            }
+        }
+        de[i] = (int64_t)w2[i] - w1[i]; /* below 2^31: not a reversal */
+        e2 += de[i] * de[i];
+    }
+    if (p->prof.corner == PLAN_CORNER_STOP) {
+        return 0;
+    }
+    return pl_arc_join(p, de, (int64_t)fx_isqrt64((uint64_t)e2), (p->last_len + len2) / 2, jt);
 }
 
 /* Junction speed limit between the last queued move and a new one (nm/s,
@@ -744,7 +836,13 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         vj = 0;
     } else {
         vj = fx_min64(vmax, p->last_vmax);
-        vj = fx_min64(vj, pl_corner(p, u30, len, vj, &vc));
+        if (m->flags & PLAN_MOVE_ARC_JOIN) {
+            /* inside an arc the centripetal limit holds along the chord too */
+            vmax = fx_min64(vmax, pl_arc_corner(p, u30, len, jmax));
+            vj = fx_min64(vj, vmax);
+        } else {
+            vj = fx_min64(vj, pl_corner(p, u30, len, vj, &vc));
+        }
         /* smoothed corner: the previous move (the newest queued block, if
          * it has not been popped) now knows its exit corner; its speed is
          * capped by the larger of its two corner speeds. The cap is never

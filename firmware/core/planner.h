@@ -58,6 +58,16 @@
  * block (G61 modal or G60/G9 per block) makes its exit speed 0; G64
  * (continuous path) is the absence of the flag.
  *
+ * Arc chord joins (PLAN_MOVE_ARC_JOIN on the later move; not after an exact
+ * stop): an axis reversal still stops; otherwise, in every rule but
+ * PLAN_CORNER_STOP, the junction and the block's v_max are limited by the
+ * arc through the two chords, R = l / |u2 - u1| with l the mean chord
+ * length (exact for equal chords of a circle): v^2 <= a_n R and, for the
+ * S-curve shapes, v^3 <= j_n R^2, a_n and j_n the axis limits projected on
+ * u2 - u1 (the normal of the arc at the join). The corner rule would treat
+ * the chord polygon's joins as corners (junction deviation: 24.5 instead
+ * of 30 m/min on pi/32 chords at a 3 ms tick).
+ *
  * Minimum block time (throughput limit), profile.min_block_ns = T > 0 and
  * profile.mbt_window = W (1..PLAN_WINDOW_MAX): block k never runs faster than
  *   c_k = (len_{k-W+1} + ... + len_k) / (n_k * T),  n_k = blocks in that
@@ -172,6 +182,11 @@ typedef struct {
 } plan_profile_t;
 
 #define PLAN_MOVE_EXACT_STOP 0x01u /* stop at the end of this block (G61/G60/G9) */
+/* This move and the previous one are consecutive chords of one arc (the
+ * drive's arc_seg, or a host that knows its chords): their join is limited
+ * by the arc's centripetal limits instead of the corner rule, and so is the
+ * block's speed (see "Arc chord joins" above). */
+#define PLAN_MOVE_ARC_JOIN 0x02u
 
 typedef struct {
     pos_nm_t target[CORE_AXES]; /* absolute end point, nm (ignored for a dwell) */
@@ -257,6 +272,14 @@ typedef struct {
  * storage must hold `depth` blocks (1..65535). Main. */
 plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
                         const plan_profile_t *prof, const pos_nm_t start[CORE_AXES]);
+
+/* Replace the profile of an initialised planner and forget every queued
+ * block (plan_reset at the current position). Also recomputes what
+ * plan_init derives from the limits (equal-limits fast path, A^2/J bound,
+ * the junction-deviation bound): assigning p->prof directly leaves those
+ * stale (a pure-Y block then planned with X's limits). On an invalid
+ * profile nothing changes. Main. */
+plan_result_t plan_set_profile(plan_t *p, const plan_profile_t *prof);
 
 /* Check a profile without initialising anything. */
 plan_result_t plan_check_profile(const plan_profile_t *prof);

@@ -83,6 +83,7 @@ BF_MBT = 0x04
 BF_CORNER = 0x10
 EST_SKIPPED = 0x100
 MOVE_EXACT_STOP = 0x01
+MOVE_ARC_JOIN = 0x02
 
 
 _Profile = native.PlanProfile  # plan_profile_t (firmware/core/planner.h)
@@ -225,12 +226,16 @@ class Planner:
         dwell_s=None,
         start_mm=(0.0, 0.0, 0.0),
         tags=None,
+        arc_join=None,
     ) -> EstimateResult:
         """Plan a program of absolute end points.
 
         points_mm: (n, 3) absolute end points in mm (a dwell row is ignored).
         feed_mm_min: scalar or n feeds (mm/min). exact_stop: n booleans (stop
         at the end of the block). dwell_s: n dwell times (> 0 marks a G4 row).
+        arc_join: n booleans, True where a block and the one before it are
+        chords of one arc (the drive's arc blocks): that join and the block's
+        speed are limited by the arc's centripetal limits, not the corner rule.
         """
         pts = np.asarray(points_mm, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != AXES:
@@ -258,6 +263,9 @@ class Planner:
         if exact_stop is not None:
             es = np.broadcast_to(np.asarray(exact_stop, dtype=bool), (n,))
             moves["flags"] = np.where(es, MOVE_EXACT_STOP, 0)
+        if arc_join is not None:
+            aj = np.broadcast_to(np.asarray(arc_join, dtype=bool), (n,))
+            moves["flags"] |= np.where(aj, MOVE_ARC_JOIN, 0).astype(np.uint8)
         moves["tag"] = np.arange(n, dtype=np.uint32) if tags is None else np.asarray(tags)
         start = (ctypes.c_int64 * AXES)(*[int(round(float(v) * NM_PER_MM)) for v in start_mm])
         out = np.zeros(n, dtype=EST_DTYPE)

@@ -711,6 +711,87 @@ static void test_new_limits_are_what_the_planner_uses(void)
     TEST_ASSERT_INT64_WITHIN(2, (total + TICK_NS - 1) / TICK_NS, (int64_t)i - start + 1);
 }
 
+/* A limit raised on one axis only is what a block along that axis gets
+ * (the planner's equal-limits fast path and its other derived constants
+ * follow the new profile): Y at 50 m/s^2, X and Z at the default 10, a
+ * pure-Y move plans as plan_estimate with the new profile (with X's 10 m/s^2
+ * it takes 14 ms longer). */
+static void test_one_axis_limit_is_used_by_its_axis(void)
+{
+    plan_move_t m[1];
+    int64_t total, slow;
+
+    m[0] = move(0, 20000000, 1000000000, true); /* 20 mm at up to 1 m/s */
+    slow = estimate(m, 1, NULL);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_A_MAX, 1, 50000000000));
+    total = estimate(m, 1, NULL);
+    TEST_ASSERT_TRUE(total + 10000000 < slow);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, queue_line(0, 20000000, 1000000000, true, 1));
+    calib_poll();
+    drive_poll();
+    drive_status(&st);
+    TEST_ASSERT_EQUAL_INT64(total, st.queued_time_ns);
+}
+
+/* The chords of the drive's arc blocks join at the arc's centripetal limit
+ * (PLAN_MOVE_ARC_JOIN), also where a second arc about the same centre
+ * continues the first: two quarter circles of R 20 mm at 0.5 m/s (20
+ * chords each at 10 kHz) plan exactly as plan_estimate of the same chords
+ * with every join but the first flagged, at sqrt(a R) = 0.447 m/s instead of
+ * the junction-deviation rule's 0.36 m/s at the chord corners (196.4 ms
+ * instead of 214.4 ms). */
+static void test_arc_chords_join_at_the_arc_limit(void)
+{
+    static plan_move_t m[128];
+    drive_block_t b[2];
+    pos_nm_t start[CORE_AXES] = {0, 0, 0}, ends[64][CORE_AXES];
+    const pos_nm_t tgt[2][2] = {{-20000000, 20000000}, {-40000000, 0}};
+    uint32_t n = 0, c, k, i;
+    int64_t with, without;
+
+    /* at-rest S-curve: the per-block S-curve's own look-ahead limit
+     * (docs/planner.md) would hide the joins' speed on 20 chords */
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE_AT_REST));
+    for (k = 0; k < 2; k++) {
+        memset(&b[k], 0, sizeof b[k]);
+        b[k].kind = DRIVE_BLOCK_ARC;
+        b[k].tag = k + 1;
+        b[k].target[0] = tgt[k][0];
+        b[k].target[1] = tgt[k][1];
+        b[k].feed_nm_s = 500000000;
+        b[k].plane = DRIVE_PLANE_XY;
+        b[k].centre_u = -20000000;
+        b[k].centre_v = 0;
+        b[k].sense = 1;
+        b[k].exact_stop = k == 1;
+        c = drive_arc_chords(&b[k], start, 3, drive_config()->tick_hz, drive_config()->arc_chord_nm,
+                             &ends[0][0], 64);
+        TEST_ASSERT_TRUE(c > 10 && n + c <= 64);
+        for (i = 0; i < c; i++) {
+            m[n] = move(ends[i][0], ends[i][1], 500000000, k == 1 && i + 1 == c);
+            n++;
+        }
+        start[0] = tgt[k][0];
+        start[1] = tgt[k][1];
+    }
+    without = estimate(m, n, NULL);
+    for (i = 1; i < n; i++) {
+        m[i].flags |= PLAN_MOVE_ARC_JOIN;
+    }
+    with = estimate(m, n, NULL);
+    TEST_ASSERT_TRUE(with + 10000000 < without);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    run(1);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_queue_block(&b[0]));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_queue_block(&b[1]));
+    calib_poll();
+    drive_poll();
+    drive_status(&st);
+    TEST_ASSERT_EQUAL_INT64(with, st.queued_time_ns);
+}
+
 /* The arc overlay's chord fraction: fx_div_q30_rec (reciprocal, two
  * 32 x 32 products, exact remainder correction) equals the 64-bit division
  * round(n * 2^30 / d) it replaces over its whole stated range, 0 <= n <= d,
@@ -1085,5 +1166,7 @@ int main(void)
     RUN_TEST(test_parameters_are_checked_and_never_half_applied);
     RUN_TEST(test_parameters_are_refused_while_moving);
     RUN_TEST(test_new_limits_are_what_the_planner_uses);
+    RUN_TEST(test_one_axis_limit_is_used_by_its_axis);
+    RUN_TEST(test_arc_chords_join_at_the_arc_limit);
     return UNITY_END();
 }

@@ -826,6 +826,56 @@ static void test_queue_time_slots_and_errors(void)
 }
 
 /* the axis limits are projected: a diagonal block is limited by each axis */
+/* Chords of one arc (PLAN_MOVE_ARC_JOIN): the joins and the blocks run at
+ * the arc's centripetal limit, not at the corner rule's speed. 64 chords of
+ * an R 10 mm circle at 500 mm/s, equal axis limits: block k (its entry
+ * join at the angle th = 2 pi k / 64, normal n, chord direction u) gets
+ * v_max = min(sqrt(a R / max_i |n_i|), cbrt(j R^2 / max_i |u_i|)), a_max
+ * 2000 mm/s^2 (141-168 mm/s), then j_max 2000 mm/s^3 (58.5-62.6 mm/s);
+ * its entry is at most that (and above 80 % of it with a_max alone: the
+ * per-block S-curve between changing limits; with j_max 2000 the look-ahead
+ * of 64 blocks, (3/4 64 j l^2)^(1/3) = 45 mm/s, is the lower limit). Without
+ * the flag the junction-deviation rule (0.01 mm) gives 47 mm/s. */
+static void test_arc_chord_joins_use_the_arc_limit(void)
+{
+    static plan_move_t m[200];
+    static plan_est_t out[200];
+    const int64_t r = 10000000;
+    const double pi = 3.14159265358979, rmm = 10.0;
+    plan_profile_t prof = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    int pass, k;
+
+    for (pass = 0; pass < 3; pass++) {
+        double j = 50000.0;
+        if (pass == 1) {
+            j = 2000.0;
+            for (k = 0; k < CORE_AXES; k++) {
+                prof.j_max[k] = 2000 * MMS;
+            }
+        }
+        for (k = 0; k < 192; k++) {
+            double th = 2.0 * pi * (k + 1) / 64.0;
+            m[k] = mv((int64_t)llround(r * cos(th)) - r, (int64_t)llround(r * sin(th)), 0, 500);
+            m[k].flags = (k > 0 && pass < 2) ? PLAN_MOVE_ARC_JOIN : 0;
+        }
+        run(&prof, m, 192, out);
+        for (k = 64; k < 128; k++) {
+            /* every join and block of the middle revolution */
+            double th = 2.0 * pi * k / 64.0, tu = th + pi / 64.0 + pi / 2.0;
+            double nmax = fmax(fabs(cos(th)), fabs(sin(th)));
+            double umax = fmax(fabs(cos(tu)), fabs(sin(tu)));
+            double va = sqrt(2000.0 * rmm / nmax), vj = cbrt(j * rmm * rmm / umax);
+            double vmax = (double)out[k].v_max / MMS, ve = (double)out[k].v_entry / MMS;
+            if (pass < 2) {
+                TEST_ASSERT_DOUBLE_WITHIN(fmin(va, vj) * 2e-3, fmin(va, vj), vmax);
+                TEST_ASSERT_TRUE(ve <= vmax && (pass == 1 || ve > 0.8 * vmax));
+            } else {
+                TEST_ASSERT_TRUE(ve < 50.0);
+            }
+        }
+    }
+}
+
 static void test_axis_limits_projected(void)
 {
     plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
@@ -1066,6 +1116,7 @@ int main(void)
     RUN_TEST(test_scurve_at_rest_block_shapes);
     RUN_TEST(test_scurve_at_rest_incremental_and_deferred);
     RUN_TEST(test_queue_time_slots_and_errors);
+    RUN_TEST(test_arc_chord_joins_use_the_arc_limit);
     RUN_TEST(test_axis_limits_projected);
     RUN_TEST(test_block_limits_are_axis_minimum);
     RUN_TEST(test_jd_early_exit_matches_full);

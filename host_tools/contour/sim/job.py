@@ -280,33 +280,45 @@ def estimate_job(
     prof = drive_profile(m.axes, hz)
     chord = core.drive_param("arc_chord")
     pos = np.zeros(3, dtype=np.int64)  # the simulated drive starts at the origin
-    pts, feeds, stops, dwells = [], [], [], []
+    pts, feeds, stops, dwells, joins = [], [], [], [], []
+    arc_open = None  # (plane, centre, sense) of the arc the last chord belongs to
     for kind, tgt, feed, extra in blocks:
         if kind == "dwell":
             pts.append(pos.copy())
             feeds.append(1.0)
             stops.append(True)
             dwells.append(max(1, extra) / 1000.0)
+            joins.append(False)
+            arc_open = None
             continue
         f_mm_min = feed * 60.0 / 1e6
         if kind == "line":
             ends = [np.array(tgt, dtype=np.int64)]
             flags = [bool(extra)]
+            join = [False]
+            arc_open = None
         else:
             plane, cu, cv, sense, _stop = extra
             ends = list(core.arc_chords(pos, tgt, feed, plane, cu, cv, sense, m.axes, hz, chord))
             flags = [False] * len(ends)  # arcs are queued without exact stop
-        for e, fl in zip(ends, flags):
+            # as the drive's feed.c: every chord after the first joins the
+            # arc; the first joins an arc about the same centre before it
+            key = (plane, cu, cv, sense)
+            join = [arc_open == key] + [True] * (len(ends) - 1)
+            arc_open = key
+        for e, fl, jn in zip(ends, flags, join):
             pts.append(e)
             feeds.append(f_mm_min)
             stops.append(fl)
             dwells.append(0.0)
+            joins.append(jn)
         pos = np.array(ends[-1], dtype=np.int64)
     res = Planner(prof).estimate(
         np.array(pts, dtype=float) / 1e6,
         np.array(feeds),
         exact_stop=np.array(stops),
         dwell_s=np.array(dwells),
+        arc_join=np.array(joins),
     )
     return {
         "file": str(path),
