@@ -99,6 +99,12 @@ static void circle(int model, run_rec_t *r, unsigned switch_at)
     sim_gain_set(1, "kvff", 16.49);
     sim_gain_set(0, "kaff", 0.1247);
     sim_gain_set(1, "kaff", 0.1078);
+    /* robust CEC gains (default.toml): the servo's defaults are the thesis's,
+     * which limit-cycle at 10 kHz and fault (oscillation) */
+    TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "kp", 2000.0));
+    TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "ki", 2e5));
+    TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "kd", 2.0));
+    TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "d_tau", 1e-3));
     sim_cec_mode(DRIVE_CEC_EXACT);
     if (rough) {
         TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "enc_noise_counts", 1.0));
