@@ -9,6 +9,7 @@ Ra Tc / kt more than without it, so the axial error grows by
 whatever the axis speed (the model is linear; back-EMF and the derivative
 term are the same with and without the force)."""
 
+import json
 import math
 
 import numpy as np
@@ -89,3 +90,26 @@ def test_bad_disturbance_keys_are_refused():
         machine.from_dict({"disturbance": {"f_cut": 1.0}})
     with pytest.raises(UserError, match="disturbance.f_w"):
         machine.from_dict({"disturbance": {"f_w": -1.0}})
+
+
+def test_cli_cutting_force_and_spring(capsys):
+    """--cutting-force and --spring reach the model (the scores change) and
+    are reported in the JSON; a malformed value is a usage error."""
+    from contour import cli
+
+    base = ["sim", "circle", "--radius", "20", "--feed", "10000", "--controller", "pid", "--json"]
+    out = {}
+    for name, extra in (
+        ("none", []),
+        ("cut", ["--cutting-force", "20,100"]),
+        ("spring", ["--spring", "5"]),
+    ):
+        assert cli.main(base + extra) == 0
+        out[name] = json.loads(capsys.readouterr().out)
+    assert out["none"]["disturbance"] == {}
+    assert out["cut"]["disturbance"] == {"f_at": 20.0, "f_w": 100.0}
+    assert out["spring"]["disturbance"] == {"spring_x": 5.0, "spring_y": 5.0, "f_w": 0.0}
+    for name in ("cut", "spring"):
+        assert out[name]["iae_um_s"] != pytest.approx(out["none"]["iae_um_s"], rel=0.01)
+    assert cli.main(base + ["--cutting-force", "20"]) == 2
+    assert "F_AT,F_W" in capsys.readouterr().out  # --json: the error as JSON
