@@ -45,6 +45,13 @@ static struct {
     int enc_model;                /* SIM_ENC_*: how edges reach the decoder */
     uint64_t run_edges;           /* edges delivered in runs (SIM_ENC_FAST)  */
     double table[SIM_AXES];       /* axis_table_pos after the last substep */
+    /* disturbances (sim.h "Disturbances"; all zero = off, no effect at all) */
+    double cut_f_at[SIM_AXES];  /* N: F_at sign(v_ref) on this axis          */
+    double cut_f_w;             /* N: cutting force F_w in the X-Y plane     */
+    double cut_phi;             /* rad: phi of eq. 4.3 (default pi/4)        */
+    double spring_k[SIM_AXES];  /* N/m: spring on the table                  */
+    double spring_x0[SIM_AXES]; /* m: table position where it is relaxed    */
+    int dist_on;                /* any of the above non-zero (sim_start)    */
 } S;
 
 /* The simulator's own per-axis settings (not axis_model parameters). */
@@ -61,6 +68,21 @@ static double *sim_field(unsigned axis, const char *name)
     }
     if (strcmp(name, "index_phase") == 0) {
         return &S.index_phase[axis];
+    }
+    if (strcmp(name, "cut_f_at") == 0) {
+        return &S.cut_f_at[axis];
+    }
+    if (strcmp(name, "cut_f_w") == 0) { /* the X-Y plane's: any axis */
+        return &S.cut_f_w;
+    }
+    if (strcmp(name, "cut_phi") == 0) {
+        return &S.cut_phi;
+    }
+    if (strcmp(name, "spring_k") == 0) {
+        return &S.spring_k[axis];
+    }
+    if (strcmp(name, "spring_x0") == 0) {
+        return &S.spring_x0[axis];
     }
     return NULL;
 }
@@ -84,6 +106,7 @@ int sim_setup(double tick_hz, unsigned axes)
         S.enc_index[i] = 1.0;
         S.index_phase[i] = 0.0;
     }
+    S.cut_phi = PI_D / 4.0; /* the thesis's phi = 45 deg */
     drive_config_default(&S.dcfg, S.tick_hz, axes);
     /* this amplifier: +-10 V input for +-160 V (vmax / kx) */
     for (i = 0; i < CORE_AXES; i++) {
@@ -562,6 +585,12 @@ int sim_start(void)
             return SIM_E_MODEL;
         }
     }
+    S.dist_on = S.cut_f_w != 0.0;
+    for (i = 0; i < S.axes; i++) {
+        if (S.cut_f_at[i] != 0.0 || S.spring_k[i] != 0.0) {
+            S.dist_on = 1;
+        }
+    }
     S.board.drive = &cfg;
     S.board.boot = S.boot ? boot_sim_config() : NULL;
     if (app_init(&S.board) != APP_OK) {
@@ -604,6 +633,36 @@ static void write_row(double *row)
     }
 }
 
+static double sgn(double v)
+{
+    return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+}
+
+/* The disturbance force on each axis (N, opposing +x when positive) from the
+ * reference velocity of this tick and the table position, applied as the
+ * load torque l F on the motor side (the thesis's Tc) for the coming tick. */
+static void disturbance_tick(void)
+{
+    drive_status_t st;
+    double f[SIM_AXES] = {0.0}, vx, vy;
+    unsigned i;
+    drive_snapshot(&st);
+    for (i = 0; i < S.axes; i++) {
+        f[i] = S.cut_f_at[i] * sgn((double)st.vel_ref[i]) +
+               S.spring_k[i] * (S.table[i] - S.spring_x0[i]);
+    }
+    vx = (double)st.vel_ref[0];
+    vy = S.axes > 1 ? (double)st.vel_ref[1] : 0.0;
+    if (S.cut_f_w != 0.0 && S.axes > 1 && (vx != 0.0 || vy != 0.0)) {
+        double alpha = atan2(vy, vx);
+        f[0] += S.cut_f_w * cos(S.cut_phi - alpha);
+        f[1] -= S.cut_f_w * sin(S.cut_phi - alpha);
+    }
+    for (i = 0; i < S.axes; i++) {
+        S.ax[i].p.load_torque = S.par[i].load_torque + S.par[i].l * f[i];
+    }
+}
+
 static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
                       unsigned min_free, uint64_t *ran)
 {
@@ -641,6 +700,9 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         }
         row_in--;
         app_poll();
+        if (S.dist_on) {
+            disturbance_tick();
+        }
         for (i = 0; i < S.axes; i++) {
             double u = (double)hal_sim_motor_mv(i) * 1e-3;
             for (s = 0; s < S.nsub; s++) {

@@ -24,6 +24,11 @@
  *                                   per motor turn, one count wide, at
  *                                   "index_phase" counts from position 0 and
  *                                   every enc_counts_per_rev counts; 0: none).
+ *                                   Disturbances (below): "cut_f_at" (N),
+ *                                   "spring_k" (N/m), "spring_x0" (m) per
+ *                                   axis; "cut_f_w" (N) and "cut_phi" (rad,
+ *                                   default pi/4) of the X-Y plane (any axis
+ *                                   index sets the one value).
  *   sim_axis_pitch(axis, n, ...)    the pitch error map.
  *   sim_set_substep(max_s)          substep length bound (0: the default).
  *   sim_start()                     discretise (matrix exponentials), reset
@@ -51,6 +56,17 @@
  *      reaches the firmware as the encoder model says (sim_encoder_model):
  *      one by one through drive_encoder_edge(), or the substep's edges as
  *      one run through drive_encoder_run() (the same decoder state).
+ * Disturbances (all 0 by default: then step 5b does not run and every trace
+ * is bit-identical to a simulator without them): after step 5,
+ *   5b. a force F_i (N, positive pushes the table toward -x) per axis from the
+ *       drive's reference velocity v (drive_status_t.vel_ref) of this tick and
+ *       the table position x_i, the thesis's eq. 4.3 plus a spring:
+ *         F_x = cut_f_at_x sgn(v_x) + cut_f_w cos(cut_phi - a) + k_x (x - x0)
+ *         F_y = cut_f_at_y sgn(v_y) - cut_f_w sin(cut_phi - a) + k_y (y - y0)
+ *       with a = atan2(v_y, v_x) the path angle; the cut_f_w terms act only
+ *       while the reference moves (sgn 0 = 0). It acts over the coming tick
+ *       as the load torque T1 = l F on the motor side (the thesis's Tc; the
+ *       axis's own load_torque is added).
  * The motor command is read as millivolts at the amplifier input
  * (hal_sim_motor_mv: 0 when the amplifier is disabled); the model applies
  * the amplifier gain kx and the +-vmax limit.

@@ -1,6 +1,7 @@
 """`contour sim ...`: the hardware-in-the-loop simulator.
 
 contour sim circle --radius MM --feed MM_PER_MIN [--direction cw|ccw]
+    [--cutting-force F_AT,F_W] [--spring N_PER_MM]
     --controller pid|cec-tangent|cec-curvature|cec-exact
     [--feedforward none|velocity|full] [--machine FILE.toml] [--tick-hz N]
     [--encoder-model fast|edges] [--json] [--plot PNG] [--trace CSV]
@@ -71,6 +72,20 @@ def register(sub) -> None:
         help="run the circle as N G1 chords (as CAM writes it) instead of arc blocks",
     )
     c.add_argument(
+        "--cutting-force",
+        metavar="F_AT,F_W",
+        help="the thesis's cutting/friction disturbance (eq. 4.3), N: F_at sgn(v) per axis "
+        "and the cutting force F_w at phi 45 deg (replaces the machine's [disturbance])",
+    )
+    c.add_argument(
+        "--spring",
+        type=float,
+        default=None,
+        metavar="N_PER_MM",
+        help="a spring on the X and on the Y table, relaxed at the machine origin (the "
+        "lead-in's start; replaces the machine's spring_x, spring_y)",
+    )
+    c.add_argument(
         "--plot",
         metavar="PNG",
         help="ballbar plot (ISO 230-4): both directions overlaid (runs the other one too)",
@@ -111,11 +126,37 @@ def register(sub) -> None:
     s.set_defaults(func=cmd_serve)
 
 
+def disturbed_machine(args):
+    """The machine with --cutting-force / --spring in its [disturbance]
+    (None when neither is given: run_circle loads --machine itself)."""
+    from contour.sim import machine
+
+    if args.cutting_force is None and args.spring is None:
+        return None
+    m = machine.load(args.machine)
+    d = dict(m.disturbance)
+    if args.cutting_force is not None:
+        try:
+            f_at, f_w = (float(v) for v in args.cutting_force.split(","))
+        except ValueError:
+            msg = f"--cutting-force wants F_AT,F_W in N, got {args.cutting_force!r}"
+            raise UserError(msg) from None
+        for k in ("f_w", "k_s", "feed_per_tooth_mm", "depth_mm"):
+            d.pop(k, None)
+        d.update(f_at=f_at, f_w=f_w)
+    if args.spring is not None:
+        d.update(spring_x=args.spring, spring_y=args.spring)
+    # the same checks as a [disturbance] section in the file
+    m.disturbance = machine.from_dict({"disturbance": d}, "command line").disturbance
+    return m
+
+
 def cmd_circle(args) -> int:
     from contour.sim import circle, plots
 
     with usage_errors():  # --radius, --feed ... out of the test's range
         circle.check_args(args.radius, args.feed, args.direction, args.controller, args.feedforward)
+        mach = disturbed_machine(args)
     run = circle.run_circle(
         args.radius,
         args.feed,
@@ -127,6 +168,7 @@ def cmd_circle(args) -> int:
         encoder_model=args.encoder_model,
         allow_limited=args.allow_limited,
         chords=args.chords,
+        mach=mach,
     )
     res = run.result
     if args.trace:
@@ -142,6 +184,7 @@ def cmd_circle(args) -> int:
             tick_hz=args.tick_hz,
             allow_limited=args.allow_limited,
             chords=args.chords,
+            mach=mach,
         )
         plots.ballbar(args.plot, [(run.trace, res), (other.trace, other.result)], args.scale)
     if args.json:

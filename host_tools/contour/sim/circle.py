@@ -42,7 +42,7 @@ sagitta R (1 - cos(pi / N)), the path as programmed),
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -87,6 +87,7 @@ class CircleResult:
     mean_feed_mm_min: float = 0.0
     limited_by: str = ""  # empty: the scored revolution ran at the stated feed
     chords: int = 0  # 0: arc blocks; N: the circle as N G1 chords
+    disturbance: dict = field(default_factory=dict)  # the machine's [disturbance] (N, N/mm)
 
     def as_dict(self) -> dict:
         """JSON fields (docs/conventions.md: errors in um as in `sim run`; the
@@ -295,6 +296,7 @@ def run_circle(
         edge_mismatch_ticks=int(so.sim_edge_mismatches()),
         faults=core.fault_names(st.faults),
         chords=chords,
+        disturbance={**m.disturbance, "f_w": m.cutting_f_w()} if m.disturbance else {},
         **res["scores"],
     )
     flags = list(over)

@@ -56,6 +56,17 @@ optional except where noted; units SI unless the name says otherwise)::
     scale_x = 1.0                   # per-axis factor on top (scale_y, scale_z)
     friction = 0.0                  # fraction of the Coulomb friction fed forward
 
+    [disturbance]                   # load forces on the tables (sim.h, "Disturbances");
+                                    # all 0 (the default): off, traces bit-identical
+    f_at = 0.0                      # N, F_at sgn(v_ref) on X and on Y (thesis eq. 4.3)
+    f_w = 0.0                       # N, cutting force F_w (eq. 4.3), or from
+    k_s = 0.0                       #   F_w = k_s s^0.73 p: k_s in N/mm^1.73,
+    feed_per_tooth_mm = 0.0         #   s (mm per tooth) and
+    depth_mm = 0.0                  #   p (depth of cut, mm)
+    phi_deg = 45.0                  # the thesis's phi
+    spring_x = 0.0                  # N/mm, a spring on the X table (spring_y, spring_z),
+    spring_x0_mm = 0.0              # relaxed at this table position (spring_y0_mm, ...)
+
 Gains are in volts at the amplifier input per metre (the thesis's units).
 """
 
@@ -160,6 +171,17 @@ TOP_KEYS = {
     "gains",
     "feedforward",
     "encoder_model",
+    "disturbance",
+}
+DIST_KEYS = {
+    "f_at",
+    "f_w",
+    "k_s",
+    "feed_per_tooth_mm",
+    "depth_mm",
+    "phi_deg",
+    *(f"spring_{a}" for a in AXES),
+    *(f"spring_{a}0_mm" for a in AXES),
 }
 
 
@@ -177,6 +199,14 @@ class Machine:
     ff_mode: str = "none"  # [feedforward] mode: apply()'s default
     encoder_model: str = "fast"  # sim_encoder_model: "fast" or "edges" (the reference)
     description: str = ""
+    disturbance: dict = field(default_factory=dict)  # [disturbance], SI after from_dict
+
+    def cutting_f_w(self) -> float:
+        """F_w of eq. 4.3 in N: f_w, or k_s s^0.73 p when f_w is absent."""
+        d = self.disturbance
+        if "f_w" in d:
+            return d["f_w"]
+        return d.get("k_s", 0.0) * d.get("feed_per_tooth_mm", 0.0) ** 0.73 * d.get("depth_mm", 0.0)
 
     def l(self, ax: str) -> float:  # noqa: E743 - the model's name for it
         return self.axis[ax]["lead_mm"] * 1e-3 / (2 * math.pi)
@@ -384,6 +414,12 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
         )
     m.ff_mode = mode
     m.feedforward = {k: _num(v, f"feedforward.{k}", path, 0, 1e6) for k, v in ff.items()}
+    dist = _table(data.get("disturbance", {}), "[disturbance]", path)
+    _check_keys(dist, DIST_KEYS, "[disturbance]", path)
+    m.disturbance = {
+        k: _num(v, f"disturbance.{k}", path, -1e9 if "0_mm" in k else 0.0, 1e9)
+        for k, v in dist.items()
+    }
     return m
 
 
@@ -460,6 +496,16 @@ def apply(
         g = m.gains[ax]
         kv, ka = m.ff_gains(ax, feedforward)
         _gains(so, i, {**g, "kvff": kv, "kaff": ka}, f"axis {ax}")
+    dist = m.disturbance
+    if m.axes >= 2:
+        core.check(so.sim_axis_set(0, b"cut_f_w", m.cutting_f_w()), "disturbance f_w")
+        core.check(
+            so.sim_axis_set(0, b"cut_phi", math.radians(dist.get("phi_deg", 45.0))), "phi_deg"
+        )
+    for i, ax in enumerate(AXES[: m.axes]):
+        axset(i, "cut_f_at", dist.get("f_at", 0.0) if i < 2 else 0.0)
+        axset(i, "spring_k", dist.get(f"spring_{ax}", 0.0) * 1e3)
+        axset(i, "spring_x0", dist.get(f"spring_{ax}0_mm", 0.0) * 1e-3)
     for k in ("junction_dev", "arc_chord"):
         if k in m.planner:
             core.check(so.sim_plan_set(0, k.encode(), m.planner[k]), f"planner {k}")
