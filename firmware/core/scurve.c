@@ -474,7 +474,8 @@ void sc_plan(sc_profile_t *p, int64_t len, int64_t v0, int64_t v1, const sc_limi
     p->t_ns[3] = 0;
     if (rest > 0 && e.v_q16 > 0) {
         p->t_ns[3] = sc_muldiv(2 * rest, (int64_t)NS, e.v_q16);
-        p->t_ns[3] = (p->t_ns[3] + 1) / 2;
+        /* (t + 1) / 2 without overflow when sc_muldiv saturated */
+        p->t_ns[3] = p->t_ns[3] / 2 + (p->t_ns[3] & 1);
     }
     /* final states from phase 3 on. With no acceleration left at the peak
      * (always in trapezoidal mode, and whenever the S-curve's rounding
