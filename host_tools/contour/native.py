@@ -205,6 +205,11 @@ SIGNATURES: dict[str, tuple] = {
     "sim_axis_set": (c.c_int, [c.c_uint, c.c_char_p, c.c_double]),
     "sim_axis_get": (c.c_int, [c.c_uint, c.c_char_p, _p(c.c_double)]),
     "sim_axis_pitch": (c.c_int, [c.c_uint, c.c_uint, c.c_void_p, c.c_void_p, c.c_void_p]),
+    "sim_field2d": (
+        c.c_int,
+        [c.c_uint, c.c_uint, c.c_double, c.c_double, c.c_double, c.c_double, c.c_void_p]
+        + [c.c_void_p, c.c_uint, c.c_double, c.c_double, c.c_void_p, c.c_double],
+    ),
     "sim_set_substep": (c.c_int, [c.c_double]),
     "sim_encoder_model": (c.c_int, [c.c_int]),
     "sim_encoder_model_get": (c.c_int, []),
