@@ -48,16 +48,26 @@ static unsigned comp2d_cell(pos_nm_t p, pos_nm_t p0, uint32_t d, uint32_t inv, u
     return i;
 }
 
-static int64_t comp2d_lerp(int64_t a, int64_t b, uint32_t f)
+/* a + (b - a) * f, f q16: one 32 x 32 -> 64 multiply */
+static int32_t comp2d_lerp(int32_t a, int32_t b, uint32_t f)
 {
-    return a + (((b - a) * (int64_t)f) >> 16);
+    return a + (int32_t)(((int64_t)(b - a) * (int32_t)f) >> 16);
+}
+
+/* Node i of axis a with the direction terms weighted, q13 of 2^shift nm:
+ * |value| <= 3 * 2^15 * 2^13 < 2^30, differences of two fit int32. */
+static int32_t comp2d_node(const int16_t (*g)[COMP2D_NODES_MAX], unsigned i, int32_t wx, int32_t wy)
+{
+    return (int32_t)g[COMP2D_MID][i] * 8192 + (int32_t)g[COMP2D_HX][i] * wx +
+           (int32_t)g[COMP2D_HY][i] * wy;
 }
 
 void comp2d_correct(const comp2d_map_t *m, const pos_nm_t raw[2], const q1_30_t w[2],
                     pos_nm_t out[2])
 {
     uint32_t fx, fy;
-    unsigned ix, iy, k, a, i0, i1;
+    unsigned ix, iy, a, i0, i1;
+    int32_t wx, wy;
     if (m == 0) {
         out[0] = raw[0];
         out[1] = raw[1];
@@ -67,21 +77,13 @@ void comp2d_correct(const comp2d_map_t *m, const pos_nm_t raw[2], const q1_30_t 
     iy = comp2d_cell(raw[1], m->y0, m->dy, m->inv_dy, m->ny, &fy);
     i0 = iy * m->nx + ix;
     i1 = i0 + m->nx;
+    wx = w[0] / 131072; /* q1_30 -> q13 (|w| <= 1) */
+    wy = w[1] / 131072;
     for (a = 0; a < 2; a++) {
-        int64_t v[3];
-        for (k = 0; k < 3; k++) {
-            const int16_t *g = m->g[a][k];
-            /* node values in 2^-16 nm units: the fractions lose nothing */
-            int64_t b0 = comp2d_lerp((int64_t)g[i0] * 65536, (int64_t)g[i0 + 1] * 65536, fx);
-            int64_t b1 = comp2d_lerp((int64_t)g[i1] * 65536, (int64_t)g[i1 + 1] * 65536, fx);
-            v[k] = comp2d_lerp(b0, b1, fy);
-        }
-        /* q16 nm * 2^shift; hysteresis terms times w (q1_30) */
-        {
-            int64_t c =
-                v[COMP2D_MID] + ((v[COMP2D_HX] * w[0]) >> 30) + ((v[COMP2D_HY] * w[1]) >> 30);
-            c *= (int64_t)1 << m->shift;
-            out[a] = raw[a] + ((c + 32768) >> 16);
-        }
+        const int16_t(*g)[COMP2D_NODES_MAX] = m->g[a];
+        int32_t b0 = comp2d_lerp(comp2d_node(g, i0, wx, wy), comp2d_node(g, i0 + 1, wx, wy), fx);
+        int32_t b1 = comp2d_lerp(comp2d_node(g, i1, wx, wy), comp2d_node(g, i1 + 1, wx, wy), fx);
+        int64_t c = (int64_t)comp2d_lerp(b0, b1, fy) * ((int64_t)1 << m->shift);
+        out[a] = raw[a] + ((c + 4096) >> 13);
     }
 }

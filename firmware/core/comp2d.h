@@ -19,9 +19,11 @@
  * the 6 grids has nx * ny nodes from (x0, y0) every (dx, dy) nm, node
  * (ix, iy) at index iy * nx + ix, stored as int16 in units of 2^shift nm
  * (shift <= COMP2D_SHIFT_MAX: +-32767 * 2^shift nm). Between nodes bilinear
- * interpolation, outside the grid the edge value held (clamped), both
- * exact to 1 nm before the final rounding: fractions are q16 from a
- * precomputed reciprocal (no division in the tick: comp2d_prepare).
+ * interpolation, outside the grid the edge value held (clamped). Fixed
+ * point: the weights are taken in q13 (steps of 1/8192 of a hysteresis
+ * term), node values in q13 of 2^shift nm, fractions in q16 from a
+ * precomputed reciprocal (no 64-bit division: comp2d_prepare), one
+ * rounding at the end: within 1 nm + 2^shift / 8192 nm of the exact value.
  *
  * Limits (comp2d_check), each with its own refusal:
  *   version == COMP2D_VERSION                       COMP2D_E_VERSION
