@@ -2,6 +2,7 @@
  * sim.c - the simulator loop (see sim.h).
  */
 #include "sim.h"
+#include "field2d.h"
 
 #include <math.h>
 #include <string.h>
@@ -44,7 +45,9 @@ static struct {
     double index_phase[SIM_AXES]; /* counts from position 0 to an index  */
     int enc_model;                /* SIM_ENC_*: how edges reach the decoder */
     uint64_t run_edges;           /* edges delivered in runs (SIM_ENC_FAST)  */
-    double table[SIM_AXES];       /* axis_table_pos after the last substep */
+    double table[SIM_AXES];       /* axis_table_pos after the last substep,
+                                   * plus the 2-D field (sim_field2d) */
+    field2d_t field;              /* 2-D error field of X and Y (off: field.on) */
     /* disturbances (sim.h "Disturbances"; all zero = off, no effect at all) */
     double cut_f_at[SIM_AXES];  /* N: F_at sign(v_ref) on this axis          */
     double cut_f_w;             /* N: cutting force F_w in the X-Y plane     */
@@ -53,6 +56,22 @@ static struct {
     double spring_x0[SIM_AXES]; /* m: table position where it is relaxed    */
     int dist_on;                /* any of the above non-zero (sim_start)    */
 } S;
+
+/* With the 2-D field on, add it to X's and Y's true positions (S.table)
+ * from their nominal ones: off, S.table stays axis_table_pos bit for bit. */
+static void sim_apply_field(void)
+{
+    double e[2];
+    if (!S.field.on || S.axes < 2) {
+        return;
+    }
+    field2d_track(&S.field, S.table[0], S.table[1]);
+    field2d_error(&S.field, S.table[0], S.table[1], e);
+    S.ax[0].p.ref_noise = field2d_noise(&S.field, 0, S.table[0], S.table[1]);
+    S.ax[1].p.ref_noise = field2d_noise(&S.field, 1, S.table[0], S.table[1]);
+    S.table[0] += e[0];
+    S.table[1] += e[1];
+}
 
 /* The simulator's own per-axis settings (not axis_model parameters). */
 static double *sim_field(unsigned axis, const char *name)
@@ -254,6 +273,22 @@ int sim_axis_pitch(unsigned axis, unsigned n, const double *pos, const double *e
         S.par[axis].pitch_err_rev[i] = err_rev[i];
     }
     return 0;
+}
+
+int sim_field2d(unsigned nx, unsigned ny, double x0, double dx, double y0, double dy,
+                const double *col, const double *sig, unsigned nr, double r0, double dr,
+                const double *row, double band)
+{
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    if (nx > 0 && S.axes < 2) {
+        return SIM_E_ARG;
+    }
+    S.started = 0;
+    return field2d_set(&S.field, nx, ny, x0, dx, y0, dy, col, sig, nr, r0, dr, row, band)
+               ? 0
+               : SIM_E_ARG;
 }
 
 int sim_set_substep(double max_s)
@@ -591,6 +626,16 @@ int sim_start(void)
             S.dist_on = 1;
         }
     }
+    if (S.field.on && S.axes >= 2) {
+        field2d_reset(&S.field, S.table[0], S.table[1]);
+        sim_apply_field();
+        for (i = 0; i < 2; i++) {
+            hal_sim_set_counter(
+                S.axes + i,
+                (uint32_t)(uint64_t)(int64_t)floor(S.table[i] / S.par[i].ref_resolution + 0.5),
+                true);
+        }
+    }
     S.board.drive = &cfg;
     S.board.boot = S.boot ? boot_sim_config() : NULL;
     if (app_init(&S.board) != APP_OK) {
@@ -712,6 +757,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
             }
             S.table[i] = axis_table_pos(&S.ax[i]);
         }
+        sim_apply_field();
         S.t_ns += S.period_ns;
         S.ticks++;
         if (min_free > 0 && drive_queue_free() >= min_free) {

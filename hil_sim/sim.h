@@ -30,6 +30,8 @@
  *                                   default pi/4) of the X-Y plane (any axis
  *                                   index sets the one value).
  *   sim_axis_pitch(axis, n, ...)    the pitch error map.
+ *   sim_field2d(nx, ny, ...)        the 2-D error field of X and Y
+ *                                   (field2d.h; nx = 0: off, the default).
  *   sim_set_substep(max_s)          substep length bound (0: the default).
  *   sim_start()                     discretise (matrix exponentials), reset
  *                                   the HAL, drive_init(), axes at position 0
@@ -111,6 +113,9 @@ int sim_axis_set(unsigned axis, const char *name, double value);
 int sim_axis_get(unsigned axis, const char *name, double *value);
 int sim_axis_pitch(unsigned axis, unsigned n, const double *pos, const double *err_fwd,
                    const double *err_rev);
+int sim_field2d(unsigned nx, unsigned ny, double x0, double dx, double y0, double dy,
+                const double *col, const double *sig, unsigned nr, double r0, double dr,
+                const double *row, double band);
 int sim_set_substep(double max_s);
 
 /* How the encoder edges reach the firmware's decoder (docs/simulator.md,

@@ -4,6 +4,7 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "comp2d.h"
 #include "drive.h"
 #include "estimator.h"
 #include "gcode_scan.h"
@@ -29,6 +30,18 @@ static const sim_abi_entry_t sim_abi_table[] = {
     {SIM_ABI_SIZE(plan_est_t)},
     {SIM_ABI_SIZE(proto_msg_info_t)},
     {SIM_ABI_SIZE(gcode_scan_t)},
+    {SIM_ABI_SIZE(comp2d_map_t)},
+    {SIM_ABI_FIELD(comp2d_map_t, version)},
+    {SIM_ABI_FIELD(comp2d_map_t, nx)},
+    {SIM_ABI_FIELD(comp2d_map_t, ny)},
+    {SIM_ABI_FIELD(comp2d_map_t, shift)},
+    {SIM_ABI_FIELD(comp2d_map_t, x0)},
+    {SIM_ABI_FIELD(comp2d_map_t, y0)},
+    {SIM_ABI_FIELD(comp2d_map_t, dx)},
+    {SIM_ABI_FIELD(comp2d_map_t, dy)},
+    {SIM_ABI_FIELD(comp2d_map_t, inv_dx)},
+    {SIM_ABI_FIELD(comp2d_map_t, inv_dy)},
+    {SIM_ABI_FIELD(comp2d_map_t, g)},
     {SIM_ABI_FIELD(sim_status_t, state)},
     {SIM_ABI_FIELD(sim_status_t, faults)},
     {SIM_ABI_FIELD(sim_status_t, queue_free)},

@@ -157,9 +157,30 @@ PLAN_EST_DTYPE = np.dtype(
     align=True,
 )
 
+
 # C type name -> its Python mirror; the C side of each is in hil_sim/sim_abi.c
+class Comp2dMap(c.Structure):
+    """comp2d_map_t (firmware/core/comp2d.h): the 2-D compensation map
+    (contour.calibration.map2d)."""
+
+    _fields_ = [
+        ("version", c.c_uint16),
+        ("nx", c.c_uint8),
+        ("ny", c.c_uint8),
+        ("shift", c.c_uint8),
+        ("x0", c.c_int64),
+        ("y0", c.c_int64),
+        ("dx", c.c_uint32),
+        ("dy", c.c_uint32),
+        ("inv_dx", c.c_uint32),
+        ("inv_dy", c.c_uint32),
+        ("g", c.c_int16 * 144 * 3 * 2),
+    ]
+
+
 MIRRORS: dict[str, Union[type, np.dtype]] = {
     "sim_status_t": SimStatus,
+    "comp2d_map_t": Comp2dMap,
     "drive_block_t": DriveBlock,
     "plan_profile_t": PlanProfile,
     "plan_move_t": PLAN_MOVE_DTYPE,
@@ -205,6 +226,11 @@ SIGNATURES: dict[str, tuple] = {
     "sim_axis_set": (c.c_int, [c.c_uint, c.c_char_p, c.c_double]),
     "sim_axis_get": (c.c_int, [c.c_uint, c.c_char_p, _p(c.c_double)]),
     "sim_axis_pitch": (c.c_int, [c.c_uint, c.c_uint, c.c_void_p, c.c_void_p, c.c_void_p]),
+    "sim_field2d": (
+        c.c_int,
+        [c.c_uint, c.c_uint, c.c_double, c.c_double, c.c_double, c.c_double, c.c_void_p]
+        + [c.c_void_p, c.c_uint, c.c_double, c.c_double, c.c_void_p, c.c_double],
+    ),
     "sim_set_substep": (c.c_int, [c.c_double]),
     "sim_encoder_model": (c.c_int, [c.c_int]),
     "sim_encoder_model_get": (c.c_int, []),
@@ -286,6 +312,10 @@ SIGNATURES: dict[str, tuple] = {
     "gcode_scan": (c.c_size_t, [c.c_char_p, c.c_size_t, c.c_size_t, _p(GcodeScan)]),
     # compensation tables (firmware/core/comp.h)
     "comp_record_decode": (c.c_int, [c.c_char_p, c.c_size_t, c.c_void_p]),
+    # 2-D compensation map (firmware/core/comp2d.h)
+    "comp2d_check": (c.c_int, [_p(Comp2dMap), _p(c.c_int64), _p(c.c_int64)]),
+    "comp2d_prepare": (None, [_p(Comp2dMap)]),
+    "comp2d_correct": (None, [_p(Comp2dMap), _p(c.c_int64), _p(c.c_int32), _p(c.c_int64)]),
     # bootloader and flash of the simulated drive (firmware/ports/sim)
     "boot_sim_serve_link": (c.c_bool, []),
     "boot_sim_init": (c.c_bool, [c.c_char_p, c.c_uint8, c.c_uint32]),

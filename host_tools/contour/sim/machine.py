@@ -171,6 +171,7 @@ TOP_KEYS = {
     "gains",
     "feedforward",
     "encoder_model",
+    "field2d",
     "disturbance",
 }
 DIST_KEYS = {
@@ -207,6 +208,7 @@ class Machine:
         if "f_w" in d:
             return d["f_w"]
         return d.get("k_s", 0.0) * d.get("feed_per_tooth_mm", 0.0) ** 0.73 * d.get("depth_mm", 0.0)
+    field2d: dict = field(default_factory=dict)  # [field2d]: lines, band_um (empty: off)
 
     def l(self, ax: str) -> float:  # noqa: E743 - the model's name for it
         return self.axis[ax]["lead_mm"] * 1e-3 / (2 * math.pi)
@@ -404,6 +406,8 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
             )
             for k, v in cl.items()
         }
+    if "field2d" in data:
+        m.field2d = _field2d(_table(data["field2d"], "[field2d]", path), m.axes, path)
     ff = _table(data.get("feedforward", {}), "[feedforward]", path)
     _check_keys(ff, FF_KEYS, "[feedforward]", path)
     ff = dict(ff)
@@ -421,6 +425,35 @@ def from_dict(data: dict, path: str = "<machine>") -> Machine:
         for k, v in dist.items()
     }
     return m
+
+
+def _field2d(fd: dict, axes: int, path: str) -> dict:
+    """[field2d]: the 2-D error field of X and Y (contour.sim.field2d)."""
+    from contour.sim import field2d
+
+    _check_keys(fd, {"lines", "band_um"}, "[field2d]", path)
+    if axes < 2:
+        raise UserError(f"{path}: [field2d] needs axes >= 2")
+    lines = fd.get("lines")
+    if not isinstance(lines, list) or not all(
+        isinstance(r, list) and len(r) == 8 and r[0] in ("X", "Y") and r[1] in ("X", "Y")
+        for r in lines
+    ):
+        raise UserError(
+            f"{path}: field2d.lines must be a list of [X|Y, X|Y, line_mm, pos_mm,"
+            " mean_pos_um, std_pos_um, mean_neg_um, std_neg_um]"
+        )
+    rows = [r[:2] + [_num(v, "field2d.lines value", path, -1e6, 1e6) for v in r[2:]] for r in lines]
+    try:
+        built = field2d.build(rows)
+    except ValueError as e:
+        raise UserError(f"{path}: [field2d]: {e}") from None
+    if built.col[0][0].size > 256 or len(built.rs) > 64:
+        raise UserError(f"{path}: [field2d] is larger than the simulator's 256 x 64 nodes")
+    return {
+        "field": built,
+        "band_um": _num(fd.get("band_um", 0.5), "field2d.band_um", path, 0, 1e6),
+    }
 
 
 def apply(
@@ -509,6 +542,10 @@ def apply(
     for k in ("junction_dev", "arc_chord"):
         if k in m.planner:
             core.check(so.sim_plan_set(0, k.encode(), m.planner[k]), f"planner {k}")
+    if m.field2d:
+        from contour.sim import field2d
+
+        core.check(field2d.apply(so, m.field2d["field"], m.field2d["band_um"]), "2-D field")
     core.check(so.sim_servo_set(0, b"sat_limit", m.servo["sat_limit_s"]), "sat_limit")
     core.check(so.sim_plan_set(0, b"stop_decel", m.servo["stop_decel"]), "stop_decel")
     _gains(so, -1, m.gains["cec"], "cec")
