@@ -208,6 +208,7 @@ class Machine:
         if "f_w" in d:
             return d["f_w"]
         return d.get("k_s", 0.0) * d.get("feed_per_tooth_mm", 0.0) ** 0.73 * d.get("depth_mm", 0.0)
+
     field2d: dict = field(default_factory=dict)  # [field2d]: lines, band_um (empty: off)
 
     def l(self, ax: str) -> float:  # noqa: E743 - the model's name for it
