@@ -92,26 +92,87 @@ def _pid(g: dict, t: float):
     return step
 
 
+class Twin:
+    """The axis model of dict `p` stepped one tick at a time (see above)."""
+
+    def __init__(self, p: dict, tick_hz: float, substeps: int = 4, seed: int = 1):
+        t = 1.0 / tick_hz
+        h = t / substeps
+        a, b, c1, _ = tuning.plant(p)
+        lead = p.get("lead_mm", 5.0) * 1e-3
+        self.l = lead / (2 * math.pi)
+        bb = np.zeros((5, 3))  # inputs [u, T1 motor side, T2 table side]
+        bb[:, 0] = b[:, 0]
+        bb[1, 1] = -1.0 / p["I1"]
+        bb[3, 2] = -1.0 / p["I2"]
+        self.phi, self.gam = tuning.zoh(a, bb, h)
+        self.c1 = c1[0]
+        self.fc1 = p.get("coulomb_motor", 0.0)
+        self.fc2 = p.get("coulomb_table", 0.0) * self.l
+        self.m_per_count = lead / (4.0 * p.get("encoder_lines", 1000.0))
+        self.noise = p.get("encoder_noise_counts", 0.0)
+        self.rng = np.random.default_rng(seed)
+        self.umax = p.get("vmax", 160.0) / p["kx"]
+        self.substeps = substeps
+        self.z = np.zeros(5)
+
+    def encoder(self) -> float:
+        """Encoder position, m (quantised, with the reading noise)."""
+        c = float(self.c1 @ self.z) / self.m_per_count + 0.5
+        if self.noise:
+            c += self.noise * self.rng.standard_normal()
+        return math.floor(c) * self.m_per_count
+
+    def motor_velocity(self) -> float:
+        return float(self.z[1]) * self.l
+
+    def step(self, u: float) -> None:
+        uu = max(-self.umax, min(self.umax, u))
+        w0 = 0.5  # rad/s, smoothing of the friction law
+        for _ in range(self.substeps):
+            tin = np.array(
+                [uu, self.fc1 * math.tanh(self.z[1] / w0), self.fc2 * math.tanh(self.z[3] / w0)]
+            )
+            self.z = self.phi @ self.z + self.gam @ tin
+
+
+def following_error(
+    p: dict, gains: dict, tick_hz: float, distance_m=0.02, v=0.1, a=2.0, kv=0.0, ka=0.0
+) -> float:
+    """Largest |reference - encoder| (m) over a trapezoidal move there and
+    back (PID `gains`, feed-forward kv V/(m/s), ka V/(m/s^2)), with 0.1 s
+    of settling after each leg: the verification job of the twin."""
+    t = 1.0 / tick_hz
+    tw = Twin(p, tick_hz)
+    pid = _pid(gains, t)
+    ta = v / a
+    tc = max(0.0, distance_m / v - ta)
+    prof = []
+    for sign in (1.0, -1.0):
+        for k in range(int((2 * ta + tc + 0.1) / t)):
+            tt = k * t
+            if tt < ta:
+                prof.append((sign * a * tt, sign * a))
+            elif tt < ta + tc:
+                prof.append((sign * v, 0.0))
+            elif tt < 2 * ta + tc:
+                prof.append((sign * (v - a * (tt - ta - tc)), -sign * a))
+            else:
+                prof.append((0.0, 0.0))
+    ref = 0.0
+    worst = 0.0
+    for vel, acc in prof:
+        e = ref - tw.encoder()
+        worst = max(worst, abs(e))
+        tw.step(pid(e) + kv * vel + ka * acc)
+        ref += vel * t
+    return worst
+
+
 def simulate(p: dict, gains: dict, plan: Plan, limits: Limits, substeps: int = 4) -> Record:
     """Run the experiment on the model of axis dict `p` held by PID `gains`."""
     t = 1.0 / plan.tick_hz
-    h = t / substeps
-    a, b, c1, _ = tuning.plant(p)
-    lead = p.get("lead_mm", 5.0) * 1e-3
-    l_ = lead / (2 * math.pi)
-    # inputs [u, T1 (motor side torque), T2 (table side torque)]
-    bb = np.zeros((5, 3))
-    bb[:, 0] = b[:, 0]
-    bb[1, 1] = -1.0 / p["I1"]
-    bb[3, 2] = -1.0 / p["I2"]
-    phi, gam = tuning.zoh(a, bb, h)
-    fc1 = p.get("coulomb_motor", 0.0)
-    fc2 = p.get("coulomb_table", 0.0) * l_
-    cpr = 4.0 * p.get("encoder_lines", 1000.0)
-    m_per_count = lead / cpr
-    noise = p.get("encoder_noise_counts", 0.0)
-    rng = np.random.default_rng(plan.seed + 1000)
-    vmax = p.get("vmax", 160.0) / p["kx"]
+    tw = Twin(p, plan.tick_hz, substeps, plan.seed + 1000)
     pid = _pid(gains, t)
 
     exc, _ = plan.multisine()
@@ -127,29 +188,22 @@ def simulate(p: dict, gains: dict, plan: Plan, limits: Limits, substeps: int = 4
     for i, v in enumerate(legs):
         segments[f"leg{i}:{v:+g}"] = (n_ms + i * n_leg, n_ms + (i + 1) * n_leg)
 
-    z = np.zeros(5)
     u_rec = np.zeros(n)
     y_rec = np.zeros(n)
     ref = 0.0
-    w0 = 0.5  # rad/s, smoothing of the friction law
     for k in range(n):
-        pos = float(c1[0] @ z)
-        reading = pos / m_per_count + 0.5 + (noise * rng.standard_normal() if noise else 0.0)
-        y = math.floor(reading) * m_per_count
+        y = tw.encoder()
         ref += v_ref[k] * t
         u = pid(ref - y) + (exc[k % plan.period_ticks] if k < n_ms else 0.0)
         if abs(y) > limits.travel_m:
             raise ExperimentAborted(f"travel limit at tick {k}: {y * 1e3:.3f} mm")
         if abs(u) > limits.command_v:
             raise ExperimentAborted(f"command limit at tick {k}: {u:.2f} V")
-        if abs(z[1] * l_) > limits.velocity_m_s:
-            raise ExperimentAborted(f"velocity limit at tick {k}: {z[1] * l_:.4f} m/s")
+        if abs(tw.motor_velocity()) > limits.velocity_m_s:
+            raise ExperimentAborted(f"velocity limit at tick {k}: {tw.motor_velocity():.4f} m/s")
         u_rec[k] = u
         y_rec[k] = y
-        uu = max(-vmax, min(vmax, u))
-        for _ in range(substeps):
-            tin = np.array([uu, fc1 * math.tanh(z[1] / w0), fc2 * math.tanh(z[3] / w0)])
-            z = phi @ z + gam @ tin
+        tw.step(u)
     return Record(plan.tick_hz, u_rec, y_rec, plan, segments, v_ref)
 
 
