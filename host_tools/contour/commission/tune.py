@@ -15,7 +15,7 @@ Methods:
   simplex on log(Kp, Ki, Kd) with a penalty for the constraints
   (Astrom-Hagglund's MIGO design done numerically), started from the
   feasible PID of largest Ki on a coarse grid below the Ziegler-Nichols
-  gains (Kp from ZN/1000 to ZN, Ti of Tu/2 .. 16 Tu, Td 0 or Tu/8).
+  gains (Kp from ZN/1000 to ZN, Ti of Tu/2 .. 2048 Tu, Td 0 or Tu/8).
 - "zn": Ziegler-Nichols from the ultimate gain Ku (proportional gain at
   which the sampled loop reaches the stability boundary) and period Tu:
   Kp = 0.6 Ku, Ki = Kp / (Tu / 2), Kd = Kp Tu / 8.
@@ -218,7 +218,7 @@ def tune(
         # a feasible start: the largest-Ki PID of a coarse family below ZN
         x0, best_ki = None, -math.inf
         for kp in np.geomspace(zn["kp"] / 1000, zn["kp"], 16):
-            for ti in (tu / 2, tu, 4 * tu, 16 * tu):
+            for ti in tu * 4.0 ** np.arange(-0.5, 6.0):
                 for td in (0.0, tu / 8):
                     x = np.log([kp, kp / ti, max(kp * td, 1e-12)])
                     m = worst(gains_of(x))
