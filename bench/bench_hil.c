@@ -32,6 +32,7 @@ static double one_run(uint64_t ticks, int model)
     double t0, t1;
     int r = 0;
     uint64_t done = 0;
+    sim_status_t st = {0};
 
     sim_setup(10000.0, 3);
     sim_encoder_model(model);
@@ -39,6 +40,12 @@ static double one_run(uint64_t ticks, int model)
     sim_gain_set(1, "kvff", 16.49);
     sim_gain_set(0, "kaff", 0.1247);
     sim_gain_set(1, "kaff", 0.1078);
+    /* default.toml's CEC gains: the servo's defaults are the thesis's, which
+     * limit-cycle at 10 kHz and fault (oscillation) 0.15 s in */
+    sim_gain_set(-1, "kp", 2000.0);
+    sim_gain_set(-1, "ki", 2e5);
+    sim_gain_set(-1, "kd", 2.0);
+    sim_gain_set(-1, "d_tau", 1e-3);
     sim_cec_mode(DRIVE_CEC_EXACT);
     if (sim_start() != 0 || sim_enable(1) != 0) {
         return -1.0;
@@ -54,7 +61,11 @@ static double one_run(uint64_t ticks, int model)
         done += n;
     }
     t1 = now();
-    if (sim_edge_mismatches() != 0) {
+    /* a faulted drive stands still: its ticks are not the circle's */
+    if (sim_edge_mismatches() != 0 || sim_drive_status(&st) != 0 || st.faults != 0 ||
+        st.state != DRIVE_RUNNING) {
+        fprintf(stderr, "bench_hil: drive state %d, faults 0x%x after %llu ticks\n", st.state,
+                (unsigned)st.faults, (unsigned long long)done);
         return -1.0;
     }
     return (double)done / 10000.0 / (t1 - t0);
