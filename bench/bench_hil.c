@@ -7,6 +7,9 @@
  *                                 fast, the simulator's default)
  *   bench_hil ticks N [fast|edges]  one run of N ticks (for callgrind:
  *                                 instructions in sim_run per tick)
+ *   bench_hil hash N [fast|edges]   one run of N ticks; prints the FNV-1a
+ *                                 64 hash of the trace (every column of
+ *                                 every tick) and the drive's end status
  */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
@@ -24,7 +27,20 @@ static double now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static double one_run(uint64_t ticks, int model)
+/* FNV-1a 64 of every trace row's bytes (bench_hil hash): the check that a
+ * speed change leaves the simulation bit-identical */
+static uint64_t trace_hash = 0xcbf29ce484222325u;
+
+static void hash_rows(const double *row, size_t n)
+{
+    const unsigned char *b = (const unsigned char *)row;
+    size_t i;
+    for (i = 0; i < n * SIM_TRACE_COLS * sizeof(double); i++) {
+        trace_hash = (trace_hash ^ b[i]) * 0x100000001b3u;
+    }
+}
+
+static double one_run(uint64_t ticks, int model, int hash)
 {
     static double row[4000 * SIM_TRACE_COLS];
     const int64_t feed = 166666667; /* 10 m/min */
@@ -57,7 +73,10 @@ static double one_run(uint64_t ticks, int model)
         /* keep full circles queued */
         while (sim_queue_arc(on_circle, feed, 0, -20000000, 5000000, 1, 2, &r) == 0) {
         }
-        sim_run(n, row, 4000, 1);
+        long rows = sim_run(n, row, 4000, 1);
+        if (hash && rows > 0) {
+            hash_rows(row, (size_t)rows);
+        }
         done += n;
     }
     t1 = now();
@@ -82,11 +101,22 @@ int main(int argc, char **argv)
     int i, model;
 
     if (argc > 2 && strcmp(argv[1], "ticks") == 0) {
-        return one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL)) < 0.0;
+        return one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL), 0) < 0.0;
+    }
+    if (argc > 2 && strcmp(argv[1], "hash") == 0) {
+        sim_status_t st;
+        if (one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL), 1) < 0.0 ||
+            sim_drive_status(&st) != 0) {
+            return 1;
+        }
+        printf("hil_trace_hash: %016llx blocks %u tick %llu edges %llu\n",
+               (unsigned long long)trace_hash, (unsigned)st.blocks_done,
+               (unsigned long long)st.tick, (unsigned long long)sim_edges());
+        return 0;
     }
     model = model_arg(argc > 1 ? argv[1] : NULL);
     for (i = 0; i < 3; i++) {
-        double f = one_run(200000u, model);
+        double f = one_run(200000u, model, 0);
         if (f < 0) {
             fprintf(stderr, "bench_hil: simulator failed\n");
             return 1;
