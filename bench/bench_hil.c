@@ -7,6 +7,9 @@
  *                                 fast, the simulator's default)
  *   bench_hil ticks N [fast|edges]  one run of N ticks (for callgrind:
  *                                 instructions in sim_run per tick)
+ *   bench_hil hash N [fast|edges]   one run of N ticks; prints the FNV-1a
+ *                                 64 hash of the trace (every column of
+ *                                 every tick) and the drive's end status
  */
 #define _POSIX_C_SOURCE 199309L
 #include <stdio.h>
@@ -24,7 +27,20 @@ static double now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static double one_run(uint64_t ticks, int model)
+/* FNV-1a 64 of every trace row's bytes (bench_hil hash): the check that a
+ * speed change leaves the simulation bit-identical */
+static uint64_t trace_hash = 0xcbf29ce484222325u;
+
+static void hash_rows(const double *row, size_t n)
+{
+    const unsigned char *b = (const unsigned char *)row;
+    size_t i;
+    for (i = 0; i < n * SIM_TRACE_COLS * sizeof(double); i++) {
+        trace_hash = (trace_hash ^ b[i]) * 0x100000001b3u;
+    }
+}
+
+static double one_run(uint64_t ticks, int model, int hash)
 {
     static double row[4000 * SIM_TRACE_COLS];
     const int64_t feed = 166666667; /* 10 m/min */
@@ -32,6 +48,7 @@ static double one_run(uint64_t ticks, int model)
     double t0, t1;
     int r = 0;
     uint64_t done = 0;
+    sim_status_t st = {0};
 
     sim_setup(10000.0, 3);
     sim_encoder_model(model);
@@ -39,6 +56,12 @@ static double one_run(uint64_t ticks, int model)
     sim_gain_set(1, "kvff", 16.49);
     sim_gain_set(0, "kaff", 0.1247);
     sim_gain_set(1, "kaff", 0.1078);
+    /* default.toml's CEC gains: the servo's defaults are the thesis's, which
+     * limit-cycle at 10 kHz and fault (oscillation) 0.15 s in */
+    sim_gain_set(-1, "kp", 2000.0);
+    sim_gain_set(-1, "ki", 2e5);
+    sim_gain_set(-1, "kd", 2.0);
+    sim_gain_set(-1, "d_tau", 1e-3);
     sim_cec_mode(DRIVE_CEC_EXACT);
     if (sim_start() != 0 || sim_enable(1) != 0) {
         return -1.0;
@@ -50,11 +73,18 @@ static double one_run(uint64_t ticks, int model)
         /* keep full circles queued */
         while (sim_queue_arc(on_circle, feed, 0, -20000000, 5000000, 1, 2, &r) == 0) {
         }
-        sim_run(n, row, 4000, 1);
+        long rows = sim_run(n, row, 4000, 1);
+        if (hash && rows > 0) {
+            hash_rows(row, (size_t)rows);
+        }
         done += n;
     }
     t1 = now();
-    if (sim_edge_mismatches() != 0) {
+    /* a faulted drive stands still: its ticks are not the circle's */
+    if (sim_edge_mismatches() != 0 || sim_drive_status(&st) != 0 || st.faults != 0 ||
+        st.state != DRIVE_RUNNING) {
+        fprintf(stderr, "bench_hil: drive state %d, faults 0x%x after %llu ticks\n", st.state,
+                (unsigned)st.faults, (unsigned long long)done);
         return -1.0;
     }
     return (double)done / 10000.0 / (t1 - t0);
@@ -71,11 +101,22 @@ int main(int argc, char **argv)
     int i, model;
 
     if (argc > 2 && strcmp(argv[1], "ticks") == 0) {
-        return one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL)) < 0.0;
+        return one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL), 0) < 0.0;
+    }
+    if (argc > 2 && strcmp(argv[1], "hash") == 0) {
+        sim_status_t st;
+        if (one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL), 1) < 0.0 ||
+            sim_drive_status(&st) != 0) {
+            return 1;
+        }
+        printf("hil_trace_hash: %016llx blocks %u tick %llu edges %llu\n",
+               (unsigned long long)trace_hash, (unsigned)st.blocks_done,
+               (unsigned long long)st.tick, (unsigned long long)sim_edges());
+        return 0;
     }
     model = model_arg(argc > 1 ? argv[1] : NULL);
     for (i = 0; i < 3; i++) {
-        double f = one_run(200000u, model);
+        double f = one_run(200000u, model, 0);
         if (f < 0) {
             fprintf(stderr, "bench_hil: simulator failed\n");
             return 1;

@@ -214,6 +214,9 @@ typedef struct {
 bool pid_coef_make(pid_coef_t *c, int64_t num, uint32_t mul, uint64_t den);
 /* round(x * value), clamped to +-PID_TERM_LIM. */
 int64_t pid_coef_apply(pid_coef_t c, int32_t x);
+/* Test hook: pid_coef_apply by the 32-bit-pieces form (the one 32-bit
+ * targets compile, PID_COEF_PIECES in pid.c) whatever the target. */
+int64_t pid_coef_pieces_test(pid_coef_t c, int32_t x);
 
 /* Validate p (see pid_err_t); on success apply it (bumpless when enabled).
  * On failure nothing changes. A loop must be configured before use; a zeroed

@@ -839,10 +839,39 @@ static void test_fast_path_matches_general(void)
     TEST_ASSERT_TRUE(worst_u > 0);                     /* the paths do differ (by rounding) */
 }
 
+/* The 32-bit-pieces rounding of a coefficient (what the Cortex-M4 runs)
+ * and the form this host compiles give the same value: every shift 1..31,
+ * extreme and random products. */
+static void test_coef_pieces_equal_wide(void)
+{
+    static const int32_t xs[] = {0,          1,           -1,        2,         -2,
+                                 3,          -3,          INT32_MAX, INT32_MIN, INT32_MIN + 1,
+                                 0x40000000, -0x40000000, 12345,     -12345};
+    static const int32_t ms[] = {1, -1, 0x7FFFFFFF, -0x7FFFFFFF, 0x40000000, -0x40000000, 3, -3};
+    int32_t sh;
+    unsigned i, j, k;
+
+    for (sh = 1; sh <= 31; sh++) {
+        for (i = 0; i < sizeof xs / sizeof xs[0]; i++) {
+            for (j = 0; j < sizeof ms / sizeof ms[0]; j++) {
+                pid_coef_t c = {ms[j], sh};
+                TEST_ASSERT_EQUAL_INT64(pid_coef_pieces_test(c, xs[i]), pid_coef_apply(c, xs[i]));
+            }
+        }
+        for (k = 0; k < 20000u; k++) {
+            int32_t m = (int32_t)((uint64_t)rnd64() % 0x7FFFFFFFu);
+            pid_coef_t c = {m, sh};
+            int32_t x = (int32_t)rnd64();
+            TEST_ASSERT_EQUAL_INT64(pid_coef_pieces_test(c, x), pid_coef_apply(c, x));
+        }
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_error_and_products_exact);
+    RUN_TEST(test_coef_pieces_equal_wide);
     RUN_TEST(test_coef_make_matches_double);
     RUN_TEST(test_coef_make_edges);
     RUN_TEST(test_config_resolution_over_tick_rates);

@@ -99,8 +99,8 @@ static void circle(int model, run_rec_t *r, unsigned switch_at)
     sim_gain_set(1, "kvff", 16.49);
     sim_gain_set(0, "kaff", 0.1247);
     sim_gain_set(1, "kaff", 0.1078);
-    /* robust CEC gains (default.toml): the servo's defaults are the thesis's,
-     * which limit-cycle at 10 kHz and fault (oscillation) */
+    /* default.toml's CEC gains: the servo's defaults limit-cycle at 10 kHz
+     * and fault (oscillation) 0.15 s in, after which the drive stands still */
     TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "kp", 2000.0));
     TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "ki", 2e5));
     TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "kd", 2.0));
@@ -125,6 +125,13 @@ static void circle(int model, run_rec_t *r, unsigned switch_at)
         tick(r);
     }
     finish(r);
+    /* the whole run on the circle: no fault, still running */
+    {
+        sim_status_t st;
+        TEST_ASSERT_EQUAL_INT(0, sim_drive_status(&st));
+        TEST_ASSERT_EQUAL_HEX32(0u, st.faults);
+        TEST_ASSERT_EQUAL_INT(DRIVE_RUNNING, st.state);
+    }
 }
 
 /* Max |radial error| of the table (trace columns 5, 9) about the circle's
@@ -233,6 +240,13 @@ static void homing(int model, run_rec_t *r)
         tick(r);
     }
     finish(r);
+    /* the whole run on the circle: no fault, still running */
+    {
+        sim_status_t st;
+        TEST_ASSERT_EQUAL_INT(0, sim_drive_status(&st));
+        TEST_ASSERT_EQUAL_HEX32(0u, st.faults);
+        TEST_ASSERT_EQUAL_INT(DRIVE_RUNNING, st.state);
+    }
 }
 
 static void test_homing_to_index_same_in_both_models(void)
