@@ -1,0 +1,71 @@
+"""The simulated drive on a CANopen bus: the python `canopen` master (a master
+nobody here wrote) reaches it through `sim serve`'s SLCAN pty (issue 19,
+docs/canopen.md)."""
+
+from __future__ import annotations
+
+import time
+
+import canopen
+import pytest
+from canopen.sdo.exceptions import SdoAbortedError
+from contour.sim.serve import spawn
+
+
+@pytest.fixture(scope="module")
+def network():
+    with spawn() as s:
+        net = canopen.Network()
+        net.connect(interface="slcan", channel=s.slcan, bitrate=500000)
+        try:
+            yield net
+        finally:
+            net.disconnect()
+
+
+def _node(net) -> canopen.RemoteNode:
+    node = canopen.RemoteNode(1, canopen.ObjectDictionary())
+    net.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 2.0
+    return node
+
+
+def test_scan_finds_exactly_node_1(network):
+    network.scanner.reset()
+    network.scanner.search()
+    time.sleep(1.0)
+    assert network.scanner.nodes == [1]
+
+
+def test_sdo_reads_device_type_identity_and_name(network):
+    node = _node(network)
+    assert int.from_bytes(node.sdo.upload(0x1000, 0), "little") == 0x00020192
+    assert node.sdo.upload(0x1018, 0) == b"\x04"
+    revision = int.from_bytes(node.sdo.upload(0x1018, 3), "little")
+    assert revision != 0  # the firmware version (major << 16 | minor << 8 | patch)
+    assert node.sdo.upload(0x1008, 0) == b"contour axis drive"  # segmented
+
+
+def test_sdo_write_and_abort_codes(network):
+    node = _node(network)
+    node.sdo.download(0x2000, 0, b"Z axis, left gantry")  # segmented download
+    assert node.sdo.upload(0x2000, 0) == b"Z axis, left gantry"
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo.download(0x1000, 0, b"\x00\x00\x00\x00")
+    assert e.value.code == 0x06010002
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo.upload(0x1234, 0)
+    assert e.value.code == 0x06020000
+
+
+def test_nmt_state_from_heartbeat(network):
+    node = _node(network)
+    node.sdo.download(0x1017, 0, (100).to_bytes(2, "little"))
+    node.nmt.send_command(0x01)  # start
+    node.nmt.wait_for_heartbeat(timeout=2.0)
+    node.nmt.wait_for_heartbeat(timeout=2.0)
+    assert node.nmt.state == "OPERATIONAL"
+    node.nmt.send_command(0x80)  # pre-operational
+    node.nmt.wait_for_heartbeat(timeout=2.0)
+    node.nmt.wait_for_heartbeat(timeout=2.0)
+    assert node.nmt.state == "PRE-OPERATIONAL"
