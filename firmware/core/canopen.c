@@ -1,67 +1,11 @@
 /*
  * canopen.c - CiA 301 NMT slave, heartbeat producer and SDO server
- * (canopen.h is the specification). The object dictionary table below is
- * written by hand until protocol/canopen.toml generates it (docs/canopen.md).
+ * (canopen.h is the specification). The object dictionary table is
+ * generated from protocol/canopen.toml (canopen_od.c).
  */
 #include "canopen.h"
 
 #include <string.h>
-
-enum { OD_RO = 0u, OD_RW = 1u };
-enum { OD_U8 = 1u, OD_U16 = 2u, OD_U32 = 4u, OD_STR = 0u };
-
-typedef struct {
-    uint16_t index;
-    uint8_t sub;
-    uint8_t type;    /* size in bytes, OD_STR: visible string of CO_STR_MAX */
-    uint8_t access;  /* OD_RO / OD_RW */
-    uint8_t comm;    /* 1: communication object (reset communication) */
-    uint16_t offset; /* in co_od_vars_t */
-    uint32_t min, max;
-} co_od_entry_t;
-
-#define V(f) ((uint16_t)offsetof(co_od_vars_t, f))
-#define ANY  0u, 0xFFFFFFFFu
-
-static const co_od_entry_t od_table[] = {
-    {0x1000, 0, OD_U32, OD_RO, 1, V(device_type), ANY},
-    {0x1001, 0, OD_U8, OD_RO, 1, V(error_register), ANY},
-    {0x1008, 0, OD_STR, OD_RO, 1, V(device_name), ANY},
-    {0x100A, 0, OD_STR, OD_RO, 1, V(sw_version), ANY},
-    {0x1017, 0, OD_U16, OD_RW, 1, V(heartbeat_ms), ANY},
-    {0x1018, 0, OD_U8, OD_RO, 1, V(identity_count), ANY},
-    {0x1018, 1, OD_U32, OD_RO, 1, V(identity[0]), ANY},
-    {0x1018, 2, OD_U32, OD_RO, 1, V(identity[1]), ANY},
-    {0x1018, 3, OD_U32, OD_RO, 1, V(identity[2]), ANY},
-    {0x1018, 4, OD_U32, OD_RO, 1, V(identity[3]), ANY},
-    {0x1029, 0, OD_U8, OD_RO, 1, V(comm_error_count), ANY},
-    {0x1029, 1, OD_U8, OD_RW, 1, V(comm_error), 0u, 2u},
-    {0x2000, 0, OD_STR, OD_RW, 0, V(device_label), ANY},
-};
-
-#define OD_COUNT (sizeof od_table / sizeof od_table[0])
-
-static void od_defaults(co_t *co, bool comm_only)
-{
-    co_od_vars_t *v = &co->od;
-
-    if (!comm_only) {
-        memset(v->device_label, 0, sizeof v->device_label);
-    }
-    v->device_type = CO_DEVICE_402;
-    v->heartbeat_ms = 1000u;
-    v->identity_count = 4u;
-    v->identity[0] = co->cfg.vendor_id;
-    v->identity[1] = co->cfg.product_code;
-    v->identity[2] = co->cfg.revision;
-    v->identity[3] = co->cfg.serial;
-    v->comm_error_count = 1u;
-    v->comm_error = 0u;
-    memset(v->device_name, 0, sizeof v->device_name);
-    memcpy(v->device_name, "contour axis drive", 18u);
-    memset(v->sw_version, 0, sizeof v->sw_version);
-    memcpy(v->sw_version, "contour", 7u);
-}
 
 /* ---- transmit ring ---------------------------------------------------- */
 
@@ -100,11 +44,11 @@ static const co_od_entry_t *od_find(uint16_t index, uint8_t sub, uint32_t *abort
     size_t i;
     bool index_seen = false;
 
-    for (i = 0; i < OD_COUNT; i++) {
-        if (od_table[i].index == index) {
+    for (i = 0; i < co_od_count; i++) {
+        if (co_od_table[i].index == index) {
             index_seen = true;
-            if (od_table[i].sub == sub) {
-                return &od_table[i];
+            if (co_od_table[i].sub == sub) {
+                return &co_od_table[i];
             }
         }
     }
@@ -120,7 +64,7 @@ static uint8_t *od_ptr(co_t *co, const co_od_entry_t *e)
 /* Current size of an object's value in bytes. */
 static uint32_t od_size(co_t *co, const co_od_entry_t *e)
 {
-    if (e->type == OD_STR) {
+    if (e->type == CO_OD_STR) {
         const char *s = (const char *)od_ptr(co, e);
         uint32_t n = 0;
 
@@ -138,13 +82,13 @@ static void od_read(co_t *co, const co_od_entry_t *e, uint8_t *out)
     uint32_t v = 0;
 
     switch (e->type) {
-    case OD_U8:
+    case CO_OD_U8:
         v = *p;
         break;
-    case OD_U16:
+    case CO_OD_U16:
         v = *(const uint16_t *)(const void *)p;
         break;
-    case OD_U32:
+    case CO_OD_U32:
         v = *(const uint32_t *)(const void *)p;
         break;
     default:
@@ -164,7 +108,7 @@ static uint32_t od_write(co_t *co, const co_od_entry_t *e, const uint8_t *in, ui
     uint32_t v = 0;
     uint32_t i;
 
-    if (e->type == OD_STR) {
+    if (e->type == CO_OD_STR) {
         memset(p, 0, CO_STR_MAX);
         memcpy(p, in, n);
         return 0;
@@ -181,9 +125,9 @@ static uint32_t od_write(co_t *co, const co_od_entry_t *e, const uint8_t *in, ui
     if (v < e->min) {
         return CO_ABORT_VALUE_LOW;
     }
-    if (e->type == OD_U8) {
+    if (e->type == CO_OD_U8) {
         *p = (uint8_t)v;
-    } else if (e->type == OD_U16) {
+    } else if (e->type == CO_OD_U16) {
         *(uint16_t *)(void *)p = (uint16_t)v;
     } else {
         *(uint32_t *)(void *)p = v;
@@ -226,15 +170,15 @@ static void sdo_initiate_download(co_t *co, const uint8_t *f, uint32_t now_us)
         sdo_abort(co, index, sub, abort);
         return;
     }
-    if (e->access != OD_RW) {
+    if (e->access != CO_OD_RW) {
         sdo_abort(co, index, sub, CO_ABORT_READONLY);
         return;
     }
-    cap = e->type == OD_STR ? CO_STR_MAX : e->type;
+    cap = e->type == CO_OD_STR ? CO_STR_MAX : e->type;
     if (f[0] & 0x02u) { /* expedited */
         uint32_t n = (f[0] & 0x01u) ? 4u - ((f[0] >> 2) & 3u) : (cap < 4u ? cap : 4u);
 
-        if (e->type == OD_STR && n > cap) {
+        if (e->type == CO_OD_STR && n > cap) {
             abort = CO_ABORT_LEN_HIGH;
         } else {
             abort = od_write(co, e, &f[4], n);
@@ -406,7 +350,7 @@ static void nmt_boot(co_t *co, bool comm_only, uint32_t now_us)
 {
     uint8_t b = 0u;
 
-    od_defaults(co, comm_only);
+    co_od_defaults(&co->od, &co->cfg, comm_only);
     co->sdo_mode = 0u;
     co->nmt = CO_NMT_PREOP;
     co->hb_last_us = now_us;

@@ -51,9 +51,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "canopen_od.h"
+
 #define CO_SDO_TIMEOUT_US 1000000u
 #define CO_TX_RING        8u
-#define CO_STR_MAX        32u /* longest visible string / domain object */
 
 #define CO_ID_NMT     0x000u
 #define CO_ID_TSDO    0x580u
@@ -83,27 +84,13 @@ typedef enum {
 /* Transmit one classic CAN frame (11-bit id); false when the mailbox is full. */
 typedef bool (*co_tx_fn)(void *ctx, uint32_t id, const uint8_t *data, uint8_t len);
 
-typedef struct {
+typedef struct co_config_s {
     uint8_t node_id; /* 1..127 */
     uint32_t vendor_id;
     uint32_t product_code;
     uint32_t revision;
     uint32_t serial;
 } co_config_t;
-
-/* The object dictionary's variables (written by SDO, main context). */
-typedef struct {
-    uint32_t device_type;          /* 0x1000 */
-    uint8_t error_register;        /* 0x1001, co_set_error_register */
-    uint16_t heartbeat_ms;         /* 0x1017 */
-    uint8_t identity_count;        /* 0x1018:00 */
-    uint32_t identity[4];          /* 0x1018:01..04 */
-    uint8_t comm_error_count;      /* 0x1029:00 */
-    uint8_t comm_error;            /* 0x1029:01: 0 pre-op, 1 no change, 2 stopped */
-    char device_name[CO_STR_MAX];  /* 0x1008 */
-    char sw_version[CO_STR_MAX];   /* 0x100A */
-    char device_label[CO_STR_MAX]; /* 0x2000: a label the integrator writes */
-} co_od_vars_t;
 
 typedef struct {
     uint32_t nmt_ignored; /* NMT frames with a bad DLC or command */
