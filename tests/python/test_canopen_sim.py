@@ -5,11 +5,14 @@ docs/canopen.md)."""
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import canopen
 import pytest
 from canopen.sdo.exceptions import SdoAbortedError
 from contour.sim.serve import spawn
+
+EDS = Path(__file__).resolve().parents[2] / "protocol" / "contour.eds"
 
 
 @pytest.fixture(scope="module")
@@ -56,6 +59,20 @@ def test_sdo_write_and_abort_codes(network):
     with pytest.raises(SdoAbortedError) as e:
         node.sdo.upload(0x1234, 0)
     assert e.value.code == 0x06020000
+
+
+def test_master_with_our_eds_reads_objects_by_name(network):
+    node = canopen.RemoteNode(1, str(EDS))
+    network.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 2.0
+    assert node.sdo["Device type"].raw == 0x00020192
+    assert node.sdo["Manufacturer device name"].raw == "contour axis drive"
+    assert node.sdo["Identity object"]["Highest sub-index supported"].raw == 4
+    node.sdo["Error behavior object"]["Communication error"].raw = 1
+    assert node.sdo["Error behavior object"]["Communication error"].raw == 1
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["Error behavior object"]["Communication error"].raw = 3
+    assert e.value.code == 0x06090031
 
 
 def test_nmt_state_from_heartbeat(network):
