@@ -157,6 +157,13 @@ static void sdo_abort(co_t *co, uint16_t index, uint8_t sub, uint32_t code)
     sdo_send(co, 0x80u, index, sub, d);
 }
 
+static void written(co_t *co, uint16_t index, uint8_t sub)
+{
+    if (co->on_write != NULL) {
+        co->on_write(co->hook_ctx, index, sub);
+    }
+}
+
 static void sdo_initiate_download(co_t *co, const uint8_t *f, uint32_t now_us)
 {
     uint16_t index = (uint16_t)(f[1] | (f[2] << 8));
@@ -188,6 +195,7 @@ static void sdo_initiate_download(co_t *co, const uint8_t *f, uint32_t now_us)
             return;
         }
         sdo_send(co, 0x60u, index, sub, NULL);
+        written(co, index, sub);
         return;
     }
     co->sdo_size = 0u;
@@ -251,6 +259,9 @@ static void sdo_download_segment(co_t *co, const uint8_t *f, uint32_t now_us)
         uint8_t r[8] = {(uint8_t)(0x20u | (t << 4)), 0, 0, 0, 0, 0, 0, 0};
 
         tx_frame(co, CO_ID_TSDO + co->cfg.node_id, r, 8u);
+    }
+    if (co->sdo_mode == 0u) {
+        written(co, co->sdo_index, co->sdo_sub);
     }
 }
 
@@ -436,4 +447,10 @@ co_nmt_state_t co_nmt_state(const co_t *co)
 void co_set_error_register(co_t *co, uint8_t reg)
 {
     co->od.error_register = reg;
+}
+
+void co_set_write_hook(co_t *co, co_write_hook_fn fn, void *ctx)
+{
+    co->on_write = fn;
+    co->hook_ctx = ctx;
 }

@@ -84,6 +84,9 @@ typedef enum {
 /* Transmit one classic CAN frame (11-bit id); false when the mailbox is full. */
 typedef bool (*co_tx_fn)(void *ctx, uint32_t id, const uint8_t *data, uint8_t len);
 
+/* Called after an SDO download stored a new value (main context). */
+typedef void (*co_write_hook_fn)(void *ctx, uint16_t index, uint8_t sub);
+
 typedef struct co_config_s {
     uint8_t node_id; /* 1..127 */
     uint32_t vendor_id;
@@ -112,6 +115,8 @@ typedef struct {
     co_stats_t stats;
     co_tx_fn tx;
     void *tx_ctx;
+    co_write_hook_fn on_write; /* NULL: none */
+    void *hook_ctx;
     uint32_t hb_last_us;
     /* SDO transfer (segmented) */
     uint8_t sdo_mode; /* 0 idle, 1 download, 2 upload */
@@ -135,5 +140,7 @@ bool co_rx(co_t *co, uint32_t id, const uint8_t *data, uint8_t len, uint32_t now
 void co_poll(co_t *co, uint32_t now_us);
 co_nmt_state_t co_nmt_state(const co_t *co);
 void co_set_error_register(co_t *co, uint8_t reg);
+/* Hook called after every successful SDO download (co_init clears it). */
+void co_set_write_hook(co_t *co, co_write_hook_fn fn, void *ctx);
 
 #endif

@@ -17,6 +17,8 @@ const co_od_entry_t co_od_table[] = {
     {0x1029u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, comm_error_count), 0u, 0xFFFFFFFFu},
     {0x1029u, 1u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, comm_error), 0u, 0x2u},
     {0x2000u, 0u, CO_OD_STR, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, device_label), 0u, 0xFFFFFFFFu},
+    {0x6040u, 0u, CO_OD_U16, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, controlword), 0u, 0xFFFFFFFFu},
+    {0x6041u, 0u, CO_OD_U16, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, statusword), 0u, 0xFFFFFFFFu},
 };
 
 const size_t co_od_count = sizeof co_od_table / sizeof co_od_table[0];
@@ -41,4 +43,6 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
         return;
     }
     memset(v->device_label, 0, sizeof v->device_label);
+    v->controlword = 0x0u;
+    v->statusword = 0x0u;
 }

@@ -41,6 +41,8 @@ typedef struct {
     uint8_t comm_error_count; /* 0x1029:0 Highest sub-index supported */
     uint8_t comm_error; /* 0x1029:1 Communication error */
     char device_label[CO_STR_MAX]; /* 0x2000:0 Device label */
+    uint16_t controlword; /* 0x6040:0 Controlword */
+    uint16_t statusword; /* 0x6041:0 Statusword */
 } co_od_vars_t;
 
 struct co_config_s;

@@ -4,6 +4,7 @@
 #include "proto_link.h"
 
 #include "canopen.h"
+#include "co_drive.h"
 #include "hal.h"
 
 typedef struct {
@@ -69,6 +70,7 @@ bool proto_link_init(const proto_identity_t *ident, bool serial, bool can)
                               ident->build_id};
 
         co_init(&lk.co, &co_cfg, can_tx, NULL, now);
+        co_drive_init(&lk.co);
     }
     lk.ready = true;
     return true;
@@ -308,6 +310,7 @@ void proto_link_poll(void)
     }
     if (lk.can) {
         if (!lk.ext_all) {
+            co_drive_poll(&lk.co);
             co_poll(&lk.co, now);
         }
         can_drain(now);

@@ -19,4 +19,6 @@ ENTRIES = [
     (0x1029, 0, 'Highest sub-index supported', 'u8', 'ro', 1),
     (0x1029, 1, 'Communication error', 'u8', 'rw', 0),
     (0x2000, 0, 'Device label', 'str', 'rw', ''),
+    (0x6040, 0, 'Controlword', 'u16', 'rw', 0),
+    (0x6041, 0, 'Statusword', 'u16', 'ro', 0),
 ]

@@ -86,3 +86,27 @@ def test_nmt_state_from_heartbeat(network):
     node.nmt.wait_for_heartbeat(timeout=2.0)
     node.nmt.wait_for_heartbeat(timeout=2.0)
     assert node.nmt.state == "PRE-OPERATIONAL"
+
+
+def test_cia402_enable_and_back_through_controlword(network):
+    node = canopen.RemoteNode(1, str(EDS))
+    network.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 2.0
+
+    def status() -> int:
+        time.sleep(0.05)  # the drive's main loop refreshes 0x6041
+        return node.sdo["Statusword"].raw
+
+    assert status() & 0x6F in (0x40, 0x60)  # switch on disabled (bit 5 undefined)
+    node.sdo["Controlword"].raw = 0x06
+    assert status() & 0x6F == 0x21
+    node.sdo["Controlword"].raw = 0x07
+    assert status() & 0x6F == 0x23
+    node.sdo["Controlword"].raw = 0x0F
+    sw = status()
+    assert sw & 0x6F == 0x27, hex(sw)
+    assert sw & 0x10, "voltage enabled: the drive is enabled"
+    node.sdo["Controlword"].raw = 0x06  # shutdown: 8
+    sw = status()
+    assert sw & 0x6F == 0x21, hex(sw)
+    assert not sw & 0x10, "the drive is disabled again"

@@ -353,6 +353,38 @@ static void test_full_mailbox_queues_then_drops(void)
     TEST_ASSERT_EQUAL_HEX8(0x43u, sent[0].data[0]);
 }
 
+static unsigned hook_calls;
+static uint16_t hook_index;
+
+static void hook(void *ctx, uint16_t index, uint8_t sub)
+{
+    (void)ctx;
+    (void)sub;
+    hook_calls++;
+    hook_index = index;
+}
+
+static void test_write_hook_after_stored_writes_only(void)
+{
+    uint8_t f[8] = {0x09u, 'a', 'b', 'c', 0, 0, 0, 0}; /* last, 3 bytes */
+
+    hook_calls = 0;
+    co_set_write_hook(&co, hook, NULL);
+    sdo(0x2Bu, 0x6040, 0, 0x0006u);
+    TEST_ASSERT_EQUAL_UINT(1u, hook_calls);
+    TEST_ASSERT_EQUAL_HEX16(0x6040u, hook_index);
+    TEST_ASSERT_EQUAL_HEX16(0x0006u, co.od.controlword);
+    assert_abort(sdo(0x2Fu, 0x1029, 1, 3u), 0x1029, 1, CO_ABORT_VALUE_HIGH);
+    assert_abort(sdo(0x2Bu, 0x6041, 0, 1u), 0x6041, 0, CO_ABORT_READONLY);
+    TEST_ASSERT_EQUAL_UINT(1u, hook_calls);
+    sdo(0x21u, 0x2000, 0, 3u);
+    TEST_ASSERT_EQUAL_UINT(1u, hook_calls); /* not before the last segment */
+    seg(f);
+    TEST_ASSERT_EQUAL_UINT(2u, hook_calls);
+    TEST_ASSERT_EQUAL_HEX16(0x2000u, hook_index);
+    TEST_ASSERT_EQUAL_STRING("abc", co.od.device_label);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -372,5 +404,6 @@ int main(void)
     RUN_TEST(test_client_abort_ends_transfer_silently);
     RUN_TEST(test_stopped_ignores_sdo_and_other_ids_are_not_ours);
     RUN_TEST(test_full_mailbox_queues_then_drops);
+    RUN_TEST(test_write_hook_after_stored_writes_only);
     return UNITY_END();
 }
