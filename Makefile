@@ -73,7 +73,14 @@ $(STAMP)/venv: host_tools/pyproject.toml | $(STAMP)/apt
 PROTO_GEN := firmware/core/proto_msgs.h firmware/core/proto_msgs.c \
              host_tools/contour/protocol_gen.py protocol/contour.dbc
 
-proto: $(PROTO_GEN)
+CANOPEN_GEN := firmware/core/canopen_od.h firmware/core/canopen_od.c \
+               host_tools/contour/canopen_od.py protocol/contour.eds
+
+proto: $(PROTO_GEN) $(CANOPEN_GEN)
+
+$(CANOPEN_GEN) &: protocol/canopen.toml protocol/gen_canopen.py
+	python3 protocol/gen_canopen.py
+	@touch $(CANOPEN_GEN)
 
 $(PROTO_GEN) &: protocol/contour.toml protocol/gen.py
 	python3 protocol/gen.py

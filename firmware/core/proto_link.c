@@ -3,6 +3,8 @@
  */
 #include "proto_link.h"
 
+#include "canopen.h"
+#include "co_drive.h"
 #include "hal.h"
 
 typedef struct {
@@ -34,7 +36,10 @@ static struct {
     uint8_t rq_head;
     uint8_t rq_count;
     proto_link_stats_t stats;
+    co_t co; /* CiA 301 on the same bus (docs/canopen.md) */
 } lk;
+
+static bool can_tx(void *ctx, uint32_t id, const uint8_t *data, uint8_t len);
 
 bool proto_link_init(const proto_identity_t *ident, bool serial, bool can)
 {
@@ -60,6 +65,13 @@ bool proto_link_init(const proto_identity_t *ident, bool serial, bool can)
     lk.rq_head = 0;
     lk.rq_count = 0;
     lk.stats = zero;
+    if (can) {
+        co_config_t co_cfg = {ident->node_id, 0u, ident->board_id, ident->fw_version,
+                              ident->build_id};
+
+        co_init(&lk.co, &co_cfg, can_tx, NULL, now);
+        co_drive_init(&lk.co);
+    }
     lk.ready = true;
     return true;
 }
@@ -204,6 +216,12 @@ static void can_receive(uint32_t now)
         const uint8_t *msg;
         size_t len;
 
+        if (dlc > 8u) {
+            dlc = 8u;
+        }
+        if (!lk.ext_all && co_rx(&lk.co, id, data, dlc, now)) {
+            continue;
+        }
         if (id != lk.tp.rx_id) {
             lk.stats.can_ignored++;
             continue;
@@ -291,6 +309,10 @@ void proto_link_poll(void)
         uart_drain();
     }
     if (lk.can) {
+        if (!lk.ext_all) {
+            co_drive_poll(&lk.co);
+            co_poll(&lk.co, now);
+        }
         can_drain(now);
     }
 }

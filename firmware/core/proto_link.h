@@ -11,10 +11,13 @@
  *   1. reads every waiting UART byte (hal_uart_read) into the frame decoder;
  *      each valid frame is handled and its reply framed into the serial
  *      transmit ring;
- *   2. reads every waiting CAN frame (hal_can_receive); frames on
- *      PROTO_CAN_ID(PROTO_CAN_FUNC_REQUEST, node) feed ISO-TP, others are
- *      ignored (other nodes' traffic); replies go to the ISO-TP reply queue;
- *   3. runs the dispatcher's watchdog and cyclic output (to both links);
+ *   2. reads every waiting CAN frame (hal_can_receive); CANopen NMT and
+ *      the node's SDO requests go to the CiA 301 slave (canopen.h, not in
+ *      bootloader mode), frames on PROTO_CAN_ID(PROTO_CAN_FUNC_REQUEST, node)
+ *      feed ISO-TP, others are ignored (other nodes' traffic); replies go
+ *      to the ISO-TP reply queue;
+ *   3. runs the dispatcher's watchdog and cyclic output (to both links)
+ *      and the CANopen heartbeat / SDO timeout (co_poll);
  *   4. drains the serial ring (hal_uart_write, partial writes kept) and the
  *      CAN queues (ISO-TP first, then cyclic frames; a full mailbox leaves
  *      the frame for the next poll).

@@ -20,7 +20,9 @@ clang "${flags[@]}" -o "$out/fuzz_frame" tests/fuzz/fuzz_frame.c \
 clang "${flags[@]}" -o "$out/fuzz_dispatch" tests/fuzz/fuzz_dispatch.c $core $hil -lm
 # shellcheck disable=SC2086
 clang "${flags[@]}" -o "$out/fuzz_batch" tests/fuzz/fuzz_batch.c $core $hil -lm
-for name in frame dispatch batch; do
+clang "${flags[@]}" -o "$out/fuzz_canopen" tests/fuzz/fuzz_canopen.c firmware/core/canopen.c \
+  firmware/core/canopen_od.c
+for name in frame dispatch batch canopen; do
   work=$out/corpus_$name; mkdir -p "$work"
   cp -n tests/fuzz/corpus/$name/* "$work"/ 2>/dev/null || true
   log=$out/fuzz_$name.log

@@ -1,0 +1,112 @@
+"""The simulated drive on a CANopen bus: the python `canopen` master (a master
+nobody here wrote) reaches it through `sim serve`'s SLCAN pty (issue 19,
+docs/canopen.md)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import canopen
+import pytest
+from canopen.sdo.exceptions import SdoAbortedError
+from contour.sim.serve import spawn
+
+EDS = Path(__file__).resolve().parents[2] / "protocol" / "contour.eds"
+
+
+@pytest.fixture(scope="module")
+def network():
+    with spawn() as s:
+        net = canopen.Network()
+        net.connect(interface="slcan", channel=s.slcan, bitrate=500000)
+        try:
+            yield net
+        finally:
+            net.disconnect()
+
+
+def _node(net) -> canopen.RemoteNode:
+    node = canopen.RemoteNode(1, canopen.ObjectDictionary())
+    net.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 2.0
+    return node
+
+
+def test_scan_finds_exactly_node_1(network):
+    network.scanner.reset()
+    network.scanner.search()
+    time.sleep(1.0)
+    assert network.scanner.nodes == [1]
+
+
+def test_sdo_reads_device_type_identity_and_name(network):
+    node = _node(network)
+    assert int.from_bytes(node.sdo.upload(0x1000, 0), "little") == 0x00020192
+    assert node.sdo.upload(0x1018, 0) == b"\x04"
+    revision = int.from_bytes(node.sdo.upload(0x1018, 3), "little")
+    assert revision != 0  # the firmware version (major << 16 | minor << 8 | patch)
+    assert node.sdo.upload(0x1008, 0) == b"contour axis drive"  # segmented
+
+
+def test_sdo_write_and_abort_codes(network):
+    node = _node(network)
+    node.sdo.download(0x2000, 0, b"Z axis, left gantry")  # segmented download
+    assert node.sdo.upload(0x2000, 0) == b"Z axis, left gantry"
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo.download(0x1000, 0, b"\x00\x00\x00\x00")
+    assert e.value.code == 0x06010002
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo.upload(0x1234, 0)
+    assert e.value.code == 0x06020000
+
+
+def test_master_with_our_eds_reads_objects_by_name(network):
+    node = canopen.RemoteNode(1, str(EDS))
+    network.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 2.0
+    assert node.sdo["Device type"].raw == 0x00020192
+    assert node.sdo["Manufacturer device name"].raw == "contour axis drive"
+    assert node.sdo["Identity object"]["Highest sub-index supported"].raw == 4
+    node.sdo["Error behavior object"]["Communication error"].raw = 1
+    assert node.sdo["Error behavior object"]["Communication error"].raw == 1
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["Error behavior object"]["Communication error"].raw = 3
+    assert e.value.code == 0x06090031
+
+
+def test_nmt_state_from_heartbeat(network):
+    node = _node(network)
+    node.sdo.download(0x1017, 0, (100).to_bytes(2, "little"))
+    node.nmt.send_command(0x01)  # start
+    node.nmt.wait_for_heartbeat(timeout=2.0)
+    node.nmt.wait_for_heartbeat(timeout=2.0)
+    assert node.nmt.state == "OPERATIONAL"
+    node.nmt.send_command(0x80)  # pre-operational
+    node.nmt.wait_for_heartbeat(timeout=2.0)
+    node.nmt.wait_for_heartbeat(timeout=2.0)
+    assert node.nmt.state == "PRE-OPERATIONAL"
+
+
+def test_cia402_enable_and_back_through_controlword(network):
+    node = canopen.RemoteNode(1, str(EDS))
+    network.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 2.0
+
+    def status() -> int:
+        time.sleep(0.05)  # the drive's main loop refreshes 0x6041
+        return node.sdo["Statusword"].raw
+
+    assert status() & 0x6F in (0x40, 0x60)  # switch on disabled (bit 5 undefined)
+    node.sdo["Controlword"].raw = 0x06
+    assert status() & 0x6F == 0x21
+    node.sdo["Controlword"].raw = 0x07
+    assert status() & 0x6F == 0x23
+    node.sdo["Controlword"].raw = 0x0F
+    sw = status()
+    assert sw & 0x6F == 0x27, hex(sw)
+    assert sw & 0x10, "voltage enabled: the drive is enabled"
+    node.sdo["Controlword"].raw = 0x06  # shutdown: 8
+    sw = status()
+    assert sw & 0x6F == 0x21, hex(sw)
+    assert not sw & 0x10, "the drive is disabled again"
