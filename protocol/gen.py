@@ -876,21 +876,27 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         args.dbc.write_text(gen_dbc(spec, args.dbc_node))
         return 0
+    return write_outputs(generate(spec), args.out, args.check, "protocol/gen.py")
+
+
+def write_outputs(files: dict, out: Path, check: bool, tool: str) -> int:
+    """Write each generated file that changed (relative path -> text) under
+    out, or with check only list the stale ones; 1 when any is stale."""
     stale = []
-    for rel, text in generate(spec).items():
-        path = args.out / rel
+    for rel, text in files.items():
+        path = out / rel
         old = path.read_text() if path.exists() else None
         if old == text:
             continue
-        if args.check:
+        if check:
             stale.append(rel)
             continue
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(text)
-        print(f"protocol/gen.py: wrote {rel}")
+        print(f"{tool}: wrote {rel}")
     if stale:
         print(
-            "protocol/gen.py: stale generated files (run `make proto`): " + ", ".join(stale),
+            f"{tool}: stale generated files (run `make proto`): " + ", ".join(stale),
             file=sys.stderr,
         )
         return 1

@@ -19,6 +19,9 @@ from pathlib import Path
 
 import tomllib
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from gen import write_outputs  # noqa: E402 - the one writer of generated files
+
 ROOT = Path(__file__).resolve().parents[1]
 SPEC = ROOT / "protocol" / "canopen.toml"
 OUTPUTS = {
@@ -317,25 +320,7 @@ def main(argv: list[str] | None = None) -> int:
     except (SpecError, KeyError, OSError, tomllib.TOMLDecodeError) as exc:
         print(f"protocol/gen_canopen.py: {args.spec}: {exc}", file=sys.stderr)
         return 1
-    stale = []
-    for rel, text in generate(spec).items():
-        path = args.out / rel
-        old = path.read_text() if path.exists() else None
-        if old == text:
-            continue
-        if args.check:
-            stale.append(rel)
-            continue
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
-        print(f"protocol/gen_canopen.py: wrote {rel}")
-    if stale:
-        print(
-            "protocol/gen_canopen.py: stale (run `make proto`): " + ", ".join(stale),
-            file=sys.stderr,
-        )
-        return 1
-    return 0
+    return write_outputs(generate(spec), args.out, args.check, "protocol/gen_canopen.py")
 
 
 if __name__ == "__main__":

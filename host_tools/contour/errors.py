@@ -28,6 +28,16 @@ class UserError(ContourError):
     kind = "input"
 
 
+class FileLineError(UserError):
+    """Bad input at ``file:line`` (a G-code program, a tool table, ...)."""
+
+    def __init__(self, path: str, line: int, message: str):
+        super().__init__(f"{path}:{line}: {message}")
+        self.path = path
+        self.line = line
+        self.message = message
+
+
 class UsageError(UserError):
     """The command line is wrong (option, argument, value range): exit code 2."""
 

@@ -15,20 +15,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from contour.errors import UserError
+from contour.errors import FileLineError
 
 # Beyond this a position is no machine's (and squares of it overflow).
 MAX_COORDINATE = 1e12
 
 
-class GcodeError(UserError):
+class GcodeError(FileLineError):
     """A G-code error at ``file:line``; nothing is estimated or run."""
-
-    def __init__(self, path: str, line: int, message: str):
-        super().__init__(f"{path}:{line}: {message}")
-        self.path = path
-        self.line = line
-        self.message = message
 
 
 @dataclass

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-from contour.errors import UserError
+from contour.errors import FileLineError, UserError
 
 MAX_LINE = 4096
 MAX_TOOLS = 100_000
@@ -45,14 +45,8 @@ _NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 _UNITS = re.compile(r"^\s*;\s*units\s*[:=]?\s*(\w+)\s*$", re.IGNORECASE)
 
 
-class ToolTableError(UserError):
+class ToolTableError(FileLineError):
     """A tool table line that cannot be used, at ``file:line``."""
-
-    def __init__(self, path: str, line: int, message: str):
-        super().__init__(f"{path}:{line}: {message}")
-        self.path = path
-        self.line = line
-        self.message = message
 
 
 @dataclass
