@@ -55,6 +55,11 @@ static struct {
     double spring_k[SIM_AXES];  /* N/m: spring on the table                  */
     double spring_x0[SIM_AXES]; /* m: table position where it is relaxed    */
     int dist_on;                /* any of the above non-zero (sim_start)    */
+    /* sim_inject: host buffer per axis, next index, length (0: off) */
+    const double *inj[SIM_AXES];
+    size_t inj_k[SIM_AXES];
+    size_t inj_n[SIM_AXES];
+    double inj_now[SIM_AXES]; /* V added over the current tick */
 } S;
 
 /* With the 2-D field on, add it to X's and Y's true positions (S.table)
@@ -636,6 +641,11 @@ int sim_start(void)
                 true);
         }
     }
+    for (i = 0; i < SIM_AXES; i++) {
+        S.inj_n[i] = 0;
+        S.inj_k[i] = 0;
+        S.inj_now[i] = 0.0;
+    }
     S.board.drive = &cfg;
     S.board.boot = S.boot ? boot_sim_config() : NULL;
     if (app_init(&S.board) != APP_OK) {
@@ -675,7 +685,52 @@ static void write_row(double *row)
         row[5 + 4 * i] = S.table[i];
         row[6 + 4 * i] = (double)st.pos[i] * 1e-9;
         row[7 + 4 * i] = (double)hal_sim_motor_mv(i) * 1e-3;
+        if (S.inj_n[i] > 0) {
+            row[7 + 4 * i] += S.inj_now[i];
+        }
     }
+}
+
+/* The injected voltage of this tick per axis (sim_inject); off: nothing. */
+static void inject_tick(void)
+{
+    unsigned i;
+    for (i = 0; i < S.axes; i++) {
+        if (S.inj_n[i] == 0) {
+            continue;
+        }
+        if (S.inj_k[i] < S.inj_n[i] && hal_sim_motor_enabled(i)) {
+            S.inj_now[i] = S.inj[i][S.inj_k[i]];
+        } else {
+            S.inj_now[i] = 0.0;
+        }
+        if (S.inj_k[i] < S.inj_n[i]) {
+            S.inj_k[i]++;
+        }
+    }
+}
+
+int sim_inject(unsigned axis, const double *volts, size_t n)
+{
+    if (!S.started) {
+        return SIM_E_STATE;
+    }
+    if (axis >= S.axes) {
+        return SIM_E_ARG;
+    }
+    S.inj[axis] = volts;
+    S.inj_n[axis] = volts != NULL ? n : 0;
+    S.inj_k[axis] = 0;
+    S.inj_now[axis] = 0.0;
+    return 0;
+}
+
+size_t sim_inject_left(unsigned axis)
+{
+    if (axis >= SIM_AXES) {
+        return 0;
+    }
+    return S.inj_n[axis] - S.inj_k[axis];
 }
 
 static double sgn(double v)
@@ -730,6 +785,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
             sim_home_switch(i);
         }
         app_tick();
+        inject_tick();
         for (i = 0; i < S.axes; i++) {
             if (drive_encoder_count(i) + S.count0[i] != S.gen[i].count) {
                 S.mismatches++;
@@ -750,6 +806,9 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         }
         for (i = 0; i < S.axes; i++) {
             double u = (double)hal_sim_motor_mv(i) * 1e-3;
+            if (S.inj_n[i] > 0) {
+                u += S.inj_now[i];
+            }
             for (s = 0; s < S.nsub; s++) {
                 axis_substep(&S.ax[i], u);
                 S.edges += qgen_move_to(&S.gen[i], to_qgen(axis_encoder_reading(&S.ax[i])),

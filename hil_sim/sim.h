@@ -48,7 +48,8 @@
  *      hal_motor_set_mv), then calib_tick with what it published;
  *   3. every axis's decoded count is compared with the count the model
  *      emitted (sim_edge_mismatches() counts ticks where any differ);
- *   4. the trace row is written (state at t_k, command just computed);
+ *   4. the trace row is written (state at t_k, command just computed,
+ *      plus the injected voltage of this tick, if any: sim_inject);
  *   5. calib_poll() and drive_poll() run (background work between ticks);
  *   6. each axis model advances over [t_k, t_k+1) in substeps with the motor
  *      command held (ZOH); after each substep the encoder reading (counts,
@@ -174,6 +175,17 @@ long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every);
  * run. Returns rows written or a negative code. */
 long sim_run_until_free(uint64_t ticks, unsigned min_free, double *trace, size_t rows_cap,
                         unsigned every, uint64_t *ran);
+
+/* An additive motor command per axis (V at the amplifier input), one value
+ * per tick from `volts` (the host keeps the buffer alive): tick j after
+ * this call adds volts[j] to the drive's command, for j < n, while the
+ * amplifier is enabled (hal_sim_motor_enabled); the trace's command column
+ * shows the sum. The excitation injection point of commissioning (docs/
+ * commissioning.md), in the simulator, not the drive. n = 0 or volts NULL:
+ * off (the default after sim_start; no effect at all on any trace).
+ * sim_inject_left(axis): values not yet applied. */
+int sim_inject(unsigned axis, const double *volts, size_t n);
+size_t sim_inject_left(unsigned axis);
 
 /* Read-outs. */
 unsigned sim_trace_cols(void);

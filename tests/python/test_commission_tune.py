@@ -1,7 +1,7 @@
 """Gains from the identified model (issue 23, contour.commission.tune):
 stable on the true plant with the stated margins, refused when the
-discretised loop is unstable, and a following error on the twin at least
-2x lower than with another machine's gains."""
+discretised loop is unstable, and a following error of the simulated
+drive at least 2x lower than with another machine's gains."""
 
 import functools
 
@@ -15,9 +15,9 @@ TICK = 10000.0
 
 @functools.cache
 def identified(name: str):
-    p, gains = variant(name)
-    rec, _ = experiment.simulate_bounded(p, gains, experiment.Plan(), experiment.Limits())
-    return p, identify.identify(rec)
+    m, p = variant(name)
+    rec, _ = experiment.simulate_bounded(m, "x", experiment.Plan(), experiment.Limits())
+    return m, p, identify.identify(rec)
 
 
 def pid_of(g: dict) -> dict:
@@ -26,7 +26,7 @@ def pid_of(g: dict) -> dict:
 
 @pytest.mark.parametrize("name", ["heavier", "softer", "friction_noise", "other_machine_y"])
 def test_robust_gains_hold_on_the_true_plant(name):
-    p, ident = identified(name)
+    m, p, ident = identified(name)
     t = tune.tune(ident, TICK, ms_target=1.6)
     d = t.as_dict()
     assert d["stable"] and d["sensitivity_peak"] <= 1.6 * 1.02
@@ -34,18 +34,16 @@ def test_robust_gains_hold_on_the_true_plant(name):
     true = tuning.Loop(p, TICK).margins(pid_of(t.gains))
     assert true.stable
     assert true.ms <= 1.6 * 1.1, true.ms
-    # the verification move on the twin: another machine's gains vs these
+    # the verification move on the simulated drive: another machine's
+    # gains vs these
     other = machine.load("thesis").gains["x"]
-    before = experiment.following_error(p, other, TICK)
-    g = t.gains
-    after = experiment.following_error(
-        p, g, TICK, kv=g["velocity_feedforward"], ka=g["acceleration_feedforward"]
-    )
+    before = experiment.following_error(experiment.with_axis(m, "x", gains=other), "x")
+    after = experiment.following_error(m, "x", t.gains)
     assert after * 2 <= before, (before, after)
 
 
 def test_tighter_target_gives_smaller_peak():
-    _, ident = identified("heavier")
+    _, _, ident = identified("heavier")
     loose = tune.tune(ident, TICK, ms_target=1.8)
     tight = tune.tune(ident, TICK, ms_target=1.3)
     assert tight.margins.ms <= 1.3 * 1.02
@@ -56,6 +54,6 @@ def test_tighter_target_gives_smaller_peak():
 def test_unstable_gains_are_refused():
     """Ziegler-Nichols on the lightly damped table mode: the sampled loop
     is unstable, and nothing is returned to write."""
-    _, ident = identified("heavier")
+    _, _, ident = identified("heavier")
     with pytest.raises(tune.TuneError, match="unstable"):
         tune.tune(ident, TICK, method="zn")

@@ -1,9 +1,10 @@
 """`contour tune`: identify an axis from an excitation experiment and
 compute its gains (issue 23; contour.commission).
 
-Today the experiment runs on the Python twin of a simulated machine's axis
-(`--sim MACHINE`): the drive-side excitation (and with it `--port` and
-`--apply`) is not built yet, and both are refused with that reason.
+Today the experiment runs on the C simulator's drive configured with a
+simulated machine (`--sim MACHINE`; the excitation enters through the
+simulator's sim_inject): the drive-side excitation (and with it `--port`
+and `--apply`) is not built yet, and both are refused with that reason.
 """
 
 from __future__ import annotations
@@ -26,8 +27,8 @@ def register(sub) -> None:
             "Excite the axis at rest (multisine on the command, constant-velocity legs), fit "
             "the two-inertia or rigid-body model, compute PID and feed-forward gains for a "
             "sensitivity-peak target, check the discretised closed loop, and compare the "
-            "following error of a verification move before and after. Runs on the twin of "
-            "a simulated machine (--sim); the drive-side experiment is not built yet."
+            "following error of a verification move before and after. Runs on the simulated "
+            "drive of a machine (--sim); the drive-side experiment is not built yet."
         ),
     )
     p.add_argument("--axis", required=True, help="X, Y, Z or all")
@@ -79,18 +80,19 @@ def run(args) -> int:
     plan = experiment.Plan(tick_hz=m.tick_hz, amplitude_v=args.amplitude)
     out = {"machine": m.name, "tick_hz": m.tick_hz, "axes": {}}
     for ax in axes:
-        p, g0 = m.axis[ax], m.gains[ax]
+        g0 = m.gains[ax]
         try:
-            rec, stops = experiment.simulate_bounded(p, g0, plan, limits)
+            rec, stops = experiment.simulate_bounded(m, ax, plan, limits)
             ident = identify.identify(rec)
             t = tune.tune(ident, m.tick_hz, args.method, args.ms_target, g0.get("d_tau", 1e-3))
         except (experiment.ExperimentAborted, identify.IdentifyError, tune.TuneError) as e:
             raise UserError(f"axis {ax.upper()}: {e}") from e
         g = t.gains
-        before = experiment.following_error(p, g0, m.tick_hz)
-        after = experiment.following_error(
-            p, g, m.tick_hz, kv=g["velocity_feedforward"], ka=g["acceleration_feedforward"]
-        )
+        try:
+            before = experiment.following_error(m, ax)
+            after = experiment.following_error(m, ax, g)
+        except experiment.ExperimentAborted as e:
+            raise UserError(f"axis {ax.upper()}: {e}") from e
         d = ident.as_dict()
         td = t.as_dict()
         out["axes"][ax.upper()] = {

@@ -1,32 +1,35 @@
 """The excitation experiment of one axis and its record.
 
-Experiment (the drive side is not built yet: `simulate` runs it on the
-Python twin of the axis model): the axis is held at rest by its PID; a
-periodic multisine (random phases, flat amplitude on `lines` log-spaced
-DFT bins from `f_min_hz` to `f_max_hz`) is added to the motor command for `periods`
-periods of `period_ticks` ticks, then the axis is moved at +-v1 and +-v2
-(constant-velocity legs) for the friction estimate. Every tick records the
-motor command u (V at the amplifier input) and the encoder position y
-(m, quantised to counts). Limits given by the user bound it: travel (m
-either side of the start), command (V), velocity (m/s); `simulate`
-checks them and stops the record at the first violation, as the drive
-must.
+The drive side is not built yet: `simulate` runs the experiment on the
+simulated drive of the C simulator (hil_sim/sim.h, set up from a machine
+description, contour.sim.machine), the same firmware, axis model and PID
+as every other simulation. The axis is held at rest by the drive's own
+PID; a periodic multisine (random phases, flat amplitude on `lines`
+log-spaced DFT bins from `f_min_hz` to `f_max_hz`) is added to the motor
+command through the simulator's injection point (sim_inject: an additive
+voltage at the amplifier input per tick) for `periods` periods of
+`period_ticks` ticks, then the drive moves the axis at +-v1 and +-v2
+(constant-velocity legs, queued lines) for the friction estimate. Every
+tick records, from the simulator's trace, the motor command u (V at the
+amplifier input, the drive's command plus the injection) and the
+position the drive measured y (m, from its encoder counts). Limits given
+by the user bound it: travel (m either side of the start), command (V),
+velocity (m/s, of the table over one tick); `simulate` checks them after
+every block of ticks and stops at the first violation (the drive must do
+it within the tick), as it stops when the drive faults.
 
-The simulation is the model of axis_model.h in Python: exact zero-order
-hold of the linear part (contour.sim.tuning.plant), `substeps` substeps
-per tick, Coulomb friction on both sides as a smooth tanh law (not the C
-model's stick-slip constraint), Gaussian encoder noise and quantisation.
-The command computed at tick k is applied over tick k (tuning.py).
+The command computed at tick k is applied over tick k (sim.h, step 6).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from contour.sim import tuning
+from contour.sim import core, machine
 
 
 class ExperimentAborted(RuntimeError):
@@ -78,145 +81,172 @@ class Record:
     v_ref: np.ndarray | None = None  # m/s, reference velocity per tick
 
 
-def _pid(g: dict, t: float):
-    a = t / (g.get("d_tau", 0.0) + t)
-    kp, ki, kd = g.get("kp", 0.0), g.get("ki", 0.0), g.get("kd", 0.0)
-    st = {"i": 0.0, "e": 0.0, "d": 0.0}
-
-    def step(e: float) -> float:
-        st["i"] += ki * t * e
-        st["d"] = (1 - a) * st["d"] + a * kd * (e - st["e"]) / t
-        st["e"] = e
-        return kp * e + st["i"] + st["d"]
-
-    return step
+# trace columns of axis i (sim.h): reference, true table, measured, command
+def _cols(i: int) -> tuple[int, int, int, int]:
+    return 4 + 4 * i, 5 + 4 * i, 6 + 4 * i, 7 + 4 * i
 
 
-class Twin:
-    """The axis model of dict `p` stepped one tick at a time (see above)."""
-
-    def __init__(self, p: dict, tick_hz: float, substeps: int = 4, seed: int = 1):
-        t = 1.0 / tick_hz
-        h = t / substeps
-        a, b, c1, _ = tuning.plant(p)
-        lead = p.get("lead_mm", 5.0) * 1e-3
-        self.l = lead / (2 * math.pi)
-        bb = np.zeros((5, 3))  # inputs [u, T1 motor side, T2 table side]
-        bb[:, 0] = b[:, 0]
-        bb[1, 1] = -1.0 / p["I1"]
-        bb[3, 2] = -1.0 / p["I2"]
-        self.phi, self.gam = tuning.zoh(a, bb, h)
-        self.c1 = c1[0]
-        self.fc1 = p.get("coulomb_motor", 0.0)
-        self.fc2 = p.get("coulomb_table", 0.0) * self.l
-        self.m_per_count = lead / (4.0 * p.get("encoder_lines", 1000.0))
-        self.noise = p.get("encoder_noise_counts", 0.0)
-        self.rng = np.random.default_rng(seed)
-        self.umax = p.get("vmax", 160.0) / p["kx"]
-        self.substeps = substeps
-        self.z = np.zeros(5)
-
-    def encoder(self) -> float:
-        """Encoder position, m (quantised, with the reading noise)."""
-        c = float(self.c1 @ self.z) / self.m_per_count + 0.5
-        if self.noise:
-            c += self.noise * self.rng.standard_normal()
-        return math.floor(c) * self.m_per_count
-
-    def motor_velocity(self) -> float:
-        return float(self.z[1]) * self.l
-
-    def step(self, u: float) -> None:
-        uu = max(-self.umax, min(self.umax, u))
-        w0 = 0.5  # rad/s, smoothing of the friction law
-        for _ in range(self.substeps):
-            tin = np.array(
-                [uu, self.fc1 * math.tanh(self.z[1] / w0), self.fc2 * math.tanh(self.z[3] / w0)]
-            )
-            self.z = self.phi @ self.z + self.gam @ tin
+def _start(m: machine.Machine, feedforward: str = "none") -> None:
+    machine.apply(m, feedforward=feedforward)
+    r = core.lib().sim_enable(1)
+    if r != 0:
+        raise ExperimentAborted(f"drive refused enable: {core.DRIVE_RESULT.get(r, r)}")
 
 
-def following_error(
-    p: dict, gains: dict, tick_hz: float, distance_m=0.02, v=0.1, a=2.0, kv=0.0, ka=0.0
-) -> float:
-    """Largest |reference - encoder| (m) over a trapezoidal move there and
-    back (PID `gains`, feed-forward kv V/(m/s), ka V/(m/s^2)), with 0.1 s
-    of settling after each leg: the verification job of the twin."""
-    t = 1.0 / tick_hz
-    tw = Twin(p, tick_hz)
-    pid = _pid(gains, t)
-    ta = v / a
-    tc = max(0.0, distance_m / v - ta)
-    prof = []
-    for sign in (1.0, -1.0):
-        for k in range(int((2 * ta + tc + 0.1) / t)):
-            tt = k * t
-            if tt < ta:
-                prof.append((sign * a * tt, sign * a))
-            elif tt < ta + tc:
-                prof.append((sign * v, 0.0))
-            elif tt < 2 * ta + tc:
-                prof.append((sign * (v - a * (tt - ta - tc)), -sign * a))
-            else:
-                prof.append((0.0, 0.0))
-    ref = 0.0
-    worst = 0.0
-    for vel, acc in prof:
-        e = ref - tw.encoder()
-        worst = max(worst, abs(e))
-        tw.step(pid(e) + kv * vel + ka * acc)
-        ref += vel * t
-    return worst
+def _check(rows: np.ndarray, i: int, k0: int, limits: Limits, tick_hz: float) -> None:
+    """Stop at the first tick of `rows` (tick k0 on) beyond a limit or
+    faulted. Velocity: of the measured (motor encoder) position over
+    VEL_TICKS ticks, what the drive sees."""
+    _, _, meas, cmd = _cols(i)
+    y, u = rows[:, meas], rows[:, cmd]
+    vel = np.zeros(y.size)
+    vel[VEL_TICKS:] = np.abs(y[VEL_TICKS:] - y[:-VEL_TICKS]) * tick_hz / VEL_TICKS
+    checks = [
+        (rows[:, 2] != 0, "drive fault", lambda k: core.fault_names(int(rows[k, 2]))),
+        (np.abs(y) > limits.travel_m, "travel limit", lambda k: f"{y[k] * 1e3:.3f} mm"),
+        (np.abs(u) > limits.command_v, "command limit", lambda k: f"{u[k]:.2f} V"),
+        (vel > limits.velocity_m_s, "velocity limit", lambda k: f"{vel[k]:.4f} m/s"),
+    ]
+    first = None
+    for bad, what, val in checks:
+        if bad.any():
+            k = int(np.argmax(bad))
+            if first is None or k < first[0]:
+                first = (k, what, val)
+    if first is not None:
+        k, what, val = first
+        raise ExperimentAborted(f"{what} at tick {k0 + k}: {val(k)}")
 
 
-def simulate(p: dict, gains: dict, plan: Plan, limits: Limits, substeps: int = 4) -> Record:
-    """Run the experiment on the model of axis dict `p` held by PID `gains`."""
+VEL_TICKS = 4
+
+
+def _run_checked(ticks, i, k0, limits, tick_hz, chunk) -> np.ndarray:
+    """core.run in blocks of `chunk` ticks, each checked with the last
+    VEL_TICKS rows of the block before it."""
+    out = []
+    done = 0
+    tail = np.zeros((0, core.lib().sim_trace_cols()))
+    while done < ticks:
+        rows = core.run(min(chunk, ticks - done))
+        _check(np.vstack([tail, rows]), i, k0 + done - tail.shape[0], limits, tick_hz)
+        tail = rows[-VEL_TICKS:]
+        out.append(rows)
+        done += rows.shape[0]
+    return np.vstack(out) if out else tail
+
+
+def simulate(m: machine.Machine, ax: str, plan: Plan, limits: Limits) -> Record:
+    """Run the experiment on axis `ax` ("x", "y", "z") of the simulated
+    machine `m`, held by the drive's PID with the machine's gains."""
+    i = machine.AXES.index(ax)
     t = 1.0 / plan.tick_hz
-    tw = Twin(p, plan.tick_hz, substeps, plan.seed + 1000)
-    pid = _pid(gains, t)
-
+    if abs(plan.tick_hz - m.tick_hz) > 1e-9:
+        raise ExperimentAborted(f"plan at {plan.tick_hz:g} Hz, machine at {m.tick_hz:g} Hz")
+    _start(m)
+    so = core.lib()
     exc, _ = plan.multisine()
     n_ms = plan.period_ticks * plan.periods
+    inj = np.ascontiguousarray(np.tile(exc, plan.periods), dtype=np.float64)
+    core.check(so.sim_inject(i, inj.ctypes.data, inj.size), "inject")
+    try:
+        parts = [_run_checked(n_ms, i, 0, limits, plan.tick_hz, plan.period_ticks)]
+    finally:
+        so.sim_inject(i, None, 0)
+    segments = {"multisine": (0, n_ms)}
     legs = []
     for v in plan.friction_speeds_m_s:
         legs += [v, -v, -v, v]  # out and back twice: ends at the start
-    n_leg = int(plan.friction_leg_s * plan.tick_hz)
-    n = n_ms + n_leg * len(legs)
-    v_ref = np.zeros(n)
-    v_ref[n_ms:] = np.repeat(legs, n_leg)
-    segments = {"multisine": (0, n_ms)}
-    for i, v in enumerate(legs):
-        segments[f"leg{i}:{v:+g}"] = (n_ms + i * n_leg, n_ms + (i + 1) * n_leg)
-
-    u_rec = np.zeros(n)
-    y_rec = np.zeros(n)
-    ref = 0.0
-    for k in range(n):
-        y = tw.encoder()
-        ref += v_ref[k] * t
-        u = pid(ref - y) + (exc[k % plan.period_ticks] if k < n_ms else 0.0)
-        if abs(y) > limits.travel_m:
-            raise ExperimentAborted(f"travel limit at tick {k}: {y * 1e3:.3f} mm")
-        if abs(u) > limits.command_v:
-            raise ExperimentAborted(f"command limit at tick {k}: {u:.2f} V")
-        if abs(tw.motor_velocity()) > limits.velocity_m_s:
-            raise ExperimentAborted(f"velocity limit at tick {k}: {tw.motor_velocity():.4f} m/s")
-        u_rec[k] = u
-        y_rec[k] = y
-        tw.step(u)
-    return Record(plan.tick_hz, u_rec, y_rec, plan, segments, v_ref)
+    k = n_ms
+    pos = 0.0
+    for j, v in enumerate(legs):
+        pos += v * plan.friction_leg_s
+        target = [0, 0, 0]
+        target[i] = round(pos * 1e9)
+        if core.queue_line(target, round(abs(v) * 1e9), tag=j + 1, exact_stop=True) != 0:
+            raise ExperimentAborted(f"drive refused friction leg {j} ({v:+g} m/s)")
+        ticks = int(plan.friction_leg_s * plan.tick_hz * 1.5) + int(0.05 * plan.tick_hz)
+        rows = _run_checked(ticks, i, k, limits, plan.tick_hz, plan.period_ticks)
+        vr = np.diff(rows[:, _cols(i)[0]], append=rows[-1, _cols(i)[0]]) * plan.tick_hz
+        steady = np.flatnonzero(np.abs(vr - v) <= 0.02 * abs(v))
+        if steady.size < 10:
+            raise ExperimentAborted(f"friction leg {j}: no constant-velocity part")
+        segments[f"leg{j}:{v:+g}"] = (k + int(steady[0]), k + int(steady[-1]) + 1)
+        parts.append(rows)
+        k += rows.shape[0]
+    rows = np.vstack(parts)
+    ref, _, meas, cmd = _cols(i)
+    v_ref = np.diff(rows[:, ref], append=rows[-1, ref]) / t
+    return Record(
+        plan.tick_hz,
+        np.ascontiguousarray(rows[:, cmd]),
+        np.ascontiguousarray(rows[:, meas]),
+        plan,
+        segments,
+        v_ref,
+    )
 
 
 def simulate_bounded(
-    p: dict, gains: dict, plan: Plan, limits: Limits, tries: int = 4, **kw
+    m: machine.Machine, ax: str, plan: Plan, limits: Limits, tries: int = 4
 ) -> tuple[Record, list[str]]:
     """`simulate`, halving the excitation after each stop at a limit (as
     the host does with the drive): (record, the stops met on the way)."""
     stops = []
     for _ in range(tries):
         try:
-            return simulate(p, gains, plan, limits, **kw), stops
+            return simulate(m, ax, plan, limits), stops
         except ExperimentAborted as e:
             stops.append(f"{plan.amplitude_v:g} V: {e}")
             plan = replace(plan, amplitude_v=plan.amplitude_v / 2)
     raise ExperimentAborted("; ".join(stops))
+
+
+def with_axis(m: machine.Machine, ax: str, params: dict | None = None, gains: dict | None = None):
+    """Machine `m` with axis `ax`'s parameters and/or PID gains replaced."""
+    axis = dict(m.axis)
+    g = dict(m.gains)
+    if params is not None:
+        axis[ax] = dict(params)
+    if gains is not None:
+        g[ax] = dict(gains)
+    return dataclasses.replace(m, axis=axis, gains=g)
+
+
+def following_error(
+    m: machine.Machine, ax: str, gains: dict | None = None, distance_m: float = 0.02, v=0.1
+) -> float:
+    """Largest |reference - measured position| (m) of the drive over a line
+    move of axis `ax` there and back at `v` (the machine's planner limits),
+    with 0.1 s of settling after each leg, on the simulated drive: the
+    verification job. `gains` (None: the machine's, no feed-forward): kp,
+    ki, kd, d_tau, velocity_feedforward (V/(m/s)), acceleration_feedforward
+    (V/(m/s^2))."""
+    i = machine.AXES.index(ax)
+    ff = "none"
+    if gains is not None:
+        pid = {**m.gains[ax], **{k: gains[k] for k in ("kp", "ki", "kd", "d_tau")}}
+        m = dataclasses.replace(
+            with_axis(m, ax, gains=pid),
+            feedforward={
+                "kvff": gains.get("velocity_feedforward", 0.0),
+                "kaff": gains.get("acceleration_feedforward", 0.0),
+            },
+        )
+        ff = "full"
+    _start(m, ff)
+    worst = 0.0
+    ref, _, meas, _ = _cols(i)
+    for j, target in enumerate((distance_m, 0.0)):
+        tgt = [0, 0, 0]
+        tgt[i] = round(target * 1e9)
+        if core.queue_line(tgt, round(v * 1e9), tag=j + 1, exact_stop=True) != 0:
+            raise ExperimentAborted("drive refused the verification move")
+        ticks = int((distance_m / v + 0.1 + 0.1) * m.tick_hz)
+        rows = core.run(ticks)
+        if (rows[:, 2] != 0).any():
+            k = int(np.argmax(rows[:, 2] != 0))
+            names = core.fault_names(int(rows[k, 2]))
+            raise ExperimentAborted(f"verification move faulted: {names}")
+        worst = max(worst, float(np.max(np.abs(rows[:, ref] - rows[:, meas]))))
+    return worst

@@ -28,8 +28,11 @@ lower the weighted residual significantly (F statistic
 from the spread between periods, which does not see the periodic
 distortion of friction, so the F statistic is large on every record and
 the threshold is a floor, not a test level), its
-resonance lies inside the excited band and its 95 % interval is narrower
-than +-`max_ci_rel` of the value; otherwise the result is the rigid model
+resonance lies inside the excited band, its 95 % interval is narrower
+than +-`max_ci_rel` of the value, and the resonance and anti-resonance
+are apart by more than their intervals (a pole pair cancelled by a zero
+pair is no mode: the simulated drive's records are clean enough for such
+a pair to pass the F floor on a rigid axis); otherwise the result is the rigid model
 with `resonance_hz` None and the reason.
 """
 
@@ -324,6 +327,11 @@ def identify(
             reason = f"resonance {wr / (2 * math.pi):.0f} Hz outside the excited band"
         elif not ci_rel <= max_ci_rel:
             reason = f"resonance 95 % interval +-{100 * ci_rel:.0f} % (> {100 * max_ci_rel:.0f} %)"
+        elif not abs(wr - wa) > best.ci95["wr"] + best.ci95["wa"]:
+            reason = (
+                f"resonance {wr / (2 * math.pi):.0f} Hz and anti-resonance "
+                f"{wa / (2 * math.pi):.0f} Hz within their intervals: they cancel"
+            )
         elif rigid.rms_log > max_rms_log and best.rms_log > max_rms_log:
             reason = f"fit error {best.rms_log:.2f} > {max_rms_log}"
         else:
