@@ -228,8 +228,10 @@ def test_soft_limit_on_the_last_line_refused_before_anything_moves(
     from contour.commands import run as run_cmd
 
     streamed = []
-    real = run_cmd._streamable
-    monkeypatch.setattr(run_cmd, "_streamable", lambda *a: (streamed.append(1), real(*a))[1])
+    real = run_cmd.blocks_from_gcode  # the second, streaming pass (check_gcode is the first)
+    monkeypatch.setattr(
+        run_cmd, "blocks_from_gcode", lambda *a, **k: (streamed.append(1), real(*a, **k))[1]
+    )
     prog = tmp_path / "over.ngc"
     prog.write_text("G21 G90\nG1 X5 F3000\nG1 Y5\nG1 X20\nG1 X60 Y5\n")
     before = _to_origin(server, tmp_path, capsys)
