@@ -115,18 +115,22 @@ def test_host_gone_mid_calibration_stops_the_run(server, capsys, how):
                 break
             time.sleep(0.05)
         y0 = c.status()["pos"][1]
-        for _ in range(30):  # the axis settles on the stopped reference
+        quiet = 0
+        for _ in range(60):  # the axis settles on the stopped reference
             time.sleep(0.2)
             y1 = c.status()["pos"][1]
-            if abs(y1 - y0) < 2500:
-                break
+            # three quiet readings in a row: on a loaded machine the
+            # simulator can stall for 0.2 s and then catch up
+            quiet = quiet + 1 if abs(y1 - y0) < 2500 else 0
             y0 = y1
+            if quiet >= 3:
+                break
         time.sleep(1.0)
         for _ in range(5):  # reads do not resume the run
             c.request("calib_read", from_seq=st["seq_oldest"], max=5)
         time.sleep(1.0)
-        # settling creeps by a few counts; a resumed run moves millimetres
-        assert abs(c.status()["pos"][1] - y0) < 50_000, "the axis moved without a command"
+        # settling creeps by micrometres; a resumed run moves a 15 mm leg
+        assert abs(c.status()["pos"][1] - y0) < 1_000_000, "the axis moved without a command"
         assert c.request("calib_status").fields["legs_done"] == st["legs_done"]
     rc = cli.main(
         [
