@@ -665,6 +665,9 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
         (void)proto_jog_decode(p, n, &j);
         r = req_jog(d, &j, &st);
         if (r.code == PROTO_ERROR_CODE_NONE) {
+            d->stream_owns_motion = false; /* the motion is this request's */
+        }
+        if (r.code == PROTO_ERROR_CODE_NONE) {
             return put_queue_reply(out, seq, st.tag, &st);
         }
         break;
@@ -675,6 +678,9 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
         (void)proto_queue_block_decode(p, n, &q);
         block_seq = q.block_seq;
         r = req_queue_block(d, &q, &st);
+        if (r.code == PROTO_ERROR_CODE_NONE) {
+            d->stream_owns_motion = false; /* the motion is this request's */
+        }
         if (r.code == PROTO_ERROR_CODE_NONE) {
             return put_queue_reply(out, seq, block_seq, &st);
         }
@@ -687,17 +693,31 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
         block_seq = q.block_seq;
         r = req_queue_arc(d, &q, &st);
         if (r.code == PROTO_ERROR_CODE_NONE) {
+            d->stream_owns_motion = false; /* the motion is this request's */
+        }
+        if (r.code == PROTO_ERROR_CODE_NONE) {
             return put_queue_reply(out, seq, block_seq, &st);
         }
         break;
     }
-    case PROTO_MSG_QUEUE_BATCH:
-        return proto_batch_request(&d->batch, AXES_OF(d), seq, p, n, out);
+    case PROTO_MSG_QUEUE_BATCH: {
+        uint32_t before = d->batch.next_seq;
+        bool started = d->batch.started;
+        size_t len = proto_batch_request(&d->batch, AXES_OF(d), seq, p, n, out);
+
+        if (d->batch.next_seq != before || d->batch.started != started) {
+            d->stream_owns_motion = true; /* it took blocks (or began a stream) */
+        }
+        return len;
+    }
     case PROTO_MSG_HOME: {
         proto_home_t h;
 
         (void)proto_home_decode(p, n, &h);
         r = req_home(d, &h, &st);
+        if (r.code == PROTO_ERROR_CODE_NONE) {
+            d->stream_owns_motion = false; /* the motion is this request's */
+        }
         if (r.code == PROTO_ERROR_CODE_NONE) {
             return proto_reply_ack(out, seq, id);
         }
@@ -768,6 +788,8 @@ bool proto_dispatch_init(proto_dispatch_t *d, const proto_identity_t *ident, uin
     proto_batch_reset(&d->batch);
     d->sessions = 0;
     d->last_rx_us = now_us;
+    d->stream_rx_us = now_us;
+    d->stream_owns_motion = false;
     d->wd_stopping = false;
     d->cycle_seq = 0;
     d->tx_seq = 0;
@@ -796,6 +818,9 @@ size_t proto_dispatch_handle(proto_dispatch_t *d, const uint8_t *msg, size_t len
     seq = msg[1];
     n = len - PROTO_MSG_HDR;
     d->last_rx_us = now_us; /* a well-formed frame: the host is alive */
+    if (id == PROTO_MSG_QUEUE_BATCH) {
+        d->stream_rx_us = now_us; /* the streaming host is */
+    }
 
     proto_replay_key(&key, msg, len);
     rlen = proto_replay_lookup(&d->replay, &key, out, cap);
@@ -919,6 +944,7 @@ static void emit_cycle(proto_dispatch_t *d, bool full, proto_emit_fn emit, void 
 static void watchdog(proto_dispatch_t *d, uint32_t now_us)
 {
     drive_status_t st;
+    uint32_t last;
 
     drive_status(&st);
     PREEMPT_POINT();
@@ -935,7 +961,8 @@ static void watchdog(proto_dispatch_t *d, uint32_t now_us)
     if (d->comm_timeout_ms == 0u || (st.state != DRIVE_RUNNING && st.state != DRIVE_HOMING)) {
         return; /* homing too: a host that died does not leave the axes homing */
     }
-    if ((uint32_t)(now_us - d->last_rx_us) / 1000u >= d->comm_timeout_ms) {
+    last = d->stream_owns_motion ? d->stream_rx_us : d->last_rx_us;
+    if ((uint32_t)(now_us - last) / 1000u >= d->comm_timeout_ms) {
         d->stats.watchdog_stops++;
         d->wd_stopping = true;
         proto_batch_flush(&d->batch, PROTO_ERROR_CODE_BUSY);

@@ -52,7 +52,11 @@
  * comm_timeout_ms, the dispatcher commands a controlled stop (drive_stop);
  * once the axes are at rest it latches DRIVE_FAULT_COMM (reported as fault
  * bit comm_timeout; fault_reset clears it). Any valid request is a sign of
- * life; status_get is the idle keep-alive.
+ * life; status_get is the idle keep-alive. While the motion is a block
+ * stream's (queue_batch took blocks, and no jog, home or single block was
+ * accepted since), only queue_batch frames are: the streaming host polls
+ * its window with them, and a second host that watches the job (status,
+ * monitor) must not keep the job of a host that died running.
  *
  * Context: main only. No heap, no floating point. Times are hal_time_us()
  * values (uint32 us, wrapping).
@@ -113,8 +117,10 @@ typedef struct {
     proto_replay_t replay; /* last request and its reply (proto_replay.h) */
     uint16_t sessions;     /* session_open requests executed (wraps) */
     proto_batch_t batch;   /* the host's block stream (queue_batch) */
-    /* watchdog */
-    uint32_t last_rx_us;
+    /* watchdog (main) */
+    uint32_t last_rx_us;     /* any valid request */
+    uint32_t stream_rx_us;   /* the last queue_batch request */
+    bool stream_owns_motion; /* the motion was queued by the block stream */
     bool wd_stopping;
     /* cyclic output */
     uint16_t cycle_seq;

@@ -513,6 +513,57 @@ static void test_session_open_refuses_another_protocol_version(void)
     TEST_ASSERT_EQUAL_UINT32(0x04030201u, s.nonce);
 }
 
+static void set_comm_timeout(uint32_t ms)
+{
+    proto_param_set_t ps = {PROTO_PARAM_COMM_TIMEOUT_MS, (int64_t)ms};
+    uint8_t p[PROTO_MAX_PAYLOAD];
+
+    request(PROTO_MSG_PARAM_SET, p, proto_param_set_encode(&ps, p, sizeof p));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, out[0]);
+}
+
+/* The watchdog of a streamed job listens to the streaming host only: a
+ * second host that reads the status does not keep the job of a host that
+ * died running; window polls do. A jog taken afterwards is the watcher's
+ * own motion again: its status requests keep it alive. */
+static void test_a_watcher_does_not_keep_a_dead_stream_running(void)
+{
+    uint8_t p[PROTO_MSG_MAX];
+    proto_jog_t j = {0u, 10000000u, 20000000};
+    unsigned ms;
+
+    set_comm_timeout(100);
+    enable();
+    request(PROTO_MSG_QUEUE_BATCH, p, batch_payload(p, 0, 0, 40, 500000, 10000000u, true, true));
+    TEST_ASSERT_EQUAL_UINT8(40, reply().accepted);
+    for (ms = 0; ms < 300; ms += 10) { /* the streamer polls its window */
+        run_ms(10);
+        (void)window(40);
+    }
+    TEST_ASSERT_EQUAL_UINT8(DRIVE_RUNNING, status().state);
+    for (ms = 0; ms < 300; ms += 10) { /* it died; a watcher reads the status */
+        run_ms(10);
+        request(PROTO_MSG_STATUS_GET, NULL, 0);
+    }
+    TEST_ASSERT_EQUAL_UINT32(1, d.stats.watchdog_stops);
+    for (ms = 0; ms < 3000 && status().state != DRIVE_FAULT; ms += 10) {
+        run_ms(10);
+        request(PROTO_MSG_STATUS_GET, NULL, 0);
+    }
+    TEST_ASSERT_EQUAL_UINT8(DRIVE_FAULT, status().state);
+    request(PROTO_MSG_FAULT_RESET, NULL, 0);
+    run_ms(1);
+    enable();
+    request(PROTO_MSG_JOG, p, proto_jog_encode(&j, p, sizeof p));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_QUEUE_REPLY, out[0]);
+    for (ms = 0; ms < 500; ms += 10) {
+        run_ms(10);
+        request(PROTO_MSG_STATUS_GET, NULL, 0);
+    }
+    TEST_ASSERT_EQUAL_UINT8(DRIVE_RUNNING, status().state);
+    TEST_ASSERT_EQUAL_UINT32(1, d.stats.watchdog_stops);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -525,5 +576,6 @@ int main(void)
     RUN_TEST(test_refusals_name_the_block);
     RUN_TEST(test_a_stop_ends_the_stream);
     RUN_TEST(test_session_open_refuses_another_protocol_version);
+    RUN_TEST(test_a_watcher_does_not_keep_a_dead_stream_running);
     return UNITY_END();
 }

@@ -346,6 +346,13 @@ class Streamer:
                 st = self.c.status()
                 self._done = (st["blocks_done"] - self._done0) & 0xFFFFFFFF
                 self._check(st)
+            if status == pg.ErrorCode.BUSY and first == 0 and taken == 0:
+                # the start batch: nothing of this job is on the drive
+                raise UserError(
+                    f"{self._where_seq(first)}: the drive is busy with motion it already "
+                    f"has (state {pg.State(r['state']).name.lower()}: another job, a jog "
+                    "or homing); nothing of this program was queued"
+                )
             if status == pg.ErrorCode.OUT_OF_RANGE:
                 text = (
                     f"drive refused the block: axis {'XYZA'[r['arg'] & 3]} out of range "
