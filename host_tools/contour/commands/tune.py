@@ -48,7 +48,13 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="JSON on stdout")
     p.add_argument("--method", default="robust", choices=("robust", "zn"))
     p.add_argument("--ms-target", type=float, default=1.6, help="sensitivity peak (1.1 .. 3)")
-    p.add_argument("--amplitude", type=float, default=3.0, help="excitation rms, V")
+    p.add_argument(
+        "--amplitude",
+        type=float,
+        default=None,
+        help="excitation rms, V (default 3 for --sim's multisine, 6 for the drive's PRBS: "
+        "at 3 V Coulomb friction biased the low-frequency gain by 8 %%)",
+    )
     p.add_argument("--travel-mm", type=float, default=10.0, help="travel either side, mm")
     p.add_argument("--command-v", type=float, default=20.0, help="command limit, V")
     p.add_argument("--velocity-mm-s", type=float, default=200.0, help="velocity limit, mm/s")
@@ -67,6 +73,8 @@ def _axes(arg: str, have) -> list[str]:
 
 
 def _check_args(args) -> None:
+    if args.amplitude is None:
+        args.amplitude = 3.0 if args.sim else 6.0
     if not 1.1 <= args.ms_target <= 3.0:
         raise UsageError(f"--ms-target {args.ms_target}: 1.1 .. 3")
     for name in ("amplitude", "travel_mm", "command_v", "velocity_mm_s", "d_tau"):
