@@ -83,6 +83,8 @@ def _check_args(args) -> None:
             raise UsageError(f"--{name.replace('_', '-')} {v}: must be > 0")
     if not 2 <= args.windows <= 200:
         raise UsageError(f"--windows {args.windows}: 2 .. 200")
+    if args.sim and (args.port or getattr(args, "can", None) or getattr(args, "interface", None)):
+        raise UsageError("--sim MACHINE or a drive (--port, CAN), not both")
     if args.apply and args.sim:
         raise UsageError("--apply writes to a drive: with --port (or CAN), not --sim")
 
