@@ -2,11 +2,18 @@
 #include "app.h"
 
 #include "calib.h"
+#include "drive_excite.h"
 #include "hal.h"
 #include "param_store.h"
 #include "proto_link.h"
 #include "proto_msgs.h"
 #include "proto_reply.h"
+
+#if defined(__GNUC__)
+#define APP_NOINLINE __attribute__((noinline))
+#else
+#define APP_NOINLINE
+#endif
 
 static struct {
     /* main */
@@ -85,7 +92,8 @@ app_result_t app_init(const app_board_t *b)
     if (drive_init(b->drive) != DRIVE_OK) {
         return APP_E_DRIVE;
     }
-    calib_init();             /* its tables from flash, installed in the drive's decoders */
+    calib_init(); /* its tables from flash, installed in the drive's decoders */
+    drive_excite_init();
     (void)param_store_load(); /* the saved parameters, all or none; status: param_store_status */
     identity(b);
     if (app.link) {
@@ -93,7 +101,8 @@ app_result_t app_init(const app_board_t *b)
             return APP_E_LINK;
         }
         proto_link_set_ext_handler(calib_handle);
-        calib_set_next_handler(app_boot_handle);
+        calib_set_next_handler(drive_excite_handle);
+        drive_excite_set_next_handler(app_boot_handle);
         app.sessions = proto_link_dispatch()->sessions;
     }
     hal_watchdog_start();
@@ -105,11 +114,28 @@ uint32_t app_fw_version(void)
     return app.ident.fw_version;
 }
 
+/* The tick while an excitation experiment is armed (out of line: the usual
+ * tick pays one flag test for it). */
+static APP_NOINLINE void app_tick_excite(void)
+{
+    const drive_tick_out_t *t = drive_tick(true);
+
+    if (t != NULL) {
+        calib_tick(t->st, t->vel_ref);
+        drive_excite_tick(t->st);
+    }
+}
+
 void app_tick(void)
 {
-    /* the drive first; the calibration then sees what the drive published */
-    const drive_tick_out_t *t = drive_tick(calib_sampling());
+    const drive_tick_out_t *t;
 
+    if (drive_excite_armed) {
+        app_tick_excite();
+        return;
+    }
+    /* the drive first; the calibration then sees what the drive published */
+    t = drive_tick(calib_sampling());
     if (t != NULL) {
         calib_tick(t->st, t->vel_ref);
     }
@@ -118,6 +144,7 @@ void app_tick(void)
 void app_poll(void)
 {
     calib_poll(); /* may queue a move: before the feed path takes blocks */
+    drive_excite_poll();
     drive_poll();
     if (app.link) {
         proto_link_poll();
@@ -125,6 +152,7 @@ void app_poll(void)
             /* a run belongs to the session that started it */
             app.sessions = proto_link_dispatch()->sessions;
             calib_host_gone(PROTO_CALIB_STATUS_NEW_SESSION);
+            drive_excite_host_gone(EXCITE_REASON_NEW_SESSION);
         }
     }
     hal_watchdog_kick();

@@ -5,6 +5,7 @@
 #include "calib.h"
 
 #include "comp_store.h"
+#include "excite.h"
 #include "proto_replay.h"
 #include "crc.h"
 #include "preempt.h"
@@ -57,8 +58,13 @@ static struct {
     uint8_t reason;
     int32_t detail;
     /* sample ring: a slot is written by the tick before seq_next covers
-     * it, read by main below seq_next */
-    calib_sample_t ring[CALIB_RING];
+     * it, read by main below seq_next; while excite_owns (main), the
+     * excitation's samples instead (calib_excite_take) */
+    union {
+        calib_sample_t ring[CALIB_RING];
+        excite_sample_t ex[CALIB_EXCITE_SAMPLES];
+    } buf;
+    bool excite_owns;
     CORE_SHARED uint32_t seq_next; /* tick (main: calib_setup, tick idle) */
     uint32_t seq_oldest;           /* main                                 */
     /* sampling order: main writes it before s_active, the tick counts */
@@ -146,6 +152,7 @@ void calib_init(void)
     cb.reason = 0u;
     cb.detail = 0;
     cb.stage_axis = -1;
+    cb.excite_owns = false;
     proto_replay_reset(&cb.replay);
     cb.next = next;
     for (i = 0; i < CORE_AXES; i++) {
@@ -261,7 +268,7 @@ static void calib_tick_work(const drive_status_t *st, const int64_t vel_ref[CORE
     cb.s_phase = 0u;
     {
         uint32_t seq = cb.seq_next;
-        calib_sample_t *s = &cb.ring[seq % CALIB_RING];
+        calib_sample_t *s = &cb.buf.ring[seq % CALIB_RING];
         uint8_t a = cb.axis;
         s->seq = seq;
         s->point = cb.leg_point;
@@ -734,7 +741,7 @@ static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
     avail = cb.seq_next - m.from_seq;
     n = avail < m.max ? avail : m.max;
     for (i = 0; i < n; i++) {
-        calib_sample_encode(&cb.ring[(m.from_seq + i) % CALIB_RING],
+        calib_sample_encode(&cb.buf.ring[(m.from_seq + i) % CALIB_RING],
                             r.data + CALIB_SAMPLE_BYTES * i);
     }
     r.from_seq = m.from_seq;
@@ -915,6 +922,9 @@ size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *ou
         }
         return reply_error(out, id, msg[1], PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
     }
+    if (cb.excite_owns && id <= PROTO_MSG_CALIB_POINT && id != PROTO_MSG_CALIB_STATUS) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_EXCITE, 0); /* the ring holds its samples */
+    }
     cb.host_seen = true; /* the host is there (calib_poll's watchdog) */
     plen = len - PROTO_MSG_HDR;
     cacheable = mutating(id);
@@ -969,4 +979,21 @@ size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *ou
         proto_replay_store(&cb.replay, &key, out, n);
     }
     return n;
+}
+
+excite_sample_t *calib_excite_take(void)
+{
+    if (cb.state == CALIB_SETUP || cb.state == CALIB_RUNNING || cb.s_active) {
+        return NULL;
+    }
+    cb.state = CALIB_IDLE; /* a finished run's samples are gone */
+    cb.seq_next = 0u;
+    cb.seq_oldest = 0u;
+    cb.excite_owns = true;
+    return cb.buf.ex;
+}
+
+void calib_excite_give(void)
+{
+    cb.excite_owns = false;
 }

@@ -97,6 +97,7 @@
 #include "comp.h"
 #include "core_config.h"
 #include "drive.h"
+#include "excite.h"
 
 #ifndef CALIB_RING
 #define CALIB_RING 512u /* samples held for the host */
@@ -154,6 +155,16 @@ bool calib_sampling(void);
 void calib_poll(void);
 size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out, size_t cap);
 void calib_set_next_handler(calib_handler_fn fn);
+
+/* The sample buffer, for a commissioning excitation (drive_excite.h): the
+ * two runs exclude each other (RAM: the buffers are one union). NULL while
+ * a calibration run is set up or running; otherwise the samples of a
+ * finished run are dropped (state IDLE) and, until calib_excite_give(),
+ * calib_setup, _targets, _start, _read and _point are refused with
+ * calib_status `excite`. Main. */
+#define CALIB_EXCITE_SAMPLES 1024u /* a power of two; fits CALIB_RING samples */
+excite_sample_t *calib_excite_take(void);
+void calib_excite_give(void);
 
 /* Read-outs (tests, simulator). */
 calib_state_t calib_state(void);

@@ -30,17 +30,26 @@ void excite_init(excite_t *ex)
     memset(ex, 0, sizeof(*ex));
 }
 
-bool excite_setup(excite_t *ex, const excite_cfg_t *cfg)
+bool excite_setup(excite_t *ex, const excite_cfg_t *cfg, excite_sample_t *buf, uint32_t n)
 {
+    uint32_t period;
+
     if (ex->state == EXCITE_RUNNING || ex->req_start != ex->ack_start) {
         return false;
     }
     if (cfg->bits < 7u || cfg->bits > 16u || cfg->hold == 0u || cfg->n_ticks == 0u ||
-        cfg->travel_nm <= 0 || cfg->vel_nm_s <= 0 || cfg->cmd_mv <= 0 || cfg->amp_mv <= 0 ||
-        cfg->amp_mv > cfg->cmd_mv || cfg->host_timeout_ticks == 0u) {
+        cfg->windows == 0u || cfg->travel_nm <= 0 || cfg->vel_dpos_nm <= 0 || cfg->cmd_mv <= 0 ||
+        cfg->amp_mv <= 0 || cfg->amp_mv > cfg->cmd_mv || cfg->host_timeout_ticks == 0u) {
+        return false;
+    }
+    period = ((1u << cfg->bits) - 1u) * cfg->hold;
+    if (buf == NULL || n == 0u || (n & (n - 1u)) != 0u || period > n) {
         return false;
     }
     ex->cfg = *cfg;
+    ex->buf = buf;
+    ex->buf_mask = n - 1u;
+    ex->period = period;
     return true;
 }
 
@@ -49,8 +58,9 @@ void excite_start(excite_t *ex)
     ex->req_start++;
 }
 
-void excite_abort(excite_t *ex)
+void excite_abort(excite_t *ex, uint32_t reason)
 {
+    ex->abort_reason = reason;
     ex->req_abort++;
 }
 
@@ -71,7 +81,7 @@ bool excite_sample(const excite_t *ex, uint32_t seq, excite_sample_t *out)
     if ((int32_t)(seq - ex->released) < 0 || (int32_t)(seq - ex->written) >= 0) {
         return false;
     }
-    *out = ex->ring[seq & (EXCITE_RING - 1u)];
+    *out = ex->buf[seq & ex->buf_mask];
     return true;
 }
 
@@ -79,7 +89,6 @@ static int32_t excite_stop(excite_t *ex, uint32_t state, uint32_t reason)
 {
     ex->reason = reason;
     ex->state = state;
-    ex->out_mv = 0;
     return 0;
 }
 
@@ -88,71 +97,117 @@ static int64_t excite_abs64(int64_t v)
     return v < 0 ? -v : v;
 }
 
-int32_t excite_tick(excite_t *ex, const excite_in_t *in)
+static int32_t excite_sat32(int64_t v)
+{
+    return v > INT32_MAX ? INT32_MAX : (v < INT32_MIN ? INT32_MIN : (int32_t)v);
+}
+
+static void excite_begin(excite_t *ex, const excite_in_t *in)
+{
+    unsigned i;
+
+    ex->ack_start = ex->req_start;
+    ex->ack_abort = ex->req_abort;
+    ex->host_last = ex->host_seen;
+    ex->host_ticks = 0u;
+    ex->k = 0u;
+    ex->phase = 0u;
+    ex->rec_left = 0u;
+    ex->windows_done = 0u;
+    ex->lfsr = 1u;
+    ex->chip_left = ex->cfg.hold;
+    ex->pos0 = in->pos_nm;
+    for (i = 0; i < EXCITE_VEL_TICKS; i++) {
+        ex->hist[i] = in->pos_nm;
+    }
+    ex->written = 0u;
+    ex->released = 0u;
+    ex->reason = EXCITE_REASON_NONE;
+    ex->state = EXCITE_RUNNING;
+}
+
+/* The reason to stop this tick, before any output (NONE: go on). */
+static uint32_t excite_check(excite_t *ex, const excite_in_t *in)
 {
     const excite_cfg_t *c = &ex->cfg;
+    int64_t *old = &ex->hist[ex->k % EXCITE_VEL_TICKS];
+    int64_t dpos = in->pos_nm - *old;
 
-    if (ex->req_start != ex->ack_start) {
-        ex->ack_start = ex->req_start;
-        ex->ack_abort = ex->req_abort;
-        ex->host_last = ex->host_seen;
-        ex->host_ticks = 0u;
-        ex->k = 0u;
-        ex->lfsr = 1u;
-        ex->chip_left = c->hold;
-        ex->pos0 = in->pos_nm;
-        ex->written = 0u;
-        ex->released = 0u;
-        ex->reason = EXCITE_REASON_NONE;
-        ex->state = EXCITE_RUNNING;
-    }
-    if (ex->state != EXCITE_RUNNING) {
-        return 0;
-    }
+    *old = in->pos_nm;
     if (ex->req_abort != ex->ack_abort) {
         ex->ack_abort = ex->req_abort;
-        return excite_stop(ex, EXCITE_ABORTED, EXCITE_REASON_ABORTED);
+        return ex->abort_reason;
     }
     if (in->estop) {
-        return excite_stop(ex, EXCITE_ABORTED, EXCITE_REASON_ESTOP);
+        return EXCITE_REASON_ESTOP;
     }
     if (in->fault) {
-        return excite_stop(ex, EXCITE_ABORTED, EXCITE_REASON_FAULT);
+        return EXCITE_REASON_FAULT;
+    }
+    if (!in->idle) {
+        return EXCITE_REASON_DRIVE_STATE;
     }
     if (ex->host_seen != ex->host_last) {
         ex->host_last = ex->host_seen;
         ex->host_ticks = 0u;
     } else if (++ex->host_ticks >= c->host_timeout_ticks) {
-        return excite_stop(ex, EXCITE_ABORTED, EXCITE_REASON_HOST_SILENT);
-    }
-    if (excite_abs64(in->pos_nm - ex->pos0) > c->travel_nm) {
-        return excite_stop(ex, EXCITE_ABORTED, EXCITE_REASON_TRAVEL);
-    }
-    if (excite_abs64(in->vel_nm_s) > c->vel_nm_s) {
-        return excite_stop(ex, EXCITE_ABORTED, EXCITE_REASON_VELOCITY);
-    }
-    if (excite_abs64(in->cmd_mv) > c->cmd_mv) {
-        return excite_stop(ex, EXCITE_ABORTED, EXCITE_REASON_COMMAND);
-    }
-    /* sample of the last tick: its command and the position it produced */
-    if (ex->k > 0u) {
-        if (ex->written - ex->released >= EXCITE_RING) {
-            return excite_stop(ex, EXCITE_ABORTED, EXCITE_REASON_OVERRUN);
-        }
-        excite_sample_t *s = &ex->ring[ex->written & (EXCITE_RING - 1u)];
-        s->seq = ex->written;
-        s->cmd_mv = in->cmd_mv;
-        s->pos_nm = in->pos_nm - ex->pos0;
-        ex->written = ex->written + 1u;
+        return EXCITE_REASON_HOST_SILENT;
     }
     if (ex->k >= c->n_ticks) {
-        return excite_stop(ex, EXCITE_DONE, EXCITE_REASON_NONE);
+        return EXCITE_REASON_DURATION;
     }
-    ex->out_mv = (ex->lfsr & 1u) ? c->amp_mv : -c->amp_mv;
+    if (excite_abs64(in->pos_nm - ex->pos0) > c->travel_nm) {
+        return EXCITE_REASON_TRAVEL;
+    }
+    if (excite_abs64(dpos) > c->vel_dpos_nm) {
+        return EXCITE_REASON_VELOCITY;
+    }
+    return EXCITE_REASON_NONE;
+}
+
+int32_t excite_tick(excite_t *ex, const excite_in_t *in)
+{
+    const excite_cfg_t *c = &ex->cfg;
+    uint32_t why;
+    int32_t out;
+    int64_t total;
+
+    if (ex->req_start != ex->ack_start) {
+        excite_begin(ex, in);
+    }
+    if (ex->state != EXCITE_RUNNING) {
+        return 0;
+    }
+    why = excite_check(ex, in);
+    if (why != EXCITE_REASON_NONE) {
+        return excite_stop(ex, EXCITE_ABORTED, why);
+    }
+    out = (ex->lfsr & 1u) ? c->amp_mv : -c->amp_mv;
+    total = (int64_t)in->cmd_mv + out;
+    if (excite_abs64(total) > c->cmd_mv) {
+        return excite_stop(ex, EXCITE_ABORTED, EXCITE_REASON_COMMAND);
+    }
+    /* a window starts at a period boundary with room for all of it */
+    if (ex->phase == 0u && ex->k >= c->skip_ticks && ex->windows_done < c->windows &&
+        ex->written - ex->released + ex->period <= ex->buf_mask + 1u) {
+        ex->rec_left = ex->period;
+    }
+    if (ex->rec_left != 0u) {
+        excite_sample_t *s = &ex->buf[ex->written & ex->buf_mask];
+        s->cmd_mv = (int32_t)total;
+        s->pos_nm = excite_sat32(in->pos_nm - ex->pos0);
+        ex->written = ex->written + 1u;
+        if (--ex->rec_left == 0u && ++ex->windows_done >= c->windows) {
+            excite_stop(ex, EXCITE_DONE, EXCITE_REASON_NONE); /* this tick's output still goes */
+        }
+    }
     if (--ex->chip_left == 0u) {
         ex->chip_left = c->hold;
         ex->lfsr = excite_lfsr_step(ex->lfsr, c->bits);
     }
-    ex->k++;
-    return ex->out_mv;
+    if (++ex->phase == ex->period) {
+        ex->phase = 0u;
+    }
+    ex->k = ex->k + 1u;
+    return out;
 }

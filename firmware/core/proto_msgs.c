@@ -1348,6 +1348,137 @@ bool proto_comp_info_decode(const uint8_t *buf, size_t len, proto_comp_info_t *m
     return true;
 }
 
+size_t proto_excite_start_encode(const proto_excite_start_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_EXCITE_START_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->axis, 1u);
+    proto_put_le(buf + 1, (uint64_t)m->bits, 1u);
+    proto_put_le(buf + 2, (uint64_t)m->hold, 1u);
+    proto_put_le(buf + 3, (uint64_t)m->reserved, 1u);
+    proto_put_le(buf + 4, (uint64_t)m->windows, 2u);
+    proto_put_le(buf + 6, (uint64_t)m->host_timeout_ms, 2u);
+    proto_put_le(buf + 8, (uint64_t)m->amp_mv, 4u);
+    proto_put_le(buf + 12, (uint64_t)m->skip_ticks, 4u);
+    proto_put_le(buf + 16, (uint64_t)m->n_ticks, 4u);
+    proto_put_le(buf + 20, (uint64_t)m->travel_nm, 4u);
+    proto_put_le(buf + 24, (uint64_t)m->cmd_mv, 4u);
+    proto_put_le(buf + 28, (uint64_t)m->vel_nm_s, 4u);
+    return PROTO_EXCITE_START_LEN;
+}
+
+bool proto_excite_start_decode(const uint8_t *buf, size_t len, proto_excite_start_t *m)
+{
+    if (len != PROTO_EXCITE_START_LEN) {
+        return false;
+    }
+    m->axis = (uint8_t)proto_get_le(buf + 0, 1u);
+    m->bits = (uint8_t)proto_get_le(buf + 1, 1u);
+    m->hold = (uint8_t)proto_get_le(buf + 2, 1u);
+    m->reserved = (uint8_t)proto_get_le(buf + 3, 1u);
+    m->windows = (uint16_t)proto_get_le(buf + 4, 2u);
+    m->host_timeout_ms = (uint16_t)proto_get_le(buf + 6, 2u);
+    m->amp_mv = (int32_t)proto_get_sle(buf + 8, 4u);
+    m->skip_ticks = (uint32_t)proto_get_le(buf + 12, 4u);
+    m->n_ticks = (uint32_t)proto_get_le(buf + 16, 4u);
+    m->travel_nm = (uint32_t)proto_get_le(buf + 20, 4u);
+    m->cmd_mv = (int32_t)proto_get_sle(buf + 24, 4u);
+    m->vel_nm_s = (uint32_t)proto_get_le(buf + 28, 4u);
+    return true;
+}
+
+size_t proto_excite_read_encode(const proto_excite_read_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_EXCITE_READ_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->from_seq, 4u);
+    proto_put_le(buf + 4, (uint64_t)m->max, 1u);
+    return PROTO_EXCITE_READ_LEN;
+}
+
+bool proto_excite_read_decode(const uint8_t *buf, size_t len, proto_excite_read_t *m)
+{
+    if (len != PROTO_EXCITE_READ_LEN) {
+        return false;
+    }
+    m->from_seq = (uint32_t)proto_get_le(buf + 0, 4u);
+    m->max = (uint8_t)proto_get_le(buf + 4, 1u);
+    return true;
+}
+
+size_t proto_excite_state_encode(const proto_excite_state_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_EXCITE_STATE_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->state, 1u);
+    proto_put_le(buf + 1, (uint64_t)m->axis, 1u);
+    proto_put_le(buf + 2, (uint64_t)m->reason, 1u);
+    proto_put_le(buf + 3, (uint64_t)m->owner, 1u);
+    proto_put_le(buf + 4, (uint64_t)m->windows, 2u);
+    proto_put_le(buf + 6, (uint64_t)m->windows_done, 2u);
+    proto_put_le(buf + 8, (uint64_t)m->period, 4u);
+    proto_put_le(buf + 12, (uint64_t)m->written, 4u);
+    proto_put_le(buf + 16, (uint64_t)m->released, 4u);
+    proto_put_le(buf + 20, (uint64_t)m->ticks, 4u);
+    return PROTO_EXCITE_STATE_LEN;
+}
+
+bool proto_excite_state_decode(const uint8_t *buf, size_t len, proto_excite_state_t *m)
+{
+    if (len != PROTO_EXCITE_STATE_LEN) {
+        return false;
+    }
+    m->state = (uint8_t)proto_get_le(buf + 0, 1u);
+    m->axis = (uint8_t)proto_get_le(buf + 1, 1u);
+    m->reason = (uint8_t)proto_get_le(buf + 2, 1u);
+    m->owner = (uint8_t)proto_get_le(buf + 3, 1u);
+    m->windows = (uint16_t)proto_get_le(buf + 4, 2u);
+    m->windows_done = (uint16_t)proto_get_le(buf + 6, 2u);
+    m->period = (uint32_t)proto_get_le(buf + 8, 4u);
+    m->written = (uint32_t)proto_get_le(buf + 12, 4u);
+    m->released = (uint32_t)proto_get_le(buf + 16, 4u);
+    m->ticks = (uint32_t)proto_get_le(buf + 20, 4u);
+    return true;
+}
+
+size_t proto_excite_samples_encode(const proto_excite_samples_t *m, uint8_t *buf, size_t cap)
+{
+    uint16_t i;
+
+    if (m->data_len > 232u || cap < PROTO_EXCITE_SAMPLES_LEN + (size_t)m->data_len) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->from_seq, 4u);
+    proto_put_le(buf + 4, (uint64_t)m->count, 1u);
+    proto_put_le(buf + 5, (uint64_t)m->written, 4u);
+    proto_put_le(buf + 9, (uint64_t)m->crc, 4u);
+    for (i = 0; i < m->data_len; i++) {
+        buf[13u + i] = m->data[i];
+    }
+    return PROTO_EXCITE_SAMPLES_LEN + (size_t)m->data_len;
+}
+
+bool proto_excite_samples_decode(const uint8_t *buf, size_t len, proto_excite_samples_t *m)
+{
+    uint16_t i;
+
+    if (len < PROTO_EXCITE_SAMPLES_LEN || len > PROTO_EXCITE_SAMPLES_MAX_LEN) {
+        return false;
+    }
+    m->from_seq = (uint32_t)proto_get_le(buf + 0, 4u);
+    m->count = (uint8_t)proto_get_le(buf + 4, 1u);
+    m->written = (uint32_t)proto_get_le(buf + 5, 4u);
+    m->crc = (uint32_t)proto_get_le(buf + 9, 4u);
+    m->data_len = (uint16_t)(len - PROTO_EXCITE_SAMPLES_LEN);
+    for (i = 0; i < m->data_len; i++) {
+        m->data[i] = buf[13u + i];
+    }
+    return true;
+}
+
 const proto_msg_info_t proto_msg_table[] = {
     {0x01u, PROTO_DIR_H2D, 0x41u, 0u, 0u, 0u, "identify"},
     {0x02u, PROTO_DIR_H2D, 0x42u, 0u, 2u, 2u, "param_get"},
@@ -1413,6 +1544,12 @@ const proto_msg_info_t proto_msg_table[] = {
     {0xB1u, PROTO_DIR_D2H, 0x00u, 0u, 13u, 233u, "calib_samples"},
     {0xB2u, PROTO_DIR_D2H, 0x00u, 0u, 5u, 5u, "comp_written"},
     {0xB3u, PROTO_DIR_D2H, 0x00u, 0u, 17u, 17u, "comp_info"},
+    {0xD0u, PROTO_DIR_H2D, 0xD8u, 0u, 32u, 32u, "excite_start"},
+    {0xD1u, PROTO_DIR_H2D, 0xD8u, 0u, 0u, 0u, "excite_status"},
+    {0xD2u, PROTO_DIR_H2D, 0xD9u, 0u, 5u, 5u, "excite_read"},
+    {0xD3u, PROTO_DIR_H2D, 0xD8u, 0u, 0u, 0u, "excite_abort"},
+    {0xD8u, PROTO_DIR_D2H, 0x00u, 0u, 24u, 24u, "excite_state"},
+    {0xD9u, PROTO_DIR_D2H, 0x00u, 0u, 13u, 245u, "excite_samples"},
 };
 const size_t proto_msg_count = sizeof(proto_msg_table) / sizeof(proto_msg_table[0]);
 

@@ -69,6 +69,7 @@
 #define PROTO_ERROR_CODE_SEQUENCE 16u /* queue_batch: first_seq is not the block the drive expects next (batch_reply.next_seq); nothing queued */
 #define PROTO_ERROR_CODE_BOOT 32u /* bootloader refused the request (arg = boot_status, lo = detail; docs/bootloader.md) */
 #define PROTO_ERROR_CODE_CALIB 33u /* calibration or compensation refused (arg = calib_status, lo = detail; docs/calibration.md) */
+#define PROTO_ERROR_CODE_EXCITE 34u /* excitation experiment refused (arg = excite_refusal, lo = detail; docs/commissioning.md) */
 
 /* Drive state in status, heartbeat and drive_state. */
 #define PROTO_STATE_DISABLED 0u /* amplifiers off */
@@ -172,6 +173,34 @@
 #define PROTO_CALIB_STATUS_DRIVE_ENABLED 16u /* compensation tables are written with the drive disabled (lo = drive state): a flash write stalls a single-bank MCU; the staged record is kept for a retry */
 #define PROTO_CALIB_STATUS_HOST_SILENT 17u /* the host sent no calibration request for 3 s during the run: run aborted, axes stopped */
 #define PROTO_CALIB_STATUS_NEW_SESSION 18u /* a new host session started during the run: run aborted, axes stopped */
+#define PROTO_CALIB_STATUS_EXCITE 19u /* the sample buffer is held by a commissioning excitation (excite_abort frees it once the experiment stopped) */
+
+/* excite_state.state */
+#define PROTO_EXCITE_RUN_STATE_IDLE 0u /* no experiment since the drive started */
+#define PROTO_EXCITE_RUN_STATE_RUNNING 1u /* exciting the axis and recording */
+#define PROTO_EXCITE_RUN_STATE_DONE 2u /* every window recorded, excitation off */
+#define PROTO_EXCITE_RUN_STATE_ABORTED 3u /* stopped, excitation off (excite_state.reason) */
+
+/* Why an excitation experiment stopped (excite_state.reason; firmware/core/excite.h). */
+#define PROTO_EXCITE_REASON_NONE 0u /* not stopped, or done */
+#define PROTO_EXCITE_REASON_TRAVEL 1u /* the axis left the travel limit around its start position */
+#define PROTO_EXCITE_REASON_VELOCITY 2u /* velocity limit exceeded */
+#define PROTO_EXCITE_REASON_COMMAND 3u /* the motor command with the excitation would exceed the command limit */
+#define PROTO_EXCITE_REASON_FAULT 4u /* a drive fault latched */
+#define PROTO_EXCITE_REASON_ESTOP 5u /* emergency stop */
+#define PROTO_EXCITE_REASON_HOST_SILENT 6u /* no excitation request from the host for host_timeout_ms */
+#define PROTO_EXCITE_REASON_DURATION 7u /* still running after the longest run the host allowed (n_ticks) */
+#define PROTO_EXCITE_REASON_ABORTED 8u /* excite_abort */
+#define PROTO_EXCITE_REASON_DRIVE_STATE 9u /* the drive left IDLE (disabled, a job, a stop) */
+#define PROTO_EXCITE_REASON_NEW_SESSION 10u /* a new host session started */
+
+/* error.arg when error.code = excite. */
+#define PROTO_EXCITE_REFUSAL_BAD_AXIS 1u /* axis not configured on this drive */
+#define PROTO_EXCITE_REFUSAL_BAD_SETUP 2u /* a field of excite_start out of range, or the PRBS period does not fit the buffer (lo = field index) */
+#define PROTO_EXCITE_REFUSAL_BUSY 3u /* an experiment is running (excite_abort first) */
+#define PROTO_EXCITE_REFUSAL_CALIBRATION 4u /* a calibration run is set up or running: it holds the sample buffer */
+#define PROTO_EXCITE_REFUSAL_DRIVE_STATE 5u /* the drive is not IDLE: enabled, at rest, nothing queued (lo = state) */
+#define PROTO_EXCITE_REFUSAL_SEQ 6u /* requested sample not held (lo = oldest held) */
 
 /* calib_state.state */
 #define PROTO_CALIB_RUN_STATE_IDLE 0u /* no run set up */
@@ -281,6 +310,12 @@
 #define PROTO_MSG_CALIB_SAMPLES 0xB1u
 #define PROTO_MSG_COMP_WRITTEN 0xB2u
 #define PROTO_MSG_COMP_INFO 0xB3u
+#define PROTO_MSG_EXCITE_START 0xD0u
+#define PROTO_MSG_EXCITE_STATUS 0xD1u
+#define PROTO_MSG_EXCITE_READ 0xD2u
+#define PROTO_MSG_EXCITE_ABORT 0xD3u
+#define PROTO_MSG_EXCITE_STATE 0xD8u
+#define PROTO_MSG_EXCITE_SAMPLES 0xD9u
 #define PROTO_MSG_POS(axis) ((uint8_t)(0x34u + (unsigned)(axis)))
 #define PROTO_CAN_FUNC_POS(axis) (7u + (unsigned)(axis))
 #define PROTO_MSG_FERR(axis) ((uint8_t)(0x38u + (unsigned)(axis)))
@@ -869,6 +904,71 @@ typedef struct {
 } proto_comp_info_t;
 size_t proto_comp_info_encode(const proto_comp_info_t *m, uint8_t *buf, size_t cap);
 bool proto_comp_info_decode(const uint8_t *buf, size_t len, proto_comp_info_t *m);
+
+/* excite_start (h2d): Start a PRBS excitation experiment of one axis (drive IDLE; limits checked every tick). Takes the sample buffer from the calibration (refused while a calibration run is set up). */
+#define PROTO_EXCITE_START_LEN 32u
+typedef struct {
+    uint8_t axis;
+    uint8_t bits; /* LFSR length, 7..16 */
+    uint8_t hold; /* ticks per chip, 1..255; (2^bits - 1) * hold <= 1024 */
+    uint8_t reserved;
+    uint16_t windows; /* periods to record, >= 1 */
+    uint16_t host_timeout_ms; /* [ms] abort when no excite_* request came for this long, 1..3000 */
+    int32_t amp_mv; /* [mV] PRBS amplitude, 1..cmd_mv */
+    uint32_t skip_ticks; /* ticks before the first recorded window (settling) */
+    uint32_t n_ticks; /* longest run in ticks (duration limit), >= 1 */
+    uint32_t travel_nm; /* [nm] travel limit either side of the start position, > 0 */
+    int32_t cmd_mv; /* [mV] limit of the total motor command, > 0 */
+    uint32_t vel_nm_s; /* [nm/s] velocity limit (over 4 ticks), > 0 */
+} proto_excite_start_t;
+size_t proto_excite_start_encode(const proto_excite_start_t *m, uint8_t *buf, size_t cap);
+bool proto_excite_start_decode(const uint8_t *buf, size_t len, proto_excite_start_t *m);
+
+/* excite_status (h2d): State of the experiment and of its sample buffer. */
+#define PROTO_EXCITE_STATUS_LEN 0u
+
+/* excite_read (h2d): Samples from sequence number from_seq on (at most max); everything before from_seq is released (acknowledged). */
+#define PROTO_EXCITE_READ_LEN 5u
+typedef struct {
+    uint32_t from_seq;
+    uint8_t max; /* 1..29 */
+} proto_excite_read_t;
+size_t proto_excite_read_encode(const proto_excite_read_t *m, uint8_t *buf, size_t cap);
+bool proto_excite_read_decode(const uint8_t *buf, size_t len, proto_excite_read_t *m);
+
+/* excite_abort (h2d): Stop the experiment (excitation off at the next tick) and give the sample buffer back to the calibration once it stopped. */
+#define PROTO_EXCITE_ABORT_LEN 0u
+
+/* excite_state (d2h): State of the excitation experiment. */
+#define PROTO_EXCITE_STATE_LEN 24u
+typedef struct {
+    uint8_t state; /* excite_run_state */
+    uint8_t axis;
+    uint8_t reason; /* excite_reason */
+    uint8_t owner; /* 1 while the experiment holds the sample buffer */
+    uint16_t windows; /* windows to record */
+    uint16_t windows_done;
+    uint32_t period; /* PRBS period in ticks (samples per window) */
+    uint32_t written; /* samples recorded (next sequence number) */
+    uint32_t released; /* oldest sample still held */
+    uint32_t ticks; /* ticks run */
+} proto_excite_state_t;
+size_t proto_excite_state_encode(const proto_excite_state_t *m, uint8_t *buf, size_t cap);
+bool proto_excite_state_decode(const uint8_t *buf, size_t len, proto_excite_state_t *m);
+
+/* excite_samples (d2h): Reply to excite_read: count samples of 8 bytes (i32 cmd_mv, i32 pos_nm relative to the start) numbered from_seq on; crc = crc32 of data. */
+#define PROTO_EXCITE_SAMPLES_LEN 13u
+#define PROTO_EXCITE_SAMPLES_MAX_LEN 245u
+typedef struct {
+    uint32_t from_seq;
+    uint8_t count;
+    uint32_t written; /* samples recorded so far */
+    uint32_t crc;
+    uint16_t data_len;
+    uint8_t data[232];
+} proto_excite_samples_t;
+size_t proto_excite_samples_encode(const proto_excite_samples_t *m, uint8_t *buf, size_t cap);
+bool proto_excite_samples_decode(const uint8_t *buf, size_t len, proto_excite_samples_t *m);
 
 /* ---- tables --------------------------------------------------------- */
 

@@ -99,6 +99,7 @@ class ErrorCode(IntEnum):
     SEQUENCE = 16
     BOOT = 32
     CALIB = 33
+    EXCITE = 34
 
 
 class State(IntEnum):
@@ -235,6 +236,43 @@ class CalibStatus(IntEnum):
     DRIVE_ENABLED = 16
     HOST_SILENT = 17
     NEW_SESSION = 18
+    EXCITE = 19
+
+
+class ExciteRunState(IntEnum):
+    """excite_state.state"""
+
+    IDLE = 0
+    RUNNING = 1
+    DONE = 2
+    ABORTED = 3
+
+
+class ExciteReason(IntEnum):
+    """Why an excitation experiment stopped (excite_state.reason; firmware/core/excite.h)."""
+
+    NONE = 0
+    TRAVEL = 1
+    VELOCITY = 2
+    COMMAND = 3
+    FAULT = 4
+    ESTOP = 5
+    HOST_SILENT = 6
+    DURATION = 7
+    ABORTED = 8
+    DRIVE_STATE = 9
+    NEW_SESSION = 10
+
+
+class ExciteRefusal(IntEnum):
+    """error.arg when error.code = excite."""
+
+    BAD_AXIS = 1
+    BAD_SETUP = 2
+    BUSY = 3
+    CALIBRATION = 4
+    DRIVE_STATE = 5
+    SEQ = 6
 
 
 class CalibRunState(IntEnum):
@@ -1268,6 +1306,107 @@ MESSAGES = (
         17,
         17,
         'The active compensation table of an axis.',
+    ),
+    Message(
+        "excite_start",
+        0xD0,
+        "h2d",
+        'excite_state',
+        None,
+        (
+            Field("axis", "u8", 1, 1, 0, 0, ""),
+            Field("bits", "u8", 1, 1, 0, 1, ""),
+            Field("hold", "u8", 1, 1, 0, 2, ""),
+            Field("reserved", "u8", 1, 1, 0, 3, ""),
+            Field("windows", "u16", 2, 1, 0, 4, ""),
+            Field("host_timeout_ms", "u16", 2, 1, 0, 6, "ms"),
+            Field("amp_mv", "i32", 4, 1, 0, 8, "mV"),
+            Field("skip_ticks", "u32", 4, 1, 0, 12, ""),
+            Field("n_ticks", "u32", 4, 1, 0, 16, ""),
+            Field("travel_nm", "u32", 4, 1, 0, 20, "nm"),
+            Field("cmd_mv", "i32", 4, 1, 0, 24, "mV"),
+            Field("vel_nm_s", "u32", 4, 1, 0, 28, "nm/s"),
+        ),
+        32,
+        32,
+        'Start a PRBS excitation experiment of one axis (drive IDLE; limits checked every tick). Takes the sample buffer from the calibration (refused while a calibration run is set up).',
+    ),
+    Message(
+        "excite_status",
+        0xD1,
+        "h2d",
+        'excite_state',
+        None,
+        (
+        ),
+        0,
+        0,
+        'State of the experiment and of its sample buffer.',
+    ),
+    Message(
+        "excite_read",
+        0xD2,
+        "h2d",
+        'excite_samples',
+        None,
+        (
+            Field("from_seq", "u32", 4, 1, 0, 0, ""),
+            Field("max", "u8", 1, 1, 0, 4, ""),
+        ),
+        5,
+        5,
+        'Samples from sequence number from_seq on (at most max); everything before from_seq is released (acknowledged).',
+    ),
+    Message(
+        "excite_abort",
+        0xD3,
+        "h2d",
+        'excite_state',
+        None,
+        (
+        ),
+        0,
+        0,
+        'Stop the experiment (excitation off at the next tick) and give the sample buffer back to the calibration once it stopped.',
+    ),
+    Message(
+        "excite_state",
+        0xD8,
+        "d2h",
+        None,
+        None,
+        (
+            Field("state", "u8", 1, 1, 0, 0, ""),
+            Field("axis", "u8", 1, 1, 0, 1, ""),
+            Field("reason", "u8", 1, 1, 0, 2, ""),
+            Field("owner", "u8", 1, 1, 0, 3, ""),
+            Field("windows", "u16", 2, 1, 0, 4, ""),
+            Field("windows_done", "u16", 2, 1, 0, 6, ""),
+            Field("period", "u32", 4, 1, 0, 8, ""),
+            Field("written", "u32", 4, 1, 0, 12, ""),
+            Field("released", "u32", 4, 1, 0, 16, ""),
+            Field("ticks", "u32", 4, 1, 0, 20, ""),
+        ),
+        24,
+        24,
+        'State of the excitation experiment.',
+    ),
+    Message(
+        "excite_samples",
+        0xD9,
+        "d2h",
+        None,
+        None,
+        (
+            Field("from_seq", "u32", 4, 1, 0, 0, ""),
+            Field("count", "u8", 1, 1, 0, 4, ""),
+            Field("written", "u32", 4, 1, 0, 5, ""),
+            Field("crc", "u32", 4, 1, 0, 9, ""),
+            Field("data", "bytes", 1, 1, 232, 13, ""),
+        ),
+        13,
+        245,
+        'Reply to excite_read: count samples of 8 bytes (i32 cmd_mv, i32 pos_nm relative to the start) numbered from_seq on; crc = crc32 of data.',
     ),
 )
 

@@ -58,8 +58,8 @@ def test_tune_json(detuned, capsys):
         (["--axis", "W"], 2, "X, Y, Z or all"),
         (["--axis", "Z"], 2, "no axis Z"),
         (["--axis", "X", "--ms-target", "0.9"], 2, "ms-target"),
-        (["--axis", "X", "--port", "/dev/null"], 1, "not available yet"),
-        (["--axis", "X", "--apply"], 1, "not available yet"),
+        (["--axis", "X", "--port", "/dev/null"], 2, "not both"),
+        (["--axis", "X", "--apply"], 2, "not --sim"),
         (["--axis", "X", "--travel-mm", "0.01"], 1, "travel limit"),
     ],
 )

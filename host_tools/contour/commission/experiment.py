@@ -56,6 +56,9 @@ class Plan:
     friction_speeds_m_s: tuple = (0.005, 0.010)
     friction_leg_s: float = 0.25
 
+    def excited_bins(self) -> np.ndarray:
+        return self.multisine()[1]
+
     def multisine(self) -> tuple[np.ndarray, np.ndarray]:
         """(one period of the excitation in V, the excited bin indices)."""
         n = self.period_ticks

@@ -102,14 +102,23 @@ class Identification:
 
 
 def frequency_response(rec: Record):
-    """(freq Hz, G at the excited bins, sigma of G) of the multisine part."""
+    """(freq Hz, G at the excited bins, sigma of G) of the periodic part:
+    the simulated drive's multisine (its first period is the transient) or
+    the drive's PRBS windows (segment "periodic", each window one period
+    recorded after the loop settled: `rec.plan` gives the period and the
+    excited bins, drive_experiment.PrbsPlan)."""
     plan = rec.plan
     n = plan.period_ticks
-    start, stop = rec.segments.get("multisine", (0, 0))
-    periods = (stop - start) // n - 1
+    if "periodic" in rec.segments:
+        start, stop = rec.segments["periodic"]
+        periods = (stop - start) // n
+        start -= n  # no transient period in the record
+    else:
+        start, stop = rec.segments.get("multisine", (0, 0))
+        periods = (stop - start) // n - 1
     if periods < 2:
-        raise IdentifyError(f"{periods} multisine periods after the transient: need 2 or more")
-    _, bins = plan.multisine()
+        raise IdentifyError(f"{periods} excitation periods after the transient: need 2 or more")
+    bins = plan.excited_bins()
     if bins.size == 0:
         raise IdentifyError("no excited frequency below the Nyquist frequency")
     seg = slice(start + n, start + n * (periods + 1))
