@@ -72,7 +72,8 @@ static struct {
     bool ref_full;                /* test hook (drive_test_full_ref): no pos-only copy */
     int64_t v_act;                /* path speed of the reference last tick, nm/s  */
     arc_ref_t arc;                /* arc overlay (tick)                           */
-    bool ff_on;                   /* some cfg.friction_ff_mv[] != 0 (drive_init)  */
+    bool ff_on;                   /* friction_ff_mv[] or ff_advance_ns set (init) */
+    int32_t ff_adv_q32;           /* ff_advance_ns in s * 2^32 (drive_init)        */
     CORE_SHARED uint32_t tick_lo; /* low word of tick (main reads it) */
     uint32_t seen_done;           /* interpolator segments accounted */
     uint32_t seq_done;            /* internal tag of the next segment to complete */
@@ -154,16 +155,18 @@ drive_result_t drive_init(const drive_config_t *cfg)
 
     if (cfg == NULL || cfg->axes < 1 || cfg->axes > CORE_AXES || cfg->tick_hz < PID_TICK_HZ_MIN ||
         cfg->tick_hz > PID_TICK_HZ_MAX || cfg->stop_decel_nm_s2 <= 0 || cfg->arc_chord_nm < 0 ||
-        cfg->start_delay_ms > DRIVE_START_DELAY_MS_MAX ||
-        plan_check_profile(&cfg->plan) != PLAN_OK) {
+        cfg->start_delay_ms > DRIVE_START_DELAY_MS_MAX || cfg->ff_advance_ns < 0 ||
+        cfg->ff_advance_ns > DRIVE_FF_ADVANCE_NS_MAX || plan_check_profile(&cfg->plan) != PLAN_OK) {
         return DRIVE_E_INVALID;
     }
     drv.ready = false;
     drv.cfg = *cfg;
-    drv.ff_on = false; /* friction_ff_mv is set only here */
+    /* friction_ff_mv and ff_advance_ns are read only here */
+    drv.ff_on = cfg->ff_advance_ns != 0;
     for (i = 0; i < CORE_AXES; i++) {
         drv.ff_on = drv.ff_on || drv.cfg.friction_ff_mv[i] != 0;
     }
+    drv.ff_adv_q32 = (int32_t)(((int64_t)cfg->ff_advance_ns << 32) / 1000000000);
     if (drv.cfg.arc_chord_nm == 0) {
         drv.cfg.arc_chord_nm = DRIVE_ARC_CHORD_NM;
     }
@@ -365,16 +368,20 @@ static void reference_step(void)
     }
 }
 
-/* Friction feed-forward as an extra reference acceleration (see drive.h). */
+/* Velocity feed-forward advance and friction feed-forward as an extra
+ * reference acceleration (see drive.h). */
 static void friction_ff(void)
 {
     unsigned i;
     if (!drv.ff_on) {
         return;
     }
-    drv.ref_synced = false; /* drv.ref.acc may change below */
+    drv.ref_synced = false; /* drv.ref.vel / acc may change below */
     for (i = 0; i < drv.cfg.axes; i++) {
         int64_t f, v, band, kaff, u;
+        if (drv.ff_adv_q32 != 0) {
+            drv.ref.vel[i] += fx_mul64x32_shift32(drv.ref.acc[i], drv.ff_adv_q32);
+        }
         if (drv.cfg.friction_ff_mv[i] == 0) {
             continue; /* the usual case: nothing else to load */
         }

@@ -83,6 +83,9 @@ servo_err_t servo_config(servo_t *s, const servo_params_t *p)
             return SERVO_ERR_DECEL;
         }
     }
+    if (p->ffl_rate < 0 || p->ffl_rate > SERVO_FFL_RATE_MAX) {
+        return SERVO_ERR_FFL;
+    }
     for (i = 0; i < p->axes; i++) {
         loops[i] = s->pid[i];
         pp = p->axis[i];
@@ -110,6 +113,13 @@ servo_err_t servo_config(servo_t *s, const servo_params_t *p)
         s->pid[i] = loops[i];
     }
     s->cec = cec;
+    if (p->ffl_rate != s->p.ffl_rate) {
+        for (i = 0; i < CORE_AXES; i++) {
+            s->ffl_r[i] = 0;
+        }
+    }
+    /* k = rate [1/s] / tick_hz in 2^-26: k * g (2^-14) is in 2^-40 */
+    s->ffl_k = ((int64_t)p->ffl_rate << 26) / (int64_t)p->tick_hz;
     s->p = *p;
     for (i = 0; i < CORE_AXES; i++) {
         int32_t lim = (i < p->axes) ? p->ferr_limit_nm[i] : 0;
@@ -418,6 +428,32 @@ static void tick_input_faults(servo_t *s, uint32_t enc_fault, uint32_t amp, bool
     }
 }
 
+#define SERVO_FFL_G_MAX ((int64_t)1 << 20) /* |I1 n1_i ff_i| / |ff|^2 <= 64 */
+
+/* Feed-forward learning, step 4 (servo.h "Feed-forward learning"): move
+ * the scales r_i toward what the CEC's integral holds (normalised LMS). */
+static SERVO_NOINLINE void ffl_learn(servo_t *s)
+{
+    int64_t ff[3], norm = SERVO_FFL_FF_MIN_MV * SERVO_FFL_FF_MIN_MV * 256; /* 2^-8 mV^2 */
+    int64_t in = s->cec.ch[0].integ >> 28; /* mV * 2^4, |in| < 2^22 */
+    unsigned i;
+
+    for (i = 0; i < 3 && i < CORE_AXES; i++) {
+        ff[i] = (i < s->p.axes) ? s->pid[i].ff >> 28 : 0; /* mV * 2^4 */
+        norm += ff[i] * ff[i];
+    }
+    for (i = 0; i < 3 && i < CORE_AXES; i++) {
+        /* I1 n1_i ff_i / |ff|^2 in 2^-14 (|I ff n| < 2^58) */
+        int64_t g = fx_div_round64(in * ff[i] * (int64_t)(s->cec.n[0][i] >> 16), norm);
+        int64_t lim = SERVO_FFL_MAX_Q30 << 10;
+        int64_t r;
+
+        g = g > SERVO_FFL_G_MAX ? SERVO_FFL_G_MAX : (g < -SERVO_FFL_G_MAX ? -SERVO_FFL_G_MAX : g);
+        r = s->ffl_r[i] + s->ffl_k * g; /* |k g| < 2^40 * 2^20 */
+        s->ffl_r[i] = r > lim ? lim : (r < -lim ? -lim : r);
+    }
+}
+
 /* Step 5 for one axis outside the inline case (CEC active, or the loop not
  * on its fast path). */
 static inline int32_t axis_step(servo_t *s, unsigned i, int32_t e, pos_nm_t meas, int64_t vel,
@@ -431,6 +467,9 @@ static inline int32_t axis_step(servo_t *s, unsigned i, int32_t e, pos_nm_t meas
             pid_add_integrator(pid, s->cec.handover_u[i]);
         }
         extra = s->cec.out_u[i];
+        if (s->ffl_r[i] != 0 && s->cec.active) {
+            extra += fx_mul64x32_shift30(pid->ff, (int32_t)(s->ffl_r[i] >> 10));
+        }
     }
     return pid_step_e(pid, e, meas, vel, acc, extra);
 }
@@ -546,6 +585,9 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
         cec_step(&s->cec, (s->state == SERVO_RUN && run) ? ref : NULL, fb->pos);
         if (s->cec.oscillating && !(s->faults & SERVO_FAULT_OSCILLATION)) {
             raise_fault(s, SERVO_FAULT_OSCILLATION, 0, false);
+        }
+        if (s->ffl_k != 0 && s->cec.active) {
+            ffl_learn(s);
         }
     }
     /* idle with outputs known to be 0 (cec.h): nothing to read */

@@ -124,7 +124,8 @@ typedef enum {
     SERVO_ERR_DECEL,    /* stop_decel_nm_s2 <= 0 or >= 2^40               */
     SERVO_ERR_REACTION, /* unknown reaction                               */
     SERVO_ERR_STATE,    /* not allowed in this state / with faults latched */
-    SERVO_ERR_AXIS      /* axis index out of range                        */
+    SERVO_ERR_AXIS,     /* axis index out of range                        */
+    SERVO_ERR_FFL       /* ffl_rate outside 0..SERVO_FFL_RATE_MAX        */
 } servo_err_t;
 
 /* Hardware access (hal.h functions on a port; fakes in tests). Any member
@@ -157,7 +158,34 @@ typedef struct {
     int64_t stop_decel_nm_s2[CORE_AXES]; /* controlled stop deceleration, > 0  */
     servo_reaction_t on_following;
     servo_reaction_t on_saturation;
+    /* Feed-forward learning rate (see "Feed-forward learning"), 1/s;
+     * 0: off (the default). 0..SERVO_FFL_RATE_MAX. */
+    int32_t ffl_rate;
 } servo_params_t;
+
+/* Feed-forward learning (with the CEC; off while ffl_rate is 0).
+ * A feed-forward gain that is a few percent off on one axis (identified
+ * Kvff / Kaff, a load not in the model) leaves, on a curve, a contour
+ * error that follows the path: X 2 % low and Y 2 % high make a circle an
+ * ellipse (R 20 mm, 10 m/min, realistic.toml: 4.6 um of 2nd harmonic with
+ * the PIDs alone, 2.3 um with the CEC, whose gain at the path frequency is
+ * bounded by its margins). The CEC's integral I1 holds what its channel
+ * must add along n1 to cancel that; the learning moves it into a scale
+ * r_i of each axis's own feed-forward ff_i (Kvff v + Kaff a, last tick),
+ * by a normalised LMS step each tick the CEC is active:
+ *   r_i += (ffl_rate / tick_hz) * I1 * n1_i * ff_i / (|ff|^2 + ff_min^2),
+ *   |r_i| <= 1/8, ff_min = SERVO_FFL_FF_MIN_MV,
+ * and adds r_i * ff_i to axis i's command with the CEC's output. The
+ * integral (in phase with the disturbance at the path frequency), not the
+ * contour error (90 degrees ahead of it where the loops' integral action
+ * dominates), is the learning signal. A time constant of about
+ * 1 / ffl_rate while the path turns. r is kept while the CEC is off, reset
+ * by servo_config when ffl_rate changes. Cost: the CEC-active ticks only
+ * (one division per axis); CEC off (control_tick_instructions_m4) is not
+ * affected. */
+#define SERVO_FFL_RATE_MAX  1000 /* 1/s */
+#define SERVO_FFL_FF_MIN_MV 10
+#define SERVO_FFL_MAX_Q30   ((int64_t)1 << 27) /* |r_i| <= 1/8 */
 
 typedef struct {
     servo_params_t p;
@@ -187,6 +215,9 @@ typedef struct {
     int32_t out_mv[CORE_AXES];  /* commands written this tick               */
     int32_t ferr_nm[CORE_AXES]; /* following error this tick                */
     uint64_t ticks;
+    /* feed-forward learning (tick): r_i in 2^-40 and the per-tick rate */
+    int64_t ffl_r[CORE_AXES];
+    int64_t ffl_k; /* ffl_rate / tick_hz in 2^-26 (servo_config) */
     /* detail of the last configuration error */
     unsigned err_axis;
     pid_err_t pid_err;
