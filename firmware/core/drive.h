@@ -295,6 +295,17 @@ typedef struct {
      * command Kvff v w T / 2 the PIDs can only answer with an error:
      * R 20 mm, 10 m/min, 3 ms: 29 um of radius (docs/simulator.md). */
     int32_t ff_advance_ns;
+    /* Quadrant-glitch compensation (needs a friction_ff_mv): at each
+     * reversal of an axis's reference velocity the axis integrator jumps by
+     * what it held before the last two reversals differ by, I(+ -> -) -
+     * I(- -> +), toward the new direction (at most 2 friction_ff_mv). What
+     * the friction feed-forward misses (a friction value off by 10 %) the
+     * integrator holds with the sign of the motion; at a reversal it must
+     * swing by twice that, which takes it tens of ms from the error alone
+     * (the quadrant glitch: realistic.toml, R 20 mm, 10 m/min: +9.6 um
+     * with the PIDs, +6 um with the CEC). Learned from the last two
+     * reversals, so it follows a friction that changes. Default false. */
+    bool qg_comp;
     int64_t stop_decel_nm_s2; /* drive_stop: path deceleration, > 0          */
     int64_t arc_chord_nm;     /* arc segmentation tolerance, 0: default      */
     uint32_t start_delay_ms;  /* start of motion from rest: see "Feeding",

@@ -115,7 +115,7 @@ servo_err_t servo_config(servo_t *s, const servo_params_t *p)
     s->cec = cec;
     if (p->ffl_rate != s->p.ffl_rate) {
         for (i = 0; i < CORE_AXES; i++) {
-            s->ffl_r[i] = 0;
+            s->ffl_w[i] = 0;
         }
     }
     /* k = rate [1/s] / tick_hz in 2^-26: k * g (2^-14) is in 2^-40 */
@@ -428,29 +428,38 @@ static void tick_input_faults(servo_t *s, uint32_t enc_fault, uint32_t amp, bool
     }
 }
 
-#define SERVO_FFL_G_MAX ((int64_t)1 << 20) /* |I1 n1_i ff_i| / |ff|^2 <= 64 */
-
 /* Feed-forward learning, step 4 (servo.h "Feed-forward learning"): move
- * the scales r_i toward what the CEC's integral holds (normalised LMS). */
-static SERVO_NOINLINE void ffl_learn(servo_t *s)
+ * the velocity gains w_i toward what the CEC's output holds (NLMS). */
+static SERVO_NOINLINE void ffl_learn(servo_t *s, const int64_t *vel, const int64_t *acc)
 {
-    int64_t ff[3], norm = SERVO_FFL_FF_MIN_MV * SERVO_FFL_FF_MIN_MV * 256; /* 2^-8 mV^2 */
-    int64_t in = s->cec.ch[0].integ >> 28; /* mV * 2^4, |in| < 2^22 */
+    int64_t v[3], norm = (int64_t)SERVO_FFL_V_MIN * SERVO_FFL_V_MIN; /* 2^20 nm^2/s^2 */
+    int64_t a2 = 0;
+    int64_t u = s->cec.ch[0].out >> 28; /* mV * 2^4, |u| < 2^22 */
     unsigned i;
 
     for (i = 0; i < 3 && i < CORE_AXES; i++) {
-        ff[i] = (i < s->p.axes) ? s->pid[i].ff >> 28 : 0; /* mV * 2^4 */
-        norm += ff[i] * ff[i];
+        int64_t vi = (i < s->p.axes) ? vel[i] >> 10 : 0; /* 2^10 nm/s */
+
+        vi = vi > SERVO_FFL_V_MAX ? SERVO_FFL_V_MAX
+                                  : (vi < -SERVO_FFL_V_MAX ? -SERVO_FFL_V_MAX : vi);
+        v[i] = vi;
+        norm += vi * vi;
+        if (i < s->p.axes) {
+            int64_t ai = fx_clamp_sym64(acc[i] >> 10, (int64_t)1 << 26); /* 2^10 nm/s^2 */
+            a2 += ai * ai;
+        }
+    }
+    /* path frequency |a| / |v| above SERVO_FFL_W_PATH: no step */
+    if (a2 > (int64_t)SERVO_FFL_W_PATH * SERVO_FFL_W_PATH * norm) {
+        return;
     }
     for (i = 0; i < 3 && i < CORE_AXES; i++) {
-        /* I1 n1_i ff_i / |ff|^2 in 2^-14 (|I ff n| < 2^58) */
-        int64_t g = fx_div_round64(in * ff[i] * (int64_t)(s->cec.n[0][i] >> 16), norm);
-        int64_t lim = SERVO_FFL_MAX_Q30 << 10;
-        int64_t r;
+        /* u n1_i v_i / |v|^2: mV per 2^10 nm/s, in 2^-18 (|u v n| < 2^57) */
+        int64_t g = fx_div_round64(u * v[i] * (int64_t)(s->cec.n[0][i] >> 16), norm);
+        int64_t w = s->ffl_w[i] + ((s->ffl_k * g) >> 12); /* U per 2^10 nm/s */
 
-        g = g > SERVO_FFL_G_MAX ? SERVO_FFL_G_MAX : (g < -SERVO_FFL_G_MAX ? -SERVO_FFL_G_MAX : g);
-        r = s->ffl_r[i] + s->ffl_k * g; /* |k g| < 2^40 * 2^20 */
-        s->ffl_r[i] = r > lim ? lim : (r < -lim ? -lim : r);
+        s->ffl_w[i] =
+            w > SERVO_FFL_W_MAX ? SERVO_FFL_W_MAX : (w < -SERVO_FFL_W_MAX ? -SERVO_FFL_W_MAX : w);
     }
 }
 
@@ -467,8 +476,8 @@ static inline int32_t axis_step(servo_t *s, unsigned i, int32_t e, pos_nm_t meas
             pid_add_integrator(pid, s->cec.handover_u[i]);
         }
         extra = s->cec.out_u[i];
-        if (s->ffl_r[i] != 0 && s->cec.active) {
-            extra += fx_mul64x32_shift30(pid->ff, (int32_t)(s->ffl_r[i] >> 10));
+        if (s->ffl_w[i] != 0 && s->cec.active) {
+            extra += s->ffl_w[i] * (fx_clamp_sym64(vel >> 10, SERVO_FFL_V_MAX));
         }
     }
     return pid_step_e(pid, e, meas, vel, acc, extra);
@@ -587,7 +596,7 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
             raise_fault(s, SERVO_FAULT_OSCILLATION, 0, false);
         }
         if (s->ffl_k != 0 && s->cec.active) {
-            ffl_learn(s);
+            ffl_learn(s, vel, acc);
         }
     }
     /* idle with outputs known to be 0 (cec.h): nothing to read */

@@ -58,6 +58,8 @@ optional except where noted; units SI unless the name says otherwise)::
     friction_band = 1.0             # mm/s: the friction feed-forward's sign ramp
     advance_ticks = 0.5             # velocity feed-forward taken this many ticks
                                     # ahead (the zero-order hold's delay; drive.h)
+    quadrant_comp = 0               # 1: quadrant-glitch compensation (drive.h qg_comp;
+                                    # needs friction > 0)
     learn_rate = 0.0                # 1/s: with a CEC, the feed-forward scale per
                                     # axis learned from the contour error (servo.h)
 
@@ -174,6 +176,7 @@ FF_KEYS = {
     "advance_ticks",
     "friction_band",
     "learn_rate",
+    "quadrant_comp",
 }
 FF_MODES = ("none", "velocity", "full")
 SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel"}
@@ -551,6 +554,8 @@ def apply(
             core.check(so.sim_servo_set(0, b"ff_advance", adv / hz), "advance_ticks")
             lr = m.feedforward.get("learn_rate", 0.0) if feedforward != "none" else 0.0
             core.check(so.sim_servo_set(0, b"ffl_rate", lr), "learn_rate")
+            qg = m.feedforward.get("quadrant_comp", 0.0) if feedforward == "full" else 0.0
+            core.check(so.sim_servo_set(0, b"qg_comp", qg), "quadrant_comp")
         g = m.gains[ax]
         kv, ka = m.ff_gains(ax, feedforward)
         _gains(so, i, {**g, "kvff": kv, "kaff": ka}, f"axis {ax}")
