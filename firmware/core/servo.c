@@ -50,6 +50,7 @@ void servo_params_default(servo_params_t *p, uint32_t tick_hz)
     p->sat_limit_ticks = tick_hz / 2;
     p->on_following = SERVO_REACT_DISABLE;
     p->on_saturation = SERVO_REACT_STOP;
+    p->ffl_rate = 0; /* feed-forward learning off */
 }
 
 servo_err_t servo_config(servo_t *s, const servo_params_t *p)
