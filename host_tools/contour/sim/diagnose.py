@@ -76,7 +76,7 @@ def _both(*fs):
 
 
 REALISTIC_ROWS = [
-    ("as shipped before issue 21's fixes", _before),
+    ("without the drive's compensations", _before),
     ("  without Coulomb friction", _both(_before, _no_coulomb)),
     ("  feed-forward gains exact", _both(_before, _exact_ff)),
     ("  friction fed forward 100 %", _both(_before, lambda m: m.feedforward.update(friction=1.0))),
