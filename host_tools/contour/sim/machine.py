@@ -56,8 +56,8 @@ optional except where noted; units SI unless the name says otherwise)::
     scale_x = 1.0                   # per-axis factor on top (scale_y, scale_z)
     friction = 0.0                  # fraction of the Coulomb friction fed forward
     friction_band = 1.0             # mm/s: the friction feed-forward's sign ramp
-    advance_ticks = 0.5             # velocity feed-forward taken this many ticks
-                                    # ahead (the zero-order hold's delay; drive.h)
+    advance_ticks = 0.0             # velocity feed-forward taken this many ticks
+                                    # ahead (0.5: the zero-order hold's delay; drive.h)
     quadrant_comp = 0               # 1: quadrant-glitch compensation (drive.h qg_comp;
                                     # needs friction > 0)
     learn_rate = 0.0                # 1/s: with a CEC, the feed-forward scale per
@@ -550,7 +550,7 @@ def apply(
         if i == 0:
             band = m.feedforward.get("friction_band", 1.0) * 1e-3
             core.check(so.sim_servo_set(0, b"friction_ff_band", band), "friction_band")
-            adv = m.feedforward.get("advance_ticks", 0.5) if feedforward != "none" else 0.0
+            adv = m.feedforward.get("advance_ticks", 0.0) if feedforward != "none" else 0.0
             core.check(so.sim_servo_set(0, b"ff_advance", adv / hz), "advance_ticks")
             lr = m.feedforward.get("learn_rate", 0.0) if feedforward != "none" else 0.0
             core.check(so.sim_servo_set(0, b"ffl_rate", lr), "learn_rate")
