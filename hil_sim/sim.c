@@ -432,6 +432,12 @@ int sim_servo_set(unsigned axis, const char *name, double v)
         S.dcfg.friction_ff_mv[axis] = (int32_t)floor(v * 1e3 + 0.5);
     } else if (strcmp(name, "friction_ff_band") == 0 && in_range(v, 1e-9, 1.0)) {
         S.dcfg.friction_ff_band_nm_s = (int64_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "ff_advance") == 0 && in_range(v, 0.0, 0.01)) {
+        S.dcfg.ff_advance_ns = (int32_t)floor(v * 1e9 + 0.5);
+    } else if (strcmp(name, "qg_comp") == 0 && (v == 0.0 || v == 1.0)) {
+        S.dcfg.qg_comp = v != 0.0;
+    } else if (strcmp(name, "ffl_rate") == 0 && in_range(v, 0.0, SERVO_FFL_RATE_MAX)) {
+        p->ffl_rate = (int32_t)floor(v + 0.5);
     } else if (strcmp(name, "handover") == 0) {
         p->cec.handover = v != 0.0;
     } else {

@@ -69,10 +69,18 @@ static struct {
      * tangent, the geometry's arc fields): nothing else changed it since the
      * last full copy. A fast-path tick then copies only pos. */
     bool ref_synced;
-    bool ref_full;                /* test hook (drive_test_full_ref): no pos-only copy */
-    int64_t v_act;                /* path speed of the reference last tick, nm/s  */
-    arc_ref_t arc;                /* arc overlay (tick)                           */
-    bool ff_on;                   /* some cfg.friction_ff_mv[] != 0 (drive_init)  */
+    bool ref_full; /* test hook (drive_test_full_ref): no pos-only copy */
+    int64_t v_act; /* path speed of the reference last tick, nm/s  */
+    arc_ref_t arc; /* arc overlay (tick)                           */
+    /* quadrant-glitch compensation (tick; cfg.qg_comp): sign of the
+     * reference velocity last tick (0: none yet), axis integrator before
+     * the last reversal out of + ([0]) and out of - ([1]), U; qg_have bit
+     * 0 / 1: that one is known */
+    int8_t qg_sign[CORE_AXES];
+    uint8_t qg_have[CORE_AXES];
+    int64_t qg_ipre[CORE_AXES][2];
+    bool ff_on;                   /* friction_ff_mv[] or ff_advance_ns set (init) */
+    int32_t ff_adv_q32;           /* ff_advance_ns in s * 2^32 (drive_init)        */
     CORE_SHARED uint32_t tick_lo; /* low word of tick (main reads it) */
     uint32_t seen_done;           /* interpolator segments accounted */
     uint32_t seq_done;            /* internal tag of the next segment to complete */
@@ -154,16 +162,22 @@ drive_result_t drive_init(const drive_config_t *cfg)
 
     if (cfg == NULL || cfg->axes < 1 || cfg->axes > CORE_AXES || cfg->tick_hz < PID_TICK_HZ_MIN ||
         cfg->tick_hz > PID_TICK_HZ_MAX || cfg->stop_decel_nm_s2 <= 0 || cfg->arc_chord_nm < 0 ||
-        cfg->start_delay_ms > DRIVE_START_DELAY_MS_MAX ||
-        plan_check_profile(&cfg->plan) != PLAN_OK) {
+        cfg->start_delay_ms > DRIVE_START_DELAY_MS_MAX || cfg->ff_advance_ns < 0 ||
+        cfg->ff_advance_ns > DRIVE_FF_ADVANCE_NS_MAX || plan_check_profile(&cfg->plan) != PLAN_OK) {
         return DRIVE_E_INVALID;
     }
     drv.ready = false;
     drv.cfg = *cfg;
-    drv.ff_on = false; /* friction_ff_mv is set only here */
+    /* friction_ff_mv and ff_advance_ns are read only here */
+    drv.ff_on = cfg->ff_advance_ns != 0;
+    for (i = 0; i < CORE_AXES; i++) {
+        drv.qg_sign[i] = 0;
+        drv.qg_have[i] = 0;
+    }
     for (i = 0; i < CORE_AXES; i++) {
         drv.ff_on = drv.ff_on || drv.cfg.friction_ff_mv[i] != 0;
     }
+    drv.ff_adv_q32 = (int32_t)(((int64_t)cfg->ff_advance_ns << 32) / 1000000000);
     if (drv.cfg.arc_chord_nm == 0) {
         drv.cfg.arc_chord_nm = DRIVE_ARC_CHORD_NM;
     }
@@ -365,21 +379,57 @@ static void reference_step(void)
     }
 }
 
-/* Friction feed-forward as an extra reference acceleration (see drive.h). */
+/* Quadrant-glitch compensation of axis i (drive.h, qg_comp): v the
+ * reference velocity, f the friction feed-forward (mV, > 0 or < 0). */
+static void qg_step(unsigned i, int64_t v, int64_t f)
+{
+    int8_t sg = v > 0 ? 1 : (v < 0 ? -1 : 0);
+    int8_t old = drv.qg_sign[i];
+
+    if (sg == 0 || sg == old) {
+        return;
+    }
+    drv.qg_sign[i] = sg;
+    if (old != 0) {
+        unsigned k = old > 0 ? 0u : 1u; /* out of + or out of - */
+        pid_loop_t *pid = &drv.servo.pid[i];
+
+        drv.qg_ipre[i][k] = pid->integ;
+        drv.qg_have[i] |= (uint8_t)(1u << k);
+        if (drv.qg_have[i] == 3u) {
+            /* I(+ -> -) - I(- -> +) = twice the friction the integrator
+             * held, toward the new direction; at most 2 |f| */
+            int64_t lim = (f < 0 ? -f : f) << 33; /* 2 |f| mV in U */
+            int64_t d = drv.qg_ipre[i][0] - drv.qg_ipre[i][1];
+
+            d = d > lim ? lim : (d < -lim ? -lim : d);
+            pid_add_integrator(pid, sg > 0 ? d : -d);
+        }
+    }
+}
+
+/* Velocity feed-forward advance and friction feed-forward as an extra
+ * reference acceleration (see drive.h). */
 static void friction_ff(void)
 {
     unsigned i;
     if (!drv.ff_on) {
         return;
     }
-    drv.ref_synced = false; /* drv.ref.acc may change below */
+    drv.ref_synced = false; /* drv.ref.vel / acc may change below */
     for (i = 0; i < drv.cfg.axes; i++) {
         int64_t f, v, band, kaff, u;
+        if (drv.ff_adv_q32 != 0) {
+            drv.ref.vel[i] += fx_mul64x32_shift32(drv.ref.acc[i], drv.ff_adv_q32);
+        }
         if (drv.cfg.friction_ff_mv[i] == 0) {
             continue; /* the usual case: nothing else to load */
         }
         f = drv.cfg.friction_ff_mv[i];
         v = drv.ref.vel[i];
+        if (drv.cfg.qg_comp) {
+            qg_step(i, v, f);
+        }
         kaff = drv.servo.p.axis[i].kaff >> 16;
         if (kaff <= 0 || v == 0) {
             continue;

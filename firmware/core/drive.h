@@ -148,6 +148,7 @@
 /* Default and largest start delay (drive_config_t.start_delay_ms), ms. */
 #define DRIVE_START_DELAY_MS     50u
 #define DRIVE_START_DELAY_MS_MAX 10000u
+#define DRIVE_FF_ADVANCE_NS_MAX  10000000 /* ff_advance_ns: 10 ms */
 /* Default in-position window and range of the soft limits, nm. */
 #define DRIVE_IN_POS_NM     5000
 #define DRIVE_IN_POS_NM_MAX 100000000
@@ -285,10 +286,30 @@ typedef struct {
      * reference acceleration F / Kaff (so it needs Kaff > 0; off otherwise). */
     int32_t friction_ff_mv[CORE_AXES];
     int64_t friction_ff_band_nm_s; /* velocity of full friction feed-forward */
-    int64_t stop_decel_nm_s2;      /* drive_stop: path deceleration, > 0          */
-    int64_t arc_chord_nm;          /* arc segmentation tolerance, 0: default      */
-    uint32_t start_delay_ms;       /* start of motion from rest: see "Feeding",
-                                    * 0..DRIVE_START_DELAY_MS_MAX              */
+    /* Velocity feed-forward time advance, ns (0: off, at most 10 ms): the
+     * servo gets vel + acc * advance. The command computed at t_k is held
+     * over the whole tick, so the velocity it should feed forward is the
+     * mean over [t_k, t_k + T], v(t_k + T / 2): half a tick is the
+     * zero-order hold's delay (more: the amplifier's own). Without it a
+     * circle is fed forward a phase w T / 2 late, which leaves a radial
+     * command Kvff v w T / 2 the PIDs can only answer with an error:
+     * R 20 mm, 10 m/min, 3 ms: 29 um of radius (docs/simulator.md). */
+    int32_t ff_advance_ns;
+    /* Quadrant-glitch compensation (needs a friction_ff_mv): at each
+     * reversal of an axis's reference velocity the axis integrator jumps by
+     * what it held before the last two reversals differ by, I(+ -> -) -
+     * I(- -> +), toward the new direction (at most 2 friction_ff_mv). What
+     * the friction feed-forward misses (a friction value off by 10 %) the
+     * integrator holds with the sign of the motion; at a reversal it must
+     * swing by twice that, which takes it tens of ms from the error alone
+     * (the quadrant glitch: realistic.toml, R 20 mm, 10 m/min: +9.6 um
+     * with the PIDs, +6 um with the CEC). Learned from the last two
+     * reversals, so it follows a friction that changes. Default false. */
+    bool qg_comp;
+    int64_t stop_decel_nm_s2; /* drive_stop: path deceleration, > 0          */
+    int64_t arc_chord_nm;     /* arc segmentation tolerance, 0: default      */
+    uint32_t start_delay_ms;  /* start of motion from rest: see "Feeding",
+                               * 0..DRIVE_START_DELAY_MS_MAX              */
     /* Soft travel limits per axis, nm: a line, arc or jog whose end point
      * on a moving axis lies outside [soft_min, soft_max] is refused
      * (DRIVE_E_LIMIT) before it is queued. Off while soft_min >= soft_max

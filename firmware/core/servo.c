@@ -50,6 +50,7 @@ void servo_params_default(servo_params_t *p, uint32_t tick_hz)
     p->sat_limit_ticks = tick_hz / 2;
     p->on_following = SERVO_REACT_DISABLE;
     p->on_saturation = SERVO_REACT_STOP;
+    p->ffl_rate = 0; /* feed-forward learning off */
 }
 
 servo_err_t servo_config(servo_t *s, const servo_params_t *p)
@@ -83,6 +84,9 @@ servo_err_t servo_config(servo_t *s, const servo_params_t *p)
             return SERVO_ERR_DECEL;
         }
     }
+    if (p->ffl_rate < 0 || p->ffl_rate > SERVO_FFL_RATE_MAX) {
+        return SERVO_ERR_FFL;
+    }
     for (i = 0; i < p->axes; i++) {
         loops[i] = s->pid[i];
         pp = p->axis[i];
@@ -110,6 +114,13 @@ servo_err_t servo_config(servo_t *s, const servo_params_t *p)
         s->pid[i] = loops[i];
     }
     s->cec = cec;
+    if (p->ffl_rate != s->p.ffl_rate) {
+        for (i = 0; i < CORE_AXES; i++) {
+            s->ffl_w[i] = 0;
+        }
+    }
+    /* k = rate [1/s] / tick_hz in 2^-26: k * g (2^-14) is in 2^-40 */
+    s->ffl_k = ((int64_t)p->ffl_rate << 26) / (int64_t)p->tick_hz;
     s->p = *p;
     for (i = 0; i < CORE_AXES; i++) {
         int32_t lim = (i < p->axes) ? p->ferr_limit_nm[i] : 0;
@@ -418,6 +429,41 @@ static void tick_input_faults(servo_t *s, uint32_t enc_fault, uint32_t amp, bool
     }
 }
 
+/* Feed-forward learning, step 4 (servo.h "Feed-forward learning"): move
+ * the velocity gains w_i toward what the CEC's output holds (NLMS). */
+static SERVO_NOINLINE void ffl_learn(servo_t *s, const int64_t *vel, const int64_t *acc)
+{
+    int64_t v[3], norm = (int64_t)SERVO_FFL_V_MIN * SERVO_FFL_V_MIN; /* 2^20 nm^2/s^2 */
+    int64_t a2 = 0;
+    int64_t u = s->cec.ch[0].out >> 28; /* mV * 2^4, |u| < 2^22 */
+    unsigned i;
+
+    for (i = 0; i < 3 && i < CORE_AXES; i++) {
+        int64_t vi = (i < s->p.axes) ? vel[i] >> 10 : 0; /* 2^10 nm/s */
+
+        vi = vi > SERVO_FFL_V_MAX ? SERVO_FFL_V_MAX
+                                  : (vi < -SERVO_FFL_V_MAX ? -SERVO_FFL_V_MAX : vi);
+        v[i] = vi;
+        norm += vi * vi;
+        if (i < s->p.axes) {
+            int64_t ai = fx_clamp_sym64(acc[i] >> 10, (int64_t)1 << 26); /* 2^10 nm/s^2 */
+            a2 += ai * ai;
+        }
+    }
+    /* path frequency |a| / |v| above SERVO_FFL_W_PATH: no step */
+    if (a2 > (int64_t)SERVO_FFL_W_PATH * SERVO_FFL_W_PATH * norm) {
+        return;
+    }
+    for (i = 0; i < 3 && i < CORE_AXES; i++) {
+        /* u n1_i v_i / |v|^2: mV per 2^10 nm/s, in 2^-18 (|u v n| < 2^57) */
+        int64_t g = fx_div_round64(u * v[i] * (int64_t)(s->cec.n[0][i] >> 16), norm);
+        int64_t w = s->ffl_w[i] + ((s->ffl_k * g) >> 12); /* U per 2^10 nm/s */
+
+        s->ffl_w[i] =
+            w > SERVO_FFL_W_MAX ? SERVO_FFL_W_MAX : (w < -SERVO_FFL_W_MAX ? -SERVO_FFL_W_MAX : w);
+    }
+}
+
 /* Step 5 for one axis outside the inline case (CEC active, or the loop not
  * on its fast path). */
 static inline int32_t axis_step(servo_t *s, unsigned i, int32_t e, pos_nm_t meas, int64_t vel,
@@ -431,6 +477,9 @@ static inline int32_t axis_step(servo_t *s, unsigned i, int32_t e, pos_nm_t meas
             pid_add_integrator(pid, s->cec.handover_u[i]);
         }
         extra = s->cec.out_u[i];
+        if (s->ffl_w[i] != 0 && s->cec.active) {
+            extra += s->ffl_w[i] * (fx_clamp_sym64(vel >> 10, SERVO_FFL_V_MAX));
+        }
     }
     return pid_step_e(pid, e, meas, vel, acc, extra);
 }
@@ -546,6 +595,9 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
         cec_step(&s->cec, (s->state == SERVO_RUN && run) ? ref : NULL, fb->pos);
         if (s->cec.oscillating && !(s->faults & SERVO_FAULT_OSCILLATION)) {
             raise_fault(s, SERVO_FAULT_OSCILLATION, 0, false);
+        }
+        if (s->ffl_k != 0 && s->cec.active) {
+            ffl_learn(s, vel, acc);
         }
     }
     /* idle with outputs known to be 0 (cec.h): nothing to read */

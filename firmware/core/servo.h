@@ -124,7 +124,8 @@ typedef enum {
     SERVO_ERR_DECEL,    /* stop_decel_nm_s2 <= 0 or >= 2^40               */
     SERVO_ERR_REACTION, /* unknown reaction                               */
     SERVO_ERR_STATE,    /* not allowed in this state / with faults latched */
-    SERVO_ERR_AXIS      /* axis index out of range                        */
+    SERVO_ERR_AXIS,     /* axis index out of range                        */
+    SERVO_ERR_FFL       /* ffl_rate outside 0..SERVO_FFL_RATE_MAX        */
 } servo_err_t;
 
 /* Hardware access (hal.h functions on a port; fakes in tests). Any member
@@ -157,7 +158,41 @@ typedef struct {
     int64_t stop_decel_nm_s2[CORE_AXES]; /* controlled stop deceleration, > 0  */
     servo_reaction_t on_following;
     servo_reaction_t on_saturation;
+    /* Feed-forward learning rate (see "Feed-forward learning"), 1/s;
+     * 0: off (the default). 0..SERVO_FFL_RATE_MAX. */
+    int32_t ffl_rate;
 } servo_params_t;
+
+/* Feed-forward learning (with the CEC; off while ffl_rate is 0).
+ * A velocity feed-forward gain that is a few percent off on one axis
+ * (identified Kvff, a load not in the model) leaves, on a curve, a contour
+ * error that follows the path: X 2 % low and Y 2 % high make a circle an
+ * ellipse (R 20 mm, 10 m/min, realistic.toml: 4.6 um of 2nd harmonic with
+ * the PIDs alone, 2.3 um with the CEC, whose gain at the path frequency is
+ * bounded by its margins). The CEC's output u1 holds (in phase, where the
+ * loops' gain is high) what must be added along n1 to cancel it; the
+ * learning moves it into a velocity gain w_i per axis by a normalised LMS
+ * step each tick the CEC is active:
+ *   w_i += (ffl_rate / tick_hz) * u1 * n1_i * v_i / (|v|^2 + v_min^2)
+ *   (v the reference velocity, v_min = SERVO_FFL_V_MIN * 2^10 nm/s,
+ *   |w_i| <= SERVO_FFL_W_MAX), and adds w_i * v_i to axis i's command with
+ * the CEC's output. Since n1 . v = 0 the step is always a difference
+ * across the axes: w learns the X / Y mismatch of the velocity gains, the
+ * only part the contour sees (a common error only lags along the path).
+ * Time constant about 1 / ffl_rate while the path turns. The step is
+ * taken only while the path frequency |a| / |v| is at most
+ * SERVO_FFL_W_PATH: u1 is in phase with the disturbance only well below
+ * the CEC's crossover (150-190 rad/s on the shipped sets); above it the
+ * loops' phase turns the step the wrong way (default.toml, R 10 mm at
+ * 20 m/min, 33 rad/s, rate 100/s: 2.4 -> 15 um). w is kept while the
+ * CEC is off, reset by servo_config when ffl_rate changes. Cost: the
+ * CEC-active ticks only (one division per axis); CEC off
+ * (control_tick_instructions_m4) is not affected. */
+#define SERVO_FFL_RATE_MAX 1000               /* 1/s */
+#define SERVO_FFL_W_PATH   20                 /* rad/s: learn below this path frequency */
+#define SERVO_FFL_V_MIN    977                /* 2^10 nm/s: 1 mm/s */
+#define SERVO_FFL_V_MAX    (1 << 20)          /* 2^10 nm/s: 1.07 m/s */
+#define SERVO_FFL_W_MAX    ((int64_t)1 << 24) /* U per 2^10 nm/s: 3.8 V/(m/s) */
 
 typedef struct {
     servo_params_t p;
@@ -187,6 +222,9 @@ typedef struct {
     int32_t out_mv[CORE_AXES];  /* commands written this tick               */
     int32_t ferr_nm[CORE_AXES]; /* following error this tick                */
     uint64_t ticks;
+    /* feed-forward learning (tick): w_i, U per 2^10 nm/s, and the rate */
+    int64_t ffl_w[CORE_AXES];
+    int64_t ffl_k; /* ffl_rate / tick_hz in 2^-26 (servo_config) */
     /* detail of the last configuration error */
     unsigned err_axis;
     pid_err_t pid_err;

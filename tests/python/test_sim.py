@@ -173,16 +173,26 @@ def test_serve_is_wired(capsys):
     assert "serve" in capsys.readouterr().out
 
 
-def test_realistic_machine_target():
-    """Friction with partial friction feed-forward, feed-forward gains off."""
+@pytest.mark.parametrize("direction", ["ccw", "cw"])
+def test_realistic_machine_target(direction):
+    """Friction with 90 % friction feed-forward, feed-forward gains X 2 %
+    low, Y 2 % high (issue 21's figure: <= 5 um with the CEC, >= 2x better
+    than the PIDs alone; docs/simulator.md "Realistic machine"). Measured
+    4.70 / 4.73 um against 10.36 um."""
     pid = circle.run_circle(
-        20, 10000, controller="pid", feedforward="full", machine_file="realistic"
+        20, 10000, direction, controller="pid", feedforward="full", machine_file="realistic"
     )
     cec = circle.run_circle(
-        20, 10000, controller="cec-curvature", feedforward="full", machine_file="realistic"
+        20,
+        10000,
+        direction,
+        controller="cec-curvature",
+        feedforward="full",
+        machine_file="realistic",
     )
-    assert cec.result.circular_deviation_mm <= 10e-3
-    assert pid.result.circular_deviation_mm >= 1.5 * cec.result.circular_deviation_mm
+    assert cec.result.faults == []
+    assert cec.result.circular_deviation_mm <= 5e-3
+    assert pid.result.circular_deviation_mm >= 2 * cec.result.circular_deviation_mm
 
 
 def test_thesis_tick_product_default():

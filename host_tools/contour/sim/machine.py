@@ -55,6 +55,13 @@ optional except where noted; units SI unless the name says otherwise)::
     scale = 1.0                     # all feed-forward gains times this
     scale_x = 1.0                   # per-axis factor on top (scale_y, scale_z)
     friction = 0.0                  # fraction of the Coulomb friction fed forward
+    friction_band = 1.0             # mm/s: the friction feed-forward's sign ramp
+    advance_ticks = 0.0             # velocity feed-forward taken this many ticks
+                                    # ahead (0.5: the zero-order hold's delay; drive.h)
+    quadrant_comp = 0               # 1: quadrant-glitch compensation (drive.h qg_comp;
+                                    # needs friction > 0)
+    learn_rate = 0.0                # 1/s: with a CEC, the feed-forward scale per
+                                    # axis learned from the contour error (servo.h)
 
     [disturbance]                   # load forces on the tables (sim.h, "Disturbances");
                                     # all 0 (the default): off, traces bit-identical
@@ -157,7 +164,20 @@ PLAN_MAX = {"v_max": 4.29, "a_max": 1e6, "j_max": 1e8, "junction_dev": 1.0, "arc
 GAIN_MAX = 1e12
 GAIN_KEYS = {"kp", "ki", "kd", "d_tau", "d_on_measurement", "kt", "i_max", "out_max"}
 PLAN_KEYS = {"v_max", "a_max", "j_max", "junction_dev", "arc_chord"}
-FF_KEYS = {"kvff", "kaff", "scale", "scale_x", "scale_y", "scale_z", "friction", "mode"}
+FF_KEYS = {
+    "kvff",
+    "kaff",
+    "scale",
+    "scale_x",
+    "scale_y",
+    "scale_z",
+    "friction",
+    "mode",
+    "advance_ticks",
+    "friction_band",
+    "learn_rate",
+    "quadrant_comp",
+}
 FF_MODES = ("none", "velocity", "full")
 SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel"}
 TOP_KEYS = {
@@ -527,6 +547,15 @@ def apply(
         core.check(so.sim_servo_set(i, b"stop_decel", m.servo["stop_decel"]), "stop_decel")
         fv = m.friction_ff_volts(ax) if feedforward == "full" else 0.0
         core.check(so.sim_servo_set(i, b"friction_ff", fv), "friction_ff")
+        if i == 0:
+            band = m.feedforward.get("friction_band", 1.0) * 1e-3
+            core.check(so.sim_servo_set(0, b"friction_ff_band", band), "friction_band")
+            adv = m.feedforward.get("advance_ticks", 0.0) if feedforward != "none" else 0.0
+            core.check(so.sim_servo_set(0, b"ff_advance", adv / hz), "advance_ticks")
+            lr = m.feedforward.get("learn_rate", 0.0) if feedforward != "none" else 0.0
+            core.check(so.sim_servo_set(0, b"ffl_rate", lr), "learn_rate")
+            qg = m.feedforward.get("quadrant_comp", 0.0) if feedforward == "full" else 0.0
+            core.check(so.sim_servo_set(0, b"qg_comp", qg), "quadrant_comp")
         g = m.gains[ax]
         kv, ka = m.ff_gains(ax, feedforward)
         _gains(so, i, {**g, "kvff": kv, "kaff": ka}, f"axis {ax}")

@@ -1,0 +1,204 @@
+"""What a circle's contour error is made of, term by term (issue 21;
+docs/simulator.md "Realistic machine: what the contour error is made of"
+and "The 3 ms tick: where the CEC loses").
+
+    .venv/bin/python -m contour.sim.diagnose [OUT_DIR]
+
+prints the tables of that section and, with OUT_DIR, writes its figures.
+Each row switches one term of the machine file off (or the drive's answer
+to it on) and runs the circle again; the radial deviation of the true table
+over the scored revolution is split into harmonics of the path angle:
+h0 the mean radius error, h2 the ellipse (per-axis gain differences), h4
+the quadrant glitches (friction at the reversals), and what is left above
+the 8th harmonic (count noise, alias).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from contour.sim import circle, machine
+
+R_MM, FEED = 20.0, 10000.0
+
+
+def radial(tr: np.ndarray, r_mm: float) -> tuple:
+    """(angle rad, radial deviation um) of a scored trace (rows t, x, y)."""
+    x, y = tr[:, 1], tr[:, 2]
+    return np.arctan2(y, x), (np.hypot(x, y) - r_mm * 1e-3) * 1e6
+
+
+def harmonics(tr: np.ndarray, r_mm: float, kmax: int = 8) -> tuple:
+    """Amplitudes (um) of harmonics 0..4 and the peak-to-peak of what is
+    left above kmax."""
+    ang, rad = radial(tr, r_mm)
+    cols = [np.ones_like(ang)]
+    for k in range(1, kmax + 1):
+        cols += [np.cos(k * ang), np.sin(k * ang)]
+    m = np.column_stack(cols)
+    c, *_ = np.linalg.lstsq(m, rad, rcond=None)
+    amp = [abs(c[0])] + [math.hypot(c[2 * k - 1], c[2 * k]) for k in range(1, 5)]
+    return amp, float(np.ptp(rad - m @ c))
+
+
+def run(name: str, ctl: str, mod=None, r_mm=R_MM, feed=FEED, tick=None, d="ccw"):
+    m = machine.load(name)
+    if mod:
+        mod(m)
+    return circle.run_circle(
+        r_mm, feed, d, controller=ctl, feedforward="full", mach=m, tick_hz=tick, allow_limited=True
+    )
+
+
+def _no_coulomb(m):
+    for a in m.axis.values():
+        a.update(coulomb_motor=0.0, coulomb_table=0.0)
+
+
+def _exact_ff(m):
+    m.feedforward.update(scale_x=1.0, scale_y=1.0)
+
+
+def _before(m):
+    m.feedforward.update(quadrant_comp=0, learn_rate=0.0)
+
+
+def _both(*fs):
+    def f(m):
+        for g in fs:
+            g(m)
+
+    return f
+
+
+REALISTIC_ROWS = [
+    ("without the drive's compensations", _before),
+    ("  without Coulomb friction", _both(_before, _no_coulomb)),
+    ("  feed-forward gains exact", _both(_before, _exact_ff)),
+    ("  friction fed forward 100 %", _both(_before, lambda m: m.feedforward.update(friction=1.0))),
+    ("  neither friction nor gain error", _both(_before, _no_coulomb, _exact_ff)),
+    ("+ quadrant-glitch compensation", lambda m: m.feedforward.update(learn_rate=0.0)),
+    ("+ feed-forward learning (shipped)", None),
+]
+
+
+def realistic_table(log=print) -> dict:
+    log(f"Realistic machine, R {R_MM:g} mm, {FEED:g} mm/min, ccw; um")
+    log("| case | pid dev | pid h2 | pid h4 | cec dev | cec h2 | cec h4 |")
+    log("|---|---:|---:|---:|---:|---:|---:|")
+    traces = {}
+    for lab, mod in REALISTIC_ROWS:
+        cells = []
+        for ctl in ("pid", "cec-curvature"):
+            cr = run("realistic", ctl, mod)
+            h, _ = harmonics(cr.trace, R_MM)
+            cells += [cr.result.circular_deviation_mm * 1e3, h[2], h[4]]
+            traces[(lab, ctl)] = cr.trace
+        log(f"| {lab.strip()} | " + " | ".join(f"{v:.2f}" for v in cells) + " |")
+    return traces
+
+
+C3_CASES = [(10, 10000), (10, 20000), (20, 10000), (20, 20000), (20, 30000), (50, 10000)]
+C3_ROWS = [
+    ("thesis.toml as shipped", None),
+    (
+        "encoder 1e5 lines (no count)",
+        lambda m: [a.update(encoder_lines=100000) for a in m.axis.values()],
+    ),
+    ("X table as Y (I2 3.5e-6)", lambda m: m.axis["x"].update(I2=3.5e-6)),
+]
+
+
+def c3_table(log=print) -> None:
+    log("\n3 ms tick (thesis.toml), full feed-forward, circular deviation pid / cec-curvature, um")
+    log("| case | " + " | ".join(f"R {r} {f // 1000} m/min" for r, f in C3_CASES) + " |")
+    log("|---|" + "---:|" * len(C3_CASES))
+    for lab, mod in C3_ROWS:
+        cells = []
+        for r, f in C3_CASES:
+            a = run("thesis", "pid", mod, r, f).result.circular_deviation_mm * 1e3
+            b = run("thesis", "cec-curvature", mod, r, f).result.circular_deviation_mm * 1e3
+            cells.append(f"{a:.2f} / {b:.2f}")
+        log(f"| {lab} | " + " | ".join(cells) + " |")
+
+
+def alias_table(log=print) -> dict:
+    """Motor encoder minus true table position on X, R 20 mm at 20 m/min,
+    PIDs: its fit on the reference velocity, per tick rate."""
+    log("\nX motor encoder - table, R 20 mm 20 m/min, PIDs: um per m/s of X velocity, std um")
+    log("| tick | X per m/s | X std | Y per m/s | Y std |")
+    log("|---|---:|---:|---:|---:|")
+    out = {}
+    for hz in (333, 300, 400):
+        cr = run("thesis", "pid", None, 20, 20000, hz)
+        t0, t1 = cr.trace[0, 0], cr.trace[-1, 0]
+        f = cr.full[(cr.full[:, 0] >= t0) & (cr.full[:, 0] <= t1)]
+        cells = []
+        for ir, it, im in ((4, 5, 6), (8, 9, 10)):
+            d = (f[:, im] - f[:, it]) * 1e6
+            v = np.gradient(f[:, ir], f[:, 0])
+            a = np.column_stack([np.ones_like(v), v])
+            c, *_ = np.linalg.lstsq(a, d, rcond=None)
+            cells += [c[1], d.std()]
+        out[hz] = f
+        log(f"| {hz} Hz | " + " | ".join(f"{v:.2f}" for v in cells) + " |")
+    return out
+
+
+def figures(out: Path, traces: dict, alias: dict) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(9, 4))
+    for (lab, ctl), style in (
+        ((REALISTIC_ROWS[0][0], "pid"), "C0-"),
+        ((REALISTIC_ROWS[0][0], "cec-curvature"), "C1-"),
+        ((REALISTIC_ROWS[-2][0], "pid"), "C0:"),
+        ((REALISTIC_ROWS[-1][0], "cec-curvature"), "C2-"),
+    ):
+        ang, rad = radial(traces[(lab, ctl)], R_MM)
+        o = np.argsort(np.degrees(ang) % 360)
+        ax.plot((np.degrees(ang) % 360)[o], rad[o], style, label=f"{ctl}: {lab.strip()}", lw=1)
+    ax.set_xlabel("path angle (deg, ccw from +X)")
+    ax.set_ylabel("radial deviation of the table (um)")
+    ax.set_title(f"realistic.toml, R {R_MM:g} mm, {FEED:g} mm/min, 10 kHz, full feed-forward")
+    ax.set_xticks(range(0, 361, 45))
+    ax.grid(True)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "realistic_radial.png", dpi=80)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(9, 3.5))
+    for hz, f in alias.items():
+        ax.plot(f[:, 0] - f[0, 0], (f[:, 6] - f[:, 5]) * 1e6, lw=1, label=f"{hz} Hz")
+    ax.set_xlabel("time in the scored revolution (s)")
+    ax.set_ylabel("X encoder - X table (um)")
+    ax.set_title("thesis.toml, PIDs, R 20 mm, 20 m/min: X table mode 662.6 Hz vs 2 x tick")
+    ax.grid(True)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out / "c3_alias.png", dpi=80)
+    plt.close(fig)
+
+
+def main(argv: list) -> int:
+    traces = realistic_table()
+    c3_table()
+    alias = alias_table()
+    if argv:
+        out = Path(argv[0])
+        out.mkdir(parents=True, exist_ok=True)
+        figures(out, traces, alias)
+        print(f"\nwritten: {out}/realistic_radial.png, {out}/c3_alias.png")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
