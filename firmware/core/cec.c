@@ -23,6 +23,22 @@
 
 /* ---- estimators ------------------------------------------------------------ */
 
+/* fx_div_sat32(num, den, 30), the same value: for 0 < den and |num| < 2^33
+ * the numerator fits 64 bits, so one 64-bit division and its remainder's
+ * rounding (ties away from zero) without the 128-bit general path. */
+static inline int32_t div_q30(int64_t num, int32_t den)
+{
+    uint64_t a = fx_uabs64(num), q, r;
+    if (den <= 0 || a >= ((uint64_t)1 << 33)) {
+        return fx_div_sat32(num, den, 30);
+    }
+    q = fx_udivmod64(a << 30, (uint64_t)den, &r);
+    if (r >= (uint64_t)den - r) {
+        q++; /* q < 2^63 */
+    }
+    return fx_sat32(num < 0 ? -(int64_t)q : (int64_t)q);
+}
+
 /* cec_normals; *hint: the last root of this caller (fx_isqrt64_near). */
 static bool normals_near(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3],
                          uint32_t *hint)
@@ -73,7 +89,7 @@ static bool normals_near(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t 
         *hint = fx_isqrt64_near((uint64_t)len2, *hint);
         len = (int32_t)*hint;
         for (k = 0; k < 3; k++) {
-            n1[k] = fx_div_sat32(c[k], len, 30);
+            n1[k] = div_q30(c[k], len);
         }
     } else {
         for (k = 0; k < 3; k++) {
