@@ -288,7 +288,7 @@ static bool arc_rot_anchor(arc_ref_t *a, const arc_chord_t *g, q1_30_t s, q1_30_
      * below need v_uv and v_uv^2 / r (here and along the chord) < 2^31 */
     if (a->exact || !interp_cruise_next(ip) || g->r_a >= INT32_MAX - 1 || g->r_b >= INT32_MAX - 1 ||
         rad <= 0 || rad >= INT32_MAX - 1 || v_uv < 0 || v_uv >= ((int64_t)1 << 30) ||
-        !a->fast.ac_ok || a_c < 0 || a_c >= ((int64_t)1 << 29) || !arc_rot_consts(t, g, ip)) {
+        !a->fast.ac_ok || a_c < 0 || a_c >= ARC_REF_AC_MAX || !arc_rot_consts(t, g, ip)) {
         return false;
     }
     if (t->dR != 0 && (v_uv * v_uv) / (g->r_a < g->r_b ? g->r_a : g->r_b) >= ((int64_t)1 << 30)) {

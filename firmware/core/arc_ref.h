@@ -35,7 +35,9 @@
  * is re-anchored exactly at least every ARC_REF_ROT_TICKS ticks. Used on
  * chords with plane coordinates, chord and radius below 2^31 nm,
  * |dth| <= ARC_REF_DTH_MAX, path speed below 2^30 nm/s and v^2/r below
- * 2^29 nm/s^2 (the exact path otherwise). Error bound against the exact
+ * ARC_REF_AC_MAX (2^31 - 1 nm/s^2, 2.1 m/s^2; below 2^30 nm/s^2 on
+ * spirals, whose v^2/r is recomputed along the chord) (the exact path
+ * otherwise). Error bound against the exact
  * path of the same tick, per plane axis, for any chord angle up to
  * ARC_REF_DTH_MAX and radius r < 2^31 nm, with eps = (2 nm + r 2^-28) / r:
  *     position <= 2 nm + r 2^-28 (2 nm at 5 mm, 10 nm at 2.1 m),
@@ -79,6 +81,12 @@
 /* Largest |dth| of a chord the fast path and the recurrence take (binary
  * angle: pi/32, the drive's largest chord angle). */
 #define ARC_REF_DTH_MAX ((uint32_t)1 << 26)
+/* Largest centripetal acceleration v^2/r (nm/s^2, exclusive) the
+ * recurrence takes: its acceleration factor is an int32 (it was 2^29,
+ * 0.54 m/s^2, until 2026-11-26, which left the HIL bench circle, R 20 mm at
+ * 10 m/min, 1.39 m/s^2, and most arcs a machine cuts at speed on the exact
+ * path every tick). */
+#define ARC_REF_AC_MAX ((int64_t)INT32_MAX)
 /* The recurrence is re-anchored on the exact path at least this often. */
 #define ARC_REF_ROT_TICKS 256u
 

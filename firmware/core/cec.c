@@ -23,7 +23,25 @@
 
 /* ---- estimators ------------------------------------------------------------ */
 
-bool cec_normals(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3])
+/* fx_div_sat32(num, den, 30), the same value: for 0 < den and |num| < 2^33
+ * the numerator fits 64 bits, so one 64-bit division and its remainder's
+ * rounding (ties away from zero) without the 128-bit general path. */
+static inline int32_t div_q30(int64_t num, int32_t den)
+{
+    uint64_t a = fx_uabs64(num), q, r;
+    if (den <= 0 || a >= ((uint64_t)1 << 33)) {
+        return fx_div_sat32(num, den, 30);
+    }
+    q = fx_udivmod64(a << 30, (uint64_t)den, &r);
+    if (r >= (uint64_t)den - r) {
+        q++; /* q < 2^63 */
+    }
+    return fx_sat32(num < 0 ? -(int64_t)q : (int64_t)q);
+}
+
+/* cec_normals; *hint: the last root of this caller (fx_isqrt64_near). */
+static bool normals_near(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3],
+                         uint32_t *hint)
 {
     int64_t c[3], len2;
     int k;
@@ -68,9 +86,10 @@ bool cec_normals(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3])
             c[2] *= 2;
         }
         len2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
-        len = (int32_t)fx_isqrt64((uint64_t)len2);
+        *hint = fx_isqrt64_near((uint64_t)len2, *hint);
+        len = (int32_t)*hint;
         for (k = 0; k < 3; k++) {
-            n1[k] = fx_div_sat32(c[k], len, 30);
+            n1[k] = div_q30(c[k], len);
         }
     } else {
         for (k = 0; k < 3; k++) {
@@ -82,6 +101,12 @@ bool cec_normals(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3])
     n2[1] = (q1_30_t)fx_round_shift64((int64_t)n1[2] * t[0] - (int64_t)n1[0] * t[2], 30);
     n2[2] = (q1_30_t)fx_round_shift64((int64_t)n1[0] * t[1] - (int64_t)n1[1] * t[0], 30);
     return true;
+}
+
+bool cec_normals(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3])
+{
+    uint32_t hint = 0;
+    return normals_near(t, w, n1, n2, &hint);
 }
 
 int32_t cec_dot(const int32_t e[3], const q1_30_t n[3])
@@ -183,11 +208,27 @@ int32_t cec_curv_correction(int32_t e_abs, pos_nm_t radius)
     return curv_corr(e_abs, radius, inv);
 }
 
+/* cec_exact_arc; *hint: the last root of this caller (fx_isqrt64_near,
+ * taken where fx_hypot2 takes its one 64-bit root). */
+static int32_t exact_arc_near(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius,
+                              int s, uint32_t *hint)
+{
+    int64_t x = pu - cu, y = pv - cv, rho, d;
+    uint64_t ax = fx_uabs64(x), ay = fx_uabs64(y);
+    if ((ax | ay) < ((uint64_t)1 << 31)) {
+        *hint = fx_isqrt64_near(ax * ax + ay * ay, *hint);
+        rho = *hint;
+    } else {
+        rho = fx_hypot2(x, y);
+    }
+    d = rho - radius;
+    return fx_sat32_fast((s < 0) ? -d : d);
+}
+
 int32_t cec_exact_arc(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius, int s)
 {
-    int64_t rho = fx_hypot2(pu - cu, pv - cv);
-    int64_t d = rho - radius;
-    return fx_sat32_fast((s < 0) ? -d : d);
+    uint32_t hint = 0;
+    return exact_arc_near(pu, pv, cu, cv, radius, s, &hint);
 }
 
 int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30_t n[3])
@@ -553,7 +594,7 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
         t[k] = (k < CORE_AXES) ? g->tangent[k] : 0;
     }
     if ((g->kind != MOTION_GEOM_LINE && g->kind != MOTION_GEOM_ARC) || !geom_plane(g, &w) ||
-        !cec_normals(t, w, n1, n2)) {
+        !normals_near(t, w, n1, n2, &c->len_hint)) {
         c->bad_geom++;
         deactivate(c);
         return;
@@ -577,8 +618,8 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     switch (c->p.mode) {
     case CEC_MODE_EXACT:
         if (g->kind == MOTION_GEOM_ARC) {
-            ec1 = cec_exact_arc(meas[g->plane_u], meas[g->plane_v], g->centre_u, g->centre_v,
-                                g->radius, c->s);
+            ec1 = exact_arc_near(meas[g->plane_u], meas[g->plane_v], g->centre_u, g->centre_v,
+                                 g->radius, c->s, &c->rho_hint);
         } else {
             pos_nm_t p3[3], s3[3];
             for (k = 0; k < 3; k++) {

@@ -203,6 +203,10 @@ typedef struct {
     int64_t osc_avg;    /* mean |second difference|, mV * 2^8      */
     uint32_t osc_ticks; /* consecutive ticks over the limit        */
     bool oscillating;   /* latched: a sustained limit cycle        */
+    /* last roots of the normalisation and the exact arc distance (tick):
+     * starting points of fx_isqrt64_near only, any value is correct */
+    uint32_t len_hint;
+    uint32_t rho_hint;
 } cec_t;
 
 /* Validate and apply (nothing changes on error; *pid_err gets the detail

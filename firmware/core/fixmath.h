@@ -575,4 +575,31 @@ static inline uint32_t fx_div_q30_rec(uint32_t n, uint32_t d, uint64_t rec)
  * 32-bit UDIV), no 64-bit division helper. */
 uint32_t fx_udiv64by32(uint64_t n, uint32_t d);
 
+/* floor(sqrt(v)) as fx_isqrt64, for a root that moves little between calls,
+ * from h (any value: only the cost depends on it): h itself when h^2 <= v
+ * and v - h^2 <= 2h; else one Newton step r = floor((h + floor(v / h)) / 2),
+ * which is never below the root (AM-GM) and within one of it when h is
+ * within about 2^-15 r of it, taken when r^2 or (r - 1)^2 is at most v;
+ * otherwise fx_isqrt64. fx_isqrt64's Newton iteration is a chain of four or
+ * five dependent divisions; a root near last tick's root (the CEC's
+ * normalisation and exact arc distance) takes at most one. Exactness:
+ * tests/unit/test_fixmath.c, test_isqrt64_near. */
+static inline uint32_t fx_isqrt64_near(uint64_t v, uint32_t h)
+{
+    uint64_t sq = (uint64_t)h * h, r;
+    if (sq <= v && v - sq <= 2u * (uint64_t)h) { /* v < (h + 1)^2 */
+        return h;
+    }
+    if ((v >> 32) < h) {                              /* v / h < 2^32 (h > 0) */
+        r = ((uint64_t)h + fx_udiv64by32(v, h)) >> 1; /* < 2^32, >= floor(sqrt(v)) */
+        if (r * r <= v) {
+            return (uint32_t)r;
+        }
+        if ((r - 1u) * (r - 1u) <= v) {
+            return (uint32_t)r - 1u;
+        }
+    }
+    return fx_isqrt64(v);
+}
+
 #endif /* FIXMATH_H */

@@ -224,11 +224,37 @@ static void test_clockwise_the_other_planes_and_spirals(void)
     check(&d);
 }
 
+/* Arcs with centripetal accelerations the recurrence took only since
+ * ARC_REF_AC_MAX was raised from 2^29 nm/s^2: the HIL bench circle (R 20 mm
+ * at 10 m/min: 1.39 m/s^2) and 5 mm at 100 mm/s (2.0 m/s^2, 93 % of the
+ * limit); 5 mm at 110 mm/s (2.42 m/s^2) stays on the exact path. Fails with
+ * the old limit (no steps) and with a limit above INT32_MAX (steps at
+ * 2.42 m/s^2, whose acceleration factor wraps). */
+static void test_fast_arcs_up_to_the_acceleration_limit(void)
+{
+    ar_stats_t d;
+    run_arc(DRIVE_PLANE_XY, 1, 20000000, 0, 166666667, 100, 0, &d);
+    check(&d);
+    TEST_ASSERT_TRUE(d.ticks > 7000u);
+    /* (half a turn, much of it accelerating: fewer steps) */
+    run_arc(DRIVE_PLANE_XY, -1, 5000000, 0, 100000000, 100, 65536u / 2u, &d);
+    TEST_ASSERT_EQUAL_UINT32(0, d.exact_differ);
+    TEST_ASSERT_TRUE(d.steps > d.ticks / 3u);
+    TEST_ASSERT_TRUE(d.rel <= 1.0);
+    TEST_ASSERT_TRUE(d.ticks > 1000u);
+    /* 110 mm/s: 2.42 m/s^2, above the limit: the exact path only */
+    run_arc(DRIVE_PLANE_XY, 1, 5000000, 0, 110000000, 100, 65536u / 2u, &d);
+    TEST_ASSERT_EQUAL_UINT32(0, d.exact_differ);
+    TEST_ASSERT_EQUAL_UINT32(0, d.steps);
+    TEST_ASSERT_TRUE(d.ticks > 1000u);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_helix_recurrence_within_bound_and_fast_path_exact);
     RUN_TEST(test_large_radius_chords_of_the_maximum_angle);
     RUN_TEST(test_clockwise_the_other_planes_and_spirals);
+    RUN_TEST(test_fast_arcs_up_to_the_acceleration_limit);
     return UNITY_END();
 }

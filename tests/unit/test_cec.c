@@ -143,6 +143,114 @@ static void test_normals(void)
     TEST_ASSERT_FALSE(cec_normals(t, 2, n1, n2));
 }
 
+/* cec.c's normalisation as it was written before its roots started from
+ * last tick's root and its divisions took the 64-bit form (fx_isqrt64,
+ * fx_div_sat32): the oracle of test_exact_step_bit_exact. */
+static bool normals_oracle(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t n2[3])
+{
+    int64_t c[3], len2;
+    int k;
+    if (t[0] == 0 && t[1] == 0 && t[2] == 0) {
+        return false;
+    }
+    c[0] = w == 0 ? 0 : (w == 1 ? -(int64_t)t[2] : t[1]);
+    c[1] = w == 0 ? t[2] : (w == 1 ? 0 : -(int64_t)t[0]);
+    c[2] = w == 0 ? -(int64_t)t[1] : (w == 1 ? t[0] : 0);
+    len2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+    if (len2 < ((int64_t)1 << 40)) {
+        unsigned u = (w + 1u) % 3u;
+        for (k = 0; k < 3; k++) {
+            c[k] = -(int64_t)(int32_t)fx_mul32_shift(t[u], t[k], 30);
+        }
+        c[u] += FX_ONE_Q30;
+        len2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+    }
+    if (fx_sat_abs64(len2 - ((int64_t)1 << 60)) > ((int64_t)1 << 33)) {
+        int32_t len;
+        if (len2 == 0) {
+            return false;
+        }
+        while (fx_sat_abs64(c[0]) < ((int64_t)1 << 29) && fx_sat_abs64(c[1]) < ((int64_t)1 << 29) &&
+               fx_sat_abs64(c[2]) < ((int64_t)1 << 29)) {
+            c[0] *= 2;
+            c[1] *= 2;
+            c[2] *= 2;
+        }
+        len2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+        len = (int32_t)fx_isqrt64((uint64_t)len2);
+        for (k = 0; k < 3; k++) {
+            n1[k] = fx_div_sat32(c[k], len, 30);
+        }
+    } else {
+        for (k = 0; k < 3; k++) {
+            n1[k] = (q1_30_t)c[k];
+        }
+    }
+    n2[0] = (q1_30_t)fx_round_shift64((int64_t)n1[1] * t[2] - (int64_t)n1[2] * t[1], 30);
+    n2[1] = (q1_30_t)fx_round_shift64((int64_t)n1[2] * t[0] - (int64_t)n1[0] * t[2], 30);
+    n2[2] = (q1_30_t)fx_round_shift64((int64_t)n1[0] * t[1] - (int64_t)n1[1] * t[0], 30);
+    return true;
+}
+
+/* The exact mode's tick (roots from last tick's root, cec_t.len_hint and
+ * rho_hint) against the oracle: every tick of an arc whose tangent and
+ * measured point move as on the bench circle (measurement jumps of up to
+ * 1.5 um, a step of 20 um in the lag now and then), and tangents of any
+ * length and direction through cec_normals: normals and EC1 bit for bit. */
+static void test_exact_step_bit_exact(void)
+{
+    cec_t c;
+    arc_case_t a;
+    q1_30_t t[3], n1[3], n2[3], o1[3], o2[3];
+    int i, k, dir;
+    unsigned pl;
+    srand(7);
+    for (pl = 0; pl < PLANES; pl++) {
+        for (dir = -1; dir <= 1; dir += 2) {
+            unsigned u = plane_uv[pl][0], v = plane_uv[pl][1], w = 3 - u - v;
+            config(&c, CEC_MODE_EXACT, 2000.0, 0.0);
+            for (i = 0; i < 3000; i++) {
+                double th = 0.0008 * i, gam = (i % 500 == 250) ? 1e-3 : 2e-5;
+                int32_t want;
+                arc_case(&a, pl, 2e7, th, dir, gam, (double)(rand() % 3001 - 1500));
+                if (i % 7 == 0) { /* a tangent off unit length by a few LSB */
+                    a.ref.geom.tangent[u] += (q1_30_t)(rand() % 9 - 4);
+                }
+                cec_step(&c, &a.ref, a.meas);
+                TEST_ASSERT_TRUE(c.active);
+                for (k = 0; k < 3; k++) {
+                    t[k] = a.ref.geom.tangent[k];
+                }
+                TEST_ASSERT_TRUE(normals_oracle(t, w, o1, o2));
+                TEST_ASSERT_EQUAL_INT32_ARRAY(o1, c.n[0], 3);
+                TEST_ASSERT_EQUAL_INT32_ARRAY(o2, c.n[1], 3);
+                {
+                    int64_t rho =
+                        fx_hypot2(a.meas[u] - a.ref.geom.centre_u, a.meas[v] - a.ref.geom.centre_v);
+                    int64_t d = rho - a.ref.geom.radius;
+                    want = fx_sat32_fast(c.s < 0 ? -d : d);
+                }
+                TEST_ASSERT_EQUAL_INT32(want, c.ec_nm[0]);
+            }
+        }
+    }
+    for (i = 0; i < 200000; i++) {
+        unsigned w = (unsigned)(i % 3);
+        for (k = 0; k < 3; k++) {
+            t[k] = (q1_30_t)((rand() % 2 ? 1 : -1) *
+                             (int32_t)((uint32_t)rand() % (1u << (1 + rand() % 31))));
+        }
+        if (i % 5 == 0) {
+            t[(w + 1u) % 3u] = t[(w + 2u) % 3u] = (q1_30_t)(rand() % 512); /* plunges */
+        }
+        TEST_ASSERT_EQUAL(normals_oracle(t, w, o1, o2), cec_normals(t, w, n1, n2));
+        if (normals_oracle(t, w, o1, o2)) {
+            TEST_ASSERT_EQUAL_INT32_ARRAY(o1, n1, 3);
+            TEST_ASSERT_EQUAL_INT32_ARRAY(o2, n2, 3);
+        }
+    }
+}
+
 static void test_curvature_correction_vs_double(void)
 {
     static const double radii[] = {1e5, 1e6, 1e7, 5e7, 1e9, 1e11};
@@ -784,6 +892,7 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_normals);
+    RUN_TEST(test_exact_step_bit_exact);
     RUN_TEST(test_curvature_correction_vs_double);
     RUN_TEST(test_circle_pure_lag_grid);
     RUN_TEST(test_circle_lag_and_radial_deviation);

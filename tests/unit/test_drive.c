@@ -1120,6 +1120,12 @@ static void test_arc_recurrence_stays_within_its_bound_of_the_exact_overlay(void
     TEST_ASSERT_TRUE(d.ticks > 15000u);
     TEST_ASSERT_TRUE(d.differ > d.ticks / 4u); /* the recurrence is in use */
     TEST_ASSERT_TRUE(d.rel <= 1.0);
+    /* the HIL bench circle, R 20 mm at 10 m/min: v^2/r 1.39 m/s^2, on the
+     * recurrence since ARC_REF_AC_MAX (arc_ref.h) */
+    rc_compare(20000000, 166666667, 100, 0, 9000u, &d);
+    TEST_ASSERT_TRUE(d.ticks > 7000u);
+    TEST_ASSERT_TRUE(d.differ > d.ticks / 4u);
+    TEST_ASSERT_TRUE(d.rel <= 1.0);
     /* three chords of the maximum angle (the chord tolerance above the
      * radius), 1.9e9 nm radius at 150 mm/s: about 12000 ticks each */
     rc_compare(1900000000, 150000000, 1000000000, 3u * 65536u / 64u, RC_TICKS, &d);

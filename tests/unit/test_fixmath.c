@@ -992,6 +992,64 @@ static void test_isqrt64_boundaries_and_random(void)
     }
 }
 
+/* fx_isqrt64_near(v, h) == fx_isqrt64(v) for every hint: the root itself,
+ * one or two off (the square and remainder checks and the Newton step's
+ * r and r - 1), far off (the fallback), 0 and UINT32_MAX; v at and around
+ * the squares (the boundaries of each branch), random v, both ends. */
+static void check_isqrt64_near(uint64_t v, uint32_t h)
+{
+    uint32_t want = fx_isqrt64(v), got = fx_isqrt64_near(v, h);
+    if (got != want) {
+        snprintf(msg, sizeof msg, "isqrt64_near(%" PRIu64 ", %u) = %u, isqrt64 %u", v, h, got,
+                 want);
+        TEST_FAIL_MESSAGE(msg);
+    }
+}
+
+static void test_isqrt64_near(void)
+{
+    static const int32_t offs[] = {0, 1, -1, 2, -2, 3, -3, 1000, -1000, 1 << 20, -(1 << 20)};
+    uint64_t r, v;
+    unsigned i, k;
+    rng_seed(41);
+    for (i = 0; i < 300000; i++) {
+        r = (i & 1) ? (rng() >> 32) : (rng() >> (32 + rng() % 32));
+        switch (i % 4) {
+        case 0:
+            v = r * r;
+            break;
+        case 1:
+            v = r * r + 2 * r; /* (r + 1)^2 - 1 */
+            break;
+        case 2:
+            v = r * r - (r > 0);
+            break;
+        default:
+            v = rnd_u64();
+            r = fx_isqrt64(v);
+            break;
+        }
+        for (k = 0; k < sizeof offs / sizeof offs[0]; k++) {
+            int64_t h = (int64_t)r + offs[k];
+            if (h >= 0 && h <= (int64_t)UINT32_MAX) {
+                check_isqrt64_near(v, (uint32_t)h);
+            }
+        }
+        check_isqrt64_near(v, (uint32_t)rng());
+        check_isqrt64_near(v, 0);
+        check_isqrt64_near(v, UINT32_MAX);
+    }
+    for (k = 0; k < 8; k++) {
+        static const uint64_t ends[] = {
+            0, 1, 2, 3, 4, UINT64_MAX, UINT64_MAX - 1, 0xFFFFFFFE00000001ULL};
+        check_isqrt64_near(ends[k], 0);
+        check_isqrt64_near(ends[k], 1);
+        check_isqrt64_near(ends[k], 2);
+        check_isqrt64_near(ends[k], UINT32_MAX);
+        check_isqrt64_near(ends[k], UINT32_MAX - 1);
+    }
+}
+
 static void check_icbrt(uint64_t v)
 {
     u128 r = fx_icbrt64(v);
@@ -1748,6 +1806,7 @@ int main(void)
     RUN_TEST(test_udiv64by32_exact);
     RUN_TEST(test_isqrt32_exhaustive_and_boundaries);
     RUN_TEST(test_isqrt64_boundaries_and_random);
+    RUN_TEST(test_isqrt64_near);
     RUN_TEST(test_icbrt64_every_cube_boundary);
     RUN_TEST(test_sin_cos_exact_points);
     RUN_TEST(test_sin_cos_dense_grid_and_octants);
