@@ -247,6 +247,9 @@ typedef struct {
     uint16_t fresh;                    /* blocks planned by the last pass (the
                                         * rest were queued after it)             */
     bool deferred;                     /* passes deferred to plan_pop/update   */
+    bool defer_passes;                 /* plan_push leaves the passes (the
+                                        * request and the shape: pl_pass_mode) */
+    uint8_t blk_shape;                 /* the blocks' sc_limits_t shape        */
     pos_nm_t pos[CORE_AXES];           /* end point of the last queued block */
     int64_t last_ratio_q62[CORE_AXES]; /* direction of the last move   */
     int32_t last_q30[CORE_AXES];       /* the same in q1_30 (truncated)  */
@@ -266,6 +269,18 @@ typedef struct {
     bool jd_fast_off;    /* tests only (planner_test.h): false after
                           * plan_init; true skips this planner's
                           * junction-deviation early exit              */
+    /* continuous S-curve (planner_cont.c): the plan of the current run
+     * from the next block's start on, and the path state there */
+    sc_profile_t cont_prof; /* the run's remaining profile              */
+    int64_t cont_t_ns;      /* time into cont_prof of the next block    */
+    int64_t cont_rem;       /* distance cont_prof still covers, nm (0:
+                             * none: the next pop plans from the state) */
+    int64_t cont_x;         /* exit bound cont_prof was planned for     */
+    int64_t cont_v_q16;     /* path speed at the next block's start     */
+    int64_t cont_a_q16;     /* path acceleration there                  */
+    uint32_t cont_kept;     /* pops that kept cont_prof because no new
+                             * plan fitted (tests: rare)                */
+    uint32_t cont_forced;   /* pops with no feasible plan (tests: 0)    */
 } plan_t;
 
 /* Validate the profile and initialise an empty planner at `start` (nm).
