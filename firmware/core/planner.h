@@ -276,8 +276,11 @@ typedef struct {
     int64_t cont_rem;       /* distance cont_prof still covers, nm (0:
                              * none: the next pop plans from the state) */
     int64_t cont_x;         /* exit bound cont_prof was planned for     */
-    int64_t cont_v_q16;     /* path speed at the next block's start     */
-    int64_t cont_a_q16;     /* path acceleration there                  */
+    sc_state_t cont_st;     /* path state at the next block's start: s on
+                             * cont_prof at cont_t_ns, v, a (q16)       */
+    uint16_t cont_scan;     /* blocks the last pop's pass saw, and the  */
+    uint16_t cont_run_n;    /* blocks of its oldest run (the queue's  */
+    int64_t cont_run_len;   /* first blocks), its length (nm)           */
     uint32_t cont_kept;     /* pops that kept cont_prof because no new
                              * plan fitted (tests: rare)                */
     uint32_t cont_forced;   /* pops with no feasible plan (tests: 0)    */

@@ -85,31 +85,106 @@ static uint16_t pc_run(const plan_t *p, uint16_t i, int64_t *len)
  * (its first block's v_entry), from the queue's end at rest. From a = 0 at
  * the bound the run can cruise and then reach the next bound, or rest,
  * exactly at its end; a bound never falls (the exit bound it was computed
- * for can only have risen since: an earlier bound stays reachable). */
-static void pc_anchors(plan_t *p)
+ * for can only have risen since: an earlier bound stays reachable). Also
+ * the oldest run: index after its last block (returned), *len its length
+ * (nm) and *x its exit bound (0: the queue's end). */
+static uint16_t pc_anchors(plan_t *p, int64_t *len, int64_t *x)
 {
-    int64_t x = 0, len = 0;
-    uint16_t i;
+    int64_t ex = 0, l = 0;
+    uint16_t i, e = p->count;
+    uint32_t k = (uint32_t)p->tail + p->count - 1u; /* ring index of block i */
+    plan_block_t *b, *a;
 
-    for (i = p->count; i-- > 1u;) {
-        plan_block_t *b = pc_at(p, i);
-        len += b->len;
-        if (!pc_joined(pc_at(p, (uint16_t)(i - 1u)), b)) {
-            sc_limits_t l;
+    if (k >= p->depth) {
+        k -= p->depth;
+    }
+    b = &p->ring[k];
+    for (i = (uint16_t)(p->count - 1u); i >= 1u; i--) {
+        k = (k == 0u) ? p->depth - 1u : k - 1u;
+        a = &p->ring[k];
+        l += b->len;
+        if (!pc_joined(a, b)) {
+            sc_limits_t lim;
             /* twice the solver's margin: sc_dist may round a reach's
              * distance up past it by a few nm */
-            int64_t e = 0, d = len - 2 * pc_margin(b->lim.v_max, len);
-            pc_limits(p, b->lim.v_max, &l);
+            int64_t v = 0, d = l - 2 * pc_margin(b->lim.v_max, l);
+            pc_limits(p, b->lim.v_max, &lim);
             if (d > 0) {
                 d = fx_min64(d, SC_LEN_MAX);
-                e = fx_max64(sc_reach(x, d, &l), sc_reach(0, d, &l));
+                v = fx_max64(sc_reach(ex, d, &lim), sc_reach(0, d, &lim));
             }
-            e = fx_min64(e, b->v_junction);
-            b->v_entry = fx_max64(e, b->v_entry);
-            x = b->v_entry;
-            len = 0;
+            v = fx_min64(v, b->v_junction);
+            b->v_entry = fx_max64(v, b->v_entry);
+            ex = b->v_entry;
+            l = 0;
+            e = i;
+        }
+        b = a;
+    }
+    *len = l + b->len;
+    *x = (e < p->count) ? ex : 0;
+    return e;
+}
+
+/* pc_anchors, skipped while the whole queue is one run (the usual CAM
+ * path): then only the blocks queued since the last pop need a look. */
+static void pc_first_run(plan_t *p, int64_t *len, int64_t *x)
+{
+    uint16_t i = p->cont_scan;
+
+    if (i > 0u && p->cont_run_n == i && i <= p->count) {
+        int64_t l = p->cont_run_len;
+        const plan_block_t *a = pc_at(p, (uint16_t)(i - 1u));
+        for (; i < p->count; i++) {
+            const plan_block_t *b = pc_at(p, i);
+            if (!pc_joined(a, b)) {
+                break;
+            }
+            l += b->len;
+            a = b;
+        }
+        if (i == p->count) {
+            p->cont_scan = i;
+            p->cont_run_n = i;
+            p->cont_run_len = l;
+            *len = l;
+            *x = 0;
+            return;
         }
     }
+    p->cont_run_n = pc_anchors(p, len, x);
+    p->cont_scan = p->count;
+    p->cont_run_len = *len;
+}
+
+/* The plan cruising at vp on to R2 as before, over the longer run len:
+ * what pc_plan_run gives from the state (vp, a = 0) when R2 stays. */
+static void pc_recruise(sc_profile_t *P, int64_t len)
+{
+    int64_t vq = P->vp * PC_Q16, s2 = P->s_end_q16 - P->start[4].s_q16;
+    int64_t rest = len * PC_Q16 - s2, sh;
+    sc_state_t c;
+    int ph;
+
+    for (ph = 0; ph <= 3; ph++) {
+        P->start[ph].s_q16 = 0;
+        P->start[ph].v_q16 = vq;
+        P->start[ph].a_q16 = 0;
+        P->t_ns[ph] = 0;
+    }
+    if (rest > 0 && vq > 0) {
+        P->t_ns[3] = sc_muldiv(2 * rest, PC_NS, vq);
+        P->t_ns[3] = P->t_ns[3] / 2 + (P->t_ns[3] & 1);
+    }
+    sc_eval_phase(P, 3, P->t_ns[3], &c);
+    sh = c.s_q16 - P->start[4].s_q16;
+    P->start[4].s_q16 += sh;
+    P->start[5].s_q16 += sh;
+    P->start[6].s_q16 += sh;
+    P->s_end_q16 += sh;
+    P->total_ns = P->t_ns[3] + P->t_ns[4] + P->t_ns[5] + P->t_ns[6];
+    P->len = len;
+    P->v0 = P->vp;
 }
 
 /* Phase times of a speed change dv >= 0 between a = 0 and a = 0. */
@@ -205,15 +280,14 @@ static bool pc_fits(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t vp, int64
     return *v1 < vp && s1 + sc_mul_sat(sc_dist(vp, 0, l), PC_Q16) <= lq;
 }
 
-/* The whole profile for vp and v1 over len nm (R1, cruise, R2). */
-static void pc_build(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t vp, int64_t v1, int64_t len,
-                     const sc_limits_t *l)
+/* The whole profile over len nm: R1 to vp already in P (pc_r1), the
+ * cruise, R2 to v1. */
+static void pc_build(sc_profile_t *P, int64_t vp, int64_t v1, int64_t len, const sc_limits_t *l)
 {
-    int64_t vq = vp * PC_Q16, tj, ta, rest;
-    sc_state_t r1, end;
+    int64_t vq = vp * PC_Q16, tj, ta, rest, s3;
+    sc_state_t end;
 
-    pc_r1(P, v0q, a0q, vp, l);
-    r1 = P->start[3];
+    s3 = P->start[3].s_q16;
     /* phase 3 starts exactly at vp with a = 0: a pure cruise (the
      * interpolator's fast path); the step is the rounding of R1 */
     P->start[3].v_q16 = vq;
@@ -227,34 +301,43 @@ static void pc_build(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t vp, int6
     pc_jerk(P, 4, -l->j_max);
     pc_jerk(P, 5, 0);
     pc_jerk(P, 6, l->j_max);
-    /* R2's realised distance from s = 0, then the cruise covers the rest */
+    /* R2 from s = 0 (a phase's evaluation does not depend on its start
+     * distance: shifted below), then the cruise covers the rest */
     P->start[4] = P->start[3];
     P->start[4].s_q16 = 0;
     pc_chain(P, 4, 6, &end);
-    rest = len * PC_Q16 - r1.s_q16 - end.s_q16;
+    rest = len * PC_Q16 - s3 - end.s_q16;
     if (rest > 0 && vq > 0) {
         P->t_ns[3] = sc_muldiv(2 * rest, PC_NS, vq);
         P->t_ns[3] = P->t_ns[3] / 2 + (P->t_ns[3] & 1);
     }
-    pc_chain(P, 3, 6, &end);
+    {
+        sc_state_t c;
+        sc_eval_phase(P, 3, P->t_ns[3], &c); /* cruise: v and a unchanged */
+        P->start[4].s_q16 = c.s_q16;
+        P->start[5].s_q16 += c.s_q16;
+        P->start[6].s_q16 += c.s_q16;
+        end.s_q16 += c.s_q16;
+    }
     P->s_end_q16 = end.s_q16;
     P->total_ns =
         P->t_ns[0] + P->t_ns[1] + P->t_ns[2] + P->t_ns[3] + P->t_ns[4] + P->t_ns[5] + P->t_ns[6];
     P->len = len;
-    P->v0 = v0q / PC_Q16;
+    P->v0 = P->start[0].v_q16 / PC_Q16;
     P->vp = vp;
     P->v1 = v1;
 }
 
 /* Bisection for the highest speed that fits in [lo, hi) (lo fits, hi does
- * not), to within 2^-12 of hi. */
+ * not), to within 2^-12 of hi; *last the speed P holds R1 for. */
 static int64_t pc_bisect(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t lo, int64_t hi,
-                         int64_t x, int64_t lq, const sc_limits_t *l)
+                         int64_t x, int64_t lq, const sc_limits_t *l, int64_t *last)
 {
     int64_t v1;
 
     while (hi - lo > fx_max64(1, hi >> 12)) {
         int64_t mid = lo + (hi - lo) / 2;
+        *last = mid;
         if (pc_fits(P, v0q, a0q, mid, x, lq, l, &v1)) {
             lo = mid;
         } else {
@@ -271,32 +354,41 @@ static bool pc_plan_run(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t len, 
 {
     int64_t vmax = l->v_max, v0 = v0q / PC_Q16, a0 = a0q / PC_Q16, aa = (a0 < 0) ? -a0 : a0;
     int64_t h = sc_muldiv(aa, aa, 2 * l->j_max), vn = (a0 >= 0) ? v0 + h : v0 - h;
-    int64_t lq = (len - pc_margin(vmax, len)) * PC_Q16, vp, v1;
+    int64_t lq = (len - pc_margin(vmax, len)) * PC_Q16, vp, v1 = 0, v1t, last;
     int k;
 
     if (vn < 0 || v0 < 0 || lq <= 0) {
         return false;
     }
     vn = fx_min64(vn, vmax);
+    last = vn;
     if (pc_fits(P, v0q, a0q, vn, x, lq, l, &v1)) {
-        vp = pc_fits(P, v0q, a0q, vmax, x, lq, l, &v1) ? vmax
-                                                       : pc_bisect(P, v0q, a0q, vn, vmax, x, lq, l);
+        vp = vn; /* cruising at the limit: the usual block */
+        if (vn < vmax) {
+            last = vmax;
+            vp = pc_fits(P, v0q, a0q, vmax, x, lq, l, &v1t)
+                     ? vmax
+                     : pc_bisect(P, v0q, a0q, vn, vmax, x, lq, l, &last);
+        }
     } else {
         /* slow down below vn: the distance is not monotone in vp there,
          * so the highest of sixteen steps that fits, then bisection */
         vp = 0;
         for (k = 15; k >= 1 && vp == 0; k--) {
             int64_t c = vn * k / 16;
-            if (c > 0 && pc_fits(P, v0q, a0q, c, x, lq, l, &v1)) {
-                vp = pc_bisect(P, v0q, a0q, c, vn * (k + 1) / 16, x, lq, l);
+            last = c;
+            if (c > 0 && pc_fits(P, v0q, a0q, c, x, lq, l, &v1t)) {
+                vp = pc_bisect(P, v0q, a0q, c, vn * (k + 1) / 16, x, lq, l, &last);
             }
         }
         if (vp == 0) {
             return false;
         }
     }
-    (void)pc_fits(P, v0q, a0q, vp, x, lq, l, &v1);
-    pc_build(P, v0q, a0q, vp, v1, len, l);
+    if (last != vp || vp != vn) {
+        (void)pc_fits(P, v0q, a0q, vp, x, lq, l, &v1); /* R1 of vp in P, its v1 */
+    }
+    pc_build(P, vp, v1, len, l);
     return true;
 }
 
@@ -333,16 +425,16 @@ static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq)
     return P->total_ns;
 }
 
-/* The block's profile: P over [ta, tb]. */
-static void pc_slice(const sc_profile_t *P, int64_t ta, int64_t tb, int64_t len, sc_profile_t *o)
+/* The block's profile: P over [ta, tb], sa P's state at ta; *e its state
+ * at tb. */
+static void pc_slice(const sc_profile_t *P, int64_t ta, const sc_state_t *sa, int64_t tb,
+                     int64_t len, sc_profile_t *o, sc_state_t *e)
 {
-    sc_state_t sa, e;
     int64_t T = 0, vp;
     int ph;
 
-    sc_eval(P, ta, &sa);
-    sc_eval(P, tb, &e);
-    vp = fx_max64(sa.v_q16, e.v_q16);
+    sc_eval(P, tb, e);
+    vp = fx_max64(sa->v_q16, e->v_q16);
     for (ph = 0; ph < SC_PHASES; ph++) {
         int64_t d = P->t_ns[ph];
         int64_t lo = fx_min64(d, fx_max64(0, ta - T)), hi = fx_min64(d, fx_max64(0, tb - T));
@@ -352,25 +444,25 @@ static void pc_slice(const sc_profile_t *P, int64_t ta, int64_t tb, int64_t len,
         /* a phase outside the slice starts where the slice starts or
          * ends (sc_eval of the slice then agrees at 0 and at its end) */
         if (T + d <= ta) {
-            o->start[ph] = sa;
+            o->start[ph] = *sa;
         } else if (T >= tb) {
-            o->start[ph] = e;
+            o->start[ph] = *e;
         } else if (lo == 0) {
             o->start[ph] = P->start[ph];
         } else {
             sc_eval_phase(P, ph, lo, &o->start[ph]);
         }
-        o->start[ph].s_q16 -= sa.s_q16;
+        o->start[ph].s_q16 -= sa->s_q16;
         if (hi > lo) {
             vp = fx_max64(vp, o->start[ph].v_q16);
         }
         T += d;
     }
-    o->s_end_q16 = e.s_q16 - sa.s_q16;
+    o->s_end_q16 = e->s_q16 - sa->s_q16;
     o->total_ns = tb - ta;
     o->len = len;
-    o->v0 = sa.v_q16 / PC_Q16;
-    o->v1 = e.v_q16 / PC_Q16;
+    o->v0 = sa->v_q16 / PC_Q16;
+    o->v1 = e->v_q16 / PC_Q16;
     o->vp = vp / PC_Q16;
 }
 
@@ -379,61 +471,73 @@ void plan_cont_reset(plan_t *p)
     p->cont_t_ns = 0;
     p->cont_rem = 0;
     p->cont_x = 0;
-    p->cont_v_q16 = 0;
-    p->cont_a_q16 = 0;
+    p->cont_st.s_q16 = 0;
+    p->cont_st.v_q16 = 0;
+    p->cont_st.a_q16 = 0;
     p->cont_kept = 0;
     p->cont_forced = 0;
+    p->cont_scan = 0;
+    p->cont_run_n = 0;
+    p->cont_run_len = 0;
 }
 
 void plan_cont_pop(plan_t *p, plan_seg_t *out)
 {
-    plan_block_t *b = pc_at(p, 0);
+    plan_block_t *b = &p->ring[p->tail];
     sc_profile_t *P = &p->cont_prof;
     sc_limits_t l;
-    sc_state_t st;
-    int64_t len, x, t0 = p->cont_t_ns, tb;
-    uint16_t e;
+    sc_state_t e;
+    int64_t len, x, tb;
 
-    pc_anchors(p);
-    e = pc_run(p, 0, &len);
-    x = (e < p->count) ? pc_at(p, e)->v_entry : 0;
+    pc_first_run(p, &len, &x);
     pc_limits(p, b->lim.v_max, &l);
     if (p->cont_rem != len || p->cont_x != x) {
+        /* the run grew or its exit bound rose: a new plan from the state */
+        sc_state_t st = p->cont_st;
         sc_profile_t np;
-        if (pc_plan_run(&np, p->cont_v_q16, p->cont_a_q16, len, x, &l)) {
+        if (p->cont_rem > 0 && len > p->cont_rem && x == p->cont_x && st.a_q16 == 0 &&
+            P->vp == l.v_max && st.v_q16 == P->vp * PC_Q16 && P->v1 == fx_min64(P->vp, x)) {
+            pc_recruise(P, len); /* cruising at the limit: R2 moves on */
+            p->cont_t_ns = 0;
+        } else if (pc_plan_run(&np, st.v_q16, st.a_q16, len, x, &l)) {
             *P = np;
-            p->cont_rem = len;
-            p->cont_x = x;
-            t0 = 0;
+            p->cont_t_ns = 0;
         } else if (p->cont_rem > 0) {
             p->cont_kept++; /* the plan in force still ends within limits */
+            len = p->cont_rem;
+            x = p->cont_x;
         } else {
             /* no plan from this state (never seen: the tests count it) */
             p->cont_forced++;
-            pc_build(P, p->cont_v_q16, p->cont_a_q16,
-                     fx_max64(1, fx_min64(l.v_max, p->cont_v_q16 / PC_Q16)), 0, len, &l);
-            p->cont_rem = len;
-            p->cont_x = x;
-            t0 = 0;
+            pc_r1(P, st.v_q16, st.a_q16, fx_max64(1, fx_min64(l.v_max, st.v_q16 / PC_Q16)), &l);
+            pc_build(P, fx_max64(1, fx_min64(l.v_max, st.v_q16 / PC_Q16)), 0, len, &l);
+            p->cont_t_ns = 0;
         }
+        p->cont_st.s_q16 = (p->cont_t_ns == 0) ? 0 : p->cont_st.s_q16;
+        p->cont_rem = len;
+        p->cont_x = x;
     }
-    sc_eval(P, t0, &st);
-    tb = (b->len >= p->cont_rem) ? P->total_ns : pc_time_at(P, t0, st.s_q16 + b->len * PC_Q16);
-    pc_slice(P, t0, tb, b->len, &out->prof);
+    tb = (b->len >= p->cont_rem) ? P->total_ns
+                                 : pc_time_at(P, p->cont_t_ns, p->cont_st.s_q16 + b->len * PC_Q16);
+    pc_slice(P, p->cont_t_ns, &p->cont_st, tb, b->len, &out->prof, &e);
     out->total_ns = out->prof.total_ns;
     p->cont_rem -= b->len;
+    if (p->cont_scan > 0u) { /* the first-run cache, one block on */
+        p->cont_scan--;
+        p->cont_run_n = (p->cont_run_n > 0u) ? (uint16_t)(p->cont_run_n - 1u) : 0u;
+        p->cont_run_len -= b->len;
+    }
     if (p->cont_rem <= 0) {
         /* the plan's end: its exit speed at a = 0 */
         out->prof.v1 = P->v1;
         p->cont_rem = 0;
         p->cont_t_ns = 0;
-        p->cont_v_q16 = P->v1 * PC_Q16;
-        p->cont_a_q16 = 0;
+        p->cont_st.s_q16 = 0;
+        p->cont_st.v_q16 = P->v1 * PC_Q16;
+        p->cont_st.a_q16 = 0;
     } else {
-        sc_eval(P, tb, &st);
         p->cont_t_ns = tb;
-        p->cont_v_q16 = st.v_q16;
-        p->cont_a_q16 = st.a_q16;
+        p->cont_st = e;
     }
 }
 
@@ -459,7 +563,7 @@ int64_t plan_cont_queued_ns(const plan_t *p)
         if (i == 0 && p->cont_rem == len && p->cont_x == x) {
             sum += p->cont_prof.total_ns - p->cont_t_ns; /* the plan in force */
         } else {
-            v0 = (i == 0) ? p->cont_v_q16 / PC_Q16 : b->v_entry;
+            v0 = (i == 0) ? p->cont_st.v_q16 / PC_Q16 : b->v_entry;
             pc_limits(p, b->lim.v_max, &l);
             sc_plan(&pr, fx_min64(len, SC_LEN_MAX), v0, x, &l);
             sum += pr.total_ns;

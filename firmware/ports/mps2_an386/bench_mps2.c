@@ -377,6 +377,9 @@ int main(void)
     cmd = semihost_cmdline();
     if (cmd[0] == 'p') { /* "planner": profile the planner workload only */
         bench_planner();
+    } else if (cmd[0] == 'c') { /* "cplanner": the same, continuous S-curve */
+        shape_override = SC_SHAPE_SCURVE_CONTINUOUS;
+        bench_planner();
     } else if (cmd[0] == 't') { /* "tick": the first 1500 running ticks */
         tick_limit = 1500u;
         bench_tick();
