@@ -120,6 +120,41 @@
  * S-curve reaches no further than the trapezoid from any speed), so the
  * incremental plan equals the from-scratch plan and deferred passes apply.
  *
+ * Continuous S-curve (profile.shape = SC_SHAPE_SCURVE_CONTINUOUS, opt-in;
+ * planner_cont.c): jerk-limited with the path acceleration continuous across
+ * block ends. A run is a chain of blocks with the same v_max whose junctions
+ * do not limit it (v_junction >= v_max: no corner limit, stop, reversal or
+ * dwell); a run is planned as one profile and every block is its slice, so
+ * blocks join at non-zero acceleration. Junctions between runs are anchors:
+ * a = 0 there, and the speed at most the anchor's bound, kept in the first
+ * block's v_entry by a reverse pass over the runs in plan_pop (from the
+ * queue's end at rest: bound = min(v_junction, max(reach(next bound, d),
+ * reach(0, d))), d the run's length less a margin, sc_reach of the run's
+ * limits with a = 0 at both ends; a bound never falls). A run's limits
+ * are v_max and the smallest axis a and j less 2^-12 (any direction keeps
+ * every axis within its own limits). plan_pop plans the oldest run from the
+ * path state (v, a) where the last block ended: seven phases as scurve.h's
+ * (R1 from (v, a) to a speed vp at a = 0, a cruise at vp, R2 down to the
+ * exit speed v1 = min(vp, bound), or to rest), vp the highest speed for
+ * which the realised R1 and sc_dist(vp, v1) fit the run (bisection to
+ * 2^-12); the block gets the slice of that profile over its length (its
+ * end the time where the profile reaches it, ns; its states evaluated on
+ * the profile, so speed and acceleration carry over to the next block to
+ * within the q16 rounding). The plan stays in force while the run and its
+ * bound do not change; a pop after a push plans again from the state (a
+ * cruise at the limit only moves R2 on). If no new plan fits, the one in
+ * force stays: it reaches its end within limits (then the path is at rest
+ * at a block end, or at the anchor's bound). So the last queued block
+ * always ends at rest, the speed never goes negative and never passes a
+ * block's v_max, |a| and |j| of the path stay within the run's limits
+ * across block ends (test_interp: random paths, path a and j on every
+ * tick). Not with PLAN_CORNER_SMOOTH (its cap lowers a queued block's v_max
+ * and would cut a run under way: PLAN_E_PROFILE). The estimate pops as the
+ * drive does, so it stays exact. Cost: one pop 3 315 Cortex-M4
+ * instructions on the bench's chords (bench-firmware.sh,
+ * planner_block_instructions_m4_continuous); every run boundary in the
+ * queue adds a reach.
+ *
  * plan_pop() freezes the oldest block: its exit speed (the next block's
  * entry, or 0 if it is the only one) becomes final, its profile is computed
  * (sc_plan) and handed out with its geometry; the interpolator executes it
@@ -312,7 +347,8 @@ plan_result_t plan_pop(plan_t *p, plan_seg_t *out);
 
 /* Deferred passes (off after plan_init; plan_estimate turns it on). Only
  * with SC_SHAPE_TRAPEZOID or SC_SHAPE_SCURVE_AT_REST (an S-curve profile
- * ignores it: see "S-curve reach" above). When on,
+ * ignores it: see "S-curve reach" above; the continuous S-curve always
+ * plans in plan_pop). When on,
  * plan_push only queues the block and computes its limits; the reverse and
  * forward passes run in plan_pop when the oldest block's exit is not final
  * yet (planned < 2), or in plan_update, once for all blocks queued since the
