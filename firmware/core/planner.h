@@ -142,7 +142,8 @@
  * the profile, so speed and acceleration carry over to the next block to
  * within the q16 rounding). The plan stays in force while the run and its
  * bound do not change; a pop after a push plans again from the state (a
- * cruise at the limit only moves R2 on). If no new plan fits, the one in
+ * cruise at the limit only moves R2 on, and not before a block reaches
+ * R2: until then the plan in force gives the block the same cruise). If no new plan fits, the one in
  * force stays: it reaches its end within limits (then the path is at rest
  * at a block end, or at the anchor's bound). So the last queued block
  * always ends at rest, the speed never goes negative and never passes a
@@ -150,7 +151,7 @@
  * across block ends (test_interp: random paths, path a and j on every
  * tick). Not with PLAN_CORNER_SMOOTH (its cap lowers a queued block's v_max
  * and would cut a run under way: PLAN_E_PROFILE). The estimate pops as the
- * drive does, so it stays exact. Cost: one pop 3 315 Cortex-M4
+ * drive does, so it stays exact. Cost: a push and a pop 2 802 Cortex-M4
  * instructions on the bench's chords (bench-firmware.sh,
  * planner_block_instructions_m4_continuous); every run boundary in the
  * queue adds a reach.

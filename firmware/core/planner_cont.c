@@ -450,7 +450,7 @@ static void pc_slice(const sc_profile_t *P, int64_t ta, const sc_state_t *sa, in
         } else if (lo == 0) {
             o->start[ph] = P->start[ph];
         } else {
-            sc_eval_phase(P, ph, lo, &o->start[ph]);
+            o->start[ph] = *sa; /* the phase ta falls in: sa is its state there */
         }
         o->start[ph].s_q16 -= sa->s_q16;
         if (hi > lo) {
@@ -495,8 +495,14 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
         /* the run grew or its exit bound rose: a new plan from the state */
         sc_state_t st = p->cont_st;
         sc_profile_t np;
-        if (p->cont_rem > 0 && len > p->cont_rem && x == p->cont_x && st.a_q16 == 0 &&
-            P->vp == l.v_max && st.v_q16 == P->vp * PC_Q16 && P->v1 == fx_min64(P->vp, x)) {
+        bool cruise = p->cont_rem > 0 && len > p->cont_rem && x == p->cont_x && st.a_q16 == 0 &&
+                      P->vp == l.v_max && st.v_q16 == P->vp * PC_Q16 && P->v1 == fx_min64(P->vp, x);
+        if (cruise && b->len < p->cont_rem && st.s_q16 + b->len * PC_Q16 <= P->start[4].s_q16) {
+            /* cruising at the limit and still before R2: the plan in force
+             * gives this block what a new one would (a longer run only
+             * moves R2 on); planned again when a block reaches R2 */
+            len = p->cont_rem;
+        } else if (cruise) {
             pc_recruise(P, len); /* cruising at the limit: R2 moves on */
             p->cont_t_ns = 0;
         } else if (pc_plan_run(&np, st.v_q16, st.a_q16, len, x, &l)) {
