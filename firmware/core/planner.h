@@ -143,9 +143,10 @@
  * within the q16 rounding). The plan stays in force while the run and its
  * bound do not change; a pop after a push plans again from the state (a
  * cruise at the limit only moves R2 on, and not before a block reaches
- * R2: until then the plan in force gives the block the same cruise). If no new plan fits, the one in
- * force stays: it reaches its end within limits (then the path is at rest
- * at a block end, or at the anchor's bound). So the last queued block
+ * R2: until then the plan in force gives the block the same cruise). If
+ * no new plan fits, the one in force stays: it reaches its end within
+ * limits (then the path is at rest at a block end, or at the anchor's
+ * bound). So the last queued block
  * always ends at rest, the speed never goes negative and never passes a
  * block's v_max, |a| and |j| of the path stay within the run's limits
  * across block ends (test_interp: random paths, path a and j on every
