@@ -16,7 +16,12 @@
 # stuffing (stream_slcan_bus_load_1mbit, and the same frames on a 500 kbit/s
 # bus). Prints stream_blocks_per_second_serial / _slcan,
 # stream_slcan_bits_per_block, stream_slcan_bus_load_1mbit and
-# stream_cam_min_queued_ms / stream_cam_feed_percent.
+# stream_cam_min_queued_ms / stream_cam_feed_percent. Then the CAM job and
+# the 10 um job over serial again with velocity_profile = scurve_continuous
+# (acceleration continuous across blocks): stream_cam_min_queued_ms_continuous,
+# stream_cam_feed_percent_continuous, stream_blocks_per_second_serial_continuous
+# (10 um blocks: the jerk-limited stop within the 0.64 mm of look-ahead is the
+# limit there, not the link).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 N=${STREAM_BENCH_BLOCKS:-20000}
@@ -63,5 +68,25 @@ with spawn() as server:
     print(f"stream_cam_min_queued_ms: {r.min_queued_s * 1000:.1f} ms", flush=True)
     feed = (r.feed_mm_min or 0.0) / (sb.CAM_FEED * 60 / 1e6) * 100
     print(f"stream_cam_feed_percent: {feed:.1f} %", flush=True)
+    c = connect(port=server.serial)
+    with c:
+        gen, total = sb.cam_circle((0, 0, 0), revs=1.0)
+        r = sb.run(c, sb.CAM_PARAMS_CONTINUOUS, lambda s: sb.cam_circle(s, revs=1.0)[0], total)
+        try:
+            r.check()
+        except Exception as exc:  # noqa: BLE001
+            print(f"bench-stream: cam job (continuous): {exc}", file=sys.stderr)
+            failed = True
+        print(f"stream_cam_min_queued_ms_continuous: {r.min_queued_s * 1000:.1f} ms", flush=True)
+        feed = (r.feed_mm_min or 0.0) / (sb.CAM_FEED * 60 / 1e6) * 100
+        print(f"stream_cam_feed_percent_continuous: {feed:.1f} %", flush=True)
+        r = sb.run(c, sb.SHORT_BLOCK_PARAMS_CONTINUOUS, lambda s: sb.short_blocks(s, n), n)
+        try:
+            r.check()
+            rate = r.blocks_per_second
+        except Exception as exc:  # noqa: BLE001
+            print(f"bench-stream: serial (continuous): {exc}", file=sys.stderr)
+            rate, failed = 0.0, True
+        print(f"stream_blocks_per_second_serial_continuous: {rate:.0f} blocks/s", flush=True)
 sys.exit(1 if failed else 0)
 PY

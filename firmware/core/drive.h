@@ -479,7 +479,7 @@ typedef enum {
     DRIVE_PARAM_CORNER_ACC,     /* per axis, nm/s^2           0 .. SC_A_LIMIT   */
     DRIVE_PARAM_JUNCTION_DEV,   /* nm                         0 .. 2^40         */
     DRIVE_PARAM_CORNER,         /* plan_corner_t              0 .. 3            */
-    DRIVE_PARAM_SHAPE,          /* sc_shape_t                 0 .. 2            */
+    DRIVE_PARAM_SHAPE,          /* sc_shape_t                 0 .. 3            */
     DRIVE_PARAM_MIN_BLOCK_NS,   /* ns                         0 .. 10 s         */
     DRIVE_PARAM_MBT_WINDOW,     /* blocks                     1 .. PLAN_WINDOW_MAX */
     DRIVE_PARAM_STOP_DECEL,     /* nm/s^2 (drive_stop)     1000 .. SC_A_LIMIT   */

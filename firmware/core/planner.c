@@ -2,12 +2,28 @@
  * planner.c - look-ahead planner; see planner.h for the rules.
  */
 #include "planner.h"
+#include "planner_cont.h"
 #include "planner_test.h"
 
 #define NS_PER_S    ((int64_t)1000000000)
 #define PL_NOINLINE __attribute__((noinline))
 
 static bool pl_same(const int64_t *lim);
+
+static inline bool pl_cont(const plan_t *p)
+{
+    return p->prof.shape == SC_SHAPE_SCURVE_CONTINUOUS;
+}
+
+/* plan_push defers its passes on request, for a reach that never falls when
+ * its start speed rises (then an entry, once final, stays final whatever
+ * comes later): the trapezoid and the at-rest S-curve, not the S-curve
+ * (planner.h); always for the continuous S-curve (its pass runs in
+ * plan_pop: planner_cont.c). */
+static void pl_pass_mode(plan_t *p)
+{
+    p->defer_passes = (p->deferred && p->prof.shape != SC_SHAPE_SCURVE) || pl_cont(p);
+}
 
 static plan_block_t *pl_at(const plan_t *p, uint16_t i)
 {
@@ -56,8 +72,9 @@ plan_result_t plan_check_profile(const plan_profile_t *prof)
     if (prof->mbt_window < 1 || prof->mbt_window > PLAN_WINDOW_MAX) {
         return PLAN_E_PROFILE;
     }
-    if (prof->corner > PLAN_CORNER_STOP || prof->shape > SC_SHAPE_SCURVE_AT_REST) {
-        return PLAN_E_PROFILE;
+    if (prof->corner > PLAN_CORNER_STOP || prof->shape > SC_SHAPE_SCURVE_CONTINUOUS ||
+        (prof->shape == SC_SHAPE_SCURVE_CONTINUOUS && prof->corner == PLAN_CORNER_SMOOTH)) {
+        return PLAN_E_PROFILE; /* (planner.h: no smoothed corner with the continuous shape) */
     }
     return PLAN_OK;
 }
@@ -87,6 +104,7 @@ void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES])
     p->win_sum = 0;
     p->cruise_v = 0;
     p->cruise_rec = 0;
+    plan_cont_reset(p);
 }
 
 /* The profile and what plan_push derives from it once (every field that
@@ -94,6 +112,10 @@ void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES])
 static void pl_derive(plan_t *p, const plan_profile_t *prof)
 {
     p->prof = *prof;
+    /* continuous S-curve: the blocks' own limits are S-curve limits */
+    p->blk_shape =
+        (prof->shape == SC_SHAPE_SCURVE_CONTINUOUS) ? (uint8_t)SC_SHAPE_SCURVE : prof->shape;
+    pl_pass_mode(p);
     p->same_limits = pl_same(prof->v_max) && pl_same(prof->a_max) && pl_same(prof->j_max);
     {
         int64_t amin = prof->a_max[0];
@@ -126,10 +148,10 @@ plan_result_t plan_init(plan_t *p, plan_block_t *storage, uint16_t depth,
     if (rc != PLAN_OK) {
         return rc;
     }
+    p->deferred = false;
     pl_derive(p, prof);
     p->ring = storage;
     p->depth = depth;
-    p->deferred = false;
     p->jd_fast_off = false;
     plan_reset(p, start);
     return PLAN_OK;
@@ -673,25 +695,18 @@ static void pl_replan(plan_t *p)
     p->planned = planned;
 }
 
-/* Deferred passes need a reach that never falls when its start speed rises
- * (then an entry, once final, stays final whatever comes later): true of
- * the trapezoid and of the at-rest S-curve, not of the S-curve (planner.h). */
-static bool pl_deferred(const plan_t *p)
-{
-    return p->deferred && p->prof.shape != SC_SHAPE_SCURVE;
-}
-
 void plan_set_deferred(plan_t *p, bool on)
 {
     p->deferred = on;
-    if (!on && p->fresh != p->count) {
+    pl_pass_mode(p);
+    if (!p->defer_passes && p->fresh != p->count) {
         pl_replan(p);
     }
 }
 
 void plan_update(plan_t *p)
 {
-    if (p->fresh != p->count) {
+    if (p->fresh != p->count && !pl_cont(p)) {
         pl_replan(p);
     }
 }
@@ -755,7 +770,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         b->lim.v_max = 0;
         b->lim.a_max = p->prof.a_max[0];
         b->lim.j_max = p->prof.j_max[0];
-        b->lim.shape = p->prof.shape;
+        b->lim.shape = p->blk_shape;
         b->v_junction = 0;
         b->v_corner_in = INT64_MAX;
         sc_reach_k_init(&b->rk, 0, &b->lim, -1, -1);
@@ -763,7 +778,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         b->flags = PLAN_BF_DWELL | PLAN_BF_EXACT_STOP;
         p->last_stop = true;
         p->count++;
-        if (!pl_deferred(p)) {
+        if (!p->defer_passes) {
             pl_replan(p);
         }
         return PLAN_OK;
@@ -870,7 +885,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     b->lim.v_max = vmax;
     b->lim.a_max = amax;
     b->lim.j_max = jmax;
-    b->lim.shape = p->prof.shape;
+    b->lim.shape = p->blk_shape;
     if (aaj > 0) {
         /* lower bound; the exact values when needed */
         sc_reach_k_init(&b->rk, len, &b->lim, aaj, -1);
@@ -887,7 +902,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     p->last_vmax = vmax;
     p->last_stop = (flags & PLAN_BF_EXACT_STOP) != 0;
     p->count++;
-    if (!pl_deferred(p)) {
+    if (!p->defer_passes) {
         pl_replan(p);
     }
     return PLAN_OK;
@@ -905,7 +920,7 @@ plan_result_t plan_pop(plan_t *p, plan_seg_t *out)
     if (p->count == 0) {
         return PLAN_E_EMPTY;
     }
-    if (p->count > 1 && p->planned < 2 && p->fresh != p->count) {
+    if (p->count > 1 && p->planned < 2 && p->fresh != p->count && !pl_cont(p)) {
         pl_replan(p); /* deferred passes: the next entry is not final yet */
     }
     b = pl_at(p, 0);
@@ -929,6 +944,8 @@ plan_result_t plan_pop(plan_t *p, plan_seg_t *out)
         out->prof.total_ns = 0;
         out->prof.s_end_q16 = 0;
         out->total_ns = b->dwell_ns;
+    } else if (pl_cont(p)) {
+        plan_cont_pop(p, out);
     } else {
         if (b->v_entry == exit && exit >= 1 && exit >= b->lim.v_max) {
             /* cruise only: the reciprocal of its speed kept while it stays */
@@ -962,6 +979,9 @@ int64_t plan_queued_ns(const plan_t *p)
     int64_t sum = 0;
     uint16_t i;
 
+    if (pl_cont(p)) {
+        return plan_cont_queued_ns(p);
+    }
     for (i = 0; i < p->count; i++) {
         const plan_block_t *b = pl_at(p, i);
         if (b->dwell_ns > 0) {

@@ -120,6 +120,43 @@
  * S-curve reaches no further than the trapezoid from any speed), so the
  * incremental plan equals the from-scratch plan and deferred passes apply.
  *
+ * Continuous S-curve (profile.shape = SC_SHAPE_SCURVE_CONTINUOUS, opt-in;
+ * planner_cont.c): jerk-limited with the path acceleration continuous across
+ * block ends. A run is a chain of blocks with the same v_max whose junctions
+ * do not limit it (v_junction >= v_max: no corner limit, stop, reversal or
+ * dwell); a run is planned as one profile and every block is its slice, so
+ * blocks join at non-zero acceleration. Junctions between runs are anchors:
+ * a = 0 there, and the speed at most the anchor's bound, kept in the first
+ * block's v_entry by a reverse pass over the runs in plan_pop (from the
+ * queue's end at rest: bound = min(v_junction, max(reach(next bound, d),
+ * reach(0, d))), d the run's length less a margin, sc_reach of the run's
+ * limits with a = 0 at both ends; a bound never falls). A run's limits
+ * are v_max and the smallest axis a and j less 2^-12 (any direction keeps
+ * every axis within its own limits). plan_pop plans the oldest run from the
+ * path state (v, a) where the last block ended: seven phases as scurve.h's
+ * (R1 from (v, a) to a speed vp at a = 0, a cruise at vp, R2 down to the
+ * exit speed v1 = min(vp, bound), or to rest), vp the highest speed for
+ * which the realised R1 and sc_dist(vp, v1) fit the run (bisection to
+ * 2^-12); the block gets the slice of that profile over its length (its
+ * end the time where the profile reaches it, ns; its states evaluated on
+ * the profile, so speed and acceleration carry over to the next block to
+ * within the q16 rounding). The plan stays in force while the run and its
+ * bound do not change; a pop after a push plans again from the state (a
+ * cruise at the limit only moves R2 on, and not before a block reaches
+ * R2: until then the plan in force gives the block the same cruise). If
+ * no new plan fits, the one in force stays: it reaches its end within
+ * limits (then the path is at rest at a block end, or at the anchor's
+ * bound). So the last queued block
+ * always ends at rest, the speed never goes negative and never passes a
+ * block's v_max, |a| and |j| of the path stay within the run's limits
+ * across block ends (test_interp: random paths, path a and j on every
+ * tick). Not with PLAN_CORNER_SMOOTH (its cap lowers a queued block's v_max
+ * and would cut a run under way: PLAN_E_PROFILE). The estimate pops as the
+ * drive does, so it stays exact. Cost: a push and a pop 2 802 Cortex-M4
+ * instructions on the bench's chords (bench-firmware.sh,
+ * planner_block_instructions_m4_continuous); every run boundary in the
+ * queue adds a reach.
+ *
  * plan_pop() freezes the oldest block: its exit speed (the next block's
  * entry, or 0 if it is the only one) becomes final, its profile is computed
  * (sc_plan) and handed out with its geometry; the interpolator executes it
@@ -247,6 +284,9 @@ typedef struct {
     uint16_t fresh;                    /* blocks planned by the last pass (the
                                         * rest were queued after it)             */
     bool deferred;                     /* passes deferred to plan_pop/update   */
+    bool defer_passes;                 /* plan_push leaves the passes (the
+                                        * request and the shape: pl_pass_mode) */
+    uint8_t blk_shape;                 /* the blocks' sc_limits_t shape        */
     pos_nm_t pos[CORE_AXES];           /* end point of the last queued block */
     int64_t last_ratio_q62[CORE_AXES]; /* direction of the last move   */
     int32_t last_q30[CORE_AXES];       /* the same in q1_30 (truncated)  */
@@ -266,6 +306,21 @@ typedef struct {
     bool jd_fast_off;    /* tests only (planner_test.h): false after
                           * plan_init; true skips this planner's
                           * junction-deviation early exit              */
+    /* continuous S-curve (planner_cont.c): the plan of the current run
+     * from the next block's start on, and the path state there */
+    sc_profile_t cont_prof; /* the run's remaining profile              */
+    int64_t cont_t_ns;      /* time into cont_prof of the next block    */
+    int64_t cont_rem;       /* distance cont_prof still covers, nm (0:
+                             * none: the next pop plans from the state) */
+    int64_t cont_x;         /* exit bound cont_prof was planned for     */
+    sc_state_t cont_st;     /* path state at the next block's start: s on
+                             * cont_prof at cont_t_ns, v, a (q16)       */
+    uint16_t cont_scan;     /* blocks the last pop's pass saw, and the  */
+    uint16_t cont_run_n;    /* blocks of its oldest run (the queue's  */
+    int64_t cont_run_len;   /* first blocks), its length (nm)           */
+    uint32_t cont_kept;     /* pops that kept cont_prof because no new
+                             * plan fitted (tests: rare)                */
+    uint32_t cont_forced;   /* pops with no feasible plan (tests: 0)    */
 } plan_t;
 
 /* Validate the profile and initialise an empty planner at `start` (nm).
@@ -294,7 +349,8 @@ plan_result_t plan_pop(plan_t *p, plan_seg_t *out);
 
 /* Deferred passes (off after plan_init; plan_estimate turns it on). Only
  * with SC_SHAPE_TRAPEZOID or SC_SHAPE_SCURVE_AT_REST (an S-curve profile
- * ignores it: see "S-curve reach" above). When on,
+ * ignores it: see "S-curve reach" above; the continuous S-curve always
+ * plans in plan_pop). When on,
  * plan_push only queues the block and computes its limits; the reverse and
  * forward passes run in plan_pop when the oldest block's exit is not final
  * yet (planned < 2), or in plan_update, once for all blocks queued since the

@@ -236,6 +236,7 @@
 #define PROTO_VELOCITY_PROFILE_SCURVE 0u /* S-curve (jerk-limited) */
 #define PROTO_VELOCITY_PROFILE_TRAPEZOID 1u /* trapezoid */
 #define PROTO_VELOCITY_PROFILE_SCURVE_AT_REST 2u /* S-curve only for blocks that start or end at rest */
+#define PROTO_VELOCITY_PROFILE_SCURVE_CONTINUOUS 3u /* jerk-limited with the acceleration continuous across blocks */
 
 /* What the drive did with its saved parameters at start-up (param param_store_status). */
 #define PROTO_PARAM_STORE_STATUS_NONE 0u /* nothing saved: defaults */

@@ -104,10 +104,14 @@
 #define SC_TJ_MAX_NS ((int64_t)3000000000) /* a_max / j_max at most 3 s */
 
 typedef enum {
-    SC_SHAPE_SCURVE = 0,        /* jerk-limited, acceleration zero at block ends */
-    SC_SHAPE_TRAPEZOID = 1,     /* acceleration-limited, jerk unbounded          */
-    SC_SHAPE_SCURVE_AT_REST = 2 /* S-curve where a speed involved is 0, else
-                                 * trapezoid (see "At-rest S-curve" above)  */
+    SC_SHAPE_SCURVE = 0,           /* jerk-limited, acceleration zero at block ends */
+    SC_SHAPE_TRAPEZOID = 1,        /* acceleration-limited, jerk unbounded          */
+    SC_SHAPE_SCURVE_AT_REST = 2,   /* S-curve where a speed involved is 0, else
+                                    * trapezoid (see "At-rest S-curve" above) */
+    SC_SHAPE_SCURVE_CONTINUOUS = 3 /* jerk-limited with the acceleration
+                                    * continuous across blocks: a planner
+                                    * shape (planner.h); the functions below
+                                    * never see it (blocks get the S-curve) */
 } sc_shape_t;
 
 typedef struct {

@@ -21,8 +21,10 @@ are rounded to the nearest nm.
 Profile options (see docs/planner.md for the rules):
 
 - ``shape``: ``"s-curve"`` (jerk-limited, acceleration zero at block ends),
-  ``"trapezoid"`` or ``"s-curve-at-rest"`` (S-curve for a block whose entry or
-  exit speed is 0, trapezoid for every other block).
+  ``"trapezoid"``, ``"s-curve-at-rest"`` (S-curve for a block whose entry or
+  exit speed is 0, trapezoid for every other block) or ``"s-curve-continuous"``
+  (jerk-limited with the path acceleration continuous across blocks: runs of
+  blocks planned as one profile; not with ``"smoothed-corner"``).
 - ``corner``: ``"junction-deviation"`` (the drive's default, with
   ``junction_deviation_mm``), ``"velocity-step"`` (per-axis ``corner_dv_mm_s``),
   ``"smoothed-corner"`` (per-axis ``corner_acc_mm_s2``: v = min_i sqrt(a_i l /
@@ -56,7 +58,7 @@ AXES = 3
 NM_PER_MM = 1_000_000
 NS_PER_S = 1_000_000_000
 
-SHAPES = {"s-curve": 0, "trapezoid": 1, "s-curve-at-rest": 2}
+SHAPES = {"s-curve": 0, "trapezoid": 1, "s-curve-at-rest": 2, "s-curve-continuous": 3}
 CORNERS = {"junction-deviation": 0, "velocity-step": 1, "smoothed-corner": 2, "exact-stop": 3}
 BLOCK_TIME_RULES = ("throughput", "cap")
 
@@ -144,6 +146,11 @@ class PlannerProfile:
             raise UserError(f"shape must be one of {', '.join(SHAPES)}, got {self.shape!r}")
         if self.corner not in CORNERS:
             raise UserError(f"corner must be one of {', '.join(CORNERS)}, got {self.corner!r}")
+        if self.shape == "s-curve-continuous" and self.corner == "smoothed-corner":
+            raise UserError(
+                "shape 's-curve-continuous' cannot use corner 'smoothed-corner' (its block "
+                "cap lowers a queued block's speed, which could cut a run under way)"
+            )
         if self.block_time_rule not in BLOCK_TIME_RULES:
             raise UserError(
                 f"block_time_rule must be one of {', '.join(BLOCK_TIME_RULES)}, "

@@ -326,6 +326,7 @@ class VelocityProfile(IntEnum):
     SCURVE = 0
     TRAPEZOID = 1
     SCURVE_AT_REST = 2
+    SCURVE_CONTINUOUS = 3
 
 
 class ParamStoreStatus(IntEnum):
@@ -1689,12 +1690,12 @@ PARAMS = (
         'u8',
         '',
         0,
-        2,
+        3,
         0,
         'rw',
         False,
         'drive',
-        'Planner block profile: 0 S-curve (jerk-limited), 1 trapezoid, 2 S-curve only for blocks that start or end at rest.',
+        'Planner block profile: 0 S-curve (jerk-limited), 1 trapezoid, 2 S-curve only for blocks that start or end at rest, 3 jerk-limited with the acceleration continuous across blocks.',
         '',
         1,
         'velocity_profile',

@@ -123,3 +123,16 @@ def test_arcs_become_the_drive_chords(estimate):
     # 4 arcs plus a full circle, each cut into many chords within 200 nm
     assert estimate["planner_blocks"] > 100
     assert estimate["blocks"] == 11 + 301
+
+
+@pytest.mark.parametrize(
+    "code,name",
+    [(0, "s-curve"), (1, "trapezoid"), (2, "s-curve-at-rest"), (3, "s-curve-continuous")],
+)
+def test_drive_profile_reads_every_shape(monkeypatch, code, name):
+    # the estimate plans with the shape the drive runs (shapes 2 and 3 were
+    # read back as the trapezoid)
+    values = {"shape": code, "corner": 0, "mbt_window": 1, "v_max": 10**9, "a_max": 10**10}
+    values.update({"j_max": 10**12, "junction_dev": 10000})
+    monkeypatch.setattr(job.core, "drive_param", lambda n, axis=0: values.get(n, 0))
+    assert job.drive_profile(3, 10000).shape == name

@@ -64,6 +64,31 @@ def test_s_curve_at_rest_shape():
     assert a.total_s == pytest.approx(s.total_s, abs=1e-9)
 
 
+def test_s_curve_continuous_shape():
+    # the CAM circle of the stream bench (0.05 mm chords of R 20 mm at F10000,
+    # 10 m/s^2, 1000 m/s^3): the continuous S-curve runs it at feed between
+    # a jerk-limited start and stop, joining blocks at non-zero acceleration;
+    # the per-block S-curve (acceleration 0 at every block end) cannot
+    n = 2000
+    ang = np.arange(1, n + 1) * 0.05 / 20.0
+    pts = np.stack([20 * np.cos(ang), 20 * np.sin(ang), 0 * ang], axis=1)
+    tuned = dict(a_max_mm_s2=(10000.0,) * 3, j_max_mm_s3=(1e6,) * 3)
+    ideal = n * 0.05 / (10000 / 60)
+    r = Planner(_prof(shape="s-curve-continuous", **tuned)).estimate(
+        pts, feed_mm_min=10000, start_mm=(20, 0, 0)
+    )
+    assert ideal < r.total_s < ideal + 0.04
+    mid = r.blocks[n // 2]
+    assert mid["v_peak_mm_s"] == pytest.approx(10000 / 60, rel=1e-6)
+    assert r.blocks[-1]["v_exit_mm_s"] == 0
+    slow = Planner(_prof(shape="s-curve", **tuned)).estimate(
+        pts, feed_mm_min=10000, start_mm=(20, 0, 0)
+    )
+    assert slow.total_s > 3 * r.total_s
+    with pytest.raises(UserError, match="smoothed-corner"):
+        _prof(shape="s-curve-continuous", corner="smoothed-corner").to_c()
+
+
 def test_corner_rules_and_exact_stop():
     pts = [[100, 0, 0], [100, 100, 0]]
     jd = Planner(_prof(corner="junction-deviation")).estimate(pts, 24000)

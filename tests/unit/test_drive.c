@@ -635,7 +635,7 @@ static void test_parameters_are_checked_and_never_half_applied(void)
     TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID,
                           drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE_AT_REST));
     TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID,
-                          drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE_AT_REST + 1));
+                          drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE_CONTINUOUS + 1));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_SHAPE, 0, &v));
     TEST_ASSERT_EQUAL_INT64(SC_SHAPE_TRAPEZOID, v);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_A_MAX, 0, 3000000000));

@@ -254,6 +254,65 @@ static void test_random_path_scurve_at_rest(void)
     TEST_ASSERT_TRUE(r.total_ticks_ok);
 }
 
+/* Continuous S-curve: blocks joined at non-zero path acceleration (many
+ * block ends passed while accelerating), the path's acceleration and jerk
+ * within the smallest axis limits on every tick, block ends included, the
+ * axis references within their limits, and execution equal to the
+ * estimate (the same pops). */
+static void test_random_path_scurve_continuous(void)
+{
+    pc_result_t r;
+    pc_run(20000, 250000, 1234u, SC_SHAPE_SCURVE_CONTINUOUS, &r); /* the rough paths */
+    if (getenv("INTERP_REPORT")) {
+        pc_print("interp_scurve_continuous_rough_4khz", &r);
+    }
+    TEST_ASSERT_EQUAL_UINT32(20000, r.blocks);
+    TEST_ASSERT_EQUAL_UINT32(0, r.limit_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.time_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.underruns);
+    TEST_ASSERT_EQUAL_UINT32(0, r.cont_forced);
+    TEST_ASSERT_TRUE(r.final_exact);
+    TEST_ASSERT_TRUE(r.total_ticks_ok);
+    pc_smooth_paths = true;
+    pc_run(20000, 250000, 31337u, SC_SHAPE_SCURVE_CONTINUOUS, &r);
+    pc_smooth_paths = false;
+    if (getenv("INTERP_REPORT")) {
+        pc_print("interp_scurve_continuous_4khz", &r);
+    }
+    TEST_ASSERT_EQUAL_UINT32(20000, r.blocks);
+    TEST_ASSERT_TRUE(r.joins_accel > 1000); /* continuity is used */
+    TEST_ASSERT_TRUE(r.max_j_ratio > 0.5);  /* the jerk limit is reached */
+    TEST_ASSERT_TRUE(r.max_path_a_ratio > 0.5);
+    TEST_ASSERT_EQUAL_UINT32(0, r.limit_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.time_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.underruns);
+    TEST_ASSERT_EQUAL_UINT32(0, r.cont_forced);
+    TEST_ASSERT_TRUE(r.final_exact);
+    TEST_ASSERT_TRUE(r.total_ticks_ok);
+}
+
+/* The same when the feed stops every 700 blocks: the drive comes to rest
+ * at the end of what it has queued (the last queued block ends at rest)
+ * within every limit, and goes on when blocks come again. */
+static void test_random_path_scurve_continuous_stalls(void)
+{
+    pc_result_t r;
+    pc_stall_every = 700;
+    pc_smooth_paths = true;
+    pc_run(20000, 250000, 4711u, SC_SHAPE_SCURVE_CONTINUOUS, &r);
+    pc_smooth_paths = false;
+    pc_stall_every = 0;
+    if (getenv("INTERP_REPORT")) {
+        pc_print("interp_scurve_continuous_stalls_4khz", &r);
+    }
+    TEST_ASSERT_EQUAL_UINT32(20000, r.blocks);
+    TEST_ASSERT_TRUE(r.stalls >= 28);
+    TEST_ASSERT_EQUAL_UINT32(0, r.limit_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.underruns);
+    TEST_ASSERT_EQUAL_UINT32(0, r.cont_forced);
+    TEST_ASSERT_TRUE(r.final_exact);
+}
+
 /* Smoothed-corner rule with its block cap (each block capped by the larger
  * of its two corner speeds, known only once the next block is queued): the
  * drive-style push-before-pop loop still executes exactly the estimate. */
@@ -350,5 +409,7 @@ int main(void)
     RUN_TEST(test_random_path_trapezoid);
     RUN_TEST(test_random_path_smooth_corner);
     RUN_TEST(test_random_path_scurve_at_rest);
+    RUN_TEST(test_random_path_scurve_continuous);
+    RUN_TEST(test_random_path_scurve_continuous_stalls);
     return UNITY_END();
 }

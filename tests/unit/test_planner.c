@@ -624,6 +624,106 @@ static void test_scurve_at_rest_single_and_reversal(void)
     }
 }
 
+/* Continuous S-curve on the tuned machine (10 m/s^2, 1000 m/s^3): a circle
+ * of 0.05 mm chords at F10000 through a 64-block ring, popped as the
+ * drive pops (push until full, then pop). Blocks run at the programmed
+ * feed (0.3 ms per chord) once up to speed; the path's speed and
+ * acceleration at the end of each block are those at the start of the
+ * next (joined at non-zero acceleration while the speed changes); the
+ * speed never goes negative and the last block ends at rest. The
+ * per-block S-curve (shape 0) takes far longer on the same job. */
+static void cont_circle(uint8_t shape, uint32_t n, int64_t *total, int64_t *mid_ns,
+                        uint32_t *joins_acc, int64_t *max_dv, int64_t *max_da)
+{
+    static plan_block_t ring[PLAN_DEPTH_DEFAULT];
+    static plan_seg_t seg;
+    plan_profile_t a = base_profile(shape, PLAN_CORNER_JD);
+    const pos_nm_t o[CORE_AXES] = {20000000, 0, 0};
+    sc_state_t end = {0, 0, 0};
+    plan_t p;
+    uint32_t next = 0, popped = 0;
+    int i;
+
+    for (i = 0; i < CORE_AXES; i++) {
+        a.a_max[i] = 10000 * MMS;
+        a.j_max[i] = 1000000 * MMS;
+    }
+    *total = 0;
+    *joins_acc = 0;
+    *max_dv = 0;
+    *max_da = 0;
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&p, ring, PLAN_DEPTH_DEFAULT, &a, o));
+    while (popped < n) {
+        while (next < n && plan_free_slots(&p) > 0) {
+            double ang = 2.0 * M_PI * (double)(next + 1) * 0.05 / (2.0 * M_PI * 20.0);
+            plan_move_t m;
+            memset(&m, 0, sizeof(m));
+            m.target[0] = (int64_t)llround(20000000.0 * cos(ang));
+            m.target[1] = (int64_t)llround(20000000.0 * sin(ang));
+            m.feed = 10000 * MMS / 60;
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&p, &m));
+            next++;
+        }
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&p, &seg));
+        {
+            sc_state_t st0, st1;
+            sc_eval(&seg.prof, 0, &st0);
+            sc_eval(&seg.prof, seg.total_ns, &st1);
+            if (popped > 0) {
+                int64_t dv = st0.v_q16 - end.v_q16, da = (st0.a_q16 - end.a_q16) / 65536;
+                *max_dv = fx_max64(*max_dv, dv < 0 ? -dv : dv);
+                *max_da = fx_max64(*max_da, da < 0 ? -da : da);
+                if ((st0.a_q16 < 0 ? -st0.a_q16 : st0.a_q16) / 65536 >= 1000 * MMS) {
+                    (*joins_acc)++;
+                }
+            }
+            TEST_ASSERT_TRUE(st0.v_q16 >= 0 && st1.v_q16 >= -65536);
+            for (i = 0; i < SC_PHASES; i++) {
+                TEST_ASSERT_TRUE(seg.prof.start[i].v_q16 >= -65536);
+            }
+            end = st1;
+        }
+        *total += seg.total_ns;
+        if (popped == n / 2) {
+            *mid_ns = seg.total_ns;
+        }
+        popped++;
+    }
+    TEST_ASSERT_EQUAL_INT64(0, seg.prof.v1);
+}
+
+static void test_scurve_continuous_cam_circle(void)
+{
+    int64_t total, mid = 0, dv, da, total0, mid0 = 0;
+    uint32_t joins;
+    double ideal = 2000 * 0.05 / (10000.0 / 60.0); /* s */
+
+    cont_circle(SC_SHAPE_SCURVE_CONTINUOUS, 2000, &total, &mid, &joins, &dv, &da);
+    printf("continuous: %.4f s (ideal %.4f s), mid block %lld ns, %u joins accelerating, "
+           "max step v %lld q16, a %lld nm/s^2\n",
+           (double)total * 1e-9, ideal, (long long)mid, joins, (long long)dv, (long long)da);
+    TEST_ASSERT_INT64_WITHIN(300, 300000, mid);            /* at feed: 0.3 ms +- 0.1 % */
+    TEST_ASSERT_TRUE((double)total * 1e-9 < ideal + 0.04); /* start and stop: ~33 ms */
+    TEST_ASSERT_TRUE(joins > 20);                          /* joined while accelerating */
+    TEST_ASSERT_TRUE(dv < 16 * 65536);                     /* speed continuous (rounding) */
+    TEST_ASSERT_TRUE(da < 4000);                           /* acceleration continuous */
+    cont_circle(SC_SHAPE_SCURVE, 2000, &total0, &mid0, &joins, &dv, &da);
+    TEST_ASSERT_TRUE(total0 > 3 * total);
+    TEST_ASSERT_EQUAL_UINT32(0, joins); /* a = 0 at every block end */
+}
+
+static void test_scurve_continuous_profile_rules(void)
+{
+    plan_profile_t a = base_profile(SC_SHAPE_SCURVE_CONTINUOUS, PLAN_CORNER_JD);
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_check_profile(&a));
+    a.corner = PLAN_CORNER_SMOOTH; /* the corner cap would cut a run under way */
+    TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&a));
+    a.corner = PLAN_CORNER_STOP;
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_check_profile(&a));
+    a.j_max[2] = 100 * MMS; /* a/j = 20 s > 3 s: jerk used */
+    TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&a));
+}
+
 static void test_scurve_at_rest_micro_blocks(void)
 {
     plan_profile_t a = base_profile(SC_SHAPE_SCURVE_AT_REST, PLAN_CORNER_JD);
@@ -814,7 +914,7 @@ static void test_queue_time_slots_and_errors(void)
     bad = s;
     bad.shape = SC_SHAPE_SCURVE_AT_REST;
     TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_check_profile(&bad));
-    bad.shape = SC_SHAPE_SCURVE_AT_REST + 1;
+    bad.shape = SC_SHAPE_SCURVE_CONTINUOUS + 1;
     TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&bad));
     bad = s;
     bad.mbt_window = 0;
@@ -1113,6 +1213,8 @@ int main(void)
     RUN_TEST(test_deferred_pops_equal_immediate);
     RUN_TEST(test_scurve_at_rest_single_and_reversal);
     RUN_TEST(test_scurve_at_rest_micro_blocks);
+    RUN_TEST(test_scurve_continuous_cam_circle);
+    RUN_TEST(test_scurve_continuous_profile_rules);
     RUN_TEST(test_scurve_at_rest_block_shapes);
     RUN_TEST(test_scurve_at_rest_incremental_and_deferred);
     RUN_TEST(test_queue_time_slots_and_errors);

@@ -21,6 +21,8 @@
  *                 circle with a 3-axis component, feed 50 mm/s.
  *   helpers       sc_muldiv (128/64 multiply-divide), a 64-bit division and
  *                 fx_isqrt64 per call: where the tick and block costs go.
+ *   both again with velocity_profile = scurve_continuous: the same names
+ *                 with the suffix _continuous.
  * Prints `name: value unit` lines on UART0, then exits QEMU (semihosting).
  */
 #include "app.h"
@@ -66,9 +68,15 @@ static void put_u32(uint32_t v)
     put(&buf[i]);
 }
 
+/* the planner's velocity profile of the tick and planner workloads (the
+ * drive's default unless set), and the suffix of their figure names */
+static int shape_override = -1;
+static const char *fig_suffix = "";
+
 static void line(const char *name, uint32_t v, const char *unit)
 {
     put(name);
+    put(fig_suffix);
     put(": ");
     put_u32(v);
     put(" ");
@@ -163,6 +171,9 @@ static void bench_tick(void)
     app_board_t board = {0};
 
     plant_drive_config(&cfg, MPS2_TICK_HZ, AXES);
+    if (shape_override >= 0) {
+        cfg.plan.shape = (uint8_t)shape_override;
+    }
     board.board_id = BOOT_BOARD_QEMU;
     board.node_id = 1u;
     board.drive = &cfg; /* no link: the tick and the planner alone */
@@ -243,6 +254,9 @@ static void bench_planner(void)
     int64_t x = 5000000, y = 0;
 
     plant_drive_config(&cfg, MPS2_TICK_HZ, AXES);
+    if (shape_override >= 0) {
+        cfg.plan.shape = (uint8_t)shape_override;
+    }
     if (plan_init(&p, ring, PLAN_DEPTH_DEFAULT, &cfg.plan, origin) != PLAN_OK) {
         put("bench: plan_init refused\n");
         return;
@@ -363,6 +377,9 @@ int main(void)
     cmd = semihost_cmdline();
     if (cmd[0] == 'p') { /* "planner": profile the planner workload only */
         bench_planner();
+    } else if (cmd[0] == 'c') { /* "cplanner": the same, continuous S-curve */
+        shape_override = SC_SHAPE_SCURVE_CONTINUOUS;
+        bench_planner();
     } else if (cmd[0] == 't') { /* "tick": the first 1500 running ticks */
         tick_limit = 1500u;
         bench_tick();
@@ -371,6 +388,12 @@ int main(void)
         bench_tick();
         bench_helpers();
         bench_comp2d();
+        /* the same tick and planner workloads with the continuous S-curve
+         * (figures named *_continuous) */
+        shape_override = SC_SHAPE_SCURVE_CONTINUOUS;
+        fig_suffix = "_continuous";
+        bench_planner();
+        bench_tick();
     }
     while (!hal_uart_tx_idle()) {
     }

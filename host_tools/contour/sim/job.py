@@ -232,7 +232,9 @@ CORNERS = {0: "junction-deviation", 1: "velocity-step", 2: "smoothed-corner", 3:
 def drive_profile(axes: int, tick_hz: int):
     """The running simulated drive's planner profile as a
     :class:`contour.planner.PlannerProfile` (read with drive_param_get)."""
-    from contour.planner import PlannerProfile
+    from contour.planner import SHAPES, PlannerProfile
+
+    shapes = {v: k for k, v in SHAPES.items()}
 
     def per_axis(name: str, scale: float) -> list:
         return [core.drive_param(name, min(i, axes - 1)) / scale for i in range(3)]
@@ -244,7 +246,7 @@ def drive_profile(axes: int, tick_hz: int):
         j_max_mm_s3=per_axis("j_max", 1e6),
         corner_dv_mm_s=per_axis("corner_dv", 1e6),
         corner_acc_mm_s2=per_axis("corner_acc", 1e6),
-        shape="trapezoid" if core.drive_param("shape") else "s-curve",
+        shape=shapes[core.drive_param("shape")],
         corner=CORNERS[core.drive_param("corner")],
         junction_deviation_mm=core.drive_param("junction_dev") / 1e6,
         min_block_time_s=core.drive_param("min_block_ns") / 1e9,

@@ -37,6 +37,9 @@ plan_profile_t pc_profile(uint8_t shape)
 
 static uint64_t pc_rs;
 
+uint32_t pc_stall_every;
+bool pc_smooth_paths;
+
 static uint64_t pc_rnd(void)
 {
     pc_rs ^= pc_rs << 13;
@@ -53,19 +56,24 @@ static double pc_uni(void)
 static void pc_moves(plan_move_t *m, uint32_t n)
 {
     double dir[3] = {1, 0, 0}, pos[3] = {0, 0, 0};
+    double wander = pc_smooth_paths ? 0.01 : 0.3, turn = pc_smooth_paths ? 0.01 : 0.05;
+    int64_t feed = 0;
     uint32_t k;
     int i;
 
     for (k = 0; k < n; k++) {
         double len = exp(log(0.02) + pc_uni() * (log(3.0) - log(0.02))); /* mm */
         double r = pc_uni(), nrm = 0;
-        if (r < 0.05) { /* sharp turn or reversal */
+        if (pc_smooth_paths) { /* CAM-like: short chords */
+            len *= 0.1;
+        }
+        if (r < turn) { /* sharp turn or reversal */
             for (i = 0; i < 3; i++) {
                 dir[i] = pc_uni() * 2 - 1;
             }
         } else { /* gentle wander */
             for (i = 0; i < 3; i++) {
-                dir[i] += (pc_uni() * 2 - 1) * 0.3;
+                dir[i] += (pc_uni() * 2 - 1) * wander;
             }
         }
         for (i = 0; i < 3; i++) {
@@ -78,7 +86,10 @@ static void pc_moves(plan_move_t *m, uint32_t n)
             pos[i] += dir[i] * len;
             m[k].target[i] = (int64_t)llround(pos[i] * 1e6);
         }
-        m[k].feed = (int64_t)((10 + pc_uni() * 290) * 1e6);
+        if (!pc_smooth_paths || feed == 0 || pc_uni() < 0.01) {
+            feed = (int64_t)((10 + pc_uni() * 290) * 1e6);
+        }
+        m[k].feed = feed;
         m[k].flags = (pc_rnd() % 50 == 0) ? PLAN_MOVE_EXACT_STOP : 0;
         m[k].tag = k;
     }
@@ -108,7 +119,9 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
     const pos_nm_t origin[CORE_AXES] = {0, 0, 0};
     pos_nm_t p1[CORE_AXES], p2[CORE_AXES];
     int64_t acc1[CORE_AXES];
-    uint32_t next = 0, bad = 0, done_prev = 0, id1 = 0, id2 = 0, k;
+    uint32_t next = 0, bad = 0, done_prev = 0, id1 = 0, id2 = 0, k, stall_at = 0;
+    int64_t pa_prev = 0, amin = prof.a_max[0], jmin = prof.j_max[0];
+    bool pa_ok = false, stalled = false;
     double h = (double)tick_ns * 1e-9;
     plan_t p;
     motion_ref_t ref;
@@ -132,6 +145,13 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
             r->corner_capped++;
         }
     }
+    for (i = 1; i < CORE_AXES; i++) {
+        amin = (prof.a_max[i] < amin) ? prof.a_max[i] : amin;
+        jmin = (prof.j_max[i] < jmin) ? prof.j_max[i] : jmin;
+    }
+    if (pc_stall_every > 0) {
+        stall_at = pc_stall_every;
+    }
     plan_init(&p, store, PLAN_DEPTH_DEFAULT, &prof, origin);
     interp_init(&ip, tick_ns, origin);
     for (i = 0; i < CORE_AXES; i++) {
@@ -141,9 +161,17 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
     for (;;) {
         uint32_t id;
         while (interp_room(&ip) > 0) {
-            while (next < n && plan_free_slots(&p) > 0) {
+            if (stalled && interp_idle(&ip) && plan_count(&p) == 0) {
+                stalled = false; /* at rest at the end of what was queued */
+                stall_at = next + pc_stall_every;
+            }
+            while (!stalled && next < n && plan_free_slots(&p) > 0) {
                 (void)plan_push(&p, &mv[next]);
                 next++;
+                if (stall_at > 0 && next == stall_at && next < n) {
+                    stalled = true;
+                    r->stalls++;
+                }
             }
             if (!interp_refill(&ip, &p)) {
                 break;
@@ -164,6 +192,32 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
             if (pc_abs(err) > r->max_block_err_ns) {
                 r->max_block_err_ns = pc_abs(err);
             }
+        }
+        if (shape == SC_SHAPE_SCURVE_CONTINUOUS && interp_busy(&ip)) {
+            int64_t pa = ip.a_q16 / 65536;
+            double ar = (double)pc_abs(pa) / (double)amin;
+            if (ar > r->max_path_a_ratio) {
+                r->max_path_a_ratio = ar;
+            }
+            if (pa_ok) {
+                double jr = ((double)pc_abs(pa - pa_prev) - 1.0) / ((double)jmin * h);
+                if (jr > r->max_path_j_ratio) {
+                    r->max_path_j_ratio = jr;
+                }
+                if (jr > 1.0) {
+                    r->limit_violations++;
+                }
+            }
+            if (ar > 1.0) {
+                r->limit_violations++;
+            }
+            if (interp_blocks_done(&ip) != done_prev && pc_abs(pa) * 10 >= amin) {
+                r->joins_accel++;
+            }
+            pa_prev = pa;
+            pa_ok = true;
+        } else {
+            pa_ok = false;
         }
         done_prev = interp_blocks_done(&ip);
         id = interp_busy(&ip) ? interp_blocks_done(&ip) : 0xFFFFFFFFu;
@@ -188,8 +242,9 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
                 }
             }
             if (id != 0xFFFFFFFFu && id == id1 && id < n &&
-                (shape == SC_SHAPE_SCURVE || (shape == SC_SHAPE_SCURVE_AT_REST &&
-                                              (est[id].v_entry == 0 || est[id].v_exit == 0)))) {
+                (shape == SC_SHAPE_SCURVE || shape == SC_SHAPE_SCURVE_CONTINUOUS ||
+                 (shape == SC_SHAPE_SCURVE_AT_REST &&
+                  (est[id].v_entry == 0 || est[id].v_exit == 0)))) {
                 r->jerk_checks++;
                 double jr = (double)pc_abs(ref.acc[i] - acc1[i]) - 1.0;
                 jr /= (double)prof.j_max[i] * h;
@@ -209,6 +264,8 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
     }
     r->blocks = interp_blocks_done(&ip);
     r->underruns = interp_underruns(&ip);
+    r->cont_kept = p.cont_kept;
+    r->cont_forced = p.cont_forced;
     r->final_exact = true;
     for (i = 0; i < CORE_AXES; i++) {
         if (ip.pos[i] != mv[n - 1].target[i]) {
@@ -235,4 +292,11 @@ void pc_print(const char *prefix, const pc_result_t *r)
     printf("%s_max_jerk_ratio: %.4f of limit\n", prefix, r->max_j_ratio);
     printf("%s_final_position_exact: %d bool\n", prefix, r->final_exact ? 1 : 0);
     printf("%s_total_ticks_match: %d bool\n", prefix, r->total_ticks_ok ? 1 : 0);
+    if (r->max_path_a_ratio > 0) {
+        printf("%s_max_path_acc_ratio: %.4f of limit\n", prefix, r->max_path_a_ratio);
+        printf("%s_max_path_jerk_ratio: %.4f of limit\n", prefix, r->max_path_j_ratio);
+        printf("%s_joins_accelerating: %u blocks\n", prefix, r->joins_accel);
+        printf("%s_stalls: %u\n", prefix, r->stalls);
+        printf("%s_plans_kept: %u pops\n", prefix, r->cont_kept);
+    }
 }

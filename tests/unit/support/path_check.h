@@ -28,7 +28,22 @@ typedef struct {
     uint64_t jerk_checks;   /* axis-ticks checked against the jerk limit
                              * (S-curve blocks; at-rest shape: blocks whose
                              * estimated entry or exit speed is 0)       */
+    /* Path level (interp_t s/v/a, every busy tick, block ends included:
+     * the continuous S-curve joins blocks at non-zero acceleration) */
+    double max_path_a_ratio;         /* max |a| / min_i a_i                        */
+    double max_path_j_ratio;         /* max |a(t+h) - a(t)| / (min_i j_i h)        */
+    uint32_t joins_accel;            /* block ends passed at |a| >= min_i a_i / 10 */
+    uint32_t stalls;                 /* times the feed stopped (pc_stall_every)     */
+    uint32_t cont_kept, cont_forced; /* planner's counters at the end    */
 } pc_result_t;
+
+/* Withhold pushes every this many blocks until the interpolator is idle
+ * (0: never): the drive must stop at the end of what it has queued. */
+extern uint32_t pc_stall_every;
+
+/* Random paths of CAM output instead (0.002..0.3 mm chords, gentle
+ * turns, the feed changing every hundred blocks or so). */
+extern bool pc_smooth_paths;
 
 /* The test machine: X, Z 500 mm/s, 2 m/s^2, 50 m/s^3; Y 300 mm/s, 1 m/s^2,
  * 20 m/s^3; junction deviation 0.01 mm; minimum block time 0.5 ms (W = 4). */

@@ -1,0 +1,21 @@
+/*
+ * planner_cont.h - the continuous S-curve of the planner
+ * (SC_SHAPE_SCURVE_CONTINUOUS; planner.h, "Continuous S-curve"): what
+ * planner.c calls. Internal to the planner. Main context.
+ */
+#ifndef PLANNER_CONT_H
+#define PLANNER_CONT_H
+
+#include "planner.h"
+
+/* Forget the run's plan and the counters: at rest (plan_reset). */
+void plan_cont_reset(plan_t *p);
+
+/* plan_pop of a move block (count >= 1, the oldest block not a dwell):
+ * fills out->prof and out->total_ns. */
+void plan_cont_pop(plan_t *p, plan_seg_t *out);
+
+/* plan_queued_ns for this shape. */
+int64_t plan_cont_queued_ns(const plan_t *p);
+
+#endif /* PLANNER_CONT_H */
