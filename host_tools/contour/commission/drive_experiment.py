@@ -187,6 +187,50 @@ def run_bounded(client, axis: int, plan: PrbsPlan, limits: Limits, tries: int = 
     raise ExperimentAborted("; ".join(stops))
 
 
+# ---- friction ---------------------------------------------------------------------
+
+
+def friction_legs(
+    client, axis: int, speeds_mm_s=(5.0, 10.0), leg_s: float = 0.5, travel_mm: float = 10.0
+) -> list:
+    """Constant-velocity legs for the friction estimate on the drive: per
+    speed, lines out and back twice (+v, -v, -v, +v: ends where it started,
+    within +-travel_mm) streamed as a job, the motor command and the
+    position from the drive's telemetry. Per run of cycles whose reference
+    velocity is within 2 % of a leg's, the mean command over its second
+    half (past the transient): [(v m/s, u V)] for identify.friction_fit."""
+    a = AXIS_NAMES[axis].upper()
+    lines = ["G21 G91"]
+    for v in speeds_mm_s:
+        d = min(v * leg_s, travel_mm)
+        for s in (1, -1, -1, 1):
+            lines.append(f"G1 {a}{s * d:g} F{v * 60:g}")
+    res = run_job(client, "\n".join(lines + ["M2", ""]), "friction legs")
+    keys = (f"pos{axis}_nm", f"ferr{axis}_nm", f"cmd{axis}_mv")
+    cyc = [c for c in res["cycles"] if all(k in c for k in keys)]
+    if len(cyc) < 3:
+        return []
+    seq = np.unwrap(np.array([c["seq"] for c in cyc], dtype=float), period=65536)
+    ref = np.array([c[keys[0]] + c[keys[1]] for c in cyc], dtype=float) * 1e-9
+    u = np.array([c[keys[2]] for c in cyc], dtype=float) * 1e-3
+    dt = np.diff(seq) * res["telem_period_s"]
+    vel = np.diff(ref) / np.maximum(dt, 1e-9)  # over the interval ending at cycle i + 1
+    legs = []
+    label = np.zeros(vel.size)
+    for v in speeds_mm_s:
+        for s in (1, -1):
+            label[np.abs(vel - s * v * 1e-3) <= 0.02 * v * 1e-3] = s * v * 1e-3
+    i = 0
+    while i < label.size:
+        j = i
+        while j < label.size and label[j] == label[i]:
+            j += 1
+        if label[i] != 0 and j - i >= 6:
+            legs.append((float(label[i]), float(u[1 + i + (j - i) // 2 : 1 + j].mean())))
+        i = j
+    return legs
+
+
 # ---- gains --------------------------------------------------------------------
 
 # drive parameter <- tune.Tuned.gains key (SI units, q32.32 on the wire)
@@ -222,27 +266,103 @@ def apply_gains(client, axis: int, gains: dict) -> dict:
 # ---- verification ----------------------------------------------------------------
 
 
-def verify(client, axis: int, distance_mm: float = 20.0, feed_mm_s: float = 100.0) -> dict:
-    """The verification job: a line of `distance_mm` on the axis there and
-    back at `feed_mm_s` from where it stands, streamed as `contour run`
-    streams a program; its report (max_following_error_um)."""
+def run_job(client, text: str, what: str = "verification job") -> dict:
+    """Stream the G-code `text` from where the axes stand, as `contour run`
+    streams a program, with the drive's telemetry recorded: its report
+    (max_following_error_um, per axis in max_following_error_um_axes) and
+    the programmed path and the telemetry cycles (contour_error)."""
     from contour.link.blocks import DriveLimits, blocks_from_gcode
     from contour.link.stream import Streamer
+    from contour.link.telemetry import Assembler
 
     _wait_idle(client)
-    a = AXIS_NAMES[axis].upper()
-    text = f"G21 G91\nG1 {a}{distance_mm:g} F{feed_mm_s * 60:g}\nG1 {a}{-distance_mm:g}\nM2\n"
     fd, path = tempfile.mkstemp(suffix=".nc")
+    info = client.identify()
+    asm = Assembler(info["axes"])
+    cycles = []
+
+    def telemetry(m) -> None:
+        done = asm.add(0.0, m)
+        if done is not None:
+            cycles.append(done)
+
     try:
         with os.fdopen(fd, "w") as f:
             f.write(text)
         st = client.status()
         start = [p / 1e6 for p in st["pos"][:3]]
-        limits = DriveLimits.read(client, axes=client.identify()["axes"])
-        blocks = blocks_from_gcode(path, start, 0.001, None, limits)
-        res = Streamer(client, blocks, source="verification job").run()
+        limits = DriveLimits.read(client, axes=info["axes"])
+        blocks = list(blocks_from_gcode(path, start, 0.001, None, limits))
+        streamer = Streamer(client, blocks, source=what, on_telemetry=telemetry)
+        res = streamer.run()
     finally:
         os.unlink(path)
+    last = asm.flush()
+    if last is not None:
+        cycles.append(last)
     if res.get("blocks_done", 0) <= 0:
-        raise UserError("verification job: no block done")
+        raise UserError(f"{what}: no block done")
+    pts = [tuple(round(v * 1e6) for v in start)]
+    pts += [b.target_nm for b in blocks if b.kind != pg.BlockKind.DWELL]
+    res["path_nm"] = np.array(pts, dtype=float)
+    res["cycles"] = cycles
+    res["telem_period_s"] = streamer.telem_period_ms / 1000.0
     return res
+
+
+def contour_error(res: dict, axes: list[int]) -> dict:
+    """Contour error of a job run by run_job over `axes`: the distance of
+    each measured position the telemetry sampled (pos_n) from the
+    programmed path (the blocks sent, sim.job.path_errors), over the cycles
+    from the first to the last in which the reference (pos + ferr) moved;
+    and the largest following error |ref - pos| of those cycles, um."""
+    from contour.sim.job import path_errors
+
+    keys = [f"pos{a}_nm" for a in axes] + [f"ferr{a}_nm" for a in axes]
+    cyc = [c for c in res["cycles"] if all(k in c for k in keys)]
+    if len(cyc) < 10:
+        raise UserError(f"contour check: {len(cyc)} telemetry samples (< 10)")
+    pos = np.array([[c[f"pos{a}_nm"] for a in axes] for c in cyc], dtype=float)
+    ferr = np.array([[c[f"ferr{a}_nm"] for a in axes] for c in cyc], dtype=float)
+    ref = pos + ferr
+    moved = np.flatnonzero(np.any(np.abs(np.diff(ref, axis=0)) > 0.5, axis=1))
+    if moved.size == 0:
+        raise UserError("contour check: the reference never moved in the telemetry")
+    sel = slice(moved[0], moved[-1] + 2)
+    e = path_errors(res["path_nm"][:, axes], pos[sel])
+    return {
+        "max_contour_error_um": round(float(e.max()) / 1e3, 2),
+        "rms_contour_error_um": round(float(np.sqrt((e**2).mean())) / 1e3, 2),
+        "max_following_error_um": round(float(np.abs(ferr[sel]).max()) / 1e3, 2),
+        "samples": int(e.size),
+    }
+
+
+def verify(client, axis: int, distance_mm: float = 20.0, feed_mm_s: float = 100.0) -> dict:
+    """The single-axis verification job: a line of `distance_mm` on the axis
+    there and back at `feed_mm_s` from where it stands; run_job's report
+    (max_following_error_um)."""
+    a = AXIS_NAMES[axis].upper()
+    text = f"G21 G91\nG1 {a}{distance_mm:g} F{feed_mm_s * 60:g}\nG1 {a}{-distance_mm:g}\nM2\n"
+    return run_job(client, text)
+
+
+PLANES = {(0, 1): ("G17", "I", "J", "X", "Y"), (0, 2): ("G18", "I", "K", "X", "Z"),
+          (1, 2): ("G19", "J", "K", "Y", "Z")}  # fmt: skip
+
+
+def circle_text(axes: tuple, radius_mm: float, feed_mm_s: float) -> str:
+    """A full circle (G2, clockwise) of `radius_mm` through where the axes
+    stand, centre at +radius on the first axis of the plane."""
+    plane, i, _j, u, v = PLANES[axes]
+    return f"G21 G91 {plane}\nG2 {u}0 {v}0 {i}{radius_mm:g} F{feed_mm_s * 60:g}\nM2\n"
+
+
+def verify_contour(client, axes: tuple, radius_mm: float = 10.0, feed_mm_s: float = 100.0) -> dict:
+    """The two-axis verification job: circle_text on `axes` (two axis
+    indices, ascending), run with the drive as configured (its cec_mode);
+    contour_error of its telemetry, with the radius and feed."""
+    res = run_job(client, circle_text(axes, radius_mm, feed_mm_s), "contour verification job")
+    out = contour_error(res, list(axes))
+    out.update(radius_mm=radius_mm, feed_mm_s=feed_mm_s, plane="".join(AXIS_NAMES[a] for a in axes))
+    return out

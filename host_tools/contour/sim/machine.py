@@ -54,6 +54,7 @@ optional except where noted; units SI unless the name says otherwise)::
     # model values when absent: kvff = kb / (kx l), kaff = Ra (I1 + I2) / (kt kx l)
     scale = 1.0                     # all feed-forward gains times this
     scale_x = 1.0                   # per-axis factor on top (scale_y, scale_z)
+    kvff_x = ...  kaff_x = ...      # per-axis gains (kvff_y ...), before kvff / kaff
     friction = 0.0                  # fraction of the Coulomb friction fed forward
 
     [disturbance]                   # load forces on the tables (sim.h, "Disturbances");
@@ -158,6 +159,7 @@ GAIN_MAX = 1e12
 GAIN_KEYS = {"kp", "ki", "kd", "d_tau", "d_on_measurement", "kt", "i_max", "out_max"}
 PLAN_KEYS = {"v_max", "a_max", "j_max", "junction_dev", "arc_chord"}
 FF_KEYS = {"kvff", "kaff", "scale", "scale_x", "scale_y", "scale_z", "friction", "mode"}
+FF_KEYS |= {f"{k}_{ax}" for k in ("kvff", "kaff") for ax in "xyz"}
 FF_MODES = ("none", "velocity", "full")
 SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel"}
 TOP_KEYS = {
@@ -221,8 +223,11 @@ class Machine:
         p = self.axis[ax]
         ff = self.feedforward
         scale = ff.get("scale", 1.0) * ff.get(f"scale_{ax}", 1.0)
-        kv = ff.get("kvff", p["kb"] / (p["kx"] * self.l(ax))) * scale
-        ka = ff.get("kaff", p["Ra"] * (p["I1"] + p["I2"]) / (p["kt"] * p["kx"] * self.l(ax)))
+        kv = ff.get(f"kvff_{ax}", ff.get("kvff", p["kb"] / (p["kx"] * self.l(ax)))) * scale
+        ka = ff.get(
+            f"kaff_{ax}",
+            ff.get("kaff", p["Ra"] * (p["I1"] + p["I2"]) / (p["kt"] * p["kx"] * self.l(ax))),
+        )
         return kv, (ka * scale if mode == "full" else 0.0)
 
     def friction_ff_volts(self, ax: str) -> float:
