@@ -263,10 +263,57 @@ def apply_gains(client, axis: int, gains: dict) -> dict:
     return read_gains(client, axis)
 
 
+CEC_PARAMS = {"cec_kp": "kp", "cec_ki": "ki", "cec_kd": "kd"}  # q32.32, as the PID's
+
+
+def cec_mode(client) -> str:
+    """The drive's contour-error controller mode (param cec_mode), by name."""
+    v = client.get_param("cec_mode")
+    try:
+        return pg.CecMode(v).name.lower()
+    except (ValueError, AttributeError):
+        return str(v)
+
+
+def apply_cec_gains(client, cec) -> dict | None:
+    """Write the CEC gains (tune.CecTuned) as the drive parameters cec_kp,
+    cec_ki, cec_kd and save them as apply_gains does; what the drive holds,
+    or None when the drive has no such parameters (older firmware: nothing
+    written)."""
+    try:
+        client.get_param("cec_kp")
+    except (DriveError, UserError, KeyError, ValueError):
+        return None
+    for p, k in CEC_PARAMS.items():
+        client.set_param(p, round(cec.gains[k] * 2**32))
+    client.enable(False)
+    try:
+        client.request("param_save")
+    finally:
+        client.enable(True)
+    return {k: client.get_param(p) / 2**32 for p, k in CEC_PARAMS.items()}
+
+
 # ---- verification ----------------------------------------------------------------
 
 
-def run_job(client, text: str, what: str = "verification job") -> dict:
+VERIFY_IN_POSITION_NM = 100_000
+VERIFY_TELEM_MS_SERIAL = 2  # the corners pass in a few ms: 10 ms samples missed them
+
+
+def _telem_ms(client) -> int | None:
+    from contour.link.transport import CanTransport
+
+    return None if isinstance(getattr(client, "t", None), CanTransport) else VERIFY_TELEM_MS_SERIAL
+
+
+def run_job(
+    client,
+    text: str,
+    what: str = "verification job",
+    chord_mm: float = 0.001,
+    telem_period_ms: int | None = None,
+) -> dict:
     """Stream the G-code `text` from where the axes stand, as `contour run`
     streams a program, with the drive's telemetry recorded: its report
     (max_following_error_um, per axis in max_following_error_um_axes) and
@@ -292,8 +339,17 @@ def run_job(client, text: str, what: str = "verification job") -> dict:
         st = client.status()
         start = [p / 1e6 for p in st["pos"][:3]]
         limits = DriveLimits.read(client, axes=info["axes"])
-        blocks = list(blocks_from_gcode(path, start, 0.001, None, limits))
-        streamer = Streamer(client, blocks, source=what, on_telemetry=telemetry)
+        blocks = list(blocks_from_gcode(path, start, chord_mm, None, limits))
+        # the end needs no precision: a soft tuned axis with Coulomb friction
+        # hunts by tens of um and may take more than 10 s into 5 um
+        streamer = Streamer(
+            client,
+            blocks,
+            source=what,
+            on_telemetry=telemetry,
+            telem_period_ms=telem_period_ms,
+            in_position_nm=VERIFY_IN_POSITION_NM,
+        )
         res = streamer.run()
     finally:
         os.unlink(path)
@@ -347,22 +403,40 @@ def verify(client, axis: int, distance_mm: float = 20.0, feed_mm_s: float = 100.
     return run_job(client, text)
 
 
-PLANES = {(0, 1): ("G17", "I", "J", "X", "Y"), (0, 2): ("G18", "I", "K", "X", "Z"),
-          (1, 2): ("G19", "J", "K", "Y", "Z")}  # fmt: skip
+PLANES = {(0, 1): "G17", (0, 2): "G18", (1, 2): "G19"}
 
 
-def circle_text(axes: tuple, radius_mm: float, feed_mm_s: float) -> str:
-    """A full circle (G2, clockwise) of `radius_mm` through where the axes
-    stand, centre at +radius on the first axis of the plane."""
-    plane, i, _j, u, v = PLANES[axes]
-    return f"G21 G91 {plane}\nG2 {u}0 {v}0 {i}{radius_mm:g} F{feed_mm_s * 60:g}\nM2\n"
+def square_text(axes: tuple, side_mm: float, feed_mm_s: float) -> str:
+    """A square of `side_mm` from where the axes stand (+u, +v, -u, -v):
+    four 90 degree corners, lines only (G1 as the drive takes them)."""
+    u, v = (AXIS_NAMES[a].upper() for a in axes)
+    d = f"{side_mm:g}"
+    return (
+        f"G21 G91 {PLANES[axes]}\nG1 {u}{d} F{feed_mm_s * 60:g}\nG1 {v}{d}\n"
+        f"G1 {u}-{d}\nG1 {v}-{d}\nM2\n"
+    )
 
 
-def verify_contour(client, axes: tuple, radius_mm: float = 10.0, feed_mm_s: float = 100.0) -> dict:
-    """The two-axis verification job: circle_text on `axes` (two axis
+def verify_contour(client, axes: tuple, side_mm: float = 10.0, feed_mm_s: float = 100.0) -> dict:
+    """The two-axis verification job: square_text on `axes` (two axis
     indices, ascending), run with the drive as configured (its cec_mode);
-    contour_error of its telemetry, with the radius and feed."""
-    res = run_job(client, circle_text(axes, radius_mm, feed_mm_s), "contour verification job")
+    contour_error of its telemetry, with the path's size and feed. A square,
+    not a circle: over the link a circle is G1 chords, and the drive's
+    acceleration feed-forward does not see the centripetal acceleration of a
+    chorded arc (zero along each chord), so a circle measures that, not the
+    tuning (commission_xy, tuned: R10 F6000 as 224 chords 1486 um, as arc
+    blocks 78 um, sim circle)."""
+    res = run_job(
+        client,
+        square_text(axes, side_mm, feed_mm_s),
+        "contour verification job",
+        telem_period_ms=_telem_ms(client),
+    )
     out = contour_error(res, list(axes))
-    out.update(radius_mm=radius_mm, feed_mm_s=feed_mm_s, plane="".join(AXIS_NAMES[a] for a in axes))
+    out.update(
+        path="square",
+        side_mm=side_mm,
+        feed_mm_s=feed_mm_s,
+        plane="".join(AXIS_NAMES[a] for a in axes),
+    )
     return out
