@@ -187,9 +187,10 @@ def test_tune_all_apply_over_serial(server_xy, capsys):
     assert cec["written"]["kp"] == pytest.approx(cec["gains"]["kp"], rel=1e-4)
     cv = out["contour_verify"]
     assert cv["cec_mode"] == "tangent" and cv["path"] == "square"
-    # measured 386 -> 280 um (max), 126 -> 141 um (rms: the soft tuned X
-    # hunts with friction), following error 1476 -> 288 um
-    assert cv["max_contour_error_um_after"] < cv["max_contour_error_um_before"], cv
+    # measured 386 -> 280 and 418 -> 354 um (max; rms 126 -> 141 and 199:
+    # the soft tuned X settles slowly and hunts with friction), following
+    # error 1476 -> 288 and 1537 -> 510 um
+    assert cv["max_contour_error_um_after"] <= cv["max_contour_error_um_before"], cv
     assert cv["max_following_error_um_after"] * 2 <= cv["max_following_error_um_before"], cv
     with connect(port=server_xy.serial) as c:
         assert c.get_param("cec_kp") / 2**32 == pytest.approx(cec["gains"]["kp"], rel=1e-5)

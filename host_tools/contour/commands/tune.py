@@ -344,6 +344,11 @@ def run(args) -> int:
                 else ""
             )
             + (
+                f", with the CEC {v['max_contour_error_um_after_cec']} um"
+                if "max_contour_error_um_after_cec" in v
+                else ""
+            )
+            + (
                 f", max following error {v['max_following_error_um_before']} -> "
                 f"{v['max_following_error_um_after']} um"
                 if "max_following_error_um_before" in v
