@@ -95,6 +95,20 @@ def _wait_idle(client, timeout_s: float = 5.0) -> None:
         time.sleep(0.02)
 
 
+def _wait_still(client, timeout_s: float = 3.0, quiet_nm: int = 2000) -> None:
+    """Wait (at most timeout_s) until no axis moved more than quiet_nm over
+    three polls 0.1 s apart: a job then starts from the same state each
+    time (a soft axis with friction settles for a second after a move)."""
+    x0 = client.status()["pos"]
+    quiet = 0
+    end = time.monotonic() + timeout_s
+    while quiet < 3 and time.monotonic() < end:
+        time.sleep(0.1)
+        x1 = client.status()["pos"]
+        quiet = quiet + 1 if max(abs(a - b) for a, b in zip(x0, x1)) < quiet_nm else 0
+        x0 = x1
+
+
 def run(client, axis: int, plan: PrbsPlan, limits: Limits, timeout_s: float = 60.0) -> Record:
     """One experiment on axis index `axis`; the Record of its windows. On
     any way out but success the experiment is aborted (excite_abort), and
@@ -323,6 +337,7 @@ def run_job(
     from contour.link.telemetry import Assembler
 
     _wait_idle(client)
+    _wait_still(client)
     fd, path = tempfile.mkstemp(suffix=".nc")
     info = client.identify()
     asm = Assembler(info["axes"])
