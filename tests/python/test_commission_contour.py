@@ -36,7 +36,7 @@ def test_contour_error_of_telemetry_cycles():
     assert out["max_following_error_um"] == pytest.approx(5.0)  # largest axis's, as contour run
 
 
-def test_too_few_telemetry_cycles_are_not_scored():
+def test_too_few_telemetry_cycles_are_not_scored(monkeypatch):
     # e.g. CAN's 100 ms cycles over a 0.4 s square: the tool reports the
     # contour check as not scored (commands/tune._try_contour), not a number
     from contour.commands.tune import _try_contour
@@ -52,9 +52,5 @@ def test_too_few_telemetry_cycles_are_not_scored():
     def short(client, pair):
         return de.contour_error({"path_nm": np.zeros((2, 3)), "cycles": cyc}, list(pair))
 
-    orig = de.verify_contour
-    de.verify_contour = short
-    try:
-        assert "telemetry" in _try_contour(Client(), (0, 1))["error"]
-    finally:
-        de.verify_contour = orig
+    monkeypatch.setattr(de, "verify_contour", short)
+    assert "telemetry" in _try_contour(Client(), (0, 1))["error"]
