@@ -467,7 +467,8 @@ const drive_config_t *drive_config(void);
  *          (the empty planner is re-initialised at its position).
  * drive_set_plan_profile replaces the whole profile the same way (all or
  * nothing). Main.
- * The servo parameters (KP .. FERR_LIMIT) change servo_params_t of the axis
+ * The servo parameters (KP .. FERR_LIMIT, CEC_KP .. CEC_KD: the CEC's
+ * pid gains; appended so the ids param_store saved stay) change servo_params_t of the axis
  * through drive_set_servo_params (validated with servo_config, refused with
  * DRIVE_E_BUSY while moving, applied by the tick's gains request); the
  * others (soft limits, in-position window) like the planner's. */
@@ -494,6 +495,9 @@ typedef enum {
     DRIVE_PARAM_SOFT_MIN,       /* per axis, nm   +-DRIVE_SOFT_LIMIT_NM          */
     DRIVE_PARAM_SOFT_MAX,       /* per axis, nm   +-DRIVE_SOFT_LIMIT_NM          */
     DRIVE_PARAM_IN_POS,         /* per axis, nm               1 .. DRIVE_IN_POS_NM_MAX */
+    DRIVE_PARAM_CEC_KP,         /* CEC, V/m q32_32            0 .. PID_GAIN_MAX - 1 */
+    DRIVE_PARAM_CEC_KI,         /* CEC, V/(m*s) q32_32        0 .. PID_GAIN_MAX - 1 */
+    DRIVE_PARAM_CEC_KD,         /* CEC, V*s/m q32_32          0 .. PID_GAIN_MAX - 1 */
     DRIVE_PARAM_COUNT
 } drive_param_t;
 

@@ -66,12 +66,16 @@ static const struct {
     [DRIVE_PARAM_SOFT_MIN] = {-DRIVE_SOFT_LIMIT_NM, DRIVE_SOFT_LIMIT_NM, true},
     [DRIVE_PARAM_SOFT_MAX] = {-DRIVE_SOFT_LIMIT_NM, DRIVE_SOFT_LIMIT_NM, true},
     [DRIVE_PARAM_IN_POS] = {1, DRIVE_IN_POS_NM_MAX, true},
+    [DRIVE_PARAM_CEC_KP] = {0, PID_GAIN_MAX - 1, false},
+    [DRIVE_PARAM_CEC_KI] = {0, PID_GAIN_MAX - 1, false},
+    [DRIVE_PARAM_CEC_KD] = {0, PID_GAIN_MAX - 1, false},
 };
 
 /* Servo parameters: set through drive_set_servo_params (the tick applies). */
 static bool param_is_servo(drive_param_t id)
 {
-    return id >= DRIVE_PARAM_KP && id <= DRIVE_PARAM_FERR_LIMIT;
+    return (id >= DRIVE_PARAM_KP && id <= DRIVE_PARAM_FERR_LIMIT) ||
+           (id >= DRIVE_PARAM_CEC_KP && id <= DRIVE_PARAM_CEC_KD);
 }
 
 /* The field of a configuration a parameter lives in. */
@@ -112,6 +116,12 @@ static const int64_t *param_field(const drive_config_t *c, drive_param_t id, uns
         return &c->soft_max[axis];
     case DRIVE_PARAM_IN_POS:
         return &c->in_pos_nm[axis];
+    case DRIVE_PARAM_CEC_KP:
+        return &c->servo.cec.pid.kp;
+    case DRIVE_PARAM_CEC_KI:
+        return &c->servo.cec.pid.ki;
+    case DRIVE_PARAM_CEC_KD:
+        return &c->servo.cec.pid.kd;
     default:
         return NULL; /* narrower fields: see param_read / param_write */
     }

@@ -56,6 +56,8 @@ static void change(int64_t k)
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_SOFT_MAX, 0, 7000000 + k));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_IN_POS, 2, 2500 + k));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_CORNER, 0, 2));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK,
+                          drive_param_set(DRIVE_PARAM_CEC_KP, 0, ((int64_t)30 << 32) + k));
 }
 
 static bool changed(int64_t k)
@@ -65,7 +67,7 @@ static bool changed(int64_t k)
            get(DRIVE_PARAM_FERR_LIMIT, 0) == 123456 + k &&
            get(DRIVE_PARAM_SOFT_MIN, 0) == -5000000 - k &&
            get(DRIVE_PARAM_SOFT_MAX, 0) == 7000000 + k && get(DRIVE_PARAM_IN_POS, 2) == 2500 + k &&
-           get(DRIVE_PARAM_CORNER, 0) == 2;
+           get(DRIVE_PARAM_CORNER, 0) == 2 && get(DRIVE_PARAM_CEC_KP, 0) == ((int64_t)30 << 32) + k;
 }
 
 /* Nothing of the saved set in use: the defaults of a fresh start. */
@@ -74,6 +76,23 @@ static bool defaults(void)
     return get(DRIVE_PARAM_V_MAX, 1) != 250000000 && get(DRIVE_PARAM_FERR_LIMIT, 0) != 123456 &&
            get(DRIVE_PARAM_SOFT_MAX, 0) == 0 && get(DRIVE_PARAM_IN_POS, 0) == DRIVE_IN_POS_NM &&
            get(DRIVE_PARAM_CORNER, 0) == 0;
+}
+
+/* The CEC's gains are servo parameters of the path (one set): they reach
+ * the servo configuration, the CEC mode stays, an axis index is refused. */
+static void test_cec_gains_are_servo_parameters(void)
+{
+    const drive_config_t *c = drive_config();
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_set_cec_mode(DRIVE_CEC_TANGENT));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_CEC_KP, 0, (int64_t)24 << 32));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_CEC_KI, 0, 0));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_CEC_KD, 0, (int64_t)1 << 30));
+    TEST_ASSERT_TRUE(c->servo.cec.pid.kp == (int64_t)24 << 32);
+    TEST_ASSERT_TRUE(c->servo.cec.pid.ki == 0);
+    TEST_ASSERT_TRUE(c->servo.cec.pid.kd == (int64_t)1 << 30);
+    TEST_ASSERT_TRUE(get(DRIVE_PARAM_CEC_KP, 0) == (int64_t)24 << 32);
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_CEC_KP, 1, 0));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_CEC_KP, 0, -1));
 }
 
 static void test_saved_parameters_survive_a_restart(void)
@@ -159,9 +178,9 @@ static void test_other_format_axes_or_value_leave_the_defaults(void)
     TEST_ASSERT_EQUAL_INT(PARAM_STORE_AXES, param_store_status());
     TEST_ASSERT_TRUE(defaults());
 
-    /* the last entry (in_position_window of the last axis) out of range:
-     * nothing of the set is applied */
-    memset(buf + len - 8u, 0, 8u);
+    /* the last entry (cec_kd) out of range (-1): nothing of the set is
+     * applied */
+    memset(buf + len - 8u, 0xff, 8u);
     TEST_ASSERT_EQUAL_INT(COMP_STORE_OK, comp_store_blob_write(buf, len, NULL));
     boot(3);
     TEST_ASSERT_EQUAL_INT(PARAM_STORE_REFUSED, param_store_status());
@@ -254,6 +273,7 @@ static void test_power_cut_during_save_keeps_one_whole_set(void)
 int main(void)
 {
     UNITY_BEGIN();
+    RUN_TEST(test_cec_gains_are_servo_parameters);
     RUN_TEST(test_saved_parameters_survive_a_restart);
     RUN_TEST(test_save_only_while_disabled);
     RUN_TEST(test_damaged_record_is_ignored_and_reported);

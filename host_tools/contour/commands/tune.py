@@ -107,6 +107,7 @@ def _result(ident, t, stops, before: float, after: float | None) -> dict:
         "model": d["model"],
         "model_reason": d["reason"],
         "friction_v": d["friction_v"],
+        "viscous_v_s_m": d["viscous_v_s_m"],
         "phase_margin_deg": td["phase_margin_deg"],
         "gain_margin_db": td["gain_margin_db"],
         "sensitivity_peak": td["sensitivity_peak"],
@@ -130,25 +131,109 @@ def _identify_and_tune(ax: str, rec, tick_hz: float, args, d_tau: float):
         raise UserError(f"axis {ax.upper()}: {e}") from e
 
 
+def _cec(idents: dict, tuned: dict, tick_hz: float) -> tune.CecTuned | None:
+    """CEC gains (tune.tune_cec) from the first two tuned axes, or None."""
+    if len(idents) < 2:
+        return None
+    axes = {}
+    for ax in list(idents)[:2]:
+        loops = [tune.model_loop(idents[ax], tick_hz)]
+        if idents[ax].fit.model == "two_inertia":
+            loops.append(tune.model_loop(idents[ax], tick_hz, zeta=tune.LIGHT_ZETA))
+        axes[ax] = (loops, tuned[ax].gains)
+    return tune.tune_cec(axes)
+
+
+def _sim_circle(m, tuned: dict, cec: dict | None, controller: str) -> dict:
+    """sim circle (R10 F6000, contour.sim.circle: its scoring) on machine
+    `m` with the tuned PIDs and feed-forward of `tuned` (None: the
+    machine's gains, no feed-forward) and the CEC gains `cec`."""
+    import dataclasses
+
+    from contour.sim import circle
+
+    ff = "none"
+    if tuned:
+        gains = dict(m.gains)
+        fwd = {}
+        for ax, t in tuned.items():
+            gains[ax] = {**m.gains[ax], **{k: float(t.gains[k]) for k in ("kp", "ki", "kd")}}
+            fwd[f"kvff_{ax}"] = float(t.gains["velocity_feedforward"])
+            fwd[f"kaff_{ax}"] = float(t.gains["acceleration_feedforward"])
+        if cec is not None:
+            gains["cec"] = {**m.gains["cec"], **cec}
+        m = dataclasses.replace(m, gains=gains, feedforward=fwd)
+        ff = "full"
+    r = circle.run_circle(
+        CIRCLE_R_MM, CIRCLE_F_MM_S * 60, controller=controller, feedforward=ff, mach=m
+    ).result
+    if r.faults:
+        raise UserError(f"contour verification (sim circle) faulted: {', '.join(r.faults)}")
+    return {
+        "max_contour_error_um": round(r.max_contour_error_mm * 1e3, 2),
+        "iae_um_s": round(r.iae_mm_s * 1e3, 3),
+        "circular_deviation_um": round(r.circular_deviation_mm * 1e3, 2),
+    }
+
+
+CIRCLE_R_MM = 10.0
+CIRCLE_F_MM_S = 100.0
+
+
+def _contour_report(before: dict, after: dict, extra: dict) -> dict:
+    out = dict(extra)
+    for k in sorted(set(before) & set(after)):
+        if k.endswith("_um") or k.endswith("_um_s"):
+            out[f"{k}_before"] = before[k]
+            out[f"{k}_after"] = after[k]
+    return out
+
+
 def run_sim(args) -> dict:
     m = machines.load(args.sim)
     axes = _axes(args.axis, m.axis)
     limits = _limits(args)
     plan = experiment.Plan(tick_hz=m.tick_hz, amplitude_v=args.amplitude)
     out = {"machine": m.name, "tick_hz": m.tick_hz, "axes": {}}
+    idents, tuned = {}, {}
     for ax in axes:
         try:
             rec, stops = experiment.simulate_bounded(m, ax, plan, limits)
         except experiment.ExperimentAborted as e:
             raise UserError(f"axis {ax.upper()}: {e}") from e
         ident, t = _identify_and_tune(ax, rec, m.tick_hz, args, m.gains[ax].get("d_tau", 1e-3))
+        idents[ax], tuned[ax] = ident, t
         try:
             before = experiment.following_error(m, ax)
             after = experiment.following_error(m, ax, t.gains)
         except experiment.ExperimentAborted as e:
             raise UserError(f"axis {ax.upper()}: {e}") from e
         out["axes"][ax.upper()] = _result(ident, t, stops, before, after)
+    cec = _cec(idents, tuned, m.tick_hz)
+    if cec is not None and axes[:2] == ["x", "y"]:
+        out["cec"] = cec.as_dict()
+        before = _sim_circle(m, {}, None, "pid")
+        after = _sim_circle(m, {a: tuned[a] for a in axes[:2]}, None, "pid")
+        with_cec = _sim_circle(m, {a: tuned[a] for a in axes[:2]}, cec.gains, "cec-tangent")
+        rep = _contour_report(
+            before,
+            after,
+            {"path": "circle", "plane": "xy", "radius_mm": CIRCLE_R_MM, "feed_mm_s": CIRCLE_F_MM_S},
+        )
+        rep.update({f"{k}_after_cec": v for k, v in with_cec.items()})
+        out["contour_verify"] = rep
     return out
+
+
+def _try_contour(client, pair) -> dict:
+    """verify_contour, or {"error": why} when its telemetry cannot score it
+    (e.g. on CAN, 100 ms cycles): the gains are written either way."""
+    try:
+        return drive_experiment.verify_contour(client, pair)
+    except UserError as e:
+        if "telemetry" not in str(e):
+            raise
+        return {"error": str(e)}
 
 
 def run_port(args) -> dict:
@@ -161,31 +246,56 @@ def run_port(args) -> dict:
         plan = drive_experiment.PrbsPlan(
             tick_hz=float(info["tick_hz"]), amplitude_v=args.amplitude, windows=args.windows
         )
+        idents, tuned, stops = {}, {}, {}
         for ax in axes:
             i = AXES.index(ax)
             try:
-                rec, stops = drive_experiment.run_bounded(client, i, plan, limits)
+                rec, stops[ax] = drive_experiment.run_bounded(client, i, plan, limits)
             except experiment.ExperimentAborted as e:
                 raise UserError(f"axis {ax.upper()}: {e}") from e
-            ident, t = _identify_and_tune(ax, rec, plan.tick_hz, args, args.d_tau)
-            before = after = None
-            r = None
-            if args.apply:
-                before = drive_experiment.verify(client, i)
-                r = {"gains_before": drive_experiment.read_gains(client, i)}
-                r["gains_written"] = drive_experiment.apply_gains(client, i, t.gains)
-                after = drive_experiment.verify(client, i)
+            legs = drive_experiment.friction_legs(client, i, travel_mm=args.travel_mm)
+            idents[ax], tuned[ax] = _identify_and_tune(ax, rec, plan.tick_hz, args, args.d_tau)
+            f, c, u0 = identify.friction_fit(legs)
+            idents[ax].friction_v, idents[ax].viscous_v_s_m, idents[ax].load_v = f, c, u0
+        cec = _cec(idents, tuned, plan.tick_hz)
+        if cec is not None:
+            out["cec"] = cec.as_dict()
+        pair = tuple(AXES.index(a) for a in axes[:2]) if len(axes) >= 2 else None
+        before, after, r = {}, {}, {}
+        c_before = c_after = None
+        if args.apply:
+            for ax in axes:
+                before[ax] = drive_experiment.verify(client, AXES.index(ax))
+            if pair is not None:
+                c_before = _try_contour(client, pair)
+            for ax in axes:
+                i = AXES.index(ax)
+                r[ax] = {"gains_before": drive_experiment.read_gains(client, i)}
+                r[ax]["gains_written"] = drive_experiment.apply_gains(client, i, tuned[ax].gains)
+            if cec is not None:
+                out["cec"]["written"] = drive_experiment.apply_cec_gains(client, cec)
+            for ax in axes:
+                after[ax] = drive_experiment.verify(client, AXES.index(ax))
+            if pair is not None:
+                c_after = _try_contour(client, pair)
+                if "error" in c_before or "error" in c_after:
+                    out["contour_verify"] = {"error": c_before.get("error") or c_after["error"]}
+                else:
+                    extra = {k: c_after[k] for k in ("path", "plane", "side_mm", "feed_mm_s")}
+                    extra["cec_mode"] = drive_experiment.cec_mode(client)
+                    out["contour_verify"] = _contour_report(c_before, c_after, extra)
+        for ax in axes:
             res = _result(
-                ident,
-                t,
-                stops,
-                0.0 if before is None else before["max_following_error_um"] * 1e-6,
-                None if after is None else after["max_following_error_um"] * 1e-6,
+                idents[ax],
+                tuned[ax],
+                stops[ax],
+                before[ax]["max_following_error_um"] * 1e-6 if ax in before else 0.0,
+                after[ax]["max_following_error_um"] * 1e-6 if ax in after else None,
             )
-            if before is None:
-                res["verify"] = None
+            if ax in before:
+                res["applied"] = r[ax]
             else:
-                res["applied"] = r
+                res["verify"] = None
             out["axes"][ax.upper()] = res
     return out
 
@@ -210,9 +320,9 @@ def run(args) -> int:
         else:
             print(f" ({r['model_reason']})")
         if r["friction_v"] is not None:
-            print(f"  friction {r['friction_v']:.4f} V")
+            print(f"  friction {r['friction_v']:.4f} V Coulomb, {r['viscous_v_s_m']:.2f} V/(m/s)")
         else:
-            print("  friction not measured (the drive's experiment has no constant-velocity legs)")
+            print("  friction not measured (no constant-velocity legs passed)")
         print(
             f"  {r['method']}: Ms {r['sensitivity_peak']}, phase margin "
             f"{r['phase_margin_deg']} deg, gain margin {r['gain_margin_db']} dB"
@@ -225,5 +335,40 @@ def run(args) -> int:
         print(
             f"  verification move: max following error {v['max_following_error_um_before']} um "
             f"(gains before) -> {v['max_following_error_um_after']} um"
+        )
+    c = out.get("cec")
+    if c is not None:
+        g = c["gains"]
+        print(
+            f"CEC: kp {g['kp']:g}, ki {g['ki']:g}, kd {g['kd']:g} ({c['alpha']:g} x the "
+            f"{c['slower_axis']} axis's Kp), Ms {c['sensitivity_peak']}, coupled loop "
+            f"{'stable' if c['stable'] else 'UNSTABLE'}"
+            + ("" if not c["reason"] else f" ({c['reason']})")
+        )
+    v = out.get("contour_verify")
+    if v is not None and "error" in v:
+        print(f"contour verification not scored: {v['error']}")
+    elif v is not None:
+        size = f"R{v['radius_mm']:g}" if v["path"] == "circle" else f"{v['side_mm']:g} mm"
+        print(
+            f"contour verification: {v['path']} {size} at {v['feed_mm_s']:g} mm/s "
+            f"in {v['plane'].upper()}: max contour error {v['max_contour_error_um_before']} -> "
+            f"{v['max_contour_error_um_after']} um"
+            + (
+                f", rms {v['rms_contour_error_um_before']} -> {v['rms_contour_error_um_after']} um"
+                if "rms_contour_error_um_before" in v
+                else ""
+            )
+            + (
+                f", with the CEC {v['max_contour_error_um_after_cec']} um"
+                if "max_contour_error_um_after_cec" in v
+                else ""
+            )
+            + (
+                f", max following error {v['max_following_error_um_before']} -> "
+                f"{v['max_following_error_um_after']} um"
+                if "max_following_error_um_before" in v
+                else ""
+            )
         )
     return 0

@@ -95,6 +95,20 @@ def _wait_idle(client, timeout_s: float = 5.0) -> None:
         time.sleep(0.02)
 
 
+def _wait_still(client, timeout_s: float = 3.0, quiet_nm: int = 2000) -> None:
+    """Wait (at most timeout_s) until no axis moved more than quiet_nm over
+    three polls 0.1 s apart: a job then starts from the same state each
+    time (a soft axis with friction settles for a second after a move)."""
+    x0 = client.status()["pos"]
+    quiet = 0
+    end = time.monotonic() + timeout_s
+    while quiet < 3 and time.monotonic() < end:
+        time.sleep(0.1)
+        x1 = client.status()["pos"]
+        quiet = quiet + 1 if max(abs(a - b) for a, b in zip(x0, x1)) < quiet_nm else 0
+        x0 = x1
+
+
 def run(client, axis: int, plan: PrbsPlan, limits: Limits, timeout_s: float = 60.0) -> Record:
     """One experiment on axis index `axis`; the Record of its windows. On
     any way out but success the experiment is aborted (excite_abort), and
@@ -187,6 +201,50 @@ def run_bounded(client, axis: int, plan: PrbsPlan, limits: Limits, tries: int = 
     raise ExperimentAborted("; ".join(stops))
 
 
+# ---- friction ---------------------------------------------------------------------
+
+
+def friction_legs(
+    client, axis: int, speeds_mm_s=(5.0, 10.0), leg_s: float = 0.5, travel_mm: float = 10.0
+) -> list:
+    """Constant-velocity legs for the friction estimate on the drive: per
+    speed, lines out and back twice (+v, -v, -v, +v: ends where it started,
+    within +-travel_mm) streamed as a job, the motor command and the
+    position from the drive's telemetry. Per run of cycles whose reference
+    velocity is within 2 % of a leg's, the mean command over its second
+    half (past the transient): [(v m/s, u V)] for identify.friction_fit."""
+    a = AXIS_NAMES[axis].upper()
+    lines = ["G21 G91"]
+    for v in speeds_mm_s:
+        d = min(v * leg_s, travel_mm)
+        for s in (1, -1, -1, 1):
+            lines.append(f"G1 {a}{s * d:g} F{v * 60:g}")
+    res = run_job(client, "\n".join(lines + ["M2", ""]), "friction legs")
+    keys = (f"pos{axis}_nm", f"ferr{axis}_nm", f"cmd{axis}_mv")
+    cyc = [c for c in res["cycles"] if all(k in c for k in keys)]
+    if len(cyc) < 3:
+        return []
+    seq = np.unwrap(np.array([c["seq"] for c in cyc], dtype=float), period=65536)
+    ref = np.array([c[keys[0]] + c[keys[1]] for c in cyc], dtype=float) * 1e-9
+    u = np.array([c[keys[2]] for c in cyc], dtype=float) * 1e-3
+    dt = np.diff(seq) * res["telem_period_s"]
+    vel = np.diff(ref) / np.maximum(dt, 1e-9)  # over the interval ending at cycle i + 1
+    legs = []
+    label = np.zeros(vel.size)
+    for v in speeds_mm_s:
+        for s in (1, -1):
+            label[np.abs(vel - s * v * 1e-3) <= 0.02 * v * 1e-3] = s * v * 1e-3
+    i = 0
+    while i < label.size:
+        j = i
+        while j < label.size and label[j] == label[i]:
+            j += 1
+        if label[i] != 0 and j - i >= 6:
+            legs.append((float(label[i]), float(u[1 + i + (j - i) // 2 : 1 + j].mean())))
+        i = j
+    return legs
+
+
 # ---- gains --------------------------------------------------------------------
 
 # drive parameter <- tune.Tuned.gains key (SI units, q32.32 on the wire)
@@ -219,30 +277,181 @@ def apply_gains(client, axis: int, gains: dict) -> dict:
     return read_gains(client, axis)
 
 
+CEC_PARAMS = {"cec_kp": "kp", "cec_ki": "ki", "cec_kd": "kd"}  # q32.32, as the PID's
+
+
+def cec_mode(client) -> str:
+    """The drive's contour-error controller mode (param cec_mode), by name."""
+    v = client.get_param("cec_mode")
+    try:
+        return pg.CecMode(v).name.lower()
+    except (ValueError, AttributeError):
+        return str(v)
+
+
+def apply_cec_gains(client, cec) -> dict | None:
+    """Write the CEC gains (tune.CecTuned) as the drive parameters cec_kp,
+    cec_ki, cec_kd and save them as apply_gains does; what the drive holds,
+    or None when the drive has no such parameters (older firmware: nothing
+    written)."""
+    try:
+        client.get_param("cec_kp")
+    except (DriveError, UserError, KeyError, ValueError):
+        return None
+    for p, k in CEC_PARAMS.items():
+        client.set_param(p, round(cec.gains[k] * 2**32))
+    client.enable(False)
+    try:
+        client.request("param_save")
+    finally:
+        client.enable(True)
+    return {k: client.get_param(p) / 2**32 for p, k in CEC_PARAMS.items()}
+
+
 # ---- verification ----------------------------------------------------------------
 
 
-def verify(client, axis: int, distance_mm: float = 20.0, feed_mm_s: float = 100.0) -> dict:
-    """The verification job: a line of `distance_mm` on the axis there and
-    back at `feed_mm_s` from where it stands, streamed as `contour run`
-    streams a program; its report (max_following_error_um)."""
+VERIFY_IN_POSITION_NM = 100_000
+VERIFY_TELEM_MS_SERIAL = 2  # the corners pass in a few ms: 10 ms samples missed them
+
+
+def _telem_ms(client) -> int | None:
+    from contour.link.transport import CanTransport
+
+    return None if isinstance(getattr(client, "t", None), CanTransport) else VERIFY_TELEM_MS_SERIAL
+
+
+def run_job(
+    client,
+    text: str,
+    what: str = "verification job",
+    chord_mm: float = 0.001,
+    telem_period_ms: int | None = None,
+) -> dict:
+    """Stream the G-code `text` from where the axes stand, as `contour run`
+    streams a program, with the drive's telemetry recorded: its report
+    (max_following_error_um, per axis in max_following_error_um_axes) and
+    the programmed path and the telemetry cycles (contour_error)."""
     from contour.link.blocks import DriveLimits, blocks_from_gcode
     from contour.link.stream import Streamer
+    from contour.link.telemetry import Assembler
 
     _wait_idle(client)
-    a = AXIS_NAMES[axis].upper()
-    text = f"G21 G91\nG1 {a}{distance_mm:g} F{feed_mm_s * 60:g}\nG1 {a}{-distance_mm:g}\nM2\n"
+    _wait_still(client)
     fd, path = tempfile.mkstemp(suffix=".nc")
+    info = client.identify()
+    asm = Assembler(info["axes"])
+    cycles = []
+
+    def telemetry(m) -> None:
+        done = asm.add(0.0, m)
+        if done is not None:
+            cycles.append(done)
+
     try:
         with os.fdopen(fd, "w") as f:
             f.write(text)
         st = client.status()
         start = [p / 1e6 for p in st["pos"][:3]]
-        limits = DriveLimits.read(client, axes=client.identify()["axes"])
-        blocks = blocks_from_gcode(path, start, 0.001, None, limits)
-        res = Streamer(client, blocks, source="verification job").run()
+        limits = DriveLimits.read(client, axes=info["axes"])
+        blocks = list(blocks_from_gcode(path, start, chord_mm, None, limits))
+        # the end needs no precision: a soft tuned axis with Coulomb friction
+        # hunts by tens of um and may take more than 10 s into 5 um
+        streamer = Streamer(
+            client,
+            blocks,
+            source=what,
+            on_telemetry=telemetry,
+            telem_period_ms=telem_period_ms,
+            in_position_nm=VERIFY_IN_POSITION_NM,
+        )
+        res = streamer.run()
     finally:
         os.unlink(path)
+    last = asm.flush()
+    if last is not None:
+        cycles.append(last)
     if res.get("blocks_done", 0) <= 0:
-        raise UserError("verification job: no block done")
+        raise UserError(f"{what}: no block done")
+    pts = [tuple(round(v * 1e6) for v in start)]
+    pts += [b.target_nm for b in blocks if b.kind != pg.BlockKind.DWELL]
+    res["path_nm"] = np.array(pts, dtype=float)
+    res["cycles"] = cycles
+    res["telem_period_s"] = streamer.telem_period_ms / 1000.0
     return res
+
+
+def contour_error(res: dict, axes: list[int]) -> dict:
+    """Contour error of a job run by run_job over `axes`: the distance of
+    each measured position the telemetry sampled (pos_n) from the
+    programmed path (the blocks sent, sim.job.path_errors), over the cycles
+    from the first to the last in which the reference (pos + ferr) moved;
+    and the largest following error |ref - pos| of those cycles, um."""
+    from contour.sim.job import path_errors
+
+    keys = [f"pos{a}_nm" for a in axes] + [f"ferr{a}_nm" for a in axes]
+    cyc = [c for c in res["cycles"] if all(k in c for k in keys)]
+    if len(cyc) < 10:
+        raise UserError(f"contour check: {len(cyc)} telemetry samples (< 10)")
+    pos = np.array([[c[f"pos{a}_nm"] for a in axes] for c in cyc], dtype=float)
+    ferr = np.array([[c[f"ferr{a}_nm"] for a in axes] for c in cyc], dtype=float)
+    ref = pos + ferr
+    moved = np.flatnonzero(np.any(np.abs(np.diff(ref, axis=0)) > 0.5, axis=1))
+    if moved.size == 0:
+        raise UserError("contour check: the reference never moved in the telemetry")
+    sel = slice(moved[0], moved[-1] + 2)
+    e = path_errors(res["path_nm"][:, axes], pos[sel])
+    return {
+        "max_contour_error_um": round(float(e.max()) / 1e3, 2),
+        "rms_contour_error_um": round(float(np.sqrt((e**2).mean())) / 1e3, 2),
+        "max_following_error_um": round(float(np.abs(ferr[sel]).max()) / 1e3, 2),
+        "samples": int(e.size),
+    }
+
+
+def verify(client, axis: int, distance_mm: float = 20.0, feed_mm_s: float = 100.0) -> dict:
+    """The single-axis verification job: a line of `distance_mm` on the axis
+    there and back at `feed_mm_s` from where it stands; run_job's report
+    (max_following_error_um)."""
+    a = AXIS_NAMES[axis].upper()
+    text = f"G21 G91\nG1 {a}{distance_mm:g} F{feed_mm_s * 60:g}\nG1 {a}{-distance_mm:g}\nM2\n"
+    return run_job(client, text)
+
+
+PLANES = {(0, 1): "G17", (0, 2): "G18", (1, 2): "G19"}
+
+
+def square_text(axes: tuple, side_mm: float, feed_mm_s: float) -> str:
+    """A square of `side_mm` from where the axes stand (+u, +v, -u, -v):
+    four 90 degree corners, lines only (G1 as the drive takes them)."""
+    u, v = (AXIS_NAMES[a].upper() for a in axes)
+    d = f"{side_mm:g}"
+    return (
+        f"G21 G91 {PLANES[axes]}\nG1 {u}{d} F{feed_mm_s * 60:g}\nG1 {v}{d}\n"
+        f"G1 {u}-{d}\nG1 {v}-{d}\nM2\n"
+    )
+
+
+def verify_contour(client, axes: tuple, side_mm: float = 10.0, feed_mm_s: float = 100.0) -> dict:
+    """The two-axis verification job: square_text on `axes` (two axis
+    indices, ascending), run with the drive as configured (its cec_mode);
+    contour_error of its telemetry, with the path's size and feed. A square,
+    not a circle: over the link a circle is G1 chords, and the drive's
+    acceleration feed-forward does not see the centripetal acceleration of a
+    chorded arc (zero along each chord), so a circle measures that, not the
+    tuning (commission_xy, tuned: R10 F6000 as 224 chords 1486 um, as arc
+    blocks 78 um, sim circle)."""
+    res = run_job(
+        client,
+        square_text(axes, side_mm, feed_mm_s),
+        "contour verification job",
+        telem_period_ms=_telem_ms(client),
+    )
+    out = contour_error(res, list(axes))
+    out.update(
+        path="square",
+        side_mm=side_mm,
+        feed_mm_s=feed_mm_s,
+        plane="".join(AXIS_NAMES[a] for a in axes),
+    )
+    return out

@@ -259,17 +259,24 @@ def _rigid_start(f, g):
 
 def friction(rec: Record):
     """(f, c, u0) from the constant-velocity legs, or Nones without legs."""
-    rows, rhs = [], []
+    legs = []
     for name, (a, b) in rec.segments.items():
         if not name.startswith("leg"):
             continue
         v = float(name.split(":")[1])
         mid = slice(a + (b - a) // 2, b)  # second half: past the transient
-        rows.append([1.0, math.copysign(1.0, v), v])
-        rhs.append(float(np.mean(rec.u[mid])))
-    if len(rows) < 3:
+        legs.append((v, float(np.mean(rec.u[mid]))))
+    return friction_fit(legs)
+
+
+def friction_fit(legs):
+    """(f, c, u0) of u = u0 + f sign(v) + c v by least squares over the
+    legs [(v m/s, mean command V)], or Nones with fewer than three legs or
+    one speed only (f and c would not be separable)."""
+    if len(legs) < 3 or len({abs(v) for v, _ in legs}) < 2:
         return None, None, None
-    sol, *_ = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)
+    rows = [[1.0, math.copysign(1.0, v), v] for v, _ in legs]
+    sol, *_ = np.linalg.lstsq(np.array(rows), np.array([u for _, u in legs]), rcond=None)
     return float(sol[1]), float(sol[2]), float(sol[0])
 
 

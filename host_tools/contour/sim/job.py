@@ -93,6 +93,22 @@ def _queue(b, tag: int) -> int:
     return core.queue_arc(tgt, feed, plane, cu, cv, sense, tag)
 
 
+def _polyline_distance(p: np.ndarray, a, dv, d2, open_start: bool, open_end: bool) -> float:
+    """Distance of point p from the segments a[j] + t dv[j], t in [0, 1]
+    (d2 = |dv|^2); open_start / open_end: the first / last segment goes on
+    along its tangent (overshoot past a path's end is not contour error)."""
+    t = ((p - a) * dv).sum(axis=1) / d2
+    t_lo = np.zeros_like(t)
+    t_hi = np.ones_like(t)
+    if open_start:
+        t_lo[0] = -np.inf
+    if open_end:
+        t_hi[-1] = np.inf
+    t = np.clip(t, t_lo, t_hi)
+    q = a + dv * t[:, None]
+    return float(np.sqrt(((p - q) ** 2).sum(axis=1).min()))
+
+
 def contour_errors(ref: np.ndarray, act: np.ndarray, window: int) -> np.ndarray:
     """Distance of each act point from the polyline ref[i - window .. i + window]."""
     n = ref.shape[0]
@@ -105,18 +121,24 @@ def contour_errors(ref: np.ndarray, act: np.ndarray, window: int) -> np.ndarray:
         if hi <= lo:
             out[i] = float(np.linalg.norm(act[i] - ref[i]))
             continue
-        aa, dv, d2 = a[lo:hi], d[lo:hi], dd[lo:hi]
-        t = ((act[i] - aa) * dv).sum(axis=1) / d2
-        t_lo = np.zeros_like(t)
-        t_hi = np.ones_like(t)
-        if lo == 0:
-            t_lo[0] = -np.inf  # the path continues along its start tangent
-        if hi == n - 1:
-            t_hi[-1] = np.inf  # ... and its end tangent (overshoot is not contour error)
-        t = np.clip(t, t_lo, t_hi)
-        q = aa + dv * t[:, None]
-        out[i] = float(np.sqrt(((act[i] - q) ** 2).sum(axis=1).min()))
+        out[i] = _polyline_distance(act[i], a[lo:hi], d[lo:hi], dd[lo:hi], lo == 0, hi == n - 1)
     return out
+
+
+def path_errors(path: np.ndarray, act: np.ndarray) -> np.ndarray:
+    """Distance of each act point from the whole polyline `path` (the
+    programmed path, e.g. the blocks sent to a drive), extended along its
+    first and last tangent as in contour_errors: the contour error of
+    samples that carry no time index into the path (telemetry)."""
+    keep = np.ones(path.shape[0], dtype=bool)
+    keep[1:] = np.any(path[1:] != path[:-1], axis=1)  # repeated points: no segment
+    path = path[keep]
+    if path.shape[0] < 2:
+        return np.linalg.norm(act - path[0], axis=1)
+    a = path[:-1]
+    d = path[1:] - path[:-1]
+    dd = (d * d).sum(axis=1)
+    return np.array([_polyline_distance(p, a, d, dd, True, True) for p in act])
 
 
 def run_job(

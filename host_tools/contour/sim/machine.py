@@ -54,6 +54,7 @@ optional except where noted; units SI unless the name says otherwise)::
     # model values when absent: kvff = kb / (kx l), kaff = Ra (I1 + I2) / (kt kx l)
     scale = 1.0                     # all feed-forward gains times this
     scale_x = 1.0                   # per-axis factor on top (scale_y, scale_z)
+    kvff_x = ...  kaff_x = ...      # per-axis gains (kvff_y ...), before kvff / kaff
     friction = 0.0                  # fraction of the Coulomb friction fed forward
     friction_band = 1.0             # mm/s: the friction feed-forward's sign ramp
     advance_ticks = 0.0             # velocity feed-forward taken this many ticks
@@ -178,6 +179,7 @@ FF_KEYS = {
     "learn_rate",
     "quadrant_comp",
 }
+FF_KEYS |= {f"{k}_{ax}" for k in ("kvff", "kaff") for ax in "xyz"}
 FF_MODES = ("none", "velocity", "full")
 SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel"}
 TOP_KEYS = {
@@ -241,8 +243,11 @@ class Machine:
         p = self.axis[ax]
         ff = self.feedforward
         scale = ff.get("scale", 1.0) * ff.get(f"scale_{ax}", 1.0)
-        kv = ff.get("kvff", p["kb"] / (p["kx"] * self.l(ax))) * scale
-        ka = ff.get("kaff", p["Ra"] * (p["I1"] + p["I2"]) / (p["kt"] * p["kx"] * self.l(ax)))
+        kv = ff.get(f"kvff_{ax}", ff.get("kvff", p["kb"] / (p["kx"] * self.l(ax)))) * scale
+        ka = ff.get(
+            f"kaff_{ax}",
+            ff.get("kaff", p["Ra"] * (p["I1"] + p["I2"]) / (p["kt"] * p["kx"] * self.l(ax))),
+        )
         return kv, (ka * scale if mode == "full" else 0.0)
 
     def friction_ff_volts(self, ax: str) -> float:
