@@ -10,6 +10,7 @@
 #include "preempt.h"
 #include "proto_msgs.h"
 #include "proto_reply.h"
+#include "scratch.h"
 
 typedef enum {
     PH_PRE = 0, /* start the move to the approach point        */
@@ -132,7 +133,7 @@ const comp_table_t *calib_comp_active(unsigned axis)
 
 void calib_init(void)
 {
-    static comp_table_t t;
+    comp_table_t *t = scratch_claim(SCRATCH_CALIB, sizeof *t);
     unsigned i, slot;
     calib_handler_fn next = cb.next;
 
@@ -154,9 +155,12 @@ void calib_init(void)
         comp_ramp_init(&cb.ramp[i], 0u, tick_hz());
         cb.ramp_busy = 0u;
         ramp_masks();
-        if (i < axes() && comp_store_load(i, &t, &slot) == COMP_STORE_OK) {
-            comp_install(i, &t, slot);
+        if (t != NULL && i < axes() && comp_store_load(i, t, &slot) == COMP_STORE_OK) {
+            comp_install(i, t, slot);
         }
+    }
+    if (t != NULL) {
+        scratch_release(SCRATCH_CALIB);
     }
 }
 
@@ -509,7 +513,7 @@ static size_t reply_comp_info(uint8_t *out, uint8_t seq, unsigned axis)
 {
     proto_comp_info_t m;
     const comp_table_t *t = calib_comp_active(axis);
-    static comp_table_t cur;
+    comp_table_t *cur;
     unsigned slot = 0xFFu;
     m.axis = (uint8_t)axis;
     m.active = t != NULL ? 1u : 0u;
@@ -523,10 +527,13 @@ static size_t reply_comp_info(uint8_t *out, uint8_t seq, unsigned axis)
         m.version = t->version;
         m.data_crc = t->data_crc;
         m.ramp_us = t->ramp_us;
-    } else if (comp_store_load(axis, &cur, &slot) == COMP_STORE_OK) {
-        m.version = cur.version; /* an empty table is current */
-        m.data_crc = cur.data_crc;
-        m.slot = (uint8_t)slot;
+    } else if ((cur = scratch_claim(SCRATCH_CALIB, sizeof *cur)) != NULL) {
+        if (comp_store_load(axis, cur, &slot) == COMP_STORE_OK) {
+            m.version = cur->version; /* an empty table is current */
+            m.data_crc = cur->data_crc;
+            m.slot = (uint8_t)slot;
+        }
+        scratch_release(SCRATCH_CALIB);
     }
     out[0] = (uint8_t)PROTO_MSG_COMP_INFO;
     out[1] = seq;
@@ -796,15 +803,43 @@ static bool flash_refused(const uint8_t *msg, uint8_t *out, size_t *len)
     return true;
 }
 
-static size_t h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
+/* Decode, store, load back and install the staged record (t: scratch). */
+static size_t comp_commit_in(const proto_comp_commit_t *m, const uint8_t *msg, uint8_t *out,
+                             comp_table_t *t)
 {
-    static comp_table_t t;
-    proto_comp_commit_t m;
-    comp_result_t cr;
+    comp_result_t cr = comp_record_decode(cb.stage, m->length, t);
     comp_store_result_t sr;
     unsigned slot;
-    uint32_t crc;
     size_t rlen;
+    if (cr == COMP_OK && t->axis != m->axis) {
+        cr = COMP_E_AXIS;
+    }
+    if (cr != COMP_OK) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_RECORD, cr);
+    }
+    if (flash_refused(msg, out, &rlen)) {
+        return rlen;
+    }
+    sr = comp_store_write(m->axis, t, NULL, NULL);
+    if (sr != COMP_STORE_OK) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
+    }
+    /* activate what the flash holds, not what the link delivered */
+    sr = comp_store_load(m->axis, t, &slot);
+    if (sr != COMP_STORE_OK) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
+    }
+    comp_install(m->axis, t, slot);
+    cb.stage_axis = -1;
+    return 0u;
+}
+
+static size_t h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
+{
+    proto_comp_commit_t m;
+    comp_table_t *t;
+    uint32_t crc;
+    size_t n;
     if (!proto_comp_commit_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_COMMIT_LEN) {
         return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
                            PROTO_COMP_COMMIT_LEN);
@@ -820,33 +855,18 @@ static size_t h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
     if (crc != m.crc) {
         return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_CRC, crc);
     }
-    cr = comp_record_decode(cb.stage, m.length, &t);
-    if (cr == COMP_OK && t.axis != m.axis) {
-        cr = COMP_E_AXIS;
+    t = scratch_claim(SCRATCH_CALIB, sizeof *t);
+    if (t == NULL) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BUSY, 0);
     }
-    if (cr != COMP_OK) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_RECORD, cr);
-    }
-    if (flash_refused(msg, out, &rlen)) {
-        return rlen;
-    }
-    sr = comp_store_write(m.axis, &t, NULL, NULL);
-    if (sr != COMP_STORE_OK) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
-    }
-    /* activate what the flash holds, not what the link delivered */
-    sr = comp_store_load(m.axis, &t, &slot);
-    if (sr != COMP_STORE_OK) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
-    }
-    comp_install(m.axis, &t, slot);
-    cb.stage_axis = -1;
-    return reply_comp_info(out, msg[1], m.axis);
+    n = comp_commit_in(&m, msg, out, t);
+    scratch_release(SCRATCH_CALIB);
+    return n != 0u ? n : reply_comp_info(out, msg[1], m.axis);
 }
 
 static size_t h_comp_clear(const uint8_t *msg, size_t plen, uint8_t *out)
 {
-    static comp_table_t t;
+    comp_table_t *t;
     proto_comp_clear_t m;
     comp_store_result_t sr;
     unsigned slot;
@@ -861,14 +881,21 @@ static size_t h_comp_clear(const uint8_t *msg, size_t plen, uint8_t *out)
     if (flash_refused(msg, out, &rlen)) {
         return rlen;
     }
-    sr = comp_store_clear(m.axis, NULL);
-    if (sr == COMP_STORE_OK) {
-        sr = comp_store_load(m.axis, &t, &slot);
+    sr = comp_store_clear(m.axis, NULL); /* claims the scratch area itself */
+    t = scratch_claim(SCRATCH_CALIB, sizeof *t);
+    if (t == NULL) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_BUSY, 0);
     }
+    if (sr == COMP_STORE_OK) {
+        sr = comp_store_load(m.axis, t, &slot);
+    }
+    if (sr == COMP_STORE_OK) {
+        comp_install(m.axis, t, slot);
+    }
+    scratch_release(SCRATCH_CALIB);
     if (sr != COMP_STORE_OK) {
         return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
     }
-    comp_install(m.axis, &t, slot);
     return reply_comp_info(out, msg[1], m.axis);
 }
 

@@ -58,7 +58,11 @@
  *
  * Context: main only (flash erase and program; on single-bank flash an erase
  * stalls the CPU, see docs/ports.md). No heap: one static record buffer of
- * COMP_RECORD_MAX bytes and a few static tables.
+ * COMP_RECORD_MAX bytes and one static table the store decodes into (loads,
+ * read-back checks and compaction run one after the other); the table
+ * comp_store_write takes is encoded with the new version, never copied.
+ * comp_store_clear builds its empty table in the scratch area (scratch.h):
+ * call it with the area free (COMP_STORE_E_BUSY otherwise).
  */
 #ifndef COMP_STORE_H
 #define COMP_STORE_H
@@ -81,7 +85,8 @@ typedef enum {
     COMP_STORE_E_ARG,    /* axis out of range, NULL, invalid table    */
     COMP_STORE_E_LAYOUT, /* the flash layout cannot hold the banks    */
     COMP_STORE_E_FLASH,  /* erase / program / read failed             */
-    COMP_STORE_E_VERIFY  /* read back differs from what was written   */
+    COMP_STORE_E_VERIFY, /* read back differs from what was written   */
+    COMP_STORE_E_BUSY    /* comp_store_clear: the scratch area is held */
 } comp_store_result_t;
 
 typedef struct {
