@@ -42,6 +42,16 @@ static uint32_t pad(uint32_t len, uint32_t w)
     return (len + w - 1u) / w * w;
 }
 
+static int active_bank(const comp_store_layout_t *lay, uint32_t *seq);
+
+uint8_t comp_store_active_bank(void)
+{
+    comp_store_layout_t lay;
+    uint32_t seq;
+    int b = comp_store_layout(&lay) ? active_bank(&lay, &seq) : -1;
+    return b < 0 ? 0xFFu : (uint8_t)b;
+}
+
 bool comp_store_layout(comp_store_layout_t *out)
 {
     const hal_flash_layout_t *l = hal_flash_layout();
@@ -53,7 +63,7 @@ bool comp_store_layout(comp_store_layout_t *out)
     bank =
         ((uint64_t)COMP_STORE_REGION_BYTES / 2u + l->page_size - 1u) / l->page_size * l->page_size;
     if (bank < COMP_STORE_HDR_BYTES +
-                   (uint64_t)(CORE_AXES + 1u) * pad(COMP_RECORD_MAX, l->write_size) ||
+                   (uint64_t)COMP_STORE_SLOTS * pad(COMP_RECORD_MAX, l->write_size) ||
         4u * bank > l->size) {
         return false;
     }
@@ -188,7 +198,7 @@ static comp_result_t blob_decode(const uint8_t *buf, size_t len, comp_table_t *t
 
 static comp_result_t decode(const uint8_t *buf, size_t len, unsigned slot, comp_table_t *t)
 {
-    return slot == COMP_STORE_SLOT_BLOB ? blob_decode(buf, len, t)
+    return slot >= COMP_STORE_SLOT_BLOB ? blob_decode(buf, len, t)
                                         : comp_record_decode(buf, len, t);
 }
 
@@ -340,7 +350,7 @@ static comp_store_result_t verify(const comp_store_layout_t *lay, unsigned bank,
 /* Slot k of the store: the axes, then the blob. */
 static unsigned slot_of(unsigned k)
 {
-    return k < CORE_AXES ? k : COMP_STORE_SLOT_BLOB;
+    return k < CORE_AXES ? k : COMP_STORE_SLOT_BLOB + (k - CORE_AXES);
 }
 
 /* Copy the live records into the other bank, then make it active. The new
@@ -348,8 +358,8 @@ static unsigned slot_of(unsigned k)
 static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uint32_t seq,
                                    unsigned slot, uint32_t padded, const expect_t *want)
 {
-    static uint32_t vers[CORE_AXES + 1u];
-    static bool have[CORE_AXES + 1u];
+    static uint32_t vers[COMP_STORE_SLOTS];
+    static bool have[COMP_STORE_SLOTS];
     const hal_flash_layout_t *l = hal_flash_layout();
     unsigned to = from < 0 ? 0u : (unsigned)from ^ 1u, a;
     uint32_t to_addr = lay->base + (uint32_t)to * lay->bank_bytes;
@@ -366,7 +376,7 @@ static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uin
         return COMP_STORE_E_FLASH;
     }
     at += padded;
-    for (a = 0; a <= CORE_AXES; a++) {
+    for (a = 0; a < COMP_STORE_SLOTS; a++) {
         have[a] = false;
         if (slot_of(a) == slot || from < 0) {
             continue;
@@ -393,7 +403,7 @@ static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uin
     if (r != COMP_STORE_OK) {
         return r;
     }
-    for (a = 0; a <= CORE_AXES; a++) {
+    for (a = 0; a < COMP_STORE_SLOTS; a++) {
         if (have[a] && (find(lay, to, slot_of(a), &st, &off, &len) != COMP_STORE_OK ||
                         st.version != vers[a])) {
             return COMP_STORE_E_VERIFY;
@@ -488,6 +498,24 @@ comp_store_result_t comp_store_write(unsigned axis, const comp_table_t *table, u
 
 comp_store_result_t comp_store_blob_write(const uint8_t *data, uint16_t len, uint32_t *version)
 {
+    return comp_store_slot_write(COMP_STORE_SLOT_BLOB, data, len, version);
+}
+
+comp_store_result_t comp_store_blob_load(uint8_t *data, uint16_t cap, uint16_t *len,
+                                         uint32_t *version)
+{
+    return comp_store_slot_load(COMP_STORE_SLOT_BLOB, data, cap, len, version);
+}
+
+static bool blob_slot(unsigned slot)
+{
+    return slot >= COMP_STORE_SLOT_BLOB &&
+           slot < COMP_STORE_SLOT_BLOB + COMP_STORE_SLOTS - CORE_AXES;
+}
+
+comp_store_result_t comp_store_slot_write(unsigned slot, const uint8_t *data, uint16_t len,
+                                          uint32_t *version)
+{
     expect_t want;
     comp_store_layout_t lay;
     comp_store_result_t r;
@@ -495,14 +523,14 @@ comp_store_result_t comp_store_blob_write(const uint8_t *data, uint16_t len, uin
     unsigned cb = 0u, bank = 0u;
     int act;
 
-    if ((data == NULL && len > 0u) || len > COMP_STORE_BLOB_MAX) {
+    if (!blob_slot(slot) || (data == NULL && len > 0u) || len > COMP_STORE_BLOB_MAX) {
         return COMP_STORE_E_ARG;
     }
     if (!comp_store_layout(&lay)) {
         return COMP_STORE_E_LAYOUT;
     }
     act = active_bank(&lay, &seq);
-    r = act < 0 ? COMP_STORE_EMPTY : current(&lay, COMP_STORE_SLOT_BLOB, &st, &cb, &off, &rlen);
+    r = act < 0 ? COMP_STORE_EMPTY : current(&lay, slot, &st, &cb, &off, &rlen);
     if (r != COMP_STORE_OK && r != COMP_STORE_EMPTY) {
         return r;
     }
@@ -519,7 +547,7 @@ comp_store_result_t comp_store_blob_write(const uint8_t *data, uint16_t len, uin
     }
     put32(rec, COMP_RECORD_MAGIC);
     rec[4] = (uint8_t)COMP_RECORD_FORMAT;
-    rec[6] = (uint8_t)COMP_STORE_SLOT_BLOB;
+    rec[6] = (uint8_t)slot;
     put32(rec + 8, want.version);
     rec[12] = (uint8_t)want.n;
     rec[13] = (uint8_t)(want.n >> 8);
@@ -532,14 +560,14 @@ comp_store_result_t comp_store_blob_write(const uint8_t *data, uint16_t len, uin
     for (i = COMP_RECORD_HDR + dlen; i < padded; i++) {
         rec[i] = 0xFFu;
     }
-    r = put_record(&lay, act, seq, COMP_STORE_SLOT_BLOB, padded, &want, &bank);
+    r = put_record(&lay, act, seq, slot, padded, &want, &bank);
     if (r == COMP_STORE_OK && version != NULL) {
         *version = want.version;
     }
     return r;
 }
 
-comp_store_result_t comp_store_blob_load(uint8_t *data, uint16_t cap, uint16_t *len,
+comp_store_result_t comp_store_slot_load(unsigned slot, uint8_t *data, uint16_t cap, uint16_t *len,
                                          uint32_t *version)
 {
     comp_store_layout_t lay;
@@ -548,17 +576,17 @@ comp_store_result_t comp_store_blob_load(uint8_t *data, uint16_t cap, uint16_t *
     uint32_t off, rlen, i, seq = 0u;
     uint16_t blen;
 
-    if (data == NULL || len == NULL) {
+    if (!blob_slot(slot) || data == NULL || len == NULL) {
         return COMP_STORE_E_ARG;
     }
     if (!comp_store_layout(&lay)) {
         return COMP_STORE_E_LAYOUT;
     }
-    r = current(&lay, COMP_STORE_SLOT_BLOB, &st, &b, &off, &rlen);
+    r = current(&lay, slot, &st, &b, &off, &rlen);
     if (r == COMP_STORE_EMPTY && active_bank(&lay, &seq) >= 0) {
         scan_t s;
         /* a blob record is there but none decodes: damaged, not absent */
-        scan_bank(&lay, b, COMP_STORE_SLOT_BLOB, 0xFFFFFFFFu, NO_OFF, &s);
+        scan_bank(&lay, b, slot, 0xFFFFFFFFu, NO_OFF, &s);
         if (s.off != NO_OFF) {
             return COMP_STORE_E_VERIFY;
         }

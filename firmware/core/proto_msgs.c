@@ -1348,6 +1348,156 @@ bool proto_comp_info_decode(const uint8_t *buf, size_t len, proto_comp_info_t *m
     return true;
 }
 
+size_t proto_comp2d_write_encode(const proto_comp2d_write_t *m, uint8_t *buf, size_t cap)
+{
+    uint16_t i;
+
+    if (m->data_len > 224u || cap < PROTO_COMP2D_WRITE_LEN + (size_t)m->data_len) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->offset, 2u);
+    for (i = 0; i < m->data_len; i++) {
+        buf[2u + i] = m->data[i];
+    }
+    return PROTO_COMP2D_WRITE_LEN + (size_t)m->data_len;
+}
+
+bool proto_comp2d_write_decode(const uint8_t *buf, size_t len, proto_comp2d_write_t *m)
+{
+    uint16_t i;
+
+    if (len < PROTO_COMP2D_WRITE_LEN || len > PROTO_COMP2D_WRITE_MAX_LEN) {
+        return false;
+    }
+    m->offset = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->data_len = (uint16_t)(len - PROTO_COMP2D_WRITE_LEN);
+    for (i = 0; i < m->data_len; i++) {
+        m->data[i] = buf[2u + i];
+    }
+    return true;
+}
+
+size_t proto_comp2d_commit_encode(const proto_comp2d_commit_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_COMP2D_COMMIT_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->length, 2u);
+    proto_put_le(buf + 2, (uint64_t)m->crc, 4u);
+    return PROTO_COMP2D_COMMIT_LEN;
+}
+
+bool proto_comp2d_commit_decode(const uint8_t *buf, size_t len, proto_comp2d_commit_t *m)
+{
+    if (len != PROTO_COMP2D_COMMIT_LEN) {
+        return false;
+    }
+    m->length = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->crc = (uint32_t)proto_get_le(buf + 2, 4u);
+    return true;
+}
+
+size_t proto_comp2d_read_encode(const proto_comp2d_read_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_COMP2D_READ_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->offset, 2u);
+    proto_put_le(buf + 2, (uint64_t)m->max, 1u);
+    return PROTO_COMP2D_READ_LEN;
+}
+
+bool proto_comp2d_read_decode(const uint8_t *buf, size_t len, proto_comp2d_read_t *m)
+{
+    if (len != PROTO_COMP2D_READ_LEN) {
+        return false;
+    }
+    m->offset = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->max = (uint8_t)proto_get_le(buf + 2, 1u);
+    return true;
+}
+
+size_t proto_comp2d_info_encode(const proto_comp2d_info_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_COMP2D_INFO_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->active, 1u);
+    proto_put_le(buf + 1, (uint64_t)m->nx, 1u);
+    proto_put_le(buf + 2, (uint64_t)m->ny, 1u);
+    proto_put_le(buf + 3, (uint64_t)m->slot, 1u);
+    proto_put_le(buf + 4, (uint64_t)m->version, 4u);
+    proto_put_le(buf + 8, (uint64_t)m->length, 2u);
+    proto_put_le(buf + 10, (uint64_t)m->crc, 4u);
+    return PROTO_COMP2D_INFO_LEN;
+}
+
+bool proto_comp2d_info_decode(const uint8_t *buf, size_t len, proto_comp2d_info_t *m)
+{
+    if (len != PROTO_COMP2D_INFO_LEN) {
+        return false;
+    }
+    m->active = (uint8_t)proto_get_le(buf + 0, 1u);
+    m->nx = (uint8_t)proto_get_le(buf + 1, 1u);
+    m->ny = (uint8_t)proto_get_le(buf + 2, 1u);
+    m->slot = (uint8_t)proto_get_le(buf + 3, 1u);
+    m->version = (uint32_t)proto_get_le(buf + 4, 4u);
+    m->length = (uint16_t)proto_get_le(buf + 8, 2u);
+    m->crc = (uint32_t)proto_get_le(buf + 10, 4u);
+    return true;
+}
+
+size_t proto_comp2d_written_encode(const proto_comp2d_written_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_COMP2D_WRITTEN_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->offset, 2u);
+    proto_put_le(buf + 2, (uint64_t)m->len, 2u);
+    return PROTO_COMP2D_WRITTEN_LEN;
+}
+
+bool proto_comp2d_written_decode(const uint8_t *buf, size_t len, proto_comp2d_written_t *m)
+{
+    if (len != PROTO_COMP2D_WRITTEN_LEN) {
+        return false;
+    }
+    m->offset = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->len = (uint16_t)proto_get_le(buf + 2, 2u);
+    return true;
+}
+
+size_t proto_comp2d_data_encode(const proto_comp2d_data_t *m, uint8_t *buf, size_t cap)
+{
+    uint16_t i;
+
+    if (m->data_len > 224u || cap < PROTO_COMP2D_DATA_LEN + (size_t)m->data_len) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->offset, 2u);
+    proto_put_le(buf + 2, (uint64_t)m->total, 2u);
+    for (i = 0; i < m->data_len; i++) {
+        buf[4u + i] = m->data[i];
+    }
+    return PROTO_COMP2D_DATA_LEN + (size_t)m->data_len;
+}
+
+bool proto_comp2d_data_decode(const uint8_t *buf, size_t len, proto_comp2d_data_t *m)
+{
+    uint16_t i;
+
+    if (len < PROTO_COMP2D_DATA_LEN || len > PROTO_COMP2D_DATA_MAX_LEN) {
+        return false;
+    }
+    m->offset = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->total = (uint16_t)proto_get_le(buf + 2, 2u);
+    m->data_len = (uint16_t)(len - PROTO_COMP2D_DATA_LEN);
+    for (i = 0; i < m->data_len; i++) {
+        m->data[i] = buf[4u + i];
+    }
+    return true;
+}
+
 const proto_msg_info_t proto_msg_table[] = {
     {0x01u, PROTO_DIR_H2D, 0x41u, 0u, 0u, 0u, "identify"},
     {0x02u, PROTO_DIR_H2D, 0x42u, 0u, 2u, 2u, "param_get"},
@@ -1413,6 +1563,14 @@ const proto_msg_info_t proto_msg_table[] = {
     {0xB1u, PROTO_DIR_D2H, 0x00u, 0u, 13u, 233u, "calib_samples"},
     {0xB2u, PROTO_DIR_D2H, 0x00u, 0u, 5u, 5u, "comp_written"},
     {0xB3u, PROTO_DIR_D2H, 0x00u, 0u, 17u, 17u, "comp_info"},
+    {0xC8u, PROTO_DIR_H2D, 0xCEu, 0u, 2u, 226u, "comp2d_write"},
+    {0xC9u, PROTO_DIR_H2D, 0xCDu, 0u, 6u, 6u, "comp2d_commit"},
+    {0xCAu, PROTO_DIR_H2D, 0xCDu, 0u, 0u, 0u, "comp2d_get"},
+    {0xCBu, PROTO_DIR_H2D, 0xCDu, 0u, 0u, 0u, "comp2d_clear"},
+    {0xCCu, PROTO_DIR_H2D, 0xCFu, 0u, 3u, 3u, "comp2d_read"},
+    {0xCDu, PROTO_DIR_D2H, 0x00u, 0u, 14u, 14u, "comp2d_info"},
+    {0xCEu, PROTO_DIR_D2H, 0x00u, 0u, 4u, 4u, "comp2d_written"},
+    {0xCFu, PROTO_DIR_D2H, 0x00u, 0u, 4u, 228u, "comp2d_data"},
 };
 const size_t proto_msg_count = sizeof(proto_msg_table) / sizeof(proto_msg_table[0]);
 
@@ -1429,38 +1587,70 @@ const proto_msg_info_t *proto_msg_info(uint8_t id)
 }
 
 const proto_param_info_t proto_param_table[] = {
-    {0x0001u, PROTO_PTYPE_U32, 0u, PROTO_POWNER_LINK, INT64_C(0), INT64_C(60000), INT64_C(1000), "comm_timeout_ms"},
-    {0x0002u, PROTO_PTYPE_U16, 0u, PROTO_POWNER_LINK, INT64_C(0), INT64_C(60000), INT64_C(0), "status_period_ms"},
-    {0x0003u, PROTO_PTYPE_U16, 0u, PROTO_POWNER_LINK, INT64_C(0), INT64_C(60000), INT64_C(0), "telem_period_ms"},
-    {0x0004u, PROTO_PTYPE_U16, 0u, PROTO_POWNER_LINK, INT64_C(0), INT64_C(60000), INT64_C(1000), "heartbeat_period_ms"},
-    {0x0005u, PROTO_PTYPE_U8, PROTO_PFLAG_RO, PROTO_POWNER_LINK, INT64_C(1), INT64_C(63), INT64_C(1), "node_id"},
-    {0x0006u, PROTO_PTYPE_U8, PROTO_PFLAG_RO, PROTO_POWNER_LINK, INT64_C(0), INT64_C(5), INT64_C(0), "param_store_status"},
-    {0x0100u, PROTO_PTYPE_U8, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(6), INT64_C(0), "cec_mode"},
-    {0x0101u, PROTO_PTYPE_U8, PROTO_PFLAG_RO, PROTO_POWNER_DRIVE, INT64_C(1), INT64_C(4), INT64_C(3), "axes"},
-    {0x0200u, PROTO_PTYPE_I64, PROTO_PFLAG_RO | PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(-9000000000000000000), INT64_C(9000000000000000000), INT64_C(0), "position"},
-    {0x0210u, PROTO_PTYPE_I64, PROTO_PFLAG_RO | PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(-9000000000000000000), INT64_C(9000000000000000000), INT64_C(0), "following_error"},
-    {0x0300u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(1000), INT64_C(4294967295), INT64_C(1000000000), "max_velocity"},
-    {0x0310u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(1000), INT64_C(1000000000000), INT64_C(10000000000), "max_acceleration"},
-    {0x0320u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(1000), INT64_C(100000000000000), INT64_C(1000000000000), "max_jerk"},
-    {0x0330u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(4294967295), INT64_C(10000000), "corner_velocity_step"},
-    {0x0340u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(1000000000000), INT64_C(1000000000), "corner_acceleration"},
-    {0x0350u, PROTO_PTYPE_I64, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(1099511627776), INT64_C(10000), "junction_deviation"},
-    {0x0351u, PROTO_PTYPE_U8, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(3), INT64_C(0), "corner_rule"},
-    {0x0352u, PROTO_PTYPE_U8, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(2), INT64_C(0), "velocity_profile"},
-    {0x0353u, PROTO_PTYPE_I64, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(10000000000), INT64_C(0), "min_block_time"},
-    {0x0354u, PROTO_PTYPE_U16, 0u, PROTO_POWNER_DRIVE, INT64_C(1), INT64_C(64), INT64_C(1), "min_block_window"},
-    {0x0355u, PROTO_PTYPE_I64, 0u, PROTO_POWNER_DRIVE, INT64_C(1000), INT64_C(1000000000000), INT64_C(1000000000), "stop_deceleration"},
-    {0x0356u, PROTO_PTYPE_I64, 0u, PROTO_POWNER_DRIVE, INT64_C(1), INT64_C(1000000000), INT64_C(100), "arc_chord_tolerance"},
-    {0x0357u, PROTO_PTYPE_U16, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(10000), INT64_C(50), "start_delay_ms"},
-    {0x0500u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(4611686018427387903), INT64_C(6442450944000), "pid_kp"},
-    {0x0510u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(4611686018427387903), INT64_C(34359738368000), "pid_ki"},
-    {0x0520u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(4611686018427387903), INT64_C(21474836480), "pid_kd"},
-    {0x0530u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(4611686018427387903), INT64_C(0), "velocity_feedforward"},
-    {0x0540u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(4611686018427387903), INT64_C(0), "acceleration_feedforward"},
-    {0x0550u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(2147483647), INT64_C(5000000), "following_error_limit"},
-    {0x0600u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(-1099511627776), INT64_C(1099511627776), INT64_C(0), "soft_limit_min"},
-    {0x0610u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(-1099511627776), INT64_C(1099511627776), INT64_C(0), "soft_limit_max"},
-    {0x0620u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(1), INT64_C(100000000), INT64_C(5000), "in_position_window"},
+    {0x0001u, PROTO_PTYPE_U32, 0u, PROTO_POWNER_LINK, INT64_C(0), INT64_C(60000), INT64_C(1000),
+     "comm_timeout_ms"},
+    {0x0002u, PROTO_PTYPE_U16, 0u, PROTO_POWNER_LINK, INT64_C(0), INT64_C(60000), INT64_C(0),
+     "status_period_ms"},
+    {0x0003u, PROTO_PTYPE_U16, 0u, PROTO_POWNER_LINK, INT64_C(0), INT64_C(60000), INT64_C(0),
+     "telem_period_ms"},
+    {0x0004u, PROTO_PTYPE_U16, 0u, PROTO_POWNER_LINK, INT64_C(0), INT64_C(60000), INT64_C(1000),
+     "heartbeat_period_ms"},
+    {0x0005u, PROTO_PTYPE_U8, PROTO_PFLAG_RO, PROTO_POWNER_LINK, INT64_C(1), INT64_C(63),
+     INT64_C(1), "node_id"},
+    {0x0006u, PROTO_PTYPE_U8, PROTO_PFLAG_RO, PROTO_POWNER_LINK, INT64_C(0), INT64_C(5), INT64_C(0),
+     "param_store_status"},
+    {0x0100u, PROTO_PTYPE_U8, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(6), INT64_C(0),
+     "cec_mode"},
+    {0x0101u, PROTO_PTYPE_U8, PROTO_PFLAG_RO, PROTO_POWNER_DRIVE, INT64_C(1), INT64_C(4),
+     INT64_C(3), "axes"},
+    {0x0200u, PROTO_PTYPE_I64, PROTO_PFLAG_RO | PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE,
+     INT64_C(-9000000000000000000), INT64_C(9000000000000000000), INT64_C(0), "position"},
+    {0x0210u, PROTO_PTYPE_I64, PROTO_PFLAG_RO | PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE,
+     INT64_C(-9000000000000000000), INT64_C(9000000000000000000), INT64_C(0), "following_error"},
+    {0x0300u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(1000),
+     INT64_C(4294967295), INT64_C(1000000000), "max_velocity"},
+    {0x0310u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(1000),
+     INT64_C(1000000000000), INT64_C(10000000000), "max_acceleration"},
+    {0x0320u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(1000),
+     INT64_C(100000000000000), INT64_C(1000000000000), "max_jerk"},
+    {0x0330u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0),
+     INT64_C(4294967295), INT64_C(10000000), "corner_velocity_step"},
+    {0x0340u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0),
+     INT64_C(1000000000000), INT64_C(1000000000), "corner_acceleration"},
+    {0x0350u, PROTO_PTYPE_I64, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(1099511627776),
+     INT64_C(10000), "junction_deviation"},
+    {0x0351u, PROTO_PTYPE_U8, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(3), INT64_C(0),
+     "corner_rule"},
+    {0x0352u, PROTO_PTYPE_U8, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(2), INT64_C(0),
+     "velocity_profile"},
+    {0x0353u, PROTO_PTYPE_I64, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(10000000000), INT64_C(0),
+     "min_block_time"},
+    {0x0354u, PROTO_PTYPE_U16, 0u, PROTO_POWNER_DRIVE, INT64_C(1), INT64_C(64), INT64_C(1),
+     "min_block_window"},
+    {0x0355u, PROTO_PTYPE_I64, 0u, PROTO_POWNER_DRIVE, INT64_C(1000), INT64_C(1000000000000),
+     INT64_C(1000000000), "stop_deceleration"},
+    {0x0356u, PROTO_PTYPE_I64, 0u, PROTO_POWNER_DRIVE, INT64_C(1), INT64_C(1000000000),
+     INT64_C(100), "arc_chord_tolerance"},
+    {0x0357u, PROTO_PTYPE_U16, 0u, PROTO_POWNER_DRIVE, INT64_C(0), INT64_C(10000), INT64_C(50),
+     "start_delay_ms"},
+    {0x0500u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0),
+     INT64_C(4611686018427387903), INT64_C(6442450944000), "pid_kp"},
+    {0x0510u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0),
+     INT64_C(4611686018427387903), INT64_C(34359738368000), "pid_ki"},
+    {0x0520u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0),
+     INT64_C(4611686018427387903), INT64_C(21474836480), "pid_kd"},
+    {0x0530u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0),
+     INT64_C(4611686018427387903), INT64_C(0), "velocity_feedforward"},
+    {0x0540u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0),
+     INT64_C(4611686018427387903), INT64_C(0), "acceleration_feedforward"},
+    {0x0550u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(0),
+     INT64_C(2147483647), INT64_C(5000000), "following_error_limit"},
+    {0x0600u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(-1099511627776),
+     INT64_C(1099511627776), INT64_C(0), "soft_limit_min"},
+    {0x0610u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(-1099511627776),
+     INT64_C(1099511627776), INT64_C(0), "soft_limit_max"},
+    {0x0620u, PROTO_PTYPE_I64, PROTO_PFLAG_PER_AXIS, PROTO_POWNER_DRIVE, INT64_C(1),
+     INT64_C(100000000), INT64_C(5000), "in_position_window"},
 };
 const size_t proto_param_count = sizeof(proto_param_table) / sizeof(proto_param_table[0]);
 
