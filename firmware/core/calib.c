@@ -137,11 +137,6 @@ static comp_store_result_t load_install(unsigned axis)
     return r;
 }
 
-const comp_ramp_t *calib_ramp(unsigned axis)
-{
-    return axis < CORE_AXES ? &cb.ramp[axis] : NULL;
-}
-
 const comp_table_t *calib_comp_active(unsigned axis)
 {
     if (axis >= CORE_AXES || cb.act[axis] > 1u) {

@@ -159,9 +159,6 @@ void calib_set_next_handler(calib_handler_fn fn);
 calib_state_t calib_state(void);
 /* Active table of an axis (NULL: none). */
 const comp_table_t *calib_comp_active(unsigned axis);
-/* The commanded-direction ramp of an axis (its weight w_q30 is written by
- * calib_tick; the 2-D map reads it, comp2d_live.h); NULL beyond CORE_AXES. */
-const comp_ramp_t *calib_ramp(unsigned axis);
 /* Encode one sample in the wire format (CALIB_SAMPLE_BYTES). */
 void calib_sample_encode(const calib_sample_t *s, uint8_t *buf);
 

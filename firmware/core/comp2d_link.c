@@ -6,6 +6,7 @@
 #include "comp_store.h"
 #include "crc.h"
 #include "drive.h"
+#include "hal.h"
 #include "proto_msgs.h"
 #include "proto_replay.h"
 #include "proto_reply.h"
@@ -104,7 +105,7 @@ void comp2d_link_init(void)
     lk2.staged = 0u;
     lk2.next = next;
     proto_replay_reset(&lk2.replay);
-    comp2d_live_init(calib_ramp(0), calib_ramp(1));
+    comp2d_live_init();
     if (drive_config() != NULL && drive_config()->axes >= 2u) {
         (void)load();
     }
@@ -115,15 +116,16 @@ void comp2d_link_poll(void)
     drive_status_t st;
     pos_nm_t p[2];
     unsigned a;
-    if (comp2d_live_map() == NULL) {
+    if (comp2d_live_map() == NULL || drive_config() == NULL || drive_config()->axes < 2u) {
         return;
     }
     drive_snapshot(&st);
     for (a = 0; a < 2u; a++) {
         const comp_table_t *t = calib_comp_active(a);
-        p[a] = t != NULL ? comp_correct_w(t, st.pos_raw[a], *comp2d_live_w[a]) : st.pos_raw[a];
+        /* after the 1-D table, if any (its direction: its own ramp) */
+        p[a] = t != NULL ? comp_correct(t, st.pos_raw[a], COMP_DIR_NONE) : st.pos_raw[a];
     }
-    comp2d_live_poll(p);
+    comp2d_live_poll(p, st.vel_ref, hal_time_us());
 }
 
 void comp2d_link_set_next(comp2d_handler_fn fn)

@@ -42,8 +42,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-/* The map from flash (if any) and the direction ramps of X and Y
- * (calib_ramp). After calib_init. Main. */
+/* The map from flash (if any). After calib_init (the 1-D tables). Main. */
 void comp2d_link_init(void);
 
 /* Re-anchor the tick's correction at the axes' position (comp2d_live_poll

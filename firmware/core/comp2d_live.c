@@ -1,10 +1,7 @@
 /* The 2-D map applied in the tick: comp2d_live.h. */
 #include "comp2d_live.h"
 
-static const volatile int32_t zero_w;
-
 const comp2d_anchor_t *CORE_SHARED comp2d_live_pub; /* main */
-const volatile int32_t *comp2d_live_w[2] = {&zero_w, &zero_w};
 
 static struct {
     comp2d_map_t map;       /* main only                              */
@@ -14,16 +11,42 @@ static struct {
     pos_nm_t lo[2], hi[2];  /* anchor's cell (or held region), nm     */
     pos_nm_t ax, ay;        /* anchor, nm                             */
     uint32_t anchors;
+    /* direction of each axis: its command (see the header) */
+    int8_t dir[2]; /* +1 / -1, 0: none yet                   */
+    int32_t w[2];  /* weight, q1_30, ramping towards dir     */
+    uint32_t t_us; /* time of the last poll                  */
+    bool started;
 } lv; /* main */
 
-void comp2d_live_init(const comp_ramp_t *rx, const comp_ramp_t *ry)
+void comp2d_live_init(void)
 {
     comp2d_live_pub = 0;
-    comp2d_live_w[0] = rx != 0 ? &rx->w_q30 : &zero_w;
-    comp2d_live_w[1] = ry != 0 ? &ry->w_q30 : &zero_w;
     lv.have = false;
     lv.fresh = true;
     lv.anchors = 0u;
+    lv.started = false;
+}
+
+void comp2d_live_weights(int32_t w[2])
+{
+    w[0] = lv.w[0];
+    w[1] = lv.w[1];
+}
+
+/* Follow one axis: the direction of its command (held at rest); the
+ * weight ramps to a new direction at 2 / COMP2D_LIVE_RAMP_US per us (as
+ * the 1-D tables' reversal ramp). */
+static void track(unsigned a, int64_t v, uint32_t dt_us)
+{
+    int64_t step = (int64_t)dt_us * ((int64_t)2 * COMP_W_ONE / COMP2D_LIVE_RAMP_US);
+    int64_t target, w = lv.w[a];
+    if (v != 0) {
+        lv.dir[a] = v > 0 ? 1 : -1;
+    }
+    target = (int64_t)lv.dir[a] * COMP_W_ONE;
+    w = w < target ? (w + step < target ? w + step : target)
+                   : (w - step > target ? w - step : target);
+    lv.w[a] = (int32_t)w;
 }
 
 void comp2d_live_set(const comp2d_map_t *m)
@@ -36,6 +59,7 @@ void comp2d_live_set(const comp2d_map_t *m)
     lv.map = *m; /* the tick reads only the anchor: keeps the old one */
     lv.have = true;
     lv.fresh = true;
+    lv.started = false; /* directions from the next motion on */
 }
 
 const comp2d_map_t *comp2d_live_map(void)
@@ -70,18 +94,27 @@ static bool near(pos_nm_t p, pos_nm_t a, pos_nm_t lo, pos_nm_t hi, uint32_t step
     return p >= lo && p < hi && p - a <= m && a - p <= m;
 }
 
-void comp2d_live_poll(const pos_nm_t p[2])
+void comp2d_live_poll(const pos_nm_t p[2], const int64_t v[2], uint32_t now_us)
 {
     q1_30_t w[2];
     comp2d_lin_t l;
     comp2d_anchor_t *b;
     const comp2d_anchor_t *cur = comp2d_live_pub;
     unsigned c;
+    if (!lv.started) {
+        lv.started = true;
+        lv.t_us = now_us;
+        lv.dir[0] = lv.dir[1] = 0;
+        lv.w[0] = lv.w[1] = 0;
+    }
+    track(0u, v[0], now_us - lv.t_us);
+    track(1u, v[1], now_us - lv.t_us);
+    lv.t_us = now_us;
     if (!lv.have) {
         return;
     }
-    w[0] = *comp2d_live_w[0];
-    w[1] = *comp2d_live_w[1];
+    w[0] = lv.w[0];
+    w[1] = lv.w[1];
     if (!lv.fresh && cur != 0 && w[0] == cur->wx && w[1] == cur->wy &&
         near(p[0], lv.ax, lv.lo[0], lv.hi[0], lv.map.dx) &&
         near(p[1], lv.ay, lv.lo[1], lv.hi[1], lv.map.dy)) {

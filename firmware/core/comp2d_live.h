@@ -7,28 +7,40 @@
  * The full bilinear evaluation (comp2d_correct, ~260 M4 instructions) runs
  * in the main context. comp2d_live_poll (main) linearises the map at the
  * axes' position p = (X, Y) (after the 1-D tables, before the map) with the
- * current direction weights w = (wx, wy) (the 1-D tables' reversal ramps,
- * comp_ramp_t, q1_30) and publishes the anchor below; the tick
- * (comp2d_live_apply, inside drive_inputs_sample) adds to X and Y
+ * direction weights w = (wx, wy) (q1_30, below) and publishes the anchor;
+ * the tick (comp2d_live_apply, inside drive_inputs_sample) adds to X and Y
  *
  *     corr_c = k_c + gx_c * dx + gy_c * dy                  (dx = X - x0 ...)
- *              [+ (wx - wpx) * hx_c + (wy - wpy) * hy_c      w != wp only]
  *
- * k: the correction at the anchor with the weights wp it was made with;
- * gx, gy: the slopes of that correction in the anchor's cell (q32 nm/nm);
- * hx, hy: the direction terms at the anchor. At the anchor and at rest
- * this is the bilinear map itself (within 2 nm of rounding); moving, it
- * differs from it by
+ * k: the correction at the anchor with the weights it was made with;
+ * gx, gy: the slopes of that correction in the anchor's cell (q32 nm/nm).
+ * At the anchor and at rest this is the bilinear map itself (within 2 nm
+ * of rounding); moving, it differs from the map with the published
+ * weights by at most
  *     |cross_c| * |dx| * |dy|        (the cell's bilinear twist)
  *   + |slope change| * (way past a cell edge before main re-anchors)
- *   + |w - wp| * |d(hx, hy)| * |d|   (a reversal ramp between anchors)
- * main re-anchors when X or Y has moved more than COMP2D_LIVE_MOVE_DIV-th
- * of the node spacing from the anchor, left the anchor's cell, or the
- * weights differ from wp, so with main polling once a tick the difference
- * stays below 0.05 um on the thesis field at 20 mm/s
- * (tests/unit/test_comp2d_live.c). dx, dy are taken from the low 32 bits
- * and held at +-2^24 nm (16.8 mm): a main context stalled for longer than
- * that much travel leaves the correction extrapolated by at most that.
+ * and from the map with the weights of this very moment by |dw| * |h|
+ * more while a direction ramps (20 ms) and main has not polled yet. Main
+ * re-anchors when X or Y has moved more than COMP2D_LIVE_MOVE_DIV-th of the
+ * node spacing from the anchor, left the anchor's cell, or a weight
+ * changed, so with main polling once a tick the difference stays below
+ * 0.05 um at 20 mm/s on a field steeper than the thesis's
+ * (tests/unit/test_comp2d_live.c: 16 nm).
+ *
+ * Directions: each axis has the direction of its command (reference
+ * velocity v, held while v = 0), as the 1-D tables; the weight ramps to a
+ * new direction over COMP2D_LIVE_RAMP_US (the feedback changes by at most
+ * |2h| / ramp). Before the first commanded motion: w = 0, the mean of both
+ * directions. (An axis standing still is moved by the map's own
+ * straightness correction while the other travels, and a table whose
+ * error depends on that axis's direction changes state with that motion:
+ * the grid calibration measures the nodes a second time with the first
+ * map in use and corrects it, so the map holds what the table does with
+ * the compensation on; docs/calibration.md.)
+ *
+ * dx, dy are taken from the low 32 bits and held at +-2^24 nm (16.8 mm):
+ * a main context stalled for longer than that much travel leaves the
+ * correction extrapolated by at most that.
  *
  * Cost in the tick (map loaded, weights as published): 2 x 2 multiplies,
  * about 40 M4 instructions (control_tick_instructions_m4); without a map
@@ -58,6 +70,7 @@
 
 #define COMP2D_LIVE_MOVE_DIV 128       /* re-anchor after node spacing / 128 */
 #define COMP2D_LIVE_SPAN     (1 << 24) /* |dx|, |dy| held here, nm */
+#define COMP2D_LIVE_RAMP_US  20000     /* direction ramp, us                 */
 
 typedef struct {
     int32_t x0, y0;       /* anchor: low 32 bits of X and Y, nm            */
@@ -69,12 +82,12 @@ typedef struct {
 /* The published anchor (main writes, one pointer store; tick reads). NULL:
  * no map. */
 extern const comp2d_anchor_t *CORE_SHARED comp2d_live_pub;
-/* The direction weights of X and Y (comp2d_live_init; never NULL). */
-extern const volatile int32_t *comp2d_live_w[2];
 
-/* No map; weights from rx, ry (NULL: 0, the mean of both directions).
- * Main, before the tick runs. */
-void comp2d_live_init(const comp_ramp_t *rx, const comp_ramp_t *ry);
+/* No map, no direction yet. Main, before the tick runs. */
+void comp2d_live_init(void);
+
+/* The direction weights main uses now (q1_30; tests, diagnostics). Main. */
+void comp2d_live_weights(int32_t w[2]);
 
 /* Use map m (checked and prepared: comp2d_check, comp2d_prepare; copied)
  * from the next comp2d_live_poll on; NULL: no map, the tick stops
@@ -84,8 +97,10 @@ void comp2d_live_set(const comp2d_map_t *m);
 /* The map in use (NULL: none). Main. */
 const comp2d_map_t *comp2d_live_map(void);
 
-/* Re-anchor at p (X, Y before the map, nm) when needed (see top). Main. */
-void comp2d_live_poll(const pos_nm_t p[2]);
+/* Follow the directions and re-anchor at p (X, Y before the map, nm) when
+ * needed (see top); v: X and Y's reference velocities (the sign counts);
+ * now_us: a free-running microsecond clock. Main, every main-loop pass. */
+void comp2d_live_poll(const pos_nm_t p[2], const int64_t v[2], uint32_t now_us);
 
 /* Re-anchors published since init (tests, diagnostics). Main. */
 uint32_t comp2d_live_anchors(void);

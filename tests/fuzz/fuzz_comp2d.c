@@ -19,7 +19,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     static const pos_nm_t lo[2] = {-((pos_nm_t)1 << 50), -((pos_nm_t)1 << 50)};
     static const pos_nm_t hi[2] = {(pos_nm_t)1 << 50, (pos_nm_t)1 << 50};
-    static comp_ramp_t rx, ry;
     uint32_t n;
     int k;
     if (size > 4096u || comp2d_decode(data, (uint32_t)size, &m) != COMP2D_OK) {
@@ -33,17 +32,18 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         return 0;
     }
     comp2d_prepare(&m);
-    comp2d_live_init(&rx, &ry);
+    comp2d_live_init();
     comp2d_live_set(&m);
     for (k = -2; k <= (int)m.nx + 1; k++) {
         pos_nm_t p[2], f[2], t[2], x, y;
-        const q1_30_t w[2] = {COMP_W_ONE, -COMP_W_ONE};
+        q1_30_t w[2];
+        const int64_t v[2] = {k & 1, -(k & 2)};
         p[0] = m.x0 + (pos_nm_t)k * m.dx + (pos_nm_t)(m.dx / 3u);
         p[1] = m.y0 + (pos_nm_t)(k % ((int)m.ny + 1)) * m.dy - (pos_nm_t)(m.dy / 7u);
-        rx.w_q30 = w[0];
-        ry.w_q30 = w[1];
+        comp2d_live_poll(p, v, (uint32_t)k * 100u);
+        w[0] = comp2d_live_pub->wx;
+        w[1] = comp2d_live_pub->wy;
         comp2d_correct(&m, p, w, f);
-        comp2d_live_poll(p);
         x = p[0];
         y = p[1];
         comp2d_live_apply(&x, &y, &t[0], &t[1]);
