@@ -36,7 +36,8 @@ def grid(extra):
     with contextlib.redirect_stdout(buf):
         rc = cli.main(argv)
     if rc != 0:
-        raise SystemExit(f"bench-calibration2d: contour calibrate --grid failed ({rc})")
+        raise SystemExit(f"bench-calibration2d: contour calibrate --grid failed ({rc}): "
+                         f"{buf.getvalue().strip()}")
     return json.loads(buf.getvalue())
 
 

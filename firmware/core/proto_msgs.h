@@ -20,364 +20,319 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define PROTO_VERSION     2u
+#define PROTO_VERSION 2u
 #define PROTO_MAX_PAYLOAD 250u
 /* A message on either transport: msg_id (u8) | seq (u8) | payload. */
-#define PROTO_MSG_HDR  2u
-#define PROTO_MSG_MAX  (PROTO_MSG_HDR + PROTO_MAX_PAYLOAD)
+#define PROTO_MSG_HDR 2u
+#define PROTO_MSG_MAX (PROTO_MSG_HDR + PROTO_MAX_PAYLOAD)
 #define PROTO_MAX_AXES 4u
 
 /* CAN: 11-bit id = (function << PROTO_CAN_NODE_BITS) | node. */
-#define PROTO_CAN_NODE_BITS      6u
-#define PROTO_CAN_NODE_MAX       63u
-#define PROTO_CAN_ID(func, node) ((((uint32_t)(func)) << PROTO_CAN_NODE_BITS) | ((uint32_t)(node)))
-#define PROTO_CAN_FUNC_OF(id)    (((uint32_t)(id)) >> PROTO_CAN_NODE_BITS)
-#define PROTO_CAN_NODE_OF(id)    (((uint32_t)(id)) & PROTO_CAN_NODE_MAX)
-#define PROTO_CAN_FUNC_REQUEST   2u
-#define PROTO_CAN_FUNC_RESPONSE  3u
+#define PROTO_CAN_NODE_BITS 6u
+#define PROTO_CAN_NODE_MAX 63u
+#define PROTO_CAN_ID(func, node) \
+    ((((uint32_t)(func)) << PROTO_CAN_NODE_BITS) | ((uint32_t)(node)))
+#define PROTO_CAN_FUNC_OF(id) (((uint32_t)(id)) >> PROTO_CAN_NODE_BITS)
+#define PROTO_CAN_NODE_OF(id) (((uint32_t)(id)) & PROTO_CAN_NODE_MAX)
+#define PROTO_CAN_FUNC_REQUEST 2u
+#define PROTO_CAN_FUNC_RESPONSE 3u
 #define PROTO_CAN_FUNC_HEARTBEAT 31u
-#define PROTO_CAN_FUNC_STATUS    4u
-#define PROTO_CAN_FUNC_PROGRESS  5u
-#define PROTO_CAN_FUNC_PATH      6u
-#define PROTO_CAN_FUNC_POS_0     7u
-#define PROTO_CAN_FUNC_POS_1     8u
-#define PROTO_CAN_FUNC_POS_2     9u
-#define PROTO_CAN_FUNC_POS_3     10u
-#define PROTO_CAN_FUNC_FERR_0    11u
-#define PROTO_CAN_FUNC_FERR_1    12u
-#define PROTO_CAN_FUNC_FERR_2    13u
-#define PROTO_CAN_FUNC_FERR_3    14u
+#define PROTO_CAN_FUNC_STATUS 4u
+#define PROTO_CAN_FUNC_PROGRESS 5u
+#define PROTO_CAN_FUNC_PATH 6u
+#define PROTO_CAN_FUNC_POS_0 7u
+#define PROTO_CAN_FUNC_POS_1 8u
+#define PROTO_CAN_FUNC_POS_2 9u
+#define PROTO_CAN_FUNC_POS_3 10u
+#define PROTO_CAN_FUNC_FERR_0 11u
+#define PROTO_CAN_FUNC_FERR_1 12u
+#define PROTO_CAN_FUNC_FERR_2 13u
+#define PROTO_CAN_FUNC_FERR_3 14u
 
 /* Reason in an `error` reply. */
-#define PROTO_ERROR_CODE_NONE            0u /* no error */
+#define PROTO_ERROR_CODE_NONE 0u /* no error */
 #define PROTO_ERROR_CODE_UNKNOWN_MESSAGE 1u /* message id not handled by this firmware */
-#define PROTO_ERROR_CODE_BAD_LENGTH      2u /* payload length does not match the message */
-#define PROTO_ERROR_CODE_UNKNOWN_PARAM   3u /* no parameter with this id (arg = id) */
-#define PROTO_ERROR_CODE_OUT_OF_RANGE                                                              \
-    4u /* value outside [lo, hi] (arg = parameter id or field index) */
-#define PROTO_ERROR_CODE_READ_ONLY  5u /* parameter cannot be written */
+#define PROTO_ERROR_CODE_BAD_LENGTH 2u /* payload length does not match the message */
+#define PROTO_ERROR_CODE_UNKNOWN_PARAM 3u /* no parameter with this id (arg = id) */
+#define PROTO_ERROR_CODE_OUT_OF_RANGE 4u /* value outside [lo, hi] (arg = parameter id or field index) */
+#define PROTO_ERROR_CODE_READ_ONLY 5u /* parameter cannot be written */
 #define PROTO_ERROR_CODE_QUEUE_FULL 6u /* planner has no free slot; retry later */
-#define PROTO_ERROR_CODE_BAD_STATE  7u /* not allowed in the current drive state (arg = state) */
-#define PROTO_ERROR_CODE_BAD_AXIS   8u /* axis index or mask names an axis the drive does not have \
-                                        */
-#define PROTO_ERROR_CODE_BAD_VALUE     9u  /* a field value is invalid (arg = field index) */
+#define PROTO_ERROR_CODE_BAD_STATE 7u /* not allowed in the current drive state (arg = state) */
+#define PROTO_ERROR_CODE_BAD_AXIS 8u /* axis index or mask names an axis the drive does not have */
+#define PROTO_ERROR_CODE_BAD_VALUE 9u /* a field value is invalid (arg = field index) */
 #define PROTO_ERROR_CODE_NOT_SUPPORTED 10u /* valid request this build does not implement */
-#define PROTO_ERROR_CODE_INTERNAL      11u /* drive application refused the request */
-#define PROTO_ERROR_CODE_DISABLED      12u /* the drive is not enabled */
-#define PROTO_ERROR_CODE_FAULTED       13u /* a fault is latched: fault_reset first */
-#define PROTO_ERROR_CODE_BUSY          14u /* not allowed while moving */
+#define PROTO_ERROR_CODE_INTERNAL 11u /* drive application refused the request */
+#define PROTO_ERROR_CODE_DISABLED 12u /* the drive is not enabled */
+#define PROTO_ERROR_CODE_FAULTED 13u /* a fault is latched: fault_reset first */
+#define PROTO_ERROR_CODE_BUSY 14u /* not allowed while moving */
 #define PROTO_ERROR_CODE_CAUSE_PRESENT 15u /* fault_reset refused: the cause is still present */
-#define PROTO_ERROR_CODE_SEQUENCE                                                                  \
-    16u /* queue_batch: first_seq is not the block the drive expects next (batch_reply.next_seq);  \
-           nothing queued */
-#define PROTO_ERROR_CODE_BOOT                                                                      \
-    32u /* bootloader refused the request (arg = boot_status, lo = detail; docs/bootloader.md) */
-#define PROTO_ERROR_CODE_CALIB                                                                     \
-    33u /* calibration or compensation refused (arg = calib_status, lo = detail;                   \
-           docs/calibration.md) */
+#define PROTO_ERROR_CODE_SEQUENCE 16u /* queue_batch: first_seq is not the block the drive expects next (batch_reply.next_seq); nothing queued */
+#define PROTO_ERROR_CODE_BOOT 32u /* bootloader refused the request (arg = boot_status, lo = detail; docs/bootloader.md) */
+#define PROTO_ERROR_CODE_CALIB 33u /* calibration or compensation refused (arg = calib_status, lo = detail; docs/calibration.md) */
 
 /* Drive state in status, heartbeat and drive_state. */
-#define PROTO_STATE_DISABLED   0u /* amplifiers off */
-#define PROTO_STATE_READY      1u /* enabled, nothing queued */
-#define PROTO_STATE_RUNNING    2u /* executing or holding queued motion */
-#define PROTO_STATE_STOPPING   3u /* controlled stop in progress */
-#define PROTO_STATE_FAULT      4u /* a fault is latched; fault_reset clears it */
-#define PROTO_STATE_ESTOP      5u /* emergency stop latched; fault_reset clears it */
+#define PROTO_STATE_DISABLED 0u /* amplifiers off */
+#define PROTO_STATE_READY 1u /* enabled, nothing queued */
+#define PROTO_STATE_RUNNING 2u /* executing or holding queued motion */
+#define PROTO_STATE_STOPPING 3u /* controlled stop in progress */
+#define PROTO_STATE_FAULT 4u /* a fault is latched; fault_reset clears it */
+#define PROTO_STATE_ESTOP 5u /* emergency stop latched; fault_reset clears it */
 #define PROTO_STATE_BOOTLOADER 6u /* the bootloader is running (no motion) */
-#define PROTO_STATE_HOMING     7u /* the homing sequence runs (home); stop aborts it */
+#define PROTO_STATE_HOMING 7u /* the homing sequence runs (home); stop aborts it */
 
 /* Fault bits (bit numbers) in status.faults and drive_state.faults. */
-#define PROTO_FAULT_COMM_TIMEOUT    0u  /* host silent while motion was queued: controlled stop */
-#define PROTO_FAULT_FOLLOWING_ERROR 1u  /* following error above its limit */
-#define PROTO_FAULT_AMP_FAULT       2u  /* amplifier fault input */
-#define PROTO_FAULT_LIMIT           3u  /* soft or hard travel limit */
-#define PROTO_FAULT_ENCODER         4u  /* encoder error (illegal transition, lost count) */
-#define PROTO_FAULT_ESTOP           5u  /* emergency stop requested */
-#define PROTO_FAULT_SATURATION      6u  /* motor command saturated too long */
-#define PROTO_FAULT_HOMING          7u  /* home switch or index not found within max_distance */
-#define PROTO_FAULT_OSCILLATION     8u  /* sustained contour-error controller limit cycle */
-#define PROTO_FAULT_INTERNAL        15u /* other application fault */
+#define PROTO_FAULT_COMM_TIMEOUT 0u /* host silent while motion was queued: controlled stop */
+#define PROTO_FAULT_FOLLOWING_ERROR 1u /* following error above its limit */
+#define PROTO_FAULT_AMP_FAULT 2u /* amplifier fault input */
+#define PROTO_FAULT_LIMIT 3u /* soft or hard travel limit */
+#define PROTO_FAULT_ENCODER 4u /* encoder error (illegal transition, lost count) */
+#define PROTO_FAULT_ESTOP 5u /* emergency stop requested */
+#define PROTO_FAULT_SATURATION 6u /* motor command saturated too long */
+#define PROTO_FAULT_HOMING 7u /* home switch or index not found within max_distance */
+#define PROTO_FAULT_OSCILLATION 8u /* sustained contour-error controller limit cycle */
+#define PROTO_FAULT_INTERNAL 15u /* other application fault */
 
 /* Capability bits in identify_reply.capabilities. */
-#define PROTO_CAPABILITY_SERIAL      0u /* serial link */
-#define PROTO_CAPABILITY_CAN         1u /* CAN link */
-#define PROTO_CAPABILITY_TELEMETRY   2u /* cyclic status and telemetry */
-#define PROTO_CAPABILITY_JOG         3u /* jog message */
-#define PROTO_CAPABILITY_BOOTLOADER  4u /* bootloader messages available (0x80..0x9F) */
+#define PROTO_CAPABILITY_SERIAL 0u /* serial link */
+#define PROTO_CAPABILITY_CAN 1u /* CAN link */
+#define PROTO_CAPABILITY_TELEMETRY 2u /* cyclic status and telemetry */
+#define PROTO_CAPABILITY_JOG 3u /* jog message */
+#define PROTO_CAPABILITY_BOOTLOADER 4u /* bootloader messages available (0x80..0x9F) */
 #define PROTO_CAPABILITY_CALIBRATION 5u /* calibration messages available (0xA0..0xBF) */
-#define PROTO_CAPABILITY_SIMULATED   6u /* drive is the simulator */
+#define PROTO_CAPABILITY_SIMULATED 6u /* drive is the simulator */
 
 /* queue_block.kind */
-#define PROTO_BLOCK_KIND_LINE  0u /* straight move at `feed` to `target` */
+#define PROTO_BLOCK_KIND_LINE 0u /* straight move at `feed` to `target` */
 #define PROTO_BLOCK_KIND_RAPID 1u /* straight move at the axes' maximum speed */
 #define PROTO_BLOCK_KIND_DWELL 2u /* pause; `feed` is the duration in milliseconds */
 
 /* queue_block.flags bits (bit numbers) */
 #define PROTO_BLOCK_FLAG_EXACT_STOP 0u /* stop exactly at the end of this block (G61/G60) */
 
-/* queue_batch record kind: bits 6..7 of the record's head byte (protocol/README.md, Block batches)
- */
-#define PROTO_BATCH_KIND_LINE                                                                      \
-    0u /* straight move at the stream's feed to the stream's point plus the deltas */
+/* queue_batch record kind: bits 6..7 of the record's head byte (protocol/README.md, Block batches) */
+#define PROTO_BATCH_KIND_LINE 0u /* straight move at the stream's feed to the stream's point plus the deltas */
 #define PROTO_BATCH_KIND_RAPID 1u /* straight move at the axes' maximum speed */
-#define PROTO_BATCH_KIND_DWELL                                                                     \
-    2u /* pause of `feed` milliseconds (feed varint required; the stream's feed is unchanged) */
-#define PROTO_BATCH_KIND_ORIGIN                                                                    \
-    3u /* not a block: the axes of the mask take the absolute positions that follow (zigzag        \
-          varints, nm), the others 0 */
+#define PROTO_BATCH_KIND_DWELL 2u /* pause of `feed` milliseconds (feed varint required; the stream's feed is unchanged) */
+#define PROTO_BATCH_KIND_ORIGIN 3u /* not a block: the axes of the mask take the absolute positions that follow (zigzag varints, nm), the others 0 */
 
-/* queue_batch record head byte: bit numbers (bits 0..3 are the axis mask of the deltas that follow)
- */
-#define PROTO_BATCH_HEAD_FEED                                                                      \
-    4u /* a feed varint follows the deltas: line nm/s (becomes the stream's feed), dwell ms */
+/* queue_batch record head byte: bit numbers (bits 0..3 are the axis mask of the deltas that follow) */
+#define PROTO_BATCH_HEAD_FEED 4u /* a feed varint follows the deltas: line nm/s (becomes the stream's feed), dwell ms */
 #define PROTO_BATCH_HEAD_EXACT_STOP 5u /* stop exactly at the end of this block (line, rapid) */
-#define PROTO_BATCH_HEAD_KIND       6u /* bits 6..7: batch_kind */
+#define PROTO_BATCH_HEAD_KIND 6u /* bits 6..7: batch_kind */
 
 /* queue_batch.flags bits (bit numbers) */
-#define PROTO_BATCH_FLAG_START                                                                     \
-    0u /* a new stream: first_seq becomes the expected block number (without it first_seq must     \
-          equal batch_reply.next_seq) */
+#define PROTO_BATCH_FLAG_START 0u /* a new stream: first_seq becomes the expected block number (without it first_seq must equal batch_reply.next_seq) */
 
 /* Bootloader refusal reason: error.arg when error.code = boot (firmware/core/boot/boot.h). */
-#define PROTO_BOOT_STATUS_OK          0u /* no error */
-#define PROTO_BOOT_STATUS_BAD_MAGIC   1u /* not an image header */
-#define PROTO_BOOT_STATUS_BAD_FORMAT  2u /* unknown image format version or header size */
-#define PROTO_BOOT_STATUS_HEADER_CRC  3u /* image header CRC mismatch */
+#define PROTO_BOOT_STATUS_OK 0u /* no error */
+#define PROTO_BOOT_STATUS_BAD_MAGIC 1u /* not an image header */
+#define PROTO_BOOT_STATUS_BAD_FORMAT 2u /* unknown image format version or header size */
+#define PROTO_BOOT_STATUS_HEADER_CRC 3u /* image header CRC mismatch */
 #define PROTO_BOOT_STATUS_WRONG_BOARD 4u /* image built for another board */
-#define PROTO_BOOT_STATUS_WRONG_LOAD_ADDR                                                          \
-    5u /* image load address is not this drive's application address */
-#define PROTO_BOOT_STATUS_BAD_LENGTH 6u   /* image length zero or larger than the application slot \
-                                           */
+#define PROTO_BOOT_STATUS_WRONG_LOAD_ADDR 5u /* image load address is not this drive's application address */
+#define PROTO_BOOT_STATUS_BAD_LENGTH 6u /* image length zero or larger than the application slot */
 #define PROTO_BOOT_STATUS_RESERVED_SET 7u /* image header reserved bytes not zero */
-#define PROTO_BOOT_STATUS_PAYLOAD_CRC                                                              \
-    8u /* payload in flash does not match the header CRC (lo = CRC found) */
-#define PROTO_BOOT_STATUS_BAD_STATE  16u /* command not allowed now (write/finish without erase) */
-#define PROTO_BOOT_STATUS_RANGE      17u /* address or length outside the image / slot */
-#define PROTO_BOOT_STATUS_ALIGN      18u /* address or length not a multiple of the write unit */
+#define PROTO_BOOT_STATUS_PAYLOAD_CRC 8u /* payload in flash does not match the header CRC (lo = CRC found) */
+#define PROTO_BOOT_STATUS_BAD_STATE 16u /* command not allowed now (write/finish without erase) */
+#define PROTO_BOOT_STATUS_RANGE 17u /* address or length outside the image / slot */
+#define PROTO_BOOT_STATUS_ALIGN 18u /* address or length not a multiple of the write unit */
 #define PROTO_BOOT_STATUS_NOT_ERASED 19u /* target holds other data: erase again */
-#define PROTO_BOOT_STATUS_FLASH      20u /* flash erase/write/read failed */
-#define PROTO_BOOT_STATUS_VERIFY     21u /* read-back after programming differs */
-#define PROTO_BOOT_STATUS_MALFORMED  22u /* request fields inconsistent */
-#define PROTO_BOOT_STATUS_UNKNOWN    23u /* unknown bootloader command */
+#define PROTO_BOOT_STATUS_FLASH 20u /* flash erase/write/read failed */
+#define PROTO_BOOT_STATUS_VERIFY 21u /* read-back after programming differs */
+#define PROTO_BOOT_STATUS_MALFORMED 22u /* request fields inconsistent */
+#define PROTO_BOOT_STATUS_UNKNOWN 23u /* unknown bootloader command */
 
 /* Why the bootloader stays (boot_info.app_state; 0 = a valid application is present). */
-#define PROTO_BOOT_REASON_APP_OK        0u /* valid application (CRC checked) */
-#define PROTO_BOOT_REASON_REQUESTED     1u /* the host asked to stay (boot_enter) */
-#define PROTO_BOOT_REASON_NO_APP        2u /* no application */
-#define PROTO_BOOT_REASON_BAD_HEADER    3u /* application header invalid for this drive */
+#define PROTO_BOOT_REASON_APP_OK 0u /* valid application (CRC checked) */
+#define PROTO_BOOT_REASON_REQUESTED 1u /* the host asked to stay (boot_enter) */
+#define PROTO_BOOT_REASON_NO_APP 2u /* no application */
+#define PROTO_BOOT_REASON_BAD_HEADER 3u /* application header invalid for this drive */
 #define PROTO_BOOT_REASON_NOT_VALIDATED 4u /* update interrupted before finish */
-#define PROTO_BOOT_REASON_MARKED_BAD    5u /* the application marked itself bad */
-#define PROTO_BOOT_REASON_CRC           6u /* application CRC mismatch */
-#define PROTO_BOOT_REASON_FLASH         7u /* flash unreadable */
+#define PROTO_BOOT_REASON_MARKED_BAD 5u /* the application marked itself bad */
+#define PROTO_BOOT_REASON_CRC 6u /* application CRC mismatch */
+#define PROTO_BOOT_REASON_FLASH 7u /* flash unreadable */
 
-/* Calibration / compensation refusal reason: error.arg when error.code = calib, calib_state.reason
- * after a failed run (docs/calibration.md). */
-#define PROTO_CALIB_STATUS_OK       0u /* no error */
+/* Calibration / compensation refusal reason: error.arg when error.code = calib, calib_state.reason after a failed run (docs/calibration.md). */
+#define PROTO_CALIB_STATUS_OK 0u /* no error */
 #define PROTO_CALIB_STATUS_BAD_AXIS 1u /* axis not configured on this drive */
-#define PROTO_CALIB_STATUS_NO_REFERENCE                                                            \
-    2u /* reference scale requested but the axis has none (use a host reference) */
+#define PROTO_CALIB_STATUS_NO_REFERENCE 2u /* reference scale requested but the axis has none (use a host reference) */
 #define PROTO_CALIB_STATUS_BAD_SETUP 3u /* setup field out of range (lo = field index) */
-#define PROTO_CALIB_STATUS_TARGETS                                                                 \
-    4u /* targets missing, out of range or not strictly increasing (lo = index) */
-#define PROTO_CALIB_STATUS_BUSY      5u /* a run is in progress (abort it first) */
-#define PROTO_CALIB_STATUS_NOT_READY 6u /* no run set up / run not finished / point out of range   \
-                                         */
+#define PROTO_CALIB_STATUS_TARGETS 4u /* targets missing, out of range or not strictly increasing (lo = index) */
+#define PROTO_CALIB_STATUS_BUSY 5u /* a run is in progress (abort it first) */
+#define PROTO_CALIB_STATUS_NOT_READY 6u /* no run set up / run not finished / point out of range */
 #define PROTO_CALIB_STATUS_DRIVE_DISABLED 7u /* the drive is not enabled or not at rest */
-#define PROTO_CALIB_STATUS_DRIVE_FAULT    8u /* the drive faulted during the run (lo = fault bits) */
-#define PROTO_CALIB_STATUS_MOTION         9u /* the drive refused a calibration move (lo = drive result) \
-                                              */
-#define PROTO_CALIB_STATUS_SEQ                                                                     \
-    10u /* requested sample sequence number not held (lo = oldest held) */
+#define PROTO_CALIB_STATUS_DRIVE_FAULT 8u /* the drive faulted during the run (lo = fault bits) */
+#define PROTO_CALIB_STATUS_MOTION 9u /* the drive refused a calibration move (lo = drive result) */
+#define PROTO_CALIB_STATUS_SEQ 10u /* requested sample sequence number not held (lo = oldest held) */
 #define PROTO_CALIB_STATUS_ABORTED 11u /* the run was aborted by the host */
-#define PROTO_CALIB_STATUS_RECORD                                                                  \
-    12u /* compensation record invalid (lo = comp_result: 4 order, 5 range, 6 magic, 7 crc, 8      \
-           axis) */
-#define PROTO_CALIB_STATUS_RECORD_CRC                                                              \
-    13u /* compensation record CRC differs from the host's (lo = CRC received) */
-#define PROTO_CALIB_STATUS_RECORD_RANGE 14u /* comp_write offset/length outside the record buffer  \
-                                             */
-#define PROTO_CALIB_STATUS_FLASH                                                                   \
-    15u /* flash store failed (lo = comp_store result); the previous table stays active */
-#define PROTO_CALIB_STATUS_DRIVE_ENABLED                                                           \
-    16u /* compensation tables are written with the drive disabled (lo = drive state): a flash     \
-           write stalls a single-bank MCU; the staged record is kept for a retry */
-#define PROTO_CALIB_STATUS_HOST_SILENT                                                             \
-    17u /* the host sent no calibration request for 3 s during the run: run aborted, axes stopped  \
-         */
-#define PROTO_CALIB_STATUS_NEW_SESSION                                                             \
-    18u /* a new host session started during the run: run aborted, axes stopped */
-#define PROTO_CALIB_STATUS_COMP2D_FIELD                                                            \
-    19u /* 2-D map: its grid reaches outside the drive's field (soft limits of X and Y; lo = 1 +   \
-           axis) */
-#define PROTO_CALIB_STATUS_COMP2D_MEMORY                                                           \
-    20u /* 2-D map: more nodes than the drive holds (lo = nx * ny; at most 144, 2 <= nx, ny) */
-#define PROTO_CALIB_STATUS_COMP2D_RECORD                                                           \
-    21u /* 2-D map record invalid (lo = comp2d error: 1 version, 3 node spacing or shift, 5 magic, \
-           6 length, 7 CRC) */
+#define PROTO_CALIB_STATUS_RECORD 12u /* compensation record invalid (lo = comp_result: 4 order, 5 range, 6 magic, 7 crc, 8 axis) */
+#define PROTO_CALIB_STATUS_RECORD_CRC 13u /* compensation record CRC differs from the host's (lo = CRC received) */
+#define PROTO_CALIB_STATUS_RECORD_RANGE 14u /* comp_write offset/length outside the record buffer */
+#define PROTO_CALIB_STATUS_FLASH 15u /* flash store failed (lo = comp_store result); the previous table stays active */
+#define PROTO_CALIB_STATUS_DRIVE_ENABLED 16u /* compensation tables are written with the drive disabled (lo = drive state): a flash write stalls a single-bank MCU; the staged record is kept for a retry */
+#define PROTO_CALIB_STATUS_HOST_SILENT 17u /* the host sent no calibration request for 3 s during the run: run aborted, axes stopped */
+#define PROTO_CALIB_STATUS_NEW_SESSION 18u /* a new host session started during the run: run aborted, axes stopped */
+#define PROTO_CALIB_STATUS_COMP2D_FIELD 19u /* 2-D map: its grid reaches outside the drive's field (soft limits of X and Y; lo = 1 + axis) */
+#define PROTO_CALIB_STATUS_COMP2D_MEMORY 20u /* 2-D map: more nodes than the drive holds (lo = nx * ny; at most 144, 2 <= nx, ny) */
+#define PROTO_CALIB_STATUS_COMP2D_RECORD 21u /* 2-D map record invalid (lo = comp2d error: 1 version, 3 node spacing or shift, 5 magic, 6 length, 7 CRC) */
 #define PROTO_CALIB_STATUS_COMP2D_AXES 22u /* 2-D map: the drive has fewer than two axes */
 
 /* calib_state.state */
-#define PROTO_CALIB_RUN_STATE_IDLE    0u /* no run set up */
-#define PROTO_CALIB_RUN_STATE_SETUP   1u /* set up, waiting for targets / start */
+#define PROTO_CALIB_RUN_STATE_IDLE 0u /* no run set up */
+#define PROTO_CALIB_RUN_STATE_SETUP 1u /* set up, waiting for targets / start */
 #define PROTO_CALIB_RUN_STATE_RUNNING 2u /* moving through the targets and sampling */
-#define PROTO_CALIB_RUN_STATE_DONE    3u /* every leg measured (single points may be repeated now) */
-#define PROTO_CALIB_RUN_STATE_ERROR   4u /* stopped by an error (calib_state.reason) */
+#define PROTO_CALIB_RUN_STATE_DONE 3u /* every leg measured (single points may be repeated now) */
+#define PROTO_CALIB_RUN_STATE_ERROR 4u /* stopped by an error (calib_state.reason) */
 
 /* calib_setup.flags bits (bit numbers) */
-#define PROTO_CALIB_FLAG_HOST_REFERENCE                                                            \
-    0u /* no reference scale: samples carry the encoder only, the host supplies the reference */
+#define PROTO_CALIB_FLAG_HOST_REFERENCE 0u /* no reference scale: samples carry the encoder only, the host supplies the reference */
 
 /* Flag bits of a calibration sample (bit numbers; docs/calibration.md) */
-#define PROTO_CALIB_SAMPLE_FLAG_NEG          0u /* approached moving in -x (else +x) */
-#define PROTO_CALIB_SAMPLE_FLAG_NO_REFERENCE 1u /* reference field not measured (host reference)   \
-                                                 */
+#define PROTO_CALIB_SAMPLE_FLAG_NEG 0u /* approached moving in -x (else +x) */
+#define PROTO_CALIB_SAMPLE_FLAG_NO_REFERENCE 1u /* reference field not measured (host reference) */
 #define PROTO_CALIB_SAMPLE_FLAG_FAULT 2u /* a drive or decoder fault was latched while sampling */
 
 /* Contour-error controller mode (param cec_mode). */
-#define PROTO_CEC_MODE_OFF       0u /* no contour-error controller */
-#define PROTO_CEC_MODE_TANGENT   1u /* tangent estimate */
+#define PROTO_CEC_MODE_OFF 0u /* no contour-error controller */
+#define PROTO_CEC_MODE_TANGENT 1u /* tangent estimate */
 #define PROTO_CEC_MODE_CURVATURE 2u /* curvature estimate */
-#define PROTO_CEC_MODE_EXACT     3u /* exact contour error */
-#define PROTO_CEC_MODE_KOREN     4u /* Koren's straight-line estimate */
-#define PROTO_CEC_MODE_CALCR     5u /* curvature from the reference history only (the thesis's calcr) \
-                                     */
+#define PROTO_CEC_MODE_EXACT 3u /* exact contour error */
+#define PROTO_CEC_MODE_KOREN 4u /* Koren's straight-line estimate */
+#define PROTO_CEC_MODE_CALCR 5u /* curvature from the reference history only (the thesis's calcr) */
 #define PROTO_CEC_MODE_CHUANG_LIU 6u /* Chuang and Liu's second-order estimate */
 
 /* Planner cornering rule (param corner_rule). */
 #define PROTO_CORNER_RULE_JUNCTION_DEVIATION 0u /* junction deviation */
-#define PROTO_CORNER_RULE_VELOCITY_STEP      1u /* axis velocity step */
-#define PROTO_CORNER_RULE_SMOOTHED           2u /* smoothed corner */
-#define PROTO_CORNER_RULE_EXACT_STOP         3u /* exact stop at every junction */
+#define PROTO_CORNER_RULE_VELOCITY_STEP 1u /* axis velocity step */
+#define PROTO_CORNER_RULE_SMOOTHED 2u /* smoothed corner */
+#define PROTO_CORNER_RULE_EXACT_STOP 3u /* exact stop at every junction */
 
 /* Planner block profile (param velocity_profile). */
-#define PROTO_VELOCITY_PROFILE_SCURVE    0u /* S-curve (jerk-limited) */
+#define PROTO_VELOCITY_PROFILE_SCURVE 0u /* S-curve (jerk-limited) */
 #define PROTO_VELOCITY_PROFILE_TRAPEZOID 1u /* trapezoid */
-#define PROTO_VELOCITY_PROFILE_SCURVE_AT_REST                                                      \
-    2u /* S-curve only for blocks that start or end at rest */
+#define PROTO_VELOCITY_PROFILE_SCURVE_AT_REST 2u /* S-curve only for blocks that start or end at rest */
 
 /* What the drive did with its saved parameters at start-up (param param_store_status). */
-#define PROTO_PARAM_STORE_STATUS_NONE    0u /* nothing saved: defaults */
-#define PROTO_PARAM_STORE_STATUS_LOADED  1u /* the saved parameters are in use */
+#define PROTO_PARAM_STORE_STATUS_NONE 0u /* nothing saved: defaults */
+#define PROTO_PARAM_STORE_STATUS_LOADED 1u /* the saved parameters are in use */
 #define PROTO_PARAM_STORE_STATUS_CORRUPT 2u /* the record cannot be read: defaults */
-#define PROTO_PARAM_STORE_STATUS_VERSION 3u /* saved by another format or parameter set: defaults  \
-                                             */
-#define PROTO_PARAM_STORE_STATUS_AXES    4u /* saved for another axis count: defaults */
+#define PROTO_PARAM_STORE_STATUS_VERSION 3u /* saved by another format or parameter set: defaults */
+#define PROTO_PARAM_STORE_STATUS_AXES 4u /* saved for another axis count: defaults */
 #define PROTO_PARAM_STORE_STATUS_REFUSED 5u /* a saved value the drive refuses: defaults */
 
 /* Message ids. */
-#define PROTO_MSG_IDENTIFY        0x01u
-#define PROTO_MSG_PARAM_GET       0x02u
-#define PROTO_MSG_PARAM_SET       0x03u
-#define PROTO_MSG_ENABLE          0x04u
-#define PROTO_MSG_JOG             0x05u
-#define PROTO_MSG_QUEUE_BLOCK     0x06u
-#define PROTO_MSG_STOP            0x07u
-#define PROTO_MSG_ESTOP           0x08u
-#define PROTO_MSG_FAULT_RESET     0x09u
-#define PROTO_MSG_STATUS_GET      0x0Au
-#define PROTO_MSG_QUEUE_ARC       0x0Bu
-#define PROTO_MSG_SESSION_OPEN    0x0Cu
-#define PROTO_MSG_HOME            0x0Du
-#define PROTO_MSG_QUEUE_BATCH     0x0Eu
-#define PROTO_MSG_PARAM_SAVE      0x2Eu
-#define PROTO_MSG_HEARTBEAT       0x30u
-#define PROTO_MSG_STATUS          0x31u
-#define PROTO_MSG_PROGRESS        0x32u
-#define PROTO_MSG_PATH            0x33u
-#define PROTO_MSG_POS_0           0x34u
-#define PROTO_MSG_POS_1           0x35u
-#define PROTO_MSG_POS_2           0x36u
-#define PROTO_MSG_POS_3           0x37u
-#define PROTO_MSG_FERR_0          0x38u
-#define PROTO_MSG_FERR_1          0x39u
-#define PROTO_MSG_FERR_2          0x3Au
-#define PROTO_MSG_FERR_3          0x3Bu
-#define PROTO_MSG_IDENTIFY_REPLY  0x41u
-#define PROTO_MSG_PARAM_VALUE     0x42u
-#define PROTO_MSG_QUEUE_REPLY     0x46u
-#define PROTO_MSG_DRIVE_STATE     0x4Au
-#define PROTO_MSG_SESSION_REPLY   0x4Cu
-#define PROTO_MSG_BATCH_REPLY     0x4Du
-#define PROTO_MSG_ACK             0x70u
-#define PROTO_MSG_ERROR           0x7Fu
-#define PROTO_MSG_BOOT_CONNECT    0x80u
-#define PROTO_MSG_BOOT_ERASE      0x81u
-#define PROTO_MSG_BOOT_WRITE      0x82u
-#define PROTO_MSG_BOOT_READ       0x83u
-#define PROTO_MSG_BOOT_CRC        0x84u
-#define PROTO_MSG_BOOT_FINISH     0x85u
-#define PROTO_MSG_BOOT_REBOOT     0x86u
-#define PROTO_MSG_BOOT_ENTER      0x87u
-#define PROTO_MSG_BOOT_INFO       0x90u
-#define PROTO_MSG_BOOT_ERASED     0x91u
-#define PROTO_MSG_BOOT_WRITTEN    0x92u
-#define PROTO_MSG_BOOT_DATA       0x93u
-#define PROTO_MSG_BOOT_CRC_VALUE  0x94u
-#define PROTO_MSG_BOOT_FINISHED   0x95u
-#define PROTO_MSG_CALIB_SETUP     0xA0u
-#define PROTO_MSG_CALIB_TARGETS   0xA1u
-#define PROTO_MSG_CALIB_START     0xA2u
-#define PROTO_MSG_CALIB_STATUS    0xA3u
-#define PROTO_MSG_CALIB_READ      0xA4u
-#define PROTO_MSG_CALIB_POINT     0xA5u
-#define PROTO_MSG_CALIB_ABORT     0xA6u
-#define PROTO_MSG_COMP_WRITE      0xA8u
-#define PROTO_MSG_COMP_COMMIT     0xA9u
-#define PROTO_MSG_COMP_GET        0xAAu
-#define PROTO_MSG_COMP_CLEAR      0xABu
-#define PROTO_MSG_CALIB_STATE     0xB0u
-#define PROTO_MSG_CALIB_SAMPLES   0xB1u
-#define PROTO_MSG_COMP_WRITTEN    0xB2u
-#define PROTO_MSG_COMP_INFO       0xB3u
-#define PROTO_MSG_COMP2D_WRITE    0xC8u
-#define PROTO_MSG_COMP2D_COMMIT   0xC9u
-#define PROTO_MSG_COMP2D_GET      0xCAu
-#define PROTO_MSG_COMP2D_CLEAR    0xCBu
-#define PROTO_MSG_COMP2D_READ     0xCCu
-#define PROTO_MSG_COMP2D_INFO     0xCDu
-#define PROTO_MSG_COMP2D_WRITTEN  0xCEu
-#define PROTO_MSG_COMP2D_DATA     0xCFu
-#define PROTO_MSG_POS(axis)       ((uint8_t)(0x34u + (unsigned)(axis)))
-#define PROTO_CAN_FUNC_POS(axis)  (7u + (unsigned)(axis))
-#define PROTO_MSG_FERR(axis)      ((uint8_t)(0x38u + (unsigned)(axis)))
+#define PROTO_MSG_IDENTIFY 0x01u
+#define PROTO_MSG_PARAM_GET 0x02u
+#define PROTO_MSG_PARAM_SET 0x03u
+#define PROTO_MSG_ENABLE 0x04u
+#define PROTO_MSG_JOG 0x05u
+#define PROTO_MSG_QUEUE_BLOCK 0x06u
+#define PROTO_MSG_STOP 0x07u
+#define PROTO_MSG_ESTOP 0x08u
+#define PROTO_MSG_FAULT_RESET 0x09u
+#define PROTO_MSG_STATUS_GET 0x0Au
+#define PROTO_MSG_QUEUE_ARC 0x0Bu
+#define PROTO_MSG_SESSION_OPEN 0x0Cu
+#define PROTO_MSG_HOME 0x0Du
+#define PROTO_MSG_QUEUE_BATCH 0x0Eu
+#define PROTO_MSG_PARAM_SAVE 0x2Eu
+#define PROTO_MSG_HEARTBEAT 0x30u
+#define PROTO_MSG_STATUS 0x31u
+#define PROTO_MSG_PROGRESS 0x32u
+#define PROTO_MSG_PATH 0x33u
+#define PROTO_MSG_POS_0 0x34u
+#define PROTO_MSG_POS_1 0x35u
+#define PROTO_MSG_POS_2 0x36u
+#define PROTO_MSG_POS_3 0x37u
+#define PROTO_MSG_FERR_0 0x38u
+#define PROTO_MSG_FERR_1 0x39u
+#define PROTO_MSG_FERR_2 0x3Au
+#define PROTO_MSG_FERR_3 0x3Bu
+#define PROTO_MSG_IDENTIFY_REPLY 0x41u
+#define PROTO_MSG_PARAM_VALUE 0x42u
+#define PROTO_MSG_QUEUE_REPLY 0x46u
+#define PROTO_MSG_DRIVE_STATE 0x4Au
+#define PROTO_MSG_SESSION_REPLY 0x4Cu
+#define PROTO_MSG_BATCH_REPLY 0x4Du
+#define PROTO_MSG_ACK 0x70u
+#define PROTO_MSG_ERROR 0x7Fu
+#define PROTO_MSG_BOOT_CONNECT 0x80u
+#define PROTO_MSG_BOOT_ERASE 0x81u
+#define PROTO_MSG_BOOT_WRITE 0x82u
+#define PROTO_MSG_BOOT_READ 0x83u
+#define PROTO_MSG_BOOT_CRC 0x84u
+#define PROTO_MSG_BOOT_FINISH 0x85u
+#define PROTO_MSG_BOOT_REBOOT 0x86u
+#define PROTO_MSG_BOOT_ENTER 0x87u
+#define PROTO_MSG_BOOT_INFO 0x90u
+#define PROTO_MSG_BOOT_ERASED 0x91u
+#define PROTO_MSG_BOOT_WRITTEN 0x92u
+#define PROTO_MSG_BOOT_DATA 0x93u
+#define PROTO_MSG_BOOT_CRC_VALUE 0x94u
+#define PROTO_MSG_BOOT_FINISHED 0x95u
+#define PROTO_MSG_CALIB_SETUP 0xA0u
+#define PROTO_MSG_CALIB_TARGETS 0xA1u
+#define PROTO_MSG_CALIB_START 0xA2u
+#define PROTO_MSG_CALIB_STATUS 0xA3u
+#define PROTO_MSG_CALIB_READ 0xA4u
+#define PROTO_MSG_CALIB_POINT 0xA5u
+#define PROTO_MSG_CALIB_ABORT 0xA6u
+#define PROTO_MSG_COMP_WRITE 0xA8u
+#define PROTO_MSG_COMP_COMMIT 0xA9u
+#define PROTO_MSG_COMP_GET 0xAAu
+#define PROTO_MSG_COMP_CLEAR 0xABu
+#define PROTO_MSG_CALIB_STATE 0xB0u
+#define PROTO_MSG_CALIB_SAMPLES 0xB1u
+#define PROTO_MSG_COMP_WRITTEN 0xB2u
+#define PROTO_MSG_COMP_INFO 0xB3u
+#define PROTO_MSG_COMP2D_WRITE 0xC8u
+#define PROTO_MSG_COMP2D_COMMIT 0xC9u
+#define PROTO_MSG_COMP2D_GET 0xCAu
+#define PROTO_MSG_COMP2D_CLEAR 0xCBu
+#define PROTO_MSG_COMP2D_READ 0xCCu
+#define PROTO_MSG_COMP2D_INFO 0xCDu
+#define PROTO_MSG_COMP2D_WRITTEN 0xCEu
+#define PROTO_MSG_COMP2D_DATA 0xCFu
+#define PROTO_MSG_POS(axis) ((uint8_t)(0x34u + (unsigned)(axis)))
+#define PROTO_CAN_FUNC_POS(axis) (7u + (unsigned)(axis))
+#define PROTO_MSG_FERR(axis) ((uint8_t)(0x38u + (unsigned)(axis)))
 #define PROTO_CAN_FUNC_FERR(axis) (11u + (unsigned)(axis))
 
 /* Parameter ids (per-axis parameters: id + axis). */
-#define PROTO_PARAM_COMM_TIMEOUT_MS          0x0001u
-#define PROTO_PARAM_STATUS_PERIOD_MS         0x0002u
-#define PROTO_PARAM_TELEM_PERIOD_MS          0x0003u
-#define PROTO_PARAM_HEARTBEAT_PERIOD_MS      0x0004u
-#define PROTO_PARAM_NODE_ID                  0x0005u
-#define PROTO_PARAM_PARAM_STORE_STATUS       0x0006u
-#define PROTO_PARAM_CEC_MODE                 0x0100u
-#define PROTO_PARAM_AXES                     0x0101u
-#define PROTO_PARAM_POSITION                 0x0200u
-#define PROTO_PARAM_FOLLOWING_ERROR          0x0210u
-#define PROTO_PARAM_MAX_VELOCITY             0x0300u
-#define PROTO_PARAM_MAX_ACCELERATION         0x0310u
-#define PROTO_PARAM_MAX_JERK                 0x0320u
-#define PROTO_PARAM_CORNER_VELOCITY_STEP     0x0330u
-#define PROTO_PARAM_CORNER_ACCELERATION      0x0340u
-#define PROTO_PARAM_JUNCTION_DEVIATION       0x0350u
-#define PROTO_PARAM_CORNER_RULE              0x0351u
-#define PROTO_PARAM_VELOCITY_PROFILE         0x0352u
-#define PROTO_PARAM_MIN_BLOCK_TIME           0x0353u
-#define PROTO_PARAM_MIN_BLOCK_WINDOW         0x0354u
-#define PROTO_PARAM_STOP_DECELERATION        0x0355u
-#define PROTO_PARAM_ARC_CHORD_TOLERANCE      0x0356u
-#define PROTO_PARAM_START_DELAY_MS           0x0357u
-#define PROTO_PARAM_PID_KP                   0x0500u
-#define PROTO_PARAM_PID_KI                   0x0510u
-#define PROTO_PARAM_PID_KD                   0x0520u
-#define PROTO_PARAM_VELOCITY_FEEDFORWARD     0x0530u
+#define PROTO_PARAM_COMM_TIMEOUT_MS 0x0001u
+#define PROTO_PARAM_STATUS_PERIOD_MS 0x0002u
+#define PROTO_PARAM_TELEM_PERIOD_MS 0x0003u
+#define PROTO_PARAM_HEARTBEAT_PERIOD_MS 0x0004u
+#define PROTO_PARAM_NODE_ID 0x0005u
+#define PROTO_PARAM_PARAM_STORE_STATUS 0x0006u
+#define PROTO_PARAM_CEC_MODE 0x0100u
+#define PROTO_PARAM_AXES 0x0101u
+#define PROTO_PARAM_POSITION 0x0200u
+#define PROTO_PARAM_FOLLOWING_ERROR 0x0210u
+#define PROTO_PARAM_MAX_VELOCITY 0x0300u
+#define PROTO_PARAM_MAX_ACCELERATION 0x0310u
+#define PROTO_PARAM_MAX_JERK 0x0320u
+#define PROTO_PARAM_CORNER_VELOCITY_STEP 0x0330u
+#define PROTO_PARAM_CORNER_ACCELERATION 0x0340u
+#define PROTO_PARAM_JUNCTION_DEVIATION 0x0350u
+#define PROTO_PARAM_CORNER_RULE 0x0351u
+#define PROTO_PARAM_VELOCITY_PROFILE 0x0352u
+#define PROTO_PARAM_MIN_BLOCK_TIME 0x0353u
+#define PROTO_PARAM_MIN_BLOCK_WINDOW 0x0354u
+#define PROTO_PARAM_STOP_DECELERATION 0x0355u
+#define PROTO_PARAM_ARC_CHORD_TOLERANCE 0x0356u
+#define PROTO_PARAM_START_DELAY_MS 0x0357u
+#define PROTO_PARAM_PID_KP 0x0500u
+#define PROTO_PARAM_PID_KI 0x0510u
+#define PROTO_PARAM_PID_KD 0x0520u
+#define PROTO_PARAM_VELOCITY_FEEDFORWARD 0x0530u
 #define PROTO_PARAM_ACCELERATION_FEEDFORWARD 0x0540u
-#define PROTO_PARAM_FOLLOWING_ERROR_LIMIT    0x0550u
-#define PROTO_PARAM_SOFT_LIMIT_MIN           0x0600u
-#define PROTO_PARAM_SOFT_LIMIT_MAX           0x0610u
-#define PROTO_PARAM_IN_POSITION_WINDOW       0x0620u
+#define PROTO_PARAM_FOLLOWING_ERROR_LIMIT 0x0550u
+#define PROTO_PARAM_SOFT_LIMIT_MIN 0x0600u
+#define PROTO_PARAM_SOFT_LIMIT_MAX 0x0610u
+#define PROTO_PARAM_IN_POSITION_WINDOW 0x0620u
 
-/* identify (h2d): Who are you: versions, axes, capabilities, node id. Read-only, safe to send any
- * time. */
+/* identify (h2d): Who are you: versions, axes, capabilities, node id. Read-only, safe to send any time. */
 #define PROTO_IDENTIFY_LEN 0u
 
 /* param_get (h2d): Read one typed parameter. */
@@ -388,12 +343,11 @@ typedef struct {
 size_t proto_param_get_encode(const proto_param_get_t *m, uint8_t *buf, size_t cap);
 bool proto_param_get_decode(const uint8_t *buf, size_t len, proto_param_get_t *m);
 
-/* param_set (h2d): Write one typed parameter; range-checked against the table before anything is
- * applied. */
+/* param_set (h2d): Write one typed parameter; range-checked against the table before anything is applied. */
 #define PROTO_PARAM_SET_LEN 10u
 typedef struct {
     uint16_t param; /* parameter id (per-axis: id + axis) */
-    int64_t value;  /* new value in the parameter's unit */
+    int64_t value; /* new value in the parameter's unit */
 } proto_param_set_t;
 size_t proto_param_set_encode(const proto_param_set_t *m, uint8_t *buf, size_t cap);
 bool proto_param_set_decode(const uint8_t *buf, size_t len, proto_param_set_t *m);
@@ -402,7 +356,7 @@ bool proto_param_set_decode(const uint8_t *buf, size_t len, proto_param_set_t *m
 #define PROTO_ENABLE_LEN 2u
 typedef struct {
     uint8_t axis_mask; /* bit n = axis n */
-    uint8_t on;        /* 1 enable, 0 disable */
+    uint8_t on; /* 1 enable, 0 disable */
 } proto_enable_t;
 size_t proto_enable_encode(const proto_enable_t *m, uint8_t *buf, size_t cap);
 bool proto_enable_decode(const uint8_t *buf, size_t len, proto_enable_t *m);
@@ -411,21 +365,20 @@ bool proto_enable_decode(const uint8_t *buf, size_t len, proto_enable_t *m);
 #define PROTO_JOG_LEN 13u
 typedef struct {
     uint8_t axis;
-    uint32_t feed;    /* [nm/s] speed, > 0 */
+    uint32_t feed; /* [nm/s] speed, > 0 */
     int64_t distance; /* [nm] */
 } proto_jog_t;
 size_t proto_jog_encode(const proto_jog_t *m, uint8_t *buf, size_t cap);
 bool proto_jog_decode(const uint8_t *buf, size_t len, proto_jog_t *m);
 
-/* queue_block (h2d): Append one motion block to the planner. Flow control: the reply tells free
- * slots and planned time queued. */
+/* queue_block (h2d): Append one motion block to the planner. Flow control: the reply tells free slots and planned time queued. */
 #define PROTO_QUEUE_BLOCK_LEN 42u
 typedef struct {
     uint32_t block_seq; /* host's running block number (echoed, reported in progress) */
-    uint8_t kind;       /* block_kind */
-    uint8_t flags;      /* block_flag bits */
-    uint32_t feed;      /* [nm/s] programmed feed (line), duration in ms (dwell) */
-    int64_t target[4];  /* [nm] absolute end position per axis (unused axes 0) */
+    uint8_t kind; /* block_kind */
+    uint8_t flags; /* block_flag bits */
+    uint32_t feed; /* [nm/s] programmed feed (line), duration in ms (dwell) */
+    int64_t target[4]; /* [nm] absolute end position per axis (unused axes 0) */
 } proto_queue_block_t;
 size_t proto_queue_block_encode(const proto_queue_block_t *m, uint8_t *buf, size_t cap);
 bool proto_queue_block_decode(const uint8_t *buf, size_t len, proto_queue_block_t *m);
@@ -446,74 +399,57 @@ bool proto_queue_block_decode(const uint8_t *buf, size_t len, proto_queue_block_
 #define PROTO_QUEUE_ARC_LEN 59u
 typedef struct {
     uint32_t block_seq;
-    uint8_t flags;     /* block_flag bits */
-    uint8_t plane;     /* 0 XY (G17), 1 ZX (G18), 2 YZ (G19) */
-    int8_t sense;      /* +1 counter-clockwise (G3), -1 clockwise (G2) */
-    uint32_t feed;     /* [nm/s] */
+    uint8_t flags; /* block_flag bits */
+    uint8_t plane; /* 0 XY (G17), 1 ZX (G18), 2 YZ (G19) */
+    int8_t sense; /* +1 counter-clockwise (G3), -1 clockwise (G2) */
+    uint32_t feed; /* [nm/s] */
     int64_t target[4]; /* [nm] */
-    int64_t centre_u;  /* [nm] */
-    int64_t centre_v;  /* [nm] */
+    int64_t centre_u; /* [nm] */
+    int64_t centre_v; /* [nm] */
 } proto_queue_arc_t;
 size_t proto_queue_arc_encode(const proto_queue_arc_t *m, uint8_t *buf, size_t cap);
 bool proto_queue_arc_decode(const uint8_t *buf, size_t len, proto_queue_arc_t *m);
 
-/* session_open (h2d): A host starts a session: the drive forgets its replay cache and echoes the
- * nonce. Everything the drive sent before this reply belongs to an earlier session: the host
- * discards it. The bootloader answers it too. */
+/* session_open (h2d): A host starts a session: the drive forgets its replay cache and echoes the nonce. Everything the drive sent before this reply belongs to an earlier session: the host discards it. The bootloader answers it too. */
 #define PROTO_SESSION_OPEN_LEN 6u
 typedef struct {
     uint32_t nonce; /* random, chosen by the host for this session */
-    uint16_t
-        protocol_version; /* the host's PROTO_VERSION; the application refuses another
-                             (not_supported, arg = its own version), the bootloader takes any */
+    uint16_t protocol_version; /* the host's PROTO_VERSION; the application refuses another (not_supported, arg = its own version), the bootloader takes any */
 } proto_session_open_t;
 size_t proto_session_open_encode(const proto_session_open_t *m, uint8_t *buf, size_t cap);
 bool proto_session_open_decode(const uint8_t *buf, size_t len, proto_session_open_t *m);
 
-/* home (h2d): Home the axes of axis_mask (ready only, nothing queued): per axis, toward the home
- * switch at search_feed until it triggers, back off at latch_feed until it releases, on to the next
- * encoder index (axes in index_mask; else the switch edge), stop; the position there becomes
- * home_pos. The drive is homing (state) until every axis is homed (drive_state.homed), then ready;
- * stop aborts; a switch or index not found within max_distance latches the homing fault.
- * docs/operating.md, Homing. */
+/* home (h2d): Home the axes of axis_mask (ready only, nothing queued): per axis, toward the home switch at search_feed until it triggers, back off at latch_feed until it releases, on to the next encoder index (axes in index_mask; else the switch edge), stop; the position there becomes home_pos. The drive is homing (state) until every axis is homed (drive_state.homed), then ready; stop aborts; a switch or index not found within max_distance latches the homing fault. docs/operating.md, Homing. */
 #define PROTO_HOME_LEN 47u
 typedef struct {
-    uint8_t axis_mask;     /* axes to home, non-zero */
+    uint8_t axis_mask; /* axes to home, non-zero */
     uint8_t negative_mask; /* bit i: axis i's switch is toward negative positions */
-    uint8_t index_mask;    /* bit i: reference is the encoder index after the switch edge */
-    uint32_t search_feed;  /* [nm/s] toward the switch, > 0, <= max_velocity */
-    uint32_t latch_feed;   /* [nm/s] back-off and index search, 0 < latch_feed <= search_feed */
+    uint8_t index_mask; /* bit i: reference is the encoder index after the switch edge */
+    uint32_t search_feed; /* [nm/s] toward the switch, > 0, <= max_velocity */
+    uint32_t latch_feed; /* [nm/s] back-off and index search, 0 < latch_feed <= search_feed */
     uint32_t max_distance; /* [nm] travel allowed per phase, > 0 */
-    int64_t home_pos[4];   /* [nm] position at the reference point */
+    int64_t home_pos[4]; /* [nm] position at the reference point */
 } proto_home_t;
 size_t proto_home_encode(const proto_home_t *m, uint8_t *buf, size_t cap);
 bool proto_home_decode(const uint8_t *buf, size_t len, proto_home_t *m);
 
-/* queue_batch (h2d): Append `count` blocks numbered first_seq.. (records in `data`:
- * protocol/README.md, Block batches) to the drive's intake ring, in order, until one is refused or
- * the ring is full; the reply says how many were taken (accepted) and carries the window
- * (free_bytes, queued_us, blocks_done, state). An empty batch (count 0) only reads the window. A
- * malformed batch is refused whole (bad_value, arg = record index; bad_length: count differs). */
-#define PROTO_QUEUE_BATCH_LEN     6u
+/* queue_batch (h2d): Append `count` blocks numbered first_seq.. (records in `data`: protocol/README.md, Block batches) to the drive's intake ring, in order, until one is refused or the ring is full; the reply says how many were taken (accepted) and carries the window (free_bytes, queued_us, blocks_done, state). An empty batch (count 0) only reads the window. A malformed batch is refused whole (bad_value, arg = record index; bad_length: count differs). */
+#define PROTO_QUEUE_BATCH_LEN 6u
 #define PROTO_QUEUE_BATCH_MAX_LEN 250u
 typedef struct {
     uint32_t first_seq; /* block number of the first block */
-    uint8_t count;      /* blocks in data (origin records not counted) */
-    uint8_t flags;      /* batch_flag bits */
+    uint8_t count; /* blocks in data (origin records not counted) */
+    uint8_t flags; /* batch_flag bits */
     uint16_t data_len;
-    uint8_t data[244]; /* records: head byte, zigzag LEB128 deltas (nm) of the mask's axes, LEB128
-                          feed if the head says so */
+    uint8_t data[244]; /* records: head byte, zigzag LEB128 deltas (nm) of the mask's axes, LEB128 feed if the head says so */
 } proto_queue_batch_t;
 size_t proto_queue_batch_encode(const proto_queue_batch_t *m, uint8_t *buf, size_t cap);
 bool proto_queue_batch_decode(const uint8_t *buf, size_t len, proto_queue_batch_t *m);
 
-/* param_save (h2d): Store the drive parameters in flash (loaded at start-up; docs/parameters.md).
- * Only while disabled (bad_state, arg = state); a flash failure is internal (arg = comp_store
- * result). */
+/* param_save (h2d): Store the drive parameters in flash (loaded at start-up; docs/parameters.md). Only while disabled (bad_state, arg = state); a flash failure is internal (arg = comp_store result). */
 #define PROTO_PARAM_SAVE_LEN 0u
 
-/* heartbeat (d2h): Sent every heartbeat_period_ms on CAN (lowest priority); contour scan listens
- * for it. */
+/* heartbeat (d2h): Sent every heartbeat_period_ms on CAN (lowest priority); contour scan listens for it. */
 #define PROTO_HEARTBEAT_LEN 8u
 typedef struct {
     uint8_t state;
@@ -540,7 +476,7 @@ bool proto_status_decode(const uint8_t *buf, size_t len, proto_status_t *m);
 #define PROTO_PROGRESS_LEN 8u
 typedef struct {
     uint16_t seq;
-    uint32_t queued_us;   /* [us] */
+    uint32_t queued_us; /* [us] */
     uint16_t blocks_done; /* low 16 bits */
 } proto_progress_t;
 size_t proto_progress_encode(const proto_progress_t *m, uint8_t *buf, size_t cap);
@@ -551,7 +487,7 @@ bool proto_progress_decode(const uint8_t *buf, size_t len, proto_progress_t *m);
 typedef struct {
     uint16_t seq;
     int32_t contour_err; /* [nm] */
-    uint16_t feed;       /* [mm/min] actual path speed (saturates) */
+    uint16_t feed; /* [mm/min] actual path speed (saturates) */
 } proto_path_t;
 size_t proto_path_encode(const proto_path_t *m, uint8_t *buf, size_t cap);
 bool proto_path_decode(const uint8_t *buf, size_t len, proto_path_t *m);
@@ -570,7 +506,7 @@ bool proto_pos_decode(const uint8_t *buf, size_t len, proto_pos_t *m);
 typedef struct {
     uint16_t seq;
     int32_t ferr; /* [nm] */
-    int16_t cmd;  /* [10mV] */
+    int16_t cmd; /* [10mV] */
 } proto_ferr_t;
 size_t proto_ferr_encode(const proto_ferr_t *m, uint8_t *buf, size_t cap);
 bool proto_ferr_decode(const uint8_t *buf, size_t len, proto_ferr_t *m);
@@ -579,15 +515,15 @@ bool proto_ferr_decode(const uint8_t *buf, size_t len, proto_ferr_t *m);
 #define PROTO_IDENTIFY_REPLY_LEN 28u
 typedef struct {
     uint32_t fw_version; /* major << 16 | minor << 8 | patch */
-    uint32_t build_id;   /* build identifier (e.g. source hash) */
+    uint32_t build_id; /* build identifier (e.g. source hash) */
     uint16_t protocol_version;
     uint8_t axes;
     uint8_t node_id;
     uint32_t capabilities; /* capability bits */
-    uint32_t tick_hz;      /* [Hz] */
+    uint32_t tick_hz; /* [Hz] */
     uint16_t planner_slots;
     uint16_t max_payload; /* [byte] */
-    uint32_t board_id;    /* hardware board id (image header check, BOOT_BOARD_*) */
+    uint32_t board_id; /* hardware board id (image header check, BOOT_BOARD_*) */
 } proto_identify_reply_t;
 size_t proto_identify_reply_encode(const proto_identify_reply_t *m, uint8_t *buf, size_t cap);
 bool proto_identify_reply_decode(const uint8_t *buf, size_t len, proto_identify_reply_t *m);
@@ -614,19 +550,18 @@ bool proto_queue_reply_decode(const uint8_t *buf, size_t len, proto_queue_reply_
 /* drive_state (d2h): Reply to status_get. */
 #define PROTO_DRIVE_STATE_LEN 87u
 typedef struct {
-    uint8_t state;   /* state enum */
+    uint8_t state; /* state enum */
     uint8_t enabled; /* enabled axes mask */
     uint16_t faults; /* fault bits */
     uint16_t free_slots;
-    uint32_t queued_us;      /* [us] */
-    uint32_t blocks_done;    /* blocks completed since start */
+    uint32_t queued_us; /* [us] */
+    uint32_t blocks_done; /* blocks completed since start */
     uint32_t last_block_seq; /* block_seq of the last completed block */
-    int64_t pos[4];          /* [nm] measured position */
-    uint16_t rx_errors;      /* frames dropped (CRC, length, overflow) since start */
-    uint16_t replayed;       /* repeated requests answered from the cache */
-    uint8_t homed;           /* homed axes mask (home) */
-    int64_t home_shift[4]; /* [nm] per axis: how far its last homing moved the position frame (0: it
-                              was already right) */
+    int64_t pos[4]; /* [nm] measured position */
+    uint16_t rx_errors; /* frames dropped (CRC, length, overflow) since start */
+    uint16_t replayed; /* repeated requests answered from the cache */
+    uint8_t homed; /* homed axes mask (home) */
+    int64_t home_shift[4]; /* [nm] per axis: how far its last homing moved the position frame (0: it was already right) */
 } proto_drive_state_t;
 size_t proto_drive_state_encode(const proto_drive_state_t *m, uint8_t *buf, size_t cap);
 bool proto_drive_state_decode(const uint8_t *buf, size_t len, proto_drive_state_t *m);
@@ -634,8 +569,8 @@ bool proto_drive_state_decode(const uint8_t *buf, size_t len, proto_drive_state_
 /* session_reply (d2h): Reply to session_open. */
 #define PROTO_SESSION_REPLY_LEN 8u
 typedef struct {
-    uint32_t nonce;            /* the nonce of the session_open answered */
-    uint16_t sessions;         /* sessions opened since power-on (wraps) */
+    uint32_t nonce; /* the nonce of the session_open answered */
+    uint16_t sessions; /* sessions opened since power-on (wraps) */
     uint16_t protocol_version; /* the drive's (or bootloader's) PROTO_VERSION */
 } proto_session_reply_t;
 size_t proto_session_reply_encode(const proto_session_reply_t *m, uint8_t *buf, size_t cap);
@@ -645,15 +580,14 @@ bool proto_session_reply_decode(const uint8_t *buf, size_t len, proto_session_re
 #define PROTO_BATCH_REPLY_LEN 23u
 typedef struct {
     uint32_t first_seq; /* echo */
-    uint8_t accepted;   /* blocks of the batch queued (a prefix of it) */
-    uint8_t status; /* error_code: none (all taken), queue_full (the ring is full), sequence, or the
-                       refusal of block next_seq (also when the stream ended: stopped, faulted) */
-    uint16_t arg;   /* field / axis index of a refusal (as error.arg) */
-    uint32_t next_seq;    /* block number the drive expects next */
-    uint16_t free_bytes;  /* [byte] room in the intake ring for batch records (the window) */
-    uint32_t queued_us;   /* [us] planned time queued (saturates) */
+    uint8_t accepted; /* blocks of the batch queued (a prefix of it) */
+    uint8_t status; /* error_code: none (all taken), queue_full (the ring is full), sequence, or the refusal of block next_seq (also when the stream ended: stopped, faulted) */
+    uint16_t arg; /* field / axis index of a refusal (as error.arg) */
+    uint32_t next_seq; /* block number the drive expects next */
+    uint16_t free_bytes; /* [byte] room in the intake ring for batch records (the window) */
+    uint32_t queued_us; /* [us] planned time queued (saturates) */
     uint32_t blocks_done; /* blocks completed since start (as drive_state) */
-    uint8_t state;        /* state enum */
+    uint8_t state; /* state enum */
 } proto_batch_reply_t;
 size_t proto_batch_reply_encode(const proto_batch_reply_t *m, uint8_t *buf, size_t cap);
 bool proto_batch_reply_decode(const uint8_t *buf, size_t len, proto_batch_reply_t *m);
@@ -669,21 +603,19 @@ bool proto_ack_decode(const uint8_t *buf, size_t len, proto_ack_t *m);
 /* error (d2h): Request refused; nothing was applied. */
 #define PROTO_ERROR_LEN 20u
 typedef struct {
-    uint8_t req;  /* message id refused */
+    uint8_t req; /* message id refused */
     uint8_t code; /* error_code */
     uint16_t arg; /* parameter id, field index or state */
-    int64_t lo;   /* allowed minimum (out_of_range) */
-    int64_t hi;   /* allowed maximum (out_of_range) */
+    int64_t lo; /* allowed minimum (out_of_range) */
+    int64_t hi; /* allowed maximum (out_of_range) */
 } proto_error_t;
 size_t proto_error_encode(const proto_error_t *m, uint8_t *buf, size_t cap);
 bool proto_error_decode(const uint8_t *buf, size_t len, proto_error_t *m);
 
-/* boot_connect (h2d): Bootloader identify; also keeps the bootloader from jumping to the
- * application. */
+/* boot_connect (h2d): Bootloader identify; also keeps the bootloader from jumping to the application. */
 #define PROTO_BOOT_CONNECT_LEN 0u
 
-/* boot_erase (h2d): Start a session: check the image header against the drive (nothing is erased if
- * refused), then erase the slot pages it needs; the old image is invalid from here on. */
+/* boot_erase (h2d): Start a session: check the image header against the drive (nothing is erased if refused), then erase the slot pages it needs; the old image is invalid from here on. */
 #define PROTO_BOOT_ERASE_LEN 64u
 typedef struct {
     uint8_t header[64]; /* the 64-byte image header */
@@ -691,9 +623,8 @@ typedef struct {
 size_t proto_boot_erase_encode(const proto_boot_erase_t *m, uint8_t *buf, size_t cap);
 bool proto_boot_erase_decode(const uint8_t *buf, size_t len, proto_boot_erase_t *m);
 
-/* boot_write (h2d): Program one block of the payload (write-unit aligned; only the last block may
- * be short). A repeat of data already in flash succeeds. */
-#define PROTO_BOOT_WRITE_LEN     4u
+/* boot_write (h2d): Program one block of the payload (write-unit aligned; only the last block may be short). A repeat of data already in flash succeeds. */
+#define PROTO_BOOT_WRITE_LEN 4u
 #define PROTO_BOOT_WRITE_MAX_LEN 228u
 typedef struct {
     uint32_t addr; /* flash address of the first byte */
@@ -721,35 +652,31 @@ typedef struct {
 size_t proto_boot_crc_encode(const proto_boot_crc_t *m, uint8_t *buf, size_t cap);
 bool proto_boot_crc_decode(const uint8_t *buf, size_t len, proto_boot_crc_t *m);
 
-/* boot_finish (h2d): Verify the whole payload in flash against the header CRC, then write the
- * header and the valid marker. */
+/* boot_finish (h2d): Verify the whole payload in flash against the header CRC, then write the header and the valid marker. */
 #define PROTO_BOOT_FINISH_LEN 0u
 
-/* boot_reboot (h2d): Reset after the reply: the boot decision runs again (valid application -> it
- * starts). */
+/* boot_reboot (h2d): Reset after the reply: the boot decision runs again (valid application -> it starts). */
 #define PROTO_BOOT_REBOOT_LEN 0u
 
-/* boot_enter (h2d): Application: stop the axes, set the bootloader request word and reset into the
- * bootloader. */
+/* boot_enter (h2d): Application: stop the axes, set the bootloader request word and reset into the bootloader. */
 #define PROTO_BOOT_ENTER_LEN 0u
 
-/* boot_info (d2h): Reply to boot_connect: bootloader version, flash layout and the application
- * slot's state. */
+/* boot_info (d2h): Reply to boot_connect: bootloader version, flash layout and the application slot's state. */
 #define PROTO_BOOT_INFO_LEN 56u
 typedef struct {
     uint32_t boot_version; /* major << 16 | minor << 8 | patch */
-    uint32_t board_id;     /* must equal the image header's board_id */
-    uint32_t slot_base;    /* application slot start (image header address) */
-    uint32_t slot_size;    /* [byte] */
-    uint32_t page_size;    /* [byte] erase unit */
-    uint32_t write_size;   /* [byte] write unit */
-    uint32_t load_addr;    /* where an image's payload must be linked */
-    uint32_t max_length;   /* [byte] largest payload */
-    uint16_t block_max;    /* [byte] largest boot_write / boot_read block */
-    uint8_t app_state;     /* boot_reason of the slot now */
-    uint8_t session;       /* 0 idle, 1 writing, 2 done */
-    uint32_t app_version;  /* header of the image in the slot (0 if none) */
-    uint32_t app_length;   /* [byte] */
+    uint32_t board_id; /* must equal the image header's board_id */
+    uint32_t slot_base; /* application slot start (image header address) */
+    uint32_t slot_size; /* [byte] */
+    uint32_t page_size; /* [byte] erase unit */
+    uint32_t write_size; /* [byte] write unit */
+    uint32_t load_addr; /* where an image's payload must be linked */
+    uint32_t max_length; /* [byte] largest payload */
+    uint16_t block_max; /* [byte] largest boot_write / boot_read block */
+    uint8_t app_state; /* boot_reason of the slot now */
+    uint8_t session; /* 0 idle, 1 writing, 2 done */
+    uint32_t app_version; /* header of the image in the slot (0 if none) */
+    uint32_t app_length; /* [byte] */
     uint32_t app_crc;
     uint8_t app_build_id[8]; /* first 8 bytes of its build id */
 } proto_boot_info_t;
@@ -774,7 +701,7 @@ size_t proto_boot_written_encode(const proto_boot_written_t *m, uint8_t *buf, si
 bool proto_boot_written_decode(const uint8_t *buf, size_t len, proto_boot_written_t *m);
 
 /* boot_data (d2h): Reply to boot_read. */
-#define PROTO_BOOT_DATA_LEN     4u
+#define PROTO_BOOT_DATA_LEN 4u
 #define PROTO_BOOT_DATA_MAX_LEN 228u
 typedef struct {
     uint32_t addr;
@@ -794,8 +721,7 @@ typedef struct {
 size_t proto_boot_crc_value_encode(const proto_boot_crc_value_t *m, uint8_t *buf, size_t cap);
 bool proto_boot_crc_value_decode(const uint8_t *buf, size_t len, proto_boot_crc_value_t *m);
 
-/* boot_finished (d2h): Reply to boot_finish: the image is valid and will start at the next reset.
- */
+/* boot_finished (d2h): Reply to boot_finish: the image is valid and will start at the next reset. */
 #define PROTO_BOOT_FINISHED_LEN 4u
 typedef struct {
     uint32_t crc; /* CRC-32 of the payload in flash */
@@ -803,27 +729,25 @@ typedef struct {
 size_t proto_boot_finished_encode(const proto_boot_finished_t *m, uint8_t *buf, size_t cap);
 bool proto_boot_finished_decode(const uint8_t *buf, size_t len, proto_boot_finished_t *m);
 
-/* calib_setup (h2d): Set up a calibration run of one axis (targets follow with calib_targets).
- * Refused while a run is in progress. */
+/* calib_setup (h2d): Set up a calibration run of one axis (targets follow with calib_targets). Refused while a run is in progress. */
 #define PROTO_CALIB_SETUP_LEN 20u
 typedef struct {
     uint8_t axis;
-    uint8_t flags;   /* calib_flag bits */
+    uint8_t flags; /* calib_flag bits */
     uint16_t points; /* number of targets, 1..CALIB_POINTS_MAX */
-    uint8_t cycles;  /* bidirectional passes, 1..CALIB_CYCLES_MAX */
+    uint8_t cycles; /* bidirectional passes, 1..CALIB_CYCLES_MAX */
     uint8_t reserved;
-    uint16_t samples;      /* samples per point, direction and cycle, 1..CALIB_RING */
+    uint16_t samples; /* samples per point, direction and cycle, 1..CALIB_RING */
     uint16_t sample_ticks; /* control ticks between samples, >= 1 */
-    uint16_t dwell_ms;     /* [ms] wait after each stop before sampling */
-    uint32_t overrun;      /* [nm] travel beyond the end targets before reversing */
-    uint32_t feed;         /* [nm/s] speed of the calibration moves */
+    uint16_t dwell_ms; /* [ms] wait after each stop before sampling */
+    uint32_t overrun; /* [nm] travel beyond the end targets before reversing */
+    uint32_t feed; /* [nm/s] speed of the calibration moves */
 } proto_calib_setup_t;
 size_t proto_calib_setup_encode(const proto_calib_setup_t *m, uint8_t *buf, size_t cap);
 bool proto_calib_setup_decode(const uint8_t *buf, size_t len, proto_calib_setup_t *m);
 
-/* calib_targets (h2d): Target positions first .. first + n - 1 (n = len / 8), i64 little-endian
- * each. */
-#define PROTO_CALIB_TARGETS_LEN     2u
+/* calib_targets (h2d): Target positions first .. first + n - 1 (n = len / 8), i64 little-endian each. */
+#define PROTO_CALIB_TARGETS_LEN 2u
 #define PROTO_CALIB_TARGETS_MAX_LEN 242u
 typedef struct {
     uint16_t first;
@@ -833,15 +757,13 @@ typedef struct {
 size_t proto_calib_targets_encode(const proto_calib_targets_t *m, uint8_t *buf, size_t cap);
 bool proto_calib_targets_decode(const uint8_t *buf, size_t len, proto_calib_targets_t *m);
 
-/* calib_start (h2d): Start the run set up (targets strictly increasing, drive enabled and at rest).
- */
+/* calib_start (h2d): Start the run set up (targets strictly increasing, drive enabled and at rest). */
 #define PROTO_CALIB_START_LEN 0u
 
 /* calib_status (h2d): State of the calibration run and of its sample buffer. */
 #define PROTO_CALIB_STATUS_LEN 0u
 
-/* calib_read (h2d): Samples from sequence number from_seq on (at most max); everything before
- * from_seq is released (acknowledged). */
+/* calib_read (h2d): Samples from sequence number from_seq on (at most max); everything before from_seq is released (acknowledged). */
 #define PROTO_CALIB_READ_LEN 5u
 typedef struct {
     uint32_t from_seq;
@@ -850,8 +772,7 @@ typedef struct {
 size_t proto_calib_read_encode(const proto_calib_read_t *m, uint8_t *buf, size_t cap);
 bool proto_calib_read_decode(const uint8_t *buf, size_t len, proto_calib_read_t *m);
 
-/* calib_point (h2d): Measure one point again (after a run is done): approach target `point` moving
- * in `dir` (+1/-1) from `overrun` away, dwell, sample; the samples carry `cycle`. */
+/* calib_point (h2d): Measure one point again (after a run is done): approach target `point` moving in `dir` (+1/-1) from `overrun` away, dwell, sample; the samples carry `cycle`. */
 #define PROTO_CALIB_POINT_LEN 4u
 typedef struct {
     uint16_t point;
@@ -861,13 +782,11 @@ typedef struct {
 size_t proto_calib_point_encode(const proto_calib_point_t *m, uint8_t *buf, size_t cap);
 bool proto_calib_point_decode(const uint8_t *buf, size_t len, proto_calib_point_t *m);
 
-/* calib_abort (h2d): Abort the run (controlled stop of the axes); the samples taken stay readable.
- */
+/* calib_abort (h2d): Abort the run (controlled stop of the axes); the samples taken stay readable. */
 #define PROTO_CALIB_ABORT_LEN 0u
 
-/* comp_write (h2d): Bytes of a compensation record (comp.h format) into the drive's staging buffer
- * at offset. */
-#define PROTO_COMP_WRITE_LEN     3u
+/* comp_write (h2d): Bytes of a compensation record (comp.h format) into the drive's staging buffer at offset. */
+#define PROTO_COMP_WRITE_LEN 3u
 #define PROTO_COMP_WRITE_MAX_LEN 227u
 typedef struct {
     uint8_t axis;
@@ -878,14 +797,12 @@ typedef struct {
 size_t proto_comp_write_encode(const proto_comp_write_t *m, uint8_t *buf, size_t cap);
 bool proto_comp_write_decode(const uint8_t *buf, size_t len, proto_comp_write_t *m);
 
-/* comp_commit (h2d): Check the staged record (length, CRC-32 of the whole record = crc, format,
- * limits), store it in flash (other slot, read back and verified), then make it the active table.
- * Any failure leaves the previous table active. */
+/* comp_commit (h2d): Check the staged record (length, CRC-32 of the whole record = crc, format, limits), store it in flash (other slot, read back and verified), then make it the active table. Any failure leaves the previous table active. */
 #define PROTO_COMP_COMMIT_LEN 7u
 typedef struct {
     uint8_t axis;
     uint16_t length; /* [byte] */
-    uint32_t crc;    /* crc32 of the record bytes */
+    uint32_t crc; /* crc32 of the record bytes */
 } proto_comp_commit_t;
 size_t proto_comp_commit_encode(const proto_comp_commit_t *m, uint8_t *buf, size_t cap);
 bool proto_comp_commit_decode(const uint8_t *buf, size_t len, proto_comp_commit_t *m);
@@ -898,8 +815,7 @@ typedef struct {
 size_t proto_comp_get_encode(const proto_comp_get_t *m, uint8_t *buf, size_t cap);
 bool proto_comp_get_decode(const uint8_t *buf, size_t len, proto_comp_get_t *m);
 
-/* comp_clear (h2d): Store an empty table (no compensation) as the new current one and deactivate
- * compensation. */
+/* comp_clear (h2d): Store an empty table (no compensation) as the new current one and deactivate compensation. */
 #define PROTO_COMP_CLEAR_LEN 1u
 typedef struct {
     uint8_t axis;
@@ -913,24 +829,23 @@ typedef struct {
     uint8_t state; /* calib_run_state */
     uint8_t axis;
     uint8_t reason; /* calib_status of an error state */
-    uint8_t flags;  /* calib_flag bits of the setup */
+    uint8_t flags; /* calib_flag bits of the setup */
     uint16_t points;
     uint16_t targets_loaded;
     uint16_t point; /* point of the current leg */
-    int8_t dir;     /* direction of the current leg */
+    int8_t dir; /* direction of the current leg */
     uint8_t cycle;
-    uint16_t legs_done;  /* measured legs finished (run and repeats) */
+    uint16_t legs_done; /* measured legs finished (run and repeats) */
     uint16_t legs_total; /* 2 * points * cycles */
-    uint32_t seq_next;   /* sequence number of the next sample to be taken */
+    uint32_t seq_next; /* sequence number of the next sample to be taken */
     uint32_t seq_oldest; /* oldest sample still held */
-    int32_t detail;      /* detail of the error reason */
+    int32_t detail; /* detail of the error reason */
 } proto_calib_state_t;
 size_t proto_calib_state_encode(const proto_calib_state_t *m, uint8_t *buf, size_t cap);
 bool proto_calib_state_decode(const uint8_t *buf, size_t len, proto_calib_state_t *m);
 
-/* calib_samples (d2h): Reply to calib_read: count samples of CALIB_SAMPLE_BYTES (20) each, numbered
- * from_seq on; crc = crc32 of data. */
-#define PROTO_CALIB_SAMPLES_LEN     13u
+/* calib_samples (d2h): Reply to calib_read: count samples of CALIB_SAMPLE_BYTES (20) each, numbered from_seq on; crc = crc32 of data. */
+#define PROTO_CALIB_SAMPLES_LEN 13u
 #define PROTO_CALIB_SAMPLES_MAX_LEN 233u
 typedef struct {
     uint32_t from_seq;
@@ -957,20 +872,18 @@ bool proto_comp_written_decode(const uint8_t *buf, size_t len, proto_comp_writte
 #define PROTO_COMP_INFO_LEN 17u
 typedef struct {
     uint8_t axis;
-    uint8_t active;    /* 1 when a table with points is in use */
-    uint8_t slot;      /* flash slot of the current record (0xFF: none) */
-    uint16_t n;        /* points */
-    uint32_t version;  /* store version (0: none) */
-    uint32_t data_crc; /* crc32 of the record's points (the record header's data_crc; independent of
-                          the version) */
-    uint32_t ramp_us;  /* [us] */
+    uint8_t active; /* 1 when a table with points is in use */
+    uint8_t slot; /* flash slot of the current record (0xFF: none) */
+    uint16_t n; /* points */
+    uint32_t version; /* store version (0: none) */
+    uint32_t data_crc; /* crc32 of the record's points (the record header's data_crc; independent of the version) */
+    uint32_t ramp_us; /* [us] */
 } proto_comp_info_t;
 size_t proto_comp_info_encode(const proto_comp_info_t *m, uint8_t *buf, size_t cap);
 bool proto_comp_info_decode(const uint8_t *buf, size_t len, proto_comp_info_t *m);
 
-/* comp2d_write (h2d): Bytes of a 2-D compensation map record (comp2d.h format, docs/calibration.md)
- * into the drive's staging buffer at offset; offset 0 starts a new record. */
-#define PROTO_COMP2D_WRITE_LEN     2u
+/* comp2d_write (h2d): Bytes of a 2-D compensation map record (comp2d.h format, docs/calibration.md) into the drive's staging buffer at offset; offset 0 starts a new record. */
+#define PROTO_COMP2D_WRITE_LEN 2u
 #define PROTO_COMP2D_WRITE_MAX_LEN 226u
 typedef struct {
     uint16_t offset; /* [byte] */
@@ -980,13 +893,11 @@ typedef struct {
 size_t proto_comp2d_write_encode(const proto_comp2d_write_t *m, uint8_t *buf, size_t cap);
 bool proto_comp2d_write_decode(const uint8_t *buf, size_t len, proto_comp2d_write_t *m);
 
-/* comp2d_commit (h2d): Check the staged 2-D map (length, CRC-32 = crc, format, the drive's memory
- * and field), store it in flash (versioned, read back), then use it. Drive disabled only. Any
- * failure leaves the previous map in use. */
+/* comp2d_commit (h2d): Check the staged 2-D map (length, CRC-32 = crc, format, the drive's memory and field), store it in flash (versioned, read back), then use it. Drive disabled only. Any failure leaves the previous map in use. */
 #define PROTO_COMP2D_COMMIT_LEN 6u
 typedef struct {
     uint16_t length; /* [byte] */
-    uint32_t crc;    /* crc32 of the record bytes */
+    uint32_t crc; /* crc32 of the record bytes */
 } proto_comp2d_commit_t;
 size_t proto_comp2d_commit_encode(const proto_comp2d_commit_t *m, uint8_t *buf, size_t cap);
 bool proto_comp2d_commit_decode(const uint8_t *buf, size_t len, proto_comp2d_commit_t *m);
@@ -994,12 +905,10 @@ bool proto_comp2d_commit_decode(const uint8_t *buf, size_t len, proto_comp2d_com
 /* comp2d_get (h2d): The 2-D map in use. */
 #define PROTO_COMP2D_GET_LEN 0u
 
-/* comp2d_clear (h2d): Store an empty 2-D map (none) as the new current one and stop correcting.
- * Drive disabled only. */
+/* comp2d_clear (h2d): Store an empty 2-D map (none) as the new current one and stop correcting. Drive disabled only. */
 #define PROTO_COMP2D_CLEAR_LEN 0u
 
-/* comp2d_read (h2d): Bytes of the current 2-D map record as stored in flash, from offset (at most
- * max, <= 224). */
+/* comp2d_read (h2d): Bytes of the current 2-D map record as stored in flash, from offset (at most max, <= 224). */
 #define PROTO_COMP2D_READ_LEN 3u
 typedef struct {
     uint16_t offset; /* [byte] */
@@ -1014,10 +923,10 @@ typedef struct {
     uint8_t active; /* 1 when a map corrects X and Y */
     uint8_t nx;
     uint8_t ny;
-    uint8_t slot;     /* flash bank of the current record (0xFF: none) */
+    uint8_t slot; /* flash bank of the current record (0xFF: none) */
     uint32_t version; /* store version (0: none) */
-    uint16_t length;  /* [byte] record length (0: none) */
-    uint32_t crc;     /* crc32 of the record bytes (what comp2d_commit carried) */
+    uint16_t length; /* [byte] record length (0: none) */
+    uint32_t crc; /* crc32 of the record bytes (what comp2d_commit carried) */
 } proto_comp2d_info_t;
 size_t proto_comp2d_info_encode(const proto_comp2d_info_t *m, uint8_t *buf, size_t cap);
 bool proto_comp2d_info_decode(const uint8_t *buf, size_t len, proto_comp2d_info_t *m);
@@ -1032,7 +941,7 @@ size_t proto_comp2d_written_encode(const proto_comp2d_written_t *m, uint8_t *buf
 bool proto_comp2d_written_decode(const uint8_t *buf, size_t len, proto_comp2d_written_t *m);
 
 /* comp2d_data (d2h): Reply to comp2d_read. */
-#define PROTO_COMP2D_DATA_LEN     4u
+#define PROTO_COMP2D_DATA_LEN 4u
 #define PROTO_COMP2D_DATA_MAX_LEN 228u
 typedef struct {
     uint16_t offset;
@@ -1063,18 +972,18 @@ extern const size_t proto_msg_count;
 /* Table entry of a message id, NULL when unknown. */
 const proto_msg_info_t *proto_msg_info(uint8_t id);
 
-#define PROTO_PTYPE_U8       0u
-#define PROTO_PTYPE_U16      1u
-#define PROTO_PTYPE_U32      2u
-#define PROTO_PTYPE_I32      3u
-#define PROTO_PTYPE_I64      4u
-#define PROTO_PTYPE_BOOL     5u
-#define PROTO_PFLAG_RO       0x01u
+#define PROTO_PTYPE_U8 0u
+#define PROTO_PTYPE_U16 1u
+#define PROTO_PTYPE_U32 2u
+#define PROTO_PTYPE_I32 3u
+#define PROTO_PTYPE_I64 4u
+#define PROTO_PTYPE_BOOL 5u
+#define PROTO_PFLAG_RO 0x01u
 #define PROTO_PFLAG_PER_AXIS 0x02u
-#define PROTO_POWNER_LINK    0u
-#define PROTO_POWNER_DRIVE   1u
-#define PROTO_POWNER_BOOT    2u
-#define PROTO_POWNER_CALIB   3u
+#define PROTO_POWNER_LINK 0u
+#define PROTO_POWNER_DRIVE 1u
+#define PROTO_POWNER_BOOT 2u
+#define PROTO_POWNER_CALIB 3u
 
 typedef struct {
     uint16_t id;   /* first id (per-axis: id + axis) */

@@ -231,3 +231,15 @@ def test_cli_grid_refusals(capsys):
     ):
         assert cli.main(["calibrate", "--sim", MACHINE, *argv]) == 2
         assert msg in capsys.readouterr().err
+
+
+def test_a_leg_of_a_full_ring_of_samples_finishes():
+    """--samples 512 (CALIB_RING): the drive starts a leg only when the whole
+    ring is free, so the host must release the last batch it read (a read
+    from seq_next); before, the run waited until its timeout."""
+    from contour.calibration import run
+
+    drive, t, client = _session()
+    cal = run.Calibrator(client, t.wait, timeout_s=30.0)
+    res = cal.run(run.RunConfig(axis=0, targets_nm=[-10_000_000, 10_000_000], samples=512))
+    assert all(len(v) == 512 for v in res.legs.values()) and len(res.legs) == 4
