@@ -2,6 +2,7 @@
 #include "app.h"
 
 #include "calib.h"
+#include "comp2d_link.h"
 #include "drive_excite.h"
 #include "hal.h"
 #include "param_store.h"
@@ -92,7 +93,8 @@ app_result_t app_init(const app_board_t *b)
     if (drive_init(b->drive) != DRIVE_OK) {
         return APP_E_DRIVE;
     }
-    calib_init(); /* its tables from flash, installed in the drive's decoders */
+    calib_init();       /* its tables from flash, installed in the drive's decoders */
+    comp2d_link_init(); /* the 2-D map from flash, on calib's direction ramps */
     drive_excite_init();
     (void)param_store_load(); /* the saved parameters, all or none; status: param_store_status */
     identity(b);
@@ -101,7 +103,8 @@ app_result_t app_init(const app_board_t *b)
             return APP_E_LINK;
         }
         proto_link_set_ext_handler(calib_handle);
-        calib_set_next_handler(drive_excite_handle);
+        calib_set_next_handler(comp2d_link_handle);
+        comp2d_link_set_next(drive_excite_handle);
         drive_excite_set_next_handler(app_boot_handle);
         app.sessions = proto_link_dispatch()->sessions;
     }
@@ -146,6 +149,7 @@ void app_poll(void)
     calib_poll(); /* may queue a move: before the feed path takes blocks */
     drive_excite_poll();
     drive_poll();
+    comp2d_link_poll(); /* re-anchor the tick's 2-D correction */
     if (app.link) {
         proto_link_poll();
         if (proto_link_dispatch()->sessions != app.sessions) {

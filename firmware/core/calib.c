@@ -11,6 +11,7 @@
 #include "preempt.h"
 #include "proto_msgs.h"
 #include "proto_reply.h"
+#include "scratch.h"
 
 typedef enum {
     PH_PRE = 0, /* start the move to the approach point        */
@@ -126,6 +127,22 @@ static void comp_install(unsigned axis, const comp_table_t *t, unsigned slot)
     cb.slot[axis] = (uint8_t)slot;
 }
 
+/* The axis's current table from flash into its decoder (via scratch.h). */
+static comp_store_result_t load_install(unsigned axis)
+{
+    comp_table_t *t = scratch_claim(SCRATCH_CALIB, sizeof *t);
+    comp_store_result_t r = COMP_STORE_E_BUSY;
+    unsigned slot;
+    if (t != NULL) {
+        r = comp_store_load(axis, t, &slot);
+        if (r == COMP_STORE_OK) {
+            comp_install(axis, t, slot);
+        }
+        scratch_release(SCRATCH_CALIB);
+    }
+    return r;
+}
+
 const comp_table_t *calib_comp_active(unsigned axis)
 {
     if (axis >= CORE_AXES || cb.act[axis] > 1u) {
@@ -138,8 +155,7 @@ const comp_table_t *calib_comp_active(unsigned axis)
 
 void calib_init(void)
 {
-    static comp_table_t t;
-    unsigned i, slot;
+    unsigned i;
     calib_handler_fn next = cb.next;
 
     cb.state = CALIB_IDLE;
@@ -161,8 +177,8 @@ void calib_init(void)
         comp_ramp_init(&cb.ramp[i], 0u, tick_hz());
         cb.ramp_busy = 0u;
         ramp_masks();
-        if (i < axes() && comp_store_load(i, &t, &slot) == COMP_STORE_OK) {
-            comp_install(i, &t, slot);
+        if (i < axes()) {
+            (void)load_install(i);
         }
     }
 }
@@ -516,24 +532,25 @@ static size_t reply_comp_info(uint8_t *out, uint8_t seq, unsigned axis)
 {
     proto_comp_info_t m;
     const comp_table_t *t = calib_comp_active(axis);
-    static comp_table_t cur;
+    comp_table_t *cur;
     unsigned slot = 0xFFu;
     m.axis = (uint8_t)axis;
     m.active = t != NULL ? 1u : 0u;
     m.slot = cb.slot[axis];
     m.n = 0u;
-    m.version = 0u;
-    m.data_crc = 0u;
-    m.ramp_us = 0u;
+    m.version = m.data_crc = m.ramp_us = 0u;
     if (t != NULL) {
         m.n = t->n;
         m.version = t->version;
         m.data_crc = t->data_crc;
         m.ramp_us = t->ramp_us;
-    } else if (comp_store_load(axis, &cur, &slot) == COMP_STORE_OK) {
-        m.version = cur.version; /* an empty table is current */
-        m.data_crc = cur.data_crc;
-        m.slot = (uint8_t)slot;
+    } else if ((cur = scratch_claim(SCRATCH_CALIB, sizeof *cur)) != NULL) {
+        if (comp_store_load(axis, cur, &slot) == COMP_STORE_OK) {
+            m.version = cur->version; /* an empty table is current */
+            m.data_crc = cur->data_crc;
+            m.slot = (uint8_t)slot;
+        }
+        scratch_release(SCRATCH_CALIB);
     }
     out[0] = (uint8_t)PROTO_MSG_COMP_INFO;
     out[1] = seq;
@@ -803,15 +820,35 @@ static bool flash_refused(const uint8_t *msg, uint8_t *out, size_t *len)
     return true;
 }
 
+/* Decode, store, load back and install the staged record (t: scratch). */
+/* Decode the staged record (in scratch.h) and store it: 0 or a refusal. */
+static size_t comp_commit_in(const proto_comp_commit_t *m, const uint8_t *msg, uint8_t *out)
+{
+    comp_table_t *t = scratch_claim(SCRATCH_CALIB, sizeof *t);
+    comp_result_t cr = t != NULL ? comp_record_decode(cb.stage, m->length, t) : COMP_E_ARG;
+    comp_store_result_t sr;
+    size_t n = 0u;
+    if (cr == COMP_OK && t->axis != m->axis) {
+        cr = COMP_E_AXIS;
+    }
+    if (cr != COMP_OK) {
+        n = refuse(out, msg, PROTO_CALIB_STATUS_RECORD, cr);
+    } else if (!flash_refused(msg, out, &n)) {
+        sr = comp_store_write(m->axis, t, NULL, NULL);
+        n = sr == COMP_STORE_OK ? 0u : refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
+    }
+    if (t != NULL) {
+        scratch_release(SCRATCH_CALIB);
+    }
+    return n;
+}
+
 static size_t h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
 {
-    static comp_table_t t;
     proto_comp_commit_t m;
-    comp_result_t cr;
     comp_store_result_t sr;
-    unsigned slot;
     uint32_t crc;
-    size_t rlen;
+    size_t n;
     if (!proto_comp_commit_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_COMMIT_LEN) {
         return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
                            PROTO_COMP_COMMIT_LEN);
@@ -827,36 +864,22 @@ static size_t h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
     if (crc != m.crc) {
         return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_CRC, crc);
     }
-    cr = comp_record_decode(cb.stage, m.length, &t);
-    if (cr == COMP_OK && t.axis != m.axis) {
-        cr = COMP_E_AXIS;
+    n = comp_commit_in(&m, msg, out);
+    if (n != 0u) {
+        return n;
     }
-    if (cr != COMP_OK) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_RECORD, cr);
-    }
-    if (flash_refused(msg, out, &rlen)) {
-        return rlen;
-    }
-    sr = comp_store_write(m.axis, &t, NULL, NULL);
+    sr = load_install(m.axis); /* what the flash holds, not what the link delivered */
     if (sr != COMP_STORE_OK) {
         return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
     }
-    /* activate what the flash holds, not what the link delivered */
-    sr = comp_store_load(m.axis, &t, &slot);
-    if (sr != COMP_STORE_OK) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
-    }
-    comp_install(m.axis, &t, slot);
     cb.stage_axis = -1;
     return reply_comp_info(out, msg[1], m.axis);
 }
 
 static size_t h_comp_clear(const uint8_t *msg, size_t plen, uint8_t *out)
 {
-    static comp_table_t t;
     proto_comp_clear_t m;
     comp_store_result_t sr;
-    unsigned slot;
     size_t rlen;
     if (!proto_comp_clear_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_CLEAR_LEN) {
         return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
@@ -868,14 +891,13 @@ static size_t h_comp_clear(const uint8_t *msg, size_t plen, uint8_t *out)
     if (flash_refused(msg, out, &rlen)) {
         return rlen;
     }
-    sr = comp_store_clear(m.axis, NULL);
+    sr = comp_store_clear(m.axis, NULL); /* claims the scratch area itself */
     if (sr == COMP_STORE_OK) {
-        sr = comp_store_load(m.axis, &t, &slot);
+        sr = load_install(m.axis);
     }
     if (sr != COMP_STORE_OK) {
         return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
     }
-    comp_install(m.axis, &t, slot);
     return reply_comp_info(out, msg[1], m.axis);
 }
 

@@ -264,7 +264,6 @@ comp_result_t comp_record_header(const uint8_t *buf, size_t len, size_t *total)
 
 comp_result_t comp_record_decode(const uint8_t *buf, size_t len, comp_table_t *table)
 {
-    static comp_table_t tmp; /* main context only: no stack for 2 KiB */
     size_t total, i;
     const uint8_t *p;
     comp_result_t r;
@@ -281,27 +280,24 @@ comp_result_t comp_record_decode(const uint8_t *buf, size_t len, comp_table_t *t
     if (crc32_update(CRC32_INIT, buf + COMP_RECORD_HDR, len - COMP_RECORD_HDR) != get32(buf + 20)) {
         return COMP_E_CRC;
     }
-    tmp.axis = buf[6];
-    tmp.flags = buf[7];
-    tmp.version = get32(buf + 8);
-    tmp.n = get16(buf + 12);
-    tmp.ramp_us = get32(buf + 16);
-    tmp.data_crc = get32(buf + 20);
-    tmp.dir_src = NULL;
+    if (buf[7] != 0u) {
+        return COMP_E_RANGE; /* flags */
+    }
+    /* in place (no 2 KiB copy): from here a refusal leaves the table
+     * holding the refused record (comp.h) */
+    table->axis = buf[6];
+    table->flags = buf[7];
+    table->version = get32(buf + 8);
+    table->n = get16(buf + 12);
+    table->ramp_us = get32(buf + 16);
+    table->data_crc = get32(buf + 20);
+    table->dir_src = NULL;
     p = buf + COMP_RECORD_HDR;
-    for (i = 0; i < tmp.n; i++) {
-        tmp.pos[i] = (pos_nm_t)get64(p);
-        tmp.fwd[i] = (int32_t)get32(p + 8);
-        tmp.rev[i] = (int32_t)get32(p + 12);
+    for (i = 0; i < table->n; i++) {
+        table->pos[i] = (pos_nm_t)get64(p);
+        table->fwd[i] = (int32_t)get32(p + 8);
+        table->rev[i] = (int32_t)get32(p + 12);
         p += COMP_POINT_BYTES;
     }
-    if (tmp.flags != 0u) {
-        return COMP_E_RANGE;
-    }
-    r = comp_table_check(&tmp);
-    if (r != COMP_OK) {
-        return r;
-    }
-    *table = tmp;
-    return COMP_OK;
+    return comp_table_check(table);
 }

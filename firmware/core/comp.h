@@ -157,7 +157,10 @@ size_t comp_record_len(uint16_t n);
  * table's data_crc is not read (computed). */
 size_t comp_record_encode(const comp_table_t *table, uint8_t *buf, size_t cap);
 /* Decode and validate a record of exactly len bytes into table (dir_src set
- * to NULL). On any error the table is left untouched. */
+ * to NULL). A record refused by its header, length, CRCs or flags leaves
+ * the table untouched; one refused by its points' limits (COMP_E_RANGE /
+ * COMP_E_ORDER from comp_table_check) leaves it holding those points, so
+ * decode into a table that is not in use (scratch.h, comp_store). */
 comp_result_t comp_record_decode(const uint8_t *buf, size_t len, comp_table_t *table);
 /* Header only: check magic, format, header CRC and n (0 when len < 32);
  * *total gets the whole record length. */

@@ -6,10 +6,23 @@
 
 #include "crc.h"
 #include "hal.h"
+#include "scratch.h"
 
 #define NO_OFF 0xFFFFFFFFu
 
 static uint8_t rec[COMP_RECORD_MAX + 64u]; /* record + write-unit padding */
+/* The one table the store decodes into (finds, loads, read-back checks run
+ * one after the other, never nested); main. */
+static comp_table_t st;
+
+/* What a read-back must find: version, n and data CRC; for an axis's table
+ * also its ramp and points (t; NULL for a blob, whose data CRC covers it). */
+typedef struct {
+    uint32_t version;
+    uint32_t data_crc;
+    uint16_t n;
+    const comp_table_t *t;
+} expect_t;
 
 static uint32_t get32(const uint8_t *p)
 {
@@ -29,6 +42,16 @@ static uint32_t pad(uint32_t len, uint32_t w)
     return (len + w - 1u) / w * w;
 }
 
+static int active_bank(const comp_store_layout_t *lay, uint32_t *seq);
+
+uint8_t comp_store_active_bank(void)
+{
+    comp_store_layout_t lay;
+    uint32_t seq;
+    int b = comp_store_layout(&lay) ? active_bank(&lay, &seq) : -1;
+    return b < 0 ? 0xFFu : (uint8_t)b;
+}
+
 bool comp_store_layout(comp_store_layout_t *out)
 {
     const hal_flash_layout_t *l = hal_flash_layout();
@@ -40,7 +63,7 @@ bool comp_store_layout(comp_store_layout_t *out)
     bank =
         ((uint64_t)COMP_STORE_REGION_BYTES / 2u + l->page_size - 1u) / l->page_size * l->page_size;
     if (bank < COMP_STORE_HDR_BYTES +
-                   (uint64_t)(CORE_AXES + 1u) * pad(COMP_RECORD_MAX, l->write_size) ||
+                   (uint64_t)COMP_STORE_SLOTS * pad(COMP_RECORD_MAX, l->write_size) ||
         4u * bank > l->size) {
         return false;
     }
@@ -175,7 +198,7 @@ static comp_result_t blob_decode(const uint8_t *buf, size_t len, comp_table_t *t
 
 static comp_result_t decode(const uint8_t *buf, size_t len, unsigned slot, comp_table_t *t)
 {
-    return slot == COMP_STORE_SLOT_BLOB ? blob_decode(buf, len, t)
+    return slot >= COMP_STORE_SLOT_BLOB ? blob_decode(buf, len, t)
                                         : comp_record_decode(buf, len, t);
 }
 
@@ -224,7 +247,6 @@ static comp_store_result_t current(const comp_store_layout_t *lay, unsigned axis
 
 comp_store_result_t comp_store_load(unsigned axis, comp_table_t *table, unsigned *slot)
 {
-    static comp_table_t t;
     comp_store_layout_t lay;
     unsigned b = 0u;
     uint32_t off, len;
@@ -235,11 +257,11 @@ comp_store_result_t comp_store_load(unsigned axis, comp_table_t *table, unsigned
     if (!comp_store_layout(&lay)) {
         return COMP_STORE_E_LAYOUT;
     }
-    r = current(&lay, axis, &t, &b, &off, &len);
+    r = current(&lay, axis, &st, &b, &off, &len);
     if (r != COMP_STORE_OK) {
         return r;
     }
-    *table = t;
+    *table = st;
     table->dir_src = NULL;
     if (slot != NULL) {
         *slot = b;
@@ -249,12 +271,11 @@ comp_store_result_t comp_store_load(unsigned axis, comp_table_t *table, unsigned
 
 uint32_t comp_store_record_addr(unsigned axis)
 {
-    static comp_table_t t;
     comp_store_layout_t lay;
     unsigned b = 0u;
     uint32_t off, len;
     if (axis >= CORE_AXES || !comp_store_layout(&lay) ||
-        current(&lay, axis, &t, &b, &off, &len) != COMP_STORE_OK) {
+        current(&lay, axis, &st, &b, &off, &len) != COMP_STORE_OK) {
         return 0u;
     }
     return lay.base + (uint32_t)b * lay.bank_bytes + off;
@@ -280,14 +301,17 @@ static bool erased(uint32_t addr, uint32_t len)
     return true;
 }
 
-/* Encode t into rec padded to the write unit; 0 when invalid. */
-static uint32_t encode(const comp_store_layout_t *lay, const comp_table_t *t)
+/* Encode t with `version` into rec padded to the write unit; 0 when
+ * invalid. */
+static uint32_t encode(const comp_store_layout_t *lay, const comp_table_t *t, uint32_t version)
 {
     size_t len = comp_record_encode(t, rec, COMP_RECORD_MAX);
     uint32_t padded, i;
     if (len == 0u) {
         return 0u;
     }
+    put32(rec + 8, version); /* the header CRC covers it */
+    put32(rec + 28, crc32_update(CRC32_INIT, rec, 28));
     padded = pad((uint32_t)len, lay->write_size);
     for (i = (uint32_t)len; i < padded; i++) {
         rec[i] = 0xFFu;
@@ -297,27 +321,26 @@ static uint32_t encode(const comp_store_layout_t *lay, const comp_table_t *t)
 
 /* The current record of axis in bank matches `want` (version and content). */
 static comp_store_result_t verify(const comp_store_layout_t *lay, unsigned bank, unsigned axis,
-                                  const comp_table_t *want)
+                                  const expect_t *want)
 {
-    static comp_table_t back;
+    const comp_table_t *t = want->t;
     uint32_t off, len, i;
-    comp_store_result_t r = find(lay, bank, axis, &back, &off, &len);
+    comp_store_result_t r = find(lay, bank, axis, &st, &off, &len);
     if (r == COMP_STORE_E_FLASH) {
         return r;
     }
-    if (axis == COMP_STORE_SLOT_BLOB) {
-        return r == COMP_STORE_OK && back.version == want->version && back.n == want->n &&
-                       back.data_crc == want->data_crc
+    if (t == NULL) {
+        return r == COMP_STORE_OK && st.version == want->version && st.n == want->n &&
+                       st.data_crc == want->data_crc
                    ? COMP_STORE_OK
                    : COMP_STORE_E_VERIFY;
     }
-    if (r != COMP_STORE_OK || back.version != want->version || back.n != want->n ||
-        back.ramp_us != want->ramp_us) {
+    if (r != COMP_STORE_OK || st.version != want->version || st.n != t->n ||
+        st.ramp_us != t->ramp_us) {
         return COMP_STORE_E_VERIFY;
     }
-    for (i = 0; i < back.n; i++) {
-        if (back.pos[i] != want->pos[i] || back.fwd[i] != want->fwd[i] ||
-            back.rev[i] != want->rev[i]) {
+    for (i = 0; i < st.n; i++) {
+        if (st.pos[i] != t->pos[i] || st.fwd[i] != t->fwd[i] || st.rev[i] != t->rev[i]) {
             return COMP_STORE_E_VERIFY;
         }
     }
@@ -327,17 +350,16 @@ static comp_store_result_t verify(const comp_store_layout_t *lay, unsigned bank,
 /* Slot k of the store: the axes, then the blob. */
 static unsigned slot_of(unsigned k)
 {
-    return k < CORE_AXES ? k : COMP_STORE_SLOT_BLOB;
+    return k < CORE_AXES ? k : COMP_STORE_SLOT_BLOB + (k - CORE_AXES);
 }
 
 /* Copy the live records into the other bank, then make it active. The new
  * record of `slot` (want: what verify expects) is in rec[0..padded). */
 static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uint32_t seq,
-                                   unsigned slot, uint32_t padded, const comp_table_t *want)
+                                   unsigned slot, uint32_t padded, const expect_t *want)
 {
-    static comp_table_t t;
-    static uint32_t vers[CORE_AXES + 1u];
-    static bool have[CORE_AXES + 1u];
+    static uint32_t vers[COMP_STORE_SLOTS];
+    static bool have[COMP_STORE_SLOTS];
     const hal_flash_layout_t *l = hal_flash_layout();
     unsigned to = from < 0 ? 0u : (unsigned)from ^ 1u, a;
     uint32_t to_addr = lay->base + (uint32_t)to * lay->bank_bytes;
@@ -354,12 +376,12 @@ static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uin
         return COMP_STORE_E_FLASH;
     }
     at += padded;
-    for (a = 0; a <= CORE_AXES; a++) {
+    for (a = 0; a < COMP_STORE_SLOTS; a++) {
         have[a] = false;
         if (slot_of(a) == slot || from < 0) {
             continue;
         }
-        r = find(lay, (unsigned)from, slot_of(a), &t, &off, &len);
+        r = find(lay, (unsigned)from, slot_of(a), &st, &off, &len);
         if (r == COMP_STORE_E_FLASH) {
             return r;
         }
@@ -375,15 +397,15 @@ static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uin
         }
         at += padded;
         have[a] = true;
-        vers[a] = t.version;
+        vers[a] = st.version;
     }
     r = verify(lay, to, slot, want);
     if (r != COMP_STORE_OK) {
         return r;
     }
-    for (a = 0; a <= CORE_AXES; a++) {
-        if (have[a] &&
-            (find(lay, to, slot_of(a), &t, &off, &len) != COMP_STORE_OK || t.version != vers[a])) {
+    for (a = 0; a < COMP_STORE_SLOTS; a++) {
+        if (have[a] && (find(lay, to, slot_of(a), &st, &off, &len) != COMP_STORE_OK ||
+                        st.version != vers[a])) {
             return COMP_STORE_E_VERIFY;
         }
     }
@@ -406,7 +428,7 @@ static comp_store_result_t compact(const comp_store_layout_t *lay, int from, uin
 /* Append the record in rec[0..padded) (slot, want: see compact) to the
  * active bank act (-1: none), or compact when it does not fit. */
 static comp_store_result_t put_record(const comp_store_layout_t *lay, int act, uint32_t seq,
-                                      unsigned slot, uint32_t padded, const comp_table_t *want,
+                                      unsigned slot, uint32_t padded, const expect_t *want,
                                       unsigned *bank)
 {
     uint32_t bank_addr = act >= 0 ? lay->base + (uint32_t)act * lay->bank_bytes : 0u;
@@ -434,7 +456,7 @@ static comp_store_result_t put_record(const comp_store_layout_t *lay, int act, u
 comp_store_result_t comp_store_write(unsigned axis, const comp_table_t *table, uint32_t *version,
                                      unsigned *slot)
 {
-    static comp_table_t cur, tmp;
+    expect_t want;
     comp_store_layout_t lay;
     comp_store_result_t r;
     uint32_t seq = 0u, off, len, padded;
@@ -449,22 +471,24 @@ comp_store_result_t comp_store_write(unsigned axis, const comp_table_t *table, u
         return COMP_STORE_E_LAYOUT;
     }
     act = active_bank(&lay, &seq);
-    r = act < 0 ? COMP_STORE_EMPTY : current(&lay, axis, &cur, &cb, &off, &len);
+    r = act < 0 ? COMP_STORE_EMPTY : current(&lay, axis, &st, &cb, &off, &len);
     if (r != COMP_STORE_OK && r != COMP_STORE_EMPTY) {
         return r;
     }
-    tmp = *table;
-    tmp.version = r == COMP_STORE_OK ? cur.version + 1u : 1u;
-    padded = encode(&lay, &tmp);
+    want.version = r == COMP_STORE_OK ? st.version + 1u : 1u;
+    want.n = table->n;
+    want.data_crc = 0u;
+    want.t = table;
+    padded = encode(&lay, table, want.version);
     if (padded == 0u) {
         return COMP_STORE_E_ARG;
     }
-    r = put_record(&lay, act, seq, axis, padded, &tmp, &bank);
+    r = put_record(&lay, act, seq, axis, padded, &want, &bank);
     if (r != COMP_STORE_OK) {
         return r;
     }
     if (version != NULL) {
-        *version = tmp.version;
+        *version = want.version;
     }
     if (slot != NULL) {
         *slot = bank;
@@ -474,26 +498,45 @@ comp_store_result_t comp_store_write(unsigned axis, const comp_table_t *table, u
 
 comp_store_result_t comp_store_blob_write(const uint8_t *data, uint16_t len, uint32_t *version)
 {
-    static comp_table_t cur, want;
+    return comp_store_slot_write(COMP_STORE_SLOT_BLOB, data, len, version);
+}
+
+comp_store_result_t comp_store_blob_load(uint8_t *data, uint16_t cap, uint16_t *len,
+                                         uint32_t *version)
+{
+    return comp_store_slot_load(COMP_STORE_SLOT_BLOB, data, cap, len, version);
+}
+
+static bool blob_slot(unsigned slot)
+{
+    return slot >= COMP_STORE_SLOT_BLOB &&
+           slot < COMP_STORE_SLOT_BLOB + COMP_STORE_SLOTS - CORE_AXES;
+}
+
+comp_store_result_t comp_store_slot_write(unsigned slot, const uint8_t *data, uint16_t len,
+                                          uint32_t *version)
+{
+    expect_t want;
     comp_store_layout_t lay;
     comp_store_result_t r;
     uint32_t seq = 0u, off, rlen, padded, i, dlen;
     unsigned cb = 0u, bank = 0u;
     int act;
 
-    if ((data == NULL && len > 0u) || len > COMP_STORE_BLOB_MAX) {
+    if (!blob_slot(slot) || (data == NULL && len > 0u) || len > COMP_STORE_BLOB_MAX) {
         return COMP_STORE_E_ARG;
     }
     if (!comp_store_layout(&lay)) {
         return COMP_STORE_E_LAYOUT;
     }
     act = active_bank(&lay, &seq);
-    r = act < 0 ? COMP_STORE_EMPTY : current(&lay, COMP_STORE_SLOT_BLOB, &cur, &cb, &off, &rlen);
+    r = act < 0 ? COMP_STORE_EMPTY : current(&lay, slot, &st, &cb, &off, &rlen);
     if (r != COMP_STORE_OK && r != COMP_STORE_EMPTY) {
         return r;
     }
     /* the comp record header with the blob's slot, its length at 14 */
-    want.version = r == COMP_STORE_OK ? cur.version + 1u : 1u;
+    want.version = r == COMP_STORE_OK ? st.version + 1u : 1u;
+    want.t = NULL;
     want.n = (uint16_t)((len + COMP_POINT_BYTES - 1u) / COMP_POINT_BYTES);
     dlen = (uint32_t)want.n * COMP_POINT_BYTES;
     for (i = 0; i < COMP_RECORD_HDR + dlen; i++) {
@@ -504,7 +547,7 @@ comp_store_result_t comp_store_blob_write(const uint8_t *data, uint16_t len, uin
     }
     put32(rec, COMP_RECORD_MAGIC);
     rec[4] = (uint8_t)COMP_RECORD_FORMAT;
-    rec[6] = (uint8_t)COMP_STORE_SLOT_BLOB;
+    rec[6] = (uint8_t)slot;
     put32(rec + 8, want.version);
     rec[12] = (uint8_t)want.n;
     rec[13] = (uint8_t)(want.n >> 8);
@@ -517,34 +560,33 @@ comp_store_result_t comp_store_blob_write(const uint8_t *data, uint16_t len, uin
     for (i = COMP_RECORD_HDR + dlen; i < padded; i++) {
         rec[i] = 0xFFu;
     }
-    r = put_record(&lay, act, seq, COMP_STORE_SLOT_BLOB, padded, &want, &bank);
+    r = put_record(&lay, act, seq, slot, padded, &want, &bank);
     if (r == COMP_STORE_OK && version != NULL) {
         *version = want.version;
     }
     return r;
 }
 
-comp_store_result_t comp_store_blob_load(uint8_t *data, uint16_t cap, uint16_t *len,
+comp_store_result_t comp_store_slot_load(unsigned slot, uint8_t *data, uint16_t cap, uint16_t *len,
                                          uint32_t *version)
 {
-    static comp_table_t t;
     comp_store_layout_t lay;
     comp_store_result_t r;
     unsigned b = 0u;
     uint32_t off, rlen, i, seq = 0u;
     uint16_t blen;
 
-    if (data == NULL || len == NULL) {
+    if (!blob_slot(slot) || data == NULL || len == NULL) {
         return COMP_STORE_E_ARG;
     }
     if (!comp_store_layout(&lay)) {
         return COMP_STORE_E_LAYOUT;
     }
-    r = current(&lay, COMP_STORE_SLOT_BLOB, &t, &b, &off, &rlen);
+    r = current(&lay, slot, &st, &b, &off, &rlen);
     if (r == COMP_STORE_EMPTY && active_bank(&lay, &seq) >= 0) {
         scan_t s;
         /* a blob record is there but none decodes: damaged, not absent */
-        scan_bank(&lay, b, COMP_STORE_SLOT_BLOB, 0xFFFFFFFFu, NO_OFF, &s);
+        scan_bank(&lay, b, slot, 0xFFFFFFFFu, NO_OFF, &s);
         if (s.off != NO_OFF) {
             return COMP_STORE_E_VERIFY;
         }
@@ -561,18 +603,25 @@ comp_store_result_t comp_store_blob_load(uint8_t *data, uint16_t cap, uint16_t *
     }
     *len = blen;
     if (version != NULL) {
-        *version = t.version;
+        *version = st.version;
     }
     return COMP_STORE_OK;
 }
 
 comp_store_result_t comp_store_clear(unsigned axis, uint32_t *version)
 {
-    static comp_table_t empty;
-    empty.n = 0u;
-    empty.axis = (uint8_t)axis;
-    empty.flags = 0u;
-    empty.ramp_us = 0u;
-    empty.dir_src = NULL;
-    return comp_store_write(axis, &empty, version, NULL);
+    comp_table_t *empty = scratch_claim(SCRATCH_COMP_STORE, sizeof *empty);
+    comp_store_result_t r;
+    if (empty == NULL) {
+        return COMP_STORE_E_BUSY;
+    }
+    empty->n = 0u;
+    empty->axis = (uint8_t)axis;
+    empty->flags = 0u;
+    empty->version = 0u;
+    empty->ramp_us = 0u;
+    empty->dir_src = NULL;
+    r = comp_store_write(axis, empty, version, NULL);
+    scratch_release(SCRATCH_COMP_STORE);
+    return r;
 }

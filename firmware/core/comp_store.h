@@ -14,7 +14,8 @@
  *   STM32F4 (128 KiB sectors): 2 x 128 KiB = sectors 10 and 11.
  * No layout (COMP_STORE_E_LAYOUT) when the write unit is 0, > 64 or does not
  * divide 64, or the two banks would take more than half of the region, or
- * a bank cannot hold CORE_AXES + 1 full records (the blob, below).
+ * a bank cannot hold COMP_STORE_SLOTS full records (the axes, the blob
+ * and the 2-D map, below).
  *
  * Bank: a 64-byte header cell at offset 0, then a log of comp records (comp.h:
  * magic, format, axis, version, header CRC, data CRC) from offset 64, each
@@ -58,7 +59,11 @@
  *
  * Context: main only (flash erase and program; on single-bank flash an erase
  * stalls the CPU, see docs/ports.md). No heap: one static record buffer of
- * COMP_RECORD_MAX bytes and a few static tables.
+ * COMP_RECORD_MAX bytes and one static table the store decodes into (loads,
+ * read-back checks and compaction run one after the other); the table
+ * comp_store_write takes is encoded with the new version, never copied.
+ * comp_store_clear builds its empty table in the scratch area (scratch.h):
+ * call it with the area free (COMP_STORE_E_BUSY otherwise).
  */
 #ifndef COMP_STORE_H
 #define COMP_STORE_H
@@ -69,10 +74,12 @@
 #include "comp.h"
 #include "core_config.h"
 
-#define COMP_STORE_REGION_BYTES (32u * 1024u) /* minimum size of both banks */
-#define COMP_STORE_HDR_BYTES    64u           /* bank header cell            */
-#define COMP_STORE_BANK_MAGIC   0x42545343u   /* "CSTB" little-endian        */
-#define COMP_STORE_SLOT_BLOB    0x50u         /* axis byte of the blob record */
+#define COMP_STORE_REGION_BYTES (32u * 1024u)    /* minimum size of both banks */
+#define COMP_STORE_HDR_BYTES    64u              /* bank header cell            */
+#define COMP_STORE_BANK_MAGIC   0x42545343u      /* "CSTB" little-endian        */
+#define COMP_STORE_SLOT_BLOB    0x50u            /* axis byte of the blob record */
+#define COMP_STORE_SLOT_MAP2D   0x51u            /* axis byte of the 2-D map     */
+#define COMP_STORE_SLOTS        (CORE_AXES + 2u) /* axes, blob, 2-D map      */
 #define COMP_STORE_BLOB_MAX     (COMP_RECORD_MAX - COMP_RECORD_HDR)
 
 typedef enum {
@@ -81,7 +88,8 @@ typedef enum {
     COMP_STORE_E_ARG,    /* axis out of range, NULL, invalid table    */
     COMP_STORE_E_LAYOUT, /* the flash layout cannot hold the banks    */
     COMP_STORE_E_FLASH,  /* erase / program / read failed             */
-    COMP_STORE_E_VERIFY  /* read back differs from what was written   */
+    COMP_STORE_E_VERIFY, /* read back differs from what was written   */
+    COMP_STORE_E_BUSY    /* comp_store_clear: the scratch area is held */
 } comp_store_result_t;
 
 typedef struct {
@@ -95,6 +103,9 @@ bool comp_store_layout(comp_store_layout_t *out);
 
 /* Bytes the store takes at the top of the HAL region (0: no layout). */
 uint32_t comp_store_bytes(void);
+
+/* The active bank (0 or 1), 0xFF when none. */
+uint8_t comp_store_active_bank(void);
 
 /* Address of bank 0 or 1; 0 when out of range or no layout. */
 uint32_t comp_store_bank_addr(unsigned bank);
@@ -129,6 +140,14 @@ comp_store_result_t comp_store_blob_write(const uint8_t *data, uint16_t len, uin
  * COMP_STORE_EMPTY: none saved; COMP_STORE_E_VERIFY: blob records are in
  * the log but none decodes (damaged). */
 comp_store_result_t comp_store_blob_load(uint8_t *data, uint16_t cap, uint16_t *len,
+                                         uint32_t *version);
+
+/* The same for any blob-like slot: COMP_STORE_SLOT_BLOB (the parameters)
+ * or COMP_STORE_SLOT_MAP2D (the 2-D compensation map, comp2d.h record;
+ * length 0: no map). Other slots: COMP_STORE_E_ARG. */
+comp_store_result_t comp_store_slot_write(unsigned slot, const uint8_t *data, uint16_t len,
+                                          uint32_t *version);
+comp_store_result_t comp_store_slot_load(unsigned slot, uint8_t *data, uint16_t cap, uint16_t *len,
                                          uint32_t *version);
 
 #endif /* COMP_STORE_H */

@@ -973,7 +973,6 @@ drive_result_t drive_set_cec_mode(drive_cec_mode_t mode)
 
 drive_result_t drive_set_servo_params(const servo_params_t *p)
 {
-    static servo_t probe;
     servo_params_t q;
     if (p == NULL || !drv.ready) {
         return DRIVE_E_INVALID;
@@ -982,7 +981,7 @@ drive_result_t drive_set_servo_params(const servo_params_t *p)
     q.axes = drv.cfg.axes;
     q.tick_hz = drv.cfg.tick_hz;
     q.cec.mode = CEC_MODE_OFF;
-    if (servo_init(&probe, &q, NULL) != SERVO_OK) {
+    if (drive_servo_probe(&q) != DRIVE_OK) { /* scratch.h */
         return DRIVE_E_INVALID;
     }
     if (moving()) {

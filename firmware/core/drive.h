@@ -517,6 +517,15 @@ typedef struct {
     int64_t value;
 } drive_param_value_t;
 drive_result_t drive_param_set_all(const drive_param_value_t *v, unsigned n);
+/* The same one value at a time (param_store's load, no array): begin takes
+ * the current configuration as the candidate, stage checks one value's
+ * range and writes it into the candidate, commit checks and applies the
+ * whole candidate as drive_param_set_all does. Main; set_all and
+ * drive_param_set use the same candidate, so no other parameter call
+ * between begin and commit. */
+drive_result_t drive_param_begin(void);
+drive_result_t drive_param_stage(drive_param_t id, unsigned axis, int64_t value);
+drive_result_t drive_param_commit(void);
 
 /* Soft travel limits (drive_config_t.soft_min / soft_max): DRIVE_E_LIMIT
  * when an axis that moves (target != from) ends outside the limits of the

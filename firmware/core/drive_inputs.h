@@ -14,7 +14,9 @@
  * the servo's feedback; drive_inputs_ref_sample adds each reference
  * scale's counter change since its last sample, taken as int32 (so samples
  * must come while a scale moves less than 2^31 counts between them:
- * DRIVE_REF_SAMPLE_TICKS), and scales it.
+ * DRIVE_REF_SAMPLE_TICKS), and scales it. X and Y (axes 0 and 1) then get
+ * the 2-D map's correction (comp2d_live.h) in both the feedback and the
+ * decoders' pos_nm.
  *
  * Contexts: init main (drive_init, tick not running); the samples tick;
  * encoder edges (qdec_edge on enc[]) the edge interrupt per qdec.h. The
@@ -26,6 +28,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "comp2d_live.h"
 #include "drive.h"
 #include "hal.h"
 #include "qdec.h"
@@ -77,6 +80,9 @@ static inline void drive_inputs_sample(drive_inputs_t *in, const drive_config_t 
         }
     }
     fb->enc_fault = enc_fault;
+    /* the 2-D map (no map: one load and a branch); the feedback and the
+     * decoders' output alike, as for the 1-D tables */
+    comp2d_live_apply(&in->enc[0].out.pos_nm, &in->enc[1].out.pos_nm, &fb->pos[0], &fb->pos[1]);
 }
 
 /* Sample the reference scales of the first `axes` axes (see above). Tick. */

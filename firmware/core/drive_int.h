@@ -20,4 +20,9 @@ bool drive_ready(void);
  * re-initialised at its position. All or nothing. Main. */
 drive_result_t drive_apply_config(const drive_config_t *c);
 
+/* servo_init on a probe in the scratch area (scratch.h): DRIVE_OK when q
+ * is a valid servo configuration, DRIVE_E_INVALID when not, DRIVE_E_BUSY
+ * when the area is held. Main. */
+drive_result_t drive_servo_probe(const servo_params_t *q);
+
 #endif /* DRIVE_INT_H */

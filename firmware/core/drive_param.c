@@ -7,6 +7,23 @@
  */
 #include "drive.h"
 #include "drive_int.h"
+#include "scratch.h"
+
+/* The candidate configuration of drive_param_set and of a begin / stage /
+ * commit sequence (drive_param_set_all, param_store's load); main. */
+static drive_config_t cand;
+
+drive_result_t drive_servo_probe(const servo_params_t *q)
+{
+    servo_t *probe = scratch_claim(SCRATCH_SERVO_PROBE, sizeof *probe);
+    servo_err_t e;
+    if (probe == NULL) {
+        return DRIVE_E_BUSY;
+    }
+    e = servo_init(probe, q, NULL);
+    scratch_release(SCRATCH_SERVO_PROBE);
+    return e == SERVO_OK ? DRIVE_OK : DRIVE_E_INVALID;
+}
 
 void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes)
 {
@@ -213,7 +230,6 @@ drive_result_t drive_param_range(drive_param_t id, unsigned axis, int64_t *lo, i
 
 drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value)
 {
-    static drive_config_t cand; /* static: no large stack frame */
     int64_t lo, hi;
     if (drive_param_range(id, axis, &lo, &hi) != DRIVE_OK || value < lo || value > hi) {
         return DRIVE_E_INVALID;
@@ -226,34 +242,55 @@ drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value)
     return drive_apply_config(&cand);
 }
 
-drive_result_t drive_param_set_all(const drive_param_value_t *v, unsigned n)
+drive_result_t drive_param_begin(void)
 {
-    static drive_config_t cand;
-    static servo_t probe;
-    servo_params_t q;
-    unsigned k;
-    drive_result_t r;
-    if (v == NULL || !drive_ready()) {
+    if (!drive_ready()) {
         return DRIVE_E_INVALID;
     }
     cand = *drive_config();
-    for (k = 0; k < n; k++) {
-        if (!param_ok(v[k].id, v[k].axis) || v[k].value < param_info[v[k].id].lo ||
-            v[k].value > param_info[v[k].id].hi) {
-            return DRIVE_E_INVALID;
-        }
-        param_write(&cand, v[k].id, v[k].axis, v[k].value);
-    }
-    q = cand.servo;
-    q.cec.mode = CEC_MODE_OFF;
-    if (plan_check_profile(&cand.plan) != PLAN_OK || servo_init(&probe, &q, NULL) != SERVO_OK) {
+    return DRIVE_OK;
+}
+
+drive_result_t drive_param_stage(drive_param_t id, unsigned axis, int64_t value)
+{
+    if (!param_ok(id, axis) || value < param_info[id].lo || value > param_info[id].hi) {
         return DRIVE_E_INVALID;
+    }
+    param_write(&cand, id, axis, value);
+    return DRIVE_OK;
+}
+
+drive_result_t drive_param_commit(void)
+{
+    servo_params_t q = cand.servo;
+    drive_result_t r;
+    q.cec.mode = CEC_MODE_OFF;
+    if (plan_check_profile(&cand.plan) != PLAN_OK) {
+        return DRIVE_E_INVALID;
+    }
+    r = drive_servo_probe(&q);
+    if (r != DRIVE_OK) {
+        return r;
     }
     r = drive_apply_config(&cand); /* checks the planner is idle */
     if (r != DRIVE_OK) {
         return r;
     }
     return drive_set_servo_params(&cand.servo); /* validated, not moving: OK */
+}
+
+drive_result_t drive_param_set_all(const drive_param_value_t *v, unsigned n)
+{
+    unsigned k;
+    if (v == NULL || drive_param_begin() != DRIVE_OK) {
+        return DRIVE_E_INVALID;
+    }
+    for (k = 0; k < n; k++) {
+        if (drive_param_stage(v[k].id, v[k].axis, v[k].value) != DRIVE_OK) {
+            return DRIVE_E_INVALID;
+        }
+    }
+    return drive_param_commit();
 }
 
 static unsigned limit_axis; /* main: axis of the last DRIVE_E_LIMIT */

@@ -4,13 +4,12 @@
 #include "param_store.h"
 
 #include "comp_store.h"
+#include "scratch.h"
 
 #define HDR   12u
 #define ENTRY 10u
 
-static uint8_t blob[COMP_STORE_BLOB_MAX]; /* main */
-static drive_param_value_t vals[COMP_STORE_BLOB_MAX / ENTRY];
-static param_store_status_t status;
+static param_store_status_t status; /* main */
 
 uint16_t param_store_encode(uint8_t *buf, uint16_t cap)
 {
@@ -60,13 +59,21 @@ param_store_result_t param_store_save(uint32_t *version, uint32_t *detail)
     drive_status_t st;
     uint16_t len;
     comp_store_result_t r;
+    uint8_t *blob;
 
     drive_status(&st);
     if (st.state != DRIVE_DISABLED) {
         return PARAM_STORE_E_STATE;
     }
-    len = param_store_encode(blob, (uint16_t)sizeof blob);
-    r = len == 0u ? COMP_STORE_E_ARG : comp_store_blob_write(blob, len, version);
+    blob = scratch_claim(SCRATCH_PARAM_STORE, COMP_STORE_BLOB_MAX);
+    if (blob == NULL) {
+        len = 0u;
+        r = COMP_STORE_E_BUSY;
+    } else {
+        len = param_store_encode(blob, (uint16_t)COMP_STORE_BLOB_MAX);
+        r = len == 0u ? COMP_STORE_E_ARG : comp_store_blob_write(blob, len, version);
+        scratch_release(SCRATCH_PARAM_STORE);
+    }
     if (detail != NULL) {
         *detail = (uint32_t)r;
     }
@@ -78,12 +85,15 @@ static uint32_t get32(const uint8_t *p)
     return (uint32_t)p[0] | ((uint32_t)p[1] << 8) | ((uint32_t)p[2] << 16) | ((uint32_t)p[3] << 24);
 }
 
-static param_store_status_t load(void)
+/* The blob (in the scratch area) checked and staged into the drive's
+ * candidate configuration (drive_param_begin / _stage); LOADED: commit
+ * next. */
+static param_store_status_t stage(uint8_t *blob)
 {
     uint16_t len = 0u, n, k;
     uint32_t i;
     uint64_t v;
-    comp_store_result_t r = comp_store_blob_load(blob, (uint16_t)sizeof blob, &len, NULL);
+    comp_store_result_t r = comp_store_blob_load(blob, (uint16_t)COMP_STORE_BLOB_MAX, &len, NULL);
 
     if (r == COMP_STORE_EMPTY || r == COMP_STORE_E_LAYOUT) {
         return PARAM_STORE_NONE;
@@ -102,17 +112,36 @@ static param_store_status_t load(void)
     if ((uint32_t)HDR + (uint32_t)n * ENTRY != len) {
         return PARAM_STORE_CORRUPT;
     }
+    if (drive_param_begin() != DRIVE_OK) {
+        return PARAM_STORE_REFUSED;
+    }
     for (k = 0; k < n; k++) {
         const uint8_t *e = blob + HDR + (uint32_t)k * ENTRY;
         v = 0u;
         for (i = 0; i < 8u; i++) {
             v |= (uint64_t)e[2u + i] << (8u * i);
         }
-        vals[k].id = (drive_param_t)e[0];
-        vals[k].axis = e[1];
-        vals[k].value = (int64_t)v;
+        if (e[0] >= (uint8_t)DRIVE_PARAM_COUNT ||
+            drive_param_stage((drive_param_t)e[0], e[1], (int64_t)v) != DRIVE_OK) {
+            return PARAM_STORE_REFUSED;
+        }
     }
-    return drive_param_set_all(vals, n) == DRIVE_OK ? PARAM_STORE_LOADED : PARAM_STORE_REFUSED;
+    return PARAM_STORE_LOADED;
+}
+
+static param_store_status_t load(void)
+{
+    uint8_t *blob = scratch_claim(SCRATCH_PARAM_STORE, COMP_STORE_BLOB_MAX);
+    param_store_status_t s;
+    if (blob == NULL) {
+        return PARAM_STORE_CORRUPT;
+    }
+    s = stage(blob);
+    scratch_release(SCRATCH_PARAM_STORE); /* before the commit's servo probe */
+    if (s != PARAM_STORE_LOADED) {
+        return s;
+    }
+    return drive_param_commit() == DRIVE_OK ? PARAM_STORE_LOADED : PARAM_STORE_REFUSED;
 }
 
 param_store_status_t param_store_load(void)

@@ -1348,6 +1348,156 @@ bool proto_comp_info_decode(const uint8_t *buf, size_t len, proto_comp_info_t *m
     return true;
 }
 
+size_t proto_comp2d_write_encode(const proto_comp2d_write_t *m, uint8_t *buf, size_t cap)
+{
+    uint16_t i;
+
+    if (m->data_len > 224u || cap < PROTO_COMP2D_WRITE_LEN + (size_t)m->data_len) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->offset, 2u);
+    for (i = 0; i < m->data_len; i++) {
+        buf[2u + i] = m->data[i];
+    }
+    return PROTO_COMP2D_WRITE_LEN + (size_t)m->data_len;
+}
+
+bool proto_comp2d_write_decode(const uint8_t *buf, size_t len, proto_comp2d_write_t *m)
+{
+    uint16_t i;
+
+    if (len < PROTO_COMP2D_WRITE_LEN || len > PROTO_COMP2D_WRITE_MAX_LEN) {
+        return false;
+    }
+    m->offset = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->data_len = (uint16_t)(len - PROTO_COMP2D_WRITE_LEN);
+    for (i = 0; i < m->data_len; i++) {
+        m->data[i] = buf[2u + i];
+    }
+    return true;
+}
+
+size_t proto_comp2d_commit_encode(const proto_comp2d_commit_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_COMP2D_COMMIT_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->length, 2u);
+    proto_put_le(buf + 2, (uint64_t)m->crc, 4u);
+    return PROTO_COMP2D_COMMIT_LEN;
+}
+
+bool proto_comp2d_commit_decode(const uint8_t *buf, size_t len, proto_comp2d_commit_t *m)
+{
+    if (len != PROTO_COMP2D_COMMIT_LEN) {
+        return false;
+    }
+    m->length = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->crc = (uint32_t)proto_get_le(buf + 2, 4u);
+    return true;
+}
+
+size_t proto_comp2d_read_encode(const proto_comp2d_read_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_COMP2D_READ_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->offset, 2u);
+    proto_put_le(buf + 2, (uint64_t)m->max, 1u);
+    return PROTO_COMP2D_READ_LEN;
+}
+
+bool proto_comp2d_read_decode(const uint8_t *buf, size_t len, proto_comp2d_read_t *m)
+{
+    if (len != PROTO_COMP2D_READ_LEN) {
+        return false;
+    }
+    m->offset = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->max = (uint8_t)proto_get_le(buf + 2, 1u);
+    return true;
+}
+
+size_t proto_comp2d_info_encode(const proto_comp2d_info_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_COMP2D_INFO_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->active, 1u);
+    proto_put_le(buf + 1, (uint64_t)m->nx, 1u);
+    proto_put_le(buf + 2, (uint64_t)m->ny, 1u);
+    proto_put_le(buf + 3, (uint64_t)m->slot, 1u);
+    proto_put_le(buf + 4, (uint64_t)m->version, 4u);
+    proto_put_le(buf + 8, (uint64_t)m->length, 2u);
+    proto_put_le(buf + 10, (uint64_t)m->crc, 4u);
+    return PROTO_COMP2D_INFO_LEN;
+}
+
+bool proto_comp2d_info_decode(const uint8_t *buf, size_t len, proto_comp2d_info_t *m)
+{
+    if (len != PROTO_COMP2D_INFO_LEN) {
+        return false;
+    }
+    m->active = (uint8_t)proto_get_le(buf + 0, 1u);
+    m->nx = (uint8_t)proto_get_le(buf + 1, 1u);
+    m->ny = (uint8_t)proto_get_le(buf + 2, 1u);
+    m->slot = (uint8_t)proto_get_le(buf + 3, 1u);
+    m->version = (uint32_t)proto_get_le(buf + 4, 4u);
+    m->length = (uint16_t)proto_get_le(buf + 8, 2u);
+    m->crc = (uint32_t)proto_get_le(buf + 10, 4u);
+    return true;
+}
+
+size_t proto_comp2d_written_encode(const proto_comp2d_written_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_COMP2D_WRITTEN_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->offset, 2u);
+    proto_put_le(buf + 2, (uint64_t)m->len, 2u);
+    return PROTO_COMP2D_WRITTEN_LEN;
+}
+
+bool proto_comp2d_written_decode(const uint8_t *buf, size_t len, proto_comp2d_written_t *m)
+{
+    if (len != PROTO_COMP2D_WRITTEN_LEN) {
+        return false;
+    }
+    m->offset = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->len = (uint16_t)proto_get_le(buf + 2, 2u);
+    return true;
+}
+
+size_t proto_comp2d_data_encode(const proto_comp2d_data_t *m, uint8_t *buf, size_t cap)
+{
+    uint16_t i;
+
+    if (m->data_len > 224u || cap < PROTO_COMP2D_DATA_LEN + (size_t)m->data_len) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->offset, 2u);
+    proto_put_le(buf + 2, (uint64_t)m->total, 2u);
+    for (i = 0; i < m->data_len; i++) {
+        buf[4u + i] = m->data[i];
+    }
+    return PROTO_COMP2D_DATA_LEN + (size_t)m->data_len;
+}
+
+bool proto_comp2d_data_decode(const uint8_t *buf, size_t len, proto_comp2d_data_t *m)
+{
+    uint16_t i;
+
+    if (len < PROTO_COMP2D_DATA_LEN || len > PROTO_COMP2D_DATA_MAX_LEN) {
+        return false;
+    }
+    m->offset = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->total = (uint16_t)proto_get_le(buf + 2, 2u);
+    m->data_len = (uint16_t)(len - PROTO_COMP2D_DATA_LEN);
+    for (i = 0; i < m->data_len; i++) {
+        m->data[i] = buf[4u + i];
+    }
+    return true;
+}
+
 size_t proto_excite_start_encode(const proto_excite_start_t *m, uint8_t *buf, size_t cap)
 {
     if (cap < PROTO_EXCITE_START_LEN) {
@@ -1544,6 +1694,14 @@ const proto_msg_info_t proto_msg_table[] = {
     {0xB1u, PROTO_DIR_D2H, 0x00u, 0u, 13u, 233u, "calib_samples"},
     {0xB2u, PROTO_DIR_D2H, 0x00u, 0u, 5u, 5u, "comp_written"},
     {0xB3u, PROTO_DIR_D2H, 0x00u, 0u, 17u, 17u, "comp_info"},
+    {0xC8u, PROTO_DIR_H2D, 0xCEu, 0u, 2u, 226u, "comp2d_write"},
+    {0xC9u, PROTO_DIR_H2D, 0xCDu, 0u, 6u, 6u, "comp2d_commit"},
+    {0xCAu, PROTO_DIR_H2D, 0xCDu, 0u, 0u, 0u, "comp2d_get"},
+    {0xCBu, PROTO_DIR_H2D, 0xCDu, 0u, 0u, 0u, "comp2d_clear"},
+    {0xCCu, PROTO_DIR_H2D, 0xCFu, 0u, 3u, 3u, "comp2d_read"},
+    {0xCDu, PROTO_DIR_D2H, 0x00u, 0u, 14u, 14u, "comp2d_info"},
+    {0xCEu, PROTO_DIR_D2H, 0x00u, 0u, 4u, 4u, "comp2d_written"},
+    {0xCFu, PROTO_DIR_D2H, 0x00u, 0u, 4u, 228u, "comp2d_data"},
     {0xD0u, PROTO_DIR_H2D, 0xD8u, 0u, 32u, 32u, "excite_start"},
     {0xD1u, PROTO_DIR_H2D, 0xD8u, 0u, 0u, 0u, "excite_status"},
     {0xD2u, PROTO_DIR_H2D, 0xD9u, 0u, 5u, 5u, "excite_read"},

@@ -174,6 +174,10 @@
 #define PROTO_CALIB_STATUS_HOST_SILENT 17u /* the host sent no calibration request for 3 s during the run: run aborted, axes stopped */
 #define PROTO_CALIB_STATUS_NEW_SESSION 18u /* a new host session started during the run: run aborted, axes stopped */
 #define PROTO_CALIB_STATUS_EXCITE 19u /* the sample buffer is held by a commissioning excitation (excite_abort frees it once the experiment stopped) */
+#define PROTO_CALIB_STATUS_COMP2D_FIELD 20u /* 2-D map: its grid reaches outside the drive's field (soft limits of X and Y; lo = 1 + axis) */
+#define PROTO_CALIB_STATUS_COMP2D_MEMORY 21u /* 2-D map: more nodes than the drive holds (lo = nx * ny; at most 144, 2 <= nx, ny) */
+#define PROTO_CALIB_STATUS_COMP2D_RECORD 22u /* 2-D map record invalid (lo = comp2d error: 1 version, 3 node spacing or shift, 5 magic, 6 length, 7 CRC) */
+#define PROTO_CALIB_STATUS_COMP2D_AXES 23u /* 2-D map: the drive has fewer than two axes */
 
 /* excite_state.state */
 #define PROTO_EXCITE_RUN_STATE_IDLE 0u /* no experiment since the drive started */
@@ -311,6 +315,14 @@
 #define PROTO_MSG_CALIB_SAMPLES 0xB1u
 #define PROTO_MSG_COMP_WRITTEN 0xB2u
 #define PROTO_MSG_COMP_INFO 0xB3u
+#define PROTO_MSG_COMP2D_WRITE 0xC8u
+#define PROTO_MSG_COMP2D_COMMIT 0xC9u
+#define PROTO_MSG_COMP2D_GET 0xCAu
+#define PROTO_MSG_COMP2D_CLEAR 0xCBu
+#define PROTO_MSG_COMP2D_READ 0xCCu
+#define PROTO_MSG_COMP2D_INFO 0xCDu
+#define PROTO_MSG_COMP2D_WRITTEN 0xCEu
+#define PROTO_MSG_COMP2D_DATA 0xCFu
 #define PROTO_MSG_EXCITE_START 0xD0u
 #define PROTO_MSG_EXCITE_STATUS 0xD1u
 #define PROTO_MSG_EXCITE_READ 0xD2u
@@ -908,6 +920,76 @@ typedef struct {
 } proto_comp_info_t;
 size_t proto_comp_info_encode(const proto_comp_info_t *m, uint8_t *buf, size_t cap);
 bool proto_comp_info_decode(const uint8_t *buf, size_t len, proto_comp_info_t *m);
+
+/* comp2d_write (h2d): Bytes of a 2-D compensation map record (comp2d.h format, docs/calibration.md) into the drive's staging buffer at offset; offset 0 starts a new record. */
+#define PROTO_COMP2D_WRITE_LEN 2u
+#define PROTO_COMP2D_WRITE_MAX_LEN 226u
+typedef struct {
+    uint16_t offset; /* [byte] */
+    uint16_t data_len;
+    uint8_t data[224];
+} proto_comp2d_write_t;
+size_t proto_comp2d_write_encode(const proto_comp2d_write_t *m, uint8_t *buf, size_t cap);
+bool proto_comp2d_write_decode(const uint8_t *buf, size_t len, proto_comp2d_write_t *m);
+
+/* comp2d_commit (h2d): Check the staged 2-D map (length, CRC-32 = crc, format, the drive's memory and field), store it in flash (versioned, read back), then use it. Drive disabled only. Any failure leaves the previous map in use. */
+#define PROTO_COMP2D_COMMIT_LEN 6u
+typedef struct {
+    uint16_t length; /* [byte] */
+    uint32_t crc; /* crc32 of the record bytes */
+} proto_comp2d_commit_t;
+size_t proto_comp2d_commit_encode(const proto_comp2d_commit_t *m, uint8_t *buf, size_t cap);
+bool proto_comp2d_commit_decode(const uint8_t *buf, size_t len, proto_comp2d_commit_t *m);
+
+/* comp2d_get (h2d): The 2-D map in use. */
+#define PROTO_COMP2D_GET_LEN 0u
+
+/* comp2d_clear (h2d): Store an empty 2-D map (none) as the new current one and stop correcting. Drive disabled only. */
+#define PROTO_COMP2D_CLEAR_LEN 0u
+
+/* comp2d_read (h2d): Bytes of the current 2-D map record as stored in flash, from offset (at most max, <= 224). */
+#define PROTO_COMP2D_READ_LEN 3u
+typedef struct {
+    uint16_t offset; /* [byte] */
+    uint8_t max;
+} proto_comp2d_read_t;
+size_t proto_comp2d_read_encode(const proto_comp2d_read_t *m, uint8_t *buf, size_t cap);
+bool proto_comp2d_read_decode(const uint8_t *buf, size_t len, proto_comp2d_read_t *m);
+
+/* comp2d_info (d2h): The 2-D map in use. */
+#define PROTO_COMP2D_INFO_LEN 14u
+typedef struct {
+    uint8_t active; /* 1 when a map corrects X and Y */
+    uint8_t nx;
+    uint8_t ny;
+    uint8_t slot; /* flash bank of the current record (0xFF: none) */
+    uint32_t version; /* store version (0: none) */
+    uint16_t length; /* [byte] record length (0: none) */
+    uint32_t crc; /* crc32 of the record bytes (what comp2d_commit carried) */
+} proto_comp2d_info_t;
+size_t proto_comp2d_info_encode(const proto_comp2d_info_t *m, uint8_t *buf, size_t cap);
+bool proto_comp2d_info_decode(const uint8_t *buf, size_t len, proto_comp2d_info_t *m);
+
+/* comp2d_written (d2h): Reply to comp2d_write: echo of what was staged. */
+#define PROTO_COMP2D_WRITTEN_LEN 4u
+typedef struct {
+    uint16_t offset;
+    uint16_t len;
+} proto_comp2d_written_t;
+size_t proto_comp2d_written_encode(const proto_comp2d_written_t *m, uint8_t *buf, size_t cap);
+bool proto_comp2d_written_decode(const uint8_t *buf, size_t len, proto_comp2d_written_t *m);
+
+/* comp2d_data (d2h): Reply to comp2d_read. */
+#define PROTO_COMP2D_DATA_LEN 4u
+#define PROTO_COMP2D_DATA_MAX_LEN 228u
+typedef struct {
+    uint16_t offset;
+    uint16_t total; /* record length (0: none stored) */
+    uint16_t data_len;
+    uint8_t data[224];
+} proto_comp2d_data_t;
+size_t proto_comp2d_data_encode(const proto_comp2d_data_t *m, uint8_t *buf, size_t cap);
+bool proto_comp2d_data_decode(const uint8_t *buf, size_t len, proto_comp2d_data_t *m);
 
 /* excite_start (h2d): Start a PRBS excitation experiment of one axis (drive IDLE; limits checked every tick). Takes the sample buffer from the calibration (refused while a calibration run is set up). */
 #define PROTO_EXCITE_START_LEN 32u

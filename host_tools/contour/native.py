@@ -318,6 +318,8 @@ SIGNATURES: dict[str, tuple] = {
     "comp2d_check": (c.c_int, [_p(Comp2dMap), _p(c.c_int64), _p(c.c_int64)]),
     "comp2d_prepare": (None, [_p(Comp2dMap)]),
     "comp2d_correct": (None, [_p(Comp2dMap), _p(c.c_int64), _p(c.c_int32), _p(c.c_int64)]),
+    "comp2d_encode": (c.c_uint32, [_p(Comp2dMap), c.c_char_p, c.c_uint32]),
+    "comp2d_decode": (c.c_int, [c.c_char_p, c.c_uint32, _p(Comp2dMap)]),
     # bootloader and flash of the simulated drive (firmware/ports/sim)
     "boot_sim_serve_link": (c.c_bool, []),
     "boot_sim_init": (c.c_bool, [c.c_char_p, c.c_uint8, c.c_uint32]),

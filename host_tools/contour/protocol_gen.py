@@ -237,6 +237,10 @@ class CalibStatus(IntEnum):
     HOST_SILENT = 17
     NEW_SESSION = 18
     EXCITE = 19
+    COMP2D_FIELD = 20
+    COMP2D_MEMORY = 21
+    COMP2D_RECORD = 22
+    COMP2D_AXES = 23
 
 
 class ExciteRunState(IntEnum):
@@ -1307,6 +1311,120 @@ MESSAGES = (
         17,
         17,
         'The active compensation table of an axis.',
+    ),
+    Message(
+        "comp2d_write",
+        0xC8,
+        "h2d",
+        'comp2d_written',
+        None,
+        (
+            Field("offset", "u16", 2, 1, 0, 0, "byte"),
+            Field("data", "bytes", 1, 1, 224, 2, ""),
+        ),
+        2,
+        226,
+        "Bytes of a 2-D compensation map record (comp2d.h format, docs/calibration.md) into the drive's staging buffer at offset; offset 0 starts a new record.",
+    ),
+    Message(
+        "comp2d_commit",
+        0xC9,
+        "h2d",
+        'comp2d_info',
+        None,
+        (
+            Field("length", "u16", 2, 1, 0, 0, "byte"),
+            Field("crc", "u32", 4, 1, 0, 2, ""),
+        ),
+        6,
+        6,
+        "Check the staged 2-D map (length, CRC-32 = crc, format, the drive's memory and field), store it in flash (versioned, read back), then use it. Drive disabled only. Any failure leaves the previous map in use.",
+    ),
+    Message(
+        "comp2d_get",
+        0xCA,
+        "h2d",
+        'comp2d_info',
+        None,
+        (
+        ),
+        0,
+        0,
+        'The 2-D map in use.',
+    ),
+    Message(
+        "comp2d_clear",
+        0xCB,
+        "h2d",
+        'comp2d_info',
+        None,
+        (
+        ),
+        0,
+        0,
+        'Store an empty 2-D map (none) as the new current one and stop correcting. Drive disabled only.',
+    ),
+    Message(
+        "comp2d_read",
+        0xCC,
+        "h2d",
+        'comp2d_data',
+        None,
+        (
+            Field("offset", "u16", 2, 1, 0, 0, "byte"),
+            Field("max", "u8", 1, 1, 0, 2, ""),
+        ),
+        3,
+        3,
+        'Bytes of the current 2-D map record as stored in flash, from offset (at most max, <= 224).',
+    ),
+    Message(
+        "comp2d_info",
+        0xCD,
+        "d2h",
+        None,
+        None,
+        (
+            Field("active", "u8", 1, 1, 0, 0, ""),
+            Field("nx", "u8", 1, 1, 0, 1, ""),
+            Field("ny", "u8", 1, 1, 0, 2, ""),
+            Field("slot", "u8", 1, 1, 0, 3, ""),
+            Field("version", "u32", 4, 1, 0, 4, ""),
+            Field("length", "u16", 2, 1, 0, 8, "byte"),
+            Field("crc", "u32", 4, 1, 0, 10, ""),
+        ),
+        14,
+        14,
+        'The 2-D map in use.',
+    ),
+    Message(
+        "comp2d_written",
+        0xCE,
+        "d2h",
+        None,
+        None,
+        (
+            Field("offset", "u16", 2, 1, 0, 0, ""),
+            Field("len", "u16", 2, 1, 0, 2, ""),
+        ),
+        4,
+        4,
+        'Reply to comp2d_write: echo of what was staged.',
+    ),
+    Message(
+        "comp2d_data",
+        0xCF,
+        "d2h",
+        None,
+        None,
+        (
+            Field("offset", "u16", 2, 1, 0, 0, ""),
+            Field("total", "u16", 2, 1, 0, 2, ""),
+            Field("data", "bytes", 1, 1, 224, 4, ""),
+        ),
+        4,
+        228,
+        'Reply to comp2d_read.',
     ),
     Message(
         "excite_start",

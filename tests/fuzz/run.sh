@@ -22,11 +22,14 @@ clang "${flags[@]}" -o "$out/fuzz_dispatch" tests/fuzz/fuzz_dispatch.c $core $hi
 clang "${flags[@]}" -o "$out/fuzz_batch" tests/fuzz/fuzz_batch.c $core $hil -lm
 clang "${flags[@]}" -o "$out/fuzz_canopen" tests/fuzz/fuzz_canopen.c firmware/core/canopen.c \
   firmware/core/canopen_od.c
-for name in frame dispatch batch canopen; do
+clang "${flags[@]}" -o "$out/fuzz_comp2d" tests/fuzz/fuzz_comp2d.c firmware/core/comp2d.c \
+  firmware/core/comp2d_live.c
+for name in frame dispatch batch canopen comp2d; do
   work=$out/corpus_$name; mkdir -p "$work"
   cp -n tests/fuzz/corpus/$name/* "$work"/ 2>/dev/null || true
   log=$out/fuzz_$name.log
-  "$out/fuzz_$name" -runs="$runs" -max_len=1024 -timeout=10 -print_final_stats=1 \
+  max_len=1024; [ "$name" = comp2d ] && max_len=2048 # a full 12 x 12 map: 1764 bytes
+  "$out/fuzz_$name" -runs="$runs" -max_len=$max_len -timeout=10 -print_final_stats=1 \
     "$work" >"$log" 2>&1 || { tail -n 40 "$log"; echo "fuzz: $name FAILED (log $log)"; exit 1; }
   execs=$(grep -E '^stat::number_of_executed_units' "$log" | awk '{print $2}')
   cov=$(grep -E '^#[0-9]+.*DONE' "$log" | sed -E 's/.*cov: ([0-9]+).*/\1/' | tail -n 1)

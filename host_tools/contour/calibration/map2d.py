@@ -84,6 +84,28 @@ def to_c(m: Map2D) -> native.Comp2dMap:
     return cm
 
 
+RECORD_MAX = 36 + 12 * NODES_MAX
+
+
+def encode_record(cm: native.Comp2dMap) -> bytes:
+    """The drive's record bytes of a map (comp2d_encode: what comp2d_write
+    uploads and the flash stores)."""
+    buf = c.create_string_buffer(RECORD_MAX)
+    n = native.load().comp2d_encode(c.byref(cm), buf, RECORD_MAX)
+    if n == 0:
+        raise UserError(f"{cm.nx} x {cm.ny} nodes: the drive holds at most {NODES_MAX}")
+    return buf.raw[:n]
+
+
+def decode_record(data: bytes) -> native.Comp2dMap:
+    """The map of a record read back from the drive (comp2d_decode)."""
+    cm = native.Comp2dMap()
+    rc = native.load().comp2d_decode(bytes(data), len(data), c.byref(cm))
+    if rc != 0:
+        raise UserError(f"not a 2-D map record (comp2d error {rc})")
+    return cm
+
+
 def check(cm: native.Comp2dMap, lo_mm, hi_mm) -> None:
     """comp2d_check on the drive's code; UserError naming the refusal."""
     lib = native.load()

@@ -67,3 +67,40 @@ def plot_error_map(
         raise UserError(f"cannot write {path}: {exc.strerror}") from None
     finally:
         plt.close(fig)
+
+
+def plot_field(path: str, before: list, after: Optional[list] = None) -> None:
+    """The error field as vectors: systematic (X, Y) error at each node before
+    compensation and, when given, the residual at the verification points
+    after it (each panel scaled to its own largest vector; the scale bar
+    says how long 10 um or 1 um is)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = [(before, "before compensation", 10.0)]
+    if after is not None:
+        panels.append((after, "after: between the grid lines", 1.0))
+    fig, axes = plt.subplots(1, len(panels), figsize=(6.2 * len(panels), 5.6), squeeze=False)
+    for ax, (rows, title, ref_um) in zip(axes[0], panels):
+        x = [r["x_mm"] for r in rows]
+        y = [r["y_mm"] for r in rows]
+        u = [r["x_systematic_um"] for r in rows]
+        v = [r["y_systematic_um"] for r in rows]
+        big = max(max(abs(a), abs(b)) for a, b in zip(u, v)) or 1.0
+        q = ax.quiver(x, y, u, v, angles="xy", scale_units="width", scale=big * 12, color="tab:red")
+        ax.quiverkey(q, 0.85, 1.03, ref_um, f"{ref_um:g} um", labelpos="E")
+        ax.plot(x, y, ".", color="0.4", ms=3)
+        ax.set_title(f"{title}: largest {big:.2f} um", fontsize=10)
+        ax.set_xlabel("X (mm)")
+        ax.set_ylabel("Y (mm)")
+        ax.set_aspect("equal")
+        ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=110)
+    except OSError as exc:
+        raise UserError(f"cannot write {path}: {exc.strerror}") from None
+    finally:
+        plt.close(fig)

@@ -230,6 +230,10 @@ class Calibrator:
                     break
             if st["state"] == pg.CalibRunState.DONE and next_seq >= st["seq_next"]:
                 return next_seq
+            if not got_any and st["seq_oldest"] < next_seq == st["seq_next"]:
+                # release what was read: a leg of CALIB_RING samples waits for
+                # the whole ring (a read from seq_next returns nothing)
+                self._req("calib_read", from_seq=next_seq, max=1)
             if time.monotonic() > end:
                 raise UserError(f"calibration did not finish within {self.timeout_s:g} s")
             if not got_any:

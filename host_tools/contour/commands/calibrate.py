@@ -197,6 +197,12 @@ def _notify(msg: str) -> None:
 
 def cmd_calibrate(args) -> int:
     _check_numbers(args)
+    if args.grid:
+        from contour.commands.calibrate_grid import cmd_grid
+
+        if args.axis or args.import_file or args.reference != "scale":
+            raise UsageError("--grid measures X and Y itself: no --axis, --import or --reference")
+        return cmd_grid(args)
     report: dict = {}
     if args.import_file:
         if args.reference != "scale":
@@ -343,6 +349,23 @@ def register(sub) -> None:
         description=__doc__.split("\n\n")[0],
     )
     p.add_argument("--axis", help="axis to calibrate: X, Y, Z or A")
+    p.add_argument(
+        "--grid",
+        metavar="X:FROM:TO:STEP,Y:FROM:TO:STEP",
+        help="2-D calibration of X and Y over a grid of lines (mm), e.g. X:-60:60:15,Y:-60:60:15",
+    )
+    p.add_argument(
+        "--verify-grid",
+        metavar="SPEC",
+        help="--grid --apply: where to re-measure (default: the cell centres)",
+    )
+    p.add_argument("--map-out", metavar="MAP.csv", help="--grid: write the 2-D map (CSV)")
+    p.add_argument(
+        "--passes",
+        type=int,
+        default=2,
+        help="--grid --apply: measurements of the nodes, the later ones with the map on (2)",
+    )
     p.add_argument("--from", dest="from_mm", type=float, metavar="MM", help="first target, mm")
     p.add_argument("--to", dest="to_mm", type=float, metavar="MM", help="last target, mm")
     p.add_argument("--step", type=float, metavar="MM", help="target spacing, mm")
