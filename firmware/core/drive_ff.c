@@ -7,6 +7,7 @@
 
 #include "fixmath.h"
 #include "pid.h"
+#include "preempt.h"
 
 void drive_ff_config(drive_ff_t *f, const drive_config_t *cfg, unsigned axes)
 {
@@ -15,6 +16,7 @@ void drive_ff_config(drive_ff_t *f, const drive_config_t *cfg, unsigned axes)
     bool restart = cfg->qg_comp != f->qg;
 
     f->on = false; /* the reference is at rest (drive_ff.h): no tick uses it */
+    CORE_BARRIER();
     f->adv_q32 = (int32_t)(((int64_t)cfg->ff_advance_ns << 32) / 1000000000);
     f->band_nm_s = cfg->friction_ff_band_nm_s > 0 ? cfg->friction_ff_band_nm_s : 1;
     for (i = 0; i < CORE_AXES; i++) {
@@ -28,6 +30,7 @@ void drive_ff_config(drive_ff_t *f, const drive_config_t *cfg, unsigned axes)
         f->qg_sign[i] = 0;
         f->qg_have[i] = 0;
     }
+    CORE_BARRIER(); /* the fields above before `on` */
     f->on = on;
 }
 
