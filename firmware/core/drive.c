@@ -10,6 +10,7 @@
 #include "drive.h"
 #include "drive_int.h"
 #include "drive_home.h"
+#include "drive_ff.h"
 #include "drive_inputs.h"
 #include "drive_test.h"
 
@@ -69,18 +70,10 @@ static struct {
      * tangent, the geometry's arc fields): nothing else changed it since the
      * last full copy. A fast-path tick then copies only pos. */
     bool ref_synced;
-    bool ref_full; /* test hook (drive_test_full_ref): no pos-only copy */
-    int64_t v_act; /* path speed of the reference last tick, nm/s  */
-    arc_ref_t arc; /* arc overlay (tick)                           */
-    /* quadrant-glitch compensation (tick; cfg.qg_comp): sign of the
-     * reference velocity last tick (0: none yet), axis integrator before
-     * the last reversal out of + ([0]) and out of - ([1]), U; qg_have bit
-     * 0 / 1: that one is known */
-    int8_t qg_sign[CORE_AXES];
-    uint8_t qg_have[CORE_AXES];
-    int64_t qg_ipre[CORE_AXES][2];
-    bool ff_on;                   /* friction_ff_mv[] or ff_advance_ns set (init) */
-    int32_t ff_adv_q32;           /* ff_advance_ns in s * 2^32 (drive_init)        */
+    bool ref_full;                /* test hook (drive_test_full_ref): no pos-only copy */
+    int64_t v_act;                /* path speed of the reference last tick, nm/s  */
+    arc_ref_t arc;                /* arc overlay (tick)                           */
+    drive_ff_t ff;                /* advance, friction and quadrant feed-forward (drive_ff.h) */
     CORE_SHARED uint32_t tick_lo; /* low word of tick (main reads it) */
     uint32_t seen_done;           /* interpolator segments accounted */
     uint32_t seq_done;            /* internal tag of the next segment to complete */
@@ -168,16 +161,8 @@ drive_result_t drive_init(const drive_config_t *cfg)
     }
     drv.ready = false;
     drv.cfg = *cfg;
-    /* friction_ff_mv and ff_advance_ns are read only here */
-    drv.ff_on = cfg->ff_advance_ns != 0;
-    for (i = 0; i < CORE_AXES; i++) {
-        drv.qg_sign[i] = 0;
-        drv.qg_have[i] = 0;
-    }
-    for (i = 0; i < CORE_AXES; i++) {
-        drv.ff_on = drv.ff_on || drv.cfg.friction_ff_mv[i] != 0;
-    }
-    drv.ff_adv_q32 = (int32_t)(((int64_t)cfg->ff_advance_ns << 32) / 1000000000);
+    drv.ff = (drive_ff_t){0};
+    drive_ff_config(&drv.ff, cfg, cfg->axes);
     if (drv.cfg.arc_chord_nm == 0) {
         drv.cfg.arc_chord_nm = DRIVE_ARC_CHORD_NM;
     }
@@ -379,71 +364,13 @@ static void reference_step(void)
     }
 }
 
-/* Quadrant-glitch compensation of axis i (drive.h, qg_comp): v the
- * reference velocity, f the friction feed-forward (mV, > 0 or < 0). */
-static void qg_step(unsigned i, int64_t v, int64_t f)
-{
-    int8_t sg = v > 0 ? 1 : (v < 0 ? -1 : 0);
-    int8_t old = drv.qg_sign[i];
-
-    if (sg == 0 || sg == old) {
-        return;
-    }
-    drv.qg_sign[i] = sg;
-    if (old != 0) {
-        unsigned k = old > 0 ? 0u : 1u; /* out of + or out of - */
-        pid_loop_t *pid = &drv.servo.pid[i];
-
-        drv.qg_ipre[i][k] = pid->integ;
-        drv.qg_have[i] |= (uint8_t)(1u << k);
-        if (drv.qg_have[i] == 3u) {
-            /* I(+ -> -) - I(- -> +) = twice the friction the integrator
-             * held, toward the new direction; at most 2 |f| */
-            int64_t lim = (f < 0 ? -f : f) << 33; /* 2 |f| mV in U */
-            int64_t d = drv.qg_ipre[i][0] - drv.qg_ipre[i][1];
-
-            d = d > lim ? lim : (d < -lim ? -lim : d);
-            pid_add_integrator(pid, sg > 0 ? d : -d);
-        }
-    }
-}
-
 /* Velocity feed-forward advance and friction feed-forward as an extra
  * reference acceleration (see drive.h). */
 static void friction_ff(void)
 {
-    unsigned i;
-    if (!drv.ff_on) {
-        return;
-    }
-    drv.ref_synced = false; /* drv.ref.vel / acc may change below */
-    for (i = 0; i < drv.cfg.axes; i++) {
-        int64_t f, v, band, kaff, u;
-        if (drv.ff_adv_q32 != 0) {
-            drv.ref.vel[i] += fx_mul64x32_shift32(drv.ref.acc[i], drv.ff_adv_q32);
-        }
-        if (drv.cfg.friction_ff_mv[i] == 0) {
-            continue; /* the usual case: nothing else to load */
-        }
-        f = drv.cfg.friction_ff_mv[i];
-        v = drv.ref.vel[i];
-        if (drv.cfg.qg_comp) {
-            qg_step(i, v, f);
-        }
-        kaff = drv.servo.p.axis[i].kaff >> 16;
-        if (kaff <= 0 || v == 0) {
-            continue;
-        }
-        band = drv.cfg.friction_ff_band_nm_s > 0 ? drv.cfg.friction_ff_band_nm_s : 1;
-        if (v >= band) {
-            u = f;
-        } else if (v <= -band) {
-            u = -f;
-        } else {
-            u = fx_div_round64(f * v, band);
-        }
-        /* mV -> nm/s^2: u * 1e-3 V / (kaff V/(m/s^2)) * 1e9 = u * 1e6 / kaff */
-        drv.ref.acc[i] = fx_sat_add64(drv.ref.acc[i], fx_div_round64(u * 1000000 * 65536, kaff));
+    if (drv.ff.on) {
+        drv.ref_synced = false; /* drv.ref.vel / acc may change */
+        drive_ff_step(&drv.ff, &drv.servo, &drv.ref, drv.cfg.axes);
     }
 }
 
@@ -1054,11 +981,16 @@ drive_result_t drive_apply_config(const drive_config_t *c)
     drv.cfg.stop_decel_nm_s2 = c->stop_decel_nm_s2;
     drv.cfg.arc_chord_nm = c->arc_chord_nm;
     drv.cfg.start_delay_ms = c->start_delay_ms;
+    drv.cfg.ff_advance_ns = c->ff_advance_ns;
+    drv.cfg.qg_comp = c->qg_comp;
+    drv.cfg.friction_ff_band_nm_s = c->friction_ff_band_nm_s;
     for (i = 0; i < CORE_AXES; i++) {
+        drv.cfg.friction_ff_mv[i] = c->friction_ff_mv[i];
         drv.cfg.soft_min[i] = c->soft_min[i];
         drv.cfg.soft_max[i] = c->soft_max[i];
         drv.cfg.in_pos_nm[i] = c->in_pos_nm[i];
     }
+    drive_ff_config(&drv.ff, &drv.cfg, drv.cfg.axes);
     feed_set_profile(&feed, &c->plan);
     return DRIVE_OK;
 }

@@ -149,6 +149,7 @@
 #define DRIVE_START_DELAY_MS     50u
 #define DRIVE_START_DELAY_MS_MAX 10000u
 #define DRIVE_FF_ADVANCE_NS_MAX  10000000 /* ff_advance_ns: 10 ms */
+#define DRIVE_FRICTION_FF_MV_MAX 100000   /* friction_ff_mv: 100 V */
 /* Default in-position window and range of the soft limits, nm. */
 #define DRIVE_IN_POS_NM     5000
 #define DRIVE_IN_POS_NM_MAX 100000000
@@ -468,10 +469,12 @@ const drive_config_t *drive_config(void);
  * drive_set_plan_profile replaces the whole profile the same way (all or
  * nothing). Main.
  * The servo parameters (KP .. FERR_LIMIT, CEC_KP .. CEC_KD: the CEC's
- * pid gains; appended so the ids param_store saved stay) change servo_params_t of the axis
+ * pid gains, FFL_RATE; appended so the ids param_store saved stay) change
+ * servo_params_t of the axis
  * through drive_set_servo_params (validated with servo_config, refused with
  * DRIVE_E_BUSY while moving, applied by the tick's gains request); the
- * others (soft limits, in-position window) like the planner's. */
+ * others (soft limits, in-position window, the feed-forward corrections
+ * FRICTION_FF .. QG_COMP, drive_ff.h) like the planner's. */
 typedef enum {
     DRIVE_PARAM_V_MAX = 0,      /* per axis, nm/s          1000 .. SC_V_LIMIT   */
     DRIVE_PARAM_A_MAX,          /* per axis, nm/s^2   SC_A_MIN .. SC_A_LIMIT    */
@@ -498,6 +501,11 @@ typedef enum {
     DRIVE_PARAM_CEC_KP,         /* CEC, V/m q32_32            0 .. PID_GAIN_MAX - 1 */
     DRIVE_PARAM_CEC_KI,         /* CEC, V/(m*s) q32_32        0 .. PID_GAIN_MAX - 1 */
     DRIVE_PARAM_CEC_KD,         /* CEC, V*s/m q32_32          0 .. PID_GAIN_MAX - 1 */
+    DRIVE_PARAM_FRICTION_FF,    /* per axis, mV (friction_ff_mv) 0 .. DRIVE_FRICTION_FF_MV_MAX */
+    DRIVE_PARAM_FRICTION_BAND,  /* nm/s (friction_ff_band_nm_s)  1 .. SC_V_LIMIT */
+    DRIVE_PARAM_FF_ADVANCE,     /* ns (ff_advance_ns)         0 .. DRIVE_FF_ADVANCE_NS_MAX */
+    DRIVE_PARAM_QG_COMP,        /* 0 / 1 (qg_comp)                               */
+    DRIVE_PARAM_FFL_RATE,       /* 1/s (servo ffl_rate)       0 .. SERVO_FFL_RATE_MAX */
     DRIVE_PARAM_COUNT
 } drive_param_t;
 

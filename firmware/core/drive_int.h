@@ -14,7 +14,9 @@
 bool drive_ready(void);
 
 /* Take the motion fields of c (plan, stop_decel_nm_s2, arc_chord_nm,
- * start_delay_ms; the others are ignored) if plan_check_profile accepts the
+ * start_delay_ms, soft limits, in-position window, the feed-forward
+ * corrections ff_advance_ns, friction_ff_mv, friction_ff_band_nm_s,
+ * qg_comp (drive_ff.h); the others are ignored) if plan_check_profile accepts the
  * profile (else DRIVE_E_INVALID) and the planner is idle: nothing queued,
  * executing or stopping (else DRIVE_E_BUSY); the empty planner is then
  * re-initialised at its position. All or nothing. Main. */

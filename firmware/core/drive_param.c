@@ -86,13 +86,18 @@ static const struct {
     [DRIVE_PARAM_CEC_KP] = {0, PID_GAIN_MAX - 1, false},
     [DRIVE_PARAM_CEC_KI] = {0, PID_GAIN_MAX - 1, false},
     [DRIVE_PARAM_CEC_KD] = {0, PID_GAIN_MAX - 1, false},
+    [DRIVE_PARAM_FRICTION_FF] = {0, DRIVE_FRICTION_FF_MV_MAX, true},
+    [DRIVE_PARAM_FRICTION_BAND] = {1, SC_V_LIMIT, false},
+    [DRIVE_PARAM_FF_ADVANCE] = {0, DRIVE_FF_ADVANCE_NS_MAX, false},
+    [DRIVE_PARAM_QG_COMP] = {0, 1, false},
+    [DRIVE_PARAM_FFL_RATE] = {0, SERVO_FFL_RATE_MAX, false},
 };
 
 /* Servo parameters: set through drive_set_servo_params (the tick applies). */
 static bool param_is_servo(drive_param_t id)
 {
     return (id >= DRIVE_PARAM_KP && id <= DRIVE_PARAM_FERR_LIMIT) ||
-           (id >= DRIVE_PARAM_CEC_KP && id <= DRIVE_PARAM_CEC_KD);
+           (id >= DRIVE_PARAM_CEC_KP && id <= DRIVE_PARAM_CEC_KD) || id == DRIVE_PARAM_FFL_RATE;
 }
 
 /* The field of a configuration a parameter lives in. */
@@ -139,6 +144,8 @@ static const int64_t *param_field(const drive_config_t *c, drive_param_t id, uns
         return &c->servo.cec.pid.ki;
     case DRIVE_PARAM_CEC_KD:
         return &c->servo.cec.pid.kd;
+    case DRIVE_PARAM_FRICTION_BAND:
+        return &c->friction_ff_band_nm_s;
     default:
         return NULL; /* narrower fields: see param_read / param_write */
     }
@@ -167,6 +174,14 @@ static int64_t param_read(const drive_config_t *c, drive_param_t id, unsigned ax
         return c->plan.mbt_window;
     case DRIVE_PARAM_FERR_LIMIT:
         return c->servo.ferr_limit_nm[axis];
+    case DRIVE_PARAM_FRICTION_FF:
+        return c->friction_ff_mv[axis];
+    case DRIVE_PARAM_FF_ADVANCE:
+        return c->ff_advance_ns;
+    case DRIVE_PARAM_QG_COMP:
+        return c->qg_comp ? 1 : 0;
+    case DRIVE_PARAM_FFL_RATE:
+        return c->servo.ffl_rate;
     default:
         return c->start_delay_ms;
     }
@@ -191,6 +206,18 @@ static void param_write(drive_config_t *c, drive_param_t id, unsigned axis, int6
         break;
     case DRIVE_PARAM_FERR_LIMIT:
         c->servo.ferr_limit_nm[axis] = (int32_t)v;
+        break;
+    case DRIVE_PARAM_FRICTION_FF:
+        c->friction_ff_mv[axis] = (int32_t)v;
+        break;
+    case DRIVE_PARAM_FF_ADVANCE:
+        c->ff_advance_ns = (int32_t)v;
+        break;
+    case DRIVE_PARAM_QG_COMP:
+        c->qg_comp = v != 0;
+        break;
+    case DRIVE_PARAM_FFL_RATE:
+        c->servo.ffl_rate = (int32_t)v;
         break;
     default:
         c->start_delay_ms = (uint32_t)v;

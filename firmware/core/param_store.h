@@ -6,7 +6,9 @@
  * -------------
  * What: every drive parameter (drive.h drive_param_t: planner limits and
  * rules, stop deceleration, arc chord, start delay, servo gains and
- * feed-forward, following-error limit, soft limits, in-position window),
+ * feed-forward, following-error limit, soft limits, in-position window,
+ * friction feed-forward, feed-forward advance, quadrant-glitch
+ * compensation, feed-forward learning rate),
  * per axis for the axes in use. Not stored: the link's parameters (periods,
  * watchdog) and the CEC mode (chosen per job).
  *

@@ -8,6 +8,7 @@
 #include "fixmath.h"
 #include "param_store.h"
 #include "preempt.h"
+#include "proto_dparam.h"
 #include "proto_reply.h"
 
 #define AXES_OF(d) ((unsigned)(d)->ident.axes)
@@ -121,51 +122,6 @@ static refusal_t map_drive_result(drive_result_t r, const drive_status_t *st)
 
 /* ---- parameters ------------------------------------------------------------ */
 
-/* Parameters owned by the drive's parameter API (drive.h drive_param_*). */
-static const struct {
-    uint16_t proto;
-    drive_param_t drv;
-} drive_params[] = {
-    {PROTO_PARAM_MAX_VELOCITY, DRIVE_PARAM_V_MAX},
-    {PROTO_PARAM_MAX_ACCELERATION, DRIVE_PARAM_A_MAX},
-    {PROTO_PARAM_MAX_JERK, DRIVE_PARAM_J_MAX},
-    {PROTO_PARAM_CORNER_VELOCITY_STEP, DRIVE_PARAM_CORNER_DV},
-    {PROTO_PARAM_CORNER_ACCELERATION, DRIVE_PARAM_CORNER_ACC},
-    {PROTO_PARAM_JUNCTION_DEVIATION, DRIVE_PARAM_JUNCTION_DEV},
-    {PROTO_PARAM_CORNER_RULE, DRIVE_PARAM_CORNER},
-    {PROTO_PARAM_VELOCITY_PROFILE, DRIVE_PARAM_SHAPE},
-    {PROTO_PARAM_MIN_BLOCK_TIME, DRIVE_PARAM_MIN_BLOCK_NS},
-    {PROTO_PARAM_MIN_BLOCK_WINDOW, DRIVE_PARAM_MBT_WINDOW},
-    {PROTO_PARAM_STOP_DECELERATION, DRIVE_PARAM_STOP_DECEL},
-    {PROTO_PARAM_ARC_CHORD_TOLERANCE, DRIVE_PARAM_ARC_CHORD},
-    {PROTO_PARAM_START_DELAY_MS, DRIVE_PARAM_START_DELAY_MS},
-    {PROTO_PARAM_PID_KP, DRIVE_PARAM_KP},
-    {PROTO_PARAM_PID_KI, DRIVE_PARAM_KI},
-    {PROTO_PARAM_PID_KD, DRIVE_PARAM_KD},
-    {PROTO_PARAM_VELOCITY_FEEDFORWARD, DRIVE_PARAM_KVFF},
-    {PROTO_PARAM_ACCELERATION_FEEDFORWARD, DRIVE_PARAM_KAFF},
-    {PROTO_PARAM_FOLLOWING_ERROR_LIMIT, DRIVE_PARAM_FERR_LIMIT},
-    {PROTO_PARAM_SOFT_LIMIT_MIN, DRIVE_PARAM_SOFT_MIN},
-    {PROTO_PARAM_SOFT_LIMIT_MAX, DRIVE_PARAM_SOFT_MAX},
-    {PROTO_PARAM_IN_POSITION_WINDOW, DRIVE_PARAM_IN_POS},
-    {PROTO_PARAM_CEC_KP, DRIVE_PARAM_CEC_KP},
-    {PROTO_PARAM_CEC_KI, DRIVE_PARAM_CEC_KI},
-    {PROTO_PARAM_CEC_KD, DRIVE_PARAM_CEC_KD},
-};
-
-static bool drive_param_of(uint16_t base_id, drive_param_t *out)
-{
-    size_t i;
-
-    for (i = 0; i < sizeof drive_params / sizeof drive_params[0]; i++) {
-        if (drive_params[i].proto == base_id) {
-            *out = drive_params[i].drv;
-            return true;
-        }
-    }
-    return false;
-}
-
 /* Write a drive parameter: busy while moving; a value the drive refuses
  * gets out_of_range with the range it accepts now (e.g. max_acceleration
  * narrowed by max_jerk), or bad_value when the value is in that range but
@@ -237,7 +193,7 @@ static refusal_t param_read(proto_dispatch_t *d, uint16_t id, int64_t *value)
     default: {
         drive_param_t dp;
 
-        if (!drive_param_of(p->id, &dp) || drive_param_get(dp, axis, value) != DRIVE_OK) {
+        if (!proto_drive_param(p->id, &dp) || drive_param_get(dp, axis, value) != DRIVE_OK) {
             return refuse(PROTO_ERROR_CODE_NOT_SUPPORTED, id);
         }
         break;
@@ -290,7 +246,7 @@ static refusal_t param_write(proto_dispatch_t *d, uint16_t id, int64_t value)
     default: {
         drive_param_t dp;
 
-        if (!drive_param_of(p->id, &dp)) {
+        if (!proto_drive_param(p->id, &dp)) {
             return refuse(PROTO_ERROR_CODE_NOT_SUPPORTED, id);
         }
         return drive_param_write(id, dp, axis, value);

@@ -184,6 +184,10 @@ def test_save_survives_a_restart(capsys, tmp_path):
             ["set", "following_error_limit.z", "0.75"],
             ["set", "soft_limit_max.x", "300"],
             ["set", "in_position_window.y", "2um"],
+            ["set", "ff_advance_ns", "1500"],
+            ["set", "qg_comp", "1"],
+            ["set", "ffl_rate", "50"],
+            ["set", "friction_ff_mv.x", "30"],
         ):
             assert run_cli([*argv, *port], capsys)[0] == 0, argv
         # refused while enabled
@@ -210,6 +214,11 @@ def test_save_survives_a_restart(capsys, tmp_path):
             assert c.get_param("soft_limit_max.x") == 300_000_000
             assert c.get_param("in_position_window.y") == 2000
             assert c.get_param("in_position_window.x") == 5000
+            assert c.get_param("ff_advance_ns") == 1500
+            assert c.get_param("qg_comp") == 1
+            assert c.get_param("ffl_rate") == 50
+            assert c.get_param("friction_ff_mv.x") == 30
+            assert c.get_param("friction_ff_mv.y") == 0
     # an erased flash of the same drive: the machine's values, status none
     with spawn(["--flash", str(Path(tmp_path / "other.flash")), "--boot-window-ms", "200"]) as s:
         assert run_cli(["flash", str(image), "--port", s.serial, "--no-progress"], capsys)[0] == 0

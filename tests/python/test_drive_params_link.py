@@ -46,6 +46,49 @@ def test_planner_parameters_over_the_link(server, capsys):
         c.set_param("max_velocity.y", vy0)
 
 
+def test_feedforward_corrections_over_the_link(server, capsys):
+    """ff_advance_ns, qg_comp, ffl_rate, friction_ff_mv, friction_ff_band
+    (drive_ff.h, servo.h): set and read by name, the table's range checked by
+    the drive too (bypassing the host), busy while moving."""
+    port = ["--port", server.serial]
+    for argv, shown in (
+        (["ff_advance_ns", "1500"], "ff_advance_ns = 1500 ns"),
+        (["qg_comp", "1"], "qg_comp = 1"),
+        (["ffl_rate", "100"], "ffl_rate = 100 1/s"),
+        (["friction_ff_mv.y", "45"], "friction_ff_mv.y = 45 mV"),
+        (["friction_ff_band", "0.5"], "friction_ff_band = 0.5 mm/s"),
+    ):
+        assert cli.main(["set", *argv, *port]) == 0, argv
+        assert capsys.readouterr().out.strip() == shown
+    with connect(port=server.serial) as c:
+        assert c.get_param("ff_advance_ns") == 1500
+        assert c.get_param("qg_comp") == 1
+        assert c.get_param("ffl_rate") == 100
+        assert c.get_param("friction_ff_mv.y") == 45
+        assert c.get_param("friction_ff_mv.x") == 0
+        assert c.get_param("friction_ff_band") == 500_000
+        for name, bad, lo, hi in (
+            ("ff_advance_ns", 10_000_001, 0, 10_000_000),
+            ("qg_comp", 2, 0, 1),
+            ("ffl_rate", 1001, 0, 1000),
+            ("friction_ff_band", 0, 1, 4294967295),
+        ):
+            with pytest.raises(DriveError) as e:
+                c.request("param_set", param=pg.PARAM_BY_NAME[name].id, value=bad)
+            assert e.value.code == pg.ErrorCode.OUT_OF_RANGE, name
+            assert (e.value.fields["lo"], e.value.fields["hi"]) == (lo, hi), name
+        assert c.get_param("ff_advance_ns") == 1500  # nothing changed
+        for name, v in (
+            ("ff_advance_ns", 0),
+            ("qg_comp", 0),
+            ("ffl_rate", 0),
+            ("friction_ff_mv.y", 0),
+            ("friction_ff_band", 1_000_000),
+        ):
+            c.set_param(name, v)
+            assert c.get_param(name) == v
+
+
 def test_enable_and_queue_in_one_batch(server):
     with connect(port=server.serial) as c:
         c.set_param("comm_timeout_ms", 1000)
@@ -72,6 +115,10 @@ def test_enable_and_queue_in_one_batch(server):
         with pytest.raises(DriveError) as e:
             c.set_param("max_velocity.x", 5_000_000)
         assert e.value.code == pg.ErrorCode.BUSY
+        for name in ("ff_advance_ns", "ffl_rate"):  # drive_ff / servo: busy too
+            with pytest.raises(DriveError) as e:
+                c.set_param(name, 1)
+            assert e.value.code == pg.ErrorCode.BUSY, name
         st = wait_state(c, (pg.State.READY,))
         assert st["state"] == pg.State.READY
         assert st["blocks_done"] == done0 + 1 and st["last_block_seq"] == 77

@@ -15,6 +15,8 @@
  *     Y 2 % high the CEC leaves an ellipse that the learning removes; above
  *     the path frequency gate the learning does nothing at all (the trace
  *     is bit-identical to the run without it);
+ *   - the same settings made as drive parameters (drive.h drive_param_set,
+ *     what the link's param_set does) after start-up give the same run;
  *   - the parameters' ranges.
  */
 #include <math.h>
@@ -36,6 +38,7 @@ typedef struct {
     int qg;
     bool friction; /* Coulomb friction on both axes (realistic.toml's) */
     double seconds;
+    bool by_param; /* adv_s, fric_v, qg, ffl through drive_param_set after start */
 } circ_cfg_t;
 
 typedef struct {
@@ -78,7 +81,7 @@ static circ_out_t circle(const circ_cfg_t *c)
         TEST_ASSERT_EQUAL_INT(0, sim_gain_set((int)i, "kvff", kvff * c->kv_scale[i]));
         TEST_ASSERT_EQUAL_INT(0, sim_gain_set((int)i, "kaff", kaff[i] * c->kv_scale[i]));
         TEST_ASSERT_EQUAL_INT(0, sim_gain_set((int)i, "d_on_measurement", 0.0));
-        TEST_ASSERT_EQUAL_INT(0, sim_servo_set(i, "friction_ff", c->fric_v));
+        TEST_ASSERT_EQUAL_INT(0, sim_servo_set(i, "friction_ff", c->by_param ? 0.0 : c->fric_v));
         if (c->friction) {
             TEST_ASSERT_EQUAL_INT(0, sim_axis_set(i, "coulomb_motor", 0.01));
             TEST_ASSERT_EQUAL_INT(0, sim_axis_set(i, "coulomb_table", 10.0));
@@ -88,11 +91,24 @@ static circ_out_t circle(const circ_cfg_t *c)
     TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "ki", c->cki));
     TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "kd", c->ckd));
     TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "d_tau", c->cd_tau));
-    TEST_ASSERT_EQUAL_INT(0, sim_servo_set(0, "ff_advance", c->adv_s));
-    TEST_ASSERT_EQUAL_INT(0, sim_servo_set(0, "qg_comp", c->qg));
-    TEST_ASSERT_EQUAL_INT(0, sim_servo_set(0, "ffl_rate", c->ffl));
+    if (!c->by_param) {
+        TEST_ASSERT_EQUAL_INT(0, sim_servo_set(0, "ff_advance", c->adv_s));
+        TEST_ASSERT_EQUAL_INT(0, sim_servo_set(0, "qg_comp", c->qg));
+        TEST_ASSERT_EQUAL_INT(0, sim_servo_set(0, "ffl_rate", c->ffl));
+    }
     TEST_ASSERT_EQUAL_INT(0, sim_cec_mode(c->cec));
     TEST_ASSERT_EQUAL_INT(0, sim_start());
+    if (c->by_param) {
+        for (i = 0; i < 2; i++) {
+            TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_FRICTION_FF, i,
+                                                            (int64_t)floor(c->fric_v * 1e3 + 0.5)));
+        }
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_FF_ADVANCE, 0,
+                                                        (int64_t)floor(c->adv_s * 1e9 + 0.5)));
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_QG_COMP, 0, c->qg));
+        TEST_ASSERT_EQUAL_INT(
+            DRIVE_OK, drive_param_set(DRIVE_PARAM_FFL_RATE, 0, (int64_t)floor(c->ffl + 0.5)));
+    }
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, sim_enable(1));
     TEST_ASSERT_EQUAL_INT(0, sim_queue_line(on_circle, feed, 1, 0, &res));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, res);
@@ -125,7 +141,7 @@ static circ_out_t circle(const circ_cfg_t *c)
 static circ_cfg_t thesis_3ms(void)
 {
     circ_cfg_t c = {333.0, 20.0,       10000.0,       1000.0, 5000.0, 8.0, 0.0, 2000.0, 1e5, 2.0,
-                    0.0,   {1.0, 1.0}, DRIVE_CEC_OFF, 0.0,    0.0,    0.0, 0,   false,  3.0};
+                    0.0,   {1.0, 1.0}, DRIVE_CEC_OFF, 0.0,    0.0,    0.0, 0,   false,  3.0, false};
     return c;
 }
 
@@ -133,7 +149,7 @@ static circ_cfg_t thesis_3ms(void)
 static circ_cfg_t realistic(void)
 {
     circ_cfg_t c = {10000.0, 20.0,       10000.0,       2500.0, 1e5, 5.0, 1e-3, 2000.0, 1e5, 2.0,
-                    1e-3,    {1.0, 1.0}, DRIVE_CEC_OFF, 0.0,    0.0, 0.0, 0,    false,  2.0};
+                    1e-3,    {1.0, 1.0}, DRIVE_CEC_OFF, 0.0,    0.0, 0.0, 0,    false,  2.0, false};
     return c;
 }
 
@@ -214,6 +230,42 @@ static void test_ffl_takes_no_step_above_the_path_frequency_gate(void)
     TEST_ASSERT_EQUAL_DOUBLE(off.row_sum, on.row_sum);
 }
 
+/* Friction (90 % fed forward, qg_comp), half a tick of advance and the
+ * learning, set as drive parameters once the drive runs (DISABLED, as the
+ * link's param_set would): the run is the run configured at start-up, bit
+ * for bit, and not the run without them. */
+static void test_settings_as_drive_parameters(void)
+{
+    circ_cfg_t c = realistic();
+    circ_out_t none, cfg, par;
+    int64_t v;
+
+    c.friction = true;
+    c.seconds = 1.0;
+    c.kv_scale[0] = 0.98;
+    c.kv_scale[1] = 1.02;
+    c.cec = DRIVE_CEC_EXACT;
+    none = circle(&c);
+    c.fric_v = 0.9 * (0.01 + 10.0 * 0.005 / (2 * M_PI)) * 9.0 / (0.2 * 16.0);
+    c.adv_s = 0.5 / 10000.0;
+    c.qg = 1;
+    c.ffl = 100.0;
+    cfg = circle(&c);
+    c.by_param = true;
+    par = circle(&c);
+    TEST_ASSERT_EQUAL_HEX32(0, none.faults | cfg.faults | par.faults);
+    TEST_ASSERT_TRUE(none.row_sum != cfg.row_sum);
+    TEST_ASSERT_EQUAL_DOUBLE(cfg.row_sum, par.row_sum);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_FF_ADVANCE, 0, &v));
+    TEST_ASSERT_EQUAL_INT64(50000, v);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_QG_COMP, 0, &v));
+    TEST_ASSERT_EQUAL_INT64(1, v);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_FFL_RATE, 0, &v));
+    TEST_ASSERT_EQUAL_INT64(100, v);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_FRICTION_FF, 1, &v));
+    TEST_ASSERT_EQUAL_INT64((int64_t)floor(c.fric_v * 1e3 + 0.5), v);
+}
+
 static void test_parameter_ranges(void)
 {
     servo_params_t p;
@@ -230,6 +282,29 @@ static void test_parameter_ranges(void)
     TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_servo_set(0, "ff_advance", 0.011));
     TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_servo_set(0, "qg_comp", 2.0));
     TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_servo_set(0, "ffl_rate", 1001.0));
+    /* the same ranges as drive parameters; nothing changes on a refusal */
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID,
+                          drive_param_set(DRIVE_PARAM_FF_ADVANCE, 0, DRIVE_FF_ADVANCE_NS_MAX + 1));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_FF_ADVANCE, 0, -1));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_QG_COMP, 0, 2));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID,
+                          drive_param_set(DRIVE_PARAM_FFL_RATE, 0, SERVO_FFL_RATE_MAX + 1));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_FRICTION_FF, 0, -1));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_FRICTION_FF, 3, 0));
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_param_set(DRIVE_PARAM_FRICTION_BAND, 0, 0));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK,
+                          drive_param_set(DRIVE_PARAM_FF_ADVANCE, 0, DRIVE_FF_ADVANCE_NS_MAX));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_FFL_RATE, 0, SERVO_FFL_RATE_MAX));
+    {
+        int64_t v;
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_FF_ADVANCE, 0, &v));
+        TEST_ASSERT_EQUAL_INT64(DRIVE_FF_ADVANCE_NS_MAX, v);
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_FFL_RATE, 0, &v));
+        TEST_ASSERT_EQUAL_INT64(SERVO_FFL_RATE_MAX, v);
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_get(DRIVE_PARAM_QG_COMP, 0, &v));
+        TEST_ASSERT_EQUAL_INT64(0, v);
+    }
 }
 
 int main(void)
@@ -239,6 +314,7 @@ int main(void)
     RUN_TEST(test_quadrant_glitch_compensation);
     RUN_TEST(test_ffl_learns_the_velocity_gain_mismatch);
     RUN_TEST(test_ffl_takes_no_step_above_the_path_frequency_gate);
+    RUN_TEST(test_settings_as_drive_parameters);
     RUN_TEST(test_parameter_ranges);
     return UNITY_END();
 }

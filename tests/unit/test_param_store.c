@@ -178,7 +178,7 @@ static void test_other_format_axes_or_value_leave_the_defaults(void)
     TEST_ASSERT_EQUAL_INT(PARAM_STORE_AXES, param_store_status());
     TEST_ASSERT_TRUE(defaults());
 
-    /* the last entry (cec_kd) out of range (-1): nothing of the set is
+    /* the last entry (ffl_rate) -1, out of range: nothing of the set is
      * applied */
     memset(buf + len - 8u, 0xff, 8u);
     TEST_ASSERT_EQUAL_INT(COMP_STORE_OK, comp_store_blob_write(buf, len, NULL));

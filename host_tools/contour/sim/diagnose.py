@@ -1,6 +1,7 @@
 """What a circle's contour error is made of, term by term (issue 21;
 docs/simulator.md "Realistic machine: what the contour error is made of"
-and "The 3 ms tick: where the CEC loses").
+"The 3 ms tick: where the CEC loses" and "Why no change of the CEC removes
+it").
 
     .venv/bin/python -m contour.sim.diagnose [OUT_DIR]
 
@@ -21,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from contour.sim import circle, machine
+from contour.sim import circle, machine, tuning
 
 R_MM, FEED = 20.0, 10000.0
 
@@ -45,12 +46,20 @@ def harmonics(tr: np.ndarray, r_mm: float, kmax: int = 8) -> tuple:
     return amp, float(np.ptp(rad - m @ c))
 
 
-def run(name: str, ctl: str, mod=None, r_mm=R_MM, feed=FEED, tick=None, d="ccw"):
+def run(name: str, ctl: str, mod=None, r_mm=R_MM, feed=FEED, tick=None, d="ccw", settle=0.5):
     m = machine.load(name)
     if mod:
         mod(m)
     return circle.run_circle(
-        r_mm, feed, d, controller=ctl, feedforward="full", mach=m, tick_hz=tick, allow_limited=True
+        r_mm,
+        feed,
+        d,
+        controller=ctl,
+        feedforward="full",
+        mach=m,
+        tick_hz=tick,
+        allow_limited=True,
+        settle_s=settle,
     )
 
 
@@ -126,6 +135,68 @@ def c3_table(log=print) -> None:
         log(f"| {lab} | " + " | ".join(cells) + " |")
 
 
+NINE = [(r, f) for r in (10, 20, 50) for f in (10000, 20000, 30000)]
+
+
+def _cec_scale(k: float):
+    def f(m):
+        for key in ("kp", "ki", "kd"):
+            m.gains["cec"][key] *= k
+
+    return f
+
+
+def _ideal_measure(m):
+    m.axis["x"].update(I2=m.axis["y"]["I2"])
+    for a in m.axis.values():
+        a.update(encoder_lines=1e6)
+
+
+WHY_ROWS = [  # label, machine change, CEC gain scale (for Ms), settle s
+    ("CEC gains x 0.1", _cec_scale(0.1), 0.1, 0.5),
+    ("CEC gains x 0.3", _cec_scale(0.3), 0.3, 0.5),
+    ("shipped (x 1)", None, 1.0, 0.5),
+    ("X table as Y, 1e6 lines", _ideal_measure, None, 0.5),
+    ("the same, 3 s before the scored revolution", _ideal_measure, None, 3.0),
+]
+
+
+def why_table(log=print, rows=WHY_ROWS, cases=NINE) -> list:
+    """C3 with the CEC's gains scaled and with the measurement made ideal:
+    circular deviation pid / cec-curvature (um), the number of cases the CEC
+    is worse in, and the sampled loop's Ms along the normal (X / Y). Returns
+    per row the (pid, cec) pairs."""
+    m0 = machine.load("thesis")
+    loops = {ax: tuning.Loop(m0.axis[ax], m0.tick_hz) for ax in ("x", "y")}
+    ms0 = [loops[ax].margins(m0.gains[ax]).ms for ax in ("x", "y")]
+    log(
+        f"\nC3, why the CEC loses: pid / cec-curvature, um (Ms of the PIDs alone "
+        f"{ms0[0]:.2f} / {ms0[1]:.2f})"
+    )
+    log("| case | Ms X / Y | " + " | ".join(f"R{r} {f // 1000}" for r, f in cases) + " | worse |")
+    log("|---|---|" + "---:|" * (len(cases) + 1))
+    out = []
+    for lab, mod, k, settle in rows:
+        ms = ""
+        if k is not None:
+            g = {
+                key: v * (k if key in ("kp", "ki", "kd") else 1)
+                for key, v in m0.gains["cec"].items()
+            }
+            ms = " / ".join(f"{loops[ax].margins(m0.gains[ax], g).ms:.2f}" for ax in ("x", "y"))
+        cells, pairs, worse = [], [], 0
+        for r, f in cases:
+            a = run("thesis", "pid", mod, r, f, settle=settle).result.circular_deviation_mm * 1e3
+            b = run("thesis", "cec-curvature", mod, r, f, settle=settle).result
+            b = b.circular_deviation_mm * 1e3
+            worse += b > a
+            pairs.append((a, b))
+            cells.append(f"{a:.2f} / {b:.2f}")
+        out.append(pairs)
+        log(f"| {lab} | {ms} | " + " | ".join(cells) + f" | {worse} |")
+    return out
+
+
 def alias_table(log=print) -> dict:
     """Motor encoder minus true table position on X, R 20 mm at 20 m/min,
     PIDs: its fit on the reference velocity, per tick rate."""
@@ -191,6 +262,7 @@ def figures(out: Path, traces: dict, alias: dict) -> None:
 def main(argv: list) -> int:
     traces = realistic_table()
     c3_table()
+    why_table()
     alias = alias_table()
     if argv:
         out = Path(argv[0])
