@@ -7,23 +7,64 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import can
 import canopen
 import pytest
 from canopen.sdo.exceptions import SdoAbortedError
+from contour import protocol_gen as pg
+from contour.link.client import connect
 from contour.sim.serve import spawn
 
 EDS = Path(__file__).resolve().parents[2] / "protocol" / "contour.eds"
 
 
 @pytest.fixture(scope="module")
-def network():
+def served():
     with spawn() as s:
-        net = canopen.Network()
-        net.connect(interface="slcan", channel=s.slcan, bitrate=500000)
+        yield s
+
+
+@pytest.fixture(scope="module")
+def network(served):
+    net = canopen.Network()
+    net.connect(interface="slcan", channel=served.slcan, bitrate=500000)
+    try:
+        yield net
+    finally:
+        net.disconnect()
+
+
+class _Counter(can.Listener):
+    def __init__(self) -> None:
+        self.ours = 0
+        self.standard = 0
+
+    def on_message_received(self, msg) -> None:
+        if msg.is_extended_id and pg.can_split(msg.arbitration_id) is not None:
+            self.ours += 1
+        elif not msg.is_extended_id:
+            self.standard += 1
+
+
+def test_scan_sees_only_canopen_nodes_while_our_telemetry_streams(served, network):
+    """Our protocol streams telemetry (set up over the serial link) on its
+    29-bit ids; the master's scanner, which masks ids with 0x780 / 0x7F and
+    does not look at IDE, must still find node 1 only (protocol 2's 11-bit
+    pos frame 0x1C1 made it report a false node 65)."""
+    counter = _Counter()
+    network.notifier.add_listener(counter)
+    with connect(port=served.serial, timeout=1.0) as c:
+        c.set_param("telem_period_ms", 2)
         try:
-            yield net
+            time.sleep(0.3)
+            network.scanner.reset()
+            network.scanner.search()
+            time.sleep(1.0)
+            assert network.scanner.nodes == [1]
         finally:
-            net.disconnect()
+            c.set_param("telem_period_ms", 0)
+    network.notifier.remove_listener(counter)
+    assert counter.ours > 100, counter.ours  # the telemetry did stream on the bus
 
 
 def _node(net) -> canopen.RemoteNode:

@@ -55,6 +55,7 @@ from contour import protocol_gen as pg
 from contour.errors import UserError
 from contour.link.canbits import frame_bits
 
+EFF = 0x80000000  # HAL_CAN_EFF (firmware/hal/hal.h): an extended id
 BOARD_SIM = 1  # BOOT_BOARD_SIM in firmware/core/boot/boot.h
 MAX_BACKLOG = 256 * 1024
 FLASH_FILE_BYTES = 256 * 1024  # FLASH_SIM_DEFAULT_SIZE (firmware/ports/sim/hal_flash_sim.h)
@@ -138,14 +139,14 @@ class SlcanParser:
             except (ValueError, IndexError):
                 self.errors += 1
                 return None, b"\a"
-            if dlc > 8 or len(data) != dlc:
+            if dlc > 8 or len(data) != dlc or cid > (0x7FF if c == "t" else 0x1FFFFFFF):
                 self.errors += 1
                 return None, b"\a"
             if not self.open:
                 return None, b"\a"
-            if c == "T":  # the drive uses 11-bit ids only: accepted, not for us
-                return None, b"Z\r"
             self.frames_in += 1
+            if c == "T":  # 29-bit: the HAL's flag (HAL_CAN_EFF) marks it
+                return (cid | EFF, data), b"Z\r"
             return (cid, data), b"z\r"
         if c in "rR":
             return None, b"z\r" if self.open else b"\a"
@@ -154,7 +155,16 @@ class SlcanParser:
 
 
 def slcan_line(cid: int, data: bytes) -> bytes:
+    """A frame as SLCAN sends it: ``T`` + 8 hex digits for an id carrying
+    EFF (29-bit), ``t`` + 3 for an 11-bit one."""
+    if cid & EFF:
+        return f"T{cid & 0x1FFFFFFF:08X}{len(data)}{data.hex().upper()}\r".encode()
     return f"t{cid:03X}{len(data)}{data.hex().upper()}\r".encode()
+
+
+def bus_bits(cid: int, data: bytes) -> int:
+    """Bits of a frame on the simulated bus (canbits.frame_bits)."""
+    return frame_bits(cid & 0x1FFFFFFF, data, extended=bool(cid & EFF))
 
 
 class Pty:
@@ -285,7 +295,7 @@ class SimServer:
             frames, reply = self.parser.feed(data)
             now = self.lib.hal_sim_time_ns()
             for cid, payload in frames:
-                self._bus.append((now, True, cid, payload, frame_bits(cid, payload)))
+                self._bus.append((now, True, cid, payload, bus_bits(cid, payload)))
             if reply:
                 self.slcan.write(reply)
         self._bus_deliver()
@@ -327,7 +337,7 @@ class SimServer:
             ctypes.byref(self._cid), self._cdata, ctypes.byref(self._clen)
         ):
             cid, payload = self._cid.value, self._cdata.raw[: self._clen.value]
-            self._bus.append((now, False, cid, payload, frame_bits(cid, payload)))
+            self._bus.append((now, False, cid, payload, bus_bits(cid, payload)))
         self._bus_deliver()
 
     def _sync_boot(self) -> None:
