@@ -21,7 +21,7 @@ static void tx_flush(co_t *co)
     }
 }
 
-static void tx_frame(co_t *co, uint32_t id, const uint8_t *data, uint8_t len)
+void co_send(co_t *co, uint32_t id, const uint8_t *data, uint8_t len)
 {
     co_frame_t *f;
 
@@ -39,7 +39,7 @@ static void tx_frame(co_t *co, uint32_t id, const uint8_t *data, uint8_t len)
 
 /* ---- object dictionary access ------------------------------------------ */
 
-static const co_od_entry_t *od_find(uint16_t index, uint8_t sub, uint32_t *abort)
+const co_od_entry_t *co_od_find(uint16_t index, uint8_t sub, uint32_t *abort)
 {
     size_t i;
     bool index_seen = false;
@@ -56,7 +56,7 @@ static const co_od_entry_t *od_find(uint16_t index, uint8_t sub, uint32_t *abort
     return NULL;
 }
 
-static uint8_t *od_ptr(co_t *co, const co_od_entry_t *e)
+uint8_t *co_od_var(co_t *co, const co_od_entry_t *e)
 {
     return (uint8_t *)&co->od + e->offset;
 }
@@ -65,7 +65,7 @@ static uint8_t *od_ptr(co_t *co, const co_od_entry_t *e)
 static uint32_t od_size(co_t *co, const co_od_entry_t *e)
 {
     if (e->type == CO_OD_STR) {
-        const char *s = (const char *)od_ptr(co, e);
+        const char *s = (const char *)co_od_var(co, e);
         uint32_t n = 0;
 
         while (n < CO_STR_MAX && s[n] != '\0') {
@@ -78,7 +78,7 @@ static uint32_t od_size(co_t *co, const co_od_entry_t *e)
 
 static void od_read(co_t *co, const co_od_entry_t *e, uint8_t *out)
 {
-    const uint8_t *p = od_ptr(co, e);
+    const uint8_t *p = co_od_var(co, e);
     uint32_t v = 0;
 
     switch (e->type) {
@@ -101,10 +101,49 @@ static void od_read(co_t *co, const co_od_entry_t *e, uint8_t *out)
     out[3] = (uint8_t)(v >> 24);
 }
 
+/* Rules of objects beyond their limits (co_pdo.h, co_sync.h, co_emcy.h,
+ * the check hook); 0 or the abort code. */
+static uint32_t od_check(co_t *co, const co_od_entry_t *e, uint32_t v)
+{
+    if (e->index >= 0x1400u && e->index < 0x1C00u) {
+        return co_pdo_check(co, e->index, e->sub, v);
+    }
+    if (e->index == 0x1005u || e->index == 0x1006u) {
+        return co_sync_check(co, e->index, v);
+    }
+    if (e->index == 0x1014u) {
+        return co_emcy_check(v);
+    }
+    return co->on_check != NULL ? co->on_check(co->hook_ctx, e->index, e->sub, v) : 0u;
+}
+
+/* v < lim, as signed numbers for a signed object (v sign-extended from its
+ * size; the generator writes the limits sign-extended to 32 bits). */
+static bool od_less(const co_od_entry_t *e, uint32_t v, uint32_t lim)
+{
+    if ((e->access & CO_OD_SIGNED) != 0u) {
+        unsigned sh = 32u - 8u * e->type;
+
+        return (int32_t)(v << sh) >> sh < (int32_t)lim;
+    }
+    return v < lim;
+}
+
+/* lim < v, the same way. */
+static bool od_greater(const co_od_entry_t *e, uint32_t v, uint32_t lim)
+{
+    if ((e->access & CO_OD_SIGNED) != 0u) {
+        unsigned sh = 32u - 8u * e->type;
+
+        return (int32_t)(v << sh) >> sh > (int32_t)lim;
+    }
+    return v > lim;
+}
+
 /* Size checks happen at initiate; this checks the value and stores it. */
 static uint32_t od_write(co_t *co, const co_od_entry_t *e, const uint8_t *in, uint32_t n)
 {
-    uint8_t *p = od_ptr(co, e);
+    uint8_t *p = co_od_var(co, e);
     uint32_t v = 0;
     uint32_t i;
 
@@ -119,11 +158,18 @@ static uint32_t od_write(co_t *co, const co_od_entry_t *e, const uint8_t *in, ui
     for (i = 0; i < n; i++) {
         v |= (uint32_t)in[i] << (8u * i);
     }
-    if (v > e->max) {
+    if (od_greater(e, v, e->max)) {
         return CO_ABORT_VALUE_HIGH;
     }
-    if (v < e->min) {
+    if (od_less(e, v, e->min)) {
         return CO_ABORT_VALUE_LOW;
+    }
+    {
+        uint32_t abort = od_check(co, e, v);
+
+        if (abort != 0u) {
+            return abort;
+        }
     }
     if (e->type == CO_OD_U8) {
         *p = (uint8_t)v;
@@ -144,7 +190,7 @@ static void sdo_send(co_t *co, uint8_t cmd, uint16_t index, uint8_t sub, const u
     if (d4 != NULL) {
         memcpy(&f[4], d4, 4u);
     }
-    tx_frame(co, CO_ID_TSDO + co->cfg.node_id, f, 8u);
+    co_send(co, CO_ID_TSDO + co->cfg.node_id, f, 8u);
 }
 
 static void sdo_abort(co_t *co, uint16_t index, uint8_t sub, uint32_t code)
@@ -159,6 +205,9 @@ static void sdo_abort(co_t *co, uint16_t index, uint8_t sub, uint32_t code)
 
 static void written(co_t *co, uint16_t index, uint8_t sub)
 {
+    if (index >= 0x1400u && index < 0x1C00u) {
+        co_pdo_written(co, index);
+    }
     if (co->on_write != NULL) {
         co->on_write(co->hook_ctx, index, sub);
     }
@@ -169,7 +218,7 @@ static void sdo_initiate_download(co_t *co, const uint8_t *f, uint32_t now_us)
     uint16_t index = (uint16_t)(f[1] | (f[2] << 8));
     uint8_t sub = f[3];
     uint32_t abort = 0;
-    const co_od_entry_t *e = od_find(index, sub, &abort);
+    const co_od_entry_t *e = co_od_find(index, sub, &abort);
     uint32_t cap;
 
     co->sdo_mode = 0u;
@@ -177,7 +226,7 @@ static void sdo_initiate_download(co_t *co, const uint8_t *f, uint32_t now_us)
         sdo_abort(co, index, sub, abort);
         return;
     }
-    if (e->access != CO_OD_RW) {
+    if ((e->access & CO_OD_RW) == 0u) {
         sdo_abort(co, index, sub, CO_ABORT_READONLY);
         return;
     }
@@ -244,7 +293,7 @@ static void sdo_download_segment(co_t *co, const uint8_t *f, uint32_t now_us)
             sdo_abort(co, co->sdo_index, co->sdo_sub, CO_ABORT_LEN);
             return;
         }
-        e = od_find(co->sdo_index, co->sdo_sub, &abort);
+        e = co_od_find(co->sdo_index, co->sdo_sub, &abort);
         if (e != NULL) {
             abort = od_write(co, e, co->sdo_buf, co->sdo_pos);
         }
@@ -258,7 +307,7 @@ static void sdo_download_segment(co_t *co, const uint8_t *f, uint32_t now_us)
     {
         uint8_t r[8] = {(uint8_t)(0x20u | (t << 4)), 0, 0, 0, 0, 0, 0, 0};
 
-        tx_frame(co, CO_ID_TSDO + co->cfg.node_id, r, 8u);
+        co_send(co, CO_ID_TSDO + co->cfg.node_id, r, 8u);
     }
     if (co->sdo_mode == 0u) {
         written(co, co->sdo_index, co->sdo_sub);
@@ -270,7 +319,7 @@ static void sdo_initiate_upload(co_t *co, const uint8_t *f, uint32_t now_us)
     uint16_t index = (uint16_t)(f[1] | (f[2] << 8));
     uint8_t sub = f[3];
     uint32_t abort = 0;
-    const co_od_entry_t *e = od_find(index, sub, &abort);
+    const co_od_entry_t *e = co_od_find(index, sub, &abort);
     uint32_t n;
     uint8_t d[4] = {0, 0, 0, 0};
 
@@ -324,7 +373,7 @@ static void sdo_upload_segment(co_t *co, const uint8_t *f, uint32_t now_us)
     }
     co->sdo_toggle ^= 1u;
     co->sdo_last_us = now_us;
-    tx_frame(co, CO_ID_TSDO + co->cfg.node_id, r, 8u);
+    co_send(co, CO_ID_TSDO + co->cfg.node_id, r, 8u);
 }
 
 static void sdo_rx(co_t *co, const uint8_t *f, uint8_t len, uint32_t now_us)
@@ -362,10 +411,13 @@ static void nmt_boot(co_t *co, bool comm_only, uint32_t now_us)
     uint8_t b = 0u;
 
     co_od_defaults(&co->od, &co->cfg, comm_only);
+    co_pdo_init(co);
+    memset(&co->sync, 0, sizeof co->sync);
+    co->emcy.reported = 0u; /* the faults still present are reported again */
     co->sdo_mode = 0u;
     co->nmt = CO_NMT_PREOP;
     co->hb_last_us = now_us;
-    tx_frame(co, CO_ID_HB + co->cfg.node_id, &b, 1u);
+    co_send(co, CO_ID_HB + co->cfg.node_id, &b, 1u);
 }
 
 void co_init(co_t *co, const co_config_t *cfg, co_tx_fn tx, void *ctx, uint32_t now_us)
@@ -389,6 +441,7 @@ static void nmt_rx(co_t *co, const uint8_t *f, uint8_t len, uint32_t now_us)
     switch (f[0]) {
     case 0x01u:
         co->nmt = CO_NMT_OPERATIONAL;
+        co_pdo_init(co); /* event TPDOs send their data once */
         break;
     case 0x02u:
         co->nmt = CO_NMT_STOPPED;
@@ -421,12 +474,16 @@ bool co_rx(co_t *co, uint32_t id, const uint8_t *data, uint8_t len, uint32_t now
         }
         return true;
     }
-    return false;
+    if (id > 0x7FFu) {
+        return false; /* 29-bit: not CANopen */
+    }
+    return co_sync_rx(co, id, len, now_us) || co_pdo_rx(co, id, data, len);
 }
 
 void co_poll(co_t *co, uint32_t now_us)
 {
     tx_flush(co);
+    co_pdo_poll(co, now_us);
     if (co->sdo_mode != 0u && now_us - co->sdo_last_us >= CO_SDO_TIMEOUT_US) {
         sdo_abort(co, co->sdo_index, co->sdo_sub, CO_ABORT_TIMEOUT);
     }
@@ -435,7 +492,7 @@ void co_poll(co_t *co, uint32_t now_us)
         uint8_t s = (uint8_t)co->nmt;
 
         co->hb_last_us = now_us;
-        tx_frame(co, CO_ID_HB + co->cfg.node_id, &s, 1u);
+        co_send(co, CO_ID_HB + co->cfg.node_id, &s, 1u);
     }
 }
 
@@ -453,4 +510,14 @@ void co_set_write_hook(co_t *co, co_write_hook_fn fn, void *ctx)
 {
     co->on_write = fn;
     co->hook_ctx = ctx;
+}
+
+void co_set_sync_hook(co_t *co, co_sync_hook_fn fn)
+{
+    co->on_sync = fn;
+}
+
+void co_set_check_hook(co_t *co, co_check_hook_fn fn)
+{
+    co->on_check = fn;
 }
