@@ -284,7 +284,12 @@ def gen_python(spec: dict) -> str:
             f"    (0x{e['index']:04X}, {e['sub']}, {e['name']!r}, {e['type']!r}, "
             f"{e['access']!r}, {e['default']!r}),"
         )
-    L += ["]", ""]
+    L += ["]", "", "# defaults that are the node id plus the value ($NODEID+ in the EDS)"]
+    L.append("NODE_RELATIVE = {")
+    for e in spec["entries"]:
+        if e["node"]:
+            L.append(f"    (0x{e['index']:04X}, {e['sub']}),")
+    L += ["}", ""]
     return "\n".join(L)
 
 

@@ -137,3 +137,12 @@ ENTRIES = [
     (0x60C2, 1, 'Interpolation time period value', 'u8', 'rw', 1),
     (0x60C2, 2, 'Interpolation time index', 'i8', 'rw', -3),
 ]
+
+# defaults that are the node id plus the value ($NODEID+ in the EDS)
+NODE_RELATIVE = {
+    (0x1014, 0),
+    (0x1400, 1),
+    (0x1401, 1),
+    (0x1800, 1),
+    (0x1801, 1),
+}
