@@ -9,7 +9,8 @@
 
 static cia402_t ax;
 static co_csp_t csp;
-static uint64_t sync_tick; /* main */
+static uint64_t sync_tick;  /* main */
+static uint32_t sync_count; /* main */
 
 static void csp_follow(co_t *co)
 {
@@ -84,6 +85,7 @@ static void on_sync(void *ctx, int phase, uint32_t now_us)
     if (phase == CO_SYNC_SAMPLE) {
         sample(co, &st);
         sync_tick = st.tick;
+        sync_count++;
     } else {
         co_csp_sync(&csp, co->od.target_position,
                     co_csp_period_ns(co->od.ipol_value, co->od.ipol_index));
@@ -97,6 +99,7 @@ void co_drive_init(co_t *co)
     csp.queued = 0u;
     csp.missed = 0u;
     sync_tick = 0u;
+    sync_count = 0u;
     co_set_write_hook(co, on_write, co);
     co_set_check_hook(co, on_check);
     co_set_sync_hook(co, on_sync);
@@ -144,4 +147,14 @@ const co_csp_t *co_drive_csp(void)
 uint64_t co_drive_sync_tick(void)
 {
     return sync_tick;
+}
+
+uint32_t co_drive_sync_count(void)
+{
+    return sync_count;
+}
+
+uint32_t co_drive_csp_missed(void)
+{
+    return csp.missed;
 }

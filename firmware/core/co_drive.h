@@ -34,7 +34,10 @@ void co_drive_init(co_t *co);
 void co_drive_poll(co_t *co, uint32_t now_us);
 const cia402_t *co_drive_state(void);
 const co_csp_t *co_drive_csp(void);
-/* The drive tick whose position the last SYNC sampled, and SYNCs seen. */
+/* The drive tick whose position the last SYNC sampled, the SYNCs sampled
+ * and the CSP targets refused (figures of the simulator, tests). */
 uint64_t co_drive_sync_tick(void);
+uint32_t co_drive_sync_count(void);
+uint32_t co_drive_csp_missed(void);
 
 #endif
