@@ -86,7 +86,8 @@ class Run:
             for _ in range(self.ticks_per_cycle):
                 self.server.step(1)
             after = [d.sync_info() for d in self.drives]
-            tpdo2 = [sum(1 for cid, _ in self.host_frames if cid == 0x280 + d.node) for d in self.drives]
+            ids = [cid for cid, _ in self.host_frames]
+            tpdo2 = [ids.count(0x280 + d.node) for d in self.drives]
             ok = self.bus.pending() == 0 and all(
                 a[0] == b[0] + 1 and a[2] == b[2] for a, b in zip(after, before)
             )
