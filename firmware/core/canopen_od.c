@@ -131,6 +131,12 @@ const co_od_entry_t co_od_table[] = {
     {0x6061u, 0u, CO_OD_U8, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, mode_display), 0xFFFFFF80u, 0x7Fu},
     {0x6064u, 0u, CO_OD_U32, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, position_actual), 0x80000000u, 0x7FFFFFFFu},
     {0x607Au, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, target_position), 0x80000000u, 0x7FFFFFFFu},
+    {0x607Cu, 0u, CO_OD_U32, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, home_offset), 0x80000000u, 0x7FFFFFFFu},
+    {0x6081u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, profile_velocity), 0x1u, 0xFFFFFFFFu},
+    {0x6098u, 0u, CO_OD_U8, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, homing_method), 0xFFFFFF80u, 0x7Fu},
+    {0x6099u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, homing_speed_count), 0x0u, 0xFFFFFFFFu},
+    {0x6099u, 1u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, homing_search), 0x1u, 0xFFFFFFFFu},
+    {0x6099u, 2u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, homing_latch), 0x1u, 0xFFFFFFFFu},
     {0x60C2u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, ipol_count), 0x0u, 0xFFFFFFFFu},
     {0x60C2u, 1u, CO_OD_U8, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, ipol_value), 0x1u, 0xFFFFFFFFu},
     {0x60C2u, 2u, CO_OD_U8, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ipol_index), 0xFFFFFFFAu, 0xFFFFFFFDu},
@@ -272,6 +278,12 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
     v->mode_display = 0;
     v->position_actual = 0;
     v->target_position = 0;
+    v->home_offset = 0;
+    v->profile_velocity = 0x989680u;
+    v->homing_method = 17;
+    v->homing_speed_count = 0x2u;
+    v->homing_search = 0x989680u;
+    v->homing_latch = 0x1E8480u;
     v->ipol_count = 0x2u;
     v->ipol_value = 0x1u;
     v->ipol_index = -3;

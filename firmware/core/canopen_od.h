@@ -65,6 +65,12 @@ typedef struct {
     int8_t mode_display; /* 0x6061:0 Modes of operation display */
     int32_t position_actual; /* 0x6064:0 Position actual value */
     int32_t target_position; /* 0x607A:0 Target position */
+    int32_t home_offset; /* 0x607C:0 Home offset */
+    uint32_t profile_velocity; /* 0x6081:0 Profile velocity */
+    int8_t homing_method; /* 0x6098:0 Homing method */
+    uint8_t homing_speed_count; /* 0x6099:0 Highest sub-index supported */
+    uint32_t homing_search; /* 0x6099:1 Speed during search for switch */
+    uint32_t homing_latch; /* 0x6099:2 Speed during search for zero */
     uint8_t ipol_count; /* 0x60C2:0 Highest sub-index supported */
     uint8_t ipol_value; /* 0x60C2:1 Interpolation time period value */
     int8_t ipol_index; /* 0x60C2:2 Interpolation time index */

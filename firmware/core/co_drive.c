@@ -9,6 +9,7 @@
 
 static cia402_t ax;
 static co_csp_t csp;
+static co_pp_t pp;
 static uint64_t sync_tick;  /* main */
 static uint32_t sync_count; /* main */
 
@@ -54,6 +55,7 @@ static void on_write(void *ctx, uint16_t index, uint8_t sub)
     if (index == 0x6040u && sub == 0u) {
         (void)cia402_controlword(&ax, co->od.controlword);
         apply(before);
+        co_pp_controlword(&pp, co, ax.state == CIA402_OPERATION_ENABLED);
     } else if (index == 0x6060u) {
         co->od.mode_display = co->od.mode;
     }
@@ -64,8 +66,11 @@ static uint32_t on_check(void *ctx, uint16_t index, uint8_t sub, uint32_t value)
 {
     (void)ctx;
     (void)sub;
-    if (index == 0x6060u && value != 0u && value != MODE_CSP) {
+    if (index == 0x6060u && value != 0u && value != 1u && value != 6u && value != MODE_CSP) {
         return CO_ABORT_VALUE;
+    }
+    if (index == 0x6098u) {
+        return co_pp_check_method((int8_t)value);
     }
     return 0u;
 }
@@ -98,6 +103,7 @@ void co_drive_init(co_t *co)
     csp.active = false;
     csp.queued = 0u;
     csp.missed = 0u;
+    pp = (co_pp_t){0};
     sync_tick = 0u;
     sync_count = 0u;
     co_set_write_hook(co, on_write, co);
@@ -128,6 +134,7 @@ void co_drive_poll(co_t *co, uint32_t now_us)
     if (csp.active) {
         sw |= 0x1000u; /* CSP: the drive follows the target */
     }
+    sw |= co_pp_status(&pp, co, &st); /* PP, homing: bits 12, 13 */
     if ((st.faults & DRIVE_FAULT_FOLLOWING) != 0u) {
         sw |= 0x2000u; /* following error */
     }

@@ -16,8 +16,9 @@
  * drive enabled, bit 12 in CSP: the drive follows the target) and 0x6064
  * up to date. Fault reset (15) calls drive_fault_reset; when the drive
  * refuses (cause present) the state machine stays in FAULT.
- * 0x6060 accepts 0 and 8 (else abort 0x06090030); 0x6061 shows it. CSP
- * runs while the mode is 8 in OPERATION ENABLED. At each SYNC 0x6064 is
+ * 0x6060 accepts 0, 1 (PP), 6 (homing) and 8 (CSP) (else abort
+ * 0x06090030); 0x6061 shows it. CSP runs while the mode is 8 in OPERATION
+ * ENABLED; PP and homing start on controlword bit 4 (co_pp.h). At each SYNC 0x6064 is
  * sampled (the drive's last published tick) before the TPDOs, and 0x607A
  * is applied (co_csp_sync) after the RPDOs.
  */
@@ -27,6 +28,7 @@
 #include "canopen.h"
 #include "cia402.h"
 #include "co_csp.h"
+#include "co_pp.h"
 
 /* Attach to co (sets its write, check and SYNC hooks); the drive must be
  * initialised. */

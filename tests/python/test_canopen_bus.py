@@ -75,7 +75,7 @@ def test_pdo_mapping_changed_by_sdo_then_used(bus):
     assert t3["Position actual value"].raw == node.sdo["Position actual value"].raw
     node.sdo["Modes of operation"].raw = 0
     with pytest.raises(canopen.sdo.exceptions.SdoAbortedError) as e:
-        node.sdo["Modes of operation"].raw = 1  # PP: not built
+        node.sdo["Modes of operation"].raw = 3  # profile velocity: not built
     assert e.value.code == 0x06090030
 
 
