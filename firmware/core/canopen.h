@@ -182,6 +182,11 @@ void co_set_check_hook(co_t *co, co_check_hook_fn fn);
  * *abort set when there is none), its variable, and a frame to send. */
 const co_od_entry_t *co_od_find(uint16_t index, uint8_t sub, uint32_t *abort);
 uint8_t *co_od_var(co_t *co, const co_od_entry_t *e);
+/* co_od.c: the value's size now (a string's length), its bytes
+ * (little-endian), and a checked write of n bytes (0 or the abort code). */
+uint32_t co_od_size(co_t *co, const co_od_entry_t *e);
+void co_od_read(co_t *co, const co_od_entry_t *e, uint8_t *out);
+uint32_t co_od_write(co_t *co, const co_od_entry_t *e, const uint8_t *in, uint32_t n);
 void co_send(co_t *co, uint32_t id, const uint8_t *data, uint8_t len);
 
 #endif
