@@ -11,6 +11,7 @@ from pathlib import Path
 
 import canopen
 import pytest
+from contour import protocol_gen as pg
 from contour.link.client import connect
 from contour.sim.serve import spawn
 
@@ -127,3 +128,14 @@ def test_both_drives_move_in_step_with_sync_in_csp(bus):
     for node in nodes:
         node.sdo["Controlword"].raw = 0x06  # shutdown: the drive is disabled again
         assert not node.sdo["Statusword"].raw & 0x10
+
+
+def test_contour_scan_lists_both_drives_with_both_protocols():
+    from contour.commands.scan import scan
+
+    with spawn(["--drives", "2", "--node", "4"]) as s:
+        found = scan({"interface": "slcan", "channel": s.slcan, "bitrate": 1000000}, 2.5)
+    assert sorted(found) == [4, 5]
+    for e in found.values():
+        assert e["protocol_version"] == pg.PROTOCOL_VERSION and e["state"] == "disabled"
+        assert e["canopen"] in ("pre-operational", "boot-up")  # and CANopen's
