@@ -52,7 +52,8 @@ with spawn() as server:
             rate, failed = 0.0, True
         print(f"stream_blocks_per_second_{kind}: {rate:.0f} blocks/s", flush=True)
         if kind == "slcan" and r.bus_frames:
-            bits = r.bus_frames * worst_frame_bits(8)  # every frame as a full one: an upper bound
+            # every frame as a full extended one (our 29-bit ids): an upper bound
+            bits = r.bus_frames * worst_frame_bits(8, extended=True)
             load = bits / r.seconds / 1_000_000 * 100
             print(f"stream_slcan_bits_per_block: {bits / n:.0f} bits", flush=True)
             print(f"stream_slcan_bus_load_1mbit: {load:.0f} %", flush=True)

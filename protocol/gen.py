@@ -54,7 +54,13 @@ PARAM_TYPES = {
 }
 PARAM_TYPE_CODE = {"u8": 0, "u16": 1, "u32": 2, "i32": 3, "i64": 4, "bool": 5}
 NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
-CAN_NODE_BITS = 6
+CAN_NODE_BITS = 7
+# our frames are CAN 2.0B extended: 29-bit id = CAN_EXT_BASE | node << 12 |
+# func << 7, the low 7 bits zero (docs/canopen.md: CANopen keeps every 11-bit
+# id; a tool that masks ids with 0x7F without looking at IDE sees node 0)
+CAN_EXT_BASE = 0x1FC00000
+CAN_FUNC_SHIFT = 7
+CAN_NODE_SHIFT = 12
 CAN_FUNCS_FIXED = {"request": 2, "response": 3}
 MAX_AXES = 4
 
@@ -341,13 +347,20 @@ def gen_c_header(spec: dict) -> str:
         "#define PROTO_MSG_MAX (PROTO_MSG_HDR + PROTO_MAX_PAYLOAD)",
         f"#define PROTO_MAX_AXES {MAX_AXES}u",
         "",
-        "/* CAN: 11-bit id = (function << PROTO_CAN_NODE_BITS) | node. */",
+        "/* CAN: 29-bit (extended) id = PROTO_CAN_EXT_BASE | node << 12 | function << 7 (low",
+        " * 7 bits zero), carried through the HAL with PROTO_CAN_EFF (bit 31, CAN_EFF_FLAG)",
+        " * set; 11-bit ids belong to CANopen (docs/canopen.md). */",
+        "#define PROTO_CAN_EFF 0x80000000u",
+        f"#define PROTO_CAN_EXT_BASE 0x{CAN_EXT_BASE:08X}u",
         f"#define PROTO_CAN_NODE_BITS {CAN_NODE_BITS}u",
         f"#define PROTO_CAN_NODE_MAX {2**CAN_NODE_BITS - 1}u",
         "#define PROTO_CAN_ID(func, node) \\",
-        "    ((((uint32_t)(func)) << PROTO_CAN_NODE_BITS) | ((uint32_t)(node)))",
-        "#define PROTO_CAN_FUNC_OF(id) (((uint32_t)(id)) >> PROTO_CAN_NODE_BITS)",
-        "#define PROTO_CAN_NODE_OF(id) (((uint32_t)(id)) & PROTO_CAN_NODE_MAX)",
+        "    (PROTO_CAN_EFF | PROTO_CAN_EXT_BASE | \\",
+        "     (((uint32_t)(node)) << 12) | (((uint32_t)(func)) << 7))",
+        "#define PROTO_CAN_IS_OURS(id) \\",
+        "    ((((uint32_t)(id)) & 0xFFF8007Fu) == (PROTO_CAN_EFF | PROTO_CAN_EXT_BASE))",
+        "#define PROTO_CAN_FUNC_OF(id) ((((uint32_t)(id)) >> 7) & 31u)",
+        "#define PROTO_CAN_NODE_OF(id) ((((uint32_t)(id)) >> 12) & PROTO_CAN_NODE_MAX)",
     ]
     for k, v in CAN_FUNCS_FIXED.items():
         L.append(f"#define PROTO_CAN_FUNC_{k.upper()} {v}u")
@@ -678,6 +691,7 @@ def gen_python(spec: dict) -> str:
         f"MAX_AXES = {MAX_AXES}",
         f"CAN_NODE_BITS = {CAN_NODE_BITS}",
         f"CAN_NODE_MAX = {2**CAN_NODE_BITS - 1}",
+        f"CAN_EXT_BASE = 0x{CAN_EXT_BASE:08X}  # 29-bit ids: is_extended_id=True",
     ]
     funcs = dict(CAN_FUNCS_FIXED)
     for m in spec["messages"]:
@@ -691,7 +705,16 @@ def gen_python(spec: dict) -> str:
         "",
         "",
         "def can_id(func: int, node: int) -> int:",
-        "    return (func << CAN_NODE_BITS) | node",
+        '    """The 29-bit (extended) identifier of a function of a node."""',
+        f"    return CAN_EXT_BASE | (node << {CAN_NODE_SHIFT}) | (func << {CAN_FUNC_SHIFT})",
+        "",
+        "",
+        "def can_split(arbitration_id: int) -> Optional[tuple[int, int]]:",
+        '    """(func, node) of one of our 29-bit ids, None for any other id."""',
+        "    if arbitration_id & 0x1FF8007F != CAN_EXT_BASE:",
+        "        return None",
+        f"    func = (arbitration_id >> {CAN_FUNC_SHIFT}) & 31",
+        f"    return func, (arbitration_id >> {CAN_NODE_SHIFT}) & CAN_NODE_MAX",
         "",
         "",
         "class Field(NamedTuple):",
@@ -815,7 +838,8 @@ def gen_dbc(spec: dict, node: int = 1) -> str:
     for m in spec["messages"]:
         if m["can_func"] is None:
             continue
-        cid = (m["can_func"] << CAN_NODE_BITS) | node
+        # DBC: bit 31 marks an extended id
+        cid = 0x80000000 | CAN_EXT_BASE | (node << CAN_NODE_SHIFT) | (m["can_func"] << 7)
         L.append(f"BO_ {cid} {m['name']}: {m['fixed_len']} DRIVE")
         for f in m["fields"]:
             for k in range(f["count"]):
@@ -872,7 +896,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     if args.dbc_node is not None:
         if not 1 <= args.dbc_node <= 2**CAN_NODE_BITS - 1 or args.dbc is None:
-            print("protocol/gen.py: --dbc-node needs 1..63 and --dbc FILE", file=sys.stderr)
+            top = 2**CAN_NODE_BITS - 1
+            print(f"protocol/gen.py: --dbc-node needs 1..{top} and --dbc FILE", file=sys.stderr)
             return 1
         args.dbc.write_text(gen_dbc(spec, args.dbc_node))
         return 0

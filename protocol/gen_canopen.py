@@ -33,6 +33,9 @@ OUTPUTS = {
 STR_MAX = 32
 # size, CiA 301 data type, C type
 TYPES = {
+    "i8": (1, 0x0002, "int8_t"),
+    "i16": (2, 0x0003, "int16_t"),
+    "i32": (4, 0x0004, "int32_t"),
     "u8": (1, 0x0005, "uint8_t"),
     "u16": (2, 0x0006, "uint16_t"),
     "u32": (4, 0x0007, "uint32_t"),
@@ -46,37 +49,79 @@ class SpecError(Exception):
     pass
 
 
+def _pick(value, k: int, j: int):
+    """A default given per repeat of the object (list) and per repeated
+    sub-index (list of lists), or one value for all."""
+    if isinstance(value, list):
+        value = value[k]
+        if isinstance(value, list):
+            value = value[j]
+    return value
+
+
+def _expand(spec: dict) -> list[tuple[dict, dict]]:
+    """(object, object copy) per repeat: `repeat = N` gives N objects at
+    index, index + 1, ... sharing array variables."""
+    out = []
+    for obj in spec.get("object", []):
+        n = int(obj.get("repeat", 1))
+        for k in range(n):
+            o = dict(obj, index=obj["index"] + k, rep=k if n > 1 else None, n=n)
+            o["name"] = obj["name"].replace("{n}", str(k + 1))
+            out.append((obj, o))
+    return out
+
+
 def load(path: Path = SPEC) -> dict:
     """The definition with every object flattened into entries (index, sub, ...)."""
     spec = tomllib.loads(path.read_text())
-    entries, seen_vars = [], set()
-    for obj in spec.get("object", []):
+    entries, seen_vars, arrays = [], set(), {}
+    objects = []
+    for base, obj in _expand(spec):
+        objects.append(obj)
         subs = obj.get("subs")
         if subs is None:
             subs = [dict(obj, name=obj["name"])]
             obj["kind"] = "var"
         else:
             obj["kind"] = "record"
-        for sub, s in enumerate(subs):
+        flat, nxt = [], 0
+        for s in subs:
+            m = int(s.get("repeat", 1))
+            first = int(s.get("sub", nxt))
+            for j in range(m):
+                flat.append((first + j, s, j if m > 1 else None, m))
+            nxt = first + m
+        for sub, s, j, m in flat:
+            k = obj["rep"]
+            dims = ([obj["n"]] if k is not None else []) + ([m] if j is not None else [])
+            idx = ([k] if k is not None else []) + ([j] if j is not None else [])
+            default = _pick(s.get("default", 0 if s["type"] != "str" else ""), k or 0, j or 0)
             e = {
                 "index": obj["index"],
                 "sub": sub,
-                "name": s["name"],
+                "name": s["name"].replace("{n}", str((j or 0) + 1)),
                 "type": s["type"],
                 "access": s["access"],
-                "default": s.get("default", 0 if s["type"] != "str" else ""),
-                "var": s["var"],
-                "comm": bool(obj.get("comm", False)),
+                "default": default,
+                "var": s["var"] + "".join(f"[{i}]" for i in idx),
+                "base_var": s["var"],
+                "dims": dims,
+                "comm": bool(base.get("comm", False)),
                 "config": s.get("config"),
+                "node": bool(_pick(s.get("node", False), k or 0, j or 0)),
+                "pdo": bool(s.get("pdo", False)),
                 "min": s.get("min"),
                 "max": s.get("max"),
             }
             where = f"0x{e['index']:04X}:{sub}"
+            if arrays.setdefault(e["base_var"], dims) != dims:
+                raise SpecError(f"{where}: var {e['base_var']!r} used with other dimensions")
             if e["type"] not in TYPES:
                 raise SpecError(f"{where}: unknown type {e['type']!r}")
             if e["access"] not in ("ro", "rw"):
                 raise SpecError(f"{where}: access must be ro or rw")
-            if e["var"] in seen_vars or not e["var"].isidentifier():
+            if e["var"] in seen_vars or not e["base_var"].isidentifier():
                 raise SpecError(f"{where}: var {e['var']!r} duplicate or not an identifier")
             if e["config"] is not None and e["config"] not in CONFIG_FIELDS:
                 raise SpecError(f"{where}: config must be one of {CONFIG_FIELDS}")
@@ -88,6 +133,7 @@ def load(path: Path = SPEC) -> dict:
     if len(set(keys)) != len(keys):
         raise SpecError("duplicate index/sub-index")
     spec["entries"] = entries
+    spec["objects"] = objects
     return spec
 
 
@@ -110,13 +156,15 @@ def gen_h(spec: dict) -> str:
         "",
         "/* Entry types: the size in bytes, CO_OD_STR a visible string of CO_STR_MAX. */",
         "enum { CO_OD_STR = 0u, CO_OD_U8 = 1u, CO_OD_U16 = 2u, CO_OD_U32 = 4u };",
-        "enum { CO_OD_RO = 0u, CO_OD_RW = 1u };",
+        "/* access: bit 0 writable, CO_OD_MAP PDO-mappable, CO_OD_SIGNED an INTEGERn",
+        " * (min / max compared as signed) */",
+        "enum { CO_OD_RO = 0u, CO_OD_RW = 1u, CO_OD_MAP = 2u, CO_OD_SIGNED = 4u };",
         "",
         "typedef struct {",
         "    uint16_t index;",
         "    uint8_t sub;",
         "    uint8_t type;    /* CO_OD_* */",
-        "    uint8_t access;  /* CO_OD_RO / CO_OD_RW */",
+        "    uint8_t access;  /* CO_OD_RO / CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED */",
         "    uint8_t comm;    /* 1: reset by NMT reset communication */",
         "    uint16_t offset; /* in co_od_vars_t */",
         "    uint32_t min, max;",
@@ -124,10 +172,16 @@ def gen_h(spec: dict) -> str:
         "",
         "typedef struct {",
     ]
+    done = set()
     for e in spec["entries"]:
+        if e["base_var"] in done:
+            continue
+        done.add(e["base_var"])
         ctype = TYPES[e["type"]][2]
-        arr = "[CO_STR_MAX]" if e["type"] == "str" else ""
-        L.append(f"    {ctype} {e['var']}{arr}; /* 0x{e['index']:04X}:{e['sub']} {e['name']} */")
+        arr = "".join(f"[{d}]" for d in e["dims"]) + ("[CO_STR_MAX]" if e["type"] == "str" else "")
+        L.append(
+            f"    {ctype} {e['base_var']}{arr}; /* 0x{e['index']:04X}:{e['sub']} {e['name']} */"
+        )
     L += [
         "} co_od_vars_t;",
         "",
@@ -146,7 +200,11 @@ def gen_h(spec: dict) -> str:
 
 
 def _c_type(t: str) -> str:
-    return {"u8": "CO_OD_U8", "u16": "CO_OD_U16", "u32": "CO_OD_U32", "str": "CO_OD_STR"}[t]
+    return {1: "CO_OD_U8", 2: "CO_OD_U16", 4: "CO_OD_U32", 0: "CO_OD_STR"}[TYPES[t][0]]
+
+
+def _u32(v: int) -> int:
+    return v & 0xFFFFFFFF
 
 
 def gen_c(spec: dict) -> str:
@@ -159,13 +217,19 @@ def gen_c(spec: dict) -> str:
         "const co_od_entry_t co_od_table[] = {",
     ]
     for e in spec["entries"]:
-        lo = e["min"] if e["min"] is not None else 0
-        hi = e["max"] if e["max"] is not None else 0xFFFFFFFF
+        signed = e["type"].startswith("i")
+        bits = 8 * TYPES[e["type"]][0]
+        lo = e["min"] if e["min"] is not None else (-(2 ** (bits - 1)) if signed else 0)
+        hi = e["max"] if e["max"] is not None else (2 ** (bits - 1) - 1 if signed else 0xFFFFFFFF)
         acc = "CO_OD_RW" if e["access"] == "rw" else "CO_OD_RO"
+        if e["pdo"]:
+            acc += " | CO_OD_MAP"
+        if signed:
+            acc += " | CO_OD_SIGNED"
         L.append(
             f"    {{0x{e['index']:04X}u, {e['sub']}u, {_c_type(e['type'])}, {acc}, "
             f"{int(e['comm'])}u, (uint16_t)offsetof(co_od_vars_t, {e['var']}), "
-            f"{lo}u, 0x{hi:X}u}},"
+            f"0x{_u32(lo):X}u, 0x{_u32(hi):X}u}},"
         )
     L += [
         "};",
@@ -187,6 +251,10 @@ def gen_c(spec: dict) -> str:
                     body.append(f'memcpy(v->{e["var"]}, "{e["default"]}", {len(s)}u);')
             elif e["config"]:
                 body.append(f"v->{e['var']} = cfg->{e['config']};")
+            elif e["node"]:
+                body.append(f"v->{e['var']} = 0x{e['default']:X}u + cfg->node_id;")
+            elif e["type"].startswith("i"):
+                body.append(f"v->{e['var']} = {e['default']};")
             else:
                 body.append(f"v->{e['var']} = 0x{e['default']:X}u;")
         if comm:
@@ -216,7 +284,12 @@ def gen_python(spec: dict) -> str:
             f"    (0x{e['index']:04X}, {e['sub']}, {e['name']!r}, {e['type']!r}, "
             f"{e['access']!r}, {e['default']!r}),"
         )
-    L += ["]", ""]
+    L += ["]", "", "# defaults that are the node id plus the value ($NODEID+ in the EDS)"]
+    L.append("NODE_RELATIVE = {")
+    for e in spec["entries"]:
+        if e["node"]:
+            L.append(f"    (0x{e['index']:04X}, {e['sub']}),")
+    L += ["}", ""]
     return "\n".join(L)
 
 
@@ -230,8 +303,11 @@ def _eds_entry(L: list[str], e: dict) -> None:
     if e["max"] is not None:
         L.append(f"HighLimit={e['max']}")
     d = e["default"]
-    L.append(f"DefaultValue={d if isinstance(d, str) else hex(d) if d > 9 else d}")
-    L.append("PDOMapping=0")
+    if e["node"]:
+        L.append(f"DefaultValue=$NODEID+0x{d:X}")
+    else:
+        L.append(f"DefaultValue={d if isinstance(d, str) else hex(d) if d > 9 else d}")
+    L.append(f"PDOMapping={int(e['pdo'])}")
     L.append("")
 
 
@@ -240,7 +316,7 @@ def gen_eds(spec: dict) -> str:
     objs: dict[int, list[dict]] = {}
     for e in spec["entries"]:
         objs.setdefault(e["index"], []).append(e)
-    names = {o["index"]: o for o in spec["object"]}
+    names = {o["index"]: o for o in spec["objects"]}
     mandatory = [i for i in objs if i in (0x1000, 0x1001, 0x1018)]
     optional = [i for i in objs if i not in mandatory and i < 0x2000]
     manufacturer = [i for i in objs if 0x2000 <= i < 0x6000]
@@ -251,7 +327,7 @@ def gen_eds(spec: dict) -> str:
         "FileVersion=1",
         "FileRevision=0",
         "EDSVersion=4.0",
-        f"Description={dev['product_name']} (CiA 301; CiA 402 in progress)",
+        f"Description={dev['product_name']} (CiA 301, CiA 402 axis 0: CSP)",
         "CreatedBy=protocol/gen_canopen.py",
         "",
         "[DeviceInfo]",
@@ -270,8 +346,8 @@ def gen_eds(spec: dict) -> str:
         "DynamicChannelsSupported=0",
         "CompactPDO=0",
         "GroupMessaging=0",
-        "NrOfRXPDO=0",
-        "NrOfTXPDO=0",
+        f"NrOfRXPDO={sum(1 for i in objs if 0x1400 <= i < 0x1600)}",
+        f"NrOfTXPDO={sum(1 for i in objs if 0x1800 <= i < 0x1A00)}",
         "LSS_Supported=0",
         "",
         "[DummyUsage]",
@@ -293,7 +369,8 @@ def gen_eds(spec: dict) -> str:
         if o["kind"] == "var":
             _eds_entry(L, entries[0])
             continue
-        L += [f"ParameterName={o['name']}", "ObjectType=0x9", f"SubNumber={len(entries)}", ""]
+        kind = "0x8" if o.get("array") else "0x9"
+        L += [f"ParameterName={o['name']}", f"ObjectType={kind}", f"SubNumber={len(entries)}", ""]
         for e in entries:
             L.append(f"[{index:04X}sub{e['sub']}]")
             _eds_entry(L, e)

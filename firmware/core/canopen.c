@@ -21,7 +21,7 @@ static void tx_flush(co_t *co)
     }
 }
 
-static void tx_frame(co_t *co, uint32_t id, const uint8_t *data, uint8_t len)
+void co_send(co_t *co, uint32_t id, const uint8_t *data, uint8_t len)
 {
     co_frame_t *f;
 
@@ -37,104 +37,6 @@ static void tx_frame(co_t *co, uint32_t id, const uint8_t *data, uint8_t len)
     tx_flush(co);
 }
 
-/* ---- object dictionary access ------------------------------------------ */
-
-static const co_od_entry_t *od_find(uint16_t index, uint8_t sub, uint32_t *abort)
-{
-    size_t i;
-    bool index_seen = false;
-
-    for (i = 0; i < co_od_count; i++) {
-        if (co_od_table[i].index == index) {
-            index_seen = true;
-            if (co_od_table[i].sub == sub) {
-                return &co_od_table[i];
-            }
-        }
-    }
-    *abort = index_seen ? CO_ABORT_NO_SUB : CO_ABORT_NO_OBJECT;
-    return NULL;
-}
-
-static uint8_t *od_ptr(co_t *co, const co_od_entry_t *e)
-{
-    return (uint8_t *)&co->od + e->offset;
-}
-
-/* Current size of an object's value in bytes. */
-static uint32_t od_size(co_t *co, const co_od_entry_t *e)
-{
-    if (e->type == CO_OD_STR) {
-        const char *s = (const char *)od_ptr(co, e);
-        uint32_t n = 0;
-
-        while (n < CO_STR_MAX && s[n] != '\0') {
-            n++;
-        }
-        return n;
-    }
-    return e->type;
-}
-
-static void od_read(co_t *co, const co_od_entry_t *e, uint8_t *out)
-{
-    const uint8_t *p = od_ptr(co, e);
-    uint32_t v = 0;
-
-    switch (e->type) {
-    case CO_OD_U8:
-        v = *p;
-        break;
-    case CO_OD_U16:
-        v = *(const uint16_t *)(const void *)p;
-        break;
-    case CO_OD_U32:
-        v = *(const uint32_t *)(const void *)p;
-        break;
-    default:
-        memcpy(out, p, od_size(co, e));
-        return;
-    }
-    out[0] = (uint8_t)v;
-    out[1] = (uint8_t)(v >> 8);
-    out[2] = (uint8_t)(v >> 16);
-    out[3] = (uint8_t)(v >> 24);
-}
-
-/* Size checks happen at initiate; this checks the value and stores it. */
-static uint32_t od_write(co_t *co, const co_od_entry_t *e, const uint8_t *in, uint32_t n)
-{
-    uint8_t *p = od_ptr(co, e);
-    uint32_t v = 0;
-    uint32_t i;
-
-    if (e->type == CO_OD_STR) {
-        memset(p, 0, CO_STR_MAX);
-        memcpy(p, in, n);
-        return 0;
-    }
-    if (n != e->type) {
-        return n > e->type ? CO_ABORT_LEN_HIGH : CO_ABORT_LEN_LOW;
-    }
-    for (i = 0; i < n; i++) {
-        v |= (uint32_t)in[i] << (8u * i);
-    }
-    if (v > e->max) {
-        return CO_ABORT_VALUE_HIGH;
-    }
-    if (v < e->min) {
-        return CO_ABORT_VALUE_LOW;
-    }
-    if (e->type == CO_OD_U8) {
-        *p = (uint8_t)v;
-    } else if (e->type == CO_OD_U16) {
-        *(uint16_t *)(void *)p = (uint16_t)v;
-    } else {
-        *(uint32_t *)(void *)p = v;
-    }
-    return 0;
-}
-
 /* ---- SDO server --------------------------------------------------------- */
 
 static void sdo_send(co_t *co, uint8_t cmd, uint16_t index, uint8_t sub, const uint8_t *d4)
@@ -144,7 +46,7 @@ static void sdo_send(co_t *co, uint8_t cmd, uint16_t index, uint8_t sub, const u
     if (d4 != NULL) {
         memcpy(&f[4], d4, 4u);
     }
-    tx_frame(co, CO_ID_TSDO + co->cfg.node_id, f, 8u);
+    co_send(co, CO_ID_TSDO + co->cfg.node_id, f, 8u);
 }
 
 static void sdo_abort(co_t *co, uint16_t index, uint8_t sub, uint32_t code)
@@ -159,6 +61,9 @@ static void sdo_abort(co_t *co, uint16_t index, uint8_t sub, uint32_t code)
 
 static void written(co_t *co, uint16_t index, uint8_t sub)
 {
+    if (index >= 0x1400u && index < 0x1C00u) {
+        co_pdo_written(co, index);
+    }
     if (co->on_write != NULL) {
         co->on_write(co->hook_ctx, index, sub);
     }
@@ -169,7 +74,7 @@ static void sdo_initiate_download(co_t *co, const uint8_t *f, uint32_t now_us)
     uint16_t index = (uint16_t)(f[1] | (f[2] << 8));
     uint8_t sub = f[3];
     uint32_t abort = 0;
-    const co_od_entry_t *e = od_find(index, sub, &abort);
+    const co_od_entry_t *e = co_od_find(index, sub, &abort);
     uint32_t cap;
 
     co->sdo_mode = 0u;
@@ -177,7 +82,7 @@ static void sdo_initiate_download(co_t *co, const uint8_t *f, uint32_t now_us)
         sdo_abort(co, index, sub, abort);
         return;
     }
-    if (e->access != CO_OD_RW) {
+    if ((e->access & CO_OD_RW) == 0u) {
         sdo_abort(co, index, sub, CO_ABORT_READONLY);
         return;
     }
@@ -188,7 +93,7 @@ static void sdo_initiate_download(co_t *co, const uint8_t *f, uint32_t now_us)
         if (e->type == CO_OD_STR && n > cap) {
             abort = CO_ABORT_LEN_HIGH;
         } else {
-            abort = od_write(co, e, &f[4], n);
+            abort = co_od_write(co, e, &f[4], n);
         }
         if (abort != 0u) {
             sdo_abort(co, index, sub, abort);
@@ -244,9 +149,9 @@ static void sdo_download_segment(co_t *co, const uint8_t *f, uint32_t now_us)
             sdo_abort(co, co->sdo_index, co->sdo_sub, CO_ABORT_LEN);
             return;
         }
-        e = od_find(co->sdo_index, co->sdo_sub, &abort);
+        e = co_od_find(co->sdo_index, co->sdo_sub, &abort);
         if (e != NULL) {
-            abort = od_write(co, e, co->sdo_buf, co->sdo_pos);
+            abort = co_od_write(co, e, co->sdo_buf, co->sdo_pos);
         }
         if (abort != 0u) {
             sdo_abort(co, co->sdo_index, co->sdo_sub, abort);
@@ -258,7 +163,7 @@ static void sdo_download_segment(co_t *co, const uint8_t *f, uint32_t now_us)
     {
         uint8_t r[8] = {(uint8_t)(0x20u | (t << 4)), 0, 0, 0, 0, 0, 0, 0};
 
-        tx_frame(co, CO_ID_TSDO + co->cfg.node_id, r, 8u);
+        co_send(co, CO_ID_TSDO + co->cfg.node_id, r, 8u);
     }
     if (co->sdo_mode == 0u) {
         written(co, co->sdo_index, co->sdo_sub);
@@ -270,7 +175,7 @@ static void sdo_initiate_upload(co_t *co, const uint8_t *f, uint32_t now_us)
     uint16_t index = (uint16_t)(f[1] | (f[2] << 8));
     uint8_t sub = f[3];
     uint32_t abort = 0;
-    const co_od_entry_t *e = od_find(index, sub, &abort);
+    const co_od_entry_t *e = co_od_find(index, sub, &abort);
     uint32_t n;
     uint8_t d[4] = {0, 0, 0, 0};
 
@@ -279,8 +184,8 @@ static void sdo_initiate_upload(co_t *co, const uint8_t *f, uint32_t now_us)
         sdo_abort(co, index, sub, abort);
         return;
     }
-    n = od_size(co, e);
-    od_read(co, e, co->sdo_buf);
+    n = co_od_size(co, e);
+    co_od_read(co, e, co->sdo_buf);
     if (n <= 4u && n > 0u) {
         memcpy(d, co->sdo_buf, n);
         sdo_send(co, (uint8_t)(0x43u | ((4u - n) << 2)), index, sub, d);
@@ -324,7 +229,7 @@ static void sdo_upload_segment(co_t *co, const uint8_t *f, uint32_t now_us)
     }
     co->sdo_toggle ^= 1u;
     co->sdo_last_us = now_us;
-    tx_frame(co, CO_ID_TSDO + co->cfg.node_id, r, 8u);
+    co_send(co, CO_ID_TSDO + co->cfg.node_id, r, 8u);
 }
 
 static void sdo_rx(co_t *co, const uint8_t *f, uint8_t len, uint32_t now_us)
@@ -362,10 +267,13 @@ static void nmt_boot(co_t *co, bool comm_only, uint32_t now_us)
     uint8_t b = 0u;
 
     co_od_defaults(&co->od, &co->cfg, comm_only);
+    co_pdo_init(co);
+    memset(&co->sync, 0, sizeof co->sync);
+    co->emcy.reported = 0u; /* the faults still present are reported again */
     co->sdo_mode = 0u;
     co->nmt = CO_NMT_PREOP;
     co->hb_last_us = now_us;
-    tx_frame(co, CO_ID_HB + co->cfg.node_id, &b, 1u);
+    co_send(co, CO_ID_HB + co->cfg.node_id, &b, 1u);
 }
 
 void co_init(co_t *co, const co_config_t *cfg, co_tx_fn tx, void *ctx, uint32_t now_us)
@@ -389,6 +297,7 @@ static void nmt_rx(co_t *co, const uint8_t *f, uint8_t len, uint32_t now_us)
     switch (f[0]) {
     case 0x01u:
         co->nmt = CO_NMT_OPERATIONAL;
+        co_pdo_init(co); /* event TPDOs send their data once */
         break;
     case 0x02u:
         co->nmt = CO_NMT_STOPPED;
@@ -421,12 +330,16 @@ bool co_rx(co_t *co, uint32_t id, const uint8_t *data, uint8_t len, uint32_t now
         }
         return true;
     }
-    return false;
+    if (id > 0x7FFu) {
+        return false; /* 29-bit: not CANopen */
+    }
+    return co_sync_rx(co, id, len, now_us) || co_pdo_rx(co, id, data, len);
 }
 
 void co_poll(co_t *co, uint32_t now_us)
 {
     tx_flush(co);
+    co_pdo_poll(co, now_us);
     if (co->sdo_mode != 0u && now_us - co->sdo_last_us >= CO_SDO_TIMEOUT_US) {
         sdo_abort(co, co->sdo_index, co->sdo_sub, CO_ABORT_TIMEOUT);
     }
@@ -435,7 +348,7 @@ void co_poll(co_t *co, uint32_t now_us)
         uint8_t s = (uint8_t)co->nmt;
 
         co->hb_last_us = now_us;
-        tx_frame(co, CO_ID_HB + co->cfg.node_id, &s, 1u);
+        co_send(co, CO_ID_HB + co->cfg.node_id, &s, 1u);
     }
 }
 
@@ -453,4 +366,14 @@ void co_set_write_hook(co_t *co, co_write_hook_fn fn, void *ctx)
 {
     co->on_write = fn;
     co->hook_ctx = ctx;
+}
+
+void co_set_sync_hook(co_t *co, co_sync_hook_fn fn)
+{
+    co->on_sync = fn;
+}
+
+void co_set_check_hook(co_t *co, co_check_hook_fn fn)
+{
+    co->on_check = fn;
 }

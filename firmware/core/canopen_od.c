@@ -4,21 +4,142 @@
 #include <string.h>
 
 const co_od_entry_t co_od_table[] = {
-    {0x1000u, 0u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, device_type), 0u, 0xFFFFFFFFu},
-    {0x1001u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, error_register), 0u, 0xFFFFFFFFu},
-    {0x1008u, 0u, CO_OD_STR, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, device_name), 0u, 0xFFFFFFFFu},
-    {0x100Au, 0u, CO_OD_STR, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, sw_version), 0u, 0xFFFFFFFFu},
-    {0x1017u, 0u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, heartbeat_ms), 0u, 0xFFFFFFFFu},
-    {0x1018u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, identity_count), 0u, 0xFFFFFFFFu},
-    {0x1018u, 1u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, vendor_id), 0u, 0xFFFFFFFFu},
-    {0x1018u, 2u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, product_code), 0u, 0xFFFFFFFFu},
-    {0x1018u, 3u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, revision), 0u, 0xFFFFFFFFu},
-    {0x1018u, 4u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, serial), 0u, 0xFFFFFFFFu},
-    {0x1029u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, comm_error_count), 0u, 0xFFFFFFFFu},
-    {0x1029u, 1u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, comm_error), 0u, 0x2u},
-    {0x2000u, 0u, CO_OD_STR, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, device_label), 0u, 0xFFFFFFFFu},
-    {0x6040u, 0u, CO_OD_U16, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, controlword), 0u, 0xFFFFFFFFu},
-    {0x6041u, 0u, CO_OD_U16, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, statusword), 0u, 0xFFFFFFFFu},
+    {0x1000u, 0u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, device_type), 0x0u, 0xFFFFFFFFu},
+    {0x1001u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, error_register), 0x0u, 0xFFFFFFFFu},
+    {0x1008u, 0u, CO_OD_STR, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, device_name), 0x0u, 0xFFFFFFFFu},
+    {0x100Au, 0u, CO_OD_STR, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, sw_version), 0x0u, 0xFFFFFFFFu},
+    {0x1005u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, sync_cobid), 0x0u, 0xFFFFFFFFu},
+    {0x1006u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, sync_period_us), 0x0u, 0xFFFFFFFFu},
+    {0x1014u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, emcy_cobid), 0x0u, 0xFFFFFFFFu},
+    {0x1015u, 0u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, emcy_inhibit), 0x0u, 0xFFFFFFFFu},
+    {0x1017u, 0u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, heartbeat_ms), 0x0u, 0xFFFFFFFFu},
+    {0x1018u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, identity_count), 0x0u, 0xFFFFFFFFu},
+    {0x1018u, 1u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, vendor_id), 0x0u, 0xFFFFFFFFu},
+    {0x1018u, 2u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, product_code), 0x0u, 0xFFFFFFFFu},
+    {0x1018u, 3u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, revision), 0x0u, 0xFFFFFFFFu},
+    {0x1018u, 4u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, serial), 0x0u, 0xFFFFFFFFu},
+    {0x1029u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, comm_error_count), 0x0u, 0xFFFFFFFFu},
+    {0x1029u, 1u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, comm_error), 0x0u, 0x2u},
+    {0x1400u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_comm_count[0]), 0x0u, 0xFFFFFFFFu},
+    {0x1400u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_cobid[0]), 0x0u, 0xFFFFFFFFu},
+    {0x1400u, 2u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_type[0]), 0x0u, 0xFFFFFFFFu},
+    {0x1401u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_comm_count[1]), 0x0u, 0xFFFFFFFFu},
+    {0x1401u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_cobid[1]), 0x0u, 0xFFFFFFFFu},
+    {0x1401u, 2u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_type[1]), 0x0u, 0xFFFFFFFFu},
+    {0x1402u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_comm_count[2]), 0x0u, 0xFFFFFFFFu},
+    {0x1402u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_cobid[2]), 0x0u, 0xFFFFFFFFu},
+    {0x1402u, 2u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_type[2]), 0x0u, 0xFFFFFFFFu},
+    {0x1403u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_comm_count[3]), 0x0u, 0xFFFFFFFFu},
+    {0x1403u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_cobid[3]), 0x0u, 0xFFFFFFFFu},
+    {0x1403u, 2u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_type[3]), 0x0u, 0xFFFFFFFFu},
+    {0x1600u, 0u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map_count[0]), 0x0u, 0x8u},
+    {0x1600u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[0][0]), 0x0u, 0xFFFFFFFFu},
+    {0x1600u, 2u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[0][1]), 0x0u, 0xFFFFFFFFu},
+    {0x1600u, 3u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[0][2]), 0x0u, 0xFFFFFFFFu},
+    {0x1600u, 4u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[0][3]), 0x0u, 0xFFFFFFFFu},
+    {0x1600u, 5u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[0][4]), 0x0u, 0xFFFFFFFFu},
+    {0x1600u, 6u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[0][5]), 0x0u, 0xFFFFFFFFu},
+    {0x1600u, 7u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[0][6]), 0x0u, 0xFFFFFFFFu},
+    {0x1600u, 8u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[0][7]), 0x0u, 0xFFFFFFFFu},
+    {0x1601u, 0u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map_count[1]), 0x0u, 0x8u},
+    {0x1601u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[1][0]), 0x0u, 0xFFFFFFFFu},
+    {0x1601u, 2u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[1][1]), 0x0u, 0xFFFFFFFFu},
+    {0x1601u, 3u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[1][2]), 0x0u, 0xFFFFFFFFu},
+    {0x1601u, 4u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[1][3]), 0x0u, 0xFFFFFFFFu},
+    {0x1601u, 5u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[1][4]), 0x0u, 0xFFFFFFFFu},
+    {0x1601u, 6u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[1][5]), 0x0u, 0xFFFFFFFFu},
+    {0x1601u, 7u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[1][6]), 0x0u, 0xFFFFFFFFu},
+    {0x1601u, 8u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[1][7]), 0x0u, 0xFFFFFFFFu},
+    {0x1602u, 0u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map_count[2]), 0x0u, 0x8u},
+    {0x1602u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[2][0]), 0x0u, 0xFFFFFFFFu},
+    {0x1602u, 2u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[2][1]), 0x0u, 0xFFFFFFFFu},
+    {0x1602u, 3u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[2][2]), 0x0u, 0xFFFFFFFFu},
+    {0x1602u, 4u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[2][3]), 0x0u, 0xFFFFFFFFu},
+    {0x1602u, 5u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[2][4]), 0x0u, 0xFFFFFFFFu},
+    {0x1602u, 6u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[2][5]), 0x0u, 0xFFFFFFFFu},
+    {0x1602u, 7u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[2][6]), 0x0u, 0xFFFFFFFFu},
+    {0x1602u, 8u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[2][7]), 0x0u, 0xFFFFFFFFu},
+    {0x1603u, 0u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map_count[3]), 0x0u, 0x8u},
+    {0x1603u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[3][0]), 0x0u, 0xFFFFFFFFu},
+    {0x1603u, 2u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[3][1]), 0x0u, 0xFFFFFFFFu},
+    {0x1603u, 3u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[3][2]), 0x0u, 0xFFFFFFFFu},
+    {0x1603u, 4u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[3][3]), 0x0u, 0xFFFFFFFFu},
+    {0x1603u, 5u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[3][4]), 0x0u, 0xFFFFFFFFu},
+    {0x1603u, 6u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[3][5]), 0x0u, 0xFFFFFFFFu},
+    {0x1603u, 7u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[3][6]), 0x0u, 0xFFFFFFFFu},
+    {0x1603u, 8u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, rpdo_map[3][7]), 0x0u, 0xFFFFFFFFu},
+    {0x1800u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_comm_count[0]), 0x0u, 0xFFFFFFFFu},
+    {0x1800u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_cobid[0]), 0x0u, 0xFFFFFFFFu},
+    {0x1800u, 2u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_type[0]), 0x0u, 0xFFFFFFFFu},
+    {0x1800u, 3u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_inhibit[0]), 0x0u, 0xFFFFFFFFu},
+    {0x1800u, 5u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_event_ms[0]), 0x0u, 0xFFFFFFFFu},
+    {0x1801u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_comm_count[1]), 0x0u, 0xFFFFFFFFu},
+    {0x1801u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_cobid[1]), 0x0u, 0xFFFFFFFFu},
+    {0x1801u, 2u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_type[1]), 0x0u, 0xFFFFFFFFu},
+    {0x1801u, 3u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_inhibit[1]), 0x0u, 0xFFFFFFFFu},
+    {0x1801u, 5u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_event_ms[1]), 0x0u, 0xFFFFFFFFu},
+    {0x1802u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_comm_count[2]), 0x0u, 0xFFFFFFFFu},
+    {0x1802u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_cobid[2]), 0x0u, 0xFFFFFFFFu},
+    {0x1802u, 2u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_type[2]), 0x0u, 0xFFFFFFFFu},
+    {0x1802u, 3u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_inhibit[2]), 0x0u, 0xFFFFFFFFu},
+    {0x1802u, 5u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_event_ms[2]), 0x0u, 0xFFFFFFFFu},
+    {0x1803u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_comm_count[3]), 0x0u, 0xFFFFFFFFu},
+    {0x1803u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_cobid[3]), 0x0u, 0xFFFFFFFFu},
+    {0x1803u, 2u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_type[3]), 0x0u, 0xFFFFFFFFu},
+    {0x1803u, 3u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_inhibit[3]), 0x0u, 0xFFFFFFFFu},
+    {0x1803u, 5u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_event_ms[3]), 0x0u, 0xFFFFFFFFu},
+    {0x1A00u, 0u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map_count[0]), 0x0u, 0x8u},
+    {0x1A00u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[0][0]), 0x0u, 0xFFFFFFFFu},
+    {0x1A00u, 2u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[0][1]), 0x0u, 0xFFFFFFFFu},
+    {0x1A00u, 3u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[0][2]), 0x0u, 0xFFFFFFFFu},
+    {0x1A00u, 4u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[0][3]), 0x0u, 0xFFFFFFFFu},
+    {0x1A00u, 5u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[0][4]), 0x0u, 0xFFFFFFFFu},
+    {0x1A00u, 6u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[0][5]), 0x0u, 0xFFFFFFFFu},
+    {0x1A00u, 7u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[0][6]), 0x0u, 0xFFFFFFFFu},
+    {0x1A00u, 8u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[0][7]), 0x0u, 0xFFFFFFFFu},
+    {0x1A01u, 0u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map_count[1]), 0x0u, 0x8u},
+    {0x1A01u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[1][0]), 0x0u, 0xFFFFFFFFu},
+    {0x1A01u, 2u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[1][1]), 0x0u, 0xFFFFFFFFu},
+    {0x1A01u, 3u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[1][2]), 0x0u, 0xFFFFFFFFu},
+    {0x1A01u, 4u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[1][3]), 0x0u, 0xFFFFFFFFu},
+    {0x1A01u, 5u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[1][4]), 0x0u, 0xFFFFFFFFu},
+    {0x1A01u, 6u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[1][5]), 0x0u, 0xFFFFFFFFu},
+    {0x1A01u, 7u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[1][6]), 0x0u, 0xFFFFFFFFu},
+    {0x1A01u, 8u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[1][7]), 0x0u, 0xFFFFFFFFu},
+    {0x1A02u, 0u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map_count[2]), 0x0u, 0x8u},
+    {0x1A02u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[2][0]), 0x0u, 0xFFFFFFFFu},
+    {0x1A02u, 2u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[2][1]), 0x0u, 0xFFFFFFFFu},
+    {0x1A02u, 3u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[2][2]), 0x0u, 0xFFFFFFFFu},
+    {0x1A02u, 4u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[2][3]), 0x0u, 0xFFFFFFFFu},
+    {0x1A02u, 5u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[2][4]), 0x0u, 0xFFFFFFFFu},
+    {0x1A02u, 6u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[2][5]), 0x0u, 0xFFFFFFFFu},
+    {0x1A02u, 7u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[2][6]), 0x0u, 0xFFFFFFFFu},
+    {0x1A02u, 8u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[2][7]), 0x0u, 0xFFFFFFFFu},
+    {0x1A03u, 0u, CO_OD_U8, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map_count[3]), 0x0u, 0x8u},
+    {0x1A03u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[3][0]), 0x0u, 0xFFFFFFFFu},
+    {0x1A03u, 2u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[3][1]), 0x0u, 0xFFFFFFFFu},
+    {0x1A03u, 3u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[3][2]), 0x0u, 0xFFFFFFFFu},
+    {0x1A03u, 4u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[3][3]), 0x0u, 0xFFFFFFFFu},
+    {0x1A03u, 5u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[3][4]), 0x0u, 0xFFFFFFFFu},
+    {0x1A03u, 6u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[3][5]), 0x0u, 0xFFFFFFFFu},
+    {0x1A03u, 7u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[3][6]), 0x0u, 0xFFFFFFFFu},
+    {0x1A03u, 8u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, tpdo_map[3][7]), 0x0u, 0xFFFFFFFFu},
+    {0x2000u, 0u, CO_OD_STR, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, device_label), 0x0u, 0xFFFFFFFFu},
+    {0x6040u, 0u, CO_OD_U16, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, controlword), 0x0u, 0xFFFFFFFFu},
+    {0x6041u, 0u, CO_OD_U16, CO_OD_RO | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, statusword), 0x0u, 0xFFFFFFFFu},
+    {0x6060u, 0u, CO_OD_U8, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, mode), 0x0u, 0x8u},
+    {0x6061u, 0u, CO_OD_U8, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, mode_display), 0xFFFFFF80u, 0x7Fu},
+    {0x6064u, 0u, CO_OD_U32, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, position_actual), 0x80000000u, 0x7FFFFFFFu},
+    {0x607Au, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, target_position), 0x80000000u, 0x7FFFFFFFu},
+    {0x607Cu, 0u, CO_OD_U32, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, home_offset), 0x80000000u, 0x7FFFFFFFu},
+    {0x6081u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, profile_velocity), 0x1u, 0xFFFFFFFFu},
+    {0x6098u, 0u, CO_OD_U8, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, homing_method), 0xFFFFFF80u, 0x7Fu},
+    {0x6099u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, homing_speed_count), 0x0u, 0xFFFFFFFFu},
+    {0x6099u, 1u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, homing_search), 0x1u, 0xFFFFFFFFu},
+    {0x6099u, 2u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, homing_latch), 0x1u, 0xFFFFFFFFu},
+    {0x60C2u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, ipol_count), 0x0u, 0xFFFFFFFFu},
+    {0x60C2u, 1u, CO_OD_U8, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, ipol_value), 0x1u, 0xFFFFFFFFu},
+    {0x60C2u, 2u, CO_OD_U8, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ipol_index), 0xFFFFFFFAu, 0xFFFFFFFDu},
 };
 
 const size_t co_od_count = sizeof co_od_table / sizeof co_od_table[0];
@@ -31,6 +152,10 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
     memcpy(v->device_name, "contour axis drive", 18u);
     memset(v->sw_version, 0, sizeof v->sw_version);
     memcpy(v->sw_version, "contour", 7u);
+    v->sync_cobid = 0x80u;
+    v->sync_period_us = 0x0u;
+    v->emcy_cobid = 0x80u + cfg->node_id;
+    v->emcy_inhibit = 0x0u;
     v->heartbeat_ms = 0x3E8u;
     v->identity_count = 0x4u;
     v->vendor_id = cfg->vendor_id;
@@ -39,10 +164,127 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
     v->serial = cfg->serial;
     v->comm_error_count = 0x1u;
     v->comm_error = 0x0u;
+    v->rpdo_comm_count[0] = 0x2u;
+    v->rpdo_cobid[0] = 0x200u + cfg->node_id;
+    v->rpdo_type[0] = 0xFFu;
+    v->rpdo_comm_count[1] = 0x2u;
+    v->rpdo_cobid[1] = 0x300u + cfg->node_id;
+    v->rpdo_type[1] = 0x1u;
+    v->rpdo_comm_count[2] = 0x2u;
+    v->rpdo_cobid[2] = 0x80000400u;
+    v->rpdo_type[2] = 0xFFu;
+    v->rpdo_comm_count[3] = 0x2u;
+    v->rpdo_cobid[3] = 0x80000500u;
+    v->rpdo_type[3] = 0xFFu;
+    v->rpdo_map_count[0] = 0x1u;
+    v->rpdo_map[0][0] = 0x60400010u;
+    v->rpdo_map[0][1] = 0x0u;
+    v->rpdo_map[0][2] = 0x0u;
+    v->rpdo_map[0][3] = 0x0u;
+    v->rpdo_map[0][4] = 0x0u;
+    v->rpdo_map[0][5] = 0x0u;
+    v->rpdo_map[0][6] = 0x0u;
+    v->rpdo_map[0][7] = 0x0u;
+    v->rpdo_map_count[1] = 0x2u;
+    v->rpdo_map[1][0] = 0x60400010u;
+    v->rpdo_map[1][1] = 0x607A0020u;
+    v->rpdo_map[1][2] = 0x0u;
+    v->rpdo_map[1][3] = 0x0u;
+    v->rpdo_map[1][4] = 0x0u;
+    v->rpdo_map[1][5] = 0x0u;
+    v->rpdo_map[1][6] = 0x0u;
+    v->rpdo_map[1][7] = 0x0u;
+    v->rpdo_map_count[2] = 0x0u;
+    v->rpdo_map[2][0] = 0x0u;
+    v->rpdo_map[2][1] = 0x0u;
+    v->rpdo_map[2][2] = 0x0u;
+    v->rpdo_map[2][3] = 0x0u;
+    v->rpdo_map[2][4] = 0x0u;
+    v->rpdo_map[2][5] = 0x0u;
+    v->rpdo_map[2][6] = 0x0u;
+    v->rpdo_map[2][7] = 0x0u;
+    v->rpdo_map_count[3] = 0x0u;
+    v->rpdo_map[3][0] = 0x0u;
+    v->rpdo_map[3][1] = 0x0u;
+    v->rpdo_map[3][2] = 0x0u;
+    v->rpdo_map[3][3] = 0x0u;
+    v->rpdo_map[3][4] = 0x0u;
+    v->rpdo_map[3][5] = 0x0u;
+    v->rpdo_map[3][6] = 0x0u;
+    v->rpdo_map[3][7] = 0x0u;
+    v->tpdo_comm_count[0] = 0x5u;
+    v->tpdo_cobid[0] = 0x180u + cfg->node_id;
+    v->tpdo_type[0] = 0xFFu;
+    v->tpdo_inhibit[0] = 0x0u;
+    v->tpdo_event_ms[0] = 0x0u;
+    v->tpdo_comm_count[1] = 0x5u;
+    v->tpdo_cobid[1] = 0x280u + cfg->node_id;
+    v->tpdo_type[1] = 0x1u;
+    v->tpdo_inhibit[1] = 0x0u;
+    v->tpdo_event_ms[1] = 0x0u;
+    v->tpdo_comm_count[2] = 0x5u;
+    v->tpdo_cobid[2] = 0x80000380u;
+    v->tpdo_type[2] = 0xFFu;
+    v->tpdo_inhibit[2] = 0x0u;
+    v->tpdo_event_ms[2] = 0x0u;
+    v->tpdo_comm_count[3] = 0x5u;
+    v->tpdo_cobid[3] = 0x80000480u;
+    v->tpdo_type[3] = 0xFFu;
+    v->tpdo_inhibit[3] = 0x0u;
+    v->tpdo_event_ms[3] = 0x0u;
+    v->tpdo_map_count[0] = 0x1u;
+    v->tpdo_map[0][0] = 0x60410010u;
+    v->tpdo_map[0][1] = 0x0u;
+    v->tpdo_map[0][2] = 0x0u;
+    v->tpdo_map[0][3] = 0x0u;
+    v->tpdo_map[0][4] = 0x0u;
+    v->tpdo_map[0][5] = 0x0u;
+    v->tpdo_map[0][6] = 0x0u;
+    v->tpdo_map[0][7] = 0x0u;
+    v->tpdo_map_count[1] = 0x2u;
+    v->tpdo_map[1][0] = 0x60410010u;
+    v->tpdo_map[1][1] = 0x60640020u;
+    v->tpdo_map[1][2] = 0x0u;
+    v->tpdo_map[1][3] = 0x0u;
+    v->tpdo_map[1][4] = 0x0u;
+    v->tpdo_map[1][5] = 0x0u;
+    v->tpdo_map[1][6] = 0x0u;
+    v->tpdo_map[1][7] = 0x0u;
+    v->tpdo_map_count[2] = 0x0u;
+    v->tpdo_map[2][0] = 0x0u;
+    v->tpdo_map[2][1] = 0x0u;
+    v->tpdo_map[2][2] = 0x0u;
+    v->tpdo_map[2][3] = 0x0u;
+    v->tpdo_map[2][4] = 0x0u;
+    v->tpdo_map[2][5] = 0x0u;
+    v->tpdo_map[2][6] = 0x0u;
+    v->tpdo_map[2][7] = 0x0u;
+    v->tpdo_map_count[3] = 0x0u;
+    v->tpdo_map[3][0] = 0x0u;
+    v->tpdo_map[3][1] = 0x0u;
+    v->tpdo_map[3][2] = 0x0u;
+    v->tpdo_map[3][3] = 0x0u;
+    v->tpdo_map[3][4] = 0x0u;
+    v->tpdo_map[3][5] = 0x0u;
+    v->tpdo_map[3][6] = 0x0u;
+    v->tpdo_map[3][7] = 0x0u;
     if (comm_only) {
         return;
     }
     memset(v->device_label, 0, sizeof v->device_label);
     v->controlword = 0x0u;
     v->statusword = 0x0u;
+    v->mode = 0;
+    v->mode_display = 0;
+    v->position_actual = 0;
+    v->target_position = 0;
+    v->home_offset = 0;
+    v->profile_velocity = 0x989680u;
+    v->homing_method = 17;
+    v->homing_speed_count = 0x2u;
+    v->homing_search = 0x989680u;
+    v->homing_latch = 0x1E8480u;
+    v->ipol_count = 0x2u;
+    v->ipol_value = 0x1u;
+    v->ipol_index = -3;
 }

@@ -15,13 +15,15 @@
 
 /* Entry types: the size in bytes, CO_OD_STR a visible string of CO_STR_MAX. */
 enum { CO_OD_STR = 0u, CO_OD_U8 = 1u, CO_OD_U16 = 2u, CO_OD_U32 = 4u };
-enum { CO_OD_RO = 0u, CO_OD_RW = 1u };
+/* access: bit 0 writable, CO_OD_MAP PDO-mappable, CO_OD_SIGNED an INTEGERn
+ * (min / max compared as signed) */
+enum { CO_OD_RO = 0u, CO_OD_RW = 1u, CO_OD_MAP = 2u, CO_OD_SIGNED = 4u };
 
 typedef struct {
     uint16_t index;
     uint8_t sub;
     uint8_t type;    /* CO_OD_* */
-    uint8_t access;  /* CO_OD_RO / CO_OD_RW */
+    uint8_t access;  /* CO_OD_RO / CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED */
     uint8_t comm;    /* 1: reset by NMT reset communication */
     uint16_t offset; /* in co_od_vars_t */
     uint32_t min, max;
@@ -32,6 +34,10 @@ typedef struct {
     uint8_t error_register; /* 0x1001:0 Error register */
     char device_name[CO_STR_MAX]; /* 0x1008:0 Manufacturer device name */
     char sw_version[CO_STR_MAX]; /* 0x100A:0 Manufacturer software version */
+    uint32_t sync_cobid; /* 0x1005:0 COB-ID SYNC message */
+    uint32_t sync_period_us; /* 0x1006:0 Communication cycle period */
+    uint32_t emcy_cobid; /* 0x1014:0 COB-ID EMCY */
+    uint16_t emcy_inhibit; /* 0x1015:0 Inhibit time EMCY */
     uint16_t heartbeat_ms; /* 0x1017:0 Producer heartbeat time */
     uint8_t identity_count; /* 0x1018:0 Highest sub-index supported */
     uint32_t vendor_id; /* 0x1018:1 Vendor-ID */
@@ -40,9 +46,34 @@ typedef struct {
     uint32_t serial; /* 0x1018:4 Serial number */
     uint8_t comm_error_count; /* 0x1029:0 Highest sub-index supported */
     uint8_t comm_error; /* 0x1029:1 Communication error */
+    uint8_t rpdo_comm_count[4]; /* 0x1400:0 Highest sub-index supported */
+    uint32_t rpdo_cobid[4]; /* 0x1400:1 COB-ID used by RPDO */
+    uint8_t rpdo_type[4]; /* 0x1400:2 Transmission type */
+    uint8_t rpdo_map_count[4]; /* 0x1600:0 Number of mapped application objects in PDO */
+    uint32_t rpdo_map[4][8]; /* 0x1600:1 Application object 1 */
+    uint8_t tpdo_comm_count[4]; /* 0x1800:0 Highest sub-index supported */
+    uint32_t tpdo_cobid[4]; /* 0x1800:1 COB-ID used by TPDO */
+    uint8_t tpdo_type[4]; /* 0x1800:2 Transmission type */
+    uint16_t tpdo_inhibit[4]; /* 0x1800:3 Inhibit time */
+    uint16_t tpdo_event_ms[4]; /* 0x1800:5 Event timer */
+    uint8_t tpdo_map_count[4]; /* 0x1A00:0 Number of mapped application objects in PDO */
+    uint32_t tpdo_map[4][8]; /* 0x1A00:1 Application object 1 */
     char device_label[CO_STR_MAX]; /* 0x2000:0 Device label */
     uint16_t controlword; /* 0x6040:0 Controlword */
     uint16_t statusword; /* 0x6041:0 Statusword */
+    int8_t mode; /* 0x6060:0 Modes of operation */
+    int8_t mode_display; /* 0x6061:0 Modes of operation display */
+    int32_t position_actual; /* 0x6064:0 Position actual value */
+    int32_t target_position; /* 0x607A:0 Target position */
+    int32_t home_offset; /* 0x607C:0 Home offset */
+    uint32_t profile_velocity; /* 0x6081:0 Profile velocity */
+    int8_t homing_method; /* 0x6098:0 Homing method */
+    uint8_t homing_speed_count; /* 0x6099:0 Highest sub-index supported */
+    uint32_t homing_search; /* 0x6099:1 Speed during search for switch */
+    uint32_t homing_latch; /* 0x6099:2 Speed during search for zero */
+    uint8_t ipol_count; /* 0x60C2:0 Highest sub-index supported */
+    uint8_t ipol_value; /* 0x60C2:1 Interpolation time period value */
+    int8_t ipol_index; /* 0x60C2:2 Interpolation time index */
 } co_od_vars_t;
 
 struct co_config_s;

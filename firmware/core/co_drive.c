@@ -1,11 +1,28 @@
 /*
- * co_drive.c - CiA 402 state machine <-> drive (co_drive.h is the specification).
+ * co_drive.c - CiA 402 objects <-> drive (co_drive.h is the specification).
  */
 #include "co_drive.h"
 
 #include "drive.h"
 
+#define MODE_CSP 8
+
 static cia402_t ax;
+static co_csp_t csp;
+static co_pp_t pp;
+static uint64_t sync_tick;  /* main */
+static uint32_t sync_count; /* main */
+
+static void csp_follow(co_t *co)
+{
+    bool on = ax.state == CIA402_OPERATION_ENABLED && co->od.mode == MODE_CSP;
+
+    if (on && !csp.active) {
+        co_csp_start(&csp);
+    } else if (!on && csp.active) {
+        co_csp_stop(&csp);
+    }
+}
 
 static void apply(cia402_state_t before)
 {
@@ -38,22 +55,70 @@ static void on_write(void *ctx, uint16_t index, uint8_t sub)
     if (index == 0x6040u && sub == 0u) {
         (void)cia402_controlword(&ax, co->od.controlword);
         apply(before);
+        co_pp_controlword(&pp, co, ax.state == CIA402_OPERATION_ENABLED);
+    } else if (index == 0x6060u) {
+        co->od.mode_display = co->od.mode;
+    }
+    csp_follow(co);
+}
+
+static uint32_t on_check(void *ctx, uint16_t index, uint8_t sub, uint32_t value)
+{
+    (void)ctx;
+    (void)sub;
+    if (index == 0x6060u && value != 0u && value != 1u && value != 6u && value != MODE_CSP) {
+        return CO_ABORT_VALUE;
+    }
+    if (index == 0x6098u) {
+        return co_pp_check_method((int8_t)value);
+    }
+    return 0u;
+}
+
+static void sample(co_t *co, drive_status_t *st)
+{
+    drive_snapshot(st);
+    co->od.position_actual = (int32_t)st->pos[0];
+}
+
+static void on_sync(void *ctx, int phase, uint32_t now_us)
+{
+    co_t *co = ctx;
+    drive_status_t st;
+
+    (void)now_us;
+    if (phase == CO_SYNC_SAMPLE) {
+        sample(co, &st);
+        sync_tick = st.tick;
+        sync_count++;
+    } else {
+        co_csp_sync(&csp, co->od.target_position,
+                    co_csp_period_ns(co->od.ipol_value, co->od.ipol_index));
     }
 }
 
 void co_drive_init(co_t *co)
 {
     cia402_init(&ax);
+    csp.active = false;
+    csp.queued = 0u;
+    csp.missed = 0u;
+    pp = (co_pp_t){0};
+    sync_tick = 0u;
+    sync_count = 0u;
     co_set_write_hook(co, on_write, co);
-    co_drive_poll(co);
+    co_set_check_hook(co, on_check);
+    co_set_sync_hook(co, on_sync);
+    co_drive_poll(co, 0u);
 }
 
-void co_drive_poll(co_t *co)
+void co_drive_poll(co_t *co, uint32_t now_us)
 {
     drive_status_t st;
     cia402_state_t before = ax.state;
+    uint16_t sw;
 
-    drive_snapshot(&st);
+    sample(co, &st);
     if (st.faults != 0u || st.state == DRIVE_FAULT) {
         cia402_fault(&ax);
         cia402_reaction_done(&ax);
@@ -62,11 +127,41 @@ void co_drive_poll(co_t *co)
         cia402_quick_stop_done(&ax);
         apply(before);
     }
-    co->od.statusword = cia402_statusword(
-        &ax, st.state != DRIVE_DISABLED && st.state != DRIVE_FAULT, false, st.state == DRIVE_IDLE);
+    csp_follow(co);
+    co_emcy_update(co, st.faults, now_us);
+    sw = cia402_statusword(&ax, st.state != DRIVE_DISABLED && st.state != DRIVE_FAULT, false,
+                           st.state == DRIVE_IDLE);
+    if (csp.active) {
+        sw |= 0x1000u; /* CSP: the drive follows the target */
+    }
+    sw |= co_pp_status(&pp, co, &st); /* PP, homing: bits 12, 13 */
+    if ((st.faults & DRIVE_FAULT_FOLLOWING) != 0u) {
+        sw |= 0x2000u; /* following error */
+    }
+    co->od.statusword = sw;
 }
 
 const cia402_t *co_drive_state(void)
 {
     return &ax;
+}
+
+const co_csp_t *co_drive_csp(void)
+{
+    return &csp;
+}
+
+uint64_t co_drive_sync_tick(void)
+{
+    return sync_tick;
+}
+
+uint32_t co_drive_sync_count(void)
+{
+    return sync_count;
+}
+
+uint32_t co_drive_csp_missed(void)
+{
+    return csp.missed;
 }

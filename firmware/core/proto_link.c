@@ -220,6 +220,9 @@ static void can_receive(uint32_t now)
             dlc = 8u;
         }
         if (!lk.ext_all && co_rx(&lk.co, id, data, dlc, now)) {
+            /* a CANopen master driving the node (SYNC, PDOs, SDO, NMT) is
+             * the host the link watchdog waits for */
+            lk.disp.last_rx_us = now;
             continue;
         }
         if (id != lk.tp.rx_id) {
@@ -310,7 +313,7 @@ void proto_link_poll(void)
     }
     if (lk.can) {
         if (!lk.ext_all) {
-            co_drive_poll(&lk.co);
+            co_drive_poll(&lk.co, now);
             co_poll(&lk.co, now);
         }
         can_drain(now);

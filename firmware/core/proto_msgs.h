@@ -20,20 +20,27 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define PROTO_VERSION 2u
+#define PROTO_VERSION 3u
 #define PROTO_MAX_PAYLOAD 250u
 /* A message on either transport: msg_id (u8) | seq (u8) | payload. */
 #define PROTO_MSG_HDR 2u
 #define PROTO_MSG_MAX (PROTO_MSG_HDR + PROTO_MAX_PAYLOAD)
 #define PROTO_MAX_AXES 4u
 
-/* CAN: 11-bit id = (function << PROTO_CAN_NODE_BITS) | node. */
-#define PROTO_CAN_NODE_BITS 6u
-#define PROTO_CAN_NODE_MAX 63u
+/* CAN: 29-bit (extended) id = PROTO_CAN_EXT_BASE | node << 12 | function << 7 (low
+ * 7 bits zero), carried through the HAL with PROTO_CAN_EFF (bit 31, CAN_EFF_FLAG)
+ * set; 11-bit ids belong to CANopen (docs/canopen.md). */
+#define PROTO_CAN_EFF 0x80000000u
+#define PROTO_CAN_EXT_BASE 0x1FC00000u
+#define PROTO_CAN_NODE_BITS 7u
+#define PROTO_CAN_NODE_MAX 127u
 #define PROTO_CAN_ID(func, node) \
-    ((((uint32_t)(func)) << PROTO_CAN_NODE_BITS) | ((uint32_t)(node)))
-#define PROTO_CAN_FUNC_OF(id) (((uint32_t)(id)) >> PROTO_CAN_NODE_BITS)
-#define PROTO_CAN_NODE_OF(id) (((uint32_t)(id)) & PROTO_CAN_NODE_MAX)
+    (PROTO_CAN_EFF | PROTO_CAN_EXT_BASE | \
+     (((uint32_t)(node)) << 12) | (((uint32_t)(func)) << 7))
+#define PROTO_CAN_IS_OURS(id) \
+    ((((uint32_t)(id)) & 0xFFF8007Fu) == (PROTO_CAN_EFF | PROTO_CAN_EXT_BASE))
+#define PROTO_CAN_FUNC_OF(id) ((((uint32_t)(id)) >> 7) & 31u)
+#define PROTO_CAN_NODE_OF(id) ((((uint32_t)(id)) >> 12) & PROTO_CAN_NODE_MAX)
 #define PROTO_CAN_FUNC_REQUEST 2u
 #define PROTO_CAN_FUNC_RESPONSE 3u
 #define PROTO_CAN_FUNC_HEARTBEAT 31u

@@ -92,8 +92,11 @@ size_t hal_uart_read(uint8_t *data, size_t cap);
  * (a reply must leave before a requested reset). Main context. */
 bool hal_uart_tx_idle(void);
 
-/* CAN frames (classic CAN, 11-bit ids). Return false when the transmit
- * mailbox is full / no frame is waiting. Main context. */
+/* CAN data frames, classic CAN. An id with HAL_CAN_EFF (bit 31, Linux's
+ * CAN_EFF_FLAG) set is a 29-bit (extended) id in bits 0..28, otherwise an
+ * 11-bit id; remote and error frames are not delivered. Return false when
+ * the transmit mailbox is full / no frame is waiting. Main context. */
+#define HAL_CAN_EFF 0x80000000u
 bool hal_can_send(uint32_t id, const uint8_t *data, uint8_t len);
 bool hal_can_receive(uint32_t *id, uint8_t *data, uint8_t *len);
 

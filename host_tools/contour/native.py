@@ -14,8 +14,11 @@ error at load time instead of corrupted memory.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes as c
 import os
+import shutil
+import tempfile
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -387,9 +390,51 @@ def layout_mismatches(lib: c.CDLL, mirrors=None) -> list[str]:
     return out
 
 
-@lru_cache(maxsize=1)
+_current: list = []  # instance() stack: the library load() returns while set
+
+
 def load() -> c.CDLL:
-    """The library, every signature bound, its structures checked."""
+    """The library, every signature bound, its structures checked (or the
+    drive instance an :func:`instance` block selected)."""
+    if _current:
+        return _current[-1]
+    return _load()
+
+
+@contextlib.contextmanager
+def instance(lib: c.CDLL):
+    """Within the block, :func:`load` (and everything built on it, e.g.
+    ``contour.sim.machine.apply``) uses `lib`: one of several simulated
+    drives in this process (:func:`load_instance`). Not thread-safe: set up
+    drives from one thread."""
+    _current.append(lib)
+    try:
+        yield lib
+    finally:
+        _current.pop()
+
+
+def load_instance(i: int) -> c.CDLL:
+    """Drive instance `i` of the library: 0 is :func:`load`'s; any other is
+    a private copy of the file, loaded apart (RTLD_LOCAL), so its firmware
+    state (static variables: drive, link, CANopen node) is its own. Several
+    simulated drives on one bus run in one process this way (`sim serve
+    --drives N`)."""
+    if i == 0:
+        return _load()
+    path = library_path()
+    if not path.exists():
+        raise UserError(f"{path} not found: run `make` to build the host library")
+    with tempfile.TemporaryDirectory(prefix="contour-drive-") as d:
+        copy = Path(d) / f"libcontour-{i}.so"
+        shutil.copyfile(path, copy)
+        lib = c.CDLL(str(copy), mode=os.RTLD_LOCAL)  # the file may go once mapped
+    bind(lib)
+    return lib
+
+
+@lru_cache(maxsize=1)
+def _load() -> c.CDLL:
     path = library_path()
     if not path.exists():
         raise UserError(f"{path} not found: run `make` to build the host library")

@@ -9,12 +9,13 @@ from __future__ import annotations
 from enum import IntEnum
 from typing import NamedTuple, Optional
 
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 MAX_PAYLOAD = 250
 MSG_HDR = 2
 MAX_AXES = 4
-CAN_NODE_BITS = 6
-CAN_NODE_MAX = 63
+CAN_NODE_BITS = 7
+CAN_NODE_MAX = 127
+CAN_EXT_BASE = 0x1FC00000  # 29-bit ids: is_extended_id=True
 CAN_FUNC = {
     "request": 2,
     "response": 3,
@@ -34,7 +35,16 @@ CAN_FUNC = {
 
 
 def can_id(func: int, node: int) -> int:
-    return (func << CAN_NODE_BITS) | node
+    """The 29-bit (extended) identifier of a function of a node."""
+    return CAN_EXT_BASE | (node << 12) | (func << 7)
+
+
+def can_split(arbitration_id: int) -> Optional[tuple[int, int]]:
+    """(func, node) of one of our 29-bit ids, None for any other id."""
+    if arbitration_id & 0x1FF8007F != CAN_EXT_BASE:
+        return None
+    func = (arbitration_id >> 7) & 31
+    return func, (arbitration_id >> 12) & CAN_NODE_MAX
 
 
 class Field(NamedTuple):
@@ -1600,7 +1610,7 @@ PARAMS = (
         'u8',
         '',
         1,
-        63,
+        127,
         1,
         'ro',
         False,

@@ -1,12 +1,19 @@
 /*
- * libFuzzer harness: the CiA 301 SDO server and NMT slave (canopen.c).
+ * libFuzzer harness: the CiA 301 node (canopen.c): NMT slave, SDO server,
+ * SYNC consumer, PDOs and EMCY (co_sync.c, co_pdo.c, co_emcy.c).
  *
- * The input is cut into CAN frames: per frame one byte selects the id
- * (bit 7: NMT 0x000, else the node's SDO request id) and the DLC (low
- * nibble, 0..15, above 8 taken as 8), then the data bytes; a time step of
- * the next byte (ms) runs co_poll. Every frame the server sends must be a
- * classic CAN frame on its own ids, every SDO response DLC 8, and the
- * transfer state must stay within the buffer; nothing may crash or loop.
+ * The input is cut into CAN frames: per frame one byte selects the kind
+ * (bits 7..5: 0 the node's SDO request, 1 NMT 0x000, 2 SYNC 0x080, 3 one of
+ * the default RPDO ids 0x200..0x500 + node (bits 4..3 pick it), 4 an EMCY
+ * update with the next byte as the drive's fault bits, 5 any 11-bit id from
+ * the next two bytes, 6 a 29-bit id) and the DLC (low nibble, 0..15, above
+ * 8 taken as 8), then the data bytes; a time step of the next byte (ms)
+ * runs co_poll. Every frame the node sends must be a classic CAN frame
+ * (11-bit id, DLC <= 8), every SDO response DLC 8, every heartbeat DLC 1,
+ * every EMCY DLC 8; the transfer state must stay within its buffer and
+ * every PDO's resolved mapping within 8 bytes; nothing may crash or loop.
+ * SDO downloads reach the PDO configuration (0x1400-0x1BFF), so mappings,
+ * COB-IDs and transmission types are fuzzed through their own checks.
  */
 #include <stdint.h>
 #include <string.h>
@@ -21,15 +28,17 @@ static bool tx_check(void *ctx, uint32_t id, const uint8_t *data, uint8_t len)
 {
     (void)ctx;
     (void)data;
-    if (len > 8u) {
+    if (len > 8u || id > 0x7FFu) {
         __builtin_trap();
     }
-    if (id == CO_ID_TSDO + NODE) {
-        if (len != 8u) {
-            __builtin_trap();
-        }
-    } else if (id != CO_ID_HB + NODE || len != 1u) {
+    if (id == CO_ID_TSDO + NODE && len != 8u) {
         __builtin_trap();
+    }
+    if (id == CO_ID_HB + NODE && len != 1u) {
+        __builtin_trap();
+    }
+    if (id == 0x080u + NODE && len != 8u && len != 6u && len != 2u) {
+        __builtin_trap(); /* EMCY, or a TPDO someone moved there */
     }
     return ++calls % 5u != 0u; /* now and then a full mailbox */
 }
@@ -48,10 +57,26 @@ int LLVMFuzzerTestOneInput(const uint8_t *in, size_t n)
         uint8_t sel = in[i++];
         uint8_t len = (uint8_t)(sel & 0x0Fu);
         uint8_t f[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-        uint32_t id = (sel & 0x80u) ? CO_ID_NMT : CO_ID_RSDO + NODE;
+        unsigned kind = sel >> 5;
+        uint32_t id = CO_ID_RSDO + NODE;
 
         if (len > 8u) {
             len = 8u;
+        }
+        if (kind == 1u) {
+            id = CO_ID_NMT;
+        } else if (kind == 2u) {
+            id = 0x080u;
+        } else if (kind == 3u) {
+            id = 0x200u + 0x100u * ((sel >> 3) & 3u) + NODE;
+        } else if (kind == 4u && i < n) {
+            co_emcy_update(&co, in[i++], now);
+        } else if (kind == 5u && n - i >= 2u) {
+            id = ((uint32_t)in[i] << 8 | in[i + 1]) & 0x7FFu;
+            i += 2u;
+        } else if (kind == 6u && n - i >= 2u) {
+            id = 0x80000000u | 0x1FC00000u | ((uint32_t)in[i] << 8 | in[i + 1]);
+            i += 2u;
         }
         if (n - i < len) {
             len = (uint8_t)(n - i);
@@ -65,6 +90,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *in, size_t n)
         co_poll(&co, now);
         if (co.sdo_pos > sizeof co.sdo_buf || co.sdo_mode > 2u) {
             __builtin_trap();
+        }
+        for (unsigned k = 0; k < CO_PDO_N; k++) {
+            if (co.pdo.rx[k].len > 8u || co.pdo.tx[k].len > 8u ||
+                co.pdo.rx[k].nslots > CO_PDO_MAP_MAX || co.pdo.tx[k].nslots > CO_PDO_MAP_MAX) {
+                __builtin_trap();
+            }
         }
     }
     return 0;

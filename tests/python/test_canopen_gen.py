@@ -51,7 +51,7 @@ def test_generator_rejects_a_broken_definition(tmp_path):
 
 
 def test_eds_loads_in_canopen_and_matches_the_table():
-    od = canopen.import_od(str(EDS))
+    od = canopen.import_od(str(EDS), node_id=3)
     assert od[0x1000].default == 0x00020192
     assert od[0x1000].data_type == canopen.objectdictionary.UNSIGNED32
     assert od[0x1018][2].name == "Product code"
@@ -65,6 +65,23 @@ def test_eds_loads_in_canopen_and_matches_the_table():
         assert var.name == name
         assert var.access_type == access
         if typ != "str":
-            assert var.default == default
+            node = 3 if (index, sub) in canopen_od.NODE_RELATIVE else 0
+            assert var.default == default + node, hex(index)
         else:
             assert var.data_type == canopen.objectdictionary.VISIBLE_STRING
+
+
+def test_eds_describes_the_pdos_and_csp_objects():
+    od = canopen.import_od(str(EDS), node_id=3)
+    assert od[0x1400][1].default == 0x200 + 3 and od[0x1800][1].default == 0x180 + 3
+    assert od[0x1402][1].default == 0x80000400  # RPDO3 starts invalid
+    assert od[0x1601][0].default == 2 and od[0x1601][2].default == 0x607A0020
+    assert od[0x1A01][2].default == 0x60640020
+    assert od[0x1803][5].name == "Event timer" and 4 not in od[0x1803].subindices
+    assert od[0x6064].pdo_mappable and od[0x607A].pdo_mappable
+    assert not od[0x1000].pdo_mappable
+    assert od[0x6064].data_type == canopen.objectdictionary.INTEGER32
+    assert od[0x60C2][2].data_type == canopen.objectdictionary.INTEGER8
+    assert od[0x60C2][2].default == -3 and od[0x60C2][2].min == -6
+    text = EDS.read_text()
+    assert "NrOfRXPDO=4" in text and "NrOfTXPDO=4" in text

@@ -7,23 +7,64 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import can
 import canopen
 import pytest
 from canopen.sdo.exceptions import SdoAbortedError
+from contour import protocol_gen as pg
+from contour.link.client import connect
 from contour.sim.serve import spawn
 
 EDS = Path(__file__).resolve().parents[2] / "protocol" / "contour.eds"
 
 
 @pytest.fixture(scope="module")
-def network():
+def served():
     with spawn() as s:
-        net = canopen.Network()
-        net.connect(interface="slcan", channel=s.slcan, bitrate=500000)
+        yield s
+
+
+@pytest.fixture(scope="module")
+def network(served):
+    net = canopen.Network()
+    net.connect(interface="slcan", channel=served.slcan, bitrate=500000)
+    try:
+        yield net
+    finally:
+        net.disconnect()
+
+
+class _Counter(can.Listener):
+    def __init__(self) -> None:
+        self.ours = 0
+        self.standard = 0
+
+    def on_message_received(self, msg) -> None:
+        if msg.is_extended_id and pg.can_split(msg.arbitration_id) is not None:
+            self.ours += 1
+        elif not msg.is_extended_id:
+            self.standard += 1
+
+
+def test_scan_sees_only_canopen_nodes_while_our_telemetry_streams(served, network):
+    """Our protocol streams telemetry (set up over the serial link) on its
+    29-bit ids; the master's scanner, which masks ids with 0x780 / 0x7F and
+    does not look at IDE, must still find node 1 only (protocol 2's 11-bit
+    pos frame 0x1C1 made it report a false node 65)."""
+    counter = _Counter()
+    network.notifier.add_listener(counter)
+    with connect(port=served.serial, timeout=1.0) as c:
+        c.set_param("telem_period_ms", 10)  # ~900 frames/s: 30 % of the 500 kbit/s bus
         try:
-            yield net
+            time.sleep(0.3)
+            network.scanner.reset()
+            network.scanner.search()
+            time.sleep(1.0)
+            assert network.scanner.nodes == [1]
         finally:
-            net.disconnect()
+            c.set_param("telem_period_ms", 0)
+    network.notifier.remove_listener(counter)
+    assert counter.ours > 300, counter.ours  # the telemetry did stream on the bus
 
 
 def _node(net) -> canopen.RemoteNode:
@@ -110,3 +151,54 @@ def test_cia402_enable_and_back_through_controlword(network):
     sw = status()
     assert sw & 0x6F == 0x21, hex(sw)
     assert not sw & 0x10, "the drive is disabled again"
+
+
+def _wait_sw(node, mask: int, want: int, timeout: float) -> int:
+    end = time.monotonic() + timeout
+    while True:
+        sw = node.sdo["Statusword"].raw
+        if sw & mask == want or time.monotonic() > end:
+            return sw
+        time.sleep(0.02)
+
+
+def test_profile_position_and_homing(network):
+    """PP (0x6060 = 1): a set-point on controlword bit 4, absolute then
+    relative, acknowledged in bit 12, done in bit 10; homing (6) on the
+    simulated X axis's switch (-21.3 mm) and index (-20 mm table)."""
+    node = canopen.RemoteNode(1, str(EDS))
+    network.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 2.0
+    node.sdo["Modes of operation"].raw = 1
+    node.sdo["Profile velocity"].raw = 20_000_000  # 20 mm/s
+    for cw in (0x06, 0x07, 0x0F):
+        node.sdo["Controlword"].raw = cw
+    assert _wait_sw(node, 0x6F, 0x27, 1.0) & 0x6F == 0x27
+    node.sdo["Target position"].raw = 3_000_000
+    node.sdo["Controlword"].raw = 0x1F  # new set-point
+    assert node.sdo["Statusword"].raw & 0x1000, "set-point acknowledged"
+    node.sdo["Controlword"].raw = 0x0F
+    assert not node.sdo["Statusword"].raw & 0x1000
+    time.sleep(0.1)
+    assert _wait_sw(node, 0x0400, 0x0400, 3.0) & 0x0400, "target reached"
+    assert abs(node.sdo["Position actual value"].raw - 3_000_000) < 5000
+    node.sdo["Target position"].raw = -1_000_000
+    node.sdo["Controlword"].raw = 0x5F  # relative
+    node.sdo["Controlword"].raw = 0x4F
+    time.sleep(0.1)
+    _wait_sw(node, 0x0400, 0x0400, 3.0)
+    assert abs(node.sdo["Position actual value"].raw - 2_000_000) < 5000
+    with pytest.raises(SdoAbortedError) as e:
+        node.sdo["Homing method"].raw = 3
+    assert e.value.code == 0x06090030
+    node.sdo["Modes of operation"].raw = 6
+    node.sdo["Homing method"].raw = 1  # negative switch, then the index
+    node.sdo["Homing speeds"]["Speed during search for switch"].raw = 20_000_000
+    node.sdo["Homing speeds"]["Speed during search for zero"].raw = 5_000_000
+    node.sdo["Home offset"].raw = -20_000_000
+    node.sdo["Controlword"].raw = 0x1F
+    sw = _wait_sw(node, 0x3400, 0x1400, 10.0)
+    assert sw & 0x3400 == 0x1400, hex(sw)  # homing attained, no error, at rest
+    assert abs(node.sdo["Position actual value"].raw + 20_000_000) < 5000
+    node.sdo["Controlword"].raw = 0x06
+    node.sdo["Modes of operation"].raw = 0

@@ -66,7 +66,7 @@ def test_load_refuses_a_mismatch(monkeypatch):
     broken["sim_status_t"] = _without(native.SimStatus, "queued_time_ns")
     monkeypatch.setattr(native, "MIRRORS", broken)
     with pytest.raises(UserError, match="sim_status_t: C has 40 bytes and 7 fields"):
-        native.load.__wrapped__()
+        native._load.__wrapped__()  # uncached (load() is instance-aware)
 
 
 def test_load_binds_every_signature():
@@ -74,3 +74,16 @@ def test_load_binds_every_signature():
     for name, (res, args) in native.SIGNATURES.items():
         fn = getattr(lib, name)
         assert fn.restype is res and list(fn.argtypes) == list(args), name
+
+
+def test_drive_instances_keep_their_own_firmware_state():
+    """sim serve --drives: every instance but 0 is a private copy of the
+    library, so its static state (here the simulator's tick rate) is its own."""
+    a = native.load_instance(0)
+    b, c2 = native.load_instance(1), native.load_instance(2)
+    assert a is native.load() and b is not a and c2 is not b
+    assert b.sim_setup(2000, 1) == 0 and c2.sim_setup(4000, 1) == 0
+    assert (b.sim_tick_hz(), c2.sim_tick_hz()) == (2000, 4000)
+    with native.instance(b):
+        assert native.load() is b
+    assert native.load() is a

@@ -159,7 +159,7 @@ def test_link_selection_strings():
     with pytest.raises(LinkError, match="cannot open serial port"):
         open_transport(port="/nonexistent/tty")
     with pytest.raises(UsageError, match="node"):
-        open_transport(can="virtual:x", node=99)
+        open_transport(can="virtual:x", node=128)
 
 
 def test_virtual_can_bus_round_trip_through_isotp():
@@ -173,7 +173,11 @@ def test_virtual_can_bus_round_trip_through_isotp():
 
     chan = "contour-test-vbus"
     drive_bus = can.Bus(interface="virtual", channel=chan)
-    addr = isotp.Address(isotp.AddressingMode.Normal_11bits, txid=0xC5, rxid=0x85)
+    addr = isotp.Address(
+        isotp.AddressingMode.Normal_29bits,
+        txid=pg.can_id(pg.CAN_FUNC["response"], 5),
+        rxid=pg.can_id(pg.CAN_FUNC["request"], 5),
+    )
     stack = isotp.CanStack(drive_bus, address=addr, params={"blocking_send": False})
     stop = threading.Event()
 
@@ -223,8 +227,15 @@ def test_scan_lists_several_nodes_and_sends_nothing():
                     hb, {"state": 1, "axes": 3, "protocol_version": 1, "fw_version": 0x000100}
                 )
                 drives.send(
-                    can.Message(arbitration_id=pg.can_id(31, node), data=data, is_extended_id=False)
+                    can.Message(arbitration_id=pg.can_id(31, node), data=data, is_extended_id=True)
                 )
+            # a CANopen node's heartbeat (pre-operational) and a protocol-2
+            # drive's 11-bit heartbeat (0x7C0 | node)
+            drives.send(can.Message(arbitration_id=0x700 + 9, data=b"\x7f", is_extended_id=False))
+            old = codec.encode_payload(
+                hb, {"state": 1, "axes": 3, "protocol_version": 2, "fw_version": 0x000100}
+            )
+            drives.send(can.Message(arbitration_id=0x7C0 | 12, data=old, is_extended_id=False))
             while (m := drives.recv(timeout=0)) is not None:
                 seen.append(m)  # anything the scanner transmitted
             stop.wait(0.05)
@@ -237,6 +248,9 @@ def test_scan_lists_several_nodes_and_sends_nothing():
         stop.set()
         th.join(timeout=1)
         drives.shutdown()
-    assert sorted(found) == [3, 7]
+    assert sorted(found) == [3, 7, 9, 12]
+    assert found[9]["canopen"] == "pre-operational" and "state" not in found[9]
+    assert found[12]["state"] == "old-ids" and found[12]["protocol_version"] == 2
+    assert found[3]["protocol_version"] == 1 and "canopen" not in found[3]
     assert found[7]["state"] == "ready" and found[3]["firmware_version"] == "0.1.0"
     assert seen == []

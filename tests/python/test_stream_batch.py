@@ -309,8 +309,10 @@ def server():
         yield s
 
 
-def test_an_old_host_is_refused_by_the_drive(server):
-    """A host of protocol 1 sends session_open without a version."""
+@pytest.mark.parametrize("old", [1, 2])
+def test_an_old_host_is_refused_by_the_drive(server, old):
+    """A host of protocol 1 sends session_open without a version; one of
+    protocol 2 (11-bit CAN ids) with its version."""
     from contour.link.transport import SerialTransport
 
     t = SerialTransport(server.serial)
@@ -318,7 +320,8 @@ def test_an_old_host_is_refused_by_the_drive(server):
     ev = threading.Event()
     t.start(lambda m, ts: (got.append(codec.decode(m)), ev.set()))
     try:
-        t.send(codec.encode("session_open", 9, nonce=1234, protocol_version=0)[:-2])
+        msg = codec.encode("session_open", 9, nonce=1234, protocol_version=old)
+        t.send(msg[:-2] if old == 1 else msg)
         assert ev.wait(2.0)
     finally:
         t.close()

@@ -129,13 +129,24 @@ static void test_reset_communication_sends_boot_up_and_restores_heartbeat(void)
     TEST_ASSERT_EQUAL_UINT16(1000u, co.od.heartbeat_ms);
 }
 
+static unsigned count_id(uint32_t id)
+{
+    unsigned i, n = 0;
+
+    for (i = 0; i < n_sent; i++) {
+        n += sent[i].id == id;
+    }
+    return n;
+}
+
 static void test_heartbeat_period_and_state(void)
 {
     sdo(0x2Bu, 0x1017, 0, 100u); /* 100 ms */
     nmt(0x01u, NODE);
     n_sent = 0;
-    co_poll(&co, 99999u);
-    TEST_ASSERT_EQUAL_UINT(0u, n_sent);
+    co_poll(&co, 99999u); /* (TPDO1, event-driven, sends its statusword once) */
+    TEST_ASSERT_EQUAL_UINT(0u, count_id(0x700u + NODE));
+    n_sent = 0;
     co_poll(&co, 100000u);
     TEST_ASSERT_EQUAL_UINT(1u, n_sent);
     TEST_ASSERT_EQUAL_HEX32(0x700u + NODE, sent[0].id);

@@ -409,7 +409,8 @@ bool hal_can_send(uint32_t id, const uint8_t *data, uint8_t len)
 {
     struct can_frame f;
 
-    if (lx.can_fd < 0 || id > CAN_SFF_MASK || len > 8u || (len > 0u && data == NULL)) {
+    if (lx.can_fd < 0 || len > 8u || (len > 0u && data == NULL) ||
+        ((id & CAN_EFF_FLAG) ? (id & ~CAN_EFF_FLAG) > CAN_EFF_MASK : id > CAN_SFF_MASK)) {
         return false;
     }
     memset(&f, 0, sizeof f);
@@ -432,10 +433,11 @@ bool hal_can_receive(uint32_t *id, uint8_t *data, uint8_t *len)
         if (read(lx.can_fd, &f, sizeof f) != (ssize_t)sizeof f) {
             return false;
         }
-        if (f.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) {
-            continue; /* the protocol uses standard data frames only */
+        if (f.can_id & (CAN_RTR_FLAG | CAN_ERR_FLAG)) {
+            continue; /* data frames only */
         }
-        *id = f.can_id & CAN_SFF_MASK;
+        /* HAL_CAN_EFF is CAN_EFF_FLAG: the id goes through as it is */
+        *id = f.can_id & ((f.can_id & CAN_EFF_FLAG) ? (CAN_EFF_FLAG | CAN_EFF_MASK) : CAN_SFF_MASK);
         *len = f.can_dlc > 8u ? 8u : f.can_dlc;
         memcpy(data, f.data, *len);
         return true;

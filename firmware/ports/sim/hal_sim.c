@@ -198,7 +198,10 @@ size_t hal_sim_uart_drain(uint8_t *data, size_t cap)
 static bool canq_put(sim_canq_t *q, uint32_t id, const uint8_t *data, uint8_t len)
 {
     size_t next = (q->head + 1u) % HAL_SIM_CAN_FRAMES;
-    if (len > 8 || next == q->tail || id > 0x7FFu || (len > 0 && data == NULL)) {
+    /* 11-bit ids, or 29-bit ones flagged with HAL_CAN_EFF (hal.h) */
+    bool bad_id = (id & HAL_CAN_EFF) ? (id & ~HAL_CAN_EFF) > 0x1FFFFFFFu : id > 0x7FFu;
+
+    if (len > 8 || next == q->tail || bad_id || (len > 0 && data == NULL)) {
         return false;
     }
     q->f[q->head].id = id;

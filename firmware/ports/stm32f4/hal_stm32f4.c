@@ -268,12 +268,13 @@ void f4_can1_rx0_handler(void)
     while (F4_CAN_RF0R & 3u) {
         uint32_t rir = F4_CAN_RI0R, h = canrx.head;
 
-        if (!(rir & (1u << 2)) && h - canrx.tail < CAN_RING) { /* standard ids only */
+        if (!(rir & (1u << 1)) && h - canrx.tail < CAN_RING) { /* data frames (RTR 0) */
             can_frame_t *f = &canrx.q[h % CAN_RING];
             uint32_t lo = F4_CAN_RDL0R, hi = F4_CAN_RDH0R;
             unsigned i;
 
-            f->id = rir >> 21;
+            /* IDE: EXID in bits 3..31, else STID in 21..31 */
+            f->id = (rir & (1u << 2)) ? (HAL_CAN_EFF | (rir >> 3)) : (rir >> 21);
             f->len = (uint8_t)(F4_CAN_RDT0R & 0xFu);
             if (f->len > 8u) {
                 f->len = 8u;
@@ -283,7 +284,7 @@ void f4_can1_rx0_handler(void)
                 f->data[4u + i] = (uint8_t)(hi >> (8u * i));
             }
             canrx.head = h + 1u;
-        } else if (!(rir & (1u << 2))) {
+        } else if (!(rir & (1u << 1))) {
             canrx.dropped++;
         }
         F4_CAN_RF0R = 1u << 5; /* RFOM0: release the mailbox */
@@ -300,7 +301,8 @@ bool hal_can_send(uint32_t id, const uint8_t *data, uint8_t len)
     }
     tsr = F4_CAN_TSR;
 
-    if (id > 0x7FFu || len > 8u || (len > 0u && data == NULL)) {
+    if (((id & HAL_CAN_EFF) ? (id & ~HAL_CAN_EFF) > 0x1FFFFFFFu : id > 0x7FFu) || len > 8u ||
+        (len > 0u && data == NULL)) {
         return false;
     }
     if (!(tsr & (7u << 26))) {
@@ -317,7 +319,8 @@ bool hal_can_send(uint32_t id, const uint8_t *data, uint8_t len)
     F4_CAN_TDTR(m) = len;
     F4_CAN_TDLR(m) = lo;
     F4_CAN_TDHR(m) = hi;
-    F4_CAN_TIR(m) = (id << 21) | 1u; /* TXRQ */
+    /* extended: EXID in 3..31 and IDE; standard: STID in 21..31; TXRQ */
+    F4_CAN_TIR(m) = ((id & HAL_CAN_EFF) ? ((id << 3) | (1u << 2)) : (id << 21)) | 1u;
     return true;
 }
 

@@ -56,7 +56,7 @@ def _can_message(m, node: int, ts: float):
     return can.Message(
         timestamp=ts,
         arbitration_id=pg.can_id(msg.can_func, node),
-        is_extended_id=False,
+        is_extended_id=True,
         data=payload,
     )
 

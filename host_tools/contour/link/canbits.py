@@ -7,6 +7,11 @@ complementary one, which counts for the next run) - then the CRC delimiter,
 ACK slot and delimiter, 7 bits of EOF and 3 of interframe space: 47 + 8n
 bits before stuffing. Worst case one stuff bit per 4 bits after the first:
 floor((34 + 8n - 1) / 4), 24 for n = 8 (135 bits).
+
+A CAN 2.0B extended frame (our protocol's 29-bit ids, docs/canopen.md) has
+after the 11-bit base id SRR and IDE (both recessive), the 18-bit id
+extension, RTR, r1, r0: 54 + 8n stuffed bits, 67 + 8n before stuffing,
+at most 160 bits for n = 8 (135 for a standard one).
 """
 
 from __future__ import annotations
@@ -24,13 +29,22 @@ def crc15(bits: list[int]) -> int:
     return crc
 
 
-def frame_bits(cid: int, data: bytes) -> int:
-    """Exact bits on the wire of one standard data frame (interframe space
-    included)."""
+EXT_EXTRA_BITS = 20  # SRR, IDE, 18-bit id extension, r1 in an extended frame
+
+
+def frame_bits(cid: int, data: bytes, extended: bool = False) -> int:
+    """Exact bits on the wire of one data frame, standard (11-bit `cid`) or
+    extended (29-bit `cid`), interframe space included."""
     n = len(data)
     bits = [0]  # SOF
-    bits += [(cid >> (10 - i)) & 1 for i in range(11)]
-    bits += [0, 0, 0]  # RTR, IDE, r0
+    if extended:
+        bits += [(cid >> (28 - i)) & 1 for i in range(11)]
+        bits += [1, 1]  # SRR, IDE
+        bits += [(cid >> (17 - i)) & 1 for i in range(18)]
+        bits += [0, 0, 0]  # RTR, r1, r0
+    else:
+        bits += [(cid >> (10 - i)) & 1 for i in range(11)]
+        bits += [0, 0, 0]  # RTR, IDE, r0
     bits += [(n >> (3 - i)) & 1 for i in range(4)]
     for byte in data:
         bits += [(byte >> (7 - i)) & 1 for i in range(8)]
@@ -45,9 +59,10 @@ def frame_bits(cid: int, data: bytes) -> int:
         if run == 5:
             stuff += 1
             run, last = 1, 1 - b  # the stuff bit starts the next run
-    return FIXED_BITS + 8 * n + stuff
+    return FIXED_BITS + (EXT_EXTRA_BITS if extended else 0) + 8 * n + stuff
 
 
-def worst_frame_bits(n: int) -> int:
+def worst_frame_bits(n: int, extended: bool = False) -> int:
     """Bits of a frame with n data bytes under worst-case stuffing."""
-    return FIXED_BITS + 8 * n + (34 + 8 * n - 1) // 4
+    s = 34 + (EXT_EXTRA_BITS if extended else 0) + 8 * n
+    return FIXED_BITS + (EXT_EXTRA_BITS if extended else 0) + 8 * n + (s - 1) // 4

@@ -213,7 +213,7 @@ class Streamer:
             time.sleep(self.poll_s)
 
     def run(self) -> dict:
-        self.c.require_protocol("streaming a job (queue_batch)")
+        self.c.require_protocol("streaming a job (queue_batch)", version=2)
         previous = None
         try:
             previous = self.c.get_param("telem_period_ms")

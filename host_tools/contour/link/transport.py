@@ -231,7 +231,7 @@ class CanTransport:
             self.logger = can.Logger(log_file)
             self.notifier.add_listener(self.logger)
         address = isotp.Address(
-            isotp.AddressingMode.Normal_11bits,
+            isotp.AddressingMode.Normal_29bits,  # our ids are extended (docs/canopen.md)
             txid=pg.can_id(pg.CAN_FUNC["request"], node),
             rxid=pg.can_id(pg.CAN_FUNC["response"], node),
         )
@@ -308,10 +308,10 @@ class CanTransport:
         self._thread.start()
 
     def _on_frame(self, frame) -> None:
-        if frame.arbitration_id == self._rx_id:
+        if frame.arbitration_id == self._rx_id and frame.is_extended_id:
             self.bus_rx_frames += 1
         func = self._cyclic_ids.get(frame.arbitration_id)
-        if func is None or frame.is_extended_id or self._on is None:
+        if func is None or not frame.is_extended_id or self._on is None:
             return
         self.rx_frames += 1
         self.bus_rx_frames += 1

@@ -55,6 +55,7 @@ from contour import protocol_gen as pg
 from contour.errors import UserError
 from contour.link.canbits import frame_bits
 
+EFF = 0x80000000  # HAL_CAN_EFF (firmware/hal/hal.h): an extended id
 BOARD_SIM = 1  # BOOT_BOARD_SIM in firmware/core/boot/boot.h
 MAX_BACKLOG = 256 * 1024
 FLASH_FILE_BYTES = 256 * 1024  # FLASH_SIM_DEFAULT_SIZE (firmware/ports/sim/hal_flash_sim.h)
@@ -138,14 +139,14 @@ class SlcanParser:
             except (ValueError, IndexError):
                 self.errors += 1
                 return None, b"\a"
-            if dlc > 8 or len(data) != dlc:
+            if dlc > 8 or len(data) != dlc or cid > (0x7FF if c == "t" else 0x1FFFFFFF):
                 self.errors += 1
                 return None, b"\a"
             if not self.open:
                 return None, b"\a"
-            if c == "T":  # the drive uses 11-bit ids only: accepted, not for us
-                return None, b"Z\r"
             self.frames_in += 1
+            if c == "T":  # 29-bit: the HAL's flag (HAL_CAN_EFF) marks it
+                return (cid | EFF, data), b"Z\r"
             return (cid, data), b"z\r"
         if c in "rR":
             return None, b"z\r" if self.open else b"\a"
@@ -154,7 +155,16 @@ class SlcanParser:
 
 
 def slcan_line(cid: int, data: bytes) -> bytes:
+    """A frame as SLCAN sends it: ``T`` + 8 hex digits for an id carrying
+    EFF (29-bit), ``t`` + 3 for an 11-bit one."""
+    if cid & EFF:
+        return f"T{cid & 0x1FFFFFFF:08X}{len(data)}{data.hex().upper()}\r".encode()
     return f"t{cid:03X}{len(data)}{data.hex().upper()}\r".encode()
+
+
+def bus_bits(cid: int, data: bytes) -> int:
+    """Bits of a frame on the simulated bus (canbits.frame_bits)."""
+    return frame_bits(cid & 0x1FFFFFFF, data, extended=bool(cid & EFF))
 
 
 class Pty:
@@ -195,49 +205,34 @@ class Pty:
                 os.close(fd)
 
 
-class SimServer:
-    """The simulated drive served on a serial pty and an SLCAN pty."""
+class SimDrive:
+    """One simulated drive: its own instance of the library (firmware
+    state, simulator, clock), bootloader first as on a drive."""
 
     def __init__(
         self,
-        node: int = 1,
-        tick_hz: Optional[int] = None,
-        axes: Optional[int] = None,
-        machine: Optional[str] = None,
-        feedforward: Optional[str] = None,
-        flash: Optional[str] = None,
-        boot_window_ms: Optional[int] = None,
-        encoder_model: Optional[str] = None,
+        lib: ctypes.CDLL,
+        node: int,
+        tick_hz: Optional[int],
+        axes: Optional[int],
+        machine: Optional[str],
+        feedforward: Optional[str],
+        flash: Optional[str],
+        boot_window_ms: int,
+        encoder_model: Optional[str],
+        build_id: int,
     ) -> None:
         from contour import native
+        from contour.sim import machine as mach
 
-        if not 1 <= node <= pg.CAN_NODE_MAX:
-            raise UserError(f"--node {node}: must be 1..{pg.CAN_NODE_MAX}")
-        if tick_hz is not None and not 1000 <= tick_hz <= 100000:
-            raise UserError(f"--tick-hz {tick_hz}: must be 1000..100000")
-        if boot_window_ms is None:  # a RAM flash starts its factory image at once
-            boot_window_ms = 200 if flash else 0
-        if not 0 <= boot_window_ms <= 60000:
-            raise UserError(f"--boot-window-ms {boot_window_ms}: must be 0..60000")
-        lib = native.load()
         self.lib = lib
+        self.node = node
         # the bootloader runs first (flash attached before the application
         # reads its stores from it); docs/bootloader.md "Simulated drive"
-        if flash and os.path.exists(flash) and os.path.getsize(flash) != FLASH_FILE_BYTES:
-            raise UserError(
-                f"--flash {flash}: {os.path.getsize(flash)} bytes; a simulated flash file is "
-                f"{FLASH_FILE_BYTES} bytes (give a new path to start with an erased one)"
-            )
         if not lib.boot_sim_init(flash.encode() if flash else None, node, boot_window_ms * 1000):
             raise UserError(f"--flash {flash}: cannot open or create it")
         if not flash:
             _install_factory_image(lib)
-        try:
-            build_id = zlib.crc32(native.library_path().read_bytes())
-        except OSError:
-            build_id = 0
-        from contour.sim import machine as mach
-
         # the application and its link are built by the firmware's composition
         # root (app_init, firmware/core/app.h) at every sim_start
         link = mach.SimLink(
@@ -251,84 +246,22 @@ class SimServer:
             if not 1 <= axes <= m.axes:
                 raise UserError(f"--axes {axes}: machine {m.name} has {m.axes} axes")
             m.axes = axes
-        mach.apply(
-            m, tick_hz=tick_hz, feedforward=feedforward, link=link, encoder_model=encoder_model
-        )
-        tick_hz = int(lib.sim_tick_hz())
-        self.tick_hz = tick_hz
-        self.period_ns = round(1e9 / tick_hz)
+        with native.instance(lib):
+            mach.apply(
+                m, tick_hz=tick_hz, feedforward=feedforward, link=link, encoder_model=encoder_model
+            )
+        lib.co_drive_sync_tick.restype = ctypes.c_uint64
+        lib.co_drive_sync_count.restype = ctypes.c_uint32
+        lib.co_drive_csp_missed.restype = ctypes.c_uint32
+        self.tick_hz = int(lib.sim_tick_hz())
+        self.period_ns = round(1e9 / self.tick_hz)
         self.app_running = False
         self._boot_state: Optional[tuple[int, int]] = None
         self._sim_fresh = True  # sim_start just ran: the first application start needs none
         self._sync_boot()
-        self.serial = Pty()
-        self.slcan = Pty()
-        self.parser = SlcanParser()
-        self._stop = threading.Event()
-        self.ticks = 0
-        self.late = 0
-        self._ubuf = ctypes.create_string_buffer(8192)
         self._cdata = ctypes.create_string_buffer(8)
         self._cid = ctypes.c_uint32()
         self._clen = ctypes.c_uint8()
-        self._bus: collections.deque = collections.deque()  # (t_ns, to_drive, id, data, bits)
-        self._bus_free_ns = 0
-        self._bus_now_ns = 0
-        self.bus_bits = 0
-
-    def _pump_in(self) -> None:
-        data = self.serial.read()
-        if data:
-            self.lib.hal_sim_uart_inject(data, len(data))
-        data = self.slcan.read()
-        if data:
-            frames, reply = self.parser.feed(data)
-            now = self.lib.hal_sim_time_ns()
-            for cid, payload in frames:
-                self._bus.append((now, True, cid, payload, frame_bits(cid, payload)))
-            if reply:
-                self.slcan.write(reply)
-        self._bus_deliver()
-
-    def _bus_deliver(self) -> None:
-        """The simulated CAN bus: frames of both directions in the order they
-        were sent, each taking its exact bits (canbits.frame_bits) at the
-        SLCAN bitrate; a frame reaches the other side when its last bit has
-        passed on the simulated clock."""
-        now = self.lib.hal_sim_time_ns()
-        out = bytearray()
-        if now < self._bus_now_ns:  # the clock restarted (a reset): frames on their way go on
-            self._bus = collections.deque((now,) + f[1:] for f in self._bus)
-            self._bus_free_ns = now
-        self._bus_now_ns = now
-        while self._bus:
-            t, to_drive, cid, payload, bits = self._bus[0]
-            start = max(self._bus_free_ns, t)
-            end = start + bits * 1_000_000_000 // self.parser.bitrate
-            if end > now:
-                break
-            self._bus.popleft()
-            self._bus_free_ns = end
-            self.bus_bits += bits
-            if to_drive:
-                self.lib.hal_sim_can_inject(cid, payload, len(payload))
-            elif self.parser.open:
-                out += slcan_line(cid, payload)
-        if out:
-            self.slcan.write(out)
-
-    def _pump_out(self) -> None:
-        n = self.lib.hal_sim_uart_drain(self._ubuf, len(self._ubuf))
-        while n:
-            self.serial.write(self._ubuf.raw[:n])
-            n = self.lib.hal_sim_uart_drain(self._ubuf, len(self._ubuf))
-        now = self.lib.hal_sim_time_ns()
-        while self.lib.hal_sim_can_drain(
-            ctypes.byref(self._cid), self._cdata, ctypes.byref(self._clen)
-        ):
-            cid, payload = self._cid.value, self._cdata.raw[: self._clen.value]
-            self._bus.append((now, False, cid, payload, frame_bits(cid, payload)))
-        self._bus_deliver()
 
     def _sync_boot(self) -> None:
         """After a reset or a jump: start the firmware the bootloader chose
@@ -346,26 +279,224 @@ class SimServer:
             raise UserError("the simulated bootloader refused its link")
         self._sim_fresh = False
 
-    def step(self, ticks: int) -> None:
-        self._pump_in()
+    def run(self, ticks: int) -> None:
+        """The link, `ticks` control ticks (only the clock in the
+        bootloader), the link again, then the boot decision."""
         self.lib.proto_link_poll()
         if ticks > 0:
             if self.app_running:
                 self.lib.sim_run(ticks, None, 0, 0)
-            else:  # in the bootloader only the clock runs
+            else:
                 self.lib.hal_sim_set_time_ns(self.lib.hal_sim_time_ns() + ticks * self.period_ns)
-            self.ticks += ticks
         self.lib.proto_link_poll()
-        self._pump_out()
+
+    def after(self) -> None:
         if self.lib.hal_sim_take_reset_request():  # the application reset the processor
             self.lib.boot_sim_reset()
         self.lib.boot_sim_poll()  # ends the connect window, performs a REBOOT
         self._sync_boot()
 
+    def drain(self) -> list[tuple[int, bytes]]:
+        out = []
+        while self.lib.hal_sim_can_drain(
+            ctypes.byref(self._cid), self._cdata, ctypes.byref(self._clen)
+        ):
+            out.append((self._cid.value, self._cdata.raw[: self._clen.value]))
+        return out
+
+    def inject(self, cid: int, data: bytes) -> None:
+        self.lib.hal_sim_can_inject(cid, data, len(data))
+
+    def sync_info(self) -> tuple[int, int, int]:
+        """(SYNCs sampled, tick of the last sample, CSP targets refused)."""
+        return (
+            int(self.lib.co_drive_sync_count()),
+            int(self.lib.co_drive_sync_tick()),
+            int(self.lib.co_drive_csp_missed()),
+        )
+
+
+class SimBus:
+    """The simulated CAN bus: frames of every side (the SLCAN host, each
+    drive) in the order they were sent, each taking its exact bits
+    (canbits.frame_bits, extended frames included) at `bitrate`; a frame
+    reaches every other side when its last bit has passed on the simulated
+    clock (`now_ns`, the first drive's)."""
+
+    HOST = -1
+
+    def __init__(self, drives: list[SimDrive]) -> None:
+        self.drives = drives
+        self.bitrate = 1_000_000
+        self._q: collections.deque = collections.deque()  # (t_ns, source, id, data, bits)
+        self._free_ns = 0
+        self._now_ns = 0
+        self.bits = 0
+        self.frames = 0
+
+    def now_ns(self) -> int:
+        return int(self.drives[0].lib.hal_sim_time_ns())
+
+    def send(self, source: int, cid: int, data: bytes, t_ns: Optional[int] = None) -> None:
+        t = self.now_ns() if t_ns is None else t_ns
+        self._q.append((t, source, cid, data, bus_bits(cid, data)))
+
+    def deliver(self, to_host) -> None:
+        """Frames whose last bit has passed: to every drive but their
+        source, and to_host(cid, data) for the drives' frames."""
+        now = self.now_ns()
+        if now < self._now_ns:  # the clock restarted (a reset): frames on their way go on
+            self._q = collections.deque((now,) + f[1:] for f in self._q)
+            self._free_ns = now
+        self._now_ns = now
+        while self._q:
+            t, source, cid, payload, bits = self._q[0]
+            end = max(self._free_ns, t) + bits * 1_000_000_000 // self.bitrate
+            if end > now:
+                break
+            self._q.popleft()
+            self._free_ns = end
+            self.bits += bits
+            self.frames += 1
+            for i, d in enumerate(self.drives):
+                if i != source:
+                    d.inject(cid, payload)
+            if source != self.HOST:
+                to_host(cid, payload)
+
+    def pending(self) -> int:
+        return len(self._q)
+
+
+class SimServer:
+    """Simulated drives on one CAN bus, served on an SLCAN pty, and the
+    first drive's serial link on a serial pty (the others' on their own:
+    `serials`)."""
+
+    def __init__(
+        self,
+        node: int = 1,
+        tick_hz: Optional[int] = None,
+        axes: Optional[int] = None,
+        machine: Optional[str] = None,
+        feedforward: Optional[str] = None,
+        flash: Optional[str] = None,
+        boot_window_ms: Optional[int] = None,
+        encoder_model: Optional[str] = None,
+        drives: int = 1,
+        ptys: bool = True,
+    ) -> None:
+        from contour import native
+
+        if not 1 <= drives <= 16:
+            raise UserError(f"--drives {drives}: must be 1..16")
+        if not 1 <= node <= pg.CAN_NODE_MAX - drives + 1:
+            raise UserError(f"--node {node}: must be 1..{pg.CAN_NODE_MAX - drives + 1}")
+        if drives > 1 and flash:
+            raise UserError("--flash serves one drive: leave it out with --drives")
+        if tick_hz is not None and not 1000 <= tick_hz <= 100000:
+            raise UserError(f"--tick-hz {tick_hz}: must be 1000..100000")
+        if boot_window_ms is None:  # a RAM flash starts its factory image at once
+            boot_window_ms = 200 if flash else 0
+        if not 0 <= boot_window_ms <= 60000:
+            raise UserError(f"--boot-window-ms {boot_window_ms}: must be 0..60000")
+        if flash and os.path.exists(flash) and os.path.getsize(flash) != FLASH_FILE_BYTES:
+            raise UserError(
+                f"--flash {flash}: {os.path.getsize(flash)} bytes; a simulated flash file is "
+                f"{FLASH_FILE_BYTES} bytes (give a new path to start with an erased one)"
+            )
+        try:
+            build_id = zlib.crc32(native.library_path().read_bytes())
+        except OSError:
+            build_id = 0
+        self.drives = [
+            SimDrive(
+                native.load_instance(i),
+                node + i,
+                tick_hz,
+                axes,
+                machine,
+                feedforward,
+                flash,
+                boot_window_ms,
+                encoder_model,
+                build_id,
+            )
+            for i in range(drives)
+        ]
+        self.lib = self.drives[0].lib
+        self.tick_hz = self.drives[0].tick_hz
+        self.period_ns = self.drives[0].period_ns
+        self.bus = SimBus(self.drives)
+        self.parser = SlcanParser()
+        self.serials = [Pty() for _ in self.drives] if ptys else []
+        self.serial = self.serials[0] if ptys else None
+        self.slcan = Pty() if ptys else None
+        self._stop = threading.Event()
+        self.ticks = 0
+        self.late = 0
+        self._ubuf = ctypes.create_string_buffer(8192)
+
+    @property
+    def app_running(self) -> bool:
+        return self.drives[0].app_running
+
+    @property
+    def bus_bits(self) -> int:
+        return self.bus.bits
+
+    def _to_host(self, cid: int, data: bytes) -> None:
+        if self.slcan is not None and self.parser.open:
+            self._host_out += slcan_line(cid, data)
+
+    def _deliver(self) -> None:
+        self._host_out = bytearray()
+        self.bus.bitrate = self.parser.bitrate
+        self.bus.deliver(self._to_host)
+        if self._host_out:
+            self.slcan.write(bytes(self._host_out))
+
+    def _pump_in(self) -> None:
+        for d, pty in zip(self.drives, self.serials):
+            data = pty.read()
+            if data:
+                d.lib.hal_sim_uart_inject(data, len(data))
+        if self.slcan is not None:
+            data = self.slcan.read()
+            if data:
+                frames, reply = self.parser.feed(data)
+                for cid, payload in frames:
+                    self.bus.send(SimBus.HOST, cid, payload)
+                if reply:
+                    self.slcan.write(reply)
+        self._deliver()
+
+    def _pump_out(self) -> None:
+        for i, d in enumerate(self.drives):
+            if self.serials:
+                n = d.lib.hal_sim_uart_drain(self._ubuf, len(self._ubuf))
+                while n:
+                    self.serials[i].write(self._ubuf.raw[:n])
+                    n = d.lib.hal_sim_uart_drain(self._ubuf, len(self._ubuf))
+            for cid, payload in d.drain():
+                self.bus.send(i, cid, payload)
+        self._deliver()
+
+    def step(self, ticks: int) -> None:
+        """Every drive by the same ticks (lockstep: one simulated clock)."""
+        self._pump_in()
+        for d in self.drives:
+            d.run(ticks)
+        if ticks > 0:
+            self.ticks += ticks
+        self._pump_out()
+        for d in self.drives:
+            d.after()
+
     def run(self, period: float = 0.001) -> None:
         t0 = time.monotonic()
         max_chunk = self.tick_hz // 20
-        fds = [self.serial.master, self.slcan.master]
+        fds = [p.master for p in self.serials] + [self.slcan.master]
         while not self._stop.is_set():
             due = int((time.monotonic() - t0) * self.tick_hz)
             n = due - self.ticks
@@ -383,8 +514,10 @@ class SimServer:
         self._stop.set()
 
     def close(self) -> None:
-        self.serial.close()
-        self.slcan.close()
+        for p in self.serials:
+            p.close()
+        if self.slcan is not None:
+            self.slcan.close()
 
 
 def _install_factory_image(lib: ctypes.CDLL) -> None:
@@ -456,7 +589,7 @@ def spawn(extra_args=(), timeout: float = 20.0, env=None) -> Spawned:
     buf = b""
     end = time.monotonic() + timeout
     try:
-        while len(paths) < 2:
+        while "slcan" not in paths or "serial" not in paths:
             left = end - time.monotonic()
             if left <= 0 or proc.poll() is not None:
                 err = proc.stderr.read().decode(errors="replace") if proc.poll() is not None else ""
@@ -468,16 +601,27 @@ def spawn(extra_args=(), timeout: float = 20.0, env=None) -> Spawned:
             buf += chunk
             for line in buf.decode(errors="replace").splitlines():
                 key, _, value = line.strip().partition(": ")
-                if key in ("serial", "slcan"):
+                if key in ("serial", "slcan") or key.startswith("serial "):
                     paths[key] = value
     except BaseException:
         Spawned(proc, "", "").stop()
         raise
-    return Spawned(proc, paths["serial"], paths["slcan"])
+    sp = Spawned(proc, paths["serial"], paths["slcan"])
+    sp.serials = {int(k.split()[1]): v for k, v in paths.items() if k.startswith("serial ")}
+    return sp
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--node", type=int, default=1, help="CAN node id (default 1)")
+    parser.add_argument(
+        "--node", type=int, default=1, help="CAN node id (default 1; the first with --drives)"
+    )
+    parser.add_argument(
+        "--drives",
+        type=int,
+        default=1,
+        help="simulated drives on the one CAN bus (default 1), node ids --node, --node + 1, ..; "
+        "each has its own axes and serial pty (printed as 'serial NODE: PATH')",
+    )
     parser.add_argument(
         "--tick-hz",
         type=int,
@@ -519,6 +663,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     server = SimServer(
+        drives=getattr(args, "drives", 1),
         node=args.node,
         tick_hz=args.tick_hz,
         axes=args.axes,
@@ -534,7 +679,9 @@ def main(args: argparse.Namespace) -> int:
 
     old = {s: signal.signal(s, _stop) for s in (signal.SIGINT, signal.SIGTERM)}
     print(f"serial: {server.serial.path}", flush=True)
-    print(f"slcan: {server.slcan.path}", flush=True)
+    for d, pty in zip(server.drives[1:], server.serials[1:]):
+        print(f"serial {d.node}: {pty.path}", flush=True)
+    print(f"slcan: {server.slcan.path}", flush=True)  # last: spawn() waits for it
     print(f"node: {args.node}", flush=True)
     try:
         server.run()

@@ -34,9 +34,9 @@ def main() -> int:
         seen = None
         while time.monotonic() < end and seen is None:
             m = bus.recv(timeout=0.5)
-            if m is not None and m.arbitration_id == hb:
+            if m is not None and m.is_extended_id and m.arbitration_id == hb:
                 seen = m
-        check("heartbeat frame", seen is not None, f"id 0x{hb:03X}")
+        check("heartbeat frame", seen is not None, f"id 0x{hb:08X} (29-bit)")
 
     with connect(can=spec, node=node, timeout=1.0) as c:
         ident = c.identify()  # multi-frame ISO-TP reply
