@@ -945,7 +945,7 @@ static void test_lean_step_equals_general(void)
             }
         }
     }
-    TEST_ASSERT_TRUE(lean_steps > 150000); /* the lean step ran */
+    TEST_ASSERT_TRUE(lean_steps > 150000);                    /* the lean step ran */
     TEST_ASSERT_TRUE(sat_steps > 1000 && sat_steps < 100000); /* some saturated */
 }
 
