@@ -2,9 +2,14 @@
  * bench_hil.c - realtime factor of the HIL simulator: simulated seconds per
  * wall-clock second, three axes at 10 kHz, the circle scenario (R 20 mm at
  * 10 m/min, full feed-forward, exact CEC, trace of every tick written).
- *   bench_hil [fast|edges]        best of three runs of 20 simulated
- *                                 seconds with that encoder model (default
- *                                 fast, the simulator's default)
+ *   bench_hil [fast|edges]        five runs of 20 simulated seconds with
+ *                                 that encoder model (default fast, the
+ *                                 simulator's default): the best wall-clock
+ *                                 factor (hil_realtime_factor) and the best
+ *                                 CPU-time factor, simulated seconds per
+ *                                 second of the process's CPU time
+ *                                 (hil_realtime_factor_cpu: what the code
+ *                                 controls when other jobs take the cores)
  *   bench_hil ticks N [fast|edges]  one run of N ticks (for callgrind:
  *                                 instructions in sim_run per tick)
  *   bench_hil hash N [fast|edges]   one run of N ticks; prints the FNV-1a
@@ -20,10 +25,10 @@
 #include "drive.h"
 #include "sim.h"
 
-static double now(void)
+static double now(clockid_t clk)
 {
     struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
+    clock_gettime(clk, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
@@ -40,12 +45,14 @@ static void hash_rows(const double *row, size_t n)
     }
 }
 
-static double one_run(uint64_t ticks, int model, int hash)
+/* One run: the wall-clock factor (-1 on failure); *cpu the CPU-time factor
+ * (CLOCK_PROCESS_CPUTIME_ID over the same span). */
+static double one_run(uint64_t ticks, int model, int hash, double *cpu)
 {
     static double row[4000 * SIM_TRACE_COLS];
     const int64_t feed = 166666667; /* 10 m/min */
     int64_t on_circle[3] = {0, 5000000, 0};
-    double t0, t1;
+    double t0, t1, c0, c1;
     int r = 0;
     uint64_t done = 0;
     sim_status_t st = {0};
@@ -66,7 +73,8 @@ static double one_run(uint64_t ticks, int model, int hash)
     if (sim_start() != 0 || sim_enable(1) != 0) {
         return -1.0;
     }
-    t0 = now();
+    c0 = now(CLOCK_PROCESS_CPUTIME_ID);
+    t0 = now(CLOCK_MONOTONIC);
     sim_queue_line(on_circle, feed, 1, 0, &r);
     while (done < ticks) {
         uint64_t n = (ticks - done < 4000u) ? ticks - done : 4000u;
@@ -79,7 +87,8 @@ static double one_run(uint64_t ticks, int model, int hash)
         }
         done += n;
     }
-    t1 = now();
+    t1 = now(CLOCK_MONOTONIC);
+    c1 = now(CLOCK_PROCESS_CPUTIME_ID);
     /* a faulted drive stands still: its ticks are not the circle's */
     if (sim_edge_mismatches() != 0 || sim_drive_status(&st) != 0 || st.faults != 0 ||
         st.state != DRIVE_RUNNING) {
@@ -87,6 +96,7 @@ static double one_run(uint64_t ticks, int model, int hash)
                 (unsigned)st.faults, (unsigned long long)done);
         return -1.0;
     }
+    *cpu = (double)done / 10000.0 / (c1 - c0);
     return (double)done / 10000.0 / (t1 - t0);
 }
 
@@ -97,15 +107,17 @@ static int model_arg(const char *s)
 
 int main(int argc, char **argv)
 {
-    double best = 0.0;
+    double best = 0.0, best_cpu = 0.0, cpu = 0.0;
     int i, model;
 
     if (argc > 2 && strcmp(argv[1], "ticks") == 0) {
-        return one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL), 0) < 0.0;
+        return one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL), 0, &cpu) <
+               0.0;
     }
     if (argc > 2 && strcmp(argv[1], "hash") == 0) {
         sim_status_t st;
-        if (one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL), 1) < 0.0 ||
+        if (one_run(strtoull(argv[2], NULL, 10), model_arg(argc > 3 ? argv[3] : NULL), 1, &cpu) <
+                0.0 ||
             sim_drive_status(&st) != 0) {
             return 1;
         }
@@ -115,8 +127,8 @@ int main(int argc, char **argv)
         return 0;
     }
     model = model_arg(argc > 1 ? argv[1] : NULL);
-    for (i = 0; i < 3; i++) {
-        double f = one_run(200000u, model, 0);
+    for (i = 0; i < 5; i++) {
+        double f = one_run(200000u, model, 0, &cpu);
         if (f < 0) {
             fprintf(stderr, "bench_hil: simulator failed\n");
             return 1;
@@ -124,7 +136,11 @@ int main(int argc, char **argv)
         if (f > best) {
             best = f;
         }
+        if (cpu > best_cpu) {
+            best_cpu = cpu;
+        }
     }
     printf("hil_realtime_factor%s: %.0f x\n", model == SIM_ENC_EDGES ? "_edges" : "", best);
+    printf("hil_realtime_factor_cpu%s: %.0f x\n", model == SIM_ENC_EDGES ? "_edges" : "", best_cpu);
     return 0;
 }

@@ -374,6 +374,12 @@ static void track_direction(axis_t *ax)
 
 /* z <- Phi z + Gamma[:, 0] u by columns, two rows per vector operation
  * (GCC/Clang vector extension; lanes do exactly the scalar operations). */
+#if defined(__GNUC__)
+#define AXIS_NOINLINE __attribute__((noinline))
+#else
+#define AXIS_NOINLINE
+#endif
+
 __extension__ typedef double axis_v2 __attribute__((vector_size(16)));
 
 static axis_v2 v2_load(const double *p)
@@ -392,7 +398,23 @@ static void lin_column(axis_v2 *acc, const double *c, double x)
     acc[2] += v2_load(c + 4) * s;
 }
 
-static void lin_update(axis_t *ax, double u)
+/* z unchanged bit for bit (so -0.0 and +0.0 differ, and a NaN never rests) */
+static bool same_state(const double *a, const double *b)
+{
+    uint64_t x[AXIS_NSTATE], y[AXIS_NSTATE];
+    unsigned i;
+    memcpy(x, a, sizeof x);
+    memcpy(y, b, sizeof y);
+    for (i = 0; i < AXIS_NSTATE; i++) {
+        if (x[i] != y[i]) {
+            return false;
+        }
+    }
+    return true;
+}
+
+/* Returns true when z came out bit for bit as it was. */
+static bool lin_update(axis_t *ax, double u)
 {
     enum { R = AXIS_NSTATE + 1 };
     const double *l = &ax->lin[0][0];
@@ -408,10 +430,16 @@ static void lin_update(axis_t *ax, double u)
     lin_column(acc, l + 4 * R, z[4]);
     lin_column(acc, l + 5 * R, u);
     memcpy(out, acc, sizeof acc);
+    if (same_state(out, z)) {
+        return true;
+    }
     memcpy(z, out, sizeof(double) * AXIS_NSTATE);
+    return false;
 }
 
-void axis_substep(axis_t *ax, double u)
+/* The substep with a load torque, friction or backlash (out of line: the
+ * linear substep below does not load what it needs). */
+static AXIS_NOINLINE void substep_general(axis_t *ax, double u)
 {
     const axis_params_t *p = &ax->p;
     double *z = ax->z;
@@ -423,15 +451,6 @@ void axis_substep(axis_t *ax, double u)
 
     in[0] = clampd(u * p->kx, p->vmax) / p->kx;
     ax->v_applied = in[0] * p->kx;
-    if (p->load_torque == 0.0 && p->backlash <= 0.0 && p->coulomb_motor <= 0.0 &&
-        p->coulomb_table <= 0.0) {
-        /* only u acts (T1 = T2 = 0: the same bits as the full update) */
-        lin_update(ax, in[0]);
-        if (p->pitch_n > 0) {
-            track_direction(ax);
-        }
-        return;
-    }
     in[1] = p->load_torque;
     in[2] = 0.0;
     if (p->backlash > 0.0) {
@@ -467,6 +486,31 @@ void axis_substep(axis_t *ax, double u)
     if (p->pitch_n > 0) {
         track_direction(ax);
     }
+}
+
+bool axis_substep(axis_t *ax, double u)
+{
+    const axis_params_t *p = &ax->p;
+    if (p->load_torque == 0.0 && p->backlash <= 0.0 && p->coulomb_motor <= 0.0 &&
+        p->coulomb_table <= 0.0) {
+        /* only u acts (T1 = T2 = 0: the same bits as the full update); at
+         * rest with the same command, z and v_applied stay as they are */
+        uint64_t ub;
+        memcpy(&ub, &u, sizeof ub);
+        if (!ax->rest || ub != ax->rest_u) {
+            double v = clampd(u * p->kx, p->vmax) / p->kx;
+            ax->v_applied = v * p->kx;
+            ax->rest = lin_update(ax, v);
+            ax->rest_u = ub;
+        }
+        if (p->pitch_n > 0) {
+            track_direction(ax);
+        }
+        return ax->rest;
+    }
+    ax->rest = false;
+    substep_general(ax, u);
+    return false;
 }
 
 double axis_encoder_counts(const axis_t *ax)
@@ -520,6 +564,7 @@ void axis_set_position(axis_t *ax, double x)
     ax->z[0] = x / ax->p.l;
     ax->z[2] = x / ax->p.l;
     ax->pitch_turn = x;
+    ax->rest = false;
 }
 
 int64_t axis_ref_reading(axis_t *ax)

@@ -113,6 +113,13 @@ typedef struct {
      * compiler can vectorise. */
     double lin[AXIS_NSTATE + 1][AXIS_NSTATE + 1];
     double z[AXIS_NSTATE];
+    /* rest: the last substep was the linear update (only u acting) and left
+     * z bit for bit as it was, with command rest_u (same bits). That update
+     * is a function of z and u alone, so the same command leaves z as it is
+     * again: axis_substep skips it (an axis standing still, e.g. Z on the
+     * bench circle). Cleared by axis_init and axis_set_position. */
+    bool rest;
+    uint64_t rest_u;   /* the bits of that command (a double) */
     double enc_scale;  /* encoder counts per rad of th1 (cpr / 2 pi)  */
     double v_applied;  /* motor voltage of the last substep, V    */
     int pitch_dir;     /* +1 / -1: direction for the pitch map      */
@@ -140,8 +147,10 @@ void axis_expm(unsigned n, const double *m, double t, double *out);
  * Returns false on invalid parameters (non-positive masses, h <= 0, ...). */
 bool axis_init(axis_t *ax, const axis_params_t *p, double h);
 
-/* Advance one substep with amplifier command u (V). */
-void axis_substep(axis_t *ax, double u);
+/* Advance one substep with amplifier command u (V). Returns true when z is
+ * bit for bit what it was before (an axis at rest: see axis_t.rest), so the
+ * encoder reading without noise is the one of the previous substep. */
+bool axis_substep(axis_t *ax, double u);
 
 /* Motor encoder position in counts (continuous, no noise) and the reading
  * the encoder reports (noise added, still continuous: the caller quantises). */

@@ -820,9 +820,12 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
                 u += S.inj_now[i];
             }
             for (s = 0; s < S.nsub; s++) {
-                axis_substep(&S.ax[i], u);
-                S.edges += qgen_move_to(&S.gen[i], to_qgen(axis_encoder_reading(&S.ax[i])),
-                                        S.t_ns + S.sub_ns[s + 1]);
+                /* z unchanged and no reading noise: the reading is the one
+                 * the generator has (qgen_move_to keeps the last x1) */
+                qgen_pos_t x1 = (axis_substep(&S.ax[i], u) && S.ax[i].p.enc_noise_counts == 0.0)
+                                    ? S.gen[i].x
+                                    : to_qgen(axis_encoder_reading(&S.ax[i]));
+                S.edges += qgen_move_to(&S.gen[i], x1, S.t_ns + S.sub_ns[s + 1]);
             }
             S.table[i] = axis_table_pos(&S.ax[i]);
         }

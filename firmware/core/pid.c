@@ -206,6 +206,9 @@ static void fast_config(pid_loop_t *pid)
     pid->i_max = p->i_max_mv;
     pid->o_max = p->out_max_mv;
     pid->fast = ok;
+    pid->lean = !ok && p->deadband_nm == 0 && pid->cd.m != 0 && pid->alpha_q30 < FX_ONE_Q30 &&
+                coef_mid(pid->cp) && coef_mid(pid->ci) && coef_mid(pid->cd) && coef_mid(pid->cv) &&
+                coef_mid(pid->ca);
 }
 
 static bool gain_ok(q32_32_t g)
@@ -470,11 +473,48 @@ int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel,
     return pid_finish_raw(pid, pterm + integ + dterm + ff + ex, integ);
 }
 
+/* coef_apply for a shift in 2..31 (coef_mid): the same value, no tests */
+static inline int64_t coef_mid_apply(pid_coef_t c, int32_t x)
+{
+    int64_t p = (int64_t)x * c.m;
+    if (PID_COEF_PIECES) {
+        return coef_pieces(p, (unsigned)c.sh);
+    }
+    return (p + ((int64_t)1 << (unsigned)(c.sh - 1))) >> (unsigned)c.sh;
+}
+
+/* The lean general step (pid.h): pid_step_general's operations for
+ * pid->lean and a usual step (deadband 0: edb = e; the D filter on; not
+ * fast: no hand-over, ready stays false). */
+static int32_t step_lean(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
+                         int64_t extra)
+{
+    int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
+                                         : fx_sat_diff32(e, pid->err_nm);
+    int64_t pterm = coef_mid_apply(pid->cp, e);
+    int64_t draw = coef_mid_apply(pid->cd, de);
+    int64_t dterm = pid->dterm + fx_mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
+    int64_t ff = coef_mid_apply(pid->cv, fx_sat32_fast(fx_round_shift64(vel, 2))) +
+                 coef_mid_apply(pid->ca, fx_sat32_fast(fx_round_shift64(acc, 10)));
+    int64_t ex = (extra == 0) ? 0 : fx_clamp_sym64(extra, PID_TERM_LIM);
+    int64_t integ = fx_clamp_sym64(pid->integ + coef_mid_apply(pid->ci, e), pid->i_lim);
+
+    pid->err_nm = e;
+    pid->dterm = dterm;
+    pid->meas_prev = meas;
+    pid->ff = ff;
+    pid->extra = ex;
+    return pid_finish_raw(pid, pterm + integ + dterm + ff + ex, integ);
+}
+
 int32_t pid_step_e(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
                    int64_t extra)
 {
     if (pid_fast_ready(pid)) {
         return pid_step_fast_inline(pid, e, meas, extra, true);
+    }
+    if (pid->lean && pid->enabled && pid->primed && !pid->bumpless && !pid->dq_live) {
+        return step_lean(pid, e, meas, vel, acc, extra);
     }
     return pid_step_general(pid, e, meas, vel, acc, extra);
 }

@@ -165,6 +165,7 @@ typedef struct {
     int32_t deadband;
     bool fast;       /* pid_config: the fast path applies (see Fast path) */
     bool dfilt;      /* fast: D filter on (alpha < 1)                       */
+    bool lean;       /* pid_config: the lean general step applies (below)   */
     uint8_t fp_sh;   /* fast: P = round(e * fp_m * 2^-fp_sh) U (as cp), 2..31 */
     uint8_t fd_sh;   /* fast: Draw_F = round(de * fd_m * 2^-fd_sh), 1..31   */
     uint8_t fi_sh;   /* fast: integrator increment shift (ci.sh, 2..31)     */
@@ -248,7 +249,16 @@ int32_t pid_step_fast(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra);
 int32_t pid_step_fast0(pid_loop_t *pid, int32_t e, pos_nm_t meas);
 /* The general (exact) path, whatever pid->ready says (the oracle of the
  * fast path in tests; pid_step_e uses it when the fast path does not
- * apply). */
+ * apply).
+ *
+ * Lean general step (exact): pid->lean (pid_config: not fast, i.e. with
+ * feed-forward, no deadband, the D filter on, every
+ * coefficient's shift in 2..31) and a usual step (enabled, primed, not
+ * bumpless, the D state not with the fast path): pid_step_e takes the
+ * general path's operations in its order without the tests for the cases
+ * that cannot arise, the same output and state bit for bit (test_pid.c:
+ * test_lean_step_equals_general). The X and Y loops of a circle with
+ * feed-forward take it on every tick (host simulator). */
 int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
                          int64_t extra);
 /* The saturated end of a fast step (out of line: rare). raw: u_raw in U;

@@ -4,6 +4,7 @@
 #include "unity.h"
 
 #include <math.h>
+#include <string.h>
 
 void setUp(void)
 {
@@ -274,6 +275,44 @@ static void test_substep_fast_path_is_bit_exact(void)
     }
 }
 
+/* The rest skip (axis_t.rest): an axis standing still with an unchanged
+ * command is not updated. Against the same axis updated every substep (rest
+ * cleared before each), bit for bit: z, v_applied, and the return value
+ * (z unchanged); commands that break the rest (a tiny one, -0.0, a real
+ * one) and a return to rest. */
+static void test_rest_skip_is_bit_exact(void)
+{
+    axis_params_t p;
+    axis_t a, b;
+    double before[AXIS_NSTATE];
+    unsigned k, skipped = 0;
+    axis_params_lacerda(&p, false);
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-4));
+    axis_set_position(&a, 0.0);
+    b = a;
+    for (k = 0; k < 4000; k++) {
+        double u = 0.0;
+        bool same;
+        if (k >= 100 && k < 110) {
+            u = 1e-300;
+        } else if (k >= 200 && k < 205) {
+            u = -0.0;
+        } else if (k >= 300 && k < 400) {
+            u = 0.5;
+        }
+        memcpy(before, a.z, sizeof before);
+        skipped += a.rest && k != 100 && k != 200 && k != 300 && k != 400;
+        same = axis_substep(&a, u);
+        b.rest = false;
+        (void)axis_substep(&b, u);
+        TEST_ASSERT_EQUAL_MEMORY(b.z, a.z, sizeof a.z);
+        TEST_ASSERT_EQUAL_MEMORY(&b.v_applied, &a.v_applied, sizeof a.v_applied);
+        TEST_ASSERT_TRUE((memcmp(before, a.z, sizeof before) == 0) == same);
+    }
+    TEST_ASSERT_TRUE(skipped > 50);  /* the skip was taken */
+    TEST_ASSERT_TRUE(a.z[0] != 0.0); /* and the 0.5 V moved the axis */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -290,5 +329,6 @@ int main(void)
     RUN_TEST(test_noise_is_deterministic_per_seed);
     RUN_TEST(test_invalid_parameters_refused);
     RUN_TEST(test_substep_fast_path_is_bit_exact);
+    RUN_TEST(test_rest_skip_is_bit_exact);
     return UNITY_END();
 }

@@ -867,6 +867,88 @@ static void test_coef_pieces_equal_wide(void)
     }
 }
 
+/* The lean general step (pid.h): pid_step_e with feed-forward against
+ * pid_step_general on a copy, every output and state field equal after
+ * every step (tolerance 0), D on the error and on the measurement, with
+ * saturation and anti-windup, the extra input, a bumpless gain change and
+ * a reset mid-run (those steps take the general path). */
+static void test_lean_step_equals_general(void)
+{
+    static const double gains[][6] = {
+        /* Kp, Ki, Kd, Kvff, Kaff, tick rate */
+        {1300, 2e4, 2, 16.49, 0.1247, 10000},
+        {1500, 8e3, 5, 16.49, 0.1078, 5000},
+        {40, 100, 0.1, 1, 0.01, 1000},
+        {2e4, 2e6, 0.02, 30, 0.5, 100000},
+    };
+    int lean_steps = 0, sat_steps = 0;
+    size_t g;
+    int d, k;
+
+    for (g = 0; g < sizeof gains / sizeof gains[0]; g++) {
+        for (d = 0; d < 2; d++) {
+            pid_params_t p = params(gains[g][0], gains[g][1], gains[g][2], (uint32_t)gains[g][5]);
+            pid_loop_t a, b;
+            pos_nm_t meas = 0;
+            p.kvff = Q32(gains[g][3]);
+            p.kaff = Q32(gains[g][4]);
+            p.d_on_measurement = d != 0;
+            p.d_tau_us = 200u;
+            p.kt = Q32(10);
+            p.out_max_mv = 10000;
+            p.i_max_mv = 8000;
+            memset(&a, 0, sizeof a);
+            TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &p));
+            TEST_ASSERT_TRUE(a.lean);
+            pid_enable(&a, 0);
+            b = a;
+            for (k = 0; k < 20000; k++) {
+                int64_t r = rnd64();
+                int sel = (int)((uint64_t)r >> 60);
+                pos_nm_t ref = meas + ((sel < 12) ? (r >> 48) : (sel < 15) ? (r >> 30) : (r >> 4));
+                pos_nm_t next = meas + (rnd64() >> 50);
+                /* up to about 0.5 m/s and 1 m/s^2, now and then anything */
+                int64_t vel = (sel == 15) ? rnd64() >> 8 : rnd64() >> (35 + (sel & 3));
+                int64_t acc = (sel == 14) ? rnd64() >> 8 : rnd64() >> (33 + (sel & 3));
+                int64_t extra = (sel < 8) ? 0 : rnd64() >> (22 + 2 * (sel - 8));
+                int32_t e = fx_sat_diff32(ref, next);
+                int32_t u, ub;
+                lean_steps += a.lean && a.enabled && a.primed && !a.bumpless && !a.dq_live;
+                if (k == 7000) {
+                    TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &p));
+                    TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&b, &p));
+                }
+                if (k == 14000) {
+                    pid_reset(&a, false);
+                    pid_reset(&b, false);
+                }
+                u = pid_step_e(&a, e, next, vel, acc, extra);
+                ub = pid_step_general(&b, e, next, vel, acc, extra);
+                sat_steps += a.saturated;
+                TEST_ASSERT_EQUAL_INT32(ub, u);
+                TEST_ASSERT_EQUAL_INT32(b.out_mv, a.out_mv);
+                TEST_ASSERT_EQUAL_INT64(b.out, a.out);
+                TEST_ASSERT_EQUAL_INT64(b.integ, a.integ);
+                TEST_ASSERT_EQUAL_INT64(b.dterm, a.dterm);
+                TEST_ASSERT_EQUAL_INT64(b.ff, a.ff);
+                TEST_ASSERT_EQUAL_INT64(b.extra, a.extra);
+                TEST_ASSERT_EQUAL_INT32(b.err_nm, a.err_nm);
+                TEST_ASSERT_EQUAL_INT32(b.meas_prev, a.meas_prev);
+                TEST_ASSERT_EQUAL(b.saturated, a.saturated);
+                TEST_ASSERT_EQUAL_UINT32(b.sat_ticks, a.sat_ticks);
+                TEST_ASSERT_EQUAL_UINT32(b.sat_total, a.sat_total);
+                TEST_ASSERT_EQUAL(b.ready, a.ready);
+                TEST_ASSERT_EQUAL(b.primed, a.primed);
+                TEST_ASSERT_EQUAL(b.bumpless, a.bumpless);
+                TEST_ASSERT_EQUAL(b.dq_live, a.dq_live);
+                meas = next;
+            }
+        }
+    }
+    TEST_ASSERT_TRUE(lean_steps > 150000);                    /* the lean step ran */
+    TEST_ASSERT_TRUE(sat_steps > 1000 && sat_steps < 100000); /* some saturated */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -893,6 +975,7 @@ int main(void)
     RUN_TEST(test_ready_cache_follows_inputs);
     RUN_TEST(test_fast_after_feed_forward_config);
     RUN_TEST(test_fast_path_matches_general);
+    RUN_TEST(test_lean_step_equals_general);
     RUN_TEST(test_d_filter_product_exact);
     RUN_TEST(test_d_filter_bound_at_the_longest_time_constant);
     return UNITY_END();
