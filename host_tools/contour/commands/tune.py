@@ -46,7 +46,13 @@ def register(sub) -> None:
     )
     p.add_argument("--windows", type=int, default=16, help="PRBS periods recorded (--port)")
     p.add_argument("--json", action="store_true", help="JSON on stdout")
-    p.add_argument("--method", default="robust", choices=("robust", "zn"))
+    p.add_argument("--method", default="robust", choices=("robust", "zn", "simplex"))
+    p.add_argument(
+        "--no-friction-ff",
+        dest="friction_ff",
+        action="store_false",
+        help="with --apply, do not write the identified Coulomb friction as friction_ff_mv",
+    )
     p.add_argument("--ms-target", type=float, default=1.6, help="sensitivity peak (1.1 .. 3)")
     p.add_argument(
         "--amplitude",
@@ -123,9 +129,13 @@ def _result(ident, t, stops, before: float, after: float | None) -> dict:
     }
 
 
-def _identify_and_tune(ax: str, rec, tick_hz: float, args, d_tau: float):
+def _identify_and_tune(ax: str, rec, tick_hz: float, args, d_tau: float, friction=None):
+    """identify and tune; `friction` (f, c, u0) from friction legs measured
+    apart (the drive's), set on the identification before the tuning."""
     try:
         ident = identify.identify(rec)
+        if friction is not None:
+            ident.friction_v, ident.viscous_v_s_m, ident.load_v = friction
         return ident, tune.tune(ident, tick_hz, args.method, args.ms_target, d_tau)
     except (identify.IdentifyError, tune.TuneError) as e:
         raise UserError(f"axis {ax.upper()}: {e}") from e
@@ -139,7 +149,7 @@ def _cec(idents: dict, tuned: dict, tick_hz: float) -> tune.CecTuned | None:
     for ax in list(idents)[:2]:
         loops = [tune.model_loop(idents[ax], tick_hz)]
         if idents[ax].fit.model == "two_inertia":
-            loops.append(tune.model_loop(idents[ax], tick_hz, zeta=tune.LIGHT_ZETA))
+            loops.append(tune.model_loop(idents[ax], tick_hz, zeta=tune.worst_zeta(idents[ax])))
         axes[ax] = (loops, tuned[ax].gains)
     return tune.tune_cec(axes)
 
@@ -246,17 +256,20 @@ def run_port(args) -> dict:
         plan = drive_experiment.PrbsPlan(
             tick_hz=float(info["tick_hz"]), amplitude_v=args.amplitude, windows=args.windows
         )
-        idents, tuned, stops = {}, {}, {}
+        idents, tuned, stops, noise = {}, {}, {}, {}
         for ax in axes:
             i = AXES.index(ax)
             try:
                 rec, stops[ax] = drive_experiment.run_bounded(client, i, plan, limits)
             except experiment.ExperimentAborted as e:
                 raise UserError(f"axis {ax.upper()}: {e}") from e
-            legs = drive_experiment.friction_legs(client, i, travel_mm=args.travel_mm)
-            idents[ax], tuned[ax] = _identify_and_tune(ax, rec, plan.tick_hz, args, args.d_tau)
-            f, c, u0 = identify.friction_fit(legs)
-            idents[ax].friction_v, idents[ax].viscous_v_s_m, idents[ax].load_v = f, c, u0
+            st = {}
+            legs = drive_experiment.friction_legs(client, i, travel_mm=args.travel_mm, stats=st)
+            noise[ax] = st.get("vel_noise_m_s")
+            friction = identify.friction_fit(legs)
+            idents[ax], tuned[ax] = _identify_and_tune(
+                ax, rec, plan.tick_hz, args, args.d_tau, friction
+            )
         cec = _cec(idents, tuned, plan.tick_hz)
         if cec is not None:
             out["cec"] = cec.as_dict()
@@ -274,6 +287,19 @@ def run_port(args) -> dict:
                 r[ax]["gains_written"] = drive_experiment.apply_gains(client, i, tuned[ax].gains)
             if cec is not None:
                 out["cec"]["written"] = drive_experiment.apply_cec_gains(client, cec)
+            if args.friction_ff:
+                fr = {AXES.index(a): tuned[a].gains.get("friction_ff_v") for a in axes}
+                known = [v for v in noise.values() if v is not None]
+                band = drive_experiment.friction_band(
+                    max(known) if known else None, drive_experiment.FRICTION_SPEEDS_MM_S[0] * 1e-3
+                )
+                out["friction_ff"] = {
+                    "band_mm_s": round(band * 1e3, 3),
+                    "vel_noise_mm_s": {
+                        a.upper(): None if v is None else round(v * 1e3, 3) for a, v in noise.items()
+                    },
+                    "written": drive_experiment.apply_friction(client, fr, band),
+                }
             for ax in axes:
                 after[ax] = drive_experiment.verify(client, AXES.index(ax))
             if pair is not None:
