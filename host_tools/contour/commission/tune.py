@@ -93,7 +93,7 @@ def worst_zeta(ident: idf.Identification) -> dict | None:
     for k in ("zr", "za"):
         v = float(ident.fit.params[k])
         ci = ident.fit.ci95.get(k)
-        tight = ci is not None and math.isfinite(ci) and 0 < v and ci < v / 2
+        tight = ci is not None and math.isfinite(ci) and v > 0 and ci < v / 2
         out[k] = max(LIGHT_ZETA, v / ZETA_BIAS) if tight else LIGHT_ZETA
         out[k] = min(out[k], max(v, LIGHT_ZETA))
     return out
