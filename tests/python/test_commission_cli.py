@@ -52,6 +52,17 @@ def test_tune_json(detuned, capsys):
     assert v["max_following_error_um_after"] * 2 <= v["max_following_error_um_before"]
 
 
+def test_tune_simplex_json(detuned, capsys):
+    """--method simplex: the thesis's search, held to the same margins."""
+    rc = cli.main(["tune", "--sim", str(detuned), "--axis", "X", "--method", "simplex", "--json"])
+    assert rc == 0
+    r = json.loads(capsys.readouterr().out)["axes"]["X"]
+    assert r["method"] == "simplex" and r["stable"]
+    assert r["sensitivity_peak"] <= 1.6 * 1.02 and r["phase_margin_deg"] >= 30
+    v = r["verify"]
+    assert v["max_following_error_um_after"] * 2 <= v["max_following_error_um_before"]
+
+
 @pytest.mark.parametrize(
     "extra, code, text",
     [

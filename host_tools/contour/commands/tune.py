@@ -46,7 +46,14 @@ def register(sub) -> None:
     )
     p.add_argument("--windows", type=int, default=16, help="PRBS periods recorded (--port)")
     p.add_argument("--json", action="store_true", help="JSON on stdout")
-    p.add_argument("--method", default="robust", choices=("robust", "zn"))
+    p.add_argument("--method", default="robust", choices=("robust", "zn", "simplex"))
+    p.add_argument(
+        "--friction-ff",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="with --apply, the identified Coulomb friction as friction_ff_mv: on, off "
+        "(parameters untouched) or auto (verified with and without, the better kept)",
+    )
     p.add_argument("--ms-target", type=float, default=1.6, help="sensitivity peak (1.1 .. 3)")
     p.add_argument(
         "--amplitude",
@@ -123,9 +130,13 @@ def _result(ident, t, stops, before: float, after: float | None) -> dict:
     }
 
 
-def _identify_and_tune(ax: str, rec, tick_hz: float, args, d_tau: float):
+def _identify_and_tune(ax: str, rec, tick_hz: float, args, d_tau: float, friction=None):
+    """identify and tune; `friction` (f, c, u0) from friction legs measured
+    apart (the drive's), set on the identification before the tuning."""
     try:
         ident = identify.identify(rec)
+        if friction is not None:
+            ident.friction_v, ident.viscous_v_s_m, ident.load_v = friction
         return ident, tune.tune(ident, tick_hz, args.method, args.ms_target, d_tau)
     except (identify.IdentifyError, tune.TuneError) as e:
         raise UserError(f"axis {ax.upper()}: {e}") from e
@@ -139,7 +150,7 @@ def _cec(idents: dict, tuned: dict, tick_hz: float) -> tune.CecTuned | None:
     for ax in list(idents)[:2]:
         loops = [tune.model_loop(idents[ax], tick_hz)]
         if idents[ax].fit.model == "two_inertia":
-            loops.append(tune.model_loop(idents[ax], tick_hz, zeta=tune.LIGHT_ZETA))
+            loops.append(tune.model_loop(idents[ax], tick_hz, zeta=tune.worst_zeta(idents[ax])))
         axes[ax] = (loops, tuned[ax].gains)
     return tune.tune_cec(axes)
 
@@ -236,6 +247,61 @@ def _try_contour(client, pair) -> dict:
         return {"error": str(e)}
 
 
+def _score(after: dict, c_after: dict | None) -> tuple:
+    """What the friction decision compares (lower is better): the square's
+    rms and max contour error when it was scored, else the sum of the
+    lines' max following errors."""
+    if c_after is not None and "error" not in c_after:
+        return (c_after["rms_contour_error_um"], c_after["max_contour_error_um"])
+    return (sum(a["max_following_error_um"] for a in after.values()),)
+
+
+def _apply_friction_and_verify(client, args, axes, pair, tuned, noise, out):
+    """After the gains: the friction feed-forward as --friction-ff says
+    (on: the identified Coulomb term as friction_ff_mv and the band;
+    off: the drive's friction parameters untouched; auto: both on and 0,
+    each verified, and the better kept (_score): the drive's friction
+    feed-forward follows the reference velocity, so it drops out as the
+    reference stops while the axis still moves, and the axis stops
+    F / Kp short until the integral takes over) and the verification jobs
+    after: (lines {axis: report}, square report or None)."""
+
+    def verify_all():
+        a = {ax: drive_experiment.verify(client, AXES.index(ax)) for ax in axes}
+        return a, (_try_contour(client, pair) if pair is not None else None)
+
+    if args.friction_ff == "off":
+        return verify_all()
+    fr = {AXES.index(a): tuned[a].gains.get("friction_ff_v") for a in axes}
+    known = [v for v in noise.values() if v is not None]
+    band = drive_experiment.friction_band(
+        max(known) if known else None, drive_experiment.FRICTION_SPEEDS_MM_S[0] * 1e-3
+    )
+    rep = {
+        "mode": args.friction_ff,
+        "identified_v": {a.upper(): tuned[a].gains.get("friction_ff_v") for a in axes},
+        "band_mm_s": round(band * 1e3, 3),
+        "vel_noise_mm_s": {
+            a.upper(): None if v is None else round(v * 1e3, 3) for a, v in noise.items()
+        },
+    }
+    out["friction_ff"] = rep
+    rep["written"] = drive_experiment.apply_friction(client, fr, band)
+    on = verify_all()
+    if args.friction_ff == "on" or rep["written"] is None:
+        rep["kept"] = rep["written"] is not None
+        return on
+    drive_experiment.apply_friction(client, {i: 0.0 for i in fr}, band)
+    off = verify_all()
+    rep["score_on"], rep["score_off"] = _score(*on), _score(*off)
+    rep["kept"] = rep["score_on"] <= rep["score_off"]
+    if rep["kept"]:
+        rep["written"] = drive_experiment.apply_friction(client, fr, band)
+        return on
+    rep["written"] = drive_experiment.apply_friction(client, {i: 0.0 for i in fr}, band)
+    return off
+
+
 def run_port(args) -> dict:
     limits = _limits(args)
     with connect_from_args(args) as client:
@@ -246,17 +312,20 @@ def run_port(args) -> dict:
         plan = drive_experiment.PrbsPlan(
             tick_hz=float(info["tick_hz"]), amplitude_v=args.amplitude, windows=args.windows
         )
-        idents, tuned, stops = {}, {}, {}
+        idents, tuned, stops, noise = {}, {}, {}, {}
         for ax in axes:
             i = AXES.index(ax)
             try:
                 rec, stops[ax] = drive_experiment.run_bounded(client, i, plan, limits)
             except experiment.ExperimentAborted as e:
                 raise UserError(f"axis {ax.upper()}: {e}") from e
-            legs = drive_experiment.friction_legs(client, i, travel_mm=args.travel_mm)
-            idents[ax], tuned[ax] = _identify_and_tune(ax, rec, plan.tick_hz, args, args.d_tau)
-            f, c, u0 = identify.friction_fit(legs)
-            idents[ax].friction_v, idents[ax].viscous_v_s_m, idents[ax].load_v = f, c, u0
+            st = {}
+            legs = drive_experiment.friction_legs(client, i, travel_mm=args.travel_mm, stats=st)
+            noise[ax] = st.get("vel_noise_m_s")
+            friction = identify.friction_fit(legs)
+            idents[ax], tuned[ax] = _identify_and_tune(
+                ax, rec, plan.tick_hz, args, args.d_tau, friction
+            )
         cec = _cec(idents, tuned, plan.tick_hz)
         if cec is not None:
             out["cec"] = cec.as_dict()
@@ -274,10 +343,8 @@ def run_port(args) -> dict:
                 r[ax]["gains_written"] = drive_experiment.apply_gains(client, i, tuned[ax].gains)
             if cec is not None:
                 out["cec"]["written"] = drive_experiment.apply_cec_gains(client, cec)
-            for ax in axes:
-                after[ax] = drive_experiment.verify(client, AXES.index(ax))
+            after, c_after = _apply_friction_and_verify(client, args, axes, pair, tuned, noise, out)
             if pair is not None:
-                c_after = _try_contour(client, pair)
                 if "error" in c_before or "error" in c_after:
                     out["contour_verify"] = {"error": c_before.get("error") or c_after["error"]}
                 else:

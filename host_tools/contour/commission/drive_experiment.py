@@ -204,15 +204,26 @@ def run_bounded(client, axis: int, plan: PrbsPlan, limits: Limits, tries: int = 
 # ---- friction ---------------------------------------------------------------------
 
 
+FRICTION_SPEEDS_MM_S = (5.0, 10.0)
+
+
 def friction_legs(
-    client, axis: int, speeds_mm_s=(5.0, 10.0), leg_s: float = 0.5, travel_mm: float = 10.0
+    client,
+    axis: int,
+    speeds_mm_s=FRICTION_SPEEDS_MM_S,
+    leg_s: float = 0.5,
+    travel_mm: float = 10.0,
+    stats: dict | None = None,
 ) -> list:
     """Constant-velocity legs for the friction estimate on the drive: per
     speed, lines out and back twice (+v, -v, -v, +v: ends where it started,
     within +-travel_mm) streamed as a job, the motor command and the
     position from the drive's telemetry. Per run of cycles whose reference
     velocity is within 2 % of a leg's, the mean command over its second
-    half (past the transient): [(v m/s, u V)] for identify.friction_fit."""
+    half (past the transient): [(v m/s, u V)] for identify.friction_fit.
+    `stats` (a dict) receives vel_noise_m_s: the rms of the measured
+    velocity about the reference over those halves (encoder noise and the
+    loop's hunting, what friction_band reads)."""
     a = AXIS_NAMES[axis].upper()
     lines = ["G21 G91"]
     for v in speeds_mm_s:
@@ -229,7 +240,10 @@ def friction_legs(
     u = np.array([c[keys[2]] for c in cyc], dtype=float) * 1e-3
     dt = np.diff(seq) * res["telem_period_s"]
     vel = np.diff(ref) / np.maximum(dt, 1e-9)  # over the interval ending at cycle i + 1
+    pos = np.array([c[keys[0]] for c in cyc], dtype=float) * 1e-9
+    vmeas = np.diff(pos) / np.maximum(dt, 1e-9)
     legs = []
+    dev = []
     label = np.zeros(vel.size)
     for v in speeds_mm_s:
         for s in (1, -1):
@@ -241,7 +255,10 @@ def friction_legs(
             j += 1
         if label[i] != 0 and j - i >= 6:
             legs.append((float(label[i]), float(u[1 + i + (j - i) // 2 : 1 + j].mean())))
+            dev.append(vmeas[i + (j - i) // 2 : j] - vel[i + (j - i) // 2 : j])
         i = j
+    if stats is not None and dev:
+        stats["vel_noise_m_s"] = float(np.sqrt(np.mean(np.concatenate(dev) ** 2)))
     return legs
 
 
@@ -275,6 +292,52 @@ def apply_gains(client, axis: int, gains: dict) -> dict:
     finally:
         client.enable(True)
     return read_gains(client, axis)
+
+
+FRICTION_BAND_MIN_M_S = 1e-4  # 0.1 mm/s
+FRICTION_BAND_NOISE = 4.0  # band = this x the legs' velocity noise
+
+
+def friction_band(vel_noise_m_s: float | None, slowest_leg_m_s: float) -> float:
+    """friction_ff_band (m/s) from the friction legs: FRICTION_BAND_NOISE x
+    the rms of the measured velocity about the reference (below it the
+    record cannot tell the axis's direction, so the full Coulomb term would
+    be a guess), within 0.1 mm/s .. half the slowest leg (where the legs
+    showed the whole Coulomb friction). None (no legs): the slowest leg /
+    5, the drive's default 1 mm/s for legs at 5 mm/s."""
+    hi = slowest_leg_m_s / 2
+    if vel_noise_m_s is None:
+        return slowest_leg_m_s / 5
+    return float(min(hi, max(FRICTION_BAND_MIN_M_S, FRICTION_BAND_NOISE * vel_noise_m_s)))
+
+
+def read_friction(client, axis: int) -> dict:
+    a = AXIS_NAMES[axis]
+    return {
+        "friction_ff_v": client.get_param(f"friction_ff_mv.{a}") / 1000.0,
+        "friction_ff_band_m_s": client.get_param("friction_ff_band") * 1e-9,
+    }
+
+
+def apply_friction(client, frictions: dict, band_m_s: float) -> dict | None:
+    """Write the identified Coulomb friction as friction_ff_mv.<axis>
+    ({axis index: volts}; negative or unknown: 0, off) and the band
+    friction_ff_band (one for all axes), save as apply_gains does; what
+    the drive holds per axis, or None on a drive without the parameters."""
+    try:
+        client.get_param("friction_ff_band")
+    except (DriveError, UserError, KeyError, ValueError):
+        return None
+    client.set_param("friction_ff_band", max(1, round(band_m_s * 1e9)))
+    for axis, f in frictions.items():
+        mv = 0 if f is None or not f > 0 else min(100000, round(f * 1000))
+        client.set_param(f"friction_ff_mv.{AXIS_NAMES[axis]}", mv)
+    client.enable(False)
+    try:
+        client.request("param_save")
+    finally:
+        client.enable(True)
+    return {AXIS_NAMES[a].upper(): read_friction(client, a) for a in frictions}
 
 
 CEC_PARAMS = {"cec_kp": "kp", "cec_ki": "ki", "cec_kd": "kd"}  # q32.32, as the PID's
