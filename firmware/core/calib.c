@@ -74,6 +74,9 @@ static struct {
     uint16_t s_left;           /* tick while s_active                    */
     uint16_t s_phase;          /* tick while s_active                    */
     pos_nm_t s_target;         /* main                                   */
+    pos_nm_t s_xtarget;        /* main: the cross axis's held position   */
+    uint8_t s_cross;           /* main: the cross axis, 0xFF: none       */
+    uint8_t s_flags;           /* main: the leg's CALIB_SAMPLE_* (no fault) */
     /* compensation */
     comp_table_t tab[CORE_AXES][2];
     uint8_t act[CORE_AXES]; /* index of the active buffer, 0xFF: none */
@@ -293,14 +296,19 @@ static void calib_tick_work(const drive_status_t *st, const int64_t vel_ref[CORE
         s->seq = seq;
         s->point = cb.leg_point;
         s->cycle = cb.leg_cycle;
-        s->flags = (uint8_t)((cb.leg_dir < 0 ? CALIB_SAMPLE_NEG : 0u) |
-                             ((cb.flags & CALIB_FLAG_HOST_REFERENCE) ? CALIB_SAMPLE_NO_REF : 0u) |
-                             (st->faults != 0u ? CALIB_SAMPLE_FAULT : 0u));
+        uint8_t c = cb.s_cross;
+        s->flags = (uint8_t)(cb.s_flags | (st->faults != 0u ? CALIB_SAMPLE_FAULT : 0u));
         s->enc = fx_sat_diff32(st->pos_raw[a], cb.s_target);
         s->comp = fx_sat_diff32(st->pos[a], cb.s_target);
-        s->ref = (cb.flags & CALIB_FLAG_HOST_REFERENCE)
-                     ? 0
-                     : fx_sat_diff32(st->refscale[a], cb.s_target);
+        s->ref =
+            (cb.s_flags & CALIB_SAMPLE_NO_REF) ? 0 : fx_sat_diff32(st->refscale[a], cb.s_target);
+        if (c < CORE_AXES) {
+            s->xenc = fx_sat_diff32(st->pos_raw[c], cb.s_xtarget);
+            s->xcomp = fx_sat_diff32(st->pos[c], cb.s_xtarget);
+            s->xref = fx_sat_diff32(st->refscale[c], cb.s_xtarget);
+        } else {
+            s->xenc = s->xcomp = s->xref = 0;
+        }
         cb.seq_next = seq + 1u;
     }
     if (--cb.s_left == 0u) {
@@ -394,6 +402,23 @@ static void leg_finished(void)
     leg_of(cb.leg);
 }
 
+/* The sample's fixed flags and the cross axis of the leg (calib.h): the
+ * other XY axis when it has a reference scale, held where it is now. */
+static void arm_cross(const drive_status_t *st)
+{
+    unsigned c = cb.axis == 0u ? 1u : (cb.axis == 1u ? 0u : 0xFFu);
+    bool host = (cb.flags & CALIB_FLAG_HOST_REFERENCE) != 0u;
+    uint8_t f =
+        (uint8_t)((cb.leg_dir < 0 ? CALIB_SAMPLE_NEG : 0u) | (host ? CALIB_SAMPLE_NO_REF : 0u));
+    if (host || c >= CORE_AXES || !drive_has_refscale(c)) {
+        f |= CALIB_SAMPLE_NO_XREF;
+        c = 0xFFu;
+    }
+    cb.s_cross = (uint8_t)c;
+    cb.s_xtarget = c < CORE_AXES ? st->ref[c] : 0;
+    cb.s_flags = f;
+}
+
 void calib_host_gone(uint8_t reason)
 {
     if (cb.state == CALIB_RUNNING) {
@@ -459,6 +484,7 @@ void calib_poll(void)
         break;
     case PH_ROOM:
         if (CALIB_RING - ring_used() >= cb.samples) {
+            arm_cross(&st);
             cb.s_target = t;
             cb.s_left = cb.samples;
             cb.s_phase = 0u;
@@ -494,6 +520,9 @@ void calib_sample_encode(const calib_sample_t *s, uint8_t *b)
     proto_put_le(b + 8, (uint32_t)s->enc, 4u);
     proto_put_le(b + 12, (uint32_t)s->comp, 4u);
     proto_put_le(b + 16, (uint32_t)s->ref, 4u);
+    proto_put_le(b + 20, (uint32_t)s->xenc, 4u);
+    proto_put_le(b + 24, (uint32_t)s->xcomp, 4u);
+    proto_put_le(b + 28, (uint32_t)s->xref, 4u);
 }
 
 /* ---- protocol ----------------------------------------------------------------------------------
