@@ -333,7 +333,10 @@ def test_grid_takes_the_cross_coordinate_from_the_same_stop():
     cc = grid.cross_check(m)
     assert cc["y_max_um"] == pytest.approx(0.2) and cc["x_max_um"] == pytest.approx(0.0)
     assert cc["y_compared"] == 4 * len(g.xs) * len(g.ys)
-    # the node's systematic error pools both readings of the coordinate
+    # per node: the positioning reading (the column's own Y, 0.1 um x i
+    # off) and the same coordinate read across the row at its stops
     n = next(r for r in stats if (r["x_mm"], r["y_mm"]) == (20.0, 5.0))
-    assert n["y_systematic_um"] == pytest.approx(100 + 7 - 6 + 0.1)
+    assert n["y_systematic_um"] == pytest.approx(100 + 7 - 6 + 0.2)
+    assert n["y_cross_systematic_um"] == pytest.approx(100 + 7 - 6)
     assert n["x_systematic_um"] == pytest.approx(21.0)
+    assert n["x_cross_systematic_um"] == pytest.approx(21.0)

@@ -19,13 +19,17 @@ calib.h), so every stop of a row gives X's error (positioning) and Y's
 (straightness), every stop of a column Y's and X's. Error = encoder -
 reference, mm here (um in reports).
 
-Per node and coordinate (the thesis's measures, analysis.py), from all
-the readings of that coordinate at the node (its own line's and the
-crossing line's cross readings, with the same directions of approach):
-systematic = mean of the four direction combinations; hysteresis = |mean
-approached moving + - mean approached moving -| along the coordinate's own
-axis; random 95 % = 2 x mean of the standard deviations of the two
-directions. Per line, ISO 230-2 figures (E, B, R, A, M; iso230_2 below) of
+Per node and coordinate (the thesis's measures, analysis.py), from the
+readings of the line along that coordinate (positioning: the axis has just
+approached the node): systematic = mean of the four direction
+combinations; hysteresis = |mean approached moving + - mean approached
+moving -| along the coordinate's own axis; random 95 % = 2 x mean of the
+standard deviations of the two directions; plus <c>_cross_systematic_um,
+the same coordinate's systematic error as read across the crossing line
+(its axis held while the other one travelled). The map is made from the
+positioning readings: on the simulated table the held axis's readings
+differ from them by up to a few um (docs/calibration.md, "Cross-check").
+Per line, ISO 230-2 figures (E, B, R, A, M; iso230_2 below) of
 the positioning along the line, and the straightness (range along it of
 the cross coordinate's systematic error measured on that line).
 
@@ -127,10 +131,6 @@ class GridMeasurement:
     reads_repeated: int = 0
     points_repeated: int = 0
     simulated_s: float = 0.0
-
-    def at(self, key: tuple) -> list:
-        """All readings of (coord, ix, iy, own_dir, cross_dir), mm."""
-        return self.readings.get(key, []) + self.cross.get(key, [])
 
 
 class GridRunner:
@@ -234,6 +234,13 @@ def _mean_std(v: list) -> tuple:
     return statistics.fmean(v), (statistics.stdev(v) if len(v) > 1 else 0.0)
 
 
+def _systematic_um(src: dict, c: int, ix: int, iy: int) -> float:
+    """Mean of the four direction combinations of src, um."""
+    return 1000 * statistics.fmean(
+        statistics.fmean(src[(c, ix, iy, d, s)]) for d in (1, -1) for s in (1, -1)
+    )
+
+
 def node_stats(m: GridMeasurement) -> list:
     """Per node and coordinate: the thesis's measures, um."""
     out = []
@@ -242,7 +249,9 @@ def node_stats(m: GridMeasurement) -> list:
         for ix, x in enumerate(g.xs):
             row = {"x_mm": x, "y_mm": y}
             for c in (0, 1):
-                combos = {(d, s): m.at((c, ix, iy, d, s)) for d in (1, -1) for s in (1, -1)}
+                combos = {
+                    (d, s): m.readings.get((c, ix, iy, d, s), []) for d in (1, -1) for s in (1, -1)
+                }
                 if any(len(v) == 0 for v in combos.values()):
                     raise UserError(f"node ({x:g}, {y:g}) mm: {AXES[c]} not measured both ways")
                 means = {k: statistics.fmean(v) for k, v in combos.items()}
@@ -257,6 +266,8 @@ def node_stats(m: GridMeasurement) -> list:
                 row[f"{a}_mean_pos_um"] = 1000 * mp
                 row[f"{a}_mean_neg_um"] = 1000 * mn
                 row[f"{a}_n"] = len(pos) + len(neg)
+                if all((c, ix, iy, d, s) in m.cross for d in (1, -1) for s in (1, -1)):
+                    row[f"{a}_cross_systematic_um"] = _systematic_um(m.cross, c, ix, iy)
             out.append(row)
     return out
 
@@ -287,13 +298,6 @@ def iso230_2(dev_up: list, dev_down: list) -> dict:
         "A_um": k * (hi - lo),
         "M_um": k * (max(bar) - min(bar)),
     }
-
-
-def _systematic_um(src: dict, c: int, ix: int, iy: int) -> float:
-    """Mean of the four direction combinations of src, um."""
-    return 1000 * statistics.fmean(
-        statistics.fmean(src[(c, ix, iy, d, s)]) for d in (1, -1) for s in (1, -1)
-    )
 
 
 def line_figures(m: GridMeasurement, stats: list) -> list:
@@ -357,11 +361,10 @@ def corrections(m: GridMeasurement) -> np.ndarray:
     and combination of directions (0: moving +)."""
     g = m.grid
     corr = np.zeros((2, 2, 2, len(g.ys), len(g.xs)))
-    for k in set(m.readings) | set(m.cross):
-        c, ix, iy, d, s = k
+    for (c, ix, iy, d, s), v in m.readings.items():
         sx = d if c == 0 else s  # direction of X
         sy = s if c == 0 else d  # direction of Y
-        corr[c, 0 if sx > 0 else 1, 0 if sy > 0 else 1, iy, ix] = -1000 * statistics.fmean(m.at(k))
+        corr[c, 0 if sx > 0 else 1, 0 if sy > 0 else 1, iy, ix] = -1000 * statistics.fmean(v)
     return corr
 
 

@@ -35,6 +35,7 @@ from contour.link.client import DriveError
 SAMPLE = struct.Struct("<IHBBiiiiii")
 FLAG_NEG, FLAG_NO_REF, FLAG_FAULT, FLAG_NO_XREF = 1, 2, 4, 8
 READ_MAX = 7  # CALIB_READ_MAX
+SAMPLE_BYTES_V3 = 20  # protocol 3: no cross axis
 CHUNK = 224
 COMMIT_TIMEOUT_S = 5.0  # comp_commit answers after the flash write (erase: up to 2 s)
 
@@ -185,17 +186,13 @@ class Calibrator:
                     return [("lost", oldest)]
             raise
         data, n = r["data"], r["count"]
-        if (
-            n > 0
-            and len(data) % n == 0
-            and len(data) // n != SAMPLE.size
-            and (zlib.crc32(data) == r["crc"])
-        ):
-            # an intact reply in another layout: not a transmission error
+        if n > 0 and len(data) == SAMPLE_BYTES_V3 * n and zlib.crc32(data) == r["crc"]:
+            # an intact reply in the layout before the cross axis: not a
+            # transmission error (session_open refuses such a drive first)
             raise UserError(
-                f"the drive sends calibration samples of {len(data) // n} bytes, this host"
-                f" reads {SAMPLE.size} (protocol {pg.PROTOCOL_VERSION}): update the host"
-                " or the drive's firmware (contour flash)"
+                f"the drive sends calibration samples of {SAMPLE_BYTES_V3} bytes (protocol 3),"
+                f" this host reads {SAMPLE.size} (protocol {pg.PROTOCOL_VERSION}):"
+                " update the drive's firmware (contour flash)"
             )
         if (
             r["from_seq"] != next_seq

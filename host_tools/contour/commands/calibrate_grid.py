@@ -143,6 +143,8 @@ def cmd_grid(args) -> int:
             report["verify_grid"] = {"x_mm": vg.xs, "y_mm": vg.ys}
             report["residual_nodes"] = residual_stats
             report["residual_um"] = grid.worst(residual_stats, "systematic_um")
+            # the same coordinates read across the crossing lines (held axis)
+            report["residual_cross_um"] = grid.worst(residual_stats, "cross_systematic_um")
         if args.map_out:
             map2d.write_csv(m2, args.map_out)
         report["frames_repeated_total"] = getattr(client, "retried", 0)
