@@ -209,6 +209,19 @@ def test_cli_grid_end_to_end(tmp_path, capsys):
     # +98, ..., -65 um at X = -60, 0, +30): the columns at -30 and +30 differ
     # by about 110 um, which a 1-D calibration cannot see
     assert nodes[(-30.0, 0.0)]["y_systematic_um"] - nodes[(30.0, 0.0)]["y_systematic_um"] > 80
+    # ... and the row at Y = 0 sees it itself: Y read at its own stops
+    # (the sample's cross axis), agreeing with the columns within the noise
+    # of 60 readings (short lines: no held-axis direction flips, docs)
+    assert (
+        nodes[(-30.0, 0.0)]["y_cross_systematic_um"] - nodes[(30.0, 0.0)]["y_cross_systematic_um"]
+        > 80
+    )
+    cc = rep["cross_check"]
+    assert cc["x_compared"] == cc["y_compared"] == 4 * 9
+    assert cc["x_systematic_max_um"] < 3.0 and cc["y_systematic_max_um"] < 3.0
+    row0 = next(ln for ln in rep["lines"] if ln["line"] == "X at Y = 0 mm")
+    assert row0["straightness_um"] > 80
+    assert abs(row0["straightness_um"] - row0["straightness_crossing_um"]) < 3.0
     assert rep["before_um"] > 50
     assert len(rep["lines"]) == 6 and all("E_um" in ln for ln in rep["lines"])
     assert rep["applied"]["active"] == 1 and rep["applied"]["version"] == 2  # two passes
@@ -217,6 +230,7 @@ def test_cli_grid_end_to_end(tmp_path, capsys):
     # a 30 mm grid does not follow the field's 15 mm knots exactly, and 60
     # readings leave ~1 um of noise: well below the error before all the same
     assert rep["residual_um"] < 4.0
+    assert "residual_cross_um" in rep
     assert out.read_text().startswith("x_mm,y_mm,")
     assert map2d.read_csv(str(mp)).nx == 3
     assert png.stat().st_size > 10000
