@@ -3,6 +3,7 @@
  * calib.h).
  */
 #include "calib.h"
+#include "calib_int.h"
 
 #include "comp_store.h"
 #include "excite.h"
@@ -73,6 +74,9 @@ static struct {
     uint16_t s_left;           /* tick while s_active                    */
     uint16_t s_phase;          /* tick while s_active                    */
     pos_nm_t s_target;         /* main                                   */
+    pos_nm_t s_xtarget;        /* main: the cross axis's held position   */
+    uint8_t s_cross;           /* main: the cross axis, 0xFF: none       */
+    uint8_t s_flags;           /* main: the leg's CALIB_SAMPLE_* (no fault) */
     /* compensation */
     comp_table_t tab[CORE_AXES][2];
     uint8_t act[CORE_AXES]; /* index of the active buffer, 0xFF: none */
@@ -85,8 +89,6 @@ static struct {
      * axis i is a turn for ramp[i] (dir >= 0, dir <= 0); written with
      * every change of a ramp's dir (tick; calib_init) */
     uint32_t turn_mask;
-    uint8_t stage[COMP_RECORD_MAX];
-    int16_t stage_axis;
     /* protocol */
     calib_handler_fn next;
     proto_replay_t replay; /* state-changing requests only */
@@ -128,7 +130,7 @@ static void comp_install(unsigned axis, const comp_table_t *t, unsigned slot)
 }
 
 /* The axis's current table from flash into its decoder (via scratch.h). */
-static comp_store_result_t load_install(unsigned axis)
+comp_store_result_t calib_load_install(unsigned axis)
 {
     comp_table_t *t = scratch_claim(SCRATCH_CALIB, sizeof *t);
     comp_store_result_t r = COMP_STORE_E_BUSY;
@@ -141,6 +143,11 @@ static comp_store_result_t load_install(unsigned axis)
         scratch_release(SCRATCH_CALIB);
     }
     return r;
+}
+
+uint8_t calib_comp_slot(unsigned axis)
+{
+    return axis < CORE_AXES ? cb.slot[axis] : 0xFFu;
 }
 
 const comp_table_t *calib_comp_active(unsigned axis)
@@ -167,7 +174,7 @@ void calib_init(void)
     cb.legs_done = 0u;
     cb.reason = 0u;
     cb.detail = 0;
-    cb.stage_axis = -1;
+    calib_record_reset();
     cb.excite_owns = false;
     proto_replay_reset(&cb.replay);
     cb.next = next;
@@ -178,7 +185,7 @@ void calib_init(void)
         cb.ramp_busy = 0u;
         ramp_masks();
         if (i < axes()) {
-            (void)load_install(i);
+            (void)calib_load_install(i);
         }
     }
 }
@@ -289,14 +296,19 @@ static void calib_tick_work(const drive_status_t *st, const int64_t vel_ref[CORE
         s->seq = seq;
         s->point = cb.leg_point;
         s->cycle = cb.leg_cycle;
-        s->flags = (uint8_t)((cb.leg_dir < 0 ? CALIB_SAMPLE_NEG : 0u) |
-                             ((cb.flags & CALIB_FLAG_HOST_REFERENCE) ? CALIB_SAMPLE_NO_REF : 0u) |
-                             (st->faults != 0u ? CALIB_SAMPLE_FAULT : 0u));
+        uint8_t c = cb.s_cross;
+        s->flags = (uint8_t)(cb.s_flags | (st->faults != 0u ? CALIB_SAMPLE_FAULT : 0u));
         s->enc = fx_sat_diff32(st->pos_raw[a], cb.s_target);
         s->comp = fx_sat_diff32(st->pos[a], cb.s_target);
-        s->ref = (cb.flags & CALIB_FLAG_HOST_REFERENCE)
-                     ? 0
-                     : fx_sat_diff32(st->refscale[a], cb.s_target);
+        s->ref =
+            (cb.s_flags & CALIB_SAMPLE_NO_REF) ? 0 : fx_sat_diff32(st->refscale[a], cb.s_target);
+        if (c < CORE_AXES) {
+            s->xenc = fx_sat_diff32(st->pos_raw[c], cb.s_xtarget);
+            s->xcomp = fx_sat_diff32(st->pos[c], cb.s_xtarget);
+            s->xref = fx_sat_diff32(st->refscale[c], cb.s_xtarget);
+        } else {
+            s->xenc = s->xcomp = s->xref = 0;
+        }
         cb.seq_next = seq + 1u;
     }
     if (--cb.s_left == 0u) {
@@ -390,6 +402,23 @@ static void leg_finished(void)
     leg_of(cb.leg);
 }
 
+/* The sample's fixed flags and the cross axis of the leg (calib.h): the
+ * other XY axis when it has a reference scale, held where it is now. */
+static void arm_cross(const drive_status_t *st)
+{
+    unsigned c = cb.axis == 0u ? 1u : (cb.axis == 1u ? 0u : 0xFFu);
+    bool host = (cb.flags & CALIB_FLAG_HOST_REFERENCE) != 0u;
+    uint8_t f =
+        (uint8_t)((cb.leg_dir < 0 ? CALIB_SAMPLE_NEG : 0u) | (host ? CALIB_SAMPLE_NO_REF : 0u));
+    if (host || c >= CORE_AXES || !drive_has_refscale(c)) {
+        f |= CALIB_SAMPLE_NO_XREF;
+        c = 0xFFu;
+    }
+    cb.s_cross = (uint8_t)c;
+    cb.s_xtarget = c < CORE_AXES ? st->ref[c] : 0;
+    cb.s_flags = f;
+}
+
 void calib_host_gone(uint8_t reason)
 {
     if (cb.state == CALIB_RUNNING) {
@@ -455,6 +484,7 @@ void calib_poll(void)
         break;
     case PH_ROOM:
         if (CALIB_RING - ring_used() >= cb.samples) {
+            arm_cross(&st);
             cb.s_target = t;
             cb.s_left = cb.samples;
             cb.s_phase = 0u;
@@ -490,6 +520,9 @@ void calib_sample_encode(const calib_sample_t *s, uint8_t *b)
     proto_put_le(b + 8, (uint32_t)s->enc, 4u);
     proto_put_le(b + 12, (uint32_t)s->comp, 4u);
     proto_put_le(b + 16, (uint32_t)s->ref, 4u);
+    proto_put_le(b + 20, (uint32_t)s->xenc, 4u);
+    proto_put_le(b + 24, (uint32_t)s->xcomp, 4u);
+    proto_put_le(b + 28, (uint32_t)s->xref, 4u);
 }
 
 /* ---- protocol ----------------------------------------------------------------------------------
@@ -526,35 +559,6 @@ static size_t reply_state(uint8_t *out, uint8_t seq)
     out[0] = (uint8_t)PROTO_MSG_CALIB_STATE;
     out[1] = seq;
     return PROTO_MSG_HDR + proto_calib_state_encode(&s, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
-}
-
-static size_t reply_comp_info(uint8_t *out, uint8_t seq, unsigned axis)
-{
-    proto_comp_info_t m;
-    const comp_table_t *t = calib_comp_active(axis);
-    comp_table_t *cur;
-    unsigned slot = 0xFFu;
-    m.axis = (uint8_t)axis;
-    m.active = t != NULL ? 1u : 0u;
-    m.slot = cb.slot[axis];
-    m.n = 0u;
-    m.version = m.data_crc = m.ramp_us = 0u;
-    if (t != NULL) {
-        m.n = t->n;
-        m.version = t->version;
-        m.data_crc = t->data_crc;
-        m.ramp_us = t->ramp_us;
-    } else if ((cur = scratch_claim(SCRATCH_CALIB, sizeof *cur)) != NULL) {
-        if (comp_store_load(axis, cur, &slot) == COMP_STORE_OK) {
-            m.version = cur->version; /* an empty table is current */
-            m.data_crc = cur->data_crc;
-            m.slot = (uint8_t)slot;
-        }
-        scratch_release(SCRATCH_CALIB);
-    }
-    out[0] = (uint8_t)PROTO_MSG_COMP_INFO;
-    out[1] = seq;
-    return PROTO_MSG_HDR + proto_comp_info_encode(&m, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
 }
 
 static bool run_busy(void)
@@ -771,149 +775,6 @@ static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
     return PROTO_MSG_HDR + proto_calib_samples_encode(&r, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
 }
 
-static size_t h_comp_write(const uint8_t *msg, size_t plen, uint8_t *out)
-{
-    static proto_comp_write_t m;
-    proto_comp_written_t w;
-    size_t i;
-    if (!proto_comp_write_decode(msg + PROTO_MSG_HDR, plen, &m)) {
-        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
-                           PROTO_COMP_WRITE_LEN);
-    }
-    if (m.axis >= axes()) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
-    }
-    if ((size_t)m.offset + m.data_len > COMP_RECORD_MAX) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_RANGE, m.offset);
-    }
-    if (m.offset == 0u || cb.stage_axis != (int16_t)m.axis) {
-        /* a new record: start from an erased buffer */
-        for (i = 0; i < COMP_RECORD_MAX; i++) {
-            cb.stage[i] = 0xFFu;
-        }
-        cb.stage_axis = (int16_t)m.axis;
-    }
-    for (i = 0; i < m.data_len; i++) {
-        cb.stage[m.offset + i] = m.data[i];
-    }
-    w.axis = m.axis;
-    w.offset = m.offset;
-    w.len = m.data_len;
-    out[0] = (uint8_t)PROTO_MSG_COMP_WRITTEN;
-    out[1] = msg[1];
-    return PROTO_MSG_HDR + proto_comp_written_encode(&w, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
-}
-
-/* Compensation tables reach flash only with the drive disabled: a flash
- * program or erase stalls a single-bank MCU (STM32F4: up to 2 s for a
- * sector) and no control tick may be lost while the axes are powered.
- * Checked on every board so the host sees one behaviour. True when the
- * drive refuses (nothing is changed; a staged record is kept). */
-static bool flash_refused(const uint8_t *msg, uint8_t *out, size_t *len)
-{
-    drive_status_t st;
-    drive_snapshot(&st);
-    if (st.state == DRIVE_DISABLED) {
-        return false;
-    }
-    *len = refuse(out, msg, PROTO_CALIB_STATUS_DRIVE_ENABLED, st.state);
-    return true;
-}
-
-/* Decode, store, load back and install the staged record (t: scratch). */
-/* Decode the staged record (in scratch.h) and store it: 0 or a refusal. */
-static size_t comp_commit_in(const proto_comp_commit_t *m, const uint8_t *msg, uint8_t *out)
-{
-    comp_table_t *t = scratch_claim(SCRATCH_CALIB, sizeof *t);
-    comp_result_t cr = t != NULL ? comp_record_decode(cb.stage, m->length, t) : COMP_E_ARG;
-    comp_store_result_t sr;
-    size_t n = 0u;
-    if (cr == COMP_OK && t->axis != m->axis) {
-        cr = COMP_E_AXIS;
-    }
-    if (cr != COMP_OK) {
-        n = refuse(out, msg, PROTO_CALIB_STATUS_RECORD, cr);
-    } else if (!flash_refused(msg, out, &n)) {
-        sr = comp_store_write(m->axis, t, NULL, NULL);
-        n = sr == COMP_STORE_OK ? 0u : refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
-    }
-    if (t != NULL) {
-        scratch_release(SCRATCH_CALIB);
-    }
-    return n;
-}
-
-static size_t h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
-{
-    proto_comp_commit_t m;
-    comp_store_result_t sr;
-    uint32_t crc;
-    size_t n;
-    if (!proto_comp_commit_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_COMMIT_LEN) {
-        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
-                           PROTO_COMP_COMMIT_LEN);
-    }
-    if (m.axis >= axes()) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
-    }
-    if (cb.stage_axis != (int16_t)m.axis || m.length < COMP_RECORD_HDR ||
-        m.length > COMP_RECORD_MAX) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_RANGE, m.length);
-    }
-    crc = crc32_update(CRC32_INIT, cb.stage, m.length);
-    if (crc != m.crc) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_CRC, crc);
-    }
-    n = comp_commit_in(&m, msg, out);
-    if (n != 0u) {
-        return n;
-    }
-    sr = load_install(m.axis); /* what the flash holds, not what the link delivered */
-    if (sr != COMP_STORE_OK) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
-    }
-    cb.stage_axis = -1;
-    return reply_comp_info(out, msg[1], m.axis);
-}
-
-static size_t h_comp_clear(const uint8_t *msg, size_t plen, uint8_t *out)
-{
-    proto_comp_clear_t m;
-    comp_store_result_t sr;
-    size_t rlen;
-    if (!proto_comp_clear_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_CLEAR_LEN) {
-        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
-                           PROTO_COMP_CLEAR_LEN);
-    }
-    if (m.axis >= axes()) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
-    }
-    if (flash_refused(msg, out, &rlen)) {
-        return rlen;
-    }
-    sr = comp_store_clear(m.axis, NULL); /* claims the scratch area itself */
-    if (sr == COMP_STORE_OK) {
-        sr = load_install(m.axis);
-    }
-    if (sr != COMP_STORE_OK) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
-    }
-    return reply_comp_info(out, msg[1], m.axis);
-}
-
-static size_t h_comp_get(const uint8_t *msg, size_t plen, uint8_t *out)
-{
-    proto_comp_get_t m;
-    if (!proto_comp_get_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP_GET_LEN) {
-        return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
-                           PROTO_COMP_GET_LEN);
-    }
-    if (m.axis >= axes()) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
-    }
-    return reply_comp_info(out, msg[1], m.axis);
-}
-
 static bool mutating(uint8_t id)
 {
     return id == PROTO_MSG_CALIB_SETUP || id == PROTO_MSG_CALIB_TARGETS ||
@@ -982,16 +843,16 @@ size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *ou
         n = h_abort(msg, plen, out);
         break;
     case PROTO_MSG_COMP_WRITE:
-        n = h_comp_write(msg, plen, out);
+        n = calib_h_comp_write(msg, plen, out);
         break;
     case PROTO_MSG_COMP_COMMIT:
-        n = h_comp_commit(msg, plen, out);
+        n = calib_h_comp_commit(msg, plen, out);
         break;
     case PROTO_MSG_COMP_GET:
-        n = h_comp_get(msg, plen, out);
+        n = calib_h_comp_get(msg, plen, out);
         break;
     case PROTO_MSG_COMP_CLEAR:
-        n = h_comp_clear(msg, plen, out);
+        n = calib_h_comp_clear(msg, plen, out);
         break;
     default:
         n = reply_error(out, id, msg[1], PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);

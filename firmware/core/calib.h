@@ -21,17 +21,31 @@
  *        u32 seq    running sample number from 0 at calib_setup
  *        u16 point  target index      u8 cycle
  *        u8  flags  bit 0 approached moving -x, bit 1 no reference (host
- *                   reference mode), bit 2 a drive fault was latched
+ *                   reference mode), bit 2 a drive fault was latched,
+ *                   bit 3 no cross reference (x* fields 0)
  *        i32 enc    encoder position before compensation - target, nm
  *        i32 comp   encoder position after compensation (the feedback) -
  *                   target, nm
  *        i32 ref    reference-scale position - target, nm (0 in host
  *                   reference mode)
+ *        i32 xenc   the cross axis (below): encoder before compensation
+ *                   - its held position, nm
+ *        i32 xcomp  the cross axis: encoder after compensation - held
+ *        i32 xref   the cross axis: reference scale - held position, nm
  *    (differences saturate to int32). The reference scale is the axis's
  *    auxiliary quadrature input (drive.h: reference-scale channel, decoded
  *    by qdec with its own resolution); with CALIB_FLAG_HOST_REFERENCE the
  *    drive samples the encoder only and the host supplies the reference
  *    (an external instrument's readings).
+ *    The cross axis is the other axis of the XY plane (X for a run of Y,
+ *    Y for a run of X): a 2-D grid encoder (the KGM 101 of the thesis)
+ *    reads both coordinates of the table, each on the reference-scale
+ *    input of its axis, so every sample carries both coordinates read in
+ *    the same tick (the error along the line and across it). Its held
+ *    position is the cross axis's commanded position when the leg starts
+ *    sampling. The x* fields are 0 and flag bit 3 (no cross reference) is
+ *    set when the run is not of X or Y, the cross axis is not configured
+ *    or has no reference scale, or in host reference mode.
  *    After the run (state DONE) single legs can be measured again
  *    (calib_point: approach the target from overrun away in the given
  *    direction), e.g. when the host could not recover some samples.
@@ -104,8 +118,8 @@
 #endif
 #define CALIB_POINTS_MAX   COMP_POINTS_MAX
 #define CALIB_CYCLES_MAX   20u
-#define CALIB_SAMPLE_BYTES 20u
-#define CALIB_READ_MAX     11u         /* samples per calib_samples reply      */
+#define CALIB_SAMPLE_BYTES 32u
+#define CALIB_READ_MAX     7u          /* samples per calib_samples reply      */
 #define CALIB_OVERRUN_MAX  1000000000u /* 1 m                                 */
 #define CALIB_DWELL_MAX_MS 60000u
 /* A run with no calibration request for this long is aborted (host gone). */
@@ -114,9 +128,10 @@
 
 #define CALIB_FLAG_HOST_REFERENCE 0x01u
 
-#define CALIB_SAMPLE_NEG    0x01u
-#define CALIB_SAMPLE_NO_REF 0x02u
-#define CALIB_SAMPLE_FAULT  0x04u
+#define CALIB_SAMPLE_NEG     0x01u
+#define CALIB_SAMPLE_NO_REF  0x02u
+#define CALIB_SAMPLE_FAULT   0x04u
+#define CALIB_SAMPLE_NO_XREF 0x08u
 
 typedef enum {
     CALIB_IDLE = 0,
@@ -134,6 +149,9 @@ typedef struct {
     int32_t enc;   /* nm, relative to the target */
     int32_t comp;
     int32_t ref;
+    int32_t xenc; /* cross axis, nm, relative to its held position */
+    int32_t xcomp;
+    int32_t xref;
 } calib_sample_t;
 
 /* Extension handler: same contract as proto_link_handler_fn. */
@@ -148,9 +166,9 @@ void calib_init(void);
 void calib_host_gone(uint8_t reason);
 void calib_tick(const drive_status_t *st, const int64_t vel_ref[CORE_AXES]);
 /* True while sampling is armed: calib_tick then reads pos, pos_raw,
- * refscale and faults of the status (otherwise only vel_ref, the reference
- * velocities the ramps follow, nm/s; the status's own vel_ref field is not
- * read). Tick. */
+ * refscale (of the axis and of the cross axis) and faults of the status (otherwise only vel_ref,
+ * the reference velocities the ramps follow, nm/s; the status's own vel_ref field is not read).
+ * Tick. */
 bool calib_sampling(void);
 void calib_poll(void);
 size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out, size_t cap);

@@ -1265,7 +1265,7 @@ size_t proto_calib_samples_encode(const proto_calib_samples_t *m, uint8_t *buf, 
 {
     uint16_t i;
 
-    if (m->data_len > 220u || cap < PROTO_CALIB_SAMPLES_LEN + (size_t)m->data_len) {
+    if (m->data_len > 224u || cap < PROTO_CALIB_SAMPLES_LEN + (size_t)m->data_len) {
         return 0;
     }
     proto_put_le(buf + 0, (uint64_t)m->from_seq, 4u);
@@ -1691,7 +1691,7 @@ const proto_msg_info_t proto_msg_table[] = {
     {0xAAu, PROTO_DIR_H2D, 0xB3u, 0u, 1u, 1u, "comp_get"},
     {0xABu, PROTO_DIR_H2D, 0xB3u, 0u, 1u, 1u, "comp_clear"},
     {0xB0u, PROTO_DIR_D2H, 0x00u, 0u, 28u, 28u, "calib_state"},
-    {0xB1u, PROTO_DIR_D2H, 0x00u, 0u, 13u, 233u, "calib_samples"},
+    {0xB1u, PROTO_DIR_D2H, 0x00u, 0u, 13u, 237u, "calib_samples"},
     {0xB2u, PROTO_DIR_D2H, 0x00u, 0u, 5u, 5u, "comp_written"},
     {0xB3u, PROTO_DIR_D2H, 0x00u, 0u, 17u, 17u, "comp_info"},
     {0xC8u, PROTO_DIR_H2D, 0xCEu, 0u, 2u, 226u, "comp2d_write"},

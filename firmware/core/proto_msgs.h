@@ -20,7 +20,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define PROTO_VERSION 3u
+#define PROTO_VERSION 4u
 #define PROTO_MAX_PAYLOAD 250u
 /* A message on either transport: msg_id (u8) | seq (u8) | payload. */
 #define PROTO_MSG_HDR 2u
@@ -895,16 +895,16 @@ typedef struct {
 size_t proto_calib_state_encode(const proto_calib_state_t *m, uint8_t *buf, size_t cap);
 bool proto_calib_state_decode(const uint8_t *buf, size_t len, proto_calib_state_t *m);
 
-/* calib_samples (d2h): Reply to calib_read: count samples of CALIB_SAMPLE_BYTES (20) each, numbered from_seq on; crc = crc32 of data. */
+/* calib_samples (d2h): Reply to calib_read: count samples of CALIB_SAMPLE_BYTES (32) each, numbered from_seq on; crc = crc32 of data. */
 #define PROTO_CALIB_SAMPLES_LEN 13u
-#define PROTO_CALIB_SAMPLES_MAX_LEN 233u
+#define PROTO_CALIB_SAMPLES_MAX_LEN 237u
 typedef struct {
     uint32_t from_seq;
     uint8_t count;
     uint32_t seq_next; /* samples taken so far (next sequence number) */
     uint32_t crc;
     uint16_t data_len;
-    uint8_t data[220];
+    uint8_t data[224];
 } proto_calib_samples_t;
 size_t proto_calib_samples_encode(const proto_calib_samples_t *m, uint8_t *buf, size_t cap);
 bool proto_calib_samples_decode(const uint8_t *buf, size_t len, proto_calib_samples_t *m);

@@ -9,7 +9,7 @@ from __future__ import annotations
 from enum import IntEnum
 from typing import NamedTuple, Optional
 
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
 MAX_PAYLOAD = 250
 MSG_HDR = 2
 MAX_AXES = 4
@@ -1282,11 +1282,11 @@ MESSAGES = (
             Field("count", "u8", 1, 1, 0, 4, ""),
             Field("seq_next", "u32", 4, 1, 0, 5, ""),
             Field("crc", "u32", 4, 1, 0, 9, ""),
-            Field("data", "bytes", 1, 1, 220, 13, ""),
+            Field("data", "bytes", 1, 1, 224, 13, ""),
         ),
         13,
-        233,
-        'Reply to calib_read: count samples of CALIB_SAMPLE_BYTES (20) each, numbered from_seq on; crc = crc32 of data.',
+        237,
+        'Reply to calib_read: count samples of CALIB_SAMPLE_BYTES (32) each, numbered from_seq on; crc = crc32 of data.',
     ),
     Message(
         "comp_written",

@@ -285,10 +285,14 @@ class _Tamper:
         data = bytearray(f["data"])
         self.done = True
         if self.mode == "crc":  # corrupted, CRC not matching
-            data[25] ^= 0x40
+            data[run.SAMPLE.size + 5] ^= 0x40
         elif self.mode == "gap":  # a sample missing, CRC consistent
-            del data[20:40]
+            del data[run.SAMPLE.size : 2 * run.SAMPLE.size]
             f["count"] -= 1
+            f["crc"] = zlib.crc32(bytes(data))
+        elif self.mode == "v3":  # a drive of protocol 3: 20-byte samples
+            k = run.SAMPLE.size
+            data = bytearray(b"".join(data[i * k : i * k + 20] for i in range(f["count"])))
             f["crc"] = zlib.crc32(bytes(data))
         elif self.mode == "fault":  # a sample the drive flagged
             data[7] |= run.FLAG_FAULT
@@ -312,6 +316,15 @@ def test_missing_or_corrupt_sample_is_never_skipped(mode):
         assert len(ss) == 40, leg
         assert not any(s.flags & run.FLAG_FAULT for s in ss)
     assert sorted(res.legs) == sorted((p, d, 0) for p in (0, 1) for d in (1, -1))
+
+
+def test_samples_of_the_old_layout_are_refused_by_name():
+    """An intact calib_samples of protocol 3 (20-byte samples, no cross
+    axis) is not taken for a transmission error and read again forever."""
+    drive, t, client, _ = _session()
+    cal = run.Calibrator(_Tamper(client, "v3"), t.wait)
+    with pytest.raises(UserError, match="samples of 20 bytes \\(protocol 3\\)"):
+        cal.run(_cfg([-75.0, -60.0], samples=40))
 
 
 def test_drive_refusals_are_clear():

@@ -209,6 +209,19 @@ def test_cli_grid_end_to_end(tmp_path, capsys):
     # +98, ..., -65 um at X = -60, 0, +30): the columns at -30 and +30 differ
     # by about 110 um, which a 1-D calibration cannot see
     assert nodes[(-30.0, 0.0)]["y_systematic_um"] - nodes[(30.0, 0.0)]["y_systematic_um"] > 80
+    # ... and the row at Y = 0 sees it itself: Y read at its own stops
+    # (the sample's cross axis), agreeing with the columns within the noise
+    # of 60 readings (short lines: no held-axis direction flips, docs)
+    assert (
+        nodes[(-30.0, 0.0)]["y_cross_systematic_um"] - nodes[(30.0, 0.0)]["y_cross_systematic_um"]
+        > 80
+    )
+    cc = rep["cross_check"]
+    assert cc["x_compared"] == cc["y_compared"] == 4 * 9
+    assert cc["x_systematic_max_um"] < 3.0 and cc["y_systematic_max_um"] < 3.0
+    row0 = next(ln for ln in rep["lines"] if ln["line"] == "X at Y = 0 mm")
+    assert row0["straightness_um"] > 80
+    assert abs(row0["straightness_um"] - row0["straightness_crossing_um"]) < 3.0
     assert rep["before_um"] > 50
     assert len(rep["lines"]) == 6 and all("E_um" in ln for ln in rep["lines"])
     assert rep["applied"]["active"] == 1 and rep["applied"]["version"] == 2  # two passes
@@ -217,6 +230,7 @@ def test_cli_grid_end_to_end(tmp_path, capsys):
     # a 30 mm grid does not follow the field's 15 mm knots exactly, and 60
     # readings leave ~1 um of noise: well below the error before all the same
     assert rep["residual_um"] < 4.0
+    assert "residual_cross_um" in rep
     assert out.read_text().startswith("x_mm,y_mm,")
     assert map2d.read_csv(str(mp)).nx == 3
     assert png.stat().st_size > 10000
@@ -243,3 +257,100 @@ def test_a_leg_of_a_full_ring_of_samples_finishes():
     cal = run.Calibrator(client, t.wait, timeout_s=30.0)
     res = cal.run(run.RunConfig(axis=0, targets_nm=[-10_000_000, 10_000_000], samples=512))
     assert all(len(v) == 512 for v in res.legs.values()) and len(res.legs) == 4
+
+
+# ---- the cross coordinate measured at the stop ------------------------------------
+
+
+def _ex(i, j, dx, dy):
+    """X error (um) of the fake table at node (i, j), directions of X, Y."""
+    return 10.0 * i + j + 1.5 * dx + 0.25 * dy
+
+
+def _ey(i, j, dx, dy):
+    return 100.0 + 7.0 * j - 3.0 * i + 0.75 * dy - 0.5 * dx
+
+
+class _FakeCal:
+    """Stands for the drive's calibration runs: every sample carries the
+    fake table's error of the moving axis (enc - ref) and of the cross axis
+    (xenc - xref), from the node and the directions the runner set up. The
+    columns' own Y readings are off by 0.1 um x column index (what the
+    crossing-line method sees differently: the cross-check)."""
+
+    def __init__(self, runner):
+        self.runner = runner
+
+    def run(self, rc):
+        from types import SimpleNamespace
+
+        from contour.calibration import run
+
+        axis, idx, s = self.runner.line
+        legs = {}
+        for p in range(len(rc.targets_nm)):
+            for d in (1, -1):
+                if axis == 0:  # X moves on row idx; Y approached moving s
+                    own, cross = _ex(p, idx, d, s), _ey(p, idx, d, s)
+                else:  # Y moves on column idx; X approached moving s
+                    own, cross = _ey(idx, p, s, d) + 0.1 * idx, _ex(idx, p, s, d)
+                flags = run.FLAG_NEG if d < 0 else 0
+                sm = run.Sample(0, p, 0, flags, round(own * 1000), 0, 0, round(cross * 1000), 0, 0)
+                legs[(p, d, 0)] = [sm, sm]
+        return SimpleNamespace(legs=legs, reads_repeated=0, points_repeated=0)
+
+
+def _fake_measure():
+    from contour.calibration.run import RunConfig
+
+    g = grid.Grid([0.0, 10.0, 20.0], [0.0, 5.0])
+    r = grid.GridRunner(None, lambda s: None, RunConfig(axis=0, targets_nm=[0]))
+    r.cal = _FakeCal(r)
+
+    def approach(axis, pos_mm, sign, other_nm):
+        cross = g.ys if axis == 1 else g.xs
+        r.line = (1 - axis, cross.index(pos_mm), sign)
+
+    r._approach = approach
+    return g, r.measure(g, "enc")
+
+
+def test_grid_takes_the_cross_coordinate_from_the_same_stop():
+    """Both errors of a stop come from its own sample: the cross coordinate
+    of a row is Y at that node with those directions, of a column X; wrong
+    axis, node or direction would not give the fake table's values."""
+    g, m = _fake_measure()
+    for i in range(len(g.xs)):
+        for j in range(len(g.ys)):
+            for dx in (1, -1):
+                for dy in (1, -1):
+                    # Y read on the row (key: Y's direction, then X's)
+                    assert (
+                        m.cross[(1, i, j, dy, dx)] == [pytest.approx(_ey(i, j, dx, dy) / 1000)] * 2
+                    )
+                    assert (
+                        m.cross[(0, i, j, dx, dy)] == [pytest.approx(_ex(i, j, dx, dy) / 1000)] * 2
+                    )
+                    assert m.readings[(0, i, j, dx, dy)][0] == pytest.approx(
+                        _ex(i, j, dx, dy) / 1000
+                    )
+    stats = grid.node_stats(m)
+    lines = grid.line_figures(m, stats)
+    # the row at Y = 0: Y's systematic error along it is 100 - 3 i (um), so
+    # 6 um of straightness measured on the row; the columns' own readings
+    # (0.1 um x i more) make 5.8 with the crossing-line method
+    row0 = next(ln for ln in lines if ln["line"] == "X at Y = 0 mm")
+    assert row0["straightness_um"] == pytest.approx(6.0)
+    assert row0["straightness_crossing_um"] == pytest.approx(5.8)
+    col = next(ln for ln in lines if ln["line"] == "Y at X = 20 mm")
+    assert col["straightness_um"] == pytest.approx(1.0)  # X: 20 + j
+    cc = grid.cross_check(m)
+    assert cc["y_max_um"] == pytest.approx(0.2) and cc["x_max_um"] == pytest.approx(0.0)
+    assert cc["y_compared"] == 4 * len(g.xs) * len(g.ys)
+    # per node: the positioning reading (the column's own Y, 0.1 um x i
+    # off) and the same coordinate read across the row at its stops
+    n = next(r for r in stats if (r["x_mm"], r["y_mm"]) == (20.0, 5.0))
+    assert n["y_systematic_um"] == pytest.approx(100 + 7 - 6 + 0.2)
+    assert n["y_cross_systematic_um"] == pytest.approx(100 + 7 - 6)
+    assert n["x_systematic_um"] == pytest.approx(21.0)
+    assert n["x_cross_systematic_um"] == pytest.approx(21.0)

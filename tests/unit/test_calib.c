@@ -29,8 +29,12 @@ static void start_sim(void)
 {
     static const double pos[2] = {-0.1, 0.1};
     static const double err[2] = {-0.1 * 2e-3, 0.1 * 2e-3};
+    /* X (the cross axis of a Y run) reads 5 um short everywhere: error =
+     * encoder - reference = -5 um (the samples' x* fields) */
+    static const double xerr[2] = {5e-6, 5e-6};
     TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 2));
     TEST_ASSERT_EQUAL_INT(0, sim_axis_pitch(1, 2, pos, err, err));
+    TEST_ASSERT_EQUAL_INT(0, sim_axis_pitch(0, 2, pos, xerr, xerr));
     TEST_ASSERT_EQUAL_INT(0, sim_start());
     TEST_ASSERT_EQUAL_INT(0, sim_enable(1));
     TEST_ASSERT_TRUE(sim_run(10, NULL, 0, 0) >= 0);
@@ -153,6 +157,7 @@ typedef struct {
     uint16_t point;
     uint8_t cycle, flags;
     int32_t enc, comp, ref;
+    int32_t xenc, xcomp, xref;
 } smp_t;
 
 static int32_t rd32(const uint8_t *p)
@@ -191,6 +196,9 @@ static unsigned read_all(uint32_t from, smp_t *dst, unsigned cap)
             dst[n].enc = rd32(b + 8);
             dst[n].comp = rd32(b + 12);
             dst[n].ref = rd32(b + 16);
+            dst[n].xenc = rd32(b + 20);
+            dst[n].xcomp = rd32(b + 24);
+            dst[n].xref = rd32(b + 28);
             TEST_ASSERT_EQUAL_UINT32(from + i, dst[n].seq);
         }
         from += s.count;
@@ -220,22 +228,80 @@ static void test_run_order_samples_and_errors(void)
     n = read_all(0, S, 2048);
     TEST_ASSERT_EQUAL_UINT(120, n);
     for (leg = 0; leg < 6; leg++) {
-        double sum = 0.0, want;
+        double sum = 0.0, xsum = 0.0, xref = 0.0, want;
         for (k = 0; k < 20; k++) {
             const smp_t *x = &S[leg * 20 + k];
             TEST_ASSERT_EQUAL_UINT16(order_pt[leg], x->point);
             TEST_ASSERT_EQUAL_UINT8(leg < 3 ? 0 : CALIB_SAMPLE_NEG, x->flags);
             TEST_ASSERT_EQUAL_INT32(x->enc, x->comp); /* no table */
+            TEST_ASSERT_EQUAL_INT32(x->xenc, x->xcomp);
             sum += (double)(x->enc - x->ref);
+            xsum += (double)(x->xenc - x->xref);
+            xref += (double)x->xref;
         }
         /* error = -e(x) = -2e-3 x: +4 um at -2 mm, -4 um at +2 mm; the
          * encoder counts 1.25 um */
         want = -2e-3 * (double)T3[order_pt[leg]];
         TEST_ASSERT_DOUBLE_WITHIN(1500.0, want, sum / 20.0);
+        /* the cross axis X, held at 0 (encoder there), is at +5 um on its
+         * reference: the same at every point of the Y run */
+        TEST_ASSERT_DOUBLE_WITHIN(1500.0, -5000.0, xsum / 20.0);
+        TEST_ASSERT_DOUBLE_WITHIN(1500.0, 5000.0, xref / 20.0);
     }
     /* everything read and released: a read from the end returns nothing */
     TEST_ASSERT_EQUAL_UINT(0, read_all(120, S, 2048));
     TEST_ASSERT_EQUAL_UINT32(120, status().seq_oldest);
+}
+
+/* The wire format of a sample (calib.h): every field at its offset,
+ * little-endian, CALIB_SAMPLE_BYTES in all. */
+static void test_sample_wire_format(void)
+{
+    static const uint8_t want[CALIB_SAMPLE_BYTES] = {
+        0x04, 0x03, 0x02, 0x01, 0x06, 0x05, 0x07, 0x0B, 0xFF, 0xFF, 0xFF,
+        0xFF, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x80, 0x11, 0x22,
+        0x33, 0x44, 0xFE, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0x7F};
+    uint8_t b[CALIB_SAMPLE_BYTES + 1];
+    calib_sample_t x;
+    proto_calib_samples_t r;
+    TEST_ASSERT_EQUAL_UINT(32, CALIB_SAMPLE_BYTES);
+    /* a reply of CALIB_READ_MAX samples fits the protocol's payload */
+    TEST_ASSERT_TRUE(CALIB_READ_MAX * CALIB_SAMPLE_BYTES <= sizeof r.data);
+    x.seq = 0x01020304u;
+    x.point = 0x0506u;
+    x.cycle = 7u;
+    x.flags = CALIB_SAMPLE_NEG | CALIB_SAMPLE_NO_REF | CALIB_SAMPLE_NO_XREF;
+    x.enc = -1;
+    x.comp = 2;
+    x.ref = INT32_MIN;
+    x.xenc = 0x44332211;
+    x.xcomp = -2;
+    x.xref = INT32_MAX;
+    b[CALIB_SAMPLE_BYTES] = 0xA5u;
+    calib_sample_encode(&x, b);
+    TEST_ASSERT_EQUAL_HEX8_ARRAY(want, b, CALIB_SAMPLE_BYTES);
+    TEST_ASSERT_EQUAL_HEX8(0xA5u, b[CALIB_SAMPLE_BYTES]); /* nothing beyond */
+}
+
+/* Host reference mode: no reference read on the drive, neither the axis's
+ * nor the cross axis's (flags say so, the fields are 0). */
+static void test_host_reference_samples_carry_no_reference(void)
+{
+    unsigned n, k;
+    setup_run(1, CALIB_FLAG_HOST_REFERENCE, 3, 1, 5);
+    send_targets(0, T3, 3);
+    req(PROTO_MSG_CALIB_START, NULL, 0);
+    run_until(CALIB_DONE, 200000);
+    n = read_all(0, S, 2048);
+    TEST_ASSERT_EQUAL_UINT(30, n);
+    for (k = 0; k < n; k++) {
+        TEST_ASSERT_EQUAL_HEX8(CALIB_SAMPLE_NO_REF | CALIB_SAMPLE_NO_XREF,
+                               S[k].flags & (CALIB_SAMPLE_NO_REF | CALIB_SAMPLE_NO_XREF));
+        TEST_ASSERT_EQUAL_INT32(0, S[k].ref);
+        TEST_ASSERT_EQUAL_INT32(0, S[k].xenc);
+        TEST_ASSERT_EQUAL_INT32(0, S[k].xcomp);
+        TEST_ASSERT_EQUAL_INT32(0, S[k].xref);
+    }
 }
 
 static void test_flow_control_never_overwrites(void)
@@ -725,6 +791,8 @@ int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_run_order_samples_and_errors);
+    RUN_TEST(test_sample_wire_format);
+    RUN_TEST(test_host_reference_samples_carry_no_reference);
     RUN_TEST(test_flow_control_never_overwrites);
     RUN_TEST(test_silent_host_aborts_the_run_and_nothing_resumes);
     RUN_TEST(test_host_gone_stops_a_run_and_is_a_no_op_otherwise);

@@ -12,17 +12,32 @@ and its reference scale. The grid is measured as lines of such runs:
 - columns: the same with the roles swapped: Y's error at every node for
   the four combinations.
 
-So both coordinates are read at every stop of the grid (the crossing line
-reads the other coordinate at the same node, with the same directions of
-approach). Error = encoder - reference, mm here (um in reports).
+Both coordinates are read at every stop, in the same sample, the way the
+thesis read the KGM 101: the drive's sample carries the moving axis's
+encoder and reference scale and the cross axis's (xenc, xcomp, xref,
+calib.h), so every stop of a row gives X's error (positioning) and Y's
+(straightness), every stop of a column Y's and X's. Error = encoder -
+reference, mm here (um in reports).
 
-Per node and coordinate (the thesis's measures, analysis.py): systematic
-= mean of the four direction combinations; hysteresis = |mean approached
-moving + - mean approached moving -| along the coordinate's own axis;
-random 95 % = 2 x mean of the standard deviations of the two directions.
-Per line, ISO 230-2 figures (E, B, R, A, M; iso230_2 below) of the
-positioning along the line, and the straightness (range of the cross
-coordinate's systematic error along it).
+Per node and coordinate (the thesis's measures, analysis.py), from the
+readings of the line along that coordinate (positioning: the axis has just
+approached the node): systematic = mean of the four direction
+combinations; hysteresis = |mean approached moving + - mean approached
+moving -| along the coordinate's own axis; random 95 % = 2 x mean of the
+standard deviations of the two directions; plus <c>_cross_systematic_um,
+the same coordinate's systematic error as read across the crossing line
+(its axis held while the other one travelled). The map is made from the
+positioning readings: on the simulated table the held axis's readings
+differ from them by up to a few um (docs/calibration.md, "Cross-check").
+Per line, ISO 230-2 figures (E, B, R, A, M; iso230_2 below) of
+the positioning along the line, and the straightness (range along it of
+the cross coordinate's systematic error measured on that line).
+
+Cross-check (cross_check below): the cross coordinate measured at a stop
+against what the crossing line read there as its own coordinate (the
+method used before the drive read both coordinates) - the same node and
+directions of approach, so they differ only by the random spread and what
+the table does between the two visits.
 
 Second pass: with the first map in use the standing axis of every line is
 moved by the map's straightness correction while the other travels, and a
@@ -46,7 +61,7 @@ import numpy as np
 
 from contour import protocol_gen as pg
 from contour.calibration import map2d
-from contour.calibration.run import Calibrator, RunConfig
+from contour.calibration.run import FLAG_NO_XREF, Calibrator, RunConfig
 from contour.errors import UsageError, UserError
 
 AXES = "XY"
@@ -106,8 +121,10 @@ def midpoints(g: Grid) -> Grid:
 class GridMeasurement:
     grid: Grid
     column: str  # 'enc' (before compensation) or 'comp' (after)
-    # (coord, ix, iy, own_dir, cross_dir) -> [error mm]
+    # (coord, ix, iy, own_dir, cross_dir) -> [error mm]: coord's own lines
     readings: dict = field(default_factory=dict)
+    # the same keys: coord read as the cross coordinate of the other lines
+    cross: dict = field(default_factory=dict)
     runs: int = 0
     samples: int = 0
     frames_repeated: int = 0
@@ -193,6 +210,16 @@ class GridRunner:
                 errs = out.readings.setdefault(key, [])
                 errs += [(getattr(s, column) - s.ref) / 1e6 for s in ss]
                 out.samples += len(ss)
+                if any(s.flags & FLAG_NO_XREF for s in ss):
+                    raise UserError(
+                        f"the drive read no {AXES[1 - axis]} reference while {AXES[axis]}"
+                        " moved: the grid needs a reference scale on both axes"
+                    )
+                # the cross coordinate: its own direction is how the held
+                # axis was approached, the other one this leg's
+                xkey = (1 - axis, ix, iy, cross_dir, d)
+                xerrs = out.cross.setdefault(xkey, [])
+                xerrs += [(getattr(s, "x" + column) - s.xref) / 1e6 for s in ss]
         if self.progress is not None:
             self.progress(len(lines), len(lines))
         out.frames_repeated = getattr(self.c, "retried", 0) - retried0
@@ -205,6 +232,13 @@ class GridRunner:
 
 def _mean_std(v: list) -> tuple:
     return statistics.fmean(v), (statistics.stdev(v) if len(v) > 1 else 0.0)
+
+
+def _systematic_um(src: dict, c: int, ix: int, iy: int) -> float:
+    """Mean of the four direction combinations of src, um."""
+    return 1000 * statistics.fmean(
+        statistics.fmean(src[(c, ix, iy, d, s)]) for d in (1, -1) for s in (1, -1)
+    )
 
 
 def node_stats(m: GridMeasurement) -> list:
@@ -232,6 +266,8 @@ def node_stats(m: GridMeasurement) -> list:
                 row[f"{a}_mean_pos_um"] = 1000 * mp
                 row[f"{a}_mean_neg_um"] = 1000 * mn
                 row[f"{a}_n"] = len(pos) + len(neg)
+                if all((c, ix, iy, d, s) in m.cross for d in (1, -1) for s in (1, -1)):
+                    row[f"{a}_cross_systematic_um"] = _systematic_um(m.cross, c, ix, iy)
             out.append(row)
     return out
 
@@ -266,9 +302,11 @@ def iso230_2(dev_up: list, dev_down: list) -> dict:
 
 def line_figures(m: GridMeasurement, stats: list) -> list:
     """Per line (rows along X, columns along Y): ISO 230-2 of the
-    positioning (both passes of the held axis pooled) and straightness."""
+    positioning (both passes of the held axis pooled) and the straightness
+    measured on the line (the cross coordinate of its own samples);
+    straightness_crossing_um: the same from the crossing lines' own
+    readings (cross-check)."""
     g = m.grid
-    by = {(r["x_mm"], r["y_mm"]): r for r in stats}
     out = []
     for axis, own, cross in ((0, g.xs, g.ys), (1, g.ys, g.xs)):
         for j, cv in enumerate(cross):
@@ -278,16 +316,43 @@ def line_figures(m: GridMeasurement, stats: list) -> list:
                 rd = [m.readings[(axis, ix, iy, d, s)] for d in (1, -1) for s in (1, -1)]
                 up.append([-e for e in rd[0] + rd[1]])  # deviation = -error
                 dn.append([-e for e in rd[2] + rd[3]])
-            other = AXES[1 - axis].lower()
-            pts = [by[(v, cv) if axis == 0 else (cv, v)] for v in own]
-            st = [p[f"{other}_systematic_um"] for p in pts]
+            nodes = [(i, j) if axis == 0 else (j, i) for i in range(len(own))]
+            st = [_systematic_um(m.cross, 1 - axis, ix, iy) for ix, iy in nodes]
+            sc = [_systematic_um(m.readings, 1 - axis, ix, iy) for ix, iy in nodes]
             out.append(
                 {
                     "line": f"{AXES[axis]} at {AXES[1 - axis]} = {cv:g} mm",
                     **iso230_2(up, dn),
                     "straightness_um": max(st) - min(st),
+                    "straightness_crossing_um": max(sc) - min(sc),
                 }
             )
+    return out
+
+
+def cross_check(m: GridMeasurement) -> dict:
+    """The measured cross coordinate against the crossing line's reading of
+    it (module doc), um: per coordinate the largest and the rms difference
+    of the means over every node and combination of directions, and the
+    largest difference of the nodes' systematic errors."""
+    out = {}
+    g = m.grid
+    for c in (0, 1):
+        diffs = [
+            1000 * (statistics.fmean(v) - statistics.fmean(m.readings[k]))
+            for k, v in m.cross.items()
+            if k[0] == c and k in m.readings
+        ]
+        sys_d = [
+            _systematic_um(m.cross, c, ix, iy) - _systematic_um(m.readings, c, ix, iy)
+            for iy in range(len(g.ys))
+            for ix in range(len(g.xs))
+        ]
+        a = AXES[c].lower()
+        out[f"{a}_max_um"] = max(abs(d) for d in diffs)
+        out[f"{a}_rms_um"] = math.sqrt(statistics.fmean(d * d for d in diffs))
+        out[f"{a}_systematic_max_um"] = max(abs(d) for d in sys_d)
+        out[f"{a}_compared"] = len(diffs)
     return out
 
 

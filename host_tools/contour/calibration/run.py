@@ -31,9 +31,11 @@ from contour.calibration.tables import corrections_nm, encode_record
 from contour.errors import UserError
 from contour.link.client import DriveError
 
-SAMPLE = struct.Struct("<IHBBiii")
-FLAG_NEG, FLAG_NO_REF, FLAG_FAULT = 1, 2, 4
-READ_MAX = 11
+# calib.h: seq, point, cycle, flags, enc, comp, ref, xenc, xcomp, xref
+SAMPLE = struct.Struct("<IHBBiiiiii")
+FLAG_NEG, FLAG_NO_REF, FLAG_FAULT, FLAG_NO_XREF = 1, 2, 4, 8
+READ_MAX = 7  # CALIB_READ_MAX
+SAMPLE_BYTES_V3 = 20  # protocol 3: no cross axis
 CHUNK = 224
 COMMIT_TIMEOUT_S = 5.0  # comp_commit answers after the flash write (erase: up to 2 s)
 
@@ -73,6 +75,11 @@ class Sample:
     enc: int  # nm, relative to the target
     comp: int
     ref: int
+    # the cross axis (the other of X, Y; calib.h), nm, relative to its
+    # held position: both coordinates of the 2-D reference in one reading
+    xenc: int = 0
+    xcomp: int = 0
+    xref: int = 0
 
     @property
     def direction(self) -> int:
@@ -179,6 +186,14 @@ class Calibrator:
                     return [("lost", oldest)]
             raise
         data, n = r["data"], r["count"]
+        if n > 0 and len(data) == SAMPLE_BYTES_V3 * n and zlib.crc32(data) == r["crc"]:
+            # an intact reply in the layout before the cross axis: not a
+            # transmission error (session_open refuses such a drive first)
+            raise UserError(
+                f"the drive sends calibration samples of {SAMPLE_BYTES_V3} bytes (protocol 3),"
+                f" this host reads {SAMPLE.size} (protocol {pg.PROTOCOL_VERSION}):"
+                " update the drive's firmware (contour flash)"
+            )
         if (
             r["from_seq"] != next_seq
             or n > READ_MAX

@@ -113,6 +113,7 @@ def cmd_grid(args) -> int:
         report["measure"] = _meas_report(meas)
         report["nodes"] = stats
         report["lines"] = grid.line_figures(meas, stats)
+        report["cross_check"] = grid.cross_check(meas)
         report["before_um"] = grid.worst(stats, "systematic_um")
         corr = grid.corrections(meas)
         m2 = grid.build_map(g, corr)
@@ -142,6 +143,8 @@ def cmd_grid(args) -> int:
             report["verify_grid"] = {"x_mm": vg.xs, "y_mm": vg.ys}
             report["residual_nodes"] = residual_stats
             report["residual_um"] = grid.worst(residual_stats, "systematic_um")
+            # the same coordinates read across the crossing lines (held axis)
+            report["residual_cross_um"] = grid.worst(residual_stats, "cross_systematic_um")
         if args.map_out:
             map2d.write_csv(m2, args.map_out)
         report["frames_repeated_total"] = getattr(client, "retried", 0)
@@ -182,9 +185,17 @@ def _print(report: dict, out=None) -> None:
         print(
             f"  {ln['line']:<18} E {ln['E_um']:7.2f}  B {ln['B_um']:6.2f}  R {ln['R_um']:6.2f}"
             f"  A {ln['A_um']:7.2f}  M {ln['M_um']:7.2f}"
-            f"  straightness {ln['straightness_um']:7.2f}",
+            f"  straightness {ln['straightness_um']:7.2f}"
+            f" (crossing lines {ln['straightness_crossing_um']:.2f})",
             file=out,
         )
+    cc = report["cross_check"]
+    print(
+        "cross coordinate measured at the stop - crossing line's reading (um):"
+        f" X max {cc['x_max_um']:.2f} rms {cc['x_rms_um']:.2f},"
+        f" Y max {cc['y_max_um']:.2f} rms {cc['y_rms_um']:.2f}",
+        file=out,
+    )
     print(f"largest systematic error before: {report['before_um']:.2f} um", file=out)
     if "residual_um" in report:
         a = report["applied"]
