@@ -917,7 +917,13 @@ static void watchdog(proto_dispatch_t *d, uint32_t now_us)
         }
         return;
     }
-    if (d->comm_timeout_ms == 0u || (st.state != DRIVE_RUNNING && st.state != DRIVE_HOMING)) {
+    if (st.state != DRIVE_RUNNING && st.state != DRIVE_HOMING) {
+        /* the stream's motion ended: the next motion (a calibration run,
+         * CANopen) is watched by any request again */
+        d->stream_owns_motion = false;
+        return;
+    }
+    if (d->comm_timeout_ms == 0u) {
         return; /* homing too: a host that died does not leave the axes homing */
     }
     last = d->stream_owns_motion ? d->stream_rx_us : d->last_rx_us;

@@ -54,7 +54,7 @@
  * bit comm_timeout; fault_reset clears it). Any valid request is a sign of
  * life; status_get is the idle keep-alive. While the motion is a block
  * stream's (queue_batch took blocks, and no jog, home or single block was
- * accepted since), only queue_batch frames are: the streaming host polls
+ * accepted nor the drive came to rest since), only queue_batch frames are: the streaming host polls
  * its window with them, and a second host that watches the job (status,
  * monitor) must not keep the job of a host that died running.
  *

@@ -564,6 +564,39 @@ static void test_a_watcher_does_not_keep_a_dead_stream_running(void)
     TEST_ASSERT_EQUAL_UINT32(1, d.stats.watchdog_stops);
 }
 
+/* A stream's job that ended gives the motion back: what moves next without
+ * a request of its own (a calibration run, CANopen) is kept alive by the
+ * status requests of its host, as before any stream. */
+static void test_an_ended_stream_leaves_the_next_motion_to_any_request(void)
+{
+    uint8_t p[PROTO_MSG_MAX];
+    drive_block_t b;
+    unsigned ms;
+
+    set_comm_timeout(100);
+    enable();
+    request(PROTO_MSG_QUEUE_BATCH, p, batch_payload(p, 0, 0, 4, 100000, 10000000u, true, true));
+    TEST_ASSERT_EQUAL_UINT8(4, reply().accepted);
+    for (ms = 0; ms < 3000 && status().state != DRIVE_IDLE; ms += 10) {
+        run_ms(10);
+        (void)window(4);
+    }
+    TEST_ASSERT_EQUAL_UINT8(DRIVE_IDLE, status().state);
+    run_ms(10);
+    request(PROTO_MSG_STATUS_GET, NULL, 0);
+    memset(&b, 0, sizeof b);
+    b.kind = DRIVE_BLOCK_LINE;
+    b.target[0] = 400000 + 20000000;
+    b.feed_nm_s = 10000000;
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_queue_block(&b)); /* as calib_poll queues a leg */
+    for (ms = 0; ms < 500; ms += 10) {
+        run_ms(10);
+        request(PROTO_MSG_STATUS_GET, NULL, 0);
+    }
+    TEST_ASSERT_EQUAL_UINT8(DRIVE_RUNNING, status().state);
+    TEST_ASSERT_EQUAL_UINT32(0, d.stats.watchdog_stops);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -577,5 +610,6 @@ int main(void)
     RUN_TEST(test_a_stop_ends_the_stream);
     RUN_TEST(test_session_open_refuses_another_protocol_version);
     RUN_TEST(test_a_watcher_does_not_keep_a_dead_stream_running);
+    RUN_TEST(test_an_ended_stream_leaves_the_next_motion_to_any_request);
     return UNITY_END();
 }
