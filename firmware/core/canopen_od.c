@@ -133,6 +133,15 @@ const co_od_entry_t co_od_table[] = {
     {0x607Au, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, target_position), 0x80000000u, 0x7FFFFFFFu},
     {0x607Cu, 0u, CO_OD_U32, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, home_offset), 0x80000000u, 0x7FFFFFFFu},
     {0x6081u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, profile_velocity), 0x1u, 0xFFFFFFFFu},
+    {0x6065u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ferr_window), 0x1u, 0xFFFFFFFFu},
+    {0x6066u, 0u, CO_OD_U16, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ferr_timeout), 0x0u, 0x0u},
+    {0x607Du, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, soft_limit_count), 0x0u, 0xFFFFFFFFu},
+    {0x607Du, 1u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, soft_limit_min), 0x80000000u, 0x7FFFFFFFu},
+    {0x607Du, 2u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, soft_limit_max), 0x80000000u, 0x7FFFFFFFu},
+    {0x607Fu, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, max_profile_velocity), 0x3E8u, 0xFFFFFFFFu},
+    {0x6083u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, profile_acceleration), 0x1u, 0xFFFFFFFFu},
+    {0x6084u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, profile_deceleration), 0x1u, 0xFFFFFFFFu},
+    {0x6085u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, quick_stop_deceleration), 0x1u, 0xFFFFFFFFu},
     {0x6098u, 0u, CO_OD_U8, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, homing_method), 0xFFFFFF80u, 0x7Fu},
     {0x6099u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, homing_speed_count), 0x0u, 0xFFFFFFFFu},
     {0x6099u, 1u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, homing_search), 0x1u, 0xFFFFFFFFu},
@@ -280,6 +289,15 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
     v->target_position = 0;
     v->home_offset = 0;
     v->profile_velocity = 0x989680u;
+    v->ferr_window = 0x4C4B40u;
+    v->ferr_timeout = 0x0u;
+    v->soft_limit_count = 0x2u;
+    v->soft_limit_min = 0;
+    v->soft_limit_max = 0;
+    v->max_profile_velocity = 0x3B9ACA00u;
+    v->profile_acceleration = 0x989680u;
+    v->profile_deceleration = 0x989680u;
+    v->quick_stop_deceleration = 0xF4240u;
     v->homing_method = 17;
     v->homing_speed_count = 0x2u;
     v->homing_search = 0x989680u;

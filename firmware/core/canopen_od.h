@@ -67,6 +67,15 @@ typedef struct {
     int32_t target_position; /* 0x607A:0 Target position */
     int32_t home_offset; /* 0x607C:0 Home offset */
     uint32_t profile_velocity; /* 0x6081:0 Profile velocity */
+    uint32_t ferr_window; /* 0x6065:0 Following error window */
+    uint16_t ferr_timeout; /* 0x6066:0 Following error time out */
+    uint8_t soft_limit_count; /* 0x607D:0 Highest sub-index supported */
+    int32_t soft_limit_min; /* 0x607D:1 Min position limit */
+    int32_t soft_limit_max; /* 0x607D:2 Max position limit */
+    uint32_t max_profile_velocity; /* 0x607F:0 Max profile velocity */
+    uint32_t profile_acceleration; /* 0x6083:0 Profile acceleration */
+    uint32_t profile_deceleration; /* 0x6084:0 Profile deceleration */
+    uint32_t quick_stop_deceleration; /* 0x6085:0 Quick stop deceleration */
     int8_t homing_method; /* 0x6098:0 Homing method */
     uint8_t homing_speed_count; /* 0x6099:0 Highest sub-index supported */
     uint32_t homing_search; /* 0x6099:1 Speed during search for switch */

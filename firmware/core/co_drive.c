@@ -3,6 +3,7 @@
  */
 #include "co_drive.h"
 
+#include "co_param.h"
 #include "drive.h"
 
 #define MODE_CSP 8
@@ -58,21 +59,21 @@ static void on_write(void *ctx, uint16_t index, uint8_t sub)
         co_pp_controlword(&pp, co, ax.state == CIA402_OPERATION_ENABLED);
     } else if (index == 0x6060u) {
         co->od.mode_display = co->od.mode;
+    } else {
+        co_param_written(co, index, sub);
     }
     csp_follow(co);
 }
 
 static uint32_t on_check(void *ctx, uint16_t index, uint8_t sub, uint32_t value)
 {
-    (void)ctx;
-    (void)sub;
     if (index == 0x6060u && value != 0u && value != 1u && value != 6u && value != MODE_CSP) {
         return CO_ABORT_VALUE;
     }
     if (index == 0x6098u) {
         return co_pp_check_method((int8_t)value);
     }
-    return 0u;
+    return co_param_check(ctx, index, sub, value);
 }
 
 static void sample(co_t *co, drive_status_t *st)
@@ -119,6 +120,7 @@ void co_drive_poll(co_t *co, uint32_t now_us)
     uint16_t sw;
 
     sample(co, &st);
+    co_param_refresh(co);
     if (st.faults != 0u || st.state == DRIVE_FAULT) {
         cia402_fault(&ax);
         cia402_reaction_done(&ax);

@@ -1,0 +1,115 @@
+"""CiA 402 objects that are drive parameters, the heartbeat consumer 0x1016
+and store / restore 0x1010 / 0x1011, through the python `canopen` master
+against `sim serve` (issue 19, docs/canopen.md, co_param.h)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import canopen
+import pytest
+from canopen.sdo.exceptions import SdoAbortedError
+from contour.link.client import connect
+from contour.sim.serve import spawn
+
+EDS = Path(__file__).resolve().parents[2] / "protocol" / "contour.eds"
+
+
+@pytest.fixture(scope="module")
+def served():
+    with spawn() as s:
+        yield s
+
+
+@pytest.fixture(scope="module")
+def network(served):
+    net = canopen.Network()
+    net.connect(interface="slcan", channel=served.slcan, bitrate=500000)
+    try:
+        yield net
+    finally:
+        net.disconnect()
+
+
+def _node(net) -> canopen.RemoteNode:
+    node = canopen.RemoteNode(1, str(EDS))
+    net.add_node(node)
+    node.sdo.RESPONSE_TIMEOUT = 2.0
+    return node
+
+
+def _abort(fn) -> int:
+    with pytest.raises(SdoAbortedError) as e:
+        fn()
+    return e.value.code
+
+
+def _wait_sw(node, mask: int, want: int, timeout: float) -> int:
+    end = time.monotonic() + timeout
+    while True:
+        sw = node.sdo["Statusword"].raw
+        if sw & mask == want or time.monotonic() > end:
+            return sw
+        time.sleep(0.02)
+
+
+def test_402_objects_are_the_drive_parameters(served, network):
+    node = _node(network)
+    sdo = node.sdo
+    with connect(port=served.serial, timeout=1.0) as c:
+        # SDO -> drive parameter (the own protocol reads it back)
+        sdo["Max profile velocity"].raw = 500_000_000
+        assert c.get_param("max_velocity.x") == 500_000_000
+        sdo["Profile acceleration"].raw = 2_000_000  # um/s^2
+        assert c.get_param("max_acceleration.x") == 2_000_000_000
+        assert sdo["Profile deceleration"].raw == 2_000_000  # one a_max
+        sdo["Quick stop deceleration"].raw = 3_000_000
+        assert c.get_param("stop_deceleration") == 3_000_000_000
+        sdo["Software position limit"]["Min position limit"].raw = -50_000_000
+        sdo["Software position limit"]["Max position limit"].raw = 60_000_000
+        assert c.get_param("soft_limit_min.x") == -50_000_000
+        assert c.get_param("soft_limit_max.x") == 60_000_000
+        sdo["Following error window"].raw = 0xFFFFFFFF  # off
+        assert c.get_param("following_error_limit.x") == 0
+        # drive parameter (own protocol) -> object
+        c.set_param("following_error_limit.x", 3_000_000)
+        c.set_param("max_velocity.x", 700_000_000)
+        time.sleep(0.05)  # the main loop copies them into the objects
+        assert sdo["Following error window"].raw == 3_000_000
+        assert sdo["Max profile velocity"].raw == 700_000_000
+        # ranges: the object's own, then the drive's
+        assert _abort(lambda: setattr(sdo["Max profile velocity"], "raw", 999)) == 0x06090032
+        assert _abort(lambda: setattr(sdo["Profile acceleration"], "raw", 2_000_000_000)) == (
+            0x06090031
+        )
+        assert _abort(lambda: setattr(sdo["Following error window"], "raw", 0x80000000)) == (
+            0x06090031
+        )
+        assert c.get_param("following_error_limit.x") == 3_000_000  # nothing changed
+        # no following-error timeout in the drive: only 0
+        sdo["Following error time out"].raw = 0
+        assert _abort(lambda: setattr(sdo["Following error time out"], "raw", 10)) == 0x06090031
+        # busy while moving: PP 40 mm at 10 mm/s
+        sdo["Modes of operation"].raw = 1
+        sdo["Profile velocity"].raw = 10_000_000
+        for cw in (0x06, 0x07, 0x0F):
+            sdo["Controlword"].raw = cw
+        assert _wait_sw(node, 0x6F, 0x27, 1.0) & 0x6F == 0x27
+        sdo["Target position"].raw = 40_000_000
+        sdo["Controlword"].raw = 0x1F
+        time.sleep(0.2)
+        assert _abort(lambda: setattr(sdo["Max profile velocity"], "raw", 400_000_000)) == (
+            0x08000022
+        )
+        assert c.get_param("max_velocity.x") == 700_000_000
+        sdo["Controlword"].raw = 0x02  # quick stop
+        time.sleep(0.5)
+        sdo["Controlword"].raw = 0x06
+        sdo["Modes of operation"].raw = 0
+        assert _wait_sw(node, 0x6F, 0x21, 2.0) & 0x6F == 0x21
+        sdo["Max profile velocity"].raw = 1_000_000_000  # idle again: taken
+        assert c.get_param("max_velocity.x") == 1_000_000_000
+        c.set_param("following_error_limit.x", 5_000_000)
+        c.set_param("soft_limit_min.x", 0)
+        c.set_param("soft_limit_max.x", 0)
