@@ -12,6 +12,11 @@ const co_od_entry_t co_od_table[] = {
     {0x1006u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, sync_period_us), 0x0u, 0xFFFFFFFFu},
     {0x1014u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, emcy_cobid), 0x0u, 0xFFFFFFFFu},
     {0x1015u, 0u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, emcy_inhibit), 0x0u, 0xFFFFFFFFu},
+    {0x1016u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer_count), 0x0u, 0xFFFFFFFFu},
+    {0x1016u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer[0]), 0x0u, 0xFFFFFFFFu},
+    {0x1016u, 2u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer[1]), 0x0u, 0xFFFFFFFFu},
+    {0x1016u, 3u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer[2]), 0x0u, 0xFFFFFFFFu},
+    {0x1016u, 4u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer[3]), 0x0u, 0xFFFFFFFFu},
     {0x1017u, 0u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, heartbeat_ms), 0x0u, 0xFFFFFFFFu},
     {0x1018u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, identity_count), 0x0u, 0xFFFFFFFFu},
     {0x1018u, 1u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, vendor_id), 0x0u, 0xFFFFFFFFu},
@@ -165,6 +170,11 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
     v->sync_period_us = 0x0u;
     v->emcy_cobid = 0x80u + cfg->node_id;
     v->emcy_inhibit = 0x0u;
+    v->hb_consumer_count = 0x4u;
+    v->hb_consumer[0] = 0x0u;
+    v->hb_consumer[1] = 0x0u;
+    v->hb_consumer[2] = 0x0u;
+    v->hb_consumer[3] = 0x0u;
     v->heartbeat_ms = 0x3E8u;
     v->identity_count = 0x4u;
     v->vendor_id = cfg->vendor_id;

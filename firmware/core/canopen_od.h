@@ -38,6 +38,8 @@ typedef struct {
     uint32_t sync_period_us; /* 0x1006:0 Communication cycle period */
     uint32_t emcy_cobid; /* 0x1014:0 COB-ID EMCY */
     uint16_t emcy_inhibit; /* 0x1015:0 Inhibit time EMCY */
+    uint8_t hb_consumer_count; /* 0x1016:0 Highest sub-index supported */
+    uint32_t hb_consumer[4]; /* 0x1016:1 Consumer heartbeat time 1 */
     uint16_t heartbeat_ms; /* 0x1017:0 Producer heartbeat time */
     uint8_t identity_count; /* 0x1018:0 Highest sub-index supported */
     uint32_t vendor_id; /* 0x1018:1 Vendor-ID */

@@ -11,8 +11,46 @@
 static cia402_t ax;
 static co_csp_t csp;
 static co_pp_t pp;
-static uint64_t sync_tick;  /* main */
-static uint32_t sync_count; /* main */
+static uint64_t sync_tick;    /* main */
+static uint32_t sync_count;   /* main */
+static uint32_t hb_lost_seen; /* main: co->hb.lost acted on */
+static bool hb_stopping;      /* main: controlled stop of a heartbeat loss */
+static bool reset_pending;    /* main: fault reset posted, the tick not yet done */
+static uint32_t poll_us;      /* main: time of the last co_drive_poll */
+static uint32_t reset_us;     /* main: when the fault reset was posted */
+
+static bool moving(const drive_status_t *st)
+{
+    return st->state == DRIVE_RUNNING || st->state == DRIVE_HOMING || st->state == DRIVE_STOPPING;
+}
+
+static void hb_raise(co_t *co, const drive_status_t *st)
+{
+    if (st->state != DRIVE_FAULT) {
+        co->emcy.comm_code = 0x8130u; /* life guard / heartbeat error */
+        drive_raise_fault(DRIVE_FAULT_COMM);
+    }
+}
+
+/* The master's heartbeat lost (co_hb.h): what the own protocol's watchdog
+ * does (controlled stop, then DRIVE_FAULT_COMM), 402 FAULT REACTION ACTIVE
+ * until the fault is latched. */
+static void hb_watch(co_t *co, const drive_status_t *st)
+{
+    if (co->hb.lost != hb_lost_seen) {
+        hb_lost_seen = co->hb.lost;
+        cia402_fault(&ax);
+        if (moving(st)) {
+            drive_stop();
+            hb_stopping = true;
+        } else {
+            hb_raise(co, st);
+        }
+    } else if (hb_stopping && !moving(st)) {
+        hb_stopping = false;
+        hb_raise(co, st);
+    }
+}
 
 static void csp_follow(co_t *co)
 {
@@ -42,6 +80,11 @@ static void apply(cia402_state_t before)
     } else if (before == CIA402_FAULT && now == CIA402_SWITCH_ON_DISABLED) {
         if (drive_fault_reset() != DRIVE_OK) {
             ax.state = CIA402_FAULT;
+        } else {
+            /* the tick clears the faults later: until then (at most
+             * 100 ms) the snapshot's faults are the old ones */
+            reset_pending = true;
+            reset_us = poll_us;
         }
     } else if (before == CIA402_OPERATION_ENABLED || before == CIA402_QUICK_STOP_ACTIVE) {
         (void)drive_enable(false);
@@ -107,6 +150,9 @@ void co_drive_init(co_t *co)
     pp = (co_pp_t){0};
     sync_tick = 0u;
     sync_count = 0u;
+    hb_lost_seen = co->hb.lost;
+    hb_stopping = false;
+    reset_pending = false;
     co_set_write_hook(co, on_write, co);
     co_set_check_hook(co, on_check);
     co_set_sync_hook(co, on_sync);
@@ -121,7 +167,13 @@ void co_drive_poll(co_t *co, uint32_t now_us)
 
     sample(co, &st);
     co_param_refresh(co);
-    if (st.faults != 0u || st.state == DRIVE_FAULT) {
+    hb_watch(co, &st);
+    poll_us = now_us;
+    if (reset_pending &&
+        ((st.faults == 0u && st.state != DRIVE_FAULT) || now_us - reset_us > 100000u)) {
+        reset_pending = false;
+    }
+    if (!reset_pending && (st.faults != 0u || st.state == DRIVE_FAULT)) {
         cia402_fault(&ax);
         cia402_reaction_done(&ax);
     } else if (ax.state == CIA402_QUICK_STOP_ACTIVE && st.state != DRIVE_STOPPING &&

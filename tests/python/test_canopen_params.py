@@ -113,3 +113,50 @@ def test_402_objects_are_the_drive_parameters(served, network):
         c.set_param("following_error_limit.x", 5_000_000)
         c.set_param("soft_limit_min.x", 0)
         c.set_param("soft_limit_max.x", 0)
+
+
+MASTER = 0x7E  # the master's node id in these tests
+
+
+def test_heartbeat_consumer_is_the_communication_watchdog(network):
+    """0x1016 watches the master's heartbeat: when it stops during a PP
+    move, the drive stops on its path, latches the comm fault (402 FAULT,
+    EMCY 0x8130) and leaves OPERATIONAL (0x1029 = 0)."""
+    node = _node(network)
+    sdo = node.sdo
+    entry = sdo["Consumer heartbeat time"]
+    assert entry[0].raw == 4
+    assert _abort(lambda: setattr(entry[2], "raw", 0x01000000 | 100)) == 0x06090030
+    entry[1].raw = MASTER << 16 | 200  # 200 ms
+    assert _abort(lambda: setattr(entry[2], "raw", MASTER << 16 | 300)) == 0x06040043
+    sdo["Error behavior object"]["Communication error"].raw = 0  # -> pre-operational
+    beat = network.send_periodic(0x700 + MASTER, b"\x05", 0.05)
+    try:
+        node.nmt.send_command(0x01)
+        sdo["Modes of operation"].raw = 1
+        sdo["Profile velocity"].raw = 10_000_000
+        for cw in (0x06, 0x07, 0x0F):
+            sdo["Controlword"].raw = cw
+        assert _wait_sw(node, 0x6F, 0x27, 1.0) & 0x6F == 0x27
+        target = sdo["Position actual value"].raw + 40_000_000
+        sdo["Target position"].raw = target
+        sdo["Controlword"].raw = 0x1F
+        time.sleep(0.5)  # 200 ms of heartbeats missing would have tripped it
+        assert _wait_sw(node, 0x6F, 0x27, 0.1) & 0x6F == 0x27, "still enabled, moving"
+        node.emcy.reset()
+    finally:
+        beat.stop()
+    emcy = node.emcy.wait(0x8130, timeout=2.0)
+    assert emcy is not None, [hex(e.code) for e in node.emcy.log]
+    sw = _wait_sw(node, 0x4F, 0x08, 2.0)
+    assert sw & 0x4F == 0x08, hex(sw)  # FAULT
+    time.sleep(0.3)  # the axis settles once the outputs are off
+    p1 = sdo["Position actual value"].raw
+    time.sleep(0.2)
+    assert abs(sdo["Position actual value"].raw - p1) < 5_000, "at rest"
+    assert p1 < target - 20_000_000, "stopped on its way"
+    assert node.nmt.state == "PRE-OPERATIONAL"
+    entry[1].raw = 0  # unwatched again
+    sdo["Controlword"].raw = 0x80  # fault reset
+    assert _wait_sw(node, 0x4F, 0x40, 1.0) & 0x4F == 0x40
+    sdo["Modes of operation"].raw = 0
