@@ -10,6 +10,10 @@ const co_od_entry_t co_od_table[] = {
     {0x100Au, 0u, CO_OD_STR, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, sw_version), 0x0u, 0xFFFFFFFFu},
     {0x1005u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, sync_cobid), 0x0u, 0xFFFFFFFFu},
     {0x1006u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, sync_period_us), 0x0u, 0xFFFFFFFFu},
+    {0x1010u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, store_count), 0x0u, 0xFFFFFFFFu},
+    {0x1010u, 1u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, store_all), 0x0u, 0xFFFFFFFFu},
+    {0x1011u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, restore_count), 0x0u, 0xFFFFFFFFu},
+    {0x1011u, 1u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, restore_all), 0x0u, 0xFFFFFFFFu},
     {0x1014u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, emcy_cobid), 0x0u, 0xFFFFFFFFu},
     {0x1015u, 0u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, emcy_inhibit), 0x0u, 0xFFFFFFFFu},
     {0x1016u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer_count), 0x0u, 0xFFFFFFFFu},
@@ -290,6 +294,10 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
     if (comm_only) {
         return;
     }
+    v->store_count = 0x1u;
+    v->store_all = 0x1u;
+    v->restore_count = 0x1u;
+    v->restore_all = 0x1u;
     memset(v->device_label, 0, sizeof v->device_label);
     v->controlword = 0x0u;
     v->statusword = 0x0u;

@@ -36,6 +36,10 @@ typedef struct {
     char sw_version[CO_STR_MAX]; /* 0x100A:0 Manufacturer software version */
     uint32_t sync_cobid; /* 0x1005:0 COB-ID SYNC message */
     uint32_t sync_period_us; /* 0x1006:0 Communication cycle period */
+    uint8_t store_count; /* 0x1010:0 Highest sub-index supported */
+    uint32_t store_all; /* 0x1010:1 Save all parameters */
+    uint8_t restore_count; /* 0x1011:0 Highest sub-index supported */
+    uint32_t restore_all; /* 0x1011:1 Restore all default parameters */
     uint32_t emcy_cobid; /* 0x1014:0 COB-ID EMCY */
     uint16_t emcy_inhibit; /* 0x1015:0 Inhibit time EMCY */
     uint8_t hb_consumer_count; /* 0x1016:0 Highest sub-index supported */

@@ -7,8 +7,13 @@
 #include <stddef.h>
 
 #include "drive.h"
+#include "param_store.h"
 
-#define FERR_OFF 0xFFFFFFFFu
+#define FERR_OFF    0xFFFFFFFFu
+#define SIG_SAVE    0x65766173u /* "save" */
+#define SIG_LOAD    0x64616F6Cu /* "load" */
+#define ABORT_STORE 0x08000020u /* cannot be stored: wrong signature */
+#define ABORT_HW    0x06060000u /* hardware error: the flash failed */
 
 typedef struct {
     uint16_t index;
@@ -75,6 +80,21 @@ static uint32_t *var(co_t *co, const co_param_map_t *m)
     return (uint32_t *)(void *)((uint8_t *)&co->od + m->offset);
 }
 
+/* 0x1010:1 / 0x1011:1: param_store_save / _save_defaults. */
+static uint32_t store(uint16_t index, uint32_t value)
+{
+    param_store_result_t r;
+
+    if (value != (index == 0x1010u ? SIG_SAVE : SIG_LOAD)) {
+        return ABORT_STORE;
+    }
+    r = index == 0x1010u ? param_store_save(NULL, NULL) : param_store_save_defaults(NULL, NULL);
+    if (r == PARAM_STORE_E_STATE) {
+        return CO_ABORT_STATE;
+    }
+    return r == PARAM_STORE_OK ? 0u : ABORT_HW;
+}
+
 uint32_t co_param_check(co_t *co, uint16_t index, uint8_t sub, uint32_t value)
 {
     const co_param_map_t *m = find(index, sub);
@@ -82,6 +102,9 @@ uint32_t co_param_check(co_t *co, uint16_t index, uint8_t sub, uint32_t value)
     drive_result_t r;
 
     (void)co;
+    if ((index == 0x1010u || index == 0x1011u) && sub == 1u) {
+        return store(index, value);
+    }
     if (m == NULL) {
         return 0u;
     }
@@ -107,6 +130,8 @@ void co_param_written(co_t *co, uint16_t index, uint8_t sub)
     const co_param_map_t *m = find(index, sub);
     int64_t now;
 
+    co->od.store_all = 1u; /* reads: saves on command */
+    co->od.restore_all = 1u;
     if (m == NULL || drive_param_get((drive_param_t)m->param, 0u, &now) != DRIVE_OK) {
         return;
     }

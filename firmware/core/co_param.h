@@ -21,6 +21,12 @@
  * node then stores the object). co_param_written (write hook: RPDOs) sets
  * the drive when the object differs from it; a refusal is silent (an RPDO
  * has no answer) and co_param_refresh puts the drive's value back.
+ * 0x1010:1 = "save" (0x65766173) -> param_store_save, 0x1011:1 = "load"
+ * (0x64616F6C) -> param_store_save_defaults (the defaults at the next
+ * start): another value -> 0x08000020, the drive not disabled ->
+ * 0x08000022, the flash failed -> 0x06060000. Both read 1 (save on
+ * command). The CiA 301 objects (PDO mapping, 0x1016, 0x1017) are not
+ * stored: a master configures them after boot-up.
  * co_param_refresh (every main pass) copies the drive's values into the
  * objects (a value beyond the object's type saturates), so a change made
  * by the own protocol or param_store shows at once.

@@ -4,16 +4,22 @@ against `sim serve` (issue 19, docs/canopen.md, co_param.h)."""
 
 from __future__ import annotations
 
+import random
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import canopen
 import pytest
 from canopen.sdo.exceptions import SdoAbortedError
+from contour import image as img
 from contour.link.client import connect
 from contour.sim.serve import spawn
 
 EDS = Path(__file__).resolve().parents[2] / "protocol" / "contour.eds"
+LOAD_ADDR = 0x08010200  # the simulated drive's application slot (test_config_e2e.py)
+SAVE = 0x65766173  # "save"
+LOAD = 0x64616F6C  # "load"
 
 
 @pytest.fixture(scope="module")
@@ -160,3 +166,76 @@ def test_heartbeat_consumer_is_the_communication_watchdog(network):
     sdo["Controlword"].raw = 0x80  # fault reset
     assert _wait_sw(node, 0x4F, 0x40, 1.0) & 0x4F == 0x40
     sdo["Modes of operation"].raw = 0
+
+
+def _wait_app(server, timeout: float = 5.0) -> None:
+    end = time.monotonic() + timeout
+    while True:
+        try:
+            with connect(port=server.serial) as c:
+                if c.identify()["axes"] > 0:
+                    return
+        except Exception:  # noqa: BLE001 - a drive that just reset: ask again
+            pass
+        if time.monotonic() > end:
+            raise AssertionError("the application did not start")
+        time.sleep(0.05)
+
+
+@contextmanager
+def _drive_on(flash: Path, image: Path | None = None):
+    """A simulated drive on the flash file (flashed with image first), and
+    the python `canopen` master on its bus."""
+    with spawn(["--flash", str(flash), "--boot-window-ms", "200" if image else "0"]) as s:
+        if image is not None:
+            from contour.cli import main as cli
+
+            assert cli(["flash", str(image), "--port", s.serial, "--no-progress"]) == 0
+        _wait_app(s)
+        net = canopen.Network()
+        net.connect(interface="slcan", channel=s.slcan, bitrate=500000)
+        try:
+            yield s, _node(net)
+        finally:
+            net.disconnect()
+
+
+def test_store_and_restore_parameters(tmp_path):
+    """0x1010 "save" is `config save` (refused while enabled, wrong signature
+    refused); it survives a restart on the same flash; 0x1011 "load" gives
+    the defaults at the next start."""
+    flash = tmp_path / "drive.flash"
+    image = tmp_path / "app.img"
+    payload = random.Random(7).randbytes(4096)
+    image.write_bytes(
+        img.build(
+            payload, board_id=1, fw_version=img.parse_version("1.2.3"), load_addr=LOAD_ADDR
+        ).to_bytes()
+    )
+    with _drive_on(flash, image) as (_, node):
+        sdo = node.sdo
+        save = sdo["Store parameters"]["Save all parameters"]
+        assert save.raw == 1  # saves on command
+        default = sdo["Max profile velocity"].raw
+        assert default != 123_000_000
+        sdo["Max profile velocity"].raw = 123_000_000
+        for cw in (0x06, 0x07, 0x0F):
+            sdo["Controlword"].raw = cw
+        assert _wait_sw(node, 0x6F, 0x27, 1.0) & 0x6F == 0x27
+        assert _abort(lambda: setattr(save, "raw", SAVE)) == 0x08000022  # enabled
+        sdo["Controlword"].raw = 0x06
+        assert _wait_sw(node, 0x6F, 0x21, 1.0) & 0x6F == 0x21
+        assert _abort(lambda: setattr(save, "raw", LOAD)) == 0x08000020  # wrong signature
+        save.raw = SAVE
+        assert save.raw == 1
+        sdo["Max profile velocity"].raw = 77_000_000  # after the save: not kept
+    with _drive_on(flash) as (s, node):
+        assert node.sdo["Max profile velocity"].raw == 123_000_000
+        with connect(port=s.serial) as c:
+            assert c.get_param("param_store_status") == 1  # loaded
+        restore = node.sdo["Restore default parameters"]["Restore all default parameters"]
+        assert _abort(lambda: setattr(restore, "raw", SAVE)) == 0x08000020
+        restore.raw = LOAD
+        assert node.sdo["Max profile velocity"].raw == 123_000_000  # until the next start
+    with _drive_on(flash) as (_, node):
+        assert node.sdo["Max profile velocity"].raw == default
