@@ -44,6 +44,8 @@
  *   object not mappable / PDO too long     0x06040041 / 0x06040042
  *   PDO parameter while the PDO is valid   0x06010000
  *   0x1016 entry for a node already watched 0x06040043 (co_hb.h)
+ *   drive busy / store refused (co_param.h) 0x08000022 / 0x08000020,
+ *   flash failed                          0x06060000
  * Expedited downloads without a size indication take the object's size.
  * A segment without an open transfer is answered with 0x05040001. An abort
  * from the client ends the transfer silently. A new initiate during a

@@ -21,6 +21,11 @@
  * ENABLED; PP and homing start on controlword bit 4 (co_pp.h). At each SYNC 0x6064 is
  * sampled (the drive's last published tick) before the TPDOs, and 0x607A
  * is applied (co_csp_sync) after the RPDOs.
+ * A heartbeat consumer timeout (co_hb.h, co->hb.lost changed): FAULT
+ * REACTION ACTIVE; a moving drive gets the controlled stop first, then
+ * DRIVE_FAULT_COMM is raised (EMCY 0x8130) and the next poll enters FAULT.
+ * After a fault reset the snapshot's faults are ignored until the tick has
+ * cleared them (at most 100 ms). The parameter objects: co_param.h.
  */
 #ifndef CO_DRIVE_H
 #define CO_DRIVE_H
