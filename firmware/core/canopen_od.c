@@ -151,6 +151,18 @@ const co_od_entry_t co_od_table[] = {
     {0x6083u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, profile_acceleration), 0x1u, 0xFFFFFFFFu},
     {0x6084u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, profile_deceleration), 0x1u, 0xFFFFFFFFu},
     {0x6085u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, quick_stop_deceleration), 0x1u, 0xFFFFFFFFu},
+    {0x6840u, 0u, CO_OD_U16, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ax_controlword[0]), 0x0u, 0xFFFFFFFFu},
+    {0x7040u, 0u, CO_OD_U16, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ax_controlword[1]), 0x0u, 0xFFFFFFFFu},
+    {0x6841u, 0u, CO_OD_U16, CO_OD_RO | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ax_statusword[0]), 0x0u, 0xFFFFFFFFu},
+    {0x7041u, 0u, CO_OD_U16, CO_OD_RO | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ax_statusword[1]), 0x0u, 0xFFFFFFFFu},
+    {0x6860u, 0u, CO_OD_U8, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_mode[0]), 0x0u, 0x8u},
+    {0x7060u, 0u, CO_OD_U8, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_mode[1]), 0x0u, 0x8u},
+    {0x6861u, 0u, CO_OD_U8, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_mode_display[0]), 0xFFFFFF80u, 0x7Fu},
+    {0x7061u, 0u, CO_OD_U8, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_mode_display[1]), 0xFFFFFF80u, 0x7Fu},
+    {0x6864u, 0u, CO_OD_U32, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_position_actual[0]), 0x80000000u, 0x7FFFFFFFu},
+    {0x7064u, 0u, CO_OD_U32, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_position_actual[1]), 0x80000000u, 0x7FFFFFFFu},
+    {0x687Au, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_target_position[0]), 0x80000000u, 0x7FFFFFFFu},
+    {0x707Au, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_target_position[1]), 0x80000000u, 0x7FFFFFFFu},
     {0x6098u, 0u, CO_OD_U8, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, homing_method), 0xFFFFFF80u, 0x7Fu},
     {0x6099u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, homing_speed_count), 0x0u, 0xFFFFFFFFu},
     {0x6099u, 1u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, homing_search), 0x1u, 0xFFFFFFFFu},
@@ -316,6 +328,18 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
     v->profile_acceleration = 0x989680u;
     v->profile_deceleration = 0x989680u;
     v->quick_stop_deceleration = 0xF4240u;
+    v->ax_controlword[0] = 0x0u;
+    v->ax_controlword[1] = 0x0u;
+    v->ax_statusword[0] = 0x0u;
+    v->ax_statusword[1] = 0x0u;
+    v->ax_mode[0] = 0;
+    v->ax_mode[1] = 0;
+    v->ax_mode_display[0] = 0;
+    v->ax_mode_display[1] = 0;
+    v->ax_position_actual[0] = 0;
+    v->ax_position_actual[1] = 0;
+    v->ax_target_position[0] = 0;
+    v->ax_target_position[1] = 0;
     v->homing_method = 17;
     v->homing_speed_count = 0x2u;
     v->homing_search = 0x989680u;

@@ -82,6 +82,12 @@ typedef struct {
     uint32_t profile_acceleration; /* 0x6083:0 Profile acceleration */
     uint32_t profile_deceleration; /* 0x6084:0 Profile deceleration */
     uint32_t quick_stop_deceleration; /* 0x6085:0 Quick stop deceleration */
+    uint16_t ax_controlword[2]; /* 0x6840:0 Axis 1 controlword */
+    uint16_t ax_statusword[2]; /* 0x6841:0 Axis 1 statusword */
+    int8_t ax_mode[2]; /* 0x6860:0 Axis 1 modes of operation */
+    int8_t ax_mode_display[2]; /* 0x6861:0 Axis 1 modes of operation display */
+    int32_t ax_position_actual[2]; /* 0x6864:0 Axis 1 position actual value */
+    int32_t ax_target_position[2]; /* 0x687A:0 Axis 1 target position */
     int8_t homing_method; /* 0x6098:0 Homing method */
     uint8_t homing_speed_count; /* 0x6099:0 Highest sub-index supported */
     uint32_t homing_search; /* 0x6099:1 Speed during search for switch */

@@ -35,6 +35,8 @@
 #include "co_csp.h"
 #include "co_pp.h"
 
+#define CO_DRIVE_AXES 3u /* 402 axes: 0x6000, 0x6800, 0x7000 */
+
 /* Attach to co (sets its write, check and SYNC hooks); the drive must be
  * initialised. */
 void co_drive_init(co_t *co);
