@@ -26,6 +26,19 @@
  * DRIVE_FAULT_COMM is raised (EMCY 0x8130) and the next poll enters FAULT.
  * After a fault reset the snapshot's faults are ignored until the tick has
  * cleared them (at most 100 ms). The parameter objects: co_param.h.
+ *
+ * Axes (CiA 402 multi-axis ranges, CO_DRIVE_AXES): 402 axis n's objects
+ * are at 0x6000 + n * 0x800 (0x6840 / 0x6841 / 0x6860 / 0x6861 / 0x6864 /
+ * 0x687A for axis 1 = Y, 0x7040 .. for axis 2 = Z), each with its own state
+ * machine, mode (0, 1 PP or 8 CSP; homing 6 on axis 0 only), PP set-point
+ * and CSP target. The drive has one power stage: it is enabled when some
+ * axis enters OPERATION ENABLED and disabled when the last one leaves it;
+ * quick stop stops the drive (every axis's motion); a drive fault or a
+ * heartbeat loss puts every axis into FAULT; statusword bit 4 is the
+ * drive's. The axes share one planner queue: a CSP SYNC queues one block
+ * moving every axis in CSP; a PP set-point moves its axis alone and is
+ * refused (bit 12 stays 0) while some axis is in CSP. The parameter
+ * objects 0x6065 .. 0x6085 exist for axis 0 only.
  */
 #ifndef CO_DRIVE_H
 #define CO_DRIVE_H
