@@ -66,7 +66,8 @@ def _expand(spec: dict) -> list[tuple[dict, dict]]:
     for obj in spec.get("object", []):
         n = int(obj.get("repeat", 1))
         for k in range(n):
-            o = dict(obj, index=obj["index"] + k, rep=k if n > 1 else None, n=n)
+            step = int(obj.get("stride", 1))
+            o = dict(obj, index=obj["index"] + k * step, rep=k if n > 1 else None, n=n)
             o["name"] = obj["name"].replace("{n}", str(k + 1))
             out.append((obj, o))
     return out
@@ -81,7 +82,7 @@ def load(path: Path = SPEC) -> dict:
         objects.append(obj)
         subs = obj.get("subs")
         if subs is None:
-            subs = [dict(obj, name=obj["name"])]
+            subs = [dict(obj, name=obj["name"], repeat=1)]
             obj["kind"] = "var"
         else:
             obj["kind"] = "record"

@@ -63,6 +63,8 @@ static void written(co_t *co, uint16_t index, uint8_t sub)
 {
     if (index >= 0x1400u && index < 0x1C00u) {
         co_pdo_written(co, index);
+    } else if (index == 0x1016u) {
+        co_hb_written(co, sub);
     }
     if (co->on_write != NULL) {
         co->on_write(co->hook_ctx, index, sub);
@@ -269,6 +271,7 @@ static void nmt_boot(co_t *co, bool comm_only, uint32_t now_us)
     co_od_defaults(&co->od, &co->cfg, comm_only);
     co_pdo_init(co);
     memset(&co->sync, 0, sizeof co->sync);
+    memset(&co->hb.active, 0, sizeof co->hb.active);
     co->emcy.reported = 0u; /* the faults still present are reported again */
     co->sdo_mode = 0u;
     co->nmt = CO_NMT_PREOP;
@@ -333,13 +336,15 @@ bool co_rx(co_t *co, uint32_t id, const uint8_t *data, uint8_t len, uint32_t now
     if (id > 0x7FFu) {
         return false; /* 29-bit: not CANopen */
     }
-    return co_sync_rx(co, id, len, now_us) || co_pdo_rx(co, id, data, len);
+    return co_sync_rx(co, id, len, now_us) || co_pdo_rx(co, id, data, len) ||
+           co_hb_rx(co, id, len, now_us);
 }
 
 void co_poll(co_t *co, uint32_t now_us)
 {
     tx_flush(co);
     co_pdo_poll(co, now_us);
+    co_hb_poll(co, now_us);
     if (co->sdo_mode != 0u && now_us - co->sdo_last_us >= CO_SDO_TIMEOUT_US) {
         sdo_abort(co, co->sdo_index, co->sdo_sub, CO_ABORT_TIMEOUT);
     }

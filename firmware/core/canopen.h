@@ -10,6 +10,7 @@
  *   0x580 + n      SDO server -> client (responses, aborts)
  *   0x600 + n      SDO client -> server (requests)
  *   0x700 + n      boot-up (one byte 0x00) and heartbeat (one byte state)
+ *   0x700 + m      heartbeats of the nodes 0x1016 watches (co_hb.h)
  *   0x1005         SYNC (default 0x080; co_sync.h), 0x1014 EMCY (0x080 + n;
  *                  co_emcy.h), 0x1400/0x1800:1 the PDOs (co_pdo.h)
  * co_rx() takes every received classic-CAN frame and returns true for the
@@ -42,6 +43,9 @@
  *                                          COB-ID, 0x6060 mode; co_pdo.h)
  *   object not mappable / PDO too long     0x06040041 / 0x06040042
  *   PDO parameter while the PDO is valid   0x06010000
+ *   0x1016 entry for a node already watched 0x06040043 (co_hb.h)
+ *   drive busy / store refused (co_param.h) 0x08000022 / 0x08000020,
+ *   flash failed                          0x06060000
  * Expedited downloads without a size indication take the object's size.
  * A segment without an open transfer is answered with 0x05040001. An abort
  * from the client ends the transfer silently. A new initiate during a
@@ -60,6 +64,7 @@
 
 #include "canopen_od.h"
 #include "co_emcy.h"
+#include "co_hb.h"
 #include "co_pdo.h"
 #include "co_sync.h"
 
@@ -148,6 +153,7 @@ typedef struct co_s {
     co_pdo_t pdo;
     co_sync_t sync;
     co_emcy_t emcy;
+    co_hb_t hb;
     uint32_t hb_last_us;
     /* SDO transfer (segmented) */
     uint8_t sdo_mode; /* 0 idle, 1 download, 2 upload */

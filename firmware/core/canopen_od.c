@@ -10,8 +10,17 @@ const co_od_entry_t co_od_table[] = {
     {0x100Au, 0u, CO_OD_STR, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, sw_version), 0x0u, 0xFFFFFFFFu},
     {0x1005u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, sync_cobid), 0x0u, 0xFFFFFFFFu},
     {0x1006u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, sync_period_us), 0x0u, 0xFFFFFFFFu},
+    {0x1010u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, store_count), 0x0u, 0xFFFFFFFFu},
+    {0x1010u, 1u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, store_all), 0x0u, 0xFFFFFFFFu},
+    {0x1011u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, restore_count), 0x0u, 0xFFFFFFFFu},
+    {0x1011u, 1u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, restore_all), 0x0u, 0xFFFFFFFFu},
     {0x1014u, 0u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, emcy_cobid), 0x0u, 0xFFFFFFFFu},
     {0x1015u, 0u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, emcy_inhibit), 0x0u, 0xFFFFFFFFu},
+    {0x1016u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer_count), 0x0u, 0xFFFFFFFFu},
+    {0x1016u, 1u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer[0]), 0x0u, 0xFFFFFFFFu},
+    {0x1016u, 2u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer[1]), 0x0u, 0xFFFFFFFFu},
+    {0x1016u, 3u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer[2]), 0x0u, 0xFFFFFFFFu},
+    {0x1016u, 4u, CO_OD_U32, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, hb_consumer[3]), 0x0u, 0xFFFFFFFFu},
     {0x1017u, 0u, CO_OD_U16, CO_OD_RW, 1u, (uint16_t)offsetof(co_od_vars_t, heartbeat_ms), 0x0u, 0xFFFFFFFFu},
     {0x1018u, 0u, CO_OD_U8, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, identity_count), 0x0u, 0xFFFFFFFFu},
     {0x1018u, 1u, CO_OD_U32, CO_OD_RO, 1u, (uint16_t)offsetof(co_od_vars_t, vendor_id), 0x0u, 0xFFFFFFFFu},
@@ -133,6 +142,27 @@ const co_od_entry_t co_od_table[] = {
     {0x607Au, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, target_position), 0x80000000u, 0x7FFFFFFFu},
     {0x607Cu, 0u, CO_OD_U32, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, home_offset), 0x80000000u, 0x7FFFFFFFu},
     {0x6081u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, profile_velocity), 0x1u, 0xFFFFFFFFu},
+    {0x6065u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ferr_window), 0x1u, 0xFFFFFFFFu},
+    {0x6066u, 0u, CO_OD_U16, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ferr_timeout), 0x0u, 0x0u},
+    {0x607Du, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, soft_limit_count), 0x0u, 0xFFFFFFFFu},
+    {0x607Du, 1u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, soft_limit_min), 0x80000000u, 0x7FFFFFFFu},
+    {0x607Du, 2u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, soft_limit_max), 0x80000000u, 0x7FFFFFFFu},
+    {0x607Fu, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, max_profile_velocity), 0x3E8u, 0xFFFFFFFFu},
+    {0x6083u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, profile_acceleration), 0x1u, 0xFFFFFFFFu},
+    {0x6084u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, profile_deceleration), 0x1u, 0xFFFFFFFFu},
+    {0x6085u, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, quick_stop_deceleration), 0x1u, 0xFFFFFFFFu},
+    {0x6840u, 0u, CO_OD_U16, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ax_controlword[0]), 0x0u, 0xFFFFFFFFu},
+    {0x7040u, 0u, CO_OD_U16, CO_OD_RW | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ax_controlword[1]), 0x0u, 0xFFFFFFFFu},
+    {0x6841u, 0u, CO_OD_U16, CO_OD_RO | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ax_statusword[0]), 0x0u, 0xFFFFFFFFu},
+    {0x7041u, 0u, CO_OD_U16, CO_OD_RO | CO_OD_MAP, 0u, (uint16_t)offsetof(co_od_vars_t, ax_statusword[1]), 0x0u, 0xFFFFFFFFu},
+    {0x6860u, 0u, CO_OD_U8, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_mode[0]), 0x0u, 0x8u},
+    {0x7060u, 0u, CO_OD_U8, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_mode[1]), 0x0u, 0x8u},
+    {0x6861u, 0u, CO_OD_U8, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_mode_display[0]), 0xFFFFFF80u, 0x7Fu},
+    {0x7061u, 0u, CO_OD_U8, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_mode_display[1]), 0xFFFFFF80u, 0x7Fu},
+    {0x6864u, 0u, CO_OD_U32, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_position_actual[0]), 0x80000000u, 0x7FFFFFFFu},
+    {0x7064u, 0u, CO_OD_U32, CO_OD_RO | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_position_actual[1]), 0x80000000u, 0x7FFFFFFFu},
+    {0x687Au, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_target_position[0]), 0x80000000u, 0x7FFFFFFFu},
+    {0x707Au, 0u, CO_OD_U32, CO_OD_RW | CO_OD_MAP | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, ax_target_position[1]), 0x80000000u, 0x7FFFFFFFu},
     {0x6098u, 0u, CO_OD_U8, CO_OD_RW | CO_OD_SIGNED, 0u, (uint16_t)offsetof(co_od_vars_t, homing_method), 0xFFFFFF80u, 0x7Fu},
     {0x6099u, 0u, CO_OD_U8, CO_OD_RO, 0u, (uint16_t)offsetof(co_od_vars_t, homing_speed_count), 0x0u, 0xFFFFFFFFu},
     {0x6099u, 1u, CO_OD_U32, CO_OD_RW, 0u, (uint16_t)offsetof(co_od_vars_t, homing_search), 0x1u, 0xFFFFFFFFu},
@@ -156,6 +186,11 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
     v->sync_period_us = 0x0u;
     v->emcy_cobid = 0x80u + cfg->node_id;
     v->emcy_inhibit = 0x0u;
+    v->hb_consumer_count = 0x4u;
+    v->hb_consumer[0] = 0x0u;
+    v->hb_consumer[1] = 0x0u;
+    v->hb_consumer[2] = 0x0u;
+    v->hb_consumer[3] = 0x0u;
     v->heartbeat_ms = 0x3E8u;
     v->identity_count = 0x4u;
     v->vendor_id = cfg->vendor_id;
@@ -271,6 +306,10 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
     if (comm_only) {
         return;
     }
+    v->store_count = 0x1u;
+    v->store_all = 0x1u;
+    v->restore_count = 0x1u;
+    v->restore_all = 0x1u;
     memset(v->device_label, 0, sizeof v->device_label);
     v->controlword = 0x0u;
     v->statusword = 0x0u;
@@ -280,6 +319,27 @@ void co_od_defaults(co_od_vars_t *v, const co_config_t *cfg, bool comm_only)
     v->target_position = 0;
     v->home_offset = 0;
     v->profile_velocity = 0x989680u;
+    v->ferr_window = 0x4C4B40u;
+    v->ferr_timeout = 0x0u;
+    v->soft_limit_count = 0x2u;
+    v->soft_limit_min = 0;
+    v->soft_limit_max = 0;
+    v->max_profile_velocity = 0x3B9ACA00u;
+    v->profile_acceleration = 0x989680u;
+    v->profile_deceleration = 0x989680u;
+    v->quick_stop_deceleration = 0xF4240u;
+    v->ax_controlword[0] = 0x0u;
+    v->ax_controlword[1] = 0x0u;
+    v->ax_statusword[0] = 0x0u;
+    v->ax_statusword[1] = 0x0u;
+    v->ax_mode[0] = 0;
+    v->ax_mode[1] = 0;
+    v->ax_mode_display[0] = 0;
+    v->ax_mode_display[1] = 0;
+    v->ax_position_actual[0] = 0;
+    v->ax_position_actual[1] = 0;
+    v->ax_target_position[0] = 0;
+    v->ax_target_position[1] = 0;
     v->homing_method = 17;
     v->homing_speed_count = 0x2u;
     v->homing_search = 0x989680u;

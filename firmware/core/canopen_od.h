@@ -36,8 +36,14 @@ typedef struct {
     char sw_version[CO_STR_MAX]; /* 0x100A:0 Manufacturer software version */
     uint32_t sync_cobid; /* 0x1005:0 COB-ID SYNC message */
     uint32_t sync_period_us; /* 0x1006:0 Communication cycle period */
+    uint8_t store_count; /* 0x1010:0 Highest sub-index supported */
+    uint32_t store_all; /* 0x1010:1 Save all parameters */
+    uint8_t restore_count; /* 0x1011:0 Highest sub-index supported */
+    uint32_t restore_all; /* 0x1011:1 Restore all default parameters */
     uint32_t emcy_cobid; /* 0x1014:0 COB-ID EMCY */
     uint16_t emcy_inhibit; /* 0x1015:0 Inhibit time EMCY */
+    uint8_t hb_consumer_count; /* 0x1016:0 Highest sub-index supported */
+    uint32_t hb_consumer[4]; /* 0x1016:1 Consumer heartbeat time 1 */
     uint16_t heartbeat_ms; /* 0x1017:0 Producer heartbeat time */
     uint8_t identity_count; /* 0x1018:0 Highest sub-index supported */
     uint32_t vendor_id; /* 0x1018:1 Vendor-ID */
@@ -67,6 +73,21 @@ typedef struct {
     int32_t target_position; /* 0x607A:0 Target position */
     int32_t home_offset; /* 0x607C:0 Home offset */
     uint32_t profile_velocity; /* 0x6081:0 Profile velocity */
+    uint32_t ferr_window; /* 0x6065:0 Following error window */
+    uint16_t ferr_timeout; /* 0x6066:0 Following error time out */
+    uint8_t soft_limit_count; /* 0x607D:0 Highest sub-index supported */
+    int32_t soft_limit_min; /* 0x607D:1 Min position limit */
+    int32_t soft_limit_max; /* 0x607D:2 Max position limit */
+    uint32_t max_profile_velocity; /* 0x607F:0 Max profile velocity */
+    uint32_t profile_acceleration; /* 0x6083:0 Profile acceleration */
+    uint32_t profile_deceleration; /* 0x6084:0 Profile deceleration */
+    uint32_t quick_stop_deceleration; /* 0x6085:0 Quick stop deceleration */
+    uint16_t ax_controlword[2]; /* 0x6840:0 Axis 1 controlword */
+    uint16_t ax_statusword[2]; /* 0x6841:0 Axis 1 statusword */
+    int8_t ax_mode[2]; /* 0x6860:0 Axis 1 modes of operation */
+    int8_t ax_mode_display[2]; /* 0x6861:0 Axis 1 modes of operation display */
+    int32_t ax_position_actual[2]; /* 0x6864:0 Axis 1 position actual value */
+    int32_t ax_target_position[2]; /* 0x687A:0 Axis 1 target position */
     int8_t homing_method; /* 0x6098:0 Homing method */
     uint8_t homing_speed_count; /* 0x6099:0 Highest sub-index supported */
     uint32_t homing_search; /* 0x6099:1 Speed during search for switch */

@@ -21,6 +21,24 @@
  * ENABLED; PP and homing start on controlword bit 4 (co_pp.h). At each SYNC 0x6064 is
  * sampled (the drive's last published tick) before the TPDOs, and 0x607A
  * is applied (co_csp_sync) after the RPDOs.
+ * A heartbeat consumer timeout (co_hb.h, co->hb.lost changed): FAULT
+ * REACTION ACTIVE; a moving drive gets the controlled stop first, then
+ * DRIVE_FAULT_COMM is raised (EMCY 0x8130) and the next poll enters FAULT.
+ * After a fault reset the snapshot's faults are ignored until the tick has
+ * cleared them (at most 100 ms). The parameter objects: co_param.h.
+ *
+ * Axes (CiA 402 multi-axis ranges, CO_DRIVE_AXES): 402 axis n's objects
+ * are at 0x6000 + n * 0x800 (0x6840 / 0x6841 / 0x6860 / 0x6861 / 0x6864 /
+ * 0x687A for axis 1 = Y, 0x7040 .. for axis 2 = Z), each with its own state
+ * machine, mode (0, 1 PP or 8 CSP; homing 6 on axis 0 only), PP set-point
+ * and CSP target. The drive has one power stage: it is enabled when some
+ * axis enters OPERATION ENABLED and disabled when the last one leaves it;
+ * quick stop stops the drive (every axis's motion); a drive fault or a
+ * heartbeat loss puts every axis into FAULT; statusword bit 4 is the
+ * drive's. The axes share one planner queue: a CSP SYNC queues one block
+ * moving every axis in CSP; a PP set-point moves its axis alone and is
+ * refused (bit 12 stays 0) while some axis is in CSP. The parameter
+ * objects 0x6065 .. 0x6085 exist for axis 0 only.
  */
 #ifndef CO_DRIVE_H
 #define CO_DRIVE_H
@@ -29,6 +47,8 @@
 #include "cia402.h"
 #include "co_csp.h"
 #include "co_pp.h"
+
+#define CO_DRIVE_AXES 3u /* 402 axes: 0x6000, 0x6800, 0x7000 */
 
 /* Attach to co (sets its write, check and SYNC hooks); the drive must be
  * initialised. */

@@ -26,7 +26,8 @@ static const struct {
     {0xFF80u, ER_MFR},     /* oscillation */
 };
 
-#define EMCY_BITS (sizeof emcy_table / sizeof emcy_table[0])
+#define EMCY_COMM_BIT (1u << 5) /* DRIVE_FAULT_COMM */
+#define EMCY_BITS     (sizeof emcy_table / sizeof emcy_table[0])
 
 static unsigned bit_of(uint32_t b)
 {
@@ -82,6 +83,13 @@ void co_emcy_update(struct co_s *co, uint32_t faults, uint32_t now_us)
     m->reported ^= low;
     co->od.error_register = error_register(m->reported);
     code = (faults & low) != 0u ? co_emcy_code(low) : 0x0000u;
+    if (low == EMCY_COMM_BIT) {
+        if (code != 0u && m->comm_code != 0u) {
+            code = m->comm_code; /* the heartbeat consumer's timeout */
+        } else if (code == 0u) {
+            m->comm_code = 0u;
+        }
+    }
     if (code == 0x0000u && m->reported != 0u) {
         return; /* one of several cleared: the reset comes with the last */
     }

@@ -22,6 +22,7 @@
  *   amplifier          0x5400  CiA 402 power section               g, current
  *   estop              0xFF10  manufacturer (emergency stop input) g, mfr
  *   comm_timeout       0x8100  CiA 301 communication (host link)   g, comm
+ *                      0x8130  when the heartbeat consumer (co_hb.h) raised it
  *   homing             0xFF40  manufacturer                        g, mfr
  *   oscillation        0xFF80  manufacturer (CEC limit cycle)      g, mfr
  *
@@ -37,9 +38,11 @@
 #include <stdint.h>
 
 typedef struct {
-    uint32_t reported; /* fault bits the last EMCYs described */
-    uint32_t last_us;  /* time of the last EMCY */
-    uint32_t sent;     /* EMCY frames sent */
+    uint32_t reported;  /* fault bits the last EMCYs described */
+    uint32_t last_us;   /* time of the last EMCY */
+    uint32_t sent;      /* EMCY frames sent */
+    uint16_t comm_code; /* 0, or the code of the next comm_timeout (0x8130:
+                         * set by co_drive on a heartbeat timeout) */
 } co_emcy_t;
 
 struct co_s;

@@ -79,6 +79,9 @@ static uint32_t od_check(co_t *co, const co_od_entry_t *e, uint32_t v)
     if (e->index == 0x1005u || e->index == 0x1006u) {
         return co_sync_check(co, e->index, v);
     }
+    if (e->index == 0x1016u) {
+        return co_hb_check(co, e->sub, v);
+    }
     if (e->index == 0x1014u) {
         return co_emcy_check(v);
     }

@@ -1,6 +1,7 @@
 /*
  * co_pp.h - CiA 402 profile position (PP, 0x6060 = 1) and homing (0x6060 =
- * 6) of axis 0 of the drive's CANopen node. Main context only.
+ * 6) of one axis of the drive's CANopen node (co_pp_t.axis; homing on
+ * axis 0 only). Main context only.
  *
  * Specification
  * -------------
@@ -41,11 +42,20 @@ typedef struct {
     bool home_failed; /* homing: refused start */
     pos_nm_t last;    /* PP: last set-point, nm */
     uint32_t refused; /* set-points / homing starts the drive refused */
+    uint8_t axis;     /* the drive axis of this 402 axis (0x6000 + axis * 0x800) */
 } co_pp_t;
 
-void co_pp_controlword(co_pp_t *p, co_t *co, bool enabled);
+/* The axis's controlword, mode and target position (0x6040 / 0x6060 /
+ * 0x607A, or 0x6840 .. for axis 1). */
+typedef struct {
+    uint16_t cw;
+    int8_t mode;
+    int32_t target;
+} co_pp_cmd_t;
+
+void co_pp_controlword(co_pp_t *p, co_t *co, bool enabled, const co_pp_cmd_t *c);
 /* Statusword bits 12, 13 of the mode (0 in other modes). */
-uint16_t co_pp_status(const co_pp_t *p, const co_t *co, const drive_status_t *st);
+uint16_t co_pp_status(const co_pp_t *p, int8_t mode, const drive_status_t *st);
 /* 0 or 0x06090030 for a homing method that is not supported. */
 uint32_t co_pp_check_method(int32_t method);
 

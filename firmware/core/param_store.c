@@ -3,6 +3,8 @@
  */
 #include "param_store.h"
 
+#include <stdbool.h>
+
 #include "comp_store.h"
 #include "scratch.h"
 
@@ -54,7 +56,7 @@ uint16_t param_store_encode(uint8_t *buf, uint16_t cap)
     return (uint16_t)at;
 }
 
-param_store_result_t param_store_save(uint32_t *version, uint32_t *detail)
+static param_store_result_t save(bool defaults, uint32_t *version, uint32_t *detail)
 {
     drive_status_t st;
     uint16_t len;
@@ -71,6 +73,11 @@ param_store_result_t param_store_save(uint32_t *version, uint32_t *detail)
         r = COMP_STORE_E_BUSY;
     } else {
         len = param_store_encode(blob, (uint16_t)COMP_STORE_BLOB_MAX);
+        if (defaults && len != 0u) {
+            blob[8] = 0u; /* no entries: the next load keeps the defaults */
+            blob[9] = 0u;
+            len = HDR;
+        }
         r = len == 0u ? COMP_STORE_E_ARG : comp_store_blob_write(blob, len, version);
         scratch_release(SCRATCH_PARAM_STORE);
     }
@@ -78,6 +85,16 @@ param_store_result_t param_store_save(uint32_t *version, uint32_t *detail)
         *detail = (uint32_t)r;
     }
     return r == COMP_STORE_OK ? PARAM_STORE_OK : PARAM_STORE_E_FLASH;
+}
+
+param_store_result_t param_store_save(uint32_t *version, uint32_t *detail)
+{
+    return save(false, version, detail);
+}
+
+param_store_result_t param_store_save_defaults(uint32_t *version, uint32_t *detail)
+{
+    return save(true, version, detail);
 }
 
 static uint32_t get32(const uint8_t *p)

@@ -56,6 +56,9 @@ typedef enum {
 } param_store_result_t;
 
 param_store_result_t param_store_save(uint32_t *version, uint32_t *detail);
+/* The same rule and store, with no parameter in the record: the next
+ * param_store_load keeps every default (status LOADED). CANopen 0x1011. */
+param_store_result_t param_store_save_defaults(uint32_t *version, uint32_t *detail);
 param_store_status_t param_store_load(void);
 /* Status of the last load (PARAM_STORE_NONE before one). */
 param_store_status_t param_store_status(void);

@@ -220,9 +220,12 @@ static void can_receive(uint32_t now)
             dlc = 8u;
         }
         if (!lk.ext_all && co_rx(&lk.co, id, data, dlc, now)) {
-            /* a CANopen master driving the node (SYNC, PDOs, SDO, NMT) is
-             * the host the link watchdog waits for */
-            lk.disp.last_rx_us = now;
+            /* a CANopen master driving the node is the host the link
+             * watchdog waits for: its heartbeat when 0x1016 watches it,
+             * else any of its frames (co_hb.h) */
+            if (co_hb_alive(&lk.co, id)) {
+                lk.disp.last_rx_us = now;
+            }
             continue;
         }
         if (id != lk.tp.rx_id) {

@@ -1,19 +1,19 @@
 /*
  * libFuzzer harness: the CiA 301 node (canopen.c): NMT slave, SDO server,
- * SYNC consumer, PDOs and EMCY (co_sync.c, co_pdo.c, co_emcy.c).
+ * SYNC consumer, PDOs, EMCY and heartbeat consumer (co_sync.c, co_pdo.c,
+ * co_emcy.c, co_hb.c).
  *
  * The input is cut into CAN frames: per frame one byte selects the kind
  * (bits 7..5: 0 the node's SDO request, 1 NMT 0x000, 2 SYNC 0x080, 3 one of
  * the default RPDO ids 0x200..0x500 + node (bits 4..3 pick it), 4 an EMCY
  * update with the next byte as the drive's fault bits, 5 any 11-bit id from
- * the next two bytes, 6 a 29-bit id) and the DLC (low nibble, 0..15, above
- * 8 taken as 8), then the data bytes; a time step of the next byte (ms)
- * runs co_poll. Every frame the node sends must be a classic CAN frame
- * (11-bit id, DLC <= 8), every SDO response DLC 8, every heartbeat DLC 1,
- * every EMCY DLC 8; the transfer state must stay within its buffer and
- * every PDO's resolved mapping within 8 bytes; nothing may crash or loop.
- * SDO downloads reach the PDO configuration (0x1400-0x1BFF), so mappings,
- * COB-IDs and transmission types are fuzzed through their own checks.
+ * the next two bytes, 6 a 29-bit id, 7 a heartbeat of node 5 (0x705)) and the DLC (low nibble,
+ * 0..15, above 8 taken as 8), then the data bytes; a time step of the next byte (ms) runs co_poll.
+ * Every frame the node sends must be a classic CAN frame (11-bit id, DLC <= 8), every SDO response
+ * DLC 8, every heartbeat DLC 1, every EMCY DLC 8; the transfer state must stay within its buffer
+ * and every PDO's resolved mapping within 8 bytes; nothing may crash or loop. SDO downloads reach
+ * the PDO configuration (0x1400-0x1BFF), so mappings, COB-IDs and transmission types are fuzzed
+ * through their own checks, and the heartbeat consumer 0x1016 (co_hb.c) with its timeouts.
  */
 #include <stdint.h>
 #include <string.h>
@@ -74,6 +74,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *in, size_t n)
         } else if (kind == 5u && n - i >= 2u) {
             id = ((uint32_t)in[i] << 8 | in[i + 1]) & 0x7FFu;
             i += 2u;
+        } else if (kind == 7u) {
+            id = CO_ID_HB + 5u;
         } else if (kind == 6u && n - i >= 2u) {
             id = 0x80000000u | 0x1FC00000u | ((uint32_t)in[i] << 8 | in[i + 1]);
             i += 2u;
@@ -88,7 +90,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *in, size_t n)
             now += (uint32_t)in[i++] * 1000u;
         }
         co_poll(&co, now);
-        if (co.sdo_pos > sizeof co.sdo_buf || co.sdo_mode > 2u) {
+        if (co.sdo_pos > sizeof co.sdo_buf || co.sdo_mode > 2u || co.hb.active[0] > 1u) {
             __builtin_trap();
         }
         for (unsigned k = 0; k < CO_PDO_N; k++) {

@@ -22,7 +22,7 @@ clang "${flags[@]}" -o "$out/fuzz_dispatch" tests/fuzz/fuzz_dispatch.c $core $hi
 clang "${flags[@]}" -o "$out/fuzz_batch" tests/fuzz/fuzz_batch.c $core $hil -lm
 clang "${flags[@]}" -o "$out/fuzz_canopen" tests/fuzz/fuzz_canopen.c firmware/core/canopen.c \
   firmware/core/canopen_od.c firmware/core/co_od.c firmware/core/co_pdo.c firmware/core/co_sync.c \
-  firmware/core/co_emcy.c
+  firmware/core/co_emcy.c firmware/core/co_hb.c
 clang "${flags[@]}" -o "$out/fuzz_comp2d" tests/fuzz/fuzz_comp2d.c firmware/core/comp2d.c \
   firmware/core/comp2d_live.c
 for name in frame dispatch batch canopen comp2d; do

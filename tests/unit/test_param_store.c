@@ -110,6 +110,23 @@ static void test_saved_parameters_survive_a_restart(void)
     TEST_ASSERT_EQUAL_INT32(123456, drive_config()->servo.ferr_limit_nm[0]);
 }
 
+/* CANopen 0x1011 "load": a record without parameters, so the next start
+ * keeps the defaults; refused while enabled like a save. */
+static void test_saved_defaults_give_the_defaults_at_the_next_start(void)
+{
+    change(0);
+    TEST_ASSERT_EQUAL_INT(PARAM_STORE_OK, param_store_save(NULL, NULL));
+    change(1);
+    TEST_ASSERT_EQUAL_INT(PARAM_STORE_OK, param_store_save_defaults(NULL, NULL));
+    TEST_ASSERT_TRUE(changed(1)); /* in use until the next start */
+    boot(3);
+    TEST_ASSERT_EQUAL_INT(PARAM_STORE_LOADED, param_store_status());
+    TEST_ASSERT_TRUE(defaults());
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    TEST_ASSERT_TRUE(sim_run(10, NULL, 0, 0) >= 0);
+    TEST_ASSERT_EQUAL_INT(PARAM_STORE_E_STATE, param_store_save_defaults(NULL, NULL));
+}
+
 static void test_save_only_while_disabled(void)
 {
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
@@ -275,6 +292,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_cec_gains_are_servo_parameters);
     RUN_TEST(test_saved_parameters_survive_a_restart);
+    RUN_TEST(test_saved_defaults_give_the_defaults_at_the_next_start);
     RUN_TEST(test_save_only_while_disabled);
     RUN_TEST(test_damaged_record_is_ignored_and_reported);
     RUN_TEST(test_damaged_newest_falls_back_to_the_previous_save);
