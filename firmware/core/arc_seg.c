@@ -51,6 +51,19 @@ static int64_t arc_seg_angle(int64_t r, int64_t feed, int64_t tol, uint32_t tick
     return a_tol < 1 ? 1 : a_tol;
 }
 
+/* d * k / n for 0 <= k <= n, truncated as C divides; a product that would
+ * overflow (a span of thousands of km, or of many turns) takes the 128-bit
+ * path, which rounds to nearest instead. */
+static int64_t arc_lerp(int64_t d, uint32_t k, int64_t n)
+{
+    int64_t lim = INT64_MAX / n;
+
+    if (d > lim || d < -lim) {
+        return fx_muldiv64(d, (int64_t)k, n);
+    }
+    return d * (int64_t)k / n;
+}
+
 /* Point k of n of the arc, its angle and radius. */
 static void arc_point(const arc_seg_t *a, const drive_block_t *b, uint32_t k,
                       pos_nm_t out[CORE_AXES], fx_angle_t *th, pos_nm_t *rad)
@@ -59,10 +72,10 @@ static void arc_point(const arc_seg_t *a, const drive_block_t *b, uint32_t k,
     int64_t n = a->n_seg;
     q1_30_t s, c;
     for (i = 0; i < CORE_AXES; i++) {
-        out[i] = a->start[i] + (b->target[i] - a->start[i]) * (int64_t)k / n;
+        out[i] = a->start[i] + arc_lerp(b->target[i] - a->start[i], k, n);
     }
-    *th = a->th_s + (fx_angle_t)(uint64_t)(a->sweep * (int64_t)k / n);
-    *rad = a->r_s + (a->r_e - a->r_s) * (int64_t)k / n;
+    *th = a->th_s + (fx_angle_t)(uint64_t)arc_lerp(a->sweep, k, n);
+    *rad = a->r_s + arc_lerp(a->r_e - a->r_s, k, n);
     if (k == a->n_seg) {
         for (i = 0; i < CORE_AXES; i++) {
             out[i] = b->target[i];
