@@ -267,25 +267,40 @@ def _simplex(ident, tick_hz: float, ms_target: float, d_tau: float, worst) -> di
     f = float(f) if f is not None and f > 0 else 0.0
     start = tune(ident, tick_hz, "robust", ms_target, d_tau).gains
 
-    def gains_of(x):
-        kp, ki, kd = (math.exp(v) for v in x)
-        return {"kp": kp, "ki": ki, "kd": kd, "d_tau": d_tau}
+    def objective(x, g):
+        iae = circle_iae(ident, tick_hz, g, ff, f)
+        return math.log(iae) if math.isfinite(iae) else None
+
+    cost = _penalised_cost(objective, worst, ms_target, d_tau)
+    x0 = np.log([start["kp"], start["ki"], max(start["kd"], start["kp"] * 1e-4)])
+    best, _ = _nelder_mead(cost, x0, step=0.3, iters=150, tol=1e-4)
+    best, _ = _nelder_mead(cost, best, step=0.1, iters=100, tol=1e-4)
+    return _gains_of(best, d_tau)
+
+
+def _gains_of(x, d_tau: float) -> dict:
+    """PID gains from the search variables log(Kp, Ki, Kd)."""
+    kp, ki, kd = (math.exp(v) for v in x)
+    return {"kp": kp, "ki": ki, "kd": kd, "d_tau": d_tau}
+
+
+def _penalised_cost(objective, worst, ms_target: float, d_tau: float):
+    """The search cost of robust and simplex: unstable gains cost 1e6 plus
+    their spectral radius, an Ms above the target a steep penalty, and
+    objective(x, gains) the rest (None: a failed evaluation, 1e5)."""
 
     def cost(x):
-        g = gains_of(x)
+        g = _gains_of(x, d_tau)
         m = worst(g)
         if not m.stable:
             return 1e6 + m.rho
         excess = max(0.0, m.ms - ms_target)
-        iae = circle_iae(ident, tick_hz, g, ff, f)
-        if not math.isfinite(iae):
+        v = objective(x, g)
+        if v is None:
             return 1e5
-        return math.log(iae) + 1e3 * excess * excess + 10 * excess
+        return v + 1e3 * excess * excess + 10 * excess
 
-    x0 = np.log([start["kp"], start["ki"], max(start["kd"], start["kp"] * 1e-4)])
-    best, _ = _nelder_mead(cost, x0, step=0.3, iters=150, tol=1e-4)
-    best, _ = _nelder_mead(cost, best, step=0.1, iters=100, tol=1e-4)
-    return gains_of(best)
+    return cost
 
 
 def tune(
@@ -314,18 +329,7 @@ def tune(
     if method == "zn":
         g = zn
     elif method == "robust":
-
-        def gains_of(x):
-            kp, ki, kd = (math.exp(v) for v in x)
-            return {"kp": kp, "ki": ki, "kd": kd, "d_tau": d_tau}
-
-        def cost(x):
-            g = gains_of(x)
-            m = worst(g)
-            if not m.stable:
-                return 1e6 + m.rho
-            excess = max(0.0, m.ms - ms_target)
-            return -x[1] + 1e3 * excess * excess + 10 * excess
+        cost = _penalised_cost(lambda x, g: -x[1], worst, ms_target, d_tau)  # largest Ki
 
         # a feasible start: the largest-Ki PID of a coarse family below ZN
         x0, best_ki = None, -math.inf
@@ -333,7 +337,7 @@ def tune(
             for ti in tu * 4.0 ** np.arange(-0.5, 6.0):
                 for td in (0.0, tu / 8):
                     x = np.log([kp, kp / ti, max(kp * td, 1e-12)])
-                    m = worst(gains_of(x))
+                    m = worst(_gains_of(x, d_tau))
                     if m.stable and m.ms <= ms_target and x[1] > best_ki:
                         x0, best_ki = x, x[1]
         if x0 is None:
@@ -341,7 +345,7 @@ def tune(
         best, _ = _nelder_mead(cost, x0)
         for _ in range(2):  # restarts: NM stalls on the penalty's kink
             best, _ = _nelder_mead(cost, best, step=0.1)
-        g = gains_of(best)
+        g = _gains_of(best, d_tau)
     elif method == "simplex":
         g = _simplex(ident, tick_hz, ms_target, d_tau, worst)
     else:
