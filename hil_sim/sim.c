@@ -60,6 +60,13 @@ static struct {
     size_t inj_k[SIM_AXES];
     size_t inj_n[SIM_AXES];
     double inj_now[SIM_AXES]; /* V added over the current tick */
+    /* the mean reading (hal_encoder_mean) while the drive has enc_mean:
+     * generator position at the start of the substep, count at the start
+     * of the tick, integral of count - base over the tick so far (ns) */
+    int mean;
+    qgen_pos_t mean_x[SIM_AXES];
+    int64_t mean_base[SIM_AXES];
+    double mean_acc[SIM_AXES];
 } S;
 
 /* With the 2-D field on, add it to X's and Y's true positions (S.table)
@@ -436,6 +443,8 @@ int sim_servo_set(unsigned axis, const char *name, double v)
         S.dcfg.ff_advance_ns = (int32_t)floor(v * 1e9 + 0.5);
     } else if (strcmp(name, "qg_comp") == 0 && (v == 0.0 || v == 1.0)) {
         S.dcfg.qg_comp = v != 0.0;
+    } else if (strcmp(name, "enc_mean") == 0 && (v == 0.0 || v == 1.0)) {
+        S.dcfg.enc_mean = v != 0.0;
     } else if (strcmp(name, "ffl_rate") == 0 && in_range(v, 0.0, SERVO_FFL_RATE_MAX)) {
         p->ffl_rate = (int32_t)floor(v + 0.5);
     } else if (strcmp(name, "handover") == 0) {
@@ -773,6 +782,45 @@ static void disturbance_tick(void)
     }
 }
 
+/* Integral of H(u) = floor from 0 to u: n (n - 1) / 2 + n (u - n). */
+static double floor_integral(double u)
+{
+    double n = floor(u);
+    return n * (n - 1.0) * 0.5 + n * (u - n);
+}
+
+/* The mean reading of axis i: s < 0 starts a tick; s >= 0 adds substep s
+ * (the generator moved linearly from mean_x to its x, emitting the count
+ * floor(x): qgen.h, no edge offsets in the simulator); s == nsub - 1 also
+ * hands the tick's mean minus the count at its end to the HAL, in
+ * 2^-16 counts. Exact but for the ns rounding of the edge times. */
+static void sim_mean_step(unsigned i, int s)
+{
+    qgen_pos_t x1 = S.gen[i].x;
+    double u0, u1, dt;
+    if (s < 0) {
+        S.mean_x[i] = x1;
+        S.mean_base[i] = S.gen[i].count;
+        S.mean_acc[i] = 0.0;
+        return;
+    }
+    /* relative to the count at the start of the tick: exact in a double */
+    u0 = (double)(S.mean_x[i] - S.mean_base[i] * QGEN_ONE) / (double)QGEN_ONE;
+    u1 = (double)(x1 - S.mean_base[i] * QGEN_ONE) / (double)QGEN_ONE;
+    dt = (double)(S.sub_ns[s + 1] - S.sub_ns[s]);
+    if (floor(u0) == floor(u1)) {
+        S.mean_acc[i] += floor(u0) * dt;
+    } else {
+        S.mean_acc[i] += (floor_integral(u1) - floor_integral(u0)) / (u1 - u0) * dt;
+    }
+    S.mean_x[i] = x1;
+    if ((unsigned)s + 1u == S.nsub) {
+        double lag =
+            S.mean_acc[i] / (double)S.period_ns - (double)(S.gen[i].count - S.mean_base[i]);
+        hal_sim_set_encoder_mean(i, (int64_t)floor(lag * 65536.0 + 0.5));
+    }
+}
+
 static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
                       unsigned min_free, uint64_t *ran)
 {
@@ -814,10 +862,14 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         if (S.dist_on) {
             disturbance_tick();
         }
+        S.mean = drive_config()->enc_mean; /* after main: a parameter write */
         for (i = 0; i < S.axes; i++) {
             double u = (double)hal_sim_motor_mv(i) * 1e-3;
             if (S.inj_n[i] > 0) {
                 u += S.inj_now[i];
+            }
+            if (S.mean) {
+                sim_mean_step(i, -1);
             }
             for (s = 0; s < S.nsub; s++) {
                 /* z unchanged and no reading noise: the reading is the one
@@ -826,6 +878,9 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
                                     ? S.gen[i].x
                                     : to_qgen(axis_encoder_reading(&S.ax[i]));
                 S.edges += qgen_move_to(&S.gen[i], x1, S.t_ns + S.sub_ns[s + 1]);
+                if (S.mean) {
+                    sim_mean_step(i, (int)s);
+                }
             }
             S.table[i] = axis_table_pos(&S.ax[i]);
         }

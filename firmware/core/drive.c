@@ -159,6 +159,9 @@ drive_result_t drive_init(const drive_config_t *cfg)
         cfg->ff_advance_ns > DRIVE_FF_ADVANCE_NS_MAX || plan_check_profile(&cfg->plan) != PLAN_OK) {
         return DRIVE_E_INVALID;
     }
+    if (cfg->enc_mean && !drive_inputs_mean_ok(cfg->axes)) {
+        return DRIVE_E_UNSUPPORTED;
+    }
     drv.ready = false;
     drv.cfg = *cfg;
     drv.ff = (drive_ff_t){0};
@@ -194,12 +197,8 @@ drive_result_t drive_init(const drive_config_t *cfg)
     drv.cur_tag = 0;
     drv.req_enable = drv.req_disable = drv.req_stop = false;
     drv.req_estop = drv.req_reset = drv.req_gains = drv.req_cec = false;
-    drv.req_fault = 0;
-    drv.req_resume = false;
-    drv.rs_seq = 0;
-    drv.req_any = false;
-    drv.req_ref = false;
-    drv.req_home = false;
+    drv.req_fault = drv.rs_seq = 0;
+    drv.req_resume = drv.req_any = drv.req_ref = drv.req_home = false;
     drv.homed = 0;
     for (i = 0; i < CORE_AXES; i++) {
         drv.home.shift[i] = 0;
@@ -364,14 +363,16 @@ static void reference_step(void)
     }
 }
 
-/* Velocity feed-forward advance and friction feed-forward as an extra
- * reference acceleration (see drive.h). */
-static void friction_ff(void)
+/* Velocity feed-forward advance, friction feed-forward as an extra
+ * reference acceleration and the mean alignment (see drive.h): the
+ * reference the servo compares fb with. */
+static const motion_ref_t *friction_ff(servo_fb_t *fb)
 {
     if (drv.ff.on) {
         drv.ref_synced = false; /* drv.ref.vel / acc may change */
-        drive_ff_step(&drv.ff, &drv.servo, &drv.ref, drv.cfg.axes);
+        return drive_ff_step(&drv.ff, &drv.servo, &drv.ref, fb, drv.cfg.axes);
     }
+    return &drv.ref;
 }
 
 /* A state change of the tick, published for main at once. */
@@ -562,8 +563,7 @@ const drive_tick_out_t *drive_tick(bool ref_sampling)
         drv.state == DRIVE_IDLE || drv.state == DRIVE_RUNNING || drv.state == DRIVE_STOPPING;
     if (moving_ok && drv.servo.state == SERVO_RUN) {
         reference_step();
-        friction_ff();
-        servo_tick(&drv.servo, &drv.ref, &fb);
+        servo_tick(&drv.servo, friction_ff(&fb), &fb);
     } else {
         tick_still(&fb);
     }
@@ -983,6 +983,8 @@ drive_result_t drive_apply_config(const drive_config_t *c)
     drv.cfg.start_delay_ms = c->start_delay_ms;
     drv.cfg.ff_advance_ns = c->ff_advance_ns;
     drv.cfg.qg_comp = c->qg_comp;
+    drv.cfg.enc_mean = c->enc_mean; /* main checked the port (drive_param.c) */
+    drive_inputs_set_mean(&drv.in, c->enc_mean);
     drv.cfg.friction_ff_band_nm_s = c->friction_ff_band_nm_s;
     for (i = 0; i < CORE_AXES; i++) {
         drv.cfg.friction_ff_mv[i] = c->friction_ff_mv[i];

@@ -157,13 +157,14 @@
 
 typedef enum {
     DRIVE_OK = 0,
-    DRIVE_E_FULL,     /* planner ring full: retry after blocks complete */
-    DRIVE_E_INVALID,  /* malformed block or parameter (nothing changed)  */
-    DRIVE_E_DISABLED, /* the drive is not enabled                        */
-    DRIVE_E_FAULTED,  /* a fault is latched: fault_reset first           */
-    DRIVE_E_BUSY,     /* not allowed while moving (parameter changes)    */
-    DRIVE_E_CAUSE,    /* fault_reset refused: the cause is still present */
-    DRIVE_E_LIMIT     /* a target outside the soft travel limits          */
+    DRIVE_E_FULL,       /* planner ring full: retry after blocks complete */
+    DRIVE_E_INVALID,    /* malformed block or parameter (nothing changed)  */
+    DRIVE_E_DISABLED,   /* the drive is not enabled                        */
+    DRIVE_E_FAULTED,    /* a fault is latched: fault_reset first           */
+    DRIVE_E_BUSY,       /* not allowed while moving (parameter changes)    */
+    DRIVE_E_CAUSE,      /* fault_reset refused: the cause is still present */
+    DRIVE_E_LIMIT,      /* a target outside the soft travel limits          */
+    DRIVE_E_UNSUPPORTED /* the port cannot provide what it needs (enc_mean) */
 } drive_result_t;
 
 typedef enum {
@@ -307,6 +308,17 @@ typedef struct {
      * with the PIDs, +6 um with the CEC). Learned from the last two
      * reversals, so it follows a friction that changes. Default false. */
     bool qg_comp;
+    /* Mean measurement (issue 21): the loops see each axis's encoder as
+     * its mean over the tick (hal_encoder_mean) instead of its count at the
+     * sample, and compare it with the reference at the same mean time,
+     * t_k - T/2 (drive_ff.h "Mean alignment"): half a tick of measurement
+     * delay that is not a tracking error. The boxcar removes what the
+     * sample aliases (at 3 ms the X table's 662.6 Hz mode, excited by the
+     * zero-order hold at 2 x 333 Hz, read 3.4 Hz from DC) and resolves
+     * below one count on a moving axis. Default false; a port whose
+     * hal_encoder_mean returns false refuses it: drive_init and the
+     * parameter return DRIVE_E_UNSUPPORTED, nothing changes. */
+    bool enc_mean;
     int64_t stop_decel_nm_s2; /* drive_stop: path deceleration, > 0          */
     int64_t arc_chord_nm;     /* arc segmentation tolerance, 0: default      */
     uint32_t start_delay_ms;  /* start of motion from rest: see "Feeding",
@@ -474,7 +486,8 @@ const drive_config_t *drive_config(void);
  * through drive_set_servo_params (validated with servo_config, refused with
  * DRIVE_E_BUSY while moving, applied by the tick's gains request); the
  * others (soft limits, in-position window, the feed-forward corrections
- * FRICTION_FF .. QG_COMP, drive_ff.h) like the planner's. */
+ * FRICTION_FF .. QG_COMP, drive_ff.h; ENC_MEAN, which a port without
+ * hal_encoder_mean refuses with DRIVE_E_UNSUPPORTED) like the planner's. */
 typedef enum {
     DRIVE_PARAM_V_MAX = 0,      /* per axis, nm/s          1000 .. SC_V_LIMIT   */
     DRIVE_PARAM_A_MAX,          /* per axis, nm/s^2   SC_A_MIN .. SC_A_LIMIT    */
@@ -506,6 +519,7 @@ typedef enum {
     DRIVE_PARAM_FF_ADVANCE,     /* ns (ff_advance_ns)         0 .. DRIVE_FF_ADVANCE_NS_MAX */
     DRIVE_PARAM_QG_COMP,        /* 0 / 1 (qg_comp)                               */
     DRIVE_PARAM_FFL_RATE,       /* 1/s (servo ffl_rate)       0 .. SERVO_FFL_RATE_MAX */
+    DRIVE_PARAM_ENC_MEAN,       /* 0 / 1 (enc_mean; 1 refused: DRIVE_E_UNSUPPORTED) */
     DRIVE_PARAM_COUNT
 } drive_param_t;
 

@@ -12,8 +12,9 @@
 void drive_ff_config(drive_ff_t *f, const drive_config_t *cfg, unsigned axes)
 {
     unsigned i;
-    bool on = cfg->ff_advance_ns != 0;
+    bool on = cfg->ff_advance_ns != 0 || cfg->enc_mean;
     bool restart = cfg->qg_comp != f->qg;
+    int64_t hz = cfg->tick_hz > 0 ? (int64_t)cfg->tick_hz : 1;
 
     f->on = false; /* the reference is at rest (drive_ff.h): no tick uses it */
     CORE_BARRIER();
@@ -26,6 +27,10 @@ void drive_ff_config(drive_ff_t *f, const drive_config_t *cfg, unsigned axes)
         on = on || mv != 0;
     }
     f->qg = cfg->qg_comp;
+    f->mean = cfg->enc_mean;
+    f->k_half = (int32_t)(((int64_t)1 << 31) / hz);
+    f->k_tick = (int32_t)((((int64_t)1 << 32) - 1) / hz);
+    f->k_sixth = (int32_t)(((int64_t)1 << 32) / (6 * hz));
     for (i = 0; i < CORE_AXES && restart; i++) {
         f->qg_sign[i] = 0;
         f->qg_have[i] = 0;
@@ -62,9 +67,56 @@ static void qg_step(drive_ff_t *f, pid_loop_t *pid, unsigned i, int64_t v, int64
     }
 }
 
-void drive_ff_step(drive_ff_t *f, servo_t *servo, motion_ref_t *ref, unsigned axes)
+/* x * y in q1_30 */
+static int32_t q30_mul(int32_t x, int32_t y)
+{
+    return (int32_t)fx_round_shift64((int64_t)x * y, 30);
+}
+
+/* The reference at the mean time (drive_ff.h "Mean alignment") into
+ * f->mref (pos, tangent), from ref before the feed-forward corrections;
+ * fb's plane axes on an ARC moved out by th^2 / 6. */
+static void mean_align(drive_ff_t *f, const motion_ref_t *ref, servo_fb_t *fb, unsigned axes)
+{
+    int64_t d[CORE_AXES] = {0};
+    const motion_geom_t *g = &ref->geom;
+    unsigned i;
+    for (i = 0; i < axes; i++) {
+        int64_t at2 = fx_mul64x32_shift32(ref->acc[i], f->k_tick); /* a T, nm/s */
+        d[i] = fx_mul64x32_shift32(at2, f->k_sixth) -              /* a T^2 / 6 */
+               fx_mul64x32_shift32(ref->vel[i], f->k_half);        /* v T / 2   */
+        f->mref.pos[i] = ref->pos[i] + d[i];
+        f->mref.geom.tangent[i] = g->tangent[i];
+    }
+    if (g->kind == MOTION_GEOM_ARC && g->radius > 0 && g->plane_u < axes && g->plane_v < axes) {
+        unsigned u = g->plane_u, v = g->plane_v;
+        int64_t au = ref->pos[u] - g->centre_u, av = ref->pos[v] - g->centre_v;
+        int64_t th64 = fx_muldiv64(au * d[v] - av * d[u], (int64_t)1 << 30, g->radius * g->radius);
+        int32_t th = (int32_t)fx_clamp_sym64(th64, (int64_t)1 << 28); /* 0.25 rad */
+        int32_t th2 = q30_mul(th, th);
+        int32_t sn = th - q30_mul(th, th2) / 6;
+        int32_t cs = (1 << 30) - th2 / 2 + q30_mul(th2, th2) / 24;
+        int32_t q = th2 / 6;
+        int32_t tu = g->tangent[u], tv = g->tangent[v];
+        f->mref.pos[u] =
+            g->centre_u + fx_mul64x32_shift(au, cs, 30) - fx_mul64x32_shift(av, sn, 30);
+        f->mref.pos[v] =
+            g->centre_v + fx_mul64x32_shift(au, sn, 30) + fx_mul64x32_shift(av, cs, 30);
+        f->mref.geom.tangent[u] = q30_mul(tu, cs) - q30_mul(tv, sn);
+        f->mref.geom.tangent[v] = q30_mul(tu, sn) + q30_mul(tv, cs);
+        fb->pos[u] += fx_mul64x32_shift(fb->pos[u] - g->centre_u, q, 30);
+        fb->pos[v] += fx_mul64x32_shift(fb->pos[v] - g->centre_v, q, 30);
+    }
+}
+
+const motion_ref_t *drive_ff_step(drive_ff_t *f, servo_t *servo, motion_ref_t *ref, servo_fb_t *fb,
+                                  unsigned axes)
 {
     unsigned i;
+    if (f->mean) {
+        f->mref = *ref; /* vel and acc are taken again below */
+        mean_align(f, ref, fb, axes);
+    }
     for (i = 0; i < axes; i++) {
         int64_t fr, v, kaff, u;
         if (f->adv_q32 != 0) {
@@ -92,4 +144,12 @@ void drive_ff_step(drive_ff_t *f, servo_t *servo, motion_ref_t *ref, unsigned ax
         /* mV -> nm/s^2: u * 1e-3 V / (kaff V/(m/s^2)) * 1e9 = u * 1e6 / kaff */
         ref->acc[i] = fx_sat_add64(ref->acc[i], fx_div_round64(u * 1000000 * 65536, kaff));
     }
+    if (!f->mean) {
+        return ref;
+    }
+    for (i = 0; i < axes; i++) { /* the feed-forward: the command's */
+        f->mref.vel[i] = ref->vel[i];
+        f->mref.acc[i] = ref->acc[i];
+    }
+    return &f->mref;
 }

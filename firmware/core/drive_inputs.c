@@ -8,6 +8,7 @@ bool drive_inputs_init(drive_inputs_t *in, const drive_config_t *cfg, uint32_t n
 {
     unsigned i;
     in->any_counter = false;
+    in->mean = false;
     for (i = 0; i < CORE_AXES; i++) {
         in->ref_on[i] = false;
         if (i >= cfg->axes) {
@@ -57,7 +58,60 @@ bool drive_inputs_init(drive_inputs_t *in, const drive_config_t *cfg, uint32_t n
             }
         }
     }
+    drive_inputs_set_mean(in, cfg->enc_mean);
     return true;
+}
+
+bool drive_inputs_mean_ok(unsigned axes)
+{
+    unsigned i;
+    for (i = 0; i < axes; i++) {
+        if (!hal_encoder_mean(i, NULL)) {
+            return false;
+        }
+    }
+    return true;
+}
+
+void drive_inputs_set_mean(drive_inputs_t *in, bool on)
+{
+    in->mean = on;
+    in->slow = in->any_counter || on;
+}
+
+void drive_inputs_sample_slow(drive_inputs_t *in, const drive_config_t *cfg, uint32_t now_ns,
+                              servo_fb_t *fb)
+{
+    uint32_t enc_fault = 0;
+    unsigned i;
+    for (i = 0; i < CORE_AXES; i++) {
+        qdec_t *q = &in->enc[i];
+        if (i >= cfg->axes) {
+            fb->pos[i] = 0;
+            continue;
+        }
+        if (cfg->enc_counter[i]) {
+            uint32_t raw = q->last_raw; /* no snapshot: no change */
+            (void)hal_encoder_counter(i, &raw);
+            qdec_sample_counter(q, raw, now_ns);
+        } else {
+            qdec_sample(q, now_ns);
+        }
+        fb->pos[i] = q->out.pos_nm;
+        if (q->out.faults != 0) {
+            enc_fault |= 1u << i;
+        }
+    }
+    fb->enc_fault = enc_fault;
+    comp2d_live_apply(&in->enc[0].out.pos_nm, &in->enc[1].out.pos_nm, &fb->pos[0], &fb->pos[1]);
+    for (i = 0; in->mean && i < cfg->axes; i++) {
+        int64_t lag = 0;
+        if (hal_encoder_mean(i, &lag)) {
+            /* 2^-16 counts -> nm, rounded */
+            fb->pos[i] += fx_muldiv64(lag, cfg->nm_per_count_num[i],
+                                      (int64_t)cfg->nm_per_count_den[i] * 65536);
+        }
+    }
 }
 
 void drive_inputs_ref_sample(drive_inputs_t *in, unsigned axes)

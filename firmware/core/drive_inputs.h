@@ -17,6 +17,14 @@
  * DRIVE_REF_SAMPLE_TICKS), and scales it. X and Y (axes 0 and 1) then get
  * the 2-D map's correction (comp2d_live.h) in both the feedback and the
  * decoders' pos_nm.
+ * Mean measurement (cfg->enc_mean, drive.h): the feedback of every axis is
+ * then its decoder's position plus hal_encoder_mean's lag (2^-16 counts)
+ * scaled by nm_per_count (rounded; after the 2-D map, which is taken at
+ * the sample: the map's slope over half a tick's travel is below a nm);
+ * the decoders' own output (pos_nm, the status) stays the sample's.
+ * drive_inputs_mean_ok: the port provides it for axes 0..axes-1.
+ * drive_inputs_set_mean switches it (main, planner idle: the reference at
+ * rest).
  *
  * Contexts: init main (drive_init, tick not running); the samples tick;
  * encoder edges (qdec_edge on enc[]) the edge interrupt per qdec.h. The
@@ -45,12 +53,23 @@ typedef struct {
     int64_t ref_cnt[CORE_AXES];  /* counts since init                   */
     pos_nm_t ref_nm[CORE_AXES];  /* position, nm (published)            */
     bool any_counter;            /* some axis in use has enc_counter    */
+    bool mean;                   /* enc_mean (main writes, planner idle) */
+    bool slow;                   /* any_counter or mean: the out-of-line
+                                  * sample (main writes with mean)     */
 } drive_inputs_t;
 
 /* Set up the decoders of cfg's axes at now_ns (see above). False when a
  * decoder refuses its configuration or an enc_counter axis has no counter
  * on this port. Main. */
 bool drive_inputs_init(drive_inputs_t *in, const drive_config_t *cfg, uint32_t now_ns);
+
+/* True when hal_encoder_mean answers for axes 0..axes-1. Any. */
+bool drive_inputs_mean_ok(unsigned axes);
+void drive_inputs_set_mean(drive_inputs_t *in, bool on);
+
+/* drive_inputs_sample with counters or the mean (out of line). Tick. */
+void drive_inputs_sample_slow(drive_inputs_t *in, const drive_config_t *cfg, uint32_t now_ns,
+                              servo_fb_t *fb);
 
 /* Sample every encoder at now_ns and fill fb as servo_fb_from_qdec would
  * (pos_nm, the fault bit; 0 beyond cfg->axes). Inline: the tick. */
@@ -59,21 +78,17 @@ static inline void drive_inputs_sample(drive_inputs_t *in, const drive_config_t 
 {
     uint32_t enc_fault = 0;
     unsigned i;
-    for (i = 0; i < CORE_AXES; i++) {
+    if (in->slow) {
+        drive_inputs_sample_slow(in, cfg, now_ns, fb);
+        return;
+    }
+    for (i = 0; i < CORE_AXES; i++) { /* the usual configuration: edges */
         qdec_t *q = &in->enc[i];
         if (i >= cfg->axes) {
             fb->pos[i] = 0;
             continue;
         }
-        if (!in->any_counter) { /* the usual configuration */
-            qdec_sample(q, now_ns);
-        } else if (cfg->enc_counter[i]) {
-            uint32_t raw = q->last_raw; /* no snapshot: no change */
-            (void)hal_encoder_counter(i, &raw);
-            qdec_sample_counter(q, raw, now_ns);
-        } else {
-            qdec_sample(q, now_ns);
-        }
+        qdec_sample(q, now_ns);
         fb->pos[i] = q->out.pos_nm;
         if (q->out.faults != 0) {
             enc_fault |= 1u << i;

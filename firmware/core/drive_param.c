@@ -7,6 +7,7 @@
  */
 #include "drive.h"
 #include "drive_int.h"
+#include "drive_inputs.h"
 #include "scratch.h"
 
 /* The candidate configuration of drive_param_set and of a begin / stage /
@@ -91,6 +92,7 @@ static const struct {
     [DRIVE_PARAM_FF_ADVANCE] = {0, DRIVE_FF_ADVANCE_NS_MAX, false},
     [DRIVE_PARAM_QG_COMP] = {0, 1, false},
     [DRIVE_PARAM_FFL_RATE] = {0, SERVO_FFL_RATE_MAX, false},
+    [DRIVE_PARAM_ENC_MEAN] = {0, 1, false},
 };
 
 /* Servo parameters: set through drive_set_servo_params (the tick applies). */
@@ -182,6 +184,8 @@ static int64_t param_read(const drive_config_t *c, drive_param_t id, unsigned ax
         return c->qg_comp ? 1 : 0;
     case DRIVE_PARAM_FFL_RATE:
         return c->servo.ffl_rate;
+    case DRIVE_PARAM_ENC_MEAN:
+        return c->enc_mean ? 1 : 0;
     default:
         return c->start_delay_ms;
     }
@@ -219,10 +223,23 @@ static void param_write(drive_config_t *c, drive_param_t id, unsigned axis, int6
     case DRIVE_PARAM_FFL_RATE:
         c->servo.ffl_rate = (int32_t)v;
         break;
+    case DRIVE_PARAM_ENC_MEAN:
+        c->enc_mean = v != 0;
+        break;
     default:
         c->start_delay_ms = (uint32_t)v;
         break;
     }
+}
+
+/* drive_apply_config, after the port's check of enc_mean: a port that
+ * cannot measure the mean refuses it, never ignores it. */
+static drive_result_t apply(const drive_config_t *c)
+{
+    if (c->enc_mean && !drive_inputs_mean_ok(c->axes)) {
+        return DRIVE_E_UNSUPPORTED;
+    }
+    return drive_apply_config(c);
 }
 
 drive_result_t drive_param_get(drive_param_t id, unsigned axis, int64_t *value)
@@ -266,7 +283,7 @@ drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value)
     if (param_is_servo(id)) {
         return drive_set_servo_params(&cand.servo);
     }
-    return drive_apply_config(&cand);
+    return apply(&cand);
 }
 
 drive_result_t drive_param_begin(void)
@@ -299,7 +316,7 @@ drive_result_t drive_param_commit(void)
     if (r != DRIVE_OK) {
         return r;
     }
-    r = drive_apply_config(&cand); /* checks the planner is idle */
+    r = apply(&cand); /* checks the port, then that the planner is idle */
     if (r != DRIVE_OK) {
         return r;
     }
@@ -353,5 +370,5 @@ drive_result_t drive_set_plan_profile(const plan_profile_t *prof)
     }
     cand = *drive_config();
     cand.plan = *prof;
-    return drive_apply_config(&cand);
+    return apply(&cand);
 }

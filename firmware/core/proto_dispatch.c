@@ -115,6 +115,8 @@ static refusal_t map_drive_result(drive_result_t r, const drive_status_t *st)
         return refuse(PROTO_ERROR_CODE_BUSY, (uint16_t)st->state);
     case DRIVE_E_CAUSE:
         return refuse(PROTO_ERROR_CODE_CAUSE_PRESENT, (uint16_t)st->faults);
+    case DRIVE_E_UNSUPPORTED: /* the port cannot (enc_mean) */
+        return refuse(PROTO_ERROR_CODE_NOT_SUPPORTED, 0);
     default:
         return refuse(PROTO_ERROR_CODE_INTERNAL, (uint16_t)r);
     }

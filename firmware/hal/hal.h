@@ -31,6 +31,18 @@ uint32_t hal_time_us(void);
  * reference-scale inputs). Tick context. False when the port has no counter. */
 bool hal_encoder_counter(unsigned ch, uint32_t *count);
 
+/* Mean of encoder `axis`'s count over the tick that ends at this tick's
+ * sample (since the previous tick's), minus the count at this sample, in
+ * 2^-16 counts (negative while the count rises). What timestamped edges
+ * (input capture) or a counter sampled by DMA many times per tick give: a
+ * boxcar over the tick, so a mode near a multiple of the tick rate is not
+ * aliased onto the path (|sinc| 0.006 at 662.6 Hz over 3 ms) and a moving
+ * axis resolves below one count. Read by the tick of a drive configured
+ * with enc_mean (drive.h) only. lag_q16 NULL: whether the port provides
+ * it at all (any context; the drive refuses enc_mean on false). False when
+ * the port cannot (then always false). */
+bool hal_encoder_mean(unsigned axis, int64_t *lag_q16);
+
 /* ---- motor outputs and lines -------------------------------------------- */
 
 /* Motor command of one axis in millivolts at the amplifier input, already

@@ -304,6 +304,13 @@ bool hal_encoder_counter(unsigned ch, uint32_t *count)
     return false; /* edge mode: every A/B change is a GPIO event */
 }
 
+bool hal_encoder_mean(unsigned axis, int64_t *lag_q16)
+{
+    (void)axis;
+    (void)lag_q16;
+    return false; /* GPIO events carry no time fine enough: enc_mean refused */
+}
+
 /* ---- serial ------------------------------------------------------------------------- */
 
 static bool serial_open(void)

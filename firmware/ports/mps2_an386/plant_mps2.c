@@ -228,3 +228,10 @@ bool hal_encoder_counter(unsigned ch, uint32_t *count)
     *count = pl.ref_count[ch - pl.axes];
     return true;
 }
+
+bool hal_encoder_mean(unsigned axis, int64_t *lag_q16)
+{
+    (void)axis;
+    (void)lag_q16;
+    return false; /* the plant steps once per tick: enc_mean refused */
+}

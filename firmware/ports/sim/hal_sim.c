@@ -36,6 +36,8 @@ static struct {
     sim_canq_t can_to_drive, can_from_drive;
     uint32_t kicks;
     bool reset_req;
+    bool no_mean; /* hal_sim_set_mean_port(false) */
+    int64_t mean_lag_q16[HAL_MAX_AXES];
 } sim;
 
 void hal_sim_reset(void)
@@ -73,6 +75,29 @@ void hal_sim_set_counter(unsigned ch, uint32_t count, bool valid)
         sim.counter[ch] = count;
         sim.counter_valid[ch] = valid;
     }
+}
+
+bool hal_encoder_mean(unsigned axis, int64_t *lag_q16)
+{
+    if (sim.no_mean || axis >= HAL_MAX_AXES) {
+        return false;
+    }
+    if (lag_q16 != NULL) {
+        *lag_q16 = sim.mean_lag_q16[axis];
+    }
+    return true;
+}
+
+void hal_sim_set_encoder_mean(unsigned axis, int64_t lag_q16)
+{
+    if (axis < HAL_MAX_AXES) {
+        sim.mean_lag_q16[axis] = lag_q16;
+    }
+}
+
+void hal_sim_set_mean_port(bool provides)
+{
+    sim.no_mean = !provides;
 }
 
 void hal_motor_set_mv(unsigned axis, int32_t millivolts)

@@ -12,7 +12,9 @@
  *               amplifier outputs 0.
  *   encoders    axes deliver edges (edge mode): hal_encoder_counter() returns
  *               false for them; a channel given a counter value with
- *               hal_sim_set_counter() (e.g. the reference scale) reports it.
+ *               hal_sim_set_counter() (e.g. the reference scale) reports it;
+ *               hal_encoder_mean() returns what hal_sim_set_encoder_mean()
+ *               set.
  *   UART / CAN  byte ring and frame queue in each direction.
  *   watchdog    counts kicks; hal_system_reset() raises a flag the server
  *               acts on (the simulator restarts the firmware).
@@ -48,6 +50,14 @@ void hal_sim_set_home_switch(unsigned axis, bool on);
 
 /* Hardware counter value of channel ch (valid = false: edge mode). */
 void hal_sim_set_counter(unsigned ch, uint32_t count, bool valid);
+
+/* Mean reading of axis `axis` over the last tick (hal_encoder_mean): the
+ * simulator sets it every tick from the generator's reading over the
+ * substeps (sim.c) while the drive has enc_mean. hal_sim_set_mean_port(false)
+ * makes the port one that cannot provide it (tests of the drive's refusal);
+ * hal_sim_reset: it can, lag 0. */
+void hal_sim_set_encoder_mean(unsigned axis, int64_t lag_q16);
+void hal_sim_set_mean_port(bool provides);
 
 /* Host side of the UART: bytes toward the drive / bytes the drive sent. */
 size_t hal_sim_uart_inject(const uint8_t *data, size_t len);

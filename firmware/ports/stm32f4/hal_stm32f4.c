@@ -111,6 +111,13 @@ bool hal_encoder_counter(unsigned ch, uint32_t *count)
     return false;
 }
 
+bool hal_encoder_mean(unsigned axis, int64_t *lag_q16)
+{
+    (void)axis;
+    (void)lag_q16;
+    return false; /* the timers are read once per tick: enc_mean refused */
+}
+
 /* ---- motor outputs and lines -------------------------------------------------------- */
 
 static bool motor_on[AXES];

@@ -39,6 +39,9 @@ optional except where noted; units SI unless the name says otherwise)::
     ferr_limit_mm = 50.0            # following-error fault limit (0: off)
     sat_limit_s = 0.5               # output saturated this long: fault (0: off)
     stop_decel = 1.0                # controlled stop, m/s^2
+    encoder_mean = 0                # 1: the loops see each encoder's mean over the
+                                    # tick, the reference at the same mean time
+                                    # (drive.h enc_mean; docs/simulator.md)
 
     [gains.axis]                    # axis PIDs (every axis) ...
     kp = 1500.0  ki = 8000.0  kd = 5.0  d_tau = 1e-4  d_on_measurement = false
@@ -181,7 +184,7 @@ FF_KEYS = {
 }
 FF_KEYS |= {f"{k}_{ax}" for k in ("kvff", "kaff") for ax in "xyz"}
 FF_MODES = ("none", "velocity", "full")
-SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel"}
+SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel", "encoder_mean"}
 TOP_KEYS = {
     "name",
     "description",
@@ -582,6 +585,10 @@ def apply(
 
         core.check(field2d.apply(so, m.field2d["field"], m.field2d["band_um"]), "2-D field")
     core.check(so.sim_servo_set(0, b"sat_limit", m.servo["sat_limit_s"]), "sat_limit")
+    core.check(
+        so.sim_servo_set(0, b"enc_mean", 1.0 if m.servo.get("encoder_mean", 0) else 0.0),
+        "encoder_mean",
+    )
     core.check(so.sim_plan_set(0, b"stop_decel", m.servo["stop_decel"]), "stop_decel")
     _gains(so, -1, m.gains["cec"], "cec")
     if "cec_line" in m.gains:

@@ -77,6 +77,34 @@ def zoh(a: np.ndarray, b: np.ndarray, t: float):
     return e[:n, :n], e[:n, n:]
 
 
+def zoh_mean(a: np.ndarray, b: np.ndarray, c: np.ndarray, t: float):
+    """The plant sampled as the drive's mean measurement (drive.h enc_mean):
+    the output at tick k is the mean of c x over the tick before it,
+    c (Phi1 x_{k-1} + Gam1 u_{k-1}) with Phi1 = (1/T) int_0^T e^{A s} ds and
+    Gam1 likewise for the held input. As a state-space model without
+    feed-through: state [x; m], m_{k+1} = c Phi1 x_k + c Gam1 u_k, output m.
+    Returns (phi, gam, c) of that model."""
+    n, m = a.shape[0], b.shape[1]
+    k = n + m
+    aug = np.zeros((2 * k, 2 * k))
+    aug[:n, :n] = a
+    aug[:n, n:k] = b
+    aug[:k, k:] = np.eye(k)
+    e = expm(aug * t)
+    phi, gam = e[:n, :n], e[:n, n:k]
+    integ = e[:k, k:] / t  # (1/T) int_0^T e^{M s} ds, M = [[A, B], [0, 0]]
+    phi1, gam1 = integ[:n, :n], integ[:n, n:k]
+    pa = np.zeros((n + 1, n + 1))
+    pa[:n, :n] = phi
+    pa[n, :n] = (c @ phi1)[0]
+    ga = np.zeros((n + 1, m))
+    ga[:n] = gam
+    ga[n] = (c @ gam1)[0]
+    ca = np.zeros((1, n + 1))
+    ca[0, n] = 1.0
+    return pa, ga, ca
+
+
 def eigenvalues(p: dict) -> np.ndarray:
     return np.sort_complex(np.linalg.eigvals(plant(p)[0]))
 
@@ -168,11 +196,17 @@ class Margins:
 class Loop:
     """One axis plant at one tick rate, ready to evaluate gain sets."""
 
-    def __init__(self, p: dict, tick_hz: float):
+    def __init__(self, p: dict, tick_hz: float, mean: bool = False):
+        """mean: the loop measures the encoder's mean over the tick (drive.h
+        enc_mean: half a tick more delay, the boxcar's notches) instead of
+        its sample."""
         self.t = 1.0 / tick_hz
         a, b, c1, _ = plant(p)
-        self.phi, self.gam = zoh(a, b, self.t)
-        self.c1 = c1
+        if mean:
+            self.phi, self.gam, self.c1 = zoh_mean(a, b, c1, self.t)
+        else:
+            self.phi, self.gam = zoh(a, b, self.t)
+            self.c1 = c1
         modes = [abs(e.imag) for e in np.linalg.eigvals(a) if abs(e.imag) > 1]
         anti = math.sqrt(p["K"] / p["I2"])
         self.w = freq_grid(self.t, modes + [anti])
@@ -207,14 +241,18 @@ class Loop:
         return Margins(rho < 1.0, rho, ms, gm, pm, wc)
 
 
-def machine_margins(m, tick_hz: float | None = None) -> dict:
-    """Margins of every shipped loop of machine `m` (contour.sim.machine)."""
+def machine_margins(m, tick_hz: float | None = None, mean: bool | None = None) -> dict:
+    """Margins of every shipped loop of machine `m` (contour.sim.machine);
+    mean: the mean measurement (default: as the machine's [servo]
+    encoder_mean)."""
     hz = tick_hz or m.tick_hz
+    if mean is None:
+        mean = bool(m.servo.get("encoder_mean", 0))
     out = {}
     for ax in ("x", "y"):
         if ax not in m.axis:
             continue
-        loop = Loop(m.axis[ax], hz)
+        loop = Loop(m.axis[ax], hz, mean)
         g = m.gains[ax]
         out[f"axis_{ax}"] = loop.margins(g).as_dict()
         out[f"axis_{ax}+cec"] = loop.margins(g, m.gains["cec"]).as_dict()
