@@ -62,11 +62,15 @@ static struct {
     double inj_now[SIM_AXES]; /* V added over the current tick */
     /* the mean reading (hal_encoder_mean) while the drive has enc_mean:
      * generator position at the start of the substep, count at the start
-     * of the tick, integral of count - base over the tick so far (ns) */
+     * of the tick, integral of count - base over the tick so far (ns);
+     * with sim_trace_table_mean also the table's (m ns) and its mean (m) */
     int mean;
     qgen_pos_t mean_x[SIM_AXES];
     int64_t mean_base[SIM_AXES];
     double mean_acc[SIM_AXES];
+    int tmean_on;
+    double tmean_acc[SIM_AXES];
+    double tmean[SIM_AXES];
 } S;
 
 /* With the 2-D field on, add it to X's and Y's true positions (S.table)
@@ -553,6 +557,15 @@ int sim_encoder_model_get(void)
     return S.enc_model;
 }
 
+int sim_trace_table_mean(int on)
+{
+    if (!S.setup) {
+        return SIM_E_STATE;
+    }
+    S.tmean_on = on != 0;
+    return 0;
+}
+
 static qgen_pos_t to_qgen(double counts)
 {
     return (qgen_pos_t)floor(counts * (double)QGEN_ONE);
@@ -701,7 +714,7 @@ static void write_row(double *row)
     row[3] = (double)st.contour_error_nm * 1e-9;
     for (i = 0; i < S.axes; i++) {
         row[4 + 4 * i] = (double)st.ref[i] * 1e-9;
-        row[5 + 4 * i] = S.table[i];
+        row[5 + 4 * i] = S.tmean_on ? S.tmean[i] : S.table[i];
         row[6 + 4 * i] = (double)st.pos[i] * 1e-9;
         row[7 + 4 * i] = (double)hal_sim_motor_mv(i) * 1e-3;
         if (S.inj_n[i] > 0) {
@@ -802,6 +815,7 @@ static void sim_mean_step(unsigned i, int s)
         S.mean_x[i] = x1;
         S.mean_base[i] = S.gen[i].count;
         S.mean_acc[i] = 0.0;
+        S.tmean_acc[i] = 0.0;
         return;
     }
     /* relative to the count at the start of the tick: exact in a double */
@@ -814,7 +828,11 @@ static void sim_mean_step(unsigned i, int s)
         S.mean_acc[i] += (floor_integral(u1) - floor_integral(u0)) / (u1 - u0) * dt;
     }
     S.mean_x[i] = x1;
+    if (S.tmean_on) {
+        S.tmean_acc[i] += axis_table_pos(&S.ax[i]) * dt;
+    }
     if ((unsigned)s + 1u == S.nsub) {
+        S.tmean[i] = S.tmean_acc[i] / (double)S.period_ns;
         double lag =
             S.mean_acc[i] / (double)S.period_ns - (double)(S.gen[i].count - S.mean_base[i]);
         hal_sim_set_encoder_mean(i, (int64_t)floor(lag * 65536.0 + 0.5));
@@ -862,7 +880,8 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         if (S.dist_on) {
             disturbance_tick();
         }
-        S.mean = drive_config()->enc_mean; /* after main: a parameter write */
+        /* after main: a parameter write */
+        S.mean = drive_config()->enc_mean || S.tmean_on;
         for (i = 0; i < S.axes; i++) {
             double u = (double)hal_sim_motor_mv(i) * 1e-3;
             if (S.inj_n[i] > 0) {

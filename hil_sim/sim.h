@@ -133,6 +133,13 @@ int sim_set_substep(double max_s);
 int sim_encoder_model(int model);
 int sim_encoder_model_get(void);
 
+/* Diagnostic (docs/simulator.md, "The 3 ms tick"): on, the trace's table
+ * columns hold each table's mean position over the tick (the substeps,
+ * without the 2-D field) instead of its position at the tick, so a table
+ * mode above half the tick rate is not aliased into the score. Off after
+ * sim_setup. SIM_E_STATE before sim_setup. */
+int sim_trace_table_mean(int on);
+
 /* The drive's configuration before sim_start (SI units, converted here):
  *   sim_gain_set(loop, name, v)  loop 0..axes-1: that axis's PID, -1: the
  *       CEC's PID, -2: the CEC's straight-path gains (turns the line/curve

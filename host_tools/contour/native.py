@@ -235,6 +235,7 @@ SIGNATURES: dict[str, tuple] = {
         + [c.c_void_p, c.c_uint, c.c_double, c.c_double, c.c_void_p, c.c_double],
     ),
     "sim_set_substep": (c.c_int, [c.c_double]),
+    "sim_trace_table_mean": (c.c_int, [c.c_int]),
     "sim_encoder_model": (c.c_int, [c.c_int]),
     "sim_encoder_model_get": (c.c_int, []),
     "sim_gain_set": (c.c_int, [c.c_int, c.c_char_p, c.c_double]),

@@ -167,6 +167,7 @@ def run_circle(
     encoder_model: str | None = None,
     allow_limited: bool = False,
     chords: int = 0,
+    table_mean: bool = False,
 ) -> CircleRun:
     check_args(radius_mm, feed_mm_min, direction, controller, feedforward)
     if chords and not 8 <= chords <= 100000:
@@ -182,6 +183,10 @@ def run_circle(
         encoder_model=encoder_model,
     )
     so = core.lib()
+    # diagnostic: score each table's mean over the tick (sim_trace_table_mean;
+    # the mean of a circle lies r (w T / 2)^2 / 6 inside it: compare
+    # circular deviations)
+    core.check(so.sim_trace_table_mean(1 if table_mean else 0), "table mean")
     hz = so.sim_tick_hz()
     r = radius_mm * 1e-3
     v = feed_mm_min / 60000.0
