@@ -43,6 +43,7 @@ static const struct {
     {PROTO_PARAM_FF_ADVANCE_NS, DRIVE_PARAM_FF_ADVANCE},
     {PROTO_PARAM_QG_COMP, DRIVE_PARAM_QG_COMP},
     {PROTO_PARAM_FFL_RATE, DRIVE_PARAM_FFL_RATE},
+    {PROTO_PARAM_ENCODER_MEAN, DRIVE_PARAM_ENC_MEAN},
 };
 
 bool proto_drive_param(uint16_t base_id, drive_param_t *out)

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "drive.h"
+#include "hal_sim.h"
 #include "proto_dispatch.h"
 #include "sim.h"
 #include "unity.h"
@@ -464,6 +465,21 @@ static void test_planner_parameters_over_the_link(void)
     TEST_ASSERT_EQUAL_INT64(1000000000, get_param(PROTO_PARAM_STOP_DECELERATION));
 }
 
+/* encoder_mean (drive.h enc_mean): taken on a port that measures the mean
+ * (the simulator), refused as not_supported on one that cannot, never
+ * ignored: the value stays 0. */
+static void test_encoder_mean_is_refused_by_a_port_without_it(void)
+{
+    TEST_ASSERT_EQUAL_INT64(0, get_param(PROTO_PARAM_ENCODER_MEAN));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, (set_param(PROTO_PARAM_ENCODER_MEAN, 1), out[0]));
+    TEST_ASSERT_EQUAL_INT64(1, get_param(PROTO_PARAM_ENCODER_MEAN));
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, (set_param(PROTO_PARAM_ENCODER_MEAN, 0), out[0]));
+    hal_sim_set_mean_port(false);
+    set_param_error(PROTO_PARAM_ENCODER_MEAN, 1, PROTO_ERROR_CODE_NOT_SUPPORTED);
+    TEST_ASSERT_EQUAL_INT64(0, get_param(PROTO_PARAM_ENCODER_MEAN));
+    TEST_ASSERT_FALSE(drive_config()->enc_mean);
+}
+
 static size_t jog(uint8_t axis, int64_t dist, uint32_t feed)
 {
     proto_jog_t j = {axis, feed, dist};
@@ -604,6 +620,7 @@ int main(void)
     RUN_TEST(test_enable_and_queue_in_one_batch_runs_the_block);
     RUN_TEST(test_queued_time_is_reported);
     RUN_TEST(test_planner_parameters_over_the_link);
+    RUN_TEST(test_encoder_mean_is_refused_by_a_port_without_it);
     RUN_TEST(test_servo_parameters_reach_the_servo);
     RUN_TEST(test_soft_limits_refuse_before_motion);
     return UNITY_END();
