@@ -71,6 +71,13 @@ static struct {
     int tmean_on;
     double tmean_acc[SIM_AXES];
     double tmean[SIM_AXES];
+    /* sim_table_record: the host's buffer (rows of SIM_REC_COLS), its
+     * capacity, rows recorded (counts past the capacity too), one row at
+     * the end of every rec_m-th substep since sim_start */
+    double *rec;
+    size_t rec_cap;
+    size_t rec_n;
+    uint64_t rec_m;
 } S;
 
 /* With the 2-D field on, add it to X's and Y's true positions (S.table)
@@ -566,6 +573,40 @@ int sim_trace_table_mean(int on)
     return 0;
 }
 
+int sim_table_record(double *buf, size_t rows_cap, double min_hz)
+{
+    double f_sub;
+    if (!S.started) {
+        return SIM_E_STATE;
+    }
+    if (buf == NULL || rows_cap == 0) {
+        S.rec = NULL;
+        return 0;
+    }
+    if (!(min_hz > 0.0 && isfinite(min_hz))) {
+        return SIM_E_ARG;
+    }
+    f_sub = (double)S.nsub * 1e9 / (double)S.period_ns;
+    S.rec = buf;
+    S.rec_cap = rows_cap;
+    S.rec_n = 0;
+    S.rec_m = f_sub > min_hz ? (uint64_t)floor(f_sub / min_hz) : 1u;
+    return 0;
+}
+
+size_t sim_table_recorded(void)
+{
+    return S.rec != NULL ? S.rec_n : 0;
+}
+
+double sim_table_record_hz(void)
+{
+    if (!S.started || S.rec == NULL) {
+        return 0.0;
+    }
+    return (double)S.nsub * 1e9 / (double)S.period_ns / (double)S.rec_m;
+}
+
 static qgen_pos_t to_qgen(double counts)
 {
     return (qgen_pos_t)floor(counts * (double)QGEN_ONE);
@@ -621,6 +662,7 @@ int sim_start(void)
     hal_sim_set_time_ns(0);
     S.t_ns = 0;
     S.ticks = 0;
+    S.rec = NULL;
     S.edges = 0;
     S.run_edges = 0;
     S.mismatches = 0;
@@ -839,6 +881,48 @@ static void sim_mean_step(unsigned i, int s)
     }
 }
 
+/* The instrument (sim_table_record): after substep s of axis i, that
+ * axis's table position if the substep ends a sample. */
+static void sim_record_step(unsigned i, unsigned s)
+{
+    uint64_t g0 = S.ticks * S.nsub, g = g0 + s + 1u;
+    size_t row;
+    if (g % S.rec_m != 0u) {
+        return;
+    }
+    row = S.rec_n + (size_t)(g / S.rec_m - g0 / S.rec_m) - 1u;
+    if (row < S.rec_cap) {
+        double *r = S.rec + row * SIM_REC_COLS;
+        r[0] = (double)(S.t_ns + S.sub_ns[s + 1]) * 1e-9;
+        r[1 + i] = axis_table_pos(&S.ax[i]);
+    }
+}
+
+/* After the tick's substeps and the 2-D field: a sample at the tick's end
+ * is the next trace row's table (bit for bit); earlier ones get the field
+ * at the direction tracked so far. */
+static void sim_record_tick(void)
+{
+    uint64_t g0 = S.ticks * S.nsub, g1 = g0 + S.nsub;
+    size_t n = (size_t)(g1 / S.rec_m - g0 / S.rec_m), k, last;
+    last = g1 % S.rec_m == 0u ? n - 1u : n;
+    for (k = 0; k < n && S.rec_n + k < S.rec_cap; k++) {
+        double *r = S.rec + (S.rec_n + k) * SIM_REC_COLS;
+        unsigned i;
+        if (k == last) {
+            for (i = 0; i < S.axes; i++) {
+                r[1 + i] = S.table[i];
+            }
+        } else if (S.field.on && S.axes >= 2) {
+            double e[2];
+            field2d_error(&S.field, r[1], r[2], e);
+            r[1] += e[0];
+            r[2] += e[1];
+        }
+    }
+    S.rec_n += n;
+}
+
 static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
                       unsigned min_free, uint64_t *ran)
 {
@@ -900,10 +984,16 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
                 if (S.mean) {
                     sim_mean_step(i, (int)s);
                 }
+                if (S.rec != NULL) {
+                    sim_record_step(i, s);
+                }
             }
             S.table[i] = axis_table_pos(&S.ax[i]);
         }
         sim_apply_field();
+        if (S.rec != NULL) {
+            sim_record_tick();
+        }
         S.t_ns += S.period_ns;
         S.ticks++;
         if (min_free > 0 && drive_queue_free() >= min_free) {

@@ -140,6 +140,29 @@ int sim_encoder_model_get(void);
  * sim_setup. SIM_E_STATE before sim_setup. */
 int sim_trace_table_mean(int on);
 
+/* The instrument (docs/simulator.md, "Circle scenario and scoring"): the
+ * true table positions as the plant has them, independent of the drive's
+ * tick, for scores of the path the table really traces. After
+ * sim_table_record(buf, rows_cap, min_hz) each substep end at which the
+ * number of substeps since sim_start is a multiple of
+ * m = max(1, floor(f_sub / min_hz)) (f_sub = substeps per second) writes a
+ * row of SIM_REC_COLS doubles to the host's buffer: [0] t (s), then table
+ * position (m) of axis 0..axes-1, 2-D field included (a sample at a tick's
+ * end is the next trace row's table bit for bit; earlier ones take the
+ * field at the direction tracked at that tick's start); the columns of
+ * absent axes are not written. The rate f_sub / m
+ * (sim_table_record_hz) is >= min_hz while f_sub >= min_hz (the default
+ * substep bound, 100 us, gives f_sub >= 10 kHz at any tick); one row per
+ * substep below it. Rows past rows_cap are counted, not written
+ * (sim_table_recorded() > rows_cap: lost). Each call restarts the count;
+ * buf NULL or rows_cap 0: off (sim_start turns it off; the host keeps the
+ * buffer alive while on). Off, no trace changes at all. SIM_E_STATE
+ * before sim_start. */
+#define SIM_REC_COLS (1 + SIM_AXES)
+int sim_table_record(double *buf, size_t rows_cap, double min_hz);
+size_t sim_table_recorded(void);
+double sim_table_record_hz(void);
+
 /* The drive's configuration before sim_start (SI units, converted here):
  *   sim_gain_set(loop, name, v)  loop 0..axes-1: that axis's PID, -1: the
  *       CEC's PID, -2: the CEC's straight-path gains (turns the line/curve

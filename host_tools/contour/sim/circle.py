@@ -31,7 +31,13 @@ below 99 % of the stated feed is always flagged in ``limited_by``.
 Scoring, over the last full revolution of the reference (the interval in
 which the unwrapped reference angle sweeps its last 2 pi before the
 lead-out): contour error ``e = |P - C| - R`` of the true table position P
-(positive outside), ``iae_mm_s`` = integral of |e| dt (mm s),
+(positive outside), sampled by the simulator's instrument at the plant's
+substeps, at least ``SCORE_HZ`` whatever the tick (``sim_table_record``:
+the path the table really traces, as a ballbar sees it; a table mode above
+half the tick rate is scored whole, not aliased), ``score_hz`` the rate;
+``tick_scores`` has the same scores from one sample per tick (the drive's
+own trace rows: a diagnostic; at 10 kHz on a machine without friction the
+two are the same samples), ``iae_mm_s`` = integral of |e| dt (mm s),
 ``max_contour_error_mm`` = max |e| (with chords, e includes the chords'
 sagitta R (1 - cos(pi / N)), the path as programmed),
 ``circular_deviation_mm`` = max e - min e
@@ -63,6 +69,10 @@ CONTROLLERS = (
     "cec-chuang-liu",
 )
 FEEDFORWARD = ("none", "velocity", "full")
+# the instrument's minimum sample rate (Hz): well above the table modes of
+# the machine files (X 662.6 Hz, Y 948 Hz: >= 10 samples per period)
+SCORE_HZ = 10000.0
+SCORE_KEYS = ("iae_mm_s", "max_contour_error_mm", "circular_deviation_mm", "mean_radial_error_mm")
 
 
 @dataclass
@@ -88,6 +98,9 @@ class CircleResult:
     limited_by: str = ""  # empty: the scored revolution ran at the stated feed
     chords: int = 0  # 0: arc blocks; N: the circle as N G1 chords
     disturbance: dict = field(default_factory=dict)  # the machine's [disturbance] (N, N/mm)
+    score_hz: float = 0.0  # the instrument's sample rate of the scores above
+    # the same scores from one sample per tick (diagnostic: what the drive's trace sees)
+    tick_scores: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         """JSON fields (docs/conventions.md: errors in um as in `sim run`; the
@@ -105,7 +118,7 @@ class CircleResult:
 @dataclass
 class CircleRun:
     result: CircleResult
-    trace: np.ndarray  # rows of the scored revolution: t, x, y (table), ex (m)
+    trace: np.ndarray  # instrument rows of the scored revolution: t, x, y (table), ex (m)
     full: np.ndarray  # every tick of the run (sim trace rows)
 
 
@@ -231,6 +244,11 @@ def run_circle(
     pending.append(("line", (0, out_y, 0), 0, True))
 
     rows = []
+    # the instrument: table positions at >= SCORE_HZ, recorded per chunk
+    # (t, x, y kept: 24 bytes a sample)
+    chunk_ticks = max(1, hz // 1000)
+    rec = np.zeros((chunk_ticks * so.sim_substeps() + 2, rec_cols(so)), dtype=np.float64)
+    dense = []
     tag = 1
     max_ticks = int((t_rev * (settle + 1) + 4 * (lead + lead_out) / v + 10.0) * hz)
     ticks = 0
@@ -251,7 +269,16 @@ def run_circle(
                 raise UserError(f"simulator: block refused: {core.DRIVE_RESULT.get(res, res)}")
             pending.pop(0)
             tag += 1
-        chunk = core.run(max(1, hz // 1000))  # keep the host queue fed (short G1 chords)
+        core.check(so.sim_table_record(rec.ctypes.data, rec.shape[0], SCORE_HZ), "record")
+        try:
+            chunk = core.run(chunk_ticks)  # keep the host queue fed (short G1 chords)
+            n = so.sim_table_recorded()
+            score_hz = so.sim_table_record_hz()
+        finally:
+            so.sim_table_record(None, 0, 0.0)
+        if n > rec.shape[0]:
+            raise UserError("simulator: instrument buffer overrun")
+        dense.append(rec[:n, :3].copy())
         rows.append(chunk)
         ticks += chunk.shape[0]
         st = core.status()
@@ -262,11 +289,12 @@ def run_circle(
         if ticks > max_ticks:
             raise UserError("simulator: the circle did not finish in time")
     full = np.vstack(rows)
+    dense_rows = np.vstack(dense)
     # a chord's reference lies inside the circle by up to its sagitta
     sag = r * (1 - math.cos(math.pi / chords)) if chords else 0.0
     st = core.status()
     try:
-        res = score(full, cx, cy, r, sense, settle, sag)
+        res = score(full, cx, cy, r, sense, settle, sag, dense=dense_rows)
     except UserError:
         if not st.faults:
             raise
@@ -286,6 +314,7 @@ def run_circle(
                 )
             },
             "trace": np.zeros((0, 4)),
+            "tick_scores": {},
         }
     result = CircleResult(
         radius_mm=radius_mm,
@@ -302,6 +331,8 @@ def run_circle(
         faults=core.fault_names(st.faults),
         chords=chords,
         disturbance={**m.disturbance, "f_w": m.cutting_f_w()} if m.disturbance else {},
+        score_hz=float(score_hz),
+        tick_scores=res["tick_scores"],
         **res["scores"],
     )
     flags = list(over)
@@ -316,10 +347,36 @@ def run_circle(
     return CircleRun(result=result, trace=res["trace"], full=full)
 
 
+def rec_cols(so) -> int:
+    """Columns of an instrument row (sim.h SIM_REC_COLS = 1 + SIM_AXES)."""
+    return 1 + (so.sim_trace_cols() - 4) // 4
+
+
+def radial_scores(t: np.ndarray, e: np.ndarray, dt: float) -> dict:
+    """iae, max |e|, max - min, mean of radial deviations e (m) -> mm."""
+    return {
+        "iae_mm_s": float(np.abs(e).sum() * dt * 1e3),
+        "max_contour_error_mm": float(np.abs(e).max() * 1e3),
+        "circular_deviation_mm": float((e.max() - e.min()) * 1e3),
+        "mean_radial_error_mm": float(e.mean() * 1e3),
+    }
+
+
 def score(
-    full: np.ndarray, cx: float, cy: float, r: float, sense: int, settle: int, sag: float = 0.0
+    full: np.ndarray,
+    cx: float,
+    cy: float,
+    r: float,
+    sense: int,
+    settle: int,
+    sag: float = 0.0,
+    dense: np.ndarray | None = None,
 ) -> dict:
-    """Scores of the last full revolution of the reference (see module doc)."""
+    """Scores of the last full revolution of the reference (see module doc):
+    the revolution is found on the trace rows (one per tick, the reference);
+    the table is scored from ``dense`` (instrument rows t, x, y, at least
+    10 samples) between the first and last tick of the revolution, or from
+    the trace rows without it. ``tick_scores``: from the trace rows."""
     t = full[:, 0]
     rx, ry = full[:, 4] - cx, full[:, 8] - cy
     px, py = full[:, 5] - cx, full[:, 9] - cy
@@ -341,13 +398,26 @@ def score(
     isel = np.nonzero(sel)[0]
     i0, i1 = isel[0], isel[-1]
     seg = np.hypot(np.diff(rx[i0 : i1 + 1]), np.diff(ry[i0 : i1 + 1])) / np.diff(t[i0 : i1 + 1])
-    scores = {
-        "iae_mm_s": float(np.abs(es).sum() * dt * 1e3),
-        "max_contour_error_mm": float(np.abs(es).max() * 1e3),
-        "circular_deviation_mm": float((es.max() - es.min()) * 1e3),
-        "mean_radial_error_mm": float(es.mean() * 1e3),
+    tick = radial_scores(t[sel], es, dt)
+    feeds = {
         "min_feed_mm_min": float(seg.min() * 60000),
         "mean_feed_mm_min": float(seg.mean() * 60000),
     }
     trace = np.column_stack([t[sel], px[sel], py[sel], es])
-    return {"scores": scores, "trace": trace}
+    if dense is None:
+        return {"scores": {**tick, **feeds}, "trace": trace, "tick_scores": tick}
+    # the instrument's samples from the revolution's first to last tick
+    # (a sample at a tick's end is that tick's row exactly: same time)
+    td = dense[:, 0]
+    dsel = (td >= t[i0] - 5e-10) & (td <= t[i1] + 5e-10)
+    if np.count_nonzero(dsel) < 10:
+        raise UserError("simulator: the instrument recorded too few samples")
+    qx, qy = dense[dsel, 1] - cx, dense[dsel, 2] - cy
+    ed = np.hypot(qx, qy) - r
+    ddt = np.diff(td[dsel]).mean()
+    scores = radial_scores(td[dsel], ed, ddt)
+    return {
+        "scores": {**scores, **feeds},
+        "trace": np.column_stack([td[dsel], qx, qy, ed]),
+        "tick_scores": tick,
+    }
