@@ -104,3 +104,31 @@ def test_record_leaves_the_trace_unchanged_and_counts_lost_rows():
     assert n == 40 * nsub and small[-1, 0] > 0  # counted past the capacity, not written
     assert so.sim_table_record(None, 0, 0.0) == 0
     assert so.sim_table_record(small.ctypes.data, 10, 0.0) == -1
+
+
+def test_record_has_the_2d_field_between_ticks():
+    """With the 2-D error field on, every instrument sample carries it: the
+    tick-end samples are the trace rows bit for bit and the samples between
+    them continue smoothly (without the field they would jump by the
+    field's error, microns, at every tick end)."""
+    so = core.lib()
+    m = machine.load("lacerda_xy_field")
+    machine.apply(m, feedforward="full", controller="pid")
+    core.check(so.sim_enable(1), "enable")
+    core.queue_line((3_000_000, 2_000_000, 0), 20_000_000, 1, True)
+    core.run(500)  # moving
+    nsub = so.sim_substeps()
+    assert nsub == 10  # friction: 10 us substeps
+    rec = np.zeros((100 * nsub, circle.rec_cols(so)))
+    core.check(so.sim_table_record(rec.ctypes.data, rec.shape[0], 1e5), "record")
+    try:
+        rows = core.run(100)
+        n = so.sim_table_recorded()
+    finally:
+        so.sim_table_record(None, 0, 0.0)
+    assert n == 100 * nsub
+    assert np.array_equal(rec[nsub - 1 : -1 : nsub, 1:3], rows[1:, [5, 9]])
+    field = np.hypot(*(rows[:, [5, 9]] - rows[:, [6, 10]]).T).max()
+    assert field > 1e-6  # the field moves the table microns from the encoders' view
+    d2 = np.abs(np.diff(rec[:, 1:3], 2, axis=0)).max()
+    assert d2 < 0.02 * field
