@@ -18,9 +18,7 @@ def test_x_axis_eigenvalues_match_spec():
     assert min(abs(e) for e in ev) < 1e-6
 
 
-@pytest.mark.parametrize(
-    "name", ["default", "thesis", "realistic", "thesis_mean", "default_mean"]
-)
+@pytest.mark.parametrize("name", ["default", "thesis", "realistic", "thesis_mean", "default_mean"])
 def test_shipped_gain_sets_are_robust(name):
     m = machine.load(name)
     for loop, mg in tuning.machine_margins(m).items():
