@@ -44,8 +44,8 @@
  *    sample_pull_copy copies bytes from offset on, at most max; none at or
  *    past the end.
  *
- * Pure functions of their arguments; any context, but the services call
- * them from main.
+ * No state of its own (a stage is its owner's); the services call it from
+ * main.
  */
 #ifndef SAMPLE_PULL_H
 #define SAMPLE_PULL_H
