@@ -8,7 +8,7 @@
 #include "comp_store.h"
 #include "excite.h"
 #include "proto_replay.h"
-#include "crc.h"
+#include "sample_pull.h"
 #include "preempt.h"
 #include "proto_msgs.h"
 #include "proto_reply.h"
@@ -742,11 +742,17 @@ static size_t h_abort(const uint8_t *msg, size_t plen, uint8_t *out)
     return reply_state(out, msg[1]);
 }
 
+static void encode_ring(const void *src, uint32_t seq, uint8_t *dst)
+{
+    (void)src;
+    calib_sample_encode(&cb.buf.ring[seq % CALIB_RING], dst);
+}
+
+/* calib_read: sample_pull.h (the tick advances seq_next: read once). */
 static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
 {
     proto_calib_read_t m;
-    static proto_calib_samples_t r;
-    uint32_t avail, n, i;
+    uint32_t next = cb.seq_next;
     if (!proto_calib_read_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_CALIB_READ_LEN) {
         return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
                            PROTO_CALIB_READ_LEN);
@@ -754,25 +760,12 @@ static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
     if (m.max < 1u || m.max > CALIB_READ_MAX) {
         return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_OUT_OF_RANGE, 1u, 1);
     }
-    /* from_seq must lie in [oldest, next] */
-    if ((uint32_t)(m.from_seq - cb.seq_oldest) > ring_used()) {
+    if (!sample_pull_seq_ok(cb.seq_oldest, next, m.from_seq)) {
         return refuse(out, msg, PROTO_CALIB_STATUS_SEQ, cb.seq_oldest);
     }
     cb.seq_oldest = m.from_seq; /* release everything before */
-    avail = cb.seq_next - m.from_seq;
-    n = avail < m.max ? avail : m.max;
-    for (i = 0; i < n; i++) {
-        calib_sample_encode(&cb.buf.ring[(m.from_seq + i) % CALIB_RING],
-                            r.data + CALIB_SAMPLE_BYTES * i);
-    }
-    r.from_seq = m.from_seq;
-    r.count = (uint8_t)n;
-    r.seq_next = cb.seq_next;
-    r.data_len = (uint16_t)(CALIB_SAMPLE_BYTES * n);
-    r.crc = crc32_update(CRC32_INIT, r.data, r.data_len);
-    out[0] = (uint8_t)PROTO_MSG_CALIB_SAMPLES;
-    out[1] = msg[1];
-    return PROTO_MSG_HDR + proto_calib_samples_encode(&r, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
+    return sample_pull_reply(out, (uint8_t)PROTO_MSG_CALIB_SAMPLES, msg[1], m.from_seq, m.max, next,
+                             CALIB_SAMPLE_BYTES, encode_ring, NULL);
 }
 
 static bool mutating(uint8_t id)

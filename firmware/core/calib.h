@@ -50,7 +50,7 @@
  *    (calib_point: approach the target from overrun away in the given
  *    direction), e.g. when the host could not recover some samples.
  *
- *    Transfer (pull): samples wait in a ring of CALIB_RING; the host reads
+ *    Transfer (pull, sample_pull.h): samples wait in a ring of CALIB_RING; the host reads
  *    them with calib_read(from_seq), which also releases every sample before
  *    from_seq. A leg starts sampling only when the ring has room for all its
  *    samples, so no sample is ever overwritten before the host released it:

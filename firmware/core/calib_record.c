@@ -9,19 +9,21 @@
 #include "calib_int.h"
 
 #include "comp_store.h"
-#include "crc.h"
 #include "proto_msgs.h"
 #include "proto_reply.h"
+#include "sample_pull.h"
 #include "scratch.h"
 
 /* The staged record (main). stage_axis: the axis it is for, -1: none. */
 static struct {
-    uint8_t stage[COMP_RECORD_MAX];
+    uint8_t buf[COMP_RECORD_MAX];
+    sample_pull_stage_t stage; /* of buf */
     int16_t stage_axis;
 } rec;
 
 void calib_record_reset(void)
 {
+    sample_pull_stage_init(&rec.stage, rec.buf, (uint16_t)sizeof rec.buf);
     rec.stage_axis = -1;
 }
 
@@ -75,7 +77,7 @@ size_t calib_h_comp_write(const uint8_t *msg, size_t plen, uint8_t *out)
 {
     static proto_comp_write_t m;
     proto_comp_written_t w;
-    size_t i;
+    bool fresh;
     if (!proto_comp_write_decode(msg + PROTO_MSG_HDR, plen, &m)) {
         return reply_error(out, msg[0], msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen,
                            PROTO_COMP_WRITE_LEN);
@@ -83,19 +85,11 @@ size_t calib_h_comp_write(const uint8_t *msg, size_t plen, uint8_t *out)
     if (m.axis >= axes()) {
         return refuse(out, msg, PROTO_CALIB_STATUS_BAD_AXIS, m.axis);
     }
-    if ((size_t)m.offset + m.data_len > COMP_RECORD_MAX) {
+    fresh = m.offset == 0u || rec.stage_axis != (int16_t)m.axis; /* a new record */
+    if (!sample_pull_stage_write(&rec.stage, m.offset, m.data, m.data_len, fresh)) {
         return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_RANGE, m.offset);
     }
-    if (m.offset == 0u || rec.stage_axis != (int16_t)m.axis) {
-        /* a new record: start from an erased buffer */
-        for (i = 0; i < COMP_RECORD_MAX; i++) {
-            rec.stage[i] = 0xFFu;
-        }
-        rec.stage_axis = (int16_t)m.axis;
-    }
-    for (i = 0; i < m.data_len; i++) {
-        rec.stage[m.offset + i] = m.data[i];
-    }
+    rec.stage_axis = (int16_t)m.axis;
     w.axis = m.axis;
     w.offset = m.offset;
     w.len = m.data_len;
@@ -125,7 +119,7 @@ static bool flash_refused(const uint8_t *msg, uint8_t *out, size_t *len)
 static size_t comp_commit_in(const proto_comp_commit_t *m, const uint8_t *msg, uint8_t *out)
 {
     comp_table_t *t = scratch_claim(SCRATCH_CALIB, sizeof *t);
-    comp_result_t cr = t != NULL ? comp_record_decode(rec.stage, m->length, t) : COMP_E_ARG;
+    comp_result_t cr = t != NULL ? comp_record_decode(rec.buf, m->length, t) : COMP_E_ARG;
     comp_store_result_t sr;
     size_t n = 0u;
     if (cr == COMP_OK && t->axis != m->axis) {
@@ -160,7 +154,7 @@ size_t calib_h_comp_commit(const uint8_t *msg, size_t plen, uint8_t *out)
         m.length > COMP_RECORD_MAX) {
         return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_RANGE, m.length);
     }
-    crc = crc32_update(CRC32_INIT, rec.stage, m.length);
+    crc = sample_pull_stage_crc(&rec.stage, m.length);
     if (crc != m.crc) {
         return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_CRC, crc);
     }

@@ -10,13 +10,16 @@
 #include "proto_msgs.h"
 #include "proto_replay.h"
 #include "proto_reply.h"
+#include "sample_pull.h"
 #include "scratch.h"
 
 #define FIELD_NM ((pos_nm_t)1 << 50)
 
 static struct {
-    uint8_t stage[COMP2D_RECORD_MAX];
-    uint16_t staged; /* bytes staged since offset 0 (highest end) */
+    uint8_t buf[COMP2D_RECORD_MAX];
+    /* the staging of buf (comp2d_write); after load() buf holds the
+     * stored record and nothing is staged */
+    sample_pull_stage_t stage;
     /* the record in use: store version, bank, length, crc32 */
     uint32_t version;
     uint8_t slot;
@@ -88,21 +91,21 @@ static comp_store_result_t load(void)
 {
     uint16_t len = 0u;
     uint32_t version = 0u;
-    comp_store_result_t r = comp_store_slot_load(COMP_STORE_SLOT_MAP2D, lk2.stage,
-                                                 (uint16_t)sizeof lk2.stage, &len, &version);
-    lk2.staged = 0u; /* the staging buffer now holds the stored record */
+    comp_store_result_t r = comp_store_slot_load(COMP_STORE_SLOT_MAP2D, lk2.buf,
+                                                 (uint16_t)sizeof lk2.buf, &len, &version);
+    lk2.stage.staged = 0u; /* the staging buffer now holds the stored record */
     if (r != COMP_STORE_OK) {
-        (void)use(lk2.stage, 0u, 0u, 0xFFu);
+        (void)use(lk2.buf, 0u, 0u, 0xFFu);
         return r;
     }
-    (void)use(lk2.stage, len, version, (unsigned)comp_store_active_bank());
+    (void)use(lk2.buf, len, version, (unsigned)comp_store_active_bank());
     return COMP_STORE_OK;
 }
 
 void comp2d_link_init(void)
 {
     comp2d_handler_fn next = lk2.next;
-    lk2.staged = 0u;
+    sample_pull_stage_init(&lk2.stage, lk2.buf, (uint16_t)sizeof lk2.buf);
     lk2.next = next;
     proto_replay_reset(&lk2.replay);
     comp2d_live_init();
@@ -159,24 +162,11 @@ static size_t h_write(const uint8_t *msg, size_t plen, uint8_t *out)
 {
     static proto_comp2d_write_t m;
     proto_comp2d_written_t w;
-    size_t i;
     if (!proto_comp2d_write_decode(msg + PROTO_MSG_HDR, plen, &m)) {
         return bad_length(out, msg, plen, PROTO_COMP2D_WRITE_LEN);
     }
-    if ((size_t)m.offset + m.data_len > sizeof lk2.stage) {
+    if (!sample_pull_stage_write(&lk2.stage, m.offset, m.data, m.data_len, m.offset == 0u)) {
         return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_RANGE, m.offset);
-    }
-    if (m.offset == 0u) {
-        lk2.staged = 0u;
-        for (i = 0; i < sizeof lk2.stage; i++) {
-            lk2.stage[i] = 0xFFu;
-        }
-    }
-    for (i = 0; i < m.data_len; i++) {
-        lk2.stage[m.offset + i] = m.data[i];
-    }
-    if (m.offset + m.data_len > lk2.staged) {
-        lk2.staged = (uint16_t)(m.offset + m.data_len);
     }
     w.offset = m.offset;
     w.len = m.data_len;
@@ -185,23 +175,32 @@ static size_t h_write(const uint8_t *msg, size_t plen, uint8_t *out)
     return PROTO_MSG_HDR + proto_comp2d_written_encode(&w, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
 }
 
-/* The drive must be disabled for a flash write (docs/calibration.md). */
-static bool enabled(const uint8_t *msg, uint8_t *out, size_t *n)
+/* Store buf[0..len) (len 0: no map) as the current record and use what
+ * the flash then holds, not what the link delivered: comp2d_info, or a
+ * refusal. The drive must be disabled for a flash write
+ * (docs/calibration.md). */
+static size_t store(const uint8_t *msg, uint8_t *out, const uint8_t *buf, uint16_t len)
 {
     drive_status_t st;
+    comp_store_result_t sr;
     drive_snapshot(&st);
-    if (st.state == DRIVE_DISABLED) {
-        return false;
+    if (st.state != DRIVE_DISABLED) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_DRIVE_ENABLED, st.state);
     }
-    *n = refuse(out, msg, PROTO_CALIB_STATUS_DRIVE_ENABLED, st.state);
-    return true;
+    sr = comp_store_slot_write(COMP_STORE_SLOT_MAP2D, buf, len, NULL);
+    if (sr == COMP_STORE_OK) {
+        sr = load();
+    }
+    if (sr != COMP_STORE_OK) {
+        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
+    }
+    return reply_info(out, msg[1]);
 }
 
 static size_t h_commit(const uint8_t *msg, size_t plen, uint8_t *out)
 {
     proto_comp2d_commit_t m;
     comp2d_map_t *map;
-    comp_store_result_t sr;
     unsigned axis = 0u;
     uint32_t crc;
     size_t n;
@@ -213,10 +212,10 @@ static size_t h_commit(const uint8_t *msg, size_t plen, uint8_t *out)
     if (drive_config()->axes < 2u) {
         return refuse(out, msg, PROTO_CALIB_STATUS_COMP2D_AXES, drive_config()->axes);
     }
-    if (m.length > sizeof lk2.stage || m.length > lk2.staged || m.length == 0u) {
+    if (m.length > lk2.stage.staged || m.length == 0u) { /* staged <= the buffer */
         return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_RANGE, m.length);
     }
-    crc = crc32_update(CRC32_INIT, lk2.stage, m.length);
+    crc = sample_pull_stage_crc(&lk2.stage, m.length);
     if (crc != m.crc) {
         return refuse(out, msg, PROTO_CALIB_STATUS_RECORD_CRC, crc);
     }
@@ -224,7 +223,7 @@ static size_t h_commit(const uint8_t *msg, size_t plen, uint8_t *out)
     if (map == NULL) {
         return refuse(out, msg, PROTO_CALIB_STATUS_BUSY, 0);
     }
-    r = parse(lk2.stage, m.length, map, &axis);
+    r = parse(lk2.buf, m.length, map, &axis);
     n = (size_t)map->nx * map->ny;
     scratch_release(SCRATCH_COMP2D);
     if (r == COMP2D_E_MEMORY) {
@@ -236,37 +235,15 @@ static size_t h_commit(const uint8_t *msg, size_t plen, uint8_t *out)
     if (r != COMP2D_OK) {
         return refuse(out, msg, PROTO_CALIB_STATUS_COMP2D_RECORD, r);
     }
-    if (enabled(msg, out, &n)) {
-        return n;
-    }
-    sr = comp_store_slot_write(COMP_STORE_SLOT_MAP2D, lk2.stage, m.length, NULL);
-    if (sr == COMP_STORE_OK) {
-        sr = load(); /* use what the flash holds, not what the link delivered */
-    }
-    if (sr != COMP_STORE_OK) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
-    }
-    return reply_info(out, msg[1]);
+    return store(msg, out, lk2.buf, m.length);
 }
 
 static size_t h_clear(const uint8_t *msg, size_t plen, uint8_t *out)
 {
-    comp_store_result_t sr;
-    size_t n;
     if (plen != 0u) {
         return bad_length(out, msg, plen, 0u);
     }
-    if (enabled(msg, out, &n)) {
-        return n;
-    }
-    sr = comp_store_slot_write(COMP_STORE_SLOT_MAP2D, NULL, 0u, NULL);
-    if (sr == COMP_STORE_OK) {
-        sr = load();
-    }
-    if (sr != COMP_STORE_OK) {
-        return refuse(out, msg, PROTO_CALIB_STATUS_FLASH, sr);
-    }
-    return reply_info(out, msg[1]);
+    return store(msg, out, NULL, 0u);
 }
 
 static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
@@ -275,7 +252,6 @@ static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
     proto_comp2d_data_t d;
     uint8_t *buf;
     uint16_t len = 0u;
-    uint32_t i;
     if (!proto_comp2d_read_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_COMP2D_READ_LEN) {
         return bad_length(out, msg, plen, PROTO_COMP2D_READ_LEN);
     }
@@ -289,10 +265,8 @@ static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
     }
     d.offset = m.offset;
     d.total = len;
-    d.data_len = 0u;
-    for (i = m.offset; i < len && d.data_len < m.max && d.data_len < sizeof d.data; i++) {
-        d.data[d.data_len++] = buf[i];
-    }
+    d.data_len = (uint16_t)sample_pull_copy(d.data, m.max < sizeof d.data ? m.max : sizeof d.data,
+                                            buf, len, m.offset);
     scratch_release(SCRATCH_COMP2D);
     out[0] = (uint8_t)PROTO_MSG_COMP2D_DATA;
     out[1] = msg[1];

@@ -5,7 +5,7 @@
  * context writes it (main: the feed path and the requests; tick: the state,
  * decoders, servo, reference, snapshot; init: drive_init). Main posts
  * requests (req_*) and reads the snapshot; it resets the interpolator only
- * while the tick is parked (tick_parked()).
+ * while the tick is parked (drive_tick_parked()).
  */
 #include "drive.h"
 #include "drive_int.h"
@@ -29,64 +29,8 @@ static plan_block_t plan_store[PLAN_DEPTH_DEFAULT];
  * offsets. */
 static feed_t feed;
 
-static struct {
-    bool ready;                /* init (drive_init runs before the tick is started) */
-    drive_config_t cfg;        /* init; main: see docs/tick-main.md */
-    drive_cec_mode_t cec_mode; /* main */
-    interp_t ip;               /* producer side main, consumer side tick (interp.h) */
-    /* requests: main sets (post()), the tick clears after the effect */
-    CORE_SHARED bool req_enable; /* main flushed (DISABLED): switch on    */
-    CORE_SHARED bool req_resume; /* main flushed (halted): STOPPING->IDLE */
-    CORE_SHARED bool req_disable, req_stop, req_estop, req_reset, req_gains, req_cec;
-    CORE_SHARED bool req_ref;  /* main (drive_status): sample the reference scales */
-    CORE_SHARED bool req_home; /* main: start homing (payload pend_home) */
-    CORE_SHARED uint32_t req_fault;
-    /* some req_* above (except req_ref) may be set: main sets it after the
-     * flag, the tick clears it before it reads the flags */
-    CORE_SHARED bool req_any;
-    uint32_t rs_seq;      /* main, payload of req_enable / req_resume */
-    servo_params_t pend;  /* main, payload of req_gains */
-    cec_mode_t pend_mode; /* main, payload of req_cec   */
-    /* tick, read by main (the snapshot, or the state as main_state() reads it) */
-    CORE_SHARED drive_state_t state_pub; /* `state` as the tick wrote it */
-    CORE_SHARED bool halted;             /* controlled stop reached rest: reference held */
-    /* tick only (main reads some inside the snapshot's sequence count) */
-    drive_inputs_t in; /* encoders and reference scales (drive_inputs.h) */
-    servo_t servo;
-    motion_ref_t ref;
-    drive_state_t state; /* the tick's copy (plain: read often per tick) */
-    uint32_t faults;
-    int64_t stop_v;  /* stopping: path speed cap, nm/s               */
-    int64_t stop_dv; /* stopping: cap decrease per tick, nm/s        */
-    int64_t v_plan;  /* interpolator's (unscaled) path speed, nm/s   */
-    int64_t a_plan;  /* ... and tangential acceleration, nm/s^2      */
-    /* The interpolator's (chord) reference of the last tick: written by
-     * interp_tick only (a fast-path tick writes only its pos[]); drv.ref is
-     * built from it (reference_step), then the arc overlay, the stop
-     * scaling and the friction feed-forward adjust drv.ref. */
-    motion_ref_t ch;
-    /* drv.ref holds every field of ch except those the arc overlay rewrites
-     * every tick of an arc segment (pos and the plane axes' vel, acc and
-     * tangent, the geometry's arc fields): nothing else changed it since the
-     * last full copy. A fast-path tick then copies only pos. */
-    bool ref_synced;
-    bool ref_full;                /* test hook (drive_test_full_ref): no pos-only copy */
-    int64_t v_act;                /* path speed of the reference last tick, nm/s  */
-    arc_ref_t arc;                /* arc overlay (tick)                           */
-    drive_ff_t ff;                /* advance, friction and quadrant feed-forward (drive_ff.h) */
-    CORE_SHARED uint32_t tick_lo; /* low word of tick (main reads it) */
-    uint32_t seen_done;           /* interpolator segments accounted */
-    uint32_t seq_done;            /* internal tag of the next segment to complete */
-    uint32_t blocks_done;
-    uint32_t cur_tag;
-    uint64_t tick;
-    /* published snapshot (tick; main reads it under st_seq) */
-    CORE_SHARED uint32_t st_seq;
-    drive_status_t st;
-    /* last: the usual tick's fields keep short offsets */
-    uint32_t homed; /* tick: axes homed (main reads it in the snapshot) */
-    home_t home;    /* homing sequence (tick, while HOMING) */
-} drv;
+/* The drive's state: its fields and who writes them in drive_int.h. */
+drive_app_t drv;
 
 /* main, payload of req_home (outside drv: see feed) */
 static drive_home_t pend_home;
@@ -583,67 +527,17 @@ const drive_tick_out_t *drive_tick(bool ref_sampling)
 /* ---- main -------------------------------------------------------------------- */
 
 /* Drop the queued job and hold pos. Only while the tick is parked
- * (tick_parked()): the interpolator is reset on both sides. The tick takes
+ * (drive_tick_parked()): the interpolator is reset on both sides. The tick takes
  * over the segment count (rs_seq) with req_enable / req_resume. */
-static void flush_all(const pos_nm_t pos[CORE_AXES])
+void drive_flush_all(const pos_nm_t pos[CORE_AXES])
 {
     feed_flush(&feed, pos);
     drv.rs_seq = feed_seq_next(&feed);
 }
 
-/* Post a request: its payload is written; the flag, then req_any. */
-static void post(CORE_SHARED bool *flag)
-{
-    CORE_BARRIER();
-    *flag = true;
-    PREEMPT_POINT();
-    drv.req_any = true;
-}
-
-/* The state as main acts on it: the tick's, with the requests main posted
- * and the tick has not applied yet counted as applied (a pending stop of an
- * IDLE or RUNNING drive is STOPPING: no block is accepted that it would
- * drop). Flags read before the state: a tick between has applied them. */
-static drive_state_t main_view(drive_state_t s, bool en, bool dis, bool stop)
-{
-    if (s == DRIVE_FAULT) {
-        return s;
-    }
-    if (dis) {
-        return DRIVE_DISABLED;
-    }
-    if (stop && (s == DRIVE_IDLE || s == DRIVE_RUNNING || s == DRIVE_HOMING)) {
-        return DRIVE_STOPPING;
-    }
-    return (en && s == DRIVE_DISABLED) ? DRIVE_IDLE : s;
-}
-
-static drive_state_t main_state(void)
-{
-    bool en = drv.req_enable, dis = drv.req_disable, stop = drv.req_stop;
-    bool home = drv.req_home, rst = drv.req_reset;
-    /* a pending fault reset counts as done: an enable then waits for it */
-    drive_state_t s = main_view(drv.state_pub, en, dis, stop);
-    s = (rst && s == DRIVE_FAULT) ? DRIVE_DISABLED : s;
-    /* a pending home: HOMING (no block is queued under it) */
-    return (home && s == DRIVE_IDLE) ? DRIVE_HOMING : s;
-}
-
-/* The tick does not touch the interpolator and leaves this state only on a
- * request from main (flags read before the state). */
-static bool tick_parked(void)
-{
-    bool en = drv.req_enable, rs = drv.req_resume;
-    drive_state_t s = drv.state_pub;
-    if (s == DRIVE_DISABLED || s == DRIVE_FAULT) {
-        return !en;
-    }
-    return s == DRIVE_STOPPING && !rs && drv.halted;
-}
-
 void drive_poll(void)
 {
-    drive_state_t s = main_state();
+    drive_state_t s = drive_main_state();
     if (!drv.ready) {
         return;
     }
@@ -652,14 +546,14 @@ void drive_poll(void)
     }
     if (s == DRIVE_DISABLED || s == DRIVE_FAULT || s == DRIVE_STOPPING) {
         PREEMPT_POINT();
-        if (tick_parked() && (!feed_idle(&feed) || drv.state_pub == DRIVE_STOPPING)) {
+        if (drive_tick_parked() && (!feed_idle(&feed) || drv.state_pub == DRIVE_STOPPING)) {
             drive_status_t st;
             drive_snapshot(&st); /* hold the published reference */
             PREEMPT_POINT();
-            flush_all(st.ref);
+            drive_flush_all(st.ref);
             PREEMPT_POINT();
             if (drv.state_pub == DRIVE_STOPPING) {
-                post(&drv.req_resume); /* at rest: the tick goes IDLE */
+                drive_post(&drv.req_resume); /* at rest: the tick goes IDLE */
             }
         }
         return;
@@ -674,7 +568,7 @@ uint32_t drive_queue_free(void)
 
 static drive_result_t accept_check(void)
 {
-    drive_state_t s = main_state();
+    drive_state_t s = drive_main_state();
     if (!drv.ready) {
         return DRIVE_E_DISABLED;
     }
@@ -710,38 +604,6 @@ drive_result_t drive_queue_block(const drive_block_t *b)
     return feed_queue(&feed, b, drv.tick_lo);
 }
 
-drive_result_t drive_enable(bool on)
-{
-    drive_status_t st;
-    drive_state_t s = main_state();
-    if (!drv.ready) {
-        return DRIVE_E_DISABLED;
-    }
-    if (s == DRIVE_FAULT) {
-        return DRIVE_E_FAULTED;
-    }
-    if (!on) {
-        drv.req_enable = false; /* cancel an enable not yet applied */
-        PREEMPT_POINT();
-        post(&drv.req_disable);
-        return DRIVE_OK;
-    }
-    PREEMPT_POINT();
-    if (s != DRIVE_DISABLED) {
-        return DRIVE_OK; /* enabled, or an enable is pending */
-    }
-    if (!tick_parked()) {
-        return DRIVE_E_BUSY; /* a disable the tick has not applied yet */
-    }
-    /* parked DISABLED: start from the measured position */
-    drive_snapshot(&st);
-    PREEMPT_POINT();
-    flush_all(st.pos);
-    PREEMPT_POINT();
-    post(&drv.req_enable);
-    return DRIVE_OK;
-}
-
 drive_result_t drive_home(const drive_home_t *h)
 {
     drive_result_t r;
@@ -753,47 +615,11 @@ drive_result_t drive_home(const drive_home_t *h)
         return r;
     }
     PREEMPT_POINT();
-    if (main_state() != DRIVE_IDLE || !feed_idle(&feed)) {
+    if (drive_main_state() != DRIVE_IDLE || !feed_idle(&feed)) {
         return DRIVE_E_BUSY; /* a job or jog is queued or executing */
     }
     pend_home = *h;
-    post(&drv.req_home);
-    return DRIVE_OK;
-}
-
-void drive_stop(void)
-{
-    post(&drv.req_stop);
-}
-
-void drive_estop(void)
-{
-    post(&drv.req_estop);
-}
-
-void drive_raise_fault(uint32_t fault_bits)
-{
-    drv.req_fault |= fault_bits;
-    PREEMPT_POINT();
-    drv.req_any = true;
-}
-
-drive_result_t drive_fault_reset(void)
-{
-    unsigned i;
-    if (!drv.ready) {
-        return DRIVE_E_DISABLED;
-    }
-    if (main_state() != DRIVE_FAULT) {
-        return DRIVE_OK;
-    }
-    for (i = 0; i < drv.cfg.axes; i++) {
-        if (hal_amp_fault(i)) {
-            return DRIVE_E_CAUSE;
-        }
-    }
-    PREEMPT_POINT();
-    post(&drv.req_reset);
+    drive_post(&drv.req_home);
     return DRIVE_OK;
 }
 
@@ -831,7 +657,7 @@ void drive_status(drive_status_t *out)
 {
     uint16_t rd;
     int64_t rem;
-    bool stop = drv.req_stop; /* before the snapshot (see main_state()) */
+    bool stop = drv.req_stop; /* before the snapshot (see drive_main_state()) */
     bool home = drv.req_home;
     if (out == NULL) {
         return;
@@ -841,7 +667,7 @@ void drive_status(drive_status_t *out)
     PREEMPT_POINT();
     /* a pending stop: STOPPING (no stale IDLE after a stop); IDLE with
      * blocks queued since the last tick: RUNNING (docs/tick-main.md) */
-    out->state = main_view(out->state, false, false, stop);
+    out->state = drive_main_view(out->state, false, false, stop);
     if (home && out->state == DRIVE_IDLE) {
         out->state = DRIVE_HOMING; /* a home not yet started */
     }
@@ -873,51 +699,6 @@ int64_t drive_encoder_count(unsigned ch)
         return 0;
     }
     return drv.in.enc[ch].out.pos;
-}
-
-static bool moving(void)
-{
-    drive_state_t s = main_state();
-    return s == DRIVE_RUNNING || s == DRIVE_STOPPING || s == DRIVE_HOMING;
-}
-
-drive_result_t drive_set_cec_mode(drive_cec_mode_t mode)
-{
-    static const cec_mode_t map[] = {CEC_MODE_OFF,       CEC_MODE_TANGENT, CEC_MODE_CURVATURE,
-                                     CEC_MODE_EXACT,     CEC_MODE_KOREN,   CEC_MODE_CURV_HISTORY,
-                                     CEC_MODE_CHUANG_LIU};
-    if ((unsigned)mode >= (unsigned)DRIVE_CEC_COUNT) {
-        return DRIVE_E_INVALID;
-    }
-    if (moving()) {
-        return DRIVE_E_BUSY;
-    }
-    drv.pend_mode = map[mode];
-    drv.cec_mode = mode;
-    post(&drv.req_cec);
-    return DRIVE_OK;
-}
-
-drive_result_t drive_set_servo_params(const servo_params_t *p)
-{
-    servo_params_t q;
-    if (p == NULL || !drv.ready) {
-        return DRIVE_E_INVALID;
-    }
-    q = *p;
-    q.axes = drv.cfg.axes;
-    q.tick_hz = drv.cfg.tick_hz;
-    q.cec.mode = CEC_MODE_OFF;
-    if (drive_servo_probe(&q) != DRIVE_OK) { /* scratch.h */
-        return DRIVE_E_INVALID;
-    }
-    if (moving()) {
-        return DRIVE_E_BUSY;
-    }
-    drv.pend = q;
-    drv.cfg.servo = q; /* main's copy; the tick applies pend */
-    post(&drv.req_gains);
-    return DRIVE_OK;
 }
 
 void drive_set_comp(unsigned axis, const comp_table_t *table)
@@ -964,7 +745,7 @@ bool drive_ready(void)
 /* Nothing queued, executing or stopping (parameters may change). */
 static bool planner_idle(void)
 {
-    return !moving() && !drv.req_stop && feed_idle(&feed);
+    return !drive_moving() && !drv.req_stop && feed_idle(&feed);
 }
 
 drive_result_t drive_apply_config(const drive_config_t *c)

@@ -5,11 +5,11 @@
 #include "drive_excite.h"
 
 #include "calib.h"
-#include "crc.h"
 #include "hal.h"
 #include "proto_msgs.h"
 #include "proto_replay.h"
 #include "proto_reply.h"
+#include "sample_pull.h"
 
 CORE_SHARED bool drive_excite_armed;
 
@@ -196,13 +196,21 @@ static size_t h_start(const uint8_t *msg, size_t plen, uint8_t *out)
     return reply_state(out, msg[1]);
 }
 
+/* One sample in the excite_samples layout: i32 cmd_mv, i32 pos_nm. */
+static void encode_sample(const void *src, uint32_t seq, uint8_t *dst)
+{
+    excite_sample_t s;
+    (void)excite_sample(src, seq, &s);
+    proto_put_le(dst, (uint64_t)(uint32_t)s.cmd_mv, 4u);
+    proto_put_le(dst + 4u, (uint64_t)(uint32_t)s.pos_nm, 4u);
+}
+
+/* excite_read: sample_pull.h (the tick advances written: read once). */
 static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
 {
     proto_excite_read_t m;
     const excite_t *e = &dx.ex;
-    uint32_t written = e->written, avail, n, i;
-    uint8_t *hdr = out + PROTO_MSG_HDR;
-    uint8_t *data = hdr + PROTO_EXCITE_SAMPLES_LEN;
+    uint32_t written = e->written;
 
     if (!proto_excite_read_decode(msg + PROTO_MSG_HDR, plen, &m) || plen != PROTO_EXCITE_READ_LEN) {
         return bad_length(out, msg, plen);
@@ -211,26 +219,12 @@ static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
         return proto_reply_error(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_OUT_OF_RANGE, 1u, 0,
                                  0);
     }
-    if (!dx.owns || (uint32_t)(m.from_seq - e->released) > written - e->released) {
+    if (!dx.owns || !sample_pull_seq_ok(e->released, written, m.from_seq)) {
         return refuse(out, msg, PROTO_EXCITE_REFUSAL_SEQ, e->released);
     }
     excite_release(&dx.ex, m.from_seq);
-    avail = written - m.from_seq;
-    n = avail < m.max ? avail : m.max;
-    /* the excite_samples layout, written in place (no 250-byte copy in RAM) */
-    for (i = 0; i < n; i++) {
-        excite_sample_t s;
-        (void)excite_sample(e, m.from_seq + i, &s);
-        proto_put_le(data + 8u * i, (uint64_t)(uint32_t)s.cmd_mv, 4u);
-        proto_put_le(data + 8u * i + 4u, (uint64_t)(uint32_t)s.pos_nm, 4u);
-    }
-    proto_put_le(hdr, m.from_seq, 4u);
-    hdr[4] = (uint8_t)n;
-    proto_put_le(hdr + 5, written, 4u);
-    proto_put_le(hdr + 9, crc32_update(CRC32_INIT, data, 8u * n), 4u);
-    out[0] = (uint8_t)PROTO_MSG_EXCITE_SAMPLES;
-    out[1] = msg[1];
-    return PROTO_MSG_HDR + PROTO_EXCITE_SAMPLES_LEN + 8u * n;
+    return sample_pull_reply(out, (uint8_t)PROTO_MSG_EXCITE_SAMPLES, msg[1], m.from_seq, m.max,
+                             written, 8u, encode_sample, e);
 }
 
 static size_t h_abort(const uint8_t *msg, size_t plen, uint8_t *out)

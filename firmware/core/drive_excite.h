@@ -8,7 +8,7 @@
  * nothing queued). Protocol ids 0xD0..0xDF (protocol/contour.toml,
  * excite_*): excite_start (limits: travel, command, velocity, amplitude,
  * duration as n_ticks, host timeout), excite_status, excite_read (pull
- * transfer as calib_read: from_seq releases everything before it, at
+ * transfer as calib_read, sample_pull.h: from_seq releases everything before it, at
  * most DRIVE_EXCITE_READ_MAX samples of 8 bytes per reply with a CRC-32 of
  * them, idempotent) and excite_abort. Refusals are error{code = excite,
  * arg = excite_refusal, lo = detail}. excite_start and excite_abort are

@@ -405,17 +405,16 @@ def upload_map(client, record: bytes, wait, notify=None, timeout_s: float = 2.0)
     import zlib
 
     from contour.calibration.run import _disable_for_write
+    from contour.link.chunks import write_record
     from contour.link.client import DriveError
 
     state = pg.State(client.status()["state"])
     if state not in (pg.State.READY, pg.State.DISABLED):
         raise UserError(f"the drive is {state.name.lower()}: the map is written at rest")
     try:
-        for off in range(0, len(record), CHUNK):
-            part = record[off : off + CHUNK]
-            w = client.request("comp2d_write", offset=off, data=part).fields
-            if w["offset"] != off or w["len"] != len(part):
-                raise UserError(f"drive staged {w['len']} bytes at {w['offset']}")
+        write_record(
+            lambda name, **f: client.request(name, **f).fields, "comp2d_write", record, CHUNK
+        )
     except DriveError as exc:
         raise _refusal(exc) from None
     was_enabled = state == pg.State.READY

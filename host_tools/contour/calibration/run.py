@@ -29,6 +29,7 @@ from contour import protocol_gen as pg
 from contour.calibration.analysis import ErrorMap, analyse
 from contour.calibration.tables import corrections_nm, encode_record
 from contour.errors import UserError
+from contour.link.chunks import SamplePull, write_record
 from contour.link.client import DriveError
 
 # calib.h: seq, point, cycle, flags, enc, comp, ref, xenc, xcomp, xref
@@ -135,6 +136,13 @@ class Calibrator:
         self.progress = progress
         self.poll_s = poll_s
         self.timeout_s = timeout_s
+        self.pull = SamplePull(
+            self._read_req,
+            "calib_read",
+            SAMPLE.size,
+            READ_MAX,
+            lambda: UserError("sample batches keep failing their checks: link too noisy"),
+        )
 
     # ---- pieces ----------------------------------------------------------------
 
@@ -173,18 +181,8 @@ class Calibrator:
                 f"the drive holds {st['targets_loaded']} of {len(cfg.targets_nm)} targets"
             )
 
-    def _read_batch(self, cfg: RunConfig, next_seq: int) -> Optional[list]:
-        """One calib_read from next_seq; None when the batch failed a check."""
-        try:
-            r = self._req("calib_read", from_seq=next_seq, max=READ_MAX)
-        except DriveError as exc:
-            if exc.fields.get("code") == pg.ErrorCode.CALIB and exc.fields.get("arg") == int(
-                pg.CalibStatus.SEQ
-            ):
-                oldest = int(exc.fields["lo"])
-                if oldest > next_seq:  # lost for good: legs are repeated later
-                    return [("lost", oldest)]
-            raise
+    def _read_req(self, name: str, **fields) -> dict:
+        r = self._req(name, **fields)
         data, n = r["data"], r["count"]
         if n > 0 and len(data) == SAMPLE_BYTES_V3 * n and zlib.crc32(data) == r["crc"]:
             # an intact reply in the layout before the cross axis: not a
@@ -194,26 +192,37 @@ class Calibrator:
                 f" this host reads {SAMPLE.size} (protocol {pg.PROTOCOL_VERSION}):"
                 " update the drive's firmware (contour flash)"
             )
-        if (
-            r["from_seq"] != next_seq
-            or n > READ_MAX
-            or len(data) != SAMPLE.size * n
-            or zlib.crc32(data) != r["crc"]
-        ):
-            return None
-        out = []
-        for i in range(n):
-            s = Sample(*SAMPLE.unpack_from(data, SAMPLE.size * i))
-            if s.seq != next_seq + i or s.point >= len(cfg.targets_nm) or s.cycle >= cfg.cycles:
-                return None
-            out.append(s)
-        return out
+        return r
+
+    def _read_batch(self, cfg: RunConfig, next_seq: int) -> list:
+        """The samples of one intact calib_read from next_seq (read again
+        while a chunk fails a check: SamplePull), or [("lost", oldest)]
+        when the drive no longer holds next_seq."""
+
+        def parse(r: dict) -> Optional[list]:
+            out = []
+            for i in range(r["count"]):
+                s = Sample(*SAMPLE.unpack_from(r["data"], SAMPLE.size * i))
+                if s.seq != next_seq + i or s.point >= len(cfg.targets_nm) or s.cycle >= cfg.cycles:
+                    return None
+                out.append(s)
+            return out
+
+        try:
+            return self.pull.read(next_seq, parse)
+        except DriveError as exc:
+            if exc.fields.get("code") == pg.ErrorCode.CALIB and exc.fields.get("arg") == int(
+                pg.CalibStatus.SEQ
+            ):
+                oldest = int(exc.fields["lo"])
+                if oldest > next_seq:  # lost for good: legs are repeated later
+                    return [("lost", oldest)]
+            raise
 
     def _collect(self, cfg: RunConfig, res: RunResult, next_seq: int, legs_base: int) -> int:
         """Poll and read until the drive's run is DONE and all samples are in.
         Returns the next sequence number."""
         end = time.monotonic() + self.timeout_s
-        bad_in_a_row = 0
         while True:
             st = self._req("calib_status")
             if st["state"] == pg.CalibRunState.ERROR:
@@ -225,14 +234,11 @@ class Calibrator:
                 self.progress(min(st["legs_done"] - legs_base, 10**9), st["legs_total"])
             got_any = False
             while next_seq < st["seq_next"]:
-                batch = self._read_batch(cfg, next_seq)
-                if batch is None:
-                    res.reads_repeated += 1
-                    bad_in_a_row += 1
-                    if bad_in_a_row > 20:
-                        raise UserError("sample batches keep failing their checks: link too noisy")
-                    continue
-                bad_in_a_row = 0
+                repeated0 = self.pull.repeated
+                try:
+                    batch = self._read_batch(cfg, next_seq)
+                finally:
+                    res.reads_repeated += self.pull.repeated - repeated0
                 if batch and isinstance(batch[0], tuple):
                     res.samples_lost += batch[0][1] - next_seq
                     next_seq = batch[0][1]
@@ -248,7 +254,7 @@ class Calibrator:
             if not got_any and st["seq_oldest"] < next_seq == st["seq_next"]:
                 # release what was read: a leg of CALIB_RING samples waits for
                 # the whole ring (a read from seq_next returns nothing)
-                self._req("calib_read", from_seq=next_seq, max=1)
+                self.pull.release(next_seq)
             if time.monotonic() > end:
                 raise UserError(f"calibration did not finish within {self.timeout_s:g} s")
             if not got_any:
@@ -383,13 +389,9 @@ def upload(
             f"the drive is in {state.name.lower()}: reset the fault before writing a"
             " compensation table"
         )
-    for off in range(0, len(record), CHUNK):
-        part = record[off : off + CHUNK]
-        w = client.request("comp_write", axis=axis, offset=off, data=part).fields
-        if w["offset"] != off or w["len"] != len(part):
-            raise UserError(
-                f"drive staged {w['len']} bytes at {w['offset']}, sent {len(part)} at {off}"
-            )
+    write_record(
+        lambda name, **f: client.request(name, **f).fields, "comp_write", record, CHUNK, axis=axis
+    )
     was_enabled = state == pg.State.READY
     if was_enabled and notify is not None:
         notify(

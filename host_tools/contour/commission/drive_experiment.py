@@ -19,7 +19,6 @@ import os
 import struct
 import tempfile
 import time
-import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +26,7 @@ import numpy as np
 from contour import protocol_gen as pg
 from contour.commission.experiment import ExperimentAborted, Limits, Record
 from contour.errors import UserError
+from contour.link.chunks import SamplePull
 from contour.link.client import AXIS_NAMES, DriveError
 
 READ_MAX = 29  # DRIVE_EXCITE_READ_MAX
@@ -150,18 +150,19 @@ def _collect(client, plan: PrbsPlan, timeout_s: float) -> np.ndarray:
     want = plan.windows * plan.period_ticks
     out = np.zeros((want, 2), dtype=np.int64)
     seq = 0
-    bad = 0
+    pull = SamplePull(
+        lambda name, **f: client.request(name, **f).fields,
+        "excite_read",
+        SAMPLE.size,
+        READ_MAX,
+        lambda: ExperimentAborted("sample batches keep failing their checks"),
+    )
     end = time.monotonic() + timeout_s
     while seq < want:
         st = client.request("excite_status").fields
         while seq < st["written"]:
-            r = client.request("excite_read", from_seq=seq, max=READ_MAX).fields
+            r = pull.read(seq)
             d, k = r["data"], r["count"]
-            if r["from_seq"] != seq or len(d) != SAMPLE.size * k or zlib.crc32(d) != r["crc"]:
-                bad += 1
-                if bad > 20:
-                    raise ExperimentAborted("sample batches keep failing their checks")
-                continue
             for i in range(k):
                 out[seq + i] = SAMPLE.unpack_from(d, SAMPLE.size * i)
             seq += k
@@ -170,7 +171,7 @@ def _collect(client, plan: PrbsPlan, timeout_s: float) -> np.ndarray:
         if seq >= want:
             break
         if st["released"] < seq:  # free what was read: the next window needs the room
-            client.request("excite_read", from_seq=seq, max=1)
+            pull.release(seq)
         if st["state"] == pg.ExciteRunState.ABORTED:
             raise ExperimentAborted(
                 f"the drive stopped the experiment: {reason_text(st['reason'])}"
