@@ -546,7 +546,7 @@ int sim_encoder_model_get(void)
 
 static qgen_pos_t to_qgen(double counts)
 {
-    return (qgen_pos_t)floor(counts * (double)QGEN_ONE);
+    return (qgen_pos_t)axis_floor_i64(counts * (double)QGEN_ONE);
 }
 
 int sim_set_link(unsigned node_id, int serial, int can, uint32_t capabilities, uint32_t fw_version,
@@ -678,9 +678,9 @@ static void sim_home_switch(unsigned i)
 
 static void write_row(double *row)
 {
-    drive_status_t st;
+    drive_trace_t st;
     unsigned i;
-    drive_snapshot(&st);
+    drive_trace_read(&st); /* drive_snapshot's fields, a fraction of its cost */
     /* the columns of absent axes are 0 (each written column is written
      * below: no memset call per traced tick) */
     for (i = 4u + 4u * S.axes; i < SIM_TRACE_COLS; i++) {
