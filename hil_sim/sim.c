@@ -773,12 +773,47 @@ static void disturbance_tick(void)
     }
 }
 
+/* The plant's tick with one substep (the loop below for nsub == 1): every
+ * axis's substep and reading first, then the generators' moves in axis
+ * order. The same operations on the same values as substep and move axis
+ * by axis (a move changes only its generator and the drive's decoder,
+ * which no substep reads), with the axes' plant chains independent of
+ * the moves' callbacks, so that they overlap. */
+static int plant_split_off; /* sim_test_plant_split */
+
+void sim_test_plant_split(int on)
+{
+    plant_split_off = !on;
+}
+
+static void plant_tick1(void)
+{
+    qgen_pos_t x1[SIM_AXES];
+    unsigned i;
+    for (i = 0; i < S.axes; i++) {
+        double u = (double)hal_sim_motor_mv(i) * 1e-3;
+        if (S.inj_n[i] > 0) {
+            u += S.inj_now[i];
+        }
+        /* z unchanged and no reading noise: the reading is the one the
+         * generator has (qgen_move_to keeps the last x1) */
+        x1[i] = (axis_substep(&S.ax[i], u) && S.ax[i].p.enc_noise_counts == 0.0)
+                    ? S.gen[i].x
+                    : to_qgen(axis_encoder_reading(&S.ax[i]));
+        S.table[i] = axis_table_pos(&S.ax[i]);
+    }
+    for (i = 0; i < S.axes; i++) {
+        S.edges += qgen_move_to(&S.gen[i], x1[i], S.t_ns + S.sub_ns[1]);
+    }
+}
+
 static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
                       unsigned min_free, uint64_t *ran)
 {
     uint64_t k;
     size_t rows = 0;
     unsigned i, s, row_in; /* row_in: ticks until S.ticks % every == 0 */
+    bool split;
     if (!S.started) {
         return SIM_E_STATE;
     }
@@ -814,7 +849,11 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         if (S.dist_on) {
             disturbance_tick();
         }
-        for (i = 0; i < S.axes; i++) {
+        split = S.nsub == 1u && !plant_split_off;
+        if (split) {
+            plant_tick1();
+        }
+        for (i = 0; !split && i < S.axes; i++) {
             double u = (double)hal_sim_motor_mv(i) * 1e-3;
             if (S.inj_n[i] > 0) {
                 u += S.inj_now[i];
