@@ -577,18 +577,32 @@ uint32_t fx_udiv64by32(uint64_t n, uint32_t d);
 
 /* floor(sqrt(v)) as fx_isqrt64, for a root that moves little between calls,
  * from h (any value: only the cost depends on it): h itself when h^2 <= v
- * and v - h^2 <= 2h; else one Newton step r = floor((h + floor(v / h)) / 2),
- * which is never below the root (AM-GM) and within one of it when h is
- * within about 2^-15 r of it, taken when r^2 or (r - 1)^2 is at most v;
- * otherwise fx_isqrt64. fx_isqrt64's Newton iteration is a chain of four or
- * five dependent divisions; a root near last tick's root (the CEC's
- * normalisation and exact arc distance) takes at most one. Exactness:
+ * and v - h^2 <= 2h, h + 1, h - 1 or h - 2 when v - h^2 says so (no
+ * division: the squares of h's neighbours from h^2 and 2h); else one Newton step r = floor((h +
+ * floor(v / h)) / 2), which is never below the root (AM-GM) and within one of it when h is within
+ * about 2^-15 r of it, taken when r^2 or (r - 1)^2 is at most v; otherwise fx_isqrt64. fx_isqrt64's
+ * Newton iteration is a chain of four or five dependent divisions; a root near last tick's root
+ * (the CEC's normalisation and exact arc distance) takes at most one. Exactness:
  * tests/unit/test_fixmath.c, test_isqrt64_near. */
 static inline uint32_t fx_isqrt64_near(uint64_t v, uint32_t h)
 {
-    uint64_t sq = (uint64_t)h * h, r;
-    if (sq <= v && v - sq <= 2u * (uint64_t)h) { /* v < (h + 1)^2 */
-        return h;
+    uint64_t sq = (uint64_t)h * h, h2 = 2u * (uint64_t)h, r;
+    if (sq <= v) {
+        uint64_t d = v - sq;
+        if (d <= h2) { /* v < (h + 1)^2 = h^2 + 2h + 1 */
+            return h;
+        }
+        if (d - h2 - 1u <= h2 + 2u) { /* (h + 1)^2 <= v < (h + 2)^2 = h^2 + 4h + 4 */
+            return h + 1u;            /* h < UINT32_MAX: v - h^2 <= 2h there */
+        }
+    } else {
+        uint64_t d = sq - v; /* > 0, so h >= 1 */
+        if (d < h2) {        /* (h - 1)^2 = h^2 - 2h + 1 <= v */
+            return h - 1u;
+        }
+        if (d <= 2u * h2 - 4u) { /* (h - 2)^2 <= v (h >= 2: h = 1 gives d <= 0) */
+            return h - 2u;
+        }
     }
     if ((v >> 32) < h) {                              /* v / h < 2^32 (h > 0) */
         r = ((uint64_t)h + fx_udiv64by32(v, h)) >> 1; /* < 2^32, >= floor(sqrt(v)) */
