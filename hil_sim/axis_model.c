@@ -574,9 +574,19 @@ int64_t axis_ref_reading(axis_t *ax)
 
 int64_t axis_ref_reading_at(axis_t *ax, double x)
 {
+    uint64_t xb, rb;
     if (ax->p.ref_noise > 0.0) {
         double u1 = uniform01(&ax->ref_rng), u2 = uniform01(&ax->ref_rng);
         x += ax->p.ref_noise * sqrt(-2.0 * log(u1)) * cos(2.0 * PI_D * u2);
+        return axis_floor_i64(x / ax->p.ref_resolution + 0.5);
     }
-    return (int64_t)floor(x / ax->p.ref_resolution + 0.5);
+    memcpy(&xb, &x, sizeof xb);
+    memcpy(&rb, &ax->p.ref_resolution, sizeof rb);
+    if (!ax->ref_memo || xb != ax->ref_x || rb != ax->ref_res) {
+        ax->ref_count = axis_floor_i64(x / ax->p.ref_resolution + 0.5);
+        ax->ref_x = xb;
+        ax->ref_res = rb;
+        ax->ref_memo = true;
+    }
+    return ax->ref_count;
 }

@@ -61,6 +61,7 @@
 #define AXIS_MODEL_H
 
 #include <complex.h>
+#include <math.h>
 #include <stdbool.h>
 #include <stdint.h>
 
@@ -126,7 +127,26 @@ typedef struct {
     double pitch_turn; /* table position where dir last changed     */
     uint64_t rng;
     uint64_t ref_rng; /* reference-scale noise generator */
+    /* axis_ref_reading_at without noise is a function of x and the
+     * resolution: its last arguments (bits) and result, reused when both
+     * are the same (an axis standing still); ref_memo cleared by
+     * axis_init */
+    bool ref_memo;
+    uint64_t ref_x, ref_res;
+    int64_t ref_count;
 } axis_t;
+
+/* floor(x) as an int64 (x finite, |x| < 2^63): for |x| < 2^53 by a
+ * truncating conversion and a correction (the same value as floor, without
+ * a call to the C library's floor), otherwise floor itself. */
+static inline int64_t axis_floor_i64(double x)
+{
+    if (x > -9007199254740992.0 && x < 9007199254740992.0) {
+        int64_t i = (int64_t)x; /* toward zero */
+        return i - (int64_t)(x < (double)i);
+    }
+    return (int64_t)floor(x);
+}
 
 /* Parameters of the thesis's X (y_axis false) or Y axis, options off, encoder
  * 1000 lines x4 (offset 0.5 count), reference scale 1 nm. */

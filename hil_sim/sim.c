@@ -609,7 +609,7 @@ double sim_table_record_hz(void)
 
 static qgen_pos_t to_qgen(double counts)
 {
-    return (qgen_pos_t)floor(counts * (double)QGEN_ONE);
+    return (qgen_pos_t)axis_floor_i64(counts * (double)QGEN_ONE);
 }
 
 int sim_set_link(unsigned node_id, int serial, int can, uint32_t capabilities, uint32_t fw_version,
@@ -742,9 +742,9 @@ static void sim_home_switch(unsigned i)
 
 static void write_row(double *row)
 {
-    drive_status_t st;
+    drive_trace_t st;
     unsigned i;
-    drive_snapshot(&st);
+    drive_trace_read(&st); /* drive_snapshot's fields, a fraction of its cost */
     /* the columns of absent axes are 0 (each written column is written
      * below: no memset call per traced tick) */
     for (i = 4u + 4u * S.axes; i < SIM_TRACE_COLS; i++) {
@@ -923,12 +923,56 @@ static void sim_record_tick(void)
     S.rec_n += n;
 }
 
+/* The plant's tick with one substep (the loop below for nsub == 1): every
+ * axis's substep and reading first, then the generators' moves in axis
+ * order. The same operations on the same values as substep and move axis
+ * by axis (a move changes only its generator and the drive's decoder,
+ * which no substep reads), with the axes' plant chains independent of
+ * the moves' callbacks, so that they overlap. */
+static int plant_split_off; /* sim_test_plant_split */
+
+void sim_test_plant_split(int on)
+{
+    plant_split_off = !on;
+}
+
+static void plant_tick1(void)
+{
+    qgen_pos_t x1[SIM_AXES];
+    unsigned i;
+    for (i = 0; i < S.axes; i++) {
+        double u = (double)hal_sim_motor_mv(i) * 1e-3;
+        if (S.inj_n[i] > 0) {
+            u += S.inj_now[i];
+        }
+        /* z unchanged and no reading noise: the reading is the one the
+         * generator has (qgen_move_to keeps the last x1) */
+        x1[i] = (axis_substep(&S.ax[i], u) && S.ax[i].p.enc_noise_counts == 0.0)
+                    ? S.gen[i].x
+                    : to_qgen(axis_encoder_reading(&S.ax[i]));
+        S.table[i] = axis_table_pos(&S.ax[i]);
+    }
+    for (i = 0; i < S.axes; i++) {
+        if (S.mean) {
+            sim_mean_step(i, -1);
+        }
+        S.edges += qgen_move_to(&S.gen[i], x1[i], S.t_ns + S.sub_ns[1]);
+        if (S.mean) {
+            sim_mean_step(i, 0);
+        }
+        if (S.rec != NULL) {
+            sim_record_step(i, 0);
+        }
+    }
+}
+
 static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
                       unsigned min_free, uint64_t *ran)
 {
     uint64_t k;
     size_t rows = 0;
     unsigned i, s, row_in; /* row_in: ticks until S.ticks % every == 0 */
+    bool split;
     if (!S.started) {
         return SIM_E_STATE;
     }
@@ -966,7 +1010,11 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         }
         /* after main: a parameter write */
         S.mean = drive_config()->enc_mean || S.tmean_on;
-        for (i = 0; i < S.axes; i++) {
+        split = S.nsub == 1u && !plant_split_off;
+        if (split) {
+            plant_tick1();
+        }
+        for (i = 0; !split && i < S.axes; i++) {
             double u = (double)hal_sim_motor_mv(i) * 1e-3;
             if (S.inj_n[i] > 0) {
                 u += S.inj_now[i];

@@ -229,6 +229,10 @@ uint64_t sim_edges(void);
 uint64_t sim_run_edges(void);
 uint64_t sim_edge_mismatches(void);
 unsigned sim_substeps(void);
+/* Test hook: with one substep per tick the loop steps every axis's plant
+ * first and then the generators (sim.c plant_tick1); off (0), it takes the
+ * general loop, axis by axis, as with several substeps. Default on. */
+void sim_test_plant_split(int on);
 double sim_table_pos(unsigned axis);
 
 /* The drive's status in a fixed layout for the host (ctypes). */

@@ -653,6 +653,28 @@ void drive_snapshot(drive_status_t *out)
     snapshot(out, &rd, &rem);
 }
 
+/* drive_snapshot's state, faults, contour error, ref and pos, each from
+ * where snapshot() takes it (status_live's sources for the live ones) */
+CORE_NO_TSAN void drive_trace_read(drive_trace_t *out)
+{
+    uint32_t s;
+    unsigned i;
+    do {
+        s = drv.st_seq;
+        CORE_BARRIER(); /* no plain load moves across the st_seq reads */
+        out->state = drv.st.state;
+        out->faults = drv.st.faults;
+        out->contour_error_nm = drv.servo.cec.active ? drv.servo.cec.ec_nm[0] : 0;
+        for (i = 0; i < CORE_AXES; i++) {
+            bool live = i < drv.cfg.axes;
+            out->ref[i] = live ? drv.ref.pos[i] : drv.st.ref[i];
+            out->pos[i] = live ? drv.in.enc[i].out.pos_nm : drv.st.pos[i];
+        }
+        PREEMPT_POINT();
+        CORE_BARRIER();
+    } while ((s & 1u) != 0 || s != drv.st_seq);
+}
+
 void drive_status(drive_status_t *out)
 {
     uint16_t rd;

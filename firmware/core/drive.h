@@ -396,6 +396,19 @@ void drive_status(drive_status_t *out);
 /* The tick's published snapshot only: queue_free and queued_time_ns are left
  * 0 (drive_status computes the planned time, O(queued blocks)). Any. */
 void drive_snapshot(drive_status_t *out);
+/* The fields of the snapshot a per-tick trace reads (the simulator's
+ * sim_run rows), read as drive_snapshot reads them: each equals the field
+ * of the same name of a drive_snapshot() at the same point. Without the
+ * rest of the status (copied and then overwritten by the snapshot) it is
+ * a fraction of the cost. Any. */
+typedef struct {
+    drive_state_t state;
+    uint32_t faults;
+    int64_t contour_error_nm;
+    pos_nm_t pos[CORE_AXES];
+    pos_nm_t ref[CORE_AXES];
+} drive_trace_t;
+void drive_trace_read(drive_trace_t *out);
 
 /* Deliver one encoder edge to channel ch (axes 0..axes-1, then the
  * reference-scale inputs): the new line levels (QDEC_LINE_A/B/Z bits) and

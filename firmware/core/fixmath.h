@@ -276,7 +276,9 @@ typedef struct {
     uint64_t lo;
 } fx_u128_t;
 
-static inline fx_u128_t fx_umul64(uint64_t a, uint64_t b)
+/* The product in 32 x 32 -> 64 pieces (the form of targets without a
+ * 128-bit type: the Cortex-M4). */
+static inline fx_u128_t fx_umul64_pieces(uint64_t a, uint64_t b)
 {
     uint64_t a_lo = (uint32_t)a, a_hi = a >> 32;
     uint64_t b_lo = (uint32_t)b, b_hi = b >> 32;
@@ -291,14 +293,45 @@ static inline fx_u128_t fx_umul64(uint64_t a, uint64_t b)
     return r;
 }
 
+/* Host-only form (docs/fast-paths.md): a 64-bit host with a 128-bit type
+ * (GCC, Clang: __SIZEOF_INT128__; not the 32-bit M4) takes the product in
+ * one multiply; the same 128 bits (test_fixmath.c:
+ * test_umul64_host_equals_pieces). FX_MUL_PIECES=1 keeps the pieces. */
+#if !defined(FX_MUL_PIECES) && defined(__SIZEOF_INT128__)
+#define FX_MUL_PIECES 0
+#elif !defined(FX_MUL_PIECES)
+#define FX_MUL_PIECES 1
+#endif
+
+#if FX_MUL_PIECES
+static inline fx_u128_t fx_umul64(uint64_t a, uint64_t b)
+{
+    return fx_umul64_pieces(a, b);
+}
+#else
+__extension__ typedef unsigned __int128 fx_host_u128;
+
+static inline fx_u128_t fx_umul64(uint64_t a, uint64_t b)
+{
+    fx_host_u128 p = (fx_host_u128)a * b;
+    fx_u128_t r;
+
+    r.lo = (uint64_t)p;
+    r.hi = (uint64_t)(p >> 64);
+    return r;
+}
+#endif
+
 /* floor(a * b / 2^64) */
 static inline uint64_t fx_umulhi64(uint64_t a, uint64_t b)
 {
     return fx_umul64(a, b).hi;
 }
 
-/* a * b for b < 2^32 (a 96-bit product) from two 32 x 32 -> 64 multiplies */
-static inline fx_u128_t fx_umul64x32(uint64_t a, uint32_t b)
+/* a * b for b < 2^32 (a 96-bit product) from two 32 x 32 -> 64 multiplies
+ * (the pieces form; a host with a 128-bit type: one multiply, as
+ * fx_umul64) */
+static inline fx_u128_t fx_umul64x32_pieces(uint64_t a, uint32_t b)
 {
     uint64_t lo = (uint64_t)(uint32_t)a * b;
     uint64_t hi = (a >> 32) * b + (lo >> 32); /* < 2^64: one UMLAL */
@@ -307,6 +340,15 @@ static inline fx_u128_t fx_umul64x32(uint64_t a, uint32_t b)
     r.lo = (hi << 32) | (uint32_t)lo;
     r.hi = hi >> 32;
     return r;
+}
+
+static inline fx_u128_t fx_umul64x32(uint64_t a, uint32_t b)
+{
+#if FX_MUL_PIECES
+    return fx_umul64x32_pieces(a, b);
+#else
+    return fx_umul64(a, b);
+#endif
 }
 
 /* a + b mod 2^128 */
@@ -577,18 +619,32 @@ uint32_t fx_udiv64by32(uint64_t n, uint32_t d);
 
 /* floor(sqrt(v)) as fx_isqrt64, for a root that moves little between calls,
  * from h (any value: only the cost depends on it): h itself when h^2 <= v
- * and v - h^2 <= 2h; else one Newton step r = floor((h + floor(v / h)) / 2),
- * which is never below the root (AM-GM) and within one of it when h is
- * within about 2^-15 r of it, taken when r^2 or (r - 1)^2 is at most v;
- * otherwise fx_isqrt64. fx_isqrt64's Newton iteration is a chain of four or
- * five dependent divisions; a root near last tick's root (the CEC's
- * normalisation and exact arc distance) takes at most one. Exactness:
+ * and v - h^2 <= 2h, h + 1, h - 1 or h - 2 when v - h^2 says so (no
+ * division: the squares of h's neighbours from h^2 and 2h); else one Newton step r = floor((h +
+ * floor(v / h)) / 2), which is never below the root (AM-GM) and within one of it when h is within
+ * about 2^-15 r of it, taken when r^2 or (r - 1)^2 is at most v; otherwise fx_isqrt64. fx_isqrt64's
+ * Newton iteration is a chain of four or five dependent divisions; a root near last tick's root
+ * (the CEC's normalisation and exact arc distance) takes at most one. Exactness:
  * tests/unit/test_fixmath.c, test_isqrt64_near. */
 static inline uint32_t fx_isqrt64_near(uint64_t v, uint32_t h)
 {
-    uint64_t sq = (uint64_t)h * h, r;
-    if (sq <= v && v - sq <= 2u * (uint64_t)h) { /* v < (h + 1)^2 */
-        return h;
+    uint64_t sq = (uint64_t)h * h, h2 = 2u * (uint64_t)h, r;
+    if (sq <= v) {
+        uint64_t d = v - sq;
+        if (d <= h2) { /* v < (h + 1)^2 = h^2 + 2h + 1 */
+            return h;
+        }
+        if (d - h2 - 1u <= h2 + 2u) { /* (h + 1)^2 <= v < (h + 2)^2 = h^2 + 4h + 4 */
+            return h + 1u;            /* h < UINT32_MAX: v - h^2 <= 2h there */
+        }
+    } else {
+        uint64_t d = sq - v; /* > 0, so h >= 1 */
+        if (d < h2) {        /* (h - 1)^2 = h^2 - 2h + 1 <= v */
+            return h - 1u;
+        }
+        if (d <= 2u * h2 - 4u) { /* (h - 2)^2 <= v (h >= 2: h = 1 gives d <= 0) */
+            return h - 2u;
+        }
     }
     if ((v >> 32) < h) {                              /* v / h < 2^32 (h > 0) */
         r = ((uint64_t)h + fx_udiv64by32(v, h)) >> 1; /* < 2^32, >= floor(sqrt(v)) */

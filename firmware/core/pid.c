@@ -507,10 +507,39 @@ static int32_t step_lean(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel,
     return pid_finish_raw(pid, pterm + integ + dterm + ff + ex, integ);
 }
 
+/* The rest step (pid.h, Rest step): on 64-bit hosts only (PID_REST; the
+ * M4 tick keeps its instructions). */
+#ifndef PID_REST
+#if UINTPTR_MAX > 0xFFFFFFFFu
+#define PID_REST 1
+#else
+#define PID_REST 0
+#endif
+#endif
+
+/* A fast step at rest would write every field as it is (pid.h): no
+ * error, no D input (both forms), the D state inside its fixed point, the
+ * same extra input and an unsaturated last output equal to I + extra. */
+static inline bool step_is_rest(const pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t ex)
+{
+    return e == 0 && pid->err_nm == 0 && meas == pid->meas_prev && ex == pid->extra &&
+           (uint64_t)pid->dq < (pid->dfilt ? ((uint64_t)1 << 31) : 1u) && !pid->saturated &&
+           pid->sat_ticks == 0 && pid->out == pid->integ + ex && pid->out <= pid->out_lim &&
+           pid->out >= -pid->out_lim;
+}
+
 int32_t pid_step_e(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
                    int64_t extra)
 {
     if (pid_fast_ready(pid)) {
+        if (PID_REST) {
+            int64_t ex = fx_clamp_sym64(extra, PID_TERM_LIM);
+            if (step_is_rest(pid, e, meas, ex)) {
+                /* round(out / 2^32) as the fast step writes it */
+                pid->out_mv = (int32_t)(pid->out >> 32) + (int32_t)((uint32_t)pid->out >> 31);
+                return pid->out_mv;
+            }
+        }
         return pid_step_fast_inline(pid, e, meas, extra, true);
     }
     if (pid->lean && pid->enabled && pid->primed && !pid->bumpless && !pid->dq_live) {

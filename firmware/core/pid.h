@@ -258,7 +258,19 @@ int32_t pid_step_fast0(pid_loop_t *pid, int32_t e, pos_nm_t meas);
  * general path's operations in its order without the tests for the cases
  * that cannot arise, the same output and state bit for bit (test_pid.c:
  * test_lean_step_equals_general). The X and Y loops of a circle with
- * feed-forward take it on every tick (host simulator). */
+ * feed-forward take it on every tick (host simulator).
+ *
+ * Rest step (exact, 64-bit hosts only, PID_REST in pid.c): a ready loop
+ * (fast path) whose step would leave every field as it is returns at once
+ * from pid_step_e: e == 0 and the last e == 0 and meas == meas_prev (no D
+ * input in either form), the D state at its fixed point (dq / 2^31 == 0
+ * with the filter, dq == 0 without), the clamped extra input equal to the
+ * last one, and the last output unsaturated (sat_ticks 0) and equal to
+ * integ + extra inside the output clamp: then P, D and the integrator's
+ * increment are 0 and the fast step would write the same values again
+ * (out_mv is re-derived from out as the fast step derives it). An axis
+ * standing still (Z on a circle in the X-Y plane) takes it on every tick
+ * (test_pid.c: test_rest_step_equals_fast). */
 int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
                          int64_t extra);
 /* The saturated end of a fast step (out of line: rare). raw: u_raw in U;

@@ -313,6 +313,90 @@ static void test_rest_skip_is_bit_exact(void)
     TEST_ASSERT_TRUE(a.z[0] != 0.0); /* and the 0.5 V moved the axis */
 }
 
+/* axis_floor_i64 against floor on integers, halves, the neighbours of
+ * both (nextafter), -0.0, both ends of the conversion's range and beyond,
+ * and random values of every magnitude; axis_ref_reading_at's memo against
+ * the reading's formula on a sequence that stands still, moves by single
+ * ulps and changes the resolution (fails when the memo ignores x's low
+ * bits or the resolution). */
+static void test_floor_and_ref_memo_exact(void)
+{
+    static const double edge[] = {0.0,
+                                  -0.0,
+                                  0.5,
+                                  -0.5,
+                                  1.0,
+                                  -1.0,
+                                  1.5,
+                                  -1.5,
+                                  2.5,
+                                  -2.5,
+                                  4503599627370496.0,
+                                  -4503599627370496.0,
+                                  9007199254740991.0,
+                                  -9007199254740991.0,
+                                  9007199254740992.0,
+                                  -9007199254740992.0,
+                                  9007199254740994.0,
+                                  -9007199254740994.0,
+                                  4.0e18,
+                                  -4.0e18,
+                                  1e-300,
+                                  -1e-300};
+    axis_params_t p;
+    axis_t a;
+    uint64_t s = 0x9E3779B97F4A7C15u;
+    double x = 0.0123456789;
+    unsigned i, k, hits = 0;
+
+    for (i = 0; i < sizeof edge / sizeof edge[0]; i++) {
+        double v[3] = {edge[i], nextafter(edge[i], INFINITY), nextafter(edge[i], -INFINITY)};
+        for (k = 0; k < 3; k++) {
+            TEST_ASSERT_EQUAL_INT64((int64_t)floor(v[k]), axis_floor_i64(v[k]));
+        }
+    }
+    for (k = 0; k < 2000000u; k++) {
+        double v;
+        uint64_t b;
+        s = s * 6364136223846793005u + 1442695040888963407u;
+        b = s ^ (s >> 29);
+        v = ldexp((double)(int64_t)b, -(int)(b % 70u)); /* |v| up to 2^63 */
+        if (!(fabs(v) < 9.2e18)) {
+            continue;
+        }
+        TEST_ASSERT_EQUAL_INT64((int64_t)floor(v), axis_floor_i64(v));
+    }
+
+    axis_params_lacerda(&p, false);
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-4));
+    for (k = 0; k < 30000u; k++) {
+        int64_t want;
+        unsigned sel = k % 7u;
+        if (sel == 3u) {
+            x = nextafter(x, 1.0); /* one ulp: the same reading, mostly */
+        } else if (sel == 5u) {
+            x += 7.3e-10 * (double)(k % 13u);
+        }
+        if (k % 5000u == 4999u) {
+            a.p.ref_resolution *= (k % 10000u == 9999u) ? 0.5 : 3.0;
+        }
+        want = (int64_t)floor(x / a.p.ref_resolution + 0.5);
+        hits += a.ref_memo && !(sel == 3u || sel == 5u);
+        TEST_ASSERT_EQUAL_INT64(want, axis_ref_reading_at(&a, x));
+        /* half a count away from a boundary: the low bits decide */
+        {
+            double c = (floor(x / a.p.ref_resolution) + 0.5) * a.p.ref_resolution;
+            double n = nextafter(c, 0.0);
+            TEST_ASSERT_EQUAL_INT64((int64_t)floor(c / a.p.ref_resolution + 0.5),
+                                    axis_ref_reading_at(&a, c));
+            TEST_ASSERT_EQUAL_INT64((int64_t)floor(n / a.p.ref_resolution + 0.5),
+                                    axis_ref_reading_at(&a, n));
+            TEST_ASSERT_EQUAL_INT64(want, axis_ref_reading_at(&a, x));
+        }
+    }
+    TEST_ASSERT_TRUE(hits > 10000u);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -330,5 +414,6 @@ int main(void)
     RUN_TEST(test_invalid_parameters_refused);
     RUN_TEST(test_substep_fast_path_is_bit_exact);
     RUN_TEST(test_rest_skip_is_bit_exact);
+    RUN_TEST(test_floor_and_ref_memo_exact);
     return UNITY_END();
 }

@@ -1147,6 +1147,61 @@ static void test_arc_recurrence_stays_within_its_bound_of_the_exact_overlay(void
     rc_plane = DRIVE_PLANE_XY;
 }
 
+/* drive_trace_read (the simulator's trace rows) against drive_snapshot on
+ * every tick of a job with the exact CEC (line, arc, line, a stop, then
+ * a fault), three axes and two: the same state, faults, contour error,
+ * reference and measured positions (fails when a field is read from the
+ * published status instead of the live state, or the other way round). */
+static void test_trace_read_equals_the_snapshot(void)
+{
+    const int64_t a[CORE_AXES] = {2000000, 0, 0};
+    const int64_t b[CORE_AXES] = {2000000, 0, 400000};
+    unsigned axes, i;
+    uint32_t k;
+    int r;
+
+    for (axes = 2; axes <= 3; axes++) {
+        int ce = 0, moving = 0;
+        pos_nm_t last = 0;
+        TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, axes));
+        TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "kp", 2000.0));
+        TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "ki", 2e5));
+        TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "kd", 2.0));
+        TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-1, "d_tau", 1e-3));
+        TEST_ASSERT_EQUAL_INT(0, sim_start());
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_set_cec_mode(DRIVE_CEC_EXACT));
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+        TEST_ASSERT_EQUAL_INT(0, sim_queue_line(a, 30000000, 1, 0, &r));
+        TEST_ASSERT_EQUAL_INT(0, sim_queue_arc(b, 30000000, DRIVE_PLANE_XY, 1000000, 0, 1, 2, &r));
+        TEST_ASSERT_EQUAL_INT(0, sim_queue_line(a, 30000000, 3, 0, &r));
+        for (k = 0; k < 4000u; k++) {
+            drive_trace_t t;
+            if (k == 3000u) {
+                drive_stop();
+            }
+            if (k == 3600u) {
+                drive_raise_fault(DRIVE_FAULT_COMM);
+            }
+            TEST_ASSERT_TRUE(sim_run(1, NULL, 0, 0) >= 0);
+            drive_snapshot(&st);
+            drive_trace_read(&t);
+            TEST_ASSERT_EQUAL_INT(st.state, t.state);
+            TEST_ASSERT_EQUAL_UINT32(st.faults, t.faults);
+            TEST_ASSERT_EQUAL_INT64(st.contour_error_nm, t.contour_error_nm);
+            for (i = 0; i < CORE_AXES; i++) {
+                TEST_ASSERT_EQUAL_INT64(st.ref[i], t.ref[i]);
+                TEST_ASSERT_EQUAL_INT64(st.pos[i], t.pos[i]);
+            }
+            ce += t.contour_error_nm != 0;
+            moving += t.ref[0] != last;
+            last = t.ref[0];
+        }
+        TEST_ASSERT_TRUE(ce > 1000);       /* the CEC ran */
+        TEST_ASSERT_TRUE(moving > 1000);   /* the axes moved */
+        TEST_ASSERT_TRUE(st.faults != 0u); /* and the fault was seen */
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -1155,6 +1210,7 @@ int main(void)
     RUN_TEST(test_reference_scale_samples_and_wrap_guard);
     RUN_TEST(test_arc_recurrence_stays_within_its_bound_of_the_exact_overlay);
     RUN_TEST(test_pos_only_reference_copy_equals_the_full_copy);
+    RUN_TEST(test_trace_read_equals_the_snapshot);
     RUN_TEST(test_enable_queue_poll_before_the_first_tick);
     RUN_TEST(test_status_reports_planned_time_queued);
     RUN_TEST(test_planned_time_counts_blocks_waiting_in_the_planner);

@@ -1780,6 +1780,55 @@ static void test_gcd64(void)
     TEST_ASSERT_EQUAL_UINT64(1u << 20, fx_gcd64((uint64_t)3 << 20, (uint64_t)5 << 20));
 }
 
+/* The host form of the 64 x 64 -> 128 product (fixmath.h, FX_MUL_PIECES
+ * 0: one multiply on a 128-bit type) and of the 64 x 32 one against the
+ * 32-bit pieces the Cortex-M4 runs and against the test's own 128-bit
+ * product: operand edges (0, 1, 2^31, 2^32 - 1, 2^32, 2^63, 2^64 - 1 and
+ * neighbours) pairwise and 2 million random pairs of random widths. */
+static void test_umul64_host_equals_pieces(void)
+{
+    static const uint64_t edge[] = {0u,
+                                    1u,
+                                    2u,
+                                    0x7FFFFFFFu,
+                                    0x80000000u,
+                                    0xFFFFFFFFu,
+                                    0x100000000u,
+                                    0x100000001u,
+                                    0x7FFFFFFFFFFFFFFFu,
+                                    0x8000000000000000u,
+                                    0xFFFFFFFF00000000u,
+                                    0xFFFFFFFFFFFFFFFEu,
+                                    0xFFFFFFFFFFFFFFFFu};
+    unsigned i;
+    TEST_ASSERT_EQUAL_INT(0, FX_MUL_PIECES); /* the host form is the one in use */
+    rng_seed(43);
+    for (i = 0; i < 2000000u + 169u; i++) {
+        uint64_t a, b;
+        if (i < 169u) {
+            a = edge[i / 13u];
+            b = edge[i % 13u];
+        } else {
+            a = rnd_u64() >> (rng() % 64u);
+            b = rnd_u64() >> (rng() % 64u);
+        }
+        {
+            u128 p = (u128)a * b, p32 = (u128)a * (uint32_t)b;
+            fx_u128_t h = fx_umul64(a, b), q = fx_umul64_pieces(a, b);
+            fx_u128_t h32 = fx_umul64x32(a, (uint32_t)b), q32 = fx_umul64x32_pieces(a, (uint32_t)b);
+            TEST_ASSERT_EQUAL_UINT64((uint64_t)p, h.lo);
+            TEST_ASSERT_EQUAL_UINT64((uint64_t)(p >> 64), h.hi);
+            TEST_ASSERT_EQUAL_UINT64(h.lo, q.lo);
+            TEST_ASSERT_EQUAL_UINT64(h.hi, q.hi);
+            TEST_ASSERT_EQUAL_UINT64((uint64_t)p32, h32.lo);
+            TEST_ASSERT_EQUAL_UINT64((uint64_t)(p32 >> 64), h32.hi);
+            TEST_ASSERT_EQUAL_UINT64(h32.lo, q32.lo);
+            TEST_ASSERT_EQUAL_UINT64(h32.hi, q32.hi);
+            TEST_ASSERT_EQUAL_UINT64(h.hi, fx_umulhi64(a, b));
+        }
+    }
+}
+
 int main(void)
 {
     report_on = getenv("FIXMATH_REPORT") != NULL;
@@ -1807,6 +1856,7 @@ int main(void)
     RUN_TEST(test_isqrt32_exhaustive_and_boundaries);
     RUN_TEST(test_isqrt64_boundaries_and_random);
     RUN_TEST(test_isqrt64_near);
+    RUN_TEST(test_umul64_host_equals_pieces);
     RUN_TEST(test_icbrt64_every_cube_boundary);
     RUN_TEST(test_sin_cos_exact_points);
     RUN_TEST(test_sin_cos_dense_grid_and_octants);

@@ -949,6 +949,100 @@ static void test_lean_step_equals_general(void)
     TEST_ASSERT_TRUE(sat_steps > 1000 && sat_steps < 100000); /* some saturated */
 }
 
+/* The rest step (pid.h): pid_step_e on a ready loop against the fast step
+ * (pid_step_fast, or the general path while not ready) on a copy, every
+ * output and state field equal after every step: long stretches at rest
+ * (e = 0, the same measurement and extra input) broken by error bursts,
+ * extra-input changes, integrator hand-overs (pid_add_integrator) and
+ * saturation, D on the error and on the measurement, D filter on and off,
+ * with and without an integrator. */
+static void test_rest_step_equals_fast(void)
+{
+    static const double gains[][4] = {
+        /* Kp, Ki, Kd, D filter us */
+        {1300, 2e4, 2, 200},
+        {1300, 2e4, 2, 0},
+        {40, 0, 0.1, 1000},
+        {2e4, 2e6, 0.02, 50},
+    };
+    uint64_t saved = lcg_state; /* the tests after this one draw as before */
+    int rest_steps = 0, sat_steps = 0;
+    size_t g;
+    int d, k;
+
+    for (g = 0; g < sizeof gains / sizeof gains[0]; g++) {
+        for (d = 0; d < 2; d++) {
+            pid_params_t p = params(gains[g][0], gains[g][1], gains[g][2], 10000);
+            pid_loop_t a, b;
+            pos_nm_t meas = 0;
+            int64_t extra = 0;
+            int burst = 0;
+            p.d_on_measurement = d != 0;
+            p.d_tau_us = (uint32_t)gains[g][3];
+            p.kt = Q32(10);
+            p.out_max_mv = 10000;
+            p.i_max_mv = 8000;
+            memset(&a, 0, sizeof a);
+            TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &p));
+            TEST_ASSERT_TRUE(a.fast);
+            pid_enable(&a, 0);
+            b = a;
+            for (k = 0; k < 20000; k++) {
+                int64_t r = rnd64();
+                int sel = (int)((uint64_t)r >> 58);
+                pos_nm_t next = meas;
+                int32_t e = 0, u, ub;
+                if (burst > 0) {
+                    burst--;
+                    next = meas + (rnd64() >> ((sel & 1) ? 54 : 40));
+                    e = (int32_t)(rnd64() >> ((sel & 2) ? 52 : 36));
+                } else if (sel == 0) {
+                    burst = 1 + (int)(((uint64_t)r >> 40) & 15u);
+                } else if (sel == 1) {
+                    extra = (r & 1) ? 0 : rnd64() >> 24;
+                } else if (sel == 2) {
+                    int64_t h = rnd64() >> 26;
+                    pid_add_integrator(&a, h);
+                    pid_add_integrator(&b, h);
+                } else if (sel == 3) {
+                    extra = rnd64() >> 1; /* beyond the clamps */
+                } else if (sel == 4 && extra == fx_clamp_sym64(extra, PID_TERM_LIM)) {
+                    /* integrator and extra input changed, I + extra as before */
+                    int64_t before = a.integ, h = rnd64() >> 30;
+                    pid_add_integrator(&a, h);
+                    pid_add_integrator(&b, h);
+                    extra -= a.integ - before;
+                }
+                if (a.ready && e == 0 && next == meas && a.err_nm == 0 && !a.saturated) {
+                    rest_steps++;
+                }
+                u = pid_step_e(&a, e, next, 0, 0, extra);
+                ub = pid_fast_ready(&b) ? pid_step_fast(&b, e, next, extra)
+                                        : pid_step_general(&b, e, next, 0, 0, extra);
+                sat_steps += a.saturated;
+                TEST_ASSERT_EQUAL_INT32(ub, u);
+                TEST_ASSERT_EQUAL_INT32(b.out_mv, a.out_mv);
+                TEST_ASSERT_EQUAL_INT64(b.out, a.out);
+                TEST_ASSERT_EQUAL_INT64(b.integ, a.integ);
+                TEST_ASSERT_EQUAL_INT64(b.dq, a.dq);
+                TEST_ASSERT_EQUAL_INT64(b.dterm, a.dterm);
+                TEST_ASSERT_EQUAL_INT64(b.extra, a.extra);
+                TEST_ASSERT_EQUAL_INT32(b.err_nm, a.err_nm);
+                TEST_ASSERT_EQUAL_INT32(b.meas_prev, a.meas_prev);
+                TEST_ASSERT_EQUAL(b.saturated, a.saturated);
+                TEST_ASSERT_EQUAL_UINT32(b.sat_ticks, a.sat_ticks);
+                TEST_ASSERT_EQUAL_UINT32(b.sat_total, a.sat_total);
+                TEST_ASSERT_EQUAL(b.ready, a.ready);
+                TEST_ASSERT_EQUAL(b.dq_live, a.dq_live);
+                meas = next;
+            }
+        }
+    }
+    lcg_state = saved;
+    TEST_ASSERT_TRUE(rest_steps > 60000);                    /* at rest most of the time */
+    TEST_ASSERT_TRUE(sat_steps > 100 && sat_steps < 100000); /* some saturated */
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -976,6 +1070,7 @@ int main(void)
     RUN_TEST(test_fast_after_feed_forward_config);
     RUN_TEST(test_fast_path_matches_general);
     RUN_TEST(test_lean_step_equals_general);
+    RUN_TEST(test_rest_step_equals_fast);
     RUN_TEST(test_d_filter_product_exact);
     RUN_TEST(test_d_filter_bound_at_the_longest_time_constant);
     return UNITY_END();

@@ -273,6 +273,19 @@ static void test_model_switch_while_running(void)
     TEST_ASSERT_EQUAL_INT(SIM_ENC_EDGES, sim_encoder_model_get());
 }
 
+/* The plant's tick with one substep, every axis stepped first and the
+ * generators moved after (sim.c plant_tick1), against the general loop
+ * axis by axis (sim_test_plant_split(0)): the bench circle with the fast
+ * model, decoders and trace identical on every tick. */
+static void test_plant_split_same_as_axis_by_axis(void)
+{
+    sim_test_plant_split(0);
+    circle(SIM_ENC_FAST, &rec[0], ~0u);
+    sim_test_plant_split(1);
+    circle(SIM_ENC_FAST, &rec[1], ~0u);
+    check_same(&rec[0], &rec[1]);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -280,5 +293,6 @@ int main(void)
     RUN_TEST(test_rough_circle_same_in_both_models);
     RUN_TEST(test_homing_to_index_same_in_both_models);
     RUN_TEST(test_model_switch_while_running);
+    RUN_TEST(test_plant_split_same_as_axis_by_axis);
     return UNITY_END();
 }
