@@ -88,7 +88,10 @@ static void mean_align(drive_ff_t *f, const motion_ref_t *ref, servo_fb_t *fb, u
         f->mref.pos[i] = ref->pos[i] + d[i];
         f->mref.geom.tangent[i] = g->tangent[i];
     }
-    if (g->kind == MOTION_GEOM_ARC && g->radius > 0 && g->plane_u < axes && g->plane_v < axes) {
+    /* radius^2 must fit int64: larger arcs keep the straight shift (2 nm
+     * from the arc's at R 4 m) */
+    if (g->kind == MOTION_GEOM_ARC && g->radius > 0 && g->radius < INT32_MAX && g->plane_u < axes &&
+        g->plane_v < axes) {
         unsigned u = g->plane_u, v = g->plane_v;
         int64_t au = ref->pos[u] - g->centre_u, av = ref->pos[v] - g->centre_v;
         int64_t th64 = fx_muldiv64(au * d[v] - av * d[u], (int64_t)1 << 30, g->radius * g->radius);

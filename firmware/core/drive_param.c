@@ -239,6 +239,12 @@ static drive_result_t apply(const drive_config_t *c)
     if (c->enc_mean && !drive_inputs_mean_ok(c->axes)) {
         return DRIVE_E_UNSUPPORTED;
     }
+    /* the measured position moves by half a tick's travel: only with the
+     * power stage off (a FAULT may still run the servo's stop ramp, IDLE an
+     * excitation) */
+    if (c->enc_mean != drive_config()->enc_mean && drive_main_state() != DRIVE_DISABLED) {
+        return DRIVE_E_BUSY;
+    }
     return drive_apply_config(c);
 }
 

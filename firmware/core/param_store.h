@@ -8,7 +8,7 @@
  * rules, stop deceleration, arc chord, start delay, servo gains and
  * feed-forward, following-error limit, soft limits, in-position window,
  * friction feed-forward, feed-forward advance, quadrant-glitch
- * compensation, feed-forward learning rate),
+ * compensation, feed-forward learning rate, mean measurement),
  * per axis for the axes in use. Not stored: the link's parameters (periods,
  * watchdog) and the CEC mode (chosen per job).
  *
