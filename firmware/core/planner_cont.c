@@ -14,6 +14,7 @@
  * profile, so the interpolator runs it unchanged.
  */
 #include "planner_cont.h"
+#include "planner_test.h"
 
 #include "fixmath.h"
 
@@ -392,12 +393,45 @@ static bool pc_plan_run(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t len, 
     return true;
 }
 
-/* Smallest t in [t0, total] with s(t) >= sq (total if none). */
-static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq)
+/* The cruise at v_q16 = W 2^16 (W < 2^32, the run's phase 3) from s0:
+ * the smallest tau with s0 + floor(v tau / 1e9) >= s0 + dq, and that
+ * distance, for 0 < dq < 2^42 (q16: 64 m). The same tau as
+ * sc_muldiv_ceil(dq, 1e9, v) and the same distance as sc_eval_phase's
+ * cruise at tau, from 64-bit products and two 64/32 divisions: tau =
+ * ceil(ceil(dq 1e9 / 2^16) / W) with dq 1e9 / 2^16 = dq 1953125 / 2^7
+ * (< 2^63), and v tau - dq 1e9 lies in [0, v) (tau is the ceiling), so
+ * floor(v tau / 1e9) = dq + floor((v tau - dq 1e9) / 1e9), the difference
+ * exact modulo 2^64. False outside that range (then the caller divides). */
+static bool pc_cruise_time(int64_t v_q16, int64_t dq, int64_t *tau, int64_t *ds)
+{
+    uint64_t w = (uint64_t)v_q16 >> 16, m, t, rem, r;
+
+    if (dq <= 0 || dq >= ((int64_t)1 << 42) || (v_q16 & 0xFFFF) != 0 || w == 0u ||
+        (w >> 32) != 0u) {
+        return false;
+    }
+    m = ((uint64_t)dq * 1953125u + 127u) >> 7;
+    t = fx_udivmod64(m, w, &rem);
+    t += (rem != 0u) ? 1u : 0u;
+    r = (uint64_t)v_q16 * t - (uint64_t)dq * (uint64_t)PC_NS; /* in [0, v) */
+    *tau = (int64_t)t;
+    *ds = dq + (int64_t)fx_udiv64by32(r >> 9, 1953125u); /* 1e9 = 2^9 1953125 */
+    return true;
+}
+
+bool plan_test_cont_cruise_time(int64_t v_q16, int64_t dq, int64_t *tau, int64_t *ds)
+{
+    return pc_cruise_time(v_q16, dq, tau, ds);
+}
+
+/* Smallest t in [t0, total] with s(t) >= sq (total if none); *e the state
+ * there (what sc_eval(P, t) gives) when *known, else the caller evaluates. */
+static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq, sc_state_t *e, bool *known)
 {
     int64_t T = 0;
     int ph;
 
+    *known = false;
     for (ph = 0; ph < SC_PHASES; ph++) {
         int64_t end = (ph < SC_PHASES - 1) ? P->start[ph + 1].s_q16 : P->s_end_q16;
         if (T + P->t_ns[ph] > t0 && end >= sq) {
@@ -406,7 +440,18 @@ static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq)
             sc_state_t st;
             if (P->jerk[ph] == 0 && s0->a_q16 == 0 && s0->v_q16 > 0) {
                 /* cruise: s0 + floor(v tau / 1e9) >= sq, exactly */
-                int64_t t = sc_muldiv_ceil(sq - s0->s_q16, PC_NS, s0->v_q16);
+                int64_t t, ds;
+                if (pc_cruise_time(s0->v_q16, sq - s0->s_q16, &t, &ds)) {
+                    if (t > lo && t <= hi) {
+                        /* inside this phase (t > 0): sc_eval's state */
+                        e->s_q16 = s0->s_q16 + ds;
+                        e->v_q16 = s0->v_q16;
+                        e->a_q16 = 0;
+                        *known = true;
+                    }
+                } else {
+                    t = sc_muldiv_ceil(sq - s0->s_q16, PC_NS, s0->v_q16);
+                }
                 return T + fx_min64(hi, fx_max64(lo, t));
             }
             while (lo < hi) {
@@ -425,40 +470,41 @@ static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq)
     return P->total_ns;
 }
 
-/* The block's profile: P over [ta, tb], sa P's state at ta; *e its state
- * at tb. */
+/* The block's profile: P over [ta, tb] (ta <= tb), sa P's state at ta,
+ * *e its state at tb (set by the caller). */
 static void pc_slice(const sc_profile_t *P, int64_t ta, const sc_state_t *sa, int64_t tb,
-                     int64_t len, sc_profile_t *o, sc_state_t *e)
+                     int64_t len, sc_profile_t *o, const sc_state_t *e)
 {
-    int64_t T = 0, vp;
+    int64_t T = 0, s0 = sa->s_q16, vp = fx_max64(sa->v_q16, e->v_q16);
     int ph;
 
-    sc_eval(P, tb, e);
-    vp = fx_max64(sa->v_q16, e->v_q16);
     for (ph = 0; ph < SC_PHASES; ph++) {
-        int64_t d = P->t_ns[ph];
-        int64_t lo = fx_min64(d, fx_max64(0, ta - T)), hi = fx_min64(d, fx_max64(0, tb - T));
-        o->t_ns[ph] = hi - lo;
-        o->jerk[ph] = P->jerk[ph];
-        o->j6_q16[ph] = P->j6_q16[ph];
+        int64_t d = P->t_ns[ph], Tn = T + d, t = 0;
+        const sc_state_t *src;
         /* a phase outside the slice starts where the slice starts or
          * ends (sc_eval of the slice then agrees at 0 and at its end) */
-        if (T + d <= ta) {
-            o->start[ph] = *sa;
+        if (Tn <= ta) {
+            src = sa;
         } else if (T >= tb) {
-            o->start[ph] = *e;
-        } else if (lo == 0) {
-            o->start[ph] = P->start[ph];
+            src = e;
         } else {
-            o->start[ph] = *sa; /* the phase ta falls in: sa is its state there */
+            /* [max(T, ta), min(Tn, tb)]: the phase starts in the slice
+             * (its start state), or ta falls in it (sa is its state) */
+            t = ((Tn <= tb) ? Tn : tb) - ((T >= ta) ? T : ta);
+            src = (T >= ta) ? &P->start[ph] : sa;
+            if (t > 0 && src->v_q16 > vp) {
+                vp = src->v_q16;
+            }
         }
-        o->start[ph].s_q16 -= sa->s_q16;
-        if (hi > lo) {
-            vp = fx_max64(vp, o->start[ph].v_q16);
-        }
-        T += d;
+        o->t_ns[ph] = t;
+        o->jerk[ph] = P->jerk[ph];
+        o->j6_q16[ph] = P->j6_q16[ph];
+        o->start[ph].s_q16 = src->s_q16 - s0;
+        o->start[ph].v_q16 = src->v_q16;
+        o->start[ph].a_q16 = src->a_q16;
+        T = Tn;
     }
-    o->s_end_q16 = e->s_q16 - sa->s_q16;
+    o->s_end_q16 = e->s_q16 - s0;
     o->total_ns = tb - ta;
     o->len = len;
     o->v0 = sa->v_q16 / PC_Q16;
@@ -488,6 +534,7 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
     sc_limits_t l;
     sc_state_t e;
     int64_t len, x, tb;
+    bool known;
 
     pc_first_run(p, &len, &x);
     pc_limits(p, b->lim.v_max, &l);
@@ -523,8 +570,15 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
         p->cont_rem = len;
         p->cont_x = x;
     }
-    tb = (b->len >= p->cont_rem) ? P->total_ns
-                                 : pc_time_at(P, p->cont_t_ns, p->cont_st.s_q16 + b->len * PC_Q16);
+    if (b->len >= p->cont_rem) {
+        tb = P->total_ns;
+        known = false;
+    } else {
+        tb = pc_time_at(P, p->cont_t_ns, p->cont_st.s_q16 + b->len * PC_Q16, &e, &known);
+    }
+    if (!known) {
+        sc_eval(P, tb, &e);
+    }
     pc_slice(P, p->cont_t_ns, &p->cont_st, tb, b->len, &out->prof, &e);
     out->total_ns = out->prof.total_ns;
     p->cont_rem -= b->len;

@@ -7,6 +7,7 @@
  * the same, bit for bit: the optimisation changes the cost, not the plan.
  */
 #include "planner.h"
+#include "planner_test.h"
 #include "unity.h"
 
 #include <math.h>
@@ -305,10 +306,48 @@ static void test_cont_equals_reference_cam_chords(void)
     TEST_ASSERT_TRUE(st.cruise_pops > 10000);
 }
 
+/* The cruise's time and distance without a 128-bit division, against
+ * sc_muldiv_ceil and sc_muldiv (what the reference computes), at the
+ * boundaries where the ceiling steps: dq = floor(v tau / 1e9) and one
+ * more, speeds from 1 nm/s to the limit, times from 1 ns to hours. */
+static void test_cont_cruise_time_exact(void)
+{
+    uint32_t k, fast = 0;
+
+    rng_state = 99u;
+    for (k = 0; k < 400000u; k++) {
+        int64_t w = (k % 4u == 0u) ? rnd_in(1, 70000) : rnd_in(1, SC_V_LIMIT);
+        int64_t v = w * 65536, tmax = sc_muldiv((int64_t)1 << 42, 1000000000, v);
+        int64_t tau0 = rnd_in(1, fx_min64(tmax + 2, (k % 3u == 0u) ? 1000000 : 4000000000000LL));
+        int64_t dq0 = sc_muldiv(v, tau0, 1000000000), i;
+        for (i = -1; i <= 1; i++) {
+            int64_t dq = dq0 + i, t = -1, ds = -1;
+            if (plan_test_cont_cruise_time(v, dq, &t, &ds)) {
+                TEST_ASSERT_EQUAL_INT64(sc_muldiv_ceil(dq, 1000000000, v), t);
+                TEST_ASSERT_EQUAL_INT64(sc_muldiv(v, t, 1000000000), ds);
+                fast++;
+            } else {
+                TEST_ASSERT_TRUE(dq <= 0 || dq >= ((int64_t)1 << 42));
+            }
+        }
+    }
+    TEST_ASSERT_TRUE(fast > 600000u);
+    /* outside its range: the caller divides */
+    {
+        int64_t t, ds;
+        TEST_ASSERT_FALSE(plan_test_cont_cruise_time(65536 + 1, 1000, &t, &ds));
+        TEST_ASSERT_FALSE(plan_test_cont_cruise_time((int64_t)1 << 48, 1000, &t, &ds));
+        TEST_ASSERT_FALSE(plan_test_cont_cruise_time(65536, (int64_t)1 << 42, &t, &ds));
+        TEST_ASSERT_FALSE(plan_test_cont_cruise_time(65536, 0, &t, &ds));
+        TEST_ASSERT_TRUE(plan_test_cont_cruise_time(65536, ((int64_t)1 << 42) - 1, &t, &ds));
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_cont_equals_reference_random_paths);
     RUN_TEST(test_cont_equals_reference_cam_chords);
+    RUN_TEST(test_cont_cruise_time_exact);
     return UNITY_END();
 }
