@@ -256,7 +256,9 @@ typedef struct {
                           * length (sc_reach_k_init): q, qc floor
                           * and ceil of a_max^2 / j_max (nm/s); or
                           * qc -1 and q a lower bound of the floor
-                          * (equal axis limits); -1 for a dwell   */
+                          * (equal axis limits); -1 for a dwell;
+                          * not set for the continuous S-curve
+                          * (its passes reach over runs)         */
     uint32_t tag;
     uint8_t flags;
 } plan_block_t;

@@ -397,12 +397,13 @@ static bool pc_plan_run(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t len, 
  * the smallest tau with s0 + floor(v tau / 1e9) >= s0 + dq, and that
  * distance, for 0 < dq < 2^42 (q16: 64 m). The same tau as
  * sc_muldiv_ceil(dq, 1e9, v) and the same distance as sc_eval_phase's
- * cruise at tau, from 64-bit products and two 64/32 divisions: tau =
- * ceil(ceil(dq 1e9 / 2^16) / W) with dq 1e9 / 2^16 = dq 1953125 / 2^7
- * (< 2^63), and v tau - dq 1e9 lies in [0, v) (tau is the ceiling), so
- * floor(v tau / 1e9) = dq + floor((v tau - dq 1e9) / 1e9), the difference
- * exact modulo 2^64. False outside that range (then the caller divides). */
-static bool pc_cruise_time(int64_t v_q16, int64_t dq, int64_t *tau, int64_t *ds)
+ * cruise at tau, from 64-bit products and two 64-bit divisions by
+ * invariant divisors: tau = ceil(m / W), m = ceil(dq 1e9 / 2^16) = ceil(dq
+ * 1953125 / 2^7) < 2^57, with rec = floor((2^64 - 1) / W) (0: divided);
+ * and v tau - dq 1e9 lies in [0, v) (tau is the ceiling), so floor(v tau
+ * / 1e9) = dq + floor((v tau - dq 1e9) / 1e9), the difference exact
+ * modulo 2^64. False outside that range (then the caller divides). */
+static bool pc_cruise_time(int64_t v_q16, int64_t dq, uint64_t rec, int64_t *tau, int64_t *ds)
 {
     uint64_t w = (uint64_t)v_q16 >> 16, m, t, rem, r;
 
@@ -411,23 +412,37 @@ static bool pc_cruise_time(int64_t v_q16, int64_t dq, int64_t *tau, int64_t *ds)
         return false;
     }
     m = ((uint64_t)dq * 1953125u + 127u) >> 7;
-    t = fx_udivmod64(m, w, &rem);
+    if (rec != 0u) {
+        /* floor(m rec / 2^64) is floor(m / w) or one less (sc_scurve's
+         * sc_plan_cruise_rec); the remainder decides */
+        t = fx_umulhi64(m, rec);
+        rem = m - t * w;
+        if (rem >= w) {
+            t++;
+            rem -= w;
+        }
+    } else {
+        t = fx_udivmod64(m, w, &rem);
+    }
     t += (rem != 0u) ? 1u : 0u;
     r = (uint64_t)v_q16 * t - (uint64_t)dq * (uint64_t)PC_NS; /* in [0, v) */
     *tau = (int64_t)t;
-    *ds = dq + (int64_t)fx_udiv64by32(r >> 9, 1953125u); /* 1e9 = 2^9 1953125 */
+    *ds = dq + (int64_t)fx_udivmod64(r, (uint64_t)PC_NS, &rem);
     return true;
 }
 
-bool plan_test_cont_cruise_time(int64_t v_q16, int64_t dq, int64_t *tau, int64_t *ds)
+bool plan_test_cont_cruise_time(int64_t v_q16, int64_t dq, bool recip, int64_t *tau, int64_t *ds)
 {
-    return pc_cruise_time(v_q16, dq, tau, ds);
+    return pc_cruise_time(v_q16, dq, recip ? sc_cruise_recip(v_q16 >> 16) : 0u, tau, ds);
 }
 
-/* Smallest t in [t0, total] with s(t) >= sq (total if none); *e the state
- * there (what sc_eval(P, t) gives) when *known, else the caller evaluates. */
-static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq, sc_state_t *e, bool *known)
+/* Smallest t in [t0, total] with s(t) >= sq (total if none), P = the
+ * run's plan; *e the state there (what sc_eval(P, t) gives) when *known,
+ * else the caller evaluates. Keeps the reciprocal of the cruise speed
+ * (p->cruise_v, p->cruise_rec: unused by the other shapes). */
+static int64_t pc_time_at(plan_t *p, int64_t t0, int64_t sq, sc_state_t *e, bool *known)
 {
+    const sc_profile_t *P = &p->cont_prof;
     int64_t T = 0;
     int ph;
 
@@ -440,8 +455,12 @@ static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq, sc_stat
             sc_state_t st;
             if (P->jerk[ph] == 0 && s0->a_q16 == 0 && s0->v_q16 > 0) {
                 /* cruise: s0 + floor(v tau / 1e9) >= sq, exactly */
-                int64_t t, ds;
-                if (pc_cruise_time(s0->v_q16, sq - s0->s_q16, &t, &ds)) {
+                int64_t t, ds, w = s0->v_q16 >> 16;
+                if (p->cruise_v != w) {
+                    p->cruise_v = w;
+                    p->cruise_rec = sc_cruise_recip(w);
+                }
+                if (pc_cruise_time(s0->v_q16, sq - s0->s_q16, p->cruise_rec, &t, &ds)) {
                     if (t > lo && t <= hi) {
                         /* inside this phase (t > 0): sc_eval's state */
                         e->s_q16 = s0->s_q16 + ds;
@@ -471,30 +490,39 @@ static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq, sc_stat
 }
 
 /* The block's profile: P over [ta, tb] (ta <= tb), sa P's state at ta,
- * *e its state at tb (set by the caller). */
+ * *e its state at tb (set by the caller). A phase outside the slice
+ * starts where the slice starts (it ends by ta: the phases before ph_a)
+ * or ends (it starts at tb or later: from ph_b on), so sc_eval of the
+ * slice agrees at 0 and at its end. */
 static void pc_slice(const sc_profile_t *P, int64_t ta, const sc_state_t *sa, int64_t tb,
                      int64_t len, sc_profile_t *o, const sc_state_t *e)
 {
-    int64_t T = 0, s0 = sa->s_q16, vp = fx_max64(sa->v_q16, e->v_q16);
-    int ph;
+    int64_t T = 0, Ta, s0 = sa->s_q16, vp = fx_max64(sa->v_q16, e->v_q16);
+    int ph, ph_a, ph_b;
 
+    for (ph_a = 0; ph_a < SC_PHASES && T + P->t_ns[ph_a] <= ta; ph_a++) {
+        T += P->t_ns[ph_a];
+    }
+    Ta = T; /* the phase ends only grow: none after ph_a ends by ta */
+    for (ph_b = ph_a; ph_b < SC_PHASES && T < tb; ph_b++) {
+        T += P->t_ns[ph_b];
+    }
+    T = Ta;
     for (ph = 0; ph < SC_PHASES; ph++) {
-        int64_t d = P->t_ns[ph], Tn = T + d, t = 0;
-        const sc_state_t *src;
-        /* a phase outside the slice starts where the slice starts or
-         * ends (sc_eval of the slice then agrees at 0 and at its end) */
-        if (Tn <= ta) {
-            src = sa;
-        } else if (T >= tb) {
+        const sc_state_t *src = sa;
+        int64_t t = 0;
+        if (ph >= ph_b) {
             src = e;
-        } else {
+        } else if (ph >= ph_a) {
             /* [max(T, ta), min(Tn, tb)]: the phase starts in the slice
              * (its start state), or ta falls in it (sa is its state) */
+            int64_t Tn = T + P->t_ns[ph];
             t = ((Tn <= tb) ? Tn : tb) - ((T >= ta) ? T : ta);
             src = (T >= ta) ? &P->start[ph] : sa;
             if (t > 0 && src->v_q16 > vp) {
                 vp = src->v_q16;
             }
+            T = Tn;
         }
         o->t_ns[ph] = t;
         o->jerk[ph] = P->jerk[ph];
@@ -502,7 +530,6 @@ static void pc_slice(const sc_profile_t *P, int64_t ta, const sc_state_t *sa, in
         o->start[ph].s_q16 = src->s_q16 - s0;
         o->start[ph].v_q16 = src->v_q16;
         o->start[ph].a_q16 = src->a_q16;
-        T = Tn;
     }
     o->s_end_q16 = e->s_q16 - s0;
     o->total_ns = tb - ta;
@@ -537,13 +564,13 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
     bool known;
 
     pc_first_run(p, &len, &x);
-    pc_limits(p, b->lim.v_max, &l);
     if (p->cont_rem != len || p->cont_x != x) {
         /* the run grew or its exit bound rose: a new plan from the state */
         sc_state_t st = p->cont_st;
         sc_profile_t np;
         bool cruise = p->cont_rem > 0 && len > p->cont_rem && x == p->cont_x && st.a_q16 == 0 &&
-                      P->vp == l.v_max && st.v_q16 == P->vp * PC_Q16 && P->v1 == fx_min64(P->vp, x);
+                      P->vp == b->lim.v_max && st.v_q16 == P->vp * PC_Q16 &&
+                      P->v1 == fx_min64(P->vp, x);
         if (cruise && b->len < p->cont_rem && st.s_q16 + b->len * PC_Q16 <= P->start[4].s_q16) {
             /* cruising at the limit and still before R2: the plan in force
              * gives this block what a new one would (a longer run only
@@ -552,7 +579,8 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
         } else if (cruise) {
             pc_recruise(P, len); /* cruising at the limit: R2 moves on */
             p->cont_t_ns = 0;
-        } else if (pc_plan_run(&np, st.v_q16, st.a_q16, len, x, &l)) {
+        } else if (pc_limits(p, b->lim.v_max, &l),
+                   pc_plan_run(&np, st.v_q16, st.a_q16, len, x, &l)) {
             *P = np;
             p->cont_t_ns = 0;
         } else if (p->cont_rem > 0) {
@@ -574,7 +602,7 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
         tb = P->total_ns;
         known = false;
     } else {
-        tb = pc_time_at(P, p->cont_t_ns, p->cont_st.s_q16 + b->len * PC_Q16, &e, &known);
+        tb = pc_time_at(p, p->cont_t_ns, p->cont_st.s_q16 + b->len * PC_Q16, &e, &known);
     }
     if (!known) {
         sc_eval(P, tb, &e);

@@ -321,10 +321,13 @@ static void test_cont_cruise_time_exact(void)
         int64_t tau0 = rnd_in(1, fx_min64(tmax + 2, (k % 3u == 0u) ? 1000000 : 4000000000000LL));
         int64_t dq0 = sc_muldiv(v, tau0, 1000000000), i;
         for (i = -1; i <= 1; i++) {
-            int64_t dq = dq0 + i, t = -1, ds = -1;
-            if (plan_test_cont_cruise_time(v, dq, &t, &ds)) {
+            int64_t dq = dq0 + i, t = -1, ds = -1, t2 = -1, ds2 = -1;
+            if (plan_test_cont_cruise_time(v, dq, true, &t, &ds)) {
                 TEST_ASSERT_EQUAL_INT64(sc_muldiv_ceil(dq, 1000000000, v), t);
                 TEST_ASSERT_EQUAL_INT64(sc_muldiv(v, t, 1000000000), ds);
+                TEST_ASSERT_TRUE(plan_test_cont_cruise_time(v, dq, false, &t2, &ds2));
+                TEST_ASSERT_EQUAL_INT64(t, t2);
+                TEST_ASSERT_EQUAL_INT64(ds, ds2);
                 fast++;
             } else {
                 TEST_ASSERT_TRUE(dq <= 0 || dq >= ((int64_t)1 << 42));
@@ -335,11 +338,11 @@ static void test_cont_cruise_time_exact(void)
     /* outside its range: the caller divides */
     {
         int64_t t, ds;
-        TEST_ASSERT_FALSE(plan_test_cont_cruise_time(65536 + 1, 1000, &t, &ds));
-        TEST_ASSERT_FALSE(plan_test_cont_cruise_time((int64_t)1 << 48, 1000, &t, &ds));
-        TEST_ASSERT_FALSE(plan_test_cont_cruise_time(65536, (int64_t)1 << 42, &t, &ds));
-        TEST_ASSERT_FALSE(plan_test_cont_cruise_time(65536, 0, &t, &ds));
-        TEST_ASSERT_TRUE(plan_test_cont_cruise_time(65536, ((int64_t)1 << 42) - 1, &t, &ds));
+        TEST_ASSERT_FALSE(plan_test_cont_cruise_time(65536 + 1, 1000, true, &t, &ds));
+        TEST_ASSERT_FALSE(plan_test_cont_cruise_time((int64_t)1 << 48, 1000, true, &t, &ds));
+        TEST_ASSERT_FALSE(plan_test_cont_cruise_time(65536, (int64_t)1 << 42, true, &t, &ds));
+        TEST_ASSERT_FALSE(plan_test_cont_cruise_time(65536, 0, true, &t, &ds));
+        TEST_ASSERT_TRUE(plan_test_cont_cruise_time(65536, ((int64_t)1 << 42) - 1, true, &t, &ds));
     }
 }
 
