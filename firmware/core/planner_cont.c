@@ -539,6 +539,68 @@ static void pc_slice(const sc_profile_t *P, int64_t ta, const sc_state_t *sa, in
     o->vp = vp / PC_Q16;
 }
 
+/* pc_time_at and pc_slice for a block that starts in the cruise (phase
+ * 3 of P, a = 0) at ta = p->cont_t_ns and ends in it (by start[4]),
+ * without their searches over the phases: phases 0..2 end by T3 <= ta,
+ * so pc_time_at takes phase 3 (its end start[4].s >= sq), where
+ * pc_cruise_time gives tb = T3 + tau (tau in (ta - T3, t_ns[3]]: else
+ * false and the general path) and the state there; the slice's phase
+ * range is then [3, 4): phases 0..2 start at sa, 4..6 at e, phase 3 lasts
+ * tb - ta from start[3] (ta = T3) or sa. Fills o, *tb and *e as they do. */
+static bool pc_cruise_slice(plan_t *p, int64_t len, sc_profile_t *o, int64_t *tb, sc_state_t *e)
+{
+    const sc_profile_t *P = &p->cont_prof;
+    const sc_state_t *sa = &p->cont_st, *s3 = &P->start[3], *src;
+    int64_t T3 = P->t_ns[0] + P->t_ns[1] + P->t_ns[2], ta = p->cont_t_ns, s0 = sa->s_q16;
+    int64_t sq = s0 + len * PC_Q16, w = s3->v_q16 >> 16, tau, ds, vp;
+    int ph;
+
+    if (ta < T3 || ta - T3 >= P->t_ns[3] || P->jerk[3] != 0 || s3->a_q16 != 0 || s3->v_q16 <= 0 ||
+        P->start[4].s_q16 < sq) {
+        return false;
+    }
+    if (p->cruise_v != w) {
+        p->cruise_v = w;
+        p->cruise_rec = sc_cruise_recip(w);
+    }
+    if (!pc_cruise_time(s3->v_q16, sq - s3->s_q16, p->cruise_rec, &tau, &ds) || tau <= ta - T3 ||
+        tau > P->t_ns[3]) {
+        return false;
+    }
+    *tb = T3 + tau;
+    e->s_q16 = s3->s_q16 + ds;
+    e->v_q16 = s3->v_q16;
+    e->a_q16 = 0;
+    src = (T3 >= ta) ? s3 : sa;
+    vp = fx_max64(fx_max64(sa->v_q16, e->v_q16), src->v_q16); /* tb > ta */
+    for (ph = 0; ph < SC_PHASES; ph++) {
+        o->t_ns[ph] = 0;
+        o->jerk[ph] = P->jerk[ph];
+        o->j6_q16[ph] = P->j6_q16[ph];
+    }
+    for (ph = 0; ph < 3; ph++) {
+        o->start[ph].s_q16 = 0;
+        o->start[ph].v_q16 = sa->v_q16;
+        o->start[ph].a_q16 = sa->a_q16;
+    }
+    o->t_ns[3] = *tb - ta;
+    o->start[3].s_q16 = src->s_q16 - s0;
+    o->start[3].v_q16 = src->v_q16;
+    o->start[3].a_q16 = src->a_q16;
+    for (ph = 4; ph < SC_PHASES; ph++) {
+        o->start[ph].s_q16 = e->s_q16 - s0;
+        o->start[ph].v_q16 = e->v_q16;
+        o->start[ph].a_q16 = 0;
+    }
+    o->s_end_q16 = e->s_q16 - s0;
+    o->total_ns = *tb - ta;
+    o->len = len;
+    o->v0 = sa->v_q16 / PC_Q16;
+    o->v1 = e->v_q16 / PC_Q16;
+    o->vp = vp / PC_Q16;
+    return true;
+}
+
 void plan_cont_reset(plan_t *p)
 {
     p->cont_t_ns = 0;
@@ -601,13 +663,18 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
     if (b->len >= p->cont_rem) {
         tb = P->total_ns;
         known = false;
+    } else if (pc_cruise_slice(p, b->len, &out->prof, &tb, &e)) {
+        known = true; /* and sliced */
     } else {
         tb = pc_time_at(p, p->cont_t_ns, p->cont_st.s_q16 + b->len * PC_Q16, &e, &known);
+        if (known) {
+            pc_slice(P, p->cont_t_ns, &p->cont_st, tb, b->len, &out->prof, &e);
+        }
     }
     if (!known) {
         sc_eval(P, tb, &e);
+        pc_slice(P, p->cont_t_ns, &p->cont_st, tb, b->len, &out->prof, &e);
     }
-    pc_slice(P, p->cont_t_ns, &p->cont_st, tb, b->len, &out->prof, &e);
     out->total_ns = out->prof.total_ns;
     p->cont_rem -= b->len;
     if (p->cont_scan > 0u) { /* the first-run cache, one block on */
