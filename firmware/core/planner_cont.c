@@ -399,10 +399,11 @@ static bool pc_plan_run(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t len, 
  * sc_muldiv_ceil(dq, 1e9, v) and the same distance as sc_eval_phase's
  * cruise at tau, from 64-bit products and two 64-bit divisions by
  * invariant divisors: tau = ceil(m / W), m = ceil(dq 1e9 / 2^16) = ceil(dq
- * 1953125 / 2^7) < 2^57, with rec = floor((2^64 - 1) / W) (0: divided);
- * and v tau - dq 1e9 lies in [0, v) (tau is the ceiling), so floor(v tau
- * / 1e9) = dq + floor((v tau - dq 1e9) / 1e9), the difference exact
- * modulo 2^64. False outside that range (then the caller divides). */
+ * 1953125 / 2^7) < 2^57, with rec = floor((2^64 - 1) / W) (0: divided;
+ * fixmath divides by 1e9 with its reciprocal); and v tau - dq 1e9 lies in
+ * [0, v) (tau is the ceiling), so floor(v tau / 1e9) = dq + floor((v tau -
+ * dq 1e9) / 1e9), the difference exact modulo 2^64. False outside that
+ * range (then the caller divides). */
 static bool pc_cruise_time(int64_t v_q16, int64_t dq, uint64_t rec, int64_t *tau, int64_t *ds)
 {
     uint64_t w = (uint64_t)v_q16 >> 16, m, t, rem, r;
@@ -413,8 +414,8 @@ static bool pc_cruise_time(int64_t v_q16, int64_t dq, uint64_t rec, int64_t *tau
     }
     m = ((uint64_t)dq * 1953125u + 127u) >> 7;
     if (rec != 0u) {
-        /* floor(m rec / 2^64) is floor(m / w) or one less (sc_scurve's
-         * sc_plan_cruise_rec); the remainder decides */
+        /* floor(m rec / 2^64) is floor(m / w) or one less (as in
+         * scurve.c's sc_plan_cruise_rec); the remainder decides */
         t = fx_umulhi64(m, rec);
         rem = m - t * w;
         if (rem >= w) {
@@ -641,30 +642,35 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
         } else if (cruise) {
             pc_recruise(P, len); /* cruising at the limit: R2 moves on */
             p->cont_t_ns = 0;
-        } else if (pc_limits(p, b->lim.v_max, &l),
-                   pc_plan_run(&np, st.v_q16, st.a_q16, len, x, &l)) {
-            *P = np;
-            p->cont_t_ns = 0;
-        } else if (p->cont_rem > 0) {
-            p->cont_kept++; /* the plan in force still ends within limits */
-            len = p->cont_rem;
-            x = p->cont_x;
         } else {
-            /* no plan from this state (never seen: the tests count it) */
-            p->cont_forced++;
-            pc_r1(P, st.v_q16, st.a_q16, fx_max64(1, fx_min64(l.v_max, st.v_q16 / PC_Q16)), &l);
-            pc_build(P, fx_max64(1, fx_min64(l.v_max, st.v_q16 / PC_Q16)), 0, len, &l);
-            p->cont_t_ns = 0;
+            pc_limits(p, b->lim.v_max, &l); /* only a new plan needs them */
+            if (pc_plan_run(&np, st.v_q16, st.a_q16, len, x, &l)) {
+                *P = np;
+                p->cont_t_ns = 0;
+            } else if (p->cont_rem > 0) {
+                p->cont_kept++; /* the plan in force still ends within limits */
+                len = p->cont_rem;
+                x = p->cont_x;
+            } else {
+                /* no plan from this state (never seen: the tests count it) */
+                int64_t v = fx_max64(1, fx_min64(l.v_max, st.v_q16 / PC_Q16));
+                p->cont_forced++;
+                pc_r1(P, st.v_q16, st.a_q16, v, &l);
+                pc_build(P, v, 0, len, &l);
+                p->cont_t_ns = 0;
+            }
         }
         p->cont_st.s_q16 = (p->cont_t_ns == 0) ? 0 : p->cont_st.s_q16;
         p->cont_rem = len;
         p->cont_x = x;
     }
+    /* the block's end tb on the plan, the state e there and its slice
+     * (pc_cruise_slice does all three for a block inside the cruise) */
     if (b->len >= p->cont_rem) {
         tb = P->total_ns;
         known = false;
     } else if (pc_cruise_slice(p, b->len, &out->prof, &tb, &e)) {
-        known = true; /* and sliced */
+        known = true;
     } else {
         tb = pc_time_at(p, p->cont_t_ns, p->cont_st.s_q16 + b->len * PC_Q16, &e, &known);
         if (known) {
