@@ -46,7 +46,7 @@ void drive_config_default(drive_config_t *cfg, uint32_t tick_hz, unsigned axes)
     cfg->plan.junction_dev_nm = 10000;
     cfg->plan.mbt_window = 1;
     cfg->plan.corner = PLAN_CORNER_JD;
-    cfg->plan.shape = SC_SHAPE_SCURVE;
+    cfg->plan.shape = SC_SHAPE_SCURVE_CONTINUOUS;
     servo_params_default(&cfg->servo, tick_hz);
     cfg->servo.axes = axes;
     cfg->stop_decel_nm_s2 = 1000000000;   /* 1 m/s^2 */

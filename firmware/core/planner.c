@@ -886,7 +886,9 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     b->lim.a_max = amax;
     b->lim.j_max = jmax;
     b->lim.shape = p->blk_shape;
-    if (aaj > 0) {
+    if (pl_cont(p)) {
+        /* the continuous S-curve reaches over runs, not blocks: no rk */
+    } else if (aaj > 0) {
         /* lower bound; the exact values when needed */
         sc_reach_k_init(&b->rk, len, &b->lim, aaj, -1);
     } else {

@@ -120,12 +120,12 @@
  * S-curve reaches no further than the trapezoid from any speed), so the
  * incremental plan equals the from-scratch plan and deferred passes apply.
  *
- * Continuous S-curve (profile.shape = SC_SHAPE_SCURVE_CONTINUOUS, opt-in;
- * planner_cont.c): jerk-limited with the path acceleration continuous across
- * block ends. A run is a chain of blocks with the same v_max whose junctions
- * do not limit it (v_junction >= v_max: no corner limit, stop, reversal or
- * dwell); a run is planned as one profile and every block is its slice, so
- * blocks join at non-zero acceleration. Junctions between runs are anchors:
+ * Continuous S-curve (profile.shape = SC_SHAPE_SCURVE_CONTINUOUS, the
+ * drive's default; planner_cont.c): jerk-limited with the path acceleration
+ * continuous across block ends. A run is a chain of blocks with the same
+ * v_max whose junctions do not limit it (v_junction >= v_max: no corner
+ * limit, stop, reversal or dwell); a run is planned as one profile and every
+ * block is its slice, so blocks join at non-zero acceleration. Junctions between runs are anchors:
  * a = 0 there, and the speed at most the anchor's bound, kept in the first
  * block's v_entry by a reverse pass over the runs in plan_pop (from the
  * queue's end at rest: bound = min(v_junction, max(reach(next bound, d),
@@ -152,9 +152,11 @@
  * across block ends (test_interp: random paths, path a and j on every
  * tick). Not with PLAN_CORNER_SMOOTH (its cap lowers a queued block's v_max
  * and would cut a run under way: PLAN_E_PROFILE). The estimate pops as the
- * drive does, so it stays exact. Cost: a push and a pop 2 802 Cortex-M4
+ * drive does (plan_queued_ns is exact for the run in force, an estimate
+ * for runs not planned yet). Cost: a push and a pop 1 985 Cortex-M4
  * instructions on the bench's chords (bench-firmware.sh,
- * planner_block_instructions_m4_continuous); every run boundary in the
+ * planner_block_instructions_m4; 2 802 before the cruise's slice and
+ * divisions were made cheap: docs/planner.md); every run boundary in the
  * queue adds a reach.
  *
  * plan_pop() freezes the oldest block: its exit speed (the next block's
@@ -256,7 +258,9 @@ typedef struct {
                           * length (sc_reach_k_init): q, qc floor
                           * and ceil of a_max^2 / j_max (nm/s); or
                           * qc -1 and q a lower bound of the floor
-                          * (equal axis limits); -1 for a dwell   */
+                          * (equal axis limits); -1 for a dwell;
+                          * not set for the continuous S-curve
+                          * (its passes reach over runs)         */
     uint32_t tag;
     uint8_t flags;
 } plan_block_t;

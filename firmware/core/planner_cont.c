@@ -14,6 +14,7 @@
  * profile, so the interpolator runs it unchanged.
  */
 #include "planner_cont.h"
+#include "planner_test.h"
 
 #include "fixmath.h"
 
@@ -392,12 +393,61 @@ static bool pc_plan_run(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t len, 
     return true;
 }
 
-/* Smallest t in [t0, total] with s(t) >= sq (total if none). */
-static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq)
+/* The cruise at v_q16 = W 2^16 (W < 2^32, the run's phase 3) from s0:
+ * the smallest tau with s0 + floor(v tau / 1e9) >= s0 + dq, and that
+ * distance, for 0 < dq < 2^42 (q16: 64 m). The same tau as
+ * sc_muldiv_ceil(dq, 1e9, v) and the same distance as sc_eval_phase's
+ * cruise at tau, from 64-bit products and two 64-bit divisions by
+ * invariant divisors: tau = ceil(m / W), m = ceil(dq 1e9 / 2^16) = ceil(dq
+ * 1953125 / 2^7) < 2^57, with rec = floor((2^64 - 1) / W) (0: divided;
+ * fixmath divides by 1e9 with its reciprocal); and v tau - dq 1e9 lies in
+ * [0, v) (tau is the ceiling), so floor(v tau / 1e9) = dq + floor((v tau -
+ * dq 1e9) / 1e9), the difference exact modulo 2^64. False outside that
+ * range (then the caller divides). */
+static bool pc_cruise_time(int64_t v_q16, int64_t dq, uint64_t rec, int64_t *tau, int64_t *ds)
 {
+    uint64_t w = (uint64_t)v_q16 >> 16, m, t, rem, r;
+
+    if (dq <= 0 || dq >= ((int64_t)1 << 42) || (v_q16 & 0xFFFF) != 0 || w == 0u ||
+        (w >> 32) != 0u) {
+        return false;
+    }
+    m = ((uint64_t)dq * 1953125u + 127u) >> 7;
+    if (rec != 0u) {
+        /* floor(m rec / 2^64) is floor(m / w) or one less (as in
+         * scurve.c's sc_plan_cruise_rec); the remainder decides */
+        t = fx_umulhi64(m, rec);
+        rem = m - t * w;
+        if (rem >= w) {
+            t++;
+            rem -= w;
+        }
+    } else {
+        t = fx_udivmod64(m, w, &rem);
+    }
+    t += (rem != 0u) ? 1u : 0u;
+    r = (uint64_t)v_q16 * t - (uint64_t)dq * (uint64_t)PC_NS; /* in [0, v) */
+    *tau = (int64_t)t;
+    *ds = dq + (int64_t)fx_udivmod64(r, (uint64_t)PC_NS, &rem);
+    return true;
+}
+
+bool plan_test_cont_cruise_time(int64_t v_q16, int64_t dq, bool recip, int64_t *tau, int64_t *ds)
+{
+    return pc_cruise_time(v_q16, dq, recip ? sc_cruise_recip(v_q16 >> 16) : 0u, tau, ds);
+}
+
+/* Smallest t in [t0, total] with s(t) >= sq (total if none), P = the
+ * run's plan; *e the state there (what sc_eval(P, t) gives) when *known,
+ * else the caller evaluates. Keeps the reciprocal of the cruise speed
+ * (p->cruise_v, p->cruise_rec: unused by the other shapes). */
+static int64_t pc_time_at(plan_t *p, int64_t t0, int64_t sq, sc_state_t *e, bool *known)
+{
+    const sc_profile_t *P = &p->cont_prof;
     int64_t T = 0;
     int ph;
 
+    *known = false;
     for (ph = 0; ph < SC_PHASES; ph++) {
         int64_t end = (ph < SC_PHASES - 1) ? P->start[ph + 1].s_q16 : P->s_end_q16;
         if (T + P->t_ns[ph] > t0 && end >= sq) {
@@ -406,7 +456,22 @@ static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq)
             sc_state_t st;
             if (P->jerk[ph] == 0 && s0->a_q16 == 0 && s0->v_q16 > 0) {
                 /* cruise: s0 + floor(v tau / 1e9) >= sq, exactly */
-                int64_t t = sc_muldiv_ceil(sq - s0->s_q16, PC_NS, s0->v_q16);
+                int64_t t, ds, w = s0->v_q16 >> 16;
+                if (p->cruise_v != w) {
+                    p->cruise_v = w;
+                    p->cruise_rec = sc_cruise_recip(w);
+                }
+                if (pc_cruise_time(s0->v_q16, sq - s0->s_q16, p->cruise_rec, &t, &ds)) {
+                    if (t > lo && t <= hi) {
+                        /* inside this phase (t > 0): sc_eval's state */
+                        e->s_q16 = s0->s_q16 + ds;
+                        e->v_q16 = s0->v_q16;
+                        e->a_q16 = 0;
+                        *known = true;
+                    }
+                } else {
+                    t = sc_muldiv_ceil(sq - s0->s_q16, PC_NS, s0->v_q16);
+                }
                 return T + fx_min64(hi, fx_max64(lo, t));
             }
             while (lo < hi) {
@@ -425,45 +490,116 @@ static int64_t pc_time_at(const sc_profile_t *P, int64_t t0, int64_t sq)
     return P->total_ns;
 }
 
-/* The block's profile: P over [ta, tb], sa P's state at ta; *e its state
- * at tb. */
+/* The block's profile: P over [ta, tb] (ta <= tb), sa P's state at ta,
+ * *e its state at tb (set by the caller). A phase outside the slice
+ * starts where the slice starts (it ends by ta: the phases before ph_a)
+ * or ends (it starts at tb or later: from ph_b on), so sc_eval of the
+ * slice agrees at 0 and at its end. */
 static void pc_slice(const sc_profile_t *P, int64_t ta, const sc_state_t *sa, int64_t tb,
-                     int64_t len, sc_profile_t *o, sc_state_t *e)
+                     int64_t len, sc_profile_t *o, const sc_state_t *e)
 {
-    int64_t T = 0, vp;
-    int ph;
+    int64_t T = 0, Ta, s0 = sa->s_q16, vp = fx_max64(sa->v_q16, e->v_q16);
+    int ph, ph_a, ph_b;
 
-    sc_eval(P, tb, e);
-    vp = fx_max64(sa->v_q16, e->v_q16);
+    for (ph_a = 0; ph_a < SC_PHASES && T + P->t_ns[ph_a] <= ta; ph_a++) {
+        T += P->t_ns[ph_a];
+    }
+    Ta = T; /* the phase ends only grow: none after ph_a ends by ta */
+    for (ph_b = ph_a; ph_b < SC_PHASES && T < tb; ph_b++) {
+        T += P->t_ns[ph_b];
+    }
+    T = Ta;
     for (ph = 0; ph < SC_PHASES; ph++) {
-        int64_t d = P->t_ns[ph];
-        int64_t lo = fx_min64(d, fx_max64(0, ta - T)), hi = fx_min64(d, fx_max64(0, tb - T));
-        o->t_ns[ph] = hi - lo;
+        const sc_state_t *src = sa;
+        int64_t t = 0;
+        if (ph >= ph_b) {
+            src = e;
+        } else if (ph >= ph_a) {
+            /* [max(T, ta), min(Tn, tb)]: the phase starts in the slice
+             * (its start state), or ta falls in it (sa is its state) */
+            int64_t Tn = T + P->t_ns[ph];
+            t = ((Tn <= tb) ? Tn : tb) - ((T >= ta) ? T : ta);
+            src = (T >= ta) ? &P->start[ph] : sa;
+            if (t > 0 && src->v_q16 > vp) {
+                vp = src->v_q16;
+            }
+            T = Tn;
+        }
+        o->t_ns[ph] = t;
         o->jerk[ph] = P->jerk[ph];
         o->j6_q16[ph] = P->j6_q16[ph];
-        /* a phase outside the slice starts where the slice starts or
-         * ends (sc_eval of the slice then agrees at 0 and at its end) */
-        if (T + d <= ta) {
-            o->start[ph] = *sa;
-        } else if (T >= tb) {
-            o->start[ph] = *e;
-        } else if (lo == 0) {
-            o->start[ph] = P->start[ph];
-        } else {
-            o->start[ph] = *sa; /* the phase ta falls in: sa is its state there */
-        }
-        o->start[ph].s_q16 -= sa->s_q16;
-        if (hi > lo) {
-            vp = fx_max64(vp, o->start[ph].v_q16);
-        }
-        T += d;
+        o->start[ph].s_q16 = src->s_q16 - s0;
+        o->start[ph].v_q16 = src->v_q16;
+        o->start[ph].a_q16 = src->a_q16;
     }
-    o->s_end_q16 = e->s_q16 - sa->s_q16;
+    o->s_end_q16 = e->s_q16 - s0;
     o->total_ns = tb - ta;
     o->len = len;
     o->v0 = sa->v_q16 / PC_Q16;
     o->v1 = e->v_q16 / PC_Q16;
     o->vp = vp / PC_Q16;
+}
+
+/* pc_time_at and pc_slice for a block that starts in the cruise (phase
+ * 3 of P, a = 0) at ta = p->cont_t_ns and ends in it (by start[4]),
+ * without their searches over the phases: phases 0..2 end by T3 <= ta,
+ * so pc_time_at takes phase 3 (its end start[4].s >= sq), where
+ * pc_cruise_time gives tb = T3 + tau (tau in (ta - T3, t_ns[3]]: else
+ * false and the general path) and the state there; the slice's phase
+ * range is then [3, 4): phases 0..2 start at sa, 4..6 at e, phase 3 lasts
+ * tb - ta from start[3] (ta = T3) or sa. Fills o, *tb and *e as they do. */
+static bool pc_cruise_slice(plan_t *p, int64_t len, sc_profile_t *o, int64_t *tb, sc_state_t *e)
+{
+    const sc_profile_t *P = &p->cont_prof;
+    const sc_state_t *sa = &p->cont_st, *s3 = &P->start[3], *src;
+    int64_t T3 = P->t_ns[0] + P->t_ns[1] + P->t_ns[2], ta = p->cont_t_ns, s0 = sa->s_q16;
+    int64_t sq = s0 + len * PC_Q16, w = s3->v_q16 >> 16, tau, ds, vp;
+    int ph;
+
+    if (ta < T3 || ta - T3 >= P->t_ns[3] || P->jerk[3] != 0 || s3->a_q16 != 0 || s3->v_q16 <= 0 ||
+        P->start[4].s_q16 < sq) {
+        return false;
+    }
+    if (p->cruise_v != w) {
+        p->cruise_v = w;
+        p->cruise_rec = sc_cruise_recip(w);
+    }
+    if (!pc_cruise_time(s3->v_q16, sq - s3->s_q16, p->cruise_rec, &tau, &ds) || tau <= ta - T3 ||
+        tau > P->t_ns[3]) {
+        return false;
+    }
+    *tb = T3 + tau;
+    e->s_q16 = s3->s_q16 + ds;
+    e->v_q16 = s3->v_q16;
+    e->a_q16 = 0;
+    src = (T3 >= ta) ? s3 : sa;
+    vp = fx_max64(fx_max64(sa->v_q16, e->v_q16), src->v_q16); /* tb > ta */
+    for (ph = 0; ph < SC_PHASES; ph++) {
+        o->t_ns[ph] = 0;
+        o->jerk[ph] = P->jerk[ph];
+        o->j6_q16[ph] = P->j6_q16[ph];
+    }
+    for (ph = 0; ph < 3; ph++) {
+        o->start[ph].s_q16 = 0;
+        o->start[ph].v_q16 = sa->v_q16;
+        o->start[ph].a_q16 = sa->a_q16;
+    }
+    o->t_ns[3] = *tb - ta;
+    o->start[3].s_q16 = src->s_q16 - s0;
+    o->start[3].v_q16 = src->v_q16;
+    o->start[3].a_q16 = src->a_q16;
+    for (ph = 4; ph < SC_PHASES; ph++) {
+        o->start[ph].s_q16 = e->s_q16 - s0;
+        o->start[ph].v_q16 = e->v_q16;
+        o->start[ph].a_q16 = 0;
+    }
+    o->s_end_q16 = e->s_q16 - s0;
+    o->total_ns = *tb - ta;
+    o->len = len;
+    o->v0 = sa->v_q16 / PC_Q16;
+    o->v1 = e->v_q16 / PC_Q16;
+    o->vp = vp / PC_Q16;
+    return true;
 }
 
 void plan_cont_reset(plan_t *p)
@@ -488,15 +624,16 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
     sc_limits_t l;
     sc_state_t e;
     int64_t len, x, tb;
+    bool known;
 
     pc_first_run(p, &len, &x);
-    pc_limits(p, b->lim.v_max, &l);
     if (p->cont_rem != len || p->cont_x != x) {
         /* the run grew or its exit bound rose: a new plan from the state */
         sc_state_t st = p->cont_st;
         sc_profile_t np;
         bool cruise = p->cont_rem > 0 && len > p->cont_rem && x == p->cont_x && st.a_q16 == 0 &&
-                      P->vp == l.v_max && st.v_q16 == P->vp * PC_Q16 && P->v1 == fx_min64(P->vp, x);
+                      P->vp == b->lim.v_max && st.v_q16 == P->vp * PC_Q16 &&
+                      P->v1 == fx_min64(P->vp, x);
         if (cruise && b->len < p->cont_rem && st.s_q16 + b->len * PC_Q16 <= P->start[4].s_q16) {
             /* cruising at the limit and still before R2: the plan in force
              * gives this block what a new one would (a longer run only
@@ -505,27 +642,45 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
         } else if (cruise) {
             pc_recruise(P, len); /* cruising at the limit: R2 moves on */
             p->cont_t_ns = 0;
-        } else if (pc_plan_run(&np, st.v_q16, st.a_q16, len, x, &l)) {
-            *P = np;
-            p->cont_t_ns = 0;
-        } else if (p->cont_rem > 0) {
-            p->cont_kept++; /* the plan in force still ends within limits */
-            len = p->cont_rem;
-            x = p->cont_x;
         } else {
-            /* no plan from this state (never seen: the tests count it) */
-            p->cont_forced++;
-            pc_r1(P, st.v_q16, st.a_q16, fx_max64(1, fx_min64(l.v_max, st.v_q16 / PC_Q16)), &l);
-            pc_build(P, fx_max64(1, fx_min64(l.v_max, st.v_q16 / PC_Q16)), 0, len, &l);
-            p->cont_t_ns = 0;
+            pc_limits(p, b->lim.v_max, &l); /* only a new plan needs them */
+            if (pc_plan_run(&np, st.v_q16, st.a_q16, len, x, &l)) {
+                *P = np;
+                p->cont_t_ns = 0;
+            } else if (p->cont_rem > 0) {
+                p->cont_kept++; /* the plan in force still ends within limits */
+                len = p->cont_rem;
+                x = p->cont_x;
+            } else {
+                /* no plan from this state (never seen: the tests count it) */
+                int64_t v = fx_max64(1, fx_min64(l.v_max, st.v_q16 / PC_Q16));
+                p->cont_forced++;
+                pc_r1(P, st.v_q16, st.a_q16, v, &l);
+                pc_build(P, v, 0, len, &l);
+                p->cont_t_ns = 0;
+            }
         }
         p->cont_st.s_q16 = (p->cont_t_ns == 0) ? 0 : p->cont_st.s_q16;
         p->cont_rem = len;
         p->cont_x = x;
     }
-    tb = (b->len >= p->cont_rem) ? P->total_ns
-                                 : pc_time_at(P, p->cont_t_ns, p->cont_st.s_q16 + b->len * PC_Q16);
-    pc_slice(P, p->cont_t_ns, &p->cont_st, tb, b->len, &out->prof, &e);
+    /* the block's end tb on the plan, the state e there and its slice
+     * (pc_cruise_slice does all three for a block inside the cruise) */
+    if (b->len >= p->cont_rem) {
+        tb = P->total_ns;
+        known = false;
+    } else if (pc_cruise_slice(p, b->len, &out->prof, &tb, &e)) {
+        known = true;
+    } else {
+        tb = pc_time_at(p, p->cont_t_ns, p->cont_st.s_q16 + b->len * PC_Q16, &e, &known);
+        if (known) {
+            pc_slice(P, p->cont_t_ns, &p->cont_st, tb, b->len, &out->prof, &e);
+        }
+    }
+    if (!known) {
+        sc_eval(P, tb, &e);
+        pc_slice(P, p->cont_t_ns, &p->cont_st, tb, b->len, &out->prof, &e);
+    }
     out->total_ns = out->prof.total_ns;
     p->cont_rem -= b->len;
     if (p->cont_scan > 0u) { /* the first-run cache, one block on */

@@ -27,4 +27,11 @@ int64_t plan_test_ratio_rec(int64_t a, int64_t len);
  * <= 2 dm, len <= 2^41. */
 uint32_t plan_test_len_factor(int64_t len, int64_t dm);
 
+/* Test hook: the continuous S-curve's cruise time and distance
+ * (planner_cont.c; recip: with W's reciprocal, else divided): for v_q16 =
+ * W 2^16 (0 < W < 2^32) and 0 < dq < 2^42, true with *tau =
+ * sc_muldiv_ceil(dq, 1e9, v_q16) and *ds = sc_muldiv(v_q16, *tau, 1e9);
+ * false (nothing set) otherwise. */
+bool plan_test_cont_cruise_time(int64_t v_q16, int64_t dq, bool recip, int64_t *tau, int64_t *ds);
+
 #endif /* PLANNER_TEST_H */

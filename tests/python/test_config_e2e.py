@@ -110,6 +110,10 @@ def test_backup_and_restore(server, capsys, tmp_path):
         text.split("max_velocity = ")[1].split("\n")[0],
         '{ x = "250 mm/s", y = "6000 mm/min", z = "0.2 m/s" }',
     ).replace('corner_rule = "junction_deviation"', 'corner_rule = "smoothed"')
+    # the smoothed corner needs a per-block profile (the default continuous
+    # S-curve refuses it): the restore writes it after velocity_profile
+    assert 'velocity_profile = "scurve_continuous"' in text
+    edited = edited.replace('velocity_profile = "scurve_continuous"', 'velocity_profile = "scurve"')
     g = tmp_path / "edited.toml"
     g.write_text(edited)
     # broken variants: each refused as a whole, nothing written

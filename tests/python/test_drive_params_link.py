@@ -40,9 +40,17 @@ def test_planner_parameters_over_the_link(server, capsys):
             c.set_param("max_jerk.z", 1000)
         assert e.value.code == pg.ErrorCode.OUT_OF_RANGE
         assert e.value.fields["lo"] == -(-a // 3)
+        # the smoothed corner: refused with the default continuous S-curve
+        # (its cap would cut a run under way), taken with the per-block one
+        assert c.get_param("velocity_profile") == pg.VelocityProfile.SCURVE_CONTINUOUS
+        with pytest.raises(DriveError) as e:
+            c.set_param("corner_rule", 2)
+        assert e.value.code == pg.ErrorCode.BAD_VALUE
+        c.set_param("velocity_profile", pg.VelocityProfile.SCURVE)
         c.set_param("corner_rule", 2)
         assert c.get_param("corner_rule") == 2
         c.set_param("corner_rule", 0)
+        c.set_param("velocity_profile", pg.VelocityProfile.SCURVE_CONTINUOUS)
         c.set_param("max_velocity.y", vy0)
 
 

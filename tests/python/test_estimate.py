@@ -394,7 +394,7 @@ def test_estimate_equals_execution_on_the_simulated_drive(tmp_path):
     m = machine.load(None)
     pl = m.planner
     v = {
-        "motion.velocity_profile": "s-curve",
+        "motion.velocity_profile": "s-curve-continuous",  # the drive's default
         "motion.corner_rule": "junction-deviation",
         "motion.junction_deviation_mm": pl["junction_dev"] * 1000,
         "motion.min_block_time_s": 0.0,

@@ -103,10 +103,14 @@ def test_estimate_equals_execution_within_0_1_percent(estimate, executed):
     )
     assert est > 1.0  # a job of some length, not a trivial one
     assert rel < 1e-3
-    # the difference is only the sub-nm start and end of the jerk-limited
-    # profile, which a position trace cannot see (j t^3 / 6 < 0.5 nm for the
-    # first two ticks at 200 m/s^3): at most two ticks at either end
-    assert abs(run - est) <= 4.5 / estimate["tick_hz"]
+    # with the per-block S-curve the difference was only the sub-nm start
+    # and end of the jerk-limited profile, which a position trace cannot see
+    # (j t^3 / 6 < 0.5 nm for the first two ticks at 200 m/s^3): at most two
+    # ticks at either end. With the continuous S-curve (the default) a pop
+    # plans the run with the blocks queued at that moment, and the streamed
+    # drive pops when its interpolator runs short, the estimator when its
+    # ring is full: 5 ticks in 3.52 s seen (0.014 %)
+    assert abs(run - est) <= 10.5 / estimate["tick_hz"]
 
 
 def test_the_check_sees_a_planning_difference(files, estimate):

@@ -234,6 +234,8 @@ def test_fit_refuses_an_axis_the_tests_never_limit(tmp_path, capsys):
             str(runs),
             "--set",
             "motion.corner_rule=smoothed-corner",
+            "--set",  # the default continuous S-curve refuses the smoothed corner
+            "motion.velocity_profile=trapezoid",
             "--fit",
             "axes.X.corner_acceleration_mm_s2",
             "axes.Z.corner_acceleration_mm_s2",

@@ -141,6 +141,17 @@ static void test_enable_queue_poll_before_the_first_tick(void)
     TEST_ASSERT_EQUAL_INT64(500000, st.ref[1]);
 }
 
+/* The per-block S-curve (velocity_profile 0; the default is the continuous
+ * S-curve), for a test of what that shape guarantees and the continuous one
+ * does not (planner.h): the queued time equal to the estimate from the
+ * first block on (the continuous shape's is exact for the run it has
+ * planned, an estimate for runs not planned yet), each block with its own
+ * projected a and j (a run takes the smallest axis limits). */
+static void per_block_scurve(void)
+{
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_SHAPE, 0, SC_SHAPE_SCURVE));
+}
+
 /* ---- 2. planned time queued -------------------------------------------------- */
 
 static void test_status_reports_planned_time_queued(void)
@@ -148,6 +159,7 @@ static void test_status_reports_planned_time_queued(void)
     plan_move_t m[3];
     int64_t total, k;
 
+    per_block_scurve();
     m[0] = move(1000000, 0, 20000000, true);
     m[1] = move(1000000, 2000000, 20000000, true);
     m[2] = move(0, 0, 30000000, true);
@@ -178,6 +190,7 @@ static void test_planned_time_counts_blocks_waiting_in_the_planner(void)
     int64_t total;
     unsigned i;
 
+    per_block_scurve();
     for (i = 0; i < 20; i++) {
         m[i] = move((int64_t)(i + 1) * 100000, (i & 1u) ? 20000 : 0, 5000000, false);
     }
@@ -684,6 +697,7 @@ static void test_new_limits_are_what_the_planner_uses(void)
     unsigned i;
     int64_t total, start = -1;
 
+    per_block_scurve();
     /* 5 mm/s on X, a throughput limit of 2 ms per block, then two blocks */
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_V_MAX, 0, 5000000));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_MIN_BLOCK_NS, 0, 2000000));
@@ -721,6 +735,7 @@ static void test_one_axis_limit_is_used_by_its_axis(void)
     plan_move_t m[1];
     int64_t total, slow;
 
+    per_block_scurve();
     m[0] = move(0, 20000000, 1000000000, true); /* 20 mm at up to 1 m/s */
     slow = estimate(m, 1, NULL);
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_A_MAX, 1, 50000000000));

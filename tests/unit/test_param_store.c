@@ -46,7 +46,8 @@ static int64_t get(drive_param_t id, unsigned axis)
     return v;
 }
 
-/* A set of changes that differ from every default. */
+/* A set of changes that differ from every default (the exact-stop corner
+ * rule: the smoothed one is refused with the continuous S-curve). */
 static void change(int64_t k)
 {
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_V_MAX, 1, 250000000 + k));
@@ -55,7 +56,7 @@ static void change(int64_t k)
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_SOFT_MIN, 0, -5000000 - k));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_SOFT_MAX, 0, 7000000 + k));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_IN_POS, 2, 2500 + k));
-    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_CORNER, 0, 2));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_CORNER, 0, 3));
     TEST_ASSERT_EQUAL_INT(DRIVE_OK,
                           drive_param_set(DRIVE_PARAM_CEC_KP, 0, ((int64_t)30 << 32) + k));
 }
@@ -67,7 +68,7 @@ static bool changed(int64_t k)
            get(DRIVE_PARAM_FERR_LIMIT, 0) == 123456 + k &&
            get(DRIVE_PARAM_SOFT_MIN, 0) == -5000000 - k &&
            get(DRIVE_PARAM_SOFT_MAX, 0) == 7000000 + k && get(DRIVE_PARAM_IN_POS, 2) == 2500 + k &&
-           get(DRIVE_PARAM_CORNER, 0) == 2 && get(DRIVE_PARAM_CEC_KP, 0) == ((int64_t)30 << 32) + k;
+           get(DRIVE_PARAM_CORNER, 0) == 3 && get(DRIVE_PARAM_CEC_KP, 0) == ((int64_t)30 << 32) + k;
 }
 
 /* Nothing of the saved set in use: the defaults of a fresh start. */

@@ -401,11 +401,14 @@ static void test_enable_and_queue_in_one_batch_runs_the_block(void)
 }
 
 /* Flow control by time: the planned time queued is reported, and it falls
- * as the job runs. */
+ * as the job runs. The job starts once no block came for the start delay
+ * (50 ms: with the continuous S-curve the oldest block's plan depends on
+ * the blocks after it, drive.h "Feeding"); the queued time stays until
+ * then. */
 static void test_queued_time_is_reported(void)
 {
     proto_queue_reply_t q;
-    proto_drive_state_t s1, s2;
+    proto_drive_state_t s0, s1, s2;
     size_t n;
 
     enable();
@@ -413,8 +416,11 @@ static void test_queued_time_is_reported(void)
     n = queue_line(2, 3000000, 10000000);
     TEST_ASSERT_TRUE(proto_queue_reply_decode(out + 2, n - 2, &q));
     run_ms(1);
-    s1 = state();
-    TEST_ASSERT_TRUE(s1.queued_us > 250000 && s1.queued_us < 400000);
+    s0 = state();
+    TEST_ASSERT_TRUE(s0.queued_us > 250000 && s0.queued_us < 400000);
+    run_ms(59);
+    s1 = state(); /* moving since the start delay */
+    TEST_ASSERT_TRUE(s1.queued_us < s0.queued_us - 1000 && s1.queued_us > s0.queued_us - 20000);
     run_ms(100);
     s2 = state();
     TEST_ASSERT_UINT32_WITHIN(1000, s1.queued_us - 100000, s2.queued_us);
@@ -446,6 +452,12 @@ static void test_planner_parameters_over_the_link(void)
     TEST_ASSERT_EQUAL_INT64(3333333334, e.lo);
     expect_error(set_param(PROTO_PARAM_MAX_VELOCITY + 3, 5000000), PROTO_ERROR_CODE_BAD_AXIS);
     expect_error(set_param(PROTO_PARAM_CORNER_RULE, 4), PROTO_ERROR_CODE_OUT_OF_RANGE);
+    /* the smoothed corner is refused with the default continuous S-curve
+     * (its cap would cut a run under way), taken with the per-block one */
+    TEST_ASSERT_EQUAL_INT64(3, get_param(PROTO_PARAM_VELOCITY_PROFILE));
+    set_param_error(PROTO_PARAM_CORNER_RULE, 2, PROTO_ERROR_CODE_BAD_VALUE);
+    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE,
+                           (set_param(PROTO_PARAM_VELOCITY_PROFILE, 0), out[0]));
     TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_PARAM_VALUE, (set_param(PROTO_PARAM_CORNER_RULE, 2), out[0]));
     TEST_ASSERT_EQUAL_INT64(2, get_param(PROTO_PARAM_CORNER_RULE));
     /* trapezoid, a high acceleration, then back to the S-curve: bad_value */

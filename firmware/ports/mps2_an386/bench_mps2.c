@@ -11,7 +11,7 @@
  * interrupt falls inside a measurement.
  *
  * Workloads (three axes, the QEMU machine of app_mps2.c, default servo and
- * planner parameters, CEC off):
+ * planner parameters (velocity_profile = scurve_continuous), CEC off):
  *   control tick  app_tick() while the drive runs a helix (full circle of
  *                 radius 5 mm in XY at 20 mm/s, Z rising 2 mm) with a full
  *                 12 x 12 2-D compensation map in use (bench_map), the axes
@@ -22,8 +22,9 @@
  *                 circle with a 3-axis component, feed 50 mm/s.
  *   helpers       sc_muldiv (128/64 multiply-divide), a 64-bit division and
  *                 fx_isqrt64 per call: where the tick and block costs go.
- *   both again with velocity_profile = scurve_continuous: the same names
- *                 with the suffix _continuous.
+ *   both again with the per-block S-curve (velocity_profile = scurve, a =
+ *                 0 at every block end): the same names with the suffix
+ *                 _scurve.
  * Prints `name: value unit` lines on UART0, then exits QEMU (semihosting).
  */
 #include "app.h"
@@ -395,8 +396,8 @@ int main(void)
     cmd = semihost_cmdline();
     if (cmd[0] == 'p') { /* "planner": profile the planner workload only */
         bench_planner();
-    } else if (cmd[0] == 'c') { /* "cplanner": the same, continuous S-curve */
-        shape_override = SC_SHAPE_SCURVE_CONTINUOUS;
+    } else if (cmd[0] == 's') { /* "splanner": the same, per-block S-curve */
+        shape_override = SC_SHAPE_SCURVE;
         bench_planner();
     } else if (cmd[0] == 't') { /* "tick": the first 1500 running ticks */
         tick_limit = 1500u;
@@ -406,10 +407,10 @@ int main(void)
         bench_tick();
         bench_helpers();
         bench_comp2d();
-        /* the same tick and planner workloads with the continuous S-curve
-         * (figures named *_continuous) */
-        shape_override = SC_SHAPE_SCURVE_CONTINUOUS;
-        fig_suffix = "_continuous";
+        /* the same tick and planner workloads with the per-block S-curve
+         * (figures named *_scurve) */
+        shape_override = SC_SHAPE_SCURVE;
+        fig_suffix = "_scurve";
         bench_planner();
         bench_tick();
     }

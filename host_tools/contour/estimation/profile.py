@@ -184,14 +184,15 @@ MOTION_FIELDS = (
     Field(
         "velocity_profile",
         "",
-        "s-curve",
+        "s-curve-continuous",
         "Shape of the speed profile of each block: 's-curve' (jerk-limited), "
         "'trapezoid' (acceleration-limited), 's-curve-at-rest' (jerk-limited "
         "only for a block that starts or ends at rest: job start and end, exact "
         "stop, reversal, dwell; every other block is a trapezoid) or "
         "'s-curve-continuous' (jerk-limited, the acceleration continuous across "
         "blocks: a run of blocks is planned as one profile).",
-        "What the drive (or the imitated control) does; 's-curve' for this drive. "
+        "What the drive (or the imitated control) does; 's-curve-continuous' for "
+        "this drive (its default; not with the smoothed-corner rule). "
         "'s-curve-at-rest' imitates a control whose acceleration stays "
         "continuous along a path (jerk then shows only at starts and stops: "
         "fit max_jerk_mm_s3 on short reversals, exp3 of camargo2017).",
