@@ -263,6 +263,8 @@ typedef struct {
                           * (its passes reach over runs)         */
     uint32_t tag;
     uint8_t flags;
+    uint8_t cont_cls; /* continuous S-curve: the limit class of the
+                       * axes the block moves (plan_t cont_cls) */
 } plan_block_t;
 
 /* A popped, frozen block: what the interpolator executes. */
@@ -297,6 +299,7 @@ typedef struct {
     int64_t last_len;                  /* length of the last move (0: none)  */
     int64_t last_vmax;                 /* v_max of the last move            */
     bool last_stop;                    /* last block ends in an exact stop  */
+    uint8_t last_cls;                  /* limit class of the last move (cont) */
     int64_t next_entry;                /* fixed entry speed for a new tail  */
     /* throughput window: lengths of the last W moves */
     int64_t win_len[PLAN_WINDOW_MAX];
@@ -325,6 +328,12 @@ typedef struct {
     uint32_t cont_kept;     /* pops that kept cont_prof because no new
                              * plan fitted (tests: rare)                */
     uint32_t cont_forced;   /* pops with no feasible plan (tests: 0)    */
+    /* run limits by the axes a block moves (plan_init): mask (bit i: axis
+     * i moves; 0: all) -> class, the smallest mask with the same limits;
+     * a class's smallest a and j of those axes less 2^-12 */
+    uint8_t cont_cls[1u << CORE_AXES];
+    int64_t cont_a[1u << CORE_AXES];
+    int64_t cont_j[1u << CORE_AXES];
 } plan_t;
 
 /* Validate the profile and initialise an empty planner at `start` (nm).

@@ -18,6 +18,10 @@
 
 #include "fixmath.h"
 
+/* kept out of plan_cont_pop: the rare paths (a new plan, a queue of
+ * several runs) would otherwise take registers from the usual pop */
+#define PC_NOINLINE __attribute__((noinline))
+
 #define PC_NS  ((int64_t)1000000000)
 #define PC_Q16 ((int64_t)65536)
 
@@ -30,21 +34,19 @@ static plan_block_t *pc_at(const plan_t *p, uint16_t i)
     return &p->ring[idx];
 }
 
-/* A run's limits: v_max of its blocks, the smallest axis a and j less
- * 2^-12 (every direction keeps each axis within its own limits, with room
- * for the phase times' rounding to whole ns). */
-static void pc_limits(const plan_t *p, int64_t vmax, sc_limits_t *l)
+/* A run's limits: v_max of its blocks, the smallest a and j of the axes
+ * its blocks move less 2^-12 (b any block of the run: pc_joined keeps
+ * one limit class per run). An axis that does not move has no path
+ * acceleration or jerk; every direction of the moving axes keeps each of
+ * them within its own limits, with room for the phase times' rounding to
+ * whole ns. */
+static void pc_limits(const plan_t *p, const plan_block_t *b, sc_limits_t *l)
 {
-    int64_t a = p->prof.a_max[0], j = p->prof.j_max[0];
-    int i;
+    uint8_t c = p->same_limits ? 0u : b->cont_cls; /* plan_push's fast path: not set */
 
-    for (i = 1; i < CORE_AXES; i++) {
-        a = fx_min64(a, p->prof.a_max[i]);
-        j = fx_min64(j, p->prof.j_max[i]);
-    }
-    l->v_max = vmax;
-    l->a_max = a - (a >> 12);
-    l->j_max = j - (j >> 12);
+    l->v_max = b->lim.v_max;
+    l->a_max = p->cont_a[c];
+    l->j_max = p->cont_j[c];
     l->shape = SC_SHAPE_SCURVE;
 }
 
@@ -56,7 +58,10 @@ static int64_t pc_margin(int64_t v, int64_t len)
 }
 
 /* b continues a's run: the same speed limit and a junction that does not
- * limit it (no corner limit, stop, reversal or dwell between them). */
+ * limit it (no corner limit, stop, reversal or dwell between them, and
+ * the same limit class: plan_push keeps v_junction below v_max where the
+ * class changes, so a run's a and j never change while it grows and the
+ * plan in force and the path state stay within them). */
 static bool pc_joined(const plan_block_t *a, const plan_block_t *b)
 {
     return b->lim.v_max > 0 && a->lim.v_max == b->lim.v_max && b->v_junction >= b->lim.v_max;
@@ -89,7 +94,7 @@ static uint16_t pc_run(const plan_t *p, uint16_t i, int64_t *len)
  * for can only have risen since: an earlier bound stays reachable). Also
  * the oldest run: index after its last block (returned), *len its length
  * (nm) and *x its exit bound (0: the queue's end). */
-static uint16_t pc_anchors(plan_t *p, int64_t *len, int64_t *x)
+static PC_NOINLINE uint16_t pc_anchors(plan_t *p, int64_t *len, int64_t *x)
 {
     int64_t ex = 0, l = 0;
     uint16_t i, e = p->count;
@@ -109,7 +114,7 @@ static uint16_t pc_anchors(plan_t *p, int64_t *len, int64_t *x)
             /* twice the solver's margin: sc_dist may round a reach's
              * distance up past it by a few nm */
             int64_t v = 0, d = l - 2 * pc_margin(b->lim.v_max, l);
-            pc_limits(p, b->lim.v_max, &lim);
+            pc_limits(p, b, &lim);
             if (d > 0) {
                 d = fx_min64(d, SC_LEN_MAX);
                 v = fx_max64(sc_reach(ex, d, &lim), sc_reach(0, d, &lim));
@@ -350,8 +355,8 @@ static int64_t pc_bisect(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t lo, 
 
 /* Plan the run (len nm, exit bound x) from the state (v0q, a0q): the
  * highest vp that fits, R1 and R2 included. False when none fits. */
-static bool pc_plan_run(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t len, int64_t x,
-                        const sc_limits_t *l)
+static PC_NOINLINE bool pc_plan_run(sc_profile_t *P, int64_t v0q, int64_t a0q, int64_t len,
+                                    int64_t x, const sc_limits_t *l)
 {
     int64_t vmax = l->v_max, v0 = v0q / PC_Q16, a0 = a0q / PC_Q16, aa = (a0 < 0) ? -a0 : a0;
     int64_t h = sc_muldiv(aa, aa, 2 * l->j_max), vn = (a0 >= 0) ? v0 + h : v0 - h;
@@ -643,7 +648,7 @@ void plan_cont_pop(plan_t *p, plan_seg_t *out)
             pc_recruise(P, len); /* cruising at the limit: R2 moves on */
             p->cont_t_ns = 0;
         } else {
-            pc_limits(p, b->lim.v_max, &l); /* only a new plan needs them */
+            pc_limits(p, b, &l); /* only a new plan needs them */
             if (pc_plan_run(&np, st.v_q16, st.a_q16, len, x, &l)) {
                 *P = np;
                 p->cont_t_ns = 0;
@@ -725,7 +730,7 @@ int64_t plan_cont_queued_ns(const plan_t *p)
             sum += p->cont_prof.total_ns - p->cont_t_ns; /* the plan in force */
         } else {
             v0 = (i == 0) ? p->cont_st.v_q16 / PC_Q16 : b->v_entry;
-            pc_limits(p, b->lim.v_max, &l);
+            pc_limits(p, b, &l);
             sc_plan(&pr, fx_min64(len, SC_LEN_MAX), v0, x, &l);
             sum += pr.total_ns;
         }

@@ -148,12 +148,14 @@ static plan_profile_t eq_profile(bool same, int corner)
     plan_profile_t p;
     int i;
 
+    int64_t na = rnd_in(0, 999), nj = rnd_in(0, 999);
+
     memset(&p, 0, sizeof(p));
     for (i = 0; i < CORE_AXES; i++) {
         int k = same ? 0 : i;
         p.v_max[i] = (int64_t)(200 + 150 * k) * MMS;
-        p.a_max[i] = (int64_t)(500 + 1700 * k) * MMS + rnd_in(0, 999);
-        p.j_max[i] = (int64_t)(20000 + 15000 * k) * MMS + rnd_in(0, 999);
+        p.a_max[i] = (int64_t)(500 + 1700 * k) * MMS + (same ? na : rnd_in(0, 999));
+        p.j_max[i] = (int64_t)(20000 + 15000 * k) * MMS + (same ? nj : rnd_in(0, 999));
         p.corner_dv[i] = 5 * MMS;
     }
     p.junction_dev_nm = rnd_in(2000, 50000);
@@ -203,9 +205,21 @@ static void eq_run(uint32_t seed, uint32_t n, uint16_t depth, bool same, int cor
             }
             {
                 double t = (double)dir * 6.283185307179586 / 4096.0;
-                x += (int64_t)((double)seglen * cos(t));
-                y += (int64_t)((double)seglen * sin(t));
-                z += (r % 5u == 0u) ? rnd_in(-2000, 2000) : 0;
+                int64_t dx = (int64_t)((double)seglen * cos(t));
+                int64_t dy = (int64_t)((double)seglen * sin(t));
+                int64_t dz = (r % 5u == 0u) ? rnd_in(-2000, 2000) : 0;
+                if (!same) {
+                    /* axes with different limits: every block moves every
+                     * axis, so the run's limits are the smallest axis a and
+                     * j as in the reference (test_cont_axis_limits takes
+                     * the axes a block moves) */
+                    dx += (dx == 0) ? 1 : 0;
+                    dy += (dy == 0) ? 1 : 0;
+                    dz += (dz == 0) ? 1 - 2 * (int64_t)(k & 1u) : 0;
+                }
+                x += dx;
+                y += dy;
+                z += dz;
             }
             m.target[0] = x;
             m.target[1] = y;
@@ -346,11 +360,167 @@ static void test_cont_cruise_time_exact(void)
     }
 }
 
+/* Axis limits by the axes a run moves: X and Y at a and j, Z at a tenth
+ * of them (a slow Z), every v equal. */
+static plan_profile_t slow_z_profile(int64_t za, int64_t zj)
+{
+    plan_profile_t p;
+    int i;
+
+    memset(&p, 0, sizeof(p));
+    for (i = 0; i < CORE_AXES; i++) {
+        p.v_max[i] = 500 * MMS;
+        p.a_max[i] = 2000 * MMS;
+        p.j_max[i] = 50000 * MMS;
+        p.corner_dv[i] = 5 * MMS;
+    }
+    p.a_max[2] = za;
+    p.j_max[2] = zj;
+    p.junction_dev_nm = 10000;
+    p.mbt_window = 1;
+    p.corner = PLAN_CORNER_JD;
+    p.shape = SC_SHAPE_SCURVE_CONTINUOUS;
+    return p;
+}
+
+typedef struct {
+    int64_t total_ns;
+    double max_a_xy, max_a_z; /* the largest |a| of blocks without and with
+                               * Z motion, of the smallest limit they move */
+    double max_j_xy, max_j_z;
+} axis_job_t;
+
+/* 0.2 mm chords around a circle of R 5 mm in XY at 200 mm/s, from rest to
+ * rest; chords from z_from to z_to (indices) also move Z by 1 um (a helix
+ * stretch whose joins limit no speed). The queue refilled before each
+ * pop. Every popped segment's |a| (at its phase ends: a is linear in a
+ * phase) and |j| (phases that last) against the smallest a and j of the
+ * axes its block moves. */
+static void axis_job(const plan_profile_t *prof, uint32_t n, uint32_t z_from, uint32_t z_to,
+                     axis_job_t *r)
+{
+    const pos_nm_t o[CORE_AXES] = {5000000, 0, 0};
+    int64_t x = 5000000, y = 0, z = 0;
+    uint32_t k, popped = 0;
+    plan_seg_t seg;
+
+    memset(r, 0, sizeof(*r));
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pa, store_a, 64, prof, o));
+    for (k = 0; k < n || pa.count > 0u; k++) {
+        if (k < n) {
+            plan_move_t m;
+            int64_t nx = x - y / 25, ny = y + x / 25;
+            memset(&m, 0, sizeof(m));
+            x = nx;
+            y = ny;
+            z += (k >= z_from && k < z_to) ? 1000 : 0;
+            m.target[0] = x;
+            m.target[1] = y;
+            m.target[2] = z;
+            m.feed = 200 * MMS;
+            if (plan_free_slots(&pa) > 0u) {
+                TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pa, &m));
+                continue;
+            }
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&pa, &seg));
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_push(&pa, &m));
+        } else {
+            TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&pa, &seg));
+        }
+        popped++;
+        {
+            int64_t amin = INT64_MAX, jmin = INT64_MAX, am = 0, jm = 0;
+            bool zm = seg.end[2] != seg.start[2];
+            int i, ph;
+            for (i = 0; i < CORE_AXES; i++) {
+                if (seg.end[i] != seg.start[i]) {
+                    amin = (prof->a_max[i] < amin) ? prof->a_max[i] : amin;
+                    jmin = (prof->j_max[i] < jmin) ? prof->j_max[i] : jmin;
+                }
+            }
+            for (ph = 0; ph < SC_PHASES; ph++) {
+                sc_state_t e;
+                if (seg.prof.t_ns[ph] <= 0) {
+                    continue;
+                }
+                sc_eval_phase(&seg.prof, ph, seg.prof.t_ns[ph], &e);
+                am = fx_max64(am, fx_max64(seg.prof.start[ph].a_q16 < 0 ? -seg.prof.start[ph].a_q16
+                                                                        : seg.prof.start[ph].a_q16,
+                                           e.a_q16 < 0 ? -e.a_q16 : e.a_q16) /
+                                      65536);
+                jm = fx_max64(jm, seg.prof.jerk[ph] < 0 ? -seg.prof.jerk[ph] : seg.prof.jerk[ph]);
+            }
+            if (zm) {
+                r->max_a_z = fmax(r->max_a_z, (double)am / (double)amin);
+                r->max_j_z = fmax(r->max_j_z, (double)jm / (double)jmin);
+            } else {
+                r->max_a_xy = fmax(r->max_a_xy, (double)am / (double)amin);
+                r->max_j_xy = fmax(r->max_j_xy, (double)jm / (double)jmin);
+            }
+        }
+        r->total_ns += seg.total_ns;
+    }
+    TEST_ASSERT_EQUAL_UINT32(n, popped);
+    TEST_ASSERT_EQUAL_UINT32(0, pa.cont_forced);
+}
+
+/* A slow Z (a tenth of X/Y's a and j) does not slow an XY contour: a
+ * circle of chords runs with X/Y's limits, in the time of the machine
+ * whose axes all have X/Y's limits, not in that of Z's; and every block
+ * stays within the a and j of the axes it moves. */
+static void test_cont_axis_limits_xy_circle(void)
+{
+    plan_profile_t slow = slow_z_profile(200 * MMS, 5000 * MMS);
+    plan_profile_t fast = slow_z_profile(2000 * MMS, 50000 * MMS);
+    plan_profile_t allz = slow_z_profile(200 * MMS, 5000 * MMS);
+    axis_job_t rs, rf, rz;
+    int i;
+
+    for (i = 0; i < CORE_AXES; i++) {
+        allz.a_max[i] = 200 * MMS;
+        allz.j_max[i] = 5000 * MMS;
+    }
+    axis_job(&slow, 400, 0, 0, &rs);
+    axis_job(&fast, 400, 0, 0, &rf);
+    axis_job(&allz, 400, 0, 0, &rz);
+    printf("xy circle: slow Z %.4f s, all axes X/Y's limits %.4f s, all Z's %.4f s; "
+           "a %.4f j %.4f of the limit\n",
+           (double)rs.total_ns * 1e-9, (double)rf.total_ns * 1e-9, (double)rz.total_ns * 1e-9,
+           rs.max_a_xy, rs.max_j_xy);
+    TEST_ASSERT_TRUE((double)rs.total_ns <= 1.001 * (double)rf.total_ns);
+    TEST_ASSERT_TRUE((double)rs.total_ns < 0.8 * (double)rz.total_ns);
+    TEST_ASSERT_TRUE(rs.max_a_xy <= 1.0 && rs.max_j_xy <= 1.0);
+    TEST_ASSERT_TRUE(rs.max_a_xy > 0.5 && rs.max_j_xy > 0.5); /* X/Y's limits are used */
+}
+
+/* A run that moves Z takes Z's limits: a helix stretch right after the
+ * start (from rest: the path accelerates over it, and would reach X/Y's a
+ * if the stretch joined the first XY chords' run) and a whole helix, on
+ * the slow-Z machine. */
+static void test_cont_axis_limits_z_run(void)
+{
+    plan_profile_t slow = slow_z_profile(200 * MMS, 5000 * MMS);
+    axis_job_t r;
+
+    axis_job(&slow, 400, 2, 60, &r);
+    printf("xy circle with a helix stretch: a %.4f j %.4f (Z blocks), a %.4f j %.4f (XY)\n",
+           r.max_a_z, r.max_j_z, r.max_a_xy, r.max_j_xy);
+    TEST_ASSERT_TRUE(r.max_a_z <= 1.0 && r.max_j_z <= 1.0);
+    TEST_ASSERT_TRUE(r.max_a_xy <= 1.0 && r.max_j_xy <= 1.0);
+    TEST_ASSERT_TRUE(r.max_a_z > 0.5 && r.max_a_xy > 0.5); /* both accelerate */
+    axis_job(&slow, 200, 0, 200, &r);
+    printf("helix: a %.4f j %.4f of Z's limits\n", r.max_a_z, r.max_j_z);
+    TEST_ASSERT_TRUE(r.max_a_z <= 1.0 && r.max_j_z <= 1.0);
+    TEST_ASSERT_TRUE(r.max_a_z > 0.5);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
     RUN_TEST(test_cont_equals_reference_random_paths);
     RUN_TEST(test_cont_equals_reference_cam_chords);
     RUN_TEST(test_cont_cruise_time_exact);
+    RUN_TEST(test_cont_axis_limits_xy_circle);
+    RUN_TEST(test_cont_axis_limits_z_run);
     return UNITY_END();
 }
