@@ -313,6 +313,36 @@ static void test_random_path_scurve_continuous_stalls(void)
     TEST_ASSERT_TRUE(r.final_exact);
 }
 
+/* Axis limits by the axes a run moves: CAM-like paths on the test
+ * machine (Y at half of X and Z's a, 0.4 of their j) that stay in the XZ
+ * plane every other 200 blocks. Those runs take X and Z's limits (the
+ * path's |a| above Y's a), every other run Y's; each axis within its own
+ * v, a and j on every tick, the path's a and j within the limits of the
+ * axes its block moves, execution equal to the estimate. */
+static void test_random_path_scurve_continuous_axis_limits(void)
+{
+    pc_result_t r;
+    pc_smooth_paths = true;
+    pc_planar_xz = true;
+    pc_run(20000, 250000, 2718u, SC_SHAPE_SCURVE_CONTINUOUS, &r);
+    pc_planar_xz = false;
+    pc_smooth_paths = false;
+    if (getenv("INTERP_REPORT")) {
+        pc_print("interp_scurve_continuous_xz_4khz", &r);
+    }
+    printf("planar XZ stretches: path |a| up to %.3f of the smallest axis a\n",
+           r.max_path_a_min_ratio);
+    TEST_ASSERT_EQUAL_UINT32(20000, r.blocks);
+    TEST_ASSERT_TRUE(r.max_path_a_min_ratio > 1.2); /* above Y's a: X and Z's limits */
+    TEST_ASSERT_TRUE(r.max_j_ratio > 0.5);
+    TEST_ASSERT_EQUAL_UINT32(0, r.limit_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.time_violations);
+    TEST_ASSERT_EQUAL_UINT32(0, r.underruns);
+    TEST_ASSERT_EQUAL_UINT32(0, r.cont_forced);
+    TEST_ASSERT_TRUE(r.final_exact);
+    TEST_ASSERT_TRUE(r.total_ticks_ok);
+}
+
 /* Smoothed-corner rule with its block cap (each block capped by the larger
  * of its two corner speeds, known only once the next block is queued): the
  * drive-style push-before-pop loop still executes exactly the estimate. */
@@ -411,5 +441,6 @@ int main(void)
     RUN_TEST(test_random_path_scurve_at_rest);
     RUN_TEST(test_random_path_scurve_continuous);
     RUN_TEST(test_random_path_scurve_continuous_stalls);
+    RUN_TEST(test_random_path_scurve_continuous_axis_limits);
     return UNITY_END();
 }

@@ -39,6 +39,7 @@ static uint64_t pc_rs;
 
 uint32_t pc_stall_every;
 bool pc_smooth_paths;
+bool pc_planar_xz;
 
 static uint64_t pc_rnd(void)
 {
@@ -75,6 +76,9 @@ static void pc_moves(plan_move_t *m, uint32_t n)
             for (i = 0; i < 3; i++) {
                 dir[i] += (pc_uni() * 2 - 1) * wander;
             }
+        }
+        if (pc_planar_xz && (k / 200u) % 2u == 1u) {
+            dir[1] = 0; /* Y still */
         }
         for (i = 0; i < 3; i++) {
             nrm += dir[i] * dir[i];
@@ -116,11 +120,12 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
     plan_move_t *mv = calloc(n, sizeof(*mv));
     plan_est_t *est = malloc(sizeof(*est) * n);
     int64_t *cum = malloc(sizeof(*cum) * n);
+    int64_t *blk_a = malloc(sizeof(*blk_a) * n), *blk_j = malloc(sizeof(*blk_j) * n);
     const pos_nm_t origin[CORE_AXES] = {0, 0, 0};
     pos_nm_t p1[CORE_AXES], p2[CORE_AXES];
     int64_t acc1[CORE_AXES];
-    uint32_t next = 0, bad = 0, done_prev = 0, id1 = 0, id2 = 0, k, stall_at = 0;
-    int64_t pa_prev = 0, amin = prof.a_max[0], jmin = prof.j_max[0];
+    uint32_t next = 0, bad = 0, done_prev = 0, id1 = 0, id2 = 0, k, stall_at = 0, pid = 0;
+    int64_t pa_prev = 0, amin = prof.a_max[0];
     bool pa_ok = false, stalled = false;
     double h = (double)tick_ns * 1e-9;
     plan_t p;
@@ -128,7 +133,7 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
     int i;
 
     memset(r, 0, sizeof(*r));
-    if (mv == NULL || est == NULL || cum == NULL) {
+    if (mv == NULL || est == NULL || cum == NULL || blk_a == NULL || blk_j == NULL) {
         r->limit_violations = 1u << 30;
         goto out;
     }
@@ -147,7 +152,18 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
     }
     for (i = 1; i < CORE_AXES; i++) {
         amin = (prof.a_max[i] < amin) ? prof.a_max[i] : amin;
-        jmin = (prof.j_max[i] < jmin) ? prof.j_max[i] : jmin;
+    }
+    /* the continuous S-curve's path limits: the smallest a and j of the
+     * axes a block moves */
+    for (k = 0; k < n; k++) {
+        blk_a[k] = INT64_MAX;
+        blk_j[k] = INT64_MAX;
+        for (i = 0; i < CORE_AXES; i++) {
+            if (mv[k].target[i] != ((k > 0) ? mv[k - 1].target[i] : origin[i])) {
+                blk_a[k] = (prof.a_max[i] < blk_a[k]) ? prof.a_max[i] : blk_a[k];
+                blk_j[k] = (prof.j_max[i] < blk_j[k]) ? prof.j_max[i] : blk_j[k];
+            }
+        }
     }
     if (pc_stall_every > 0) {
         stall_at = pc_stall_every;
@@ -195,12 +211,23 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
         }
         if (shape == SC_SHAPE_SCURVE_CONTINUOUS && interp_busy(&ip)) {
             int64_t pa = ip.a_q16 / 65536;
-            double ar = (double)pc_abs(pa) / (double)amin;
+            uint32_t cur = interp_blocks_done(&ip);
+            int64_t la, lj;
+            double ar;
+            cur = (cur < n) ? cur : n - 1u;
+            pid = pa_ok ? pid : cur;
+            la = (blk_a[cur] > blk_a[pid]) ? blk_a[cur] : blk_a[pid];
+            lj = (blk_j[cur] > blk_j[pid]) ? blk_j[cur] : blk_j[pid];
+            ar = (double)pc_abs(pa) / (double)la;
             if (ar > r->max_path_a_ratio) {
                 r->max_path_a_ratio = ar;
             }
+            if ((double)pc_abs(pa) / (double)amin > r->max_path_a_min_ratio) {
+                r->max_path_a_min_ratio = (double)pc_abs(pa) / (double)amin;
+            }
+            pid = cur;
             if (pa_ok) {
-                double jr = ((double)pc_abs(pa - pa_prev) - 1.0) / ((double)jmin * h);
+                double jr = ((double)pc_abs(pa - pa_prev) - 1.0) / ((double)lj * h);
                 if (jr > r->max_path_j_ratio) {
                     r->max_path_j_ratio = jr;
                 }
@@ -274,6 +301,8 @@ void pc_run_profile(uint32_t n, int64_t tick_ns, uint32_t seed, const plan_profi
     }
     r->total_ticks_ok = r->ticks == (uint64_t)((r->est_total_ns + tick_ns - 1) / tick_ns);
 out:
+    free(blk_a);
+    free(blk_j);
     free(mv);
     free(est);
     free(cum);

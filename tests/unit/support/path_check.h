@@ -30,8 +30,12 @@ typedef struct {
                              * estimated entry or exit speed is 0)       */
     /* Path level (interp_t s/v/a, every busy tick, block ends included:
      * the continuous S-curve joins blocks at non-zero acceleration) */
-    double max_path_a_ratio;         /* max |a| / min_i a_i                        */
-    double max_path_j_ratio;         /* max |a(t+h) - a(t)| / (min_i j_i h)        */
+    double max_path_a_ratio;         /* max |a| / the smallest a_i of the axes the
+                                      * block moves (of the two blocks of a tick) */
+    double max_path_j_ratio;         /* max |a(t+h) - a(t)| / (j h), j the same   */
+    double max_path_a_min_ratio;     /* max |a| / min_i a_i over every axis:
+                                      * above 1 where a run does not move
+                                      * the axis with the smallest a      */
     uint32_t joins_accel;            /* block ends passed at |a| >= min_i a_i / 10 */
     uint32_t stalls;                 /* times the feed stopped (pc_stall_every)     */
     uint32_t cont_kept, cont_forced; /* planner's counters at the end    */
@@ -44,6 +48,10 @@ extern uint32_t pc_stall_every;
 /* Random paths of CAM output instead (0.002..0.3 mm chords, gentle
  * turns, the feed changing every hundred blocks or so). */
 extern bool pc_smooth_paths;
+
+/* Every other stretch of 200 blocks in the XZ plane (Y still): runs that
+ * do not move the slow Y take X and Z's limits. */
+extern bool pc_planar_xz;
 
 /* The test machine: X, Z 500 mm/s, 2 m/s^2, 50 m/s^3; Y 300 mm/s, 1 m/s^2,
  * 20 m/s^3; junction deviation 0.01 mm; minimum block time 0.5 ms (W = 4). */
