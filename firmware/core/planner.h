@@ -131,8 +131,14 @@
  * queue's end at rest: bound = min(v_junction, max(reach(next bound, d),
  * reach(0, d))), d the run's length less a margin, sc_reach of the run's
  * limits with a = 0 at both ends; a bound never falls). A run's limits
- * are v_max and the smallest axis a and j less 2^-12 (any direction keeps
- * every axis within its own limits). plan_pop plans the oldest run from the
+ * are v_max and the smallest a and j of the axes its blocks move, less
+ * 2^-12 (an axis that does not move has no acceleration or jerk; any
+ * direction of the others keeps each within its own limits). A block's
+ * limit class (cont_cls: the axes it moves, masks with the same limits
+ * one class) changes only at an anchor: where it changes, plan_push keeps
+ * the junction 1 nm/s below v_max, so a run's limits never change while
+ * it grows (with equal a and j on every axis there is one class and the
+ * plans are those of every axis's limits). plan_pop plans the oldest run from the
  * path state (v, a) where the last block ended: seven phases as scurve.h's
  * (R1 from (v, a) to a speed vp at a = 0, a cruise at vp, R2 down to the
  * exit speed v1 = min(vp, bound), or to rest), vp the highest speed for
@@ -153,7 +159,7 @@
  * tick). Not with PLAN_CORNER_SMOOTH (its cap lowers a queued block's v_max
  * and would cut a run under way: PLAN_E_PROFILE). The estimate pops as the
  * drive does (plan_queued_ns is exact for the run in force, an estimate
- * for runs not planned yet). Cost: a push and a pop 1 985 Cortex-M4
+ * for runs not planned yet). Cost: a push and a pop 1 996 Cortex-M4
  * instructions on the bench's chords (bench-firmware.sh,
  * planner_block_instructions_m4; 2 802 before the cruise's slice and
  * divisions were made cheap: docs/planner.md); every run boundary in the
