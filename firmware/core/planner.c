@@ -95,7 +95,6 @@ void plan_reset(plan_t *p, const pos_nm_t pos[CORE_AXES])
     p->last_len = 0;
     p->last_vmax = 0;
     p->last_stop = true;
-    p->last_cls = 0;
     p->next_entry = 0;
     for (i = 0; i < PLAN_WINDOW_MAX; i++) {
         p->win_len[i] = 0;
@@ -118,38 +117,7 @@ static void pl_derive(plan_t *p, const plan_profile_t *prof)
         (prof->shape == SC_SHAPE_SCURVE_CONTINUOUS) ? (uint8_t)SC_SHAPE_SCURVE : prof->shape;
     pl_pass_mode(p);
     p->same_limits = pl_same(prof->v_max) && pl_same(prof->a_max) && pl_same(prof->j_max);
-    {
-        int64_t amin = prof->a_max[0];
-        int i;
-        for (i = 1; i < CORE_AXES; i++) {
-            amin = fx_min64(amin, prof->a_max[i]);
-        }
-        p->jd_amin_dev = sc_mul_sat(amin, prof->junction_dev_nm); /* saturated */
-    }
-    {
-        /* continuous S-curve: a run's limits are those of the axes its
-         * blocks move (planner_cont.c) */
-        unsigned mask, k;
-        int i;
-        for (mask = 0; mask < (1u << CORE_AXES); mask++) {
-            int64_t a = INT64_MAX, j = INT64_MAX;
-            for (i = 0; i < CORE_AXES; i++) {
-                if (mask == 0u || (mask & (1u << i)) != 0u) {
-                    a = fx_min64(a, prof->a_max[i]);
-                    j = fx_min64(j, prof->j_max[i]);
-                }
-            }
-            p->cont_a[mask] = a - (a >> 12);
-            p->cont_j[mask] = j - (j >> 12);
-            p->cont_cls[mask] = (uint8_t)mask;
-            for (k = 0; k < mask; k++) {
-                if (p->cont_a[k] == p->cont_a[mask] && p->cont_j[k] == p->cont_j[mask]) {
-                    p->cont_cls[mask] = (uint8_t)k;
-                    break;
-                }
-            }
-        }
-    }
+    p->jd_amin_dev = sc_mul_sat(plan_cont_derive(p), prof->junction_dev_nm); /* saturated */
     {
         sc_limits_t l0;
         int64_t qc0;
@@ -736,26 +704,6 @@ void plan_update(plan_t *p)
     }
 }
 
-/* Continuous S-curve on axes with different limits: the block's limit
- * class (the axes it moves; planner_cont.c's pc_limits) and, where the
- * class changes, a junction just below v_max: an anchor (pc_joined), so a
- * run keeps one class and its a and j never change while it grows. Out of
- * line: plan_push's usual path keeps its registers. */
-static PL_NOINLINE void pl_cont_class(plan_t *p, plan_block_t *b)
-{
-    unsigned mask = 0;
-    int i;
-
-    for (i = 0; i < CORE_AXES; i++) {
-        mask |= (b->end[i] != b->start[i]) ? (1u << i) : 0u;
-    }
-    b->cont_cls = p->cont_cls[mask];
-    if (b->cont_cls != p->last_cls && b->v_junction >= b->lim.v_max) {
-        b->v_junction = b->lim.v_max - 1;
-    }
-    p->last_cls = b->cont_cls;
-}
-
 plan_result_t plan_push(plan_t *p, const plan_move_t *m)
 {
     plan_block_t *b;
@@ -944,7 +892,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     }
     b->v_junction = vj;
     if (!p->same_limits && pl_cont(p)) {
-        pl_cont_class(p, b);
+        plan_cont_class(p, b);
     }
     b->v_corner_in = vc;
     b->v_entry = (p->count == 0) ? fx_min64(p->next_entry, vj) : 0;

@@ -159,7 +159,7 @@
  * tick). Not with PLAN_CORNER_SMOOTH (its cap lowers a queued block's v_max
  * and would cut a run under way: PLAN_E_PROFILE). The estimate pops as the
  * drive does (plan_queued_ns is exact for the run in force, an estimate
- * for runs not planned yet). Cost: a push and a pop 1 996 Cortex-M4
+ * for runs not planned yet). Cost: a push and a pop 1 997 Cortex-M4
  * instructions on the bench's chords (bench-firmware.sh,
  * planner_block_instructions_m4; 2 802 before the cruise's slice and
  * divisions were made cheap: docs/planner.md); every run boundary in the

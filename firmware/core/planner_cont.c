@@ -607,8 +607,53 @@ static bool pc_cruise_slice(plan_t *p, int64_t len, sc_profile_t *o, int64_t *tb
     return true;
 }
 
+int64_t plan_cont_derive(plan_t *p)
+{
+    int64_t amin = INT64_MAX;
+    unsigned mask, k;
+    int i;
+
+    for (mask = 0; mask < (1u << CORE_AXES); mask++) {
+        int64_t a = INT64_MAX, j = INT64_MAX;
+        for (i = 0; i < CORE_AXES; i++) {
+            if (mask == 0u || (mask & (1u << i)) != 0u) { /* 0: every axis */
+                a = fx_min64(a, p->prof.a_max[i]);
+                j = fx_min64(j, p->prof.j_max[i]);
+            }
+        }
+        amin = (mask == 0u) ? a : amin;
+        p->cont_a[mask] = a - (a >> 12);
+        p->cont_j[mask] = j - (j >> 12);
+        p->cont_cls[mask] = (uint8_t)mask;
+        for (k = 0; k < mask; k++) { /* the smallest mask with these limits */
+            if (p->cont_a[k] == p->cont_a[mask] && p->cont_j[k] == p->cont_j[mask]) {
+                p->cont_cls[mask] = (uint8_t)k;
+                break;
+            }
+        }
+    }
+    return amin;
+}
+
+/* Out of line: plan_push's usual path (equal limits) keeps its registers. */
+PC_NOINLINE void plan_cont_class(plan_t *p, plan_block_t *b)
+{
+    unsigned mask = 0;
+    int i;
+
+    for (i = 0; i < CORE_AXES; i++) {
+        mask |= (b->end[i] != b->start[i]) ? (1u << i) : 0u;
+    }
+    b->cont_cls = p->cont_cls[mask];
+    if (b->cont_cls != p->last_cls && b->v_junction >= b->lim.v_max) {
+        b->v_junction = b->lim.v_max - 1; /* pc_joined: an anchor */
+    }
+    p->last_cls = b->cont_cls;
+}
+
 void plan_cont_reset(plan_t *p)
 {
+    p->last_cls = 0;
     p->cont_t_ns = 0;
     p->cont_rem = 0;
     p->cont_x = 0;

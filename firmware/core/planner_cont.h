@@ -8,6 +8,17 @@
 
 #include "planner.h"
 
+/* The run limits' table of the profile p->prof (plan_t cont_cls, cont_a,
+ * cont_j); returns the smallest axis a (nm/s^2). plan_init and
+ * plan_set_profile. */
+int64_t plan_cont_derive(plan_t *p);
+
+/* Axes with different limits (not same_limits), this shape: the limit
+ * class of the block just queued (b, its v_junction and lim set) and,
+ * where the class changes, its junction 1 nm/s below v_max (an anchor).
+ * plan_push. */
+void plan_cont_class(plan_t *p, plan_block_t *b);
+
 /* Forget the run's plan and the counters: at rest (plan_reset). */
 void plan_cont_reset(plan_t *p);
 
