@@ -72,6 +72,9 @@ plan_result_t plan_check_profile(const plan_profile_t *prof)
     if (prof->mbt_window < 1 || prof->mbt_window > PLAN_WINDOW_MAX) {
         return PLAN_E_PROFILE;
     }
+    if (prof->shape == SC_SHAPE_SCURVE_CONTINUOUS && !plan_cont_profile_ok(prof)) {
+        return PLAN_E_PROFILE;
+    }
     if (prof->corner > PLAN_CORNER_STOP || prof->shape > SC_SHAPE_SCURVE_CONTINUOUS ||
         (prof->shape == SC_SHAPE_SCURVE_CONTINUOUS && prof->corner == PLAN_CORNER_SMOOTH)) {
         return PLAN_E_PROFILE; /* (planner.h: no smoothed corner with the continuous shape) */

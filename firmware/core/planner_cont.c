@@ -607,6 +607,18 @@ static bool pc_cruise_slice(plan_t *p, int64_t len, sc_profile_t *o, int64_t *tb
     return true;
 }
 
+bool plan_cont_profile_ok(const plan_profile_t *prof)
+{
+    int64_t v = prof->v_max[0], a = prof->a_max[0];
+    int i;
+
+    for (i = 1; i < CORE_AXES; i++) {
+        v = fx_max64(v, prof->v_max[i]);
+        a = fx_min64(a, prof->a_max[i]);
+    }
+    return sc_muldiv(v, v, a) <= ((int64_t)1 << 45) / 3;
+}
+
 int64_t plan_cont_derive(plan_t *p)
 {
     int64_t amin = INT64_MAX;

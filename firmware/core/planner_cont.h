@@ -19,6 +19,11 @@ int64_t plan_cont_derive(plan_t *p);
  * plan_push. */
 void plan_cont_class(plan_t *p, plan_block_t *b);
 
+/* The profile keeps a run's candidate distances (pc_r1) in q16:
+ * 3 v^2 / (2 a) <= 2^44 nm with the largest axis v and the smallest a.
+ * plan_check_profile. */
+bool plan_cont_profile_ok(const plan_profile_t *prof);
+
 /* Forget the run's plan and the counters: at rest (plan_reset). */
 void plan_cont_reset(plan_t *p);
 

@@ -148,8 +148,10 @@ class PlannerProfile:
             raise UserError(f"corner must be one of {', '.join(CORNERS)}, got {self.corner!r}")
         if self.shape == "s-curve-continuous" and self.corner == "smoothed-corner":
             raise UserError(
-                "shape 's-curve-continuous' cannot use corner 'smoothed-corner' (its block "
-                "cap lowers a queued block's speed, which could cut a run under way)"
+                "corner 'smoothed-corner' needs a per-block velocity profile: set "
+                "motion.velocity_profile (e.g. 's-curve'); the default 's-curve-continuous' "
+                "cannot use it (its block cap lowers a queued block's speed, which could "
+                "cut a run under way)"
             )
         if self.block_time_rule not in BLOCK_TIME_RULES:
             raise UserError(

@@ -132,6 +132,24 @@ def test_backup_and_restore(server, capsys, tmp_path):
         with connect(port=server.serial) as c:
             assert c.get_param("max_velocity.y") == before["max_velocity.y"], what
             assert c.get_param("corner_rule") == before["corner_rule"], what
+    # encoder_mean changes only with the drive disabled: an enabled drive is
+    # refused before the first write, not stopped halfway (max_velocity comes
+    # first in table order)
+    m = tmp_path / "mean.toml"
+    m.write_text(edited.replace('encoder_mean = "0"', 'encoder_mean = "1"'))
+    assert 'encoder_mean = "0"' in edited
+    with connect(port=server.serial) as c:
+        c.enable(True)
+    try:
+        rc, out, _ = run_cli(["config", "restore", str(m), "--json", *port], capsys)
+        assert rc == 1
+        msg = json.loads(out)["error"]["message"]
+        assert "encoder_mean" in msg and "nothing written" in msg, msg
+        with connect(port=server.serial) as c:
+            assert c.get_param("max_velocity.y") == before["max_velocity.y"]
+    finally:
+        with connect(port=server.serial) as c:
+            c.enable(False)
     rc, out, err = run_cli(["config", "restore", str(g), "--dry-run", "--json", *port], capsys)
     assert rc == 0 and json.loads(out)["written"] is False, err
     with connect(port=server.serial) as c:

@@ -32,9 +32,10 @@ def test_mean_measurement_leaves_only_the_table_vibration_as_scored():
     """docs/simulator.md "The 3 ms tick: the mean measurement": on
     thesis_mean.toml, with one sample of the table per tick, the CEC is
     worse than the PIDs (circular deviation) at R 10 mm 10 m/min, R 20 mm
-    20 m/min and the run not at the stated feed (R 10 mm 30 m/min); scored on the table's mean over the tick or on the
-    instrument (the table at the plant's substeps, its vibration whole, as
-    `make run` scores) only at R 10 mm 30 m/min; thesis.toml (one sample
+    20 m/min and the run not at the stated feed (R 10 mm 30 m/min);
+    scored on the table's mean over the tick or on the instrument (the
+    table at the plant's substeps, its vibration whole, as `make run`
+    scores) only at R 10 mm 30 m/min; thesis.toml (one sample
     per tick in the loops) stays worse in 7 on the tick sample, 4 on the
     tick mean, and on the instrument in the cases listed."""
     rows = [r for r in diagnose.MEAN_ROWS if r[2] == 0.5]

@@ -383,6 +383,28 @@ static plan_profile_t slow_z_profile(int64_t za, int64_t zj)
     return p;
 }
 
+/* A slow acceleration with a fast speed puts a run's candidate distances
+ * beyond q16 (3 v^2 / (2 a) > 2^44 nm: UBSan in pc_r1 before the check):
+ * the continuous shape refuses the profile, the per-block S-curve takes
+ * it; the boundary is the stated one. */
+static void test_cont_refuses_a_profile_beyond_its_range(void)
+{
+    plan_profile_t p = slow_z_profile(10000, 1000000); /* Z: 10 um/s^2, 1 mm/s^3 */
+    int64_t v;
+
+    p.v_max[0] = SC_V_LIMIT;
+    TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&p));
+    p.shape = SC_SHAPE_SCURVE;
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_check_profile(&p));
+    p.shape = SC_SHAPE_SCURVE_CONTINUOUS;
+    /* v^2 / a at 2^45 / 3: v = sqrt(2^45 / 3 * 1e4) ~ 3.4e8 nm/s */
+    v = (int64_t)sqrt(((double)((int64_t)1 << 45) / 3.0) * 10000.0);
+    p.v_max[0] = p.v_max[1] = p.v_max[2] = v - 1000;
+    TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_check_profile(&p));
+    p.v_max[1] = v + 1000;
+    TEST_ASSERT_EQUAL_INT(PLAN_E_PROFILE, plan_check_profile(&p));
+}
+
 typedef struct {
     int64_t total_ns;
     double max_a_xy, max_a_z; /* the largest |a| of blocks without and with
@@ -522,5 +544,6 @@ int main(void)
     RUN_TEST(test_cont_cruise_time_exact);
     RUN_TEST(test_cont_axis_limits_xy_circle);
     RUN_TEST(test_cont_axis_limits_z_run);
+    RUN_TEST(test_cont_refuses_a_profile_beyond_its_range);
     return UNITY_END();
 }

@@ -143,6 +143,10 @@ def parse_backup(text: str, axes: int, source: str = "file") -> tuple[dict, dict
     return drive, out
 
 
+# Parameters the drive refuses to change unless it is disabled (drive.h).
+DISABLED_ONLY = ("encoder_mean",)
+
+
 def write_all(client, values: dict[str, int]) -> None:
     """Write in table order; a refusal that another value may lift (range,
     bad value) is retried after the others; then read every value back."""
@@ -217,6 +221,18 @@ def run_restore(args) -> int:
         st = client.status()
         if st["state"] in (pg.State.RUNNING, pg.State.STOPPING):
             raise UserError("the drive is moving: nothing written (wait or stop it first)")
+        # The drive changes these only while disabled (busy otherwise): check
+        # before the first write, so that a restore is never half-applied.
+        for name in DISABLED_ONLY:
+            if (
+                name in values
+                and st["state"] != pg.State.DISABLED
+                and client.get_param(name) != values[name]
+            ):
+                raise UserError(
+                    f"{name} changes only while the drive is disabled: nothing written "
+                    "(contour disable first)"
+                )
         if not args.dry_run:
             write_all(client, values)
     if args.json:

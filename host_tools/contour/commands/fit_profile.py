@@ -65,7 +65,7 @@ def register(sub) -> None:
         action="append",
         default=[],
         metavar="FIELD=VALUE",
-        help="fix a profile value before fitting, e.g. motion.corner_rule=smoothed-corner "
+        help="fix a profile value before fitting, e.g. motion.corner_rule=exact-stop "
         "or axes.XZ.max_jerk_mm_s3=1e6; repeatable",
     )
     p.add_argument("--name", help="name written into the fitted profile")
