@@ -24,6 +24,8 @@
 #include "calib.h"
 #include "drive.h"
 #include "drive_ff.h"
+#include "drive_inputs.h"
+#include "drive_int.h"
 #include "drive_test.h"
 #include "hal_sim.h"
 #include "sim.h"
@@ -336,6 +338,38 @@ static void test_sim_provides_the_mean_of_the_count(void)
     TEST_ASSERT_EQUAL_INT(30, n);
 }
 
+/* The tick's inline sample (edges, no counter, no mean) is the slow
+ * sample's edge case: on the same decoder states, ticks of a moving
+ * simulated axis give the same feedback and leave the same states. */
+static void test_inline_sample_equals_the_slow_one(void)
+{
+    static drive_inputs_t a, b;
+    int64_t target[3] = {20000000, -5000000, 0};
+    servo_fb_t fa, fb;
+    int res = -1, k, moved = 0;
+
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 2));
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_FALSE(drv.in.slow);
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, sim_enable(1));
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_line(target, 100000000, 1, 1, &res));
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, res);
+    for (k = 0; k < 400; k++) {
+        uint32_t now = (uint32_t)(1000000u + 100000u * (uint32_t)k);
+        sim_run(1, NULL, 0, 1);
+        a = drv.in;
+        b = drv.in;
+        memset(&fa, 0x5a, sizeof(fa));
+        memset(&fb, 0x5a, sizeof(fb));
+        drive_inputs_sample(&a, drive_config(), now, &fa);
+        drive_inputs_sample_slow(&b, drive_config(), now, &fb);
+        TEST_ASSERT_EQUAL_MEMORY(&fb, &fa, sizeof(fa));
+        TEST_ASSERT_EQUAL_MEMORY(&b, &a, sizeof(a));
+        moved += fa.pos[0] != 0;
+    }
+    TEST_ASSERT_TRUE(moved > 300);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -349,5 +383,6 @@ int main(void)
     RUN_TEST(test_sim_provides_the_mean_of_the_count);
     RUN_TEST(test_arc_of_a_radius_beyond_2e31_nm_shifts_straight);
     RUN_TEST(test_mean_switches_only_with_the_power_stage_off);
+    RUN_TEST(test_inline_sample_equals_the_slow_one);
     return UNITY_END();
 }
