@@ -170,6 +170,53 @@ def test_backup_and_restore(server, capsys, tmp_path):
         assert {n: c.get_param(n) for n in before} == before
 
 
+def test_a_second_session_enabling_mid_restore_leaves_nothing_half_written(
+    server, capsys, tmp_path, monkeypatch
+):
+    """encoder_mean changes only while disabled: the restore checks that up
+    front, but a second session (slcan) may enable the drive between that
+    check and the writes. The restore writes such parameters first, so the
+    drive's refusal comes before any other value is written."""
+    from contour.commands import config as cfg
+    from linkhelp import client_for
+
+    port = ["--port", server.serial]
+    f = tmp_path / "drive.toml"
+    rc, _, err = run_cli(["config", "backup", str(f), *port], capsys)
+    assert rc == 0, err
+    text = f.read_text()
+    edited = text.replace(
+        text.split("max_velocity = ")[1].split("\n")[0],
+        '{ x = "250 mm/s", y = "6000 mm/min", z = "0.2 m/s" }',
+    ).replace('encoder_mean = "0"', 'encoder_mean = "1"')
+    assert edited.index("max_velocity = ") < edited.index("encoder_mean = ")
+    g = tmp_path / "mean.toml"
+    g.write_text(edited)
+    with connect(port=server.serial) as c:
+        c.enable(False)
+        wait_state(c, (pg.State.DISABLED,))
+        before = {n: c.get_param(n) for n in ("max_velocity.y", "encoder_mean")}
+    write_all = cfg.write_all
+
+    def enable_then_write(client, values):
+        with client_for(server, "slcan") as other:  # the second session
+            other.enable(True)
+            assert wait_state(other, (pg.State.READY,))["state"] == pg.State.READY
+        write_all(client, values)
+
+    monkeypatch.setattr(cfg, "write_all", enable_then_write)
+    try:
+        rc, out, _ = run_cli(["config", "restore", str(g), "--json", *port], capsys)
+        assert rc == 1
+        msg = json.loads(out)["error"]["message"]
+        assert "encoder_mean" in msg and "nothing written" in msg, msg
+        with connect(port=server.serial) as c:
+            assert {n: c.get_param(n) for n in before} == before
+    finally:
+        with connect(port=server.serial) as c:
+            c.enable(False)
+
+
 def _app_image() -> img.Image:
     payload = random.Random(7).randbytes(4096)
     return img.build(
@@ -248,3 +295,25 @@ def test_save_survives_a_restart(capsys, tmp_path):
         with connect(port=s.serial) as c:
             assert c.get_param("param_store_status") == 0
             assert c.get_param("max_velocity.y") != 123_000_000
+
+
+def test_a_refusal_after_the_first_write_says_how_much_was_written():
+    """Another session may start motion mid-restore (the planner's limits are
+    then busy): the error says how many values the drive now holds."""
+    from contour.commands import config as cfg
+    from contour.errors import UserError
+
+    class Drive:
+        def __init__(self):
+            self.got = {}
+
+        def set_param(self, name, value):
+            if len(self.got) == 2:
+                raise DriveError("param_set", {"code": pg.ErrorCode.BUSY}, "busy")
+            self.got[name] = value
+
+    values = {"max_velocity.x": 1, "max_velocity.y": 2, "max_velocity.z": 3, "encoder_mean": 0}
+    d = Drive()
+    with pytest.raises(UserError, match=r"2 of 4 values written, the rest not") as e:
+        cfg.write_all(d, values)
+    assert list(d.got)[0] == "encoder_mean" and "max_velocity.y" in str(e.value)

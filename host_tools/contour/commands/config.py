@@ -8,10 +8,15 @@ restore FILE.toml
     Checks the whole file first: a ``[drive]`` table with the drive's axis
     count, only known writable parameters, every per-axis parameter with one
     value per axis of the drive, every value in its range, the drive not
-    moving. Nothing is written unless all of that holds. Then writes in table
-    order (a value the drive refuses because of another one still to come,
-    e.g. max_acceleration before max_jerk, is retried after the others) and
-    reads every value back. Another board id only warns.
+    moving, a disabled-only parameter (encoder_mean) changed only on a
+    disabled drive. Nothing is written unless all of that holds. Then writes
+    the disabled-only parameters first (a second session that enabled the
+    drive since the check gets them refused before anything else is written),
+    the others in table order (a value the drive refuses because of another
+    one still to come, e.g. max_acceleration before max_jerk, is retried
+    after the others) and reads every value back. A refusal after the first
+    write (another session started motion) says how many values the drive
+    now holds. Another board id only warns.
 save
     Stores the drive parameters in the drive's flash (message param_save); the
     drive loads them at start-up and reports what it did in the read-only
@@ -148,18 +153,30 @@ DISABLED_ONLY = ("encoder_mean",)
 
 
 def write_all(client, values: dict[str, int]) -> None:
-    """Write in table order; a refusal that another value may lift (range,
-    bad value) is retried after the others; then read every value back."""
-    pending = [n for n in param_names(pg.MAX_AXES, writable_only=True) if n in values]
+    """Write the disabled-only parameters first, then the others in table
+    order; a refusal that another value may lift (range, bad value) is
+    retried after the others; then read every value back.
+
+    The caller checked the drive's state, but another session may enable or
+    move the drive before the writes: a disabled-only parameter written first
+    is then refused before anything else is written ("nothing written").
+    Any other refusal says how much of the file the drive now holds."""
+    order = [n for n in param_names(pg.MAX_AXES, writable_only=True) if n in values]
+    first = [n for n in order if parse_param(n)[0].name in DISABLED_ONLY]
+    pending = first + [n for n in order if n not in first]
     errors: dict[str, DriveError] = {}
+    written = 0
     for _ in range(3):
         later = []
         for name in pending:
             try:
                 client.set_param(name, values[name])
+                written += 1
             except DriveError as exc:
                 if exc.code not in (pg.ErrorCode.OUT_OF_RANGE, pg.ErrorCode.BAD_VALUE):
-                    raise UserError(f"restore stopped at {name}: {exc}") from None
+                    raise UserError(
+                        f"restore stopped at {name}: {exc}: {_how_much(name, written, len(values))}"
+                    ) from None
                 later.append(name)
                 errors[name] = exc
         if not later or later == pending:
@@ -168,7 +185,7 @@ def write_all(client, values: dict[str, int]) -> None:
         pending = later
     if pending:
         raise UserError(
-            "restore incomplete: the drive refused "
+            f"restore incomplete ({written} of {len(values)} values written): the drive refused "
             + "; ".join(f"{n}: {errors[n]}" for n in pending)
         )
     wrong = []
@@ -181,6 +198,17 @@ def write_all(client, values: dict[str, int]) -> None:
             )
     if wrong:
         raise UserError("restore verify failed: " + "; ".join(wrong))
+
+
+def _how_much(name: str, written: int, total: int) -> str:
+    if written == 0:
+        busy = parse_param(name)[0].name in DISABLED_ONLY
+        why = " (the drive is no longer disabled: another session?)" if busy else ""
+        return f"nothing written{why}"
+    return (
+        f"{written} of {total} values written, the rest not: the drive holds a mix "
+        "of its old values and the file's; restore again once it is at rest"
+    )
 
 
 def run_backup(args) -> int:
