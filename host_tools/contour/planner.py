@@ -39,6 +39,11 @@ Profile options (see docs/planner.md for the rules):
 - ``depth``: look-ahead depth in blocks (the drive: 64).
 - ``tick_hz``: interpolator tick rate; ``executed_s`` is the total rounded up to
   whole ticks, which is what the drive's interpolator takes.
+
+``PlannerProfile()`` is a drive never configured: every default is the drive's
+parameter default (the generated table ``protocol_gen.PARAM_BY_NAME``: the
+continuous S-curve, junction deviation); ``PlannerProfile.from_params`` reads a
+drive's parameters.
 """
 
 from __future__ import annotations
@@ -52,6 +57,7 @@ from typing import Optional
 import numpy as np
 
 from contour import native
+from contour import protocol_gen as pg
 from contour.errors import UserError
 
 AXES = 3
@@ -60,6 +66,8 @@ NS_PER_S = 1_000_000_000
 
 SHAPES = {"s-curve": 0, "trapezoid": 1, "s-curve-at-rest": 2, "s-curve-continuous": 3}
 CORNERS = {"junction-deviation": 0, "velocity-step": 1, "smoothed-corner": 2, "exact-stop": 3}
+SHAPE_NAMES = {v: k for k, v in SHAPES.items()}
+CORNER_NAMES = {v: k for k, v in CORNERS.items()}
 BLOCK_TIME_RULES = ("throughput", "cap")
 
 # limits of the C side (scurve.h)
@@ -122,23 +130,61 @@ def _scalar(name: str, value, scale: float, low: float, high: float) -> int:
     return _triple(name, [value] * AXES, scale, low, high)[0]
 
 
+def _drive_default(name: str) -> int:
+    """The drive's default of parameter `name` (the generated parameter
+    table, protocol/contour.toml): the one source of the defaults below."""
+    return pg.PARAM_BY_NAME[name].default
+
+
+def _named(table: dict, param: str, value: int) -> str:
+    if value not in table:
+        raise UserError(f"the drive's {param} is {value}, which this host tool does not know")
+    return table[value]
+
+
 @dataclass
 class PlannerProfile:
-    """Limits and rules of the planner, in mm and s (see module docstring)."""
+    """Limits and rules of the planner, in mm and s (see module docstring).
 
-    v_max_mm_s: Sequence[float] = (500.0, 500.0, 500.0)
-    a_max_mm_s2: Sequence[float] = (2000.0, 2000.0, 2000.0)
-    j_max_mm_s3: Sequence[float] = (50000.0, 50000.0, 50000.0)
-    shape: str = "s-curve"
-    corner: str = "junction-deviation"
-    junction_deviation_mm: float = 0.01
-    corner_dv_mm_s: Sequence[float] = (5.0, 5.0, 5.0)
-    corner_acc_mm_s2: Sequence[float] = (1000.0, 1000.0, 1000.0)
-    min_block_time_s: float = 0.0
+    The defaults are the drive's parameter defaults (a drive that was never
+    configured): its shape is the continuous S-curve."""
+
+    v_max_mm_s: Sequence[float] = (_drive_default("max_velocity") / NM_PER_MM,) * AXES
+    a_max_mm_s2: Sequence[float] = (_drive_default("max_acceleration") / NM_PER_MM,) * AXES
+    j_max_mm_s3: Sequence[float] = (_drive_default("max_jerk") / NM_PER_MM,) * AXES
+    shape: str = SHAPE_NAMES[_drive_default("velocity_profile")]
+    corner: str = CORNER_NAMES[_drive_default("corner_rule")]
+    junction_deviation_mm: float = _drive_default("junction_deviation") / NM_PER_MM
+    corner_dv_mm_s: Sequence[float] = (_drive_default("corner_velocity_step") / NM_PER_MM,) * AXES
+    corner_acc_mm_s2: Sequence[float] = (_drive_default("corner_acceleration") / NM_PER_MM,) * AXES
+    min_block_time_s: float = _drive_default("min_block_time") / NS_PER_S
     block_time_rule: str = "throughput"
-    mbt_window: int = 16
+    mbt_window: int = _drive_default("min_block_window")
     tick_hz: int = 10000
     depth: int = 64
+
+    @classmethod
+    def from_params(cls, get, axes: int = AXES) -> PlannerProfile:
+        """The profile of a drive whose parameter `name` (the protocol's
+        names, per-axis ones as ``name.x``) reads ``get(name)`` in the
+        drive's units (nm, ns): e.g. ``client.get_param``. A drive with
+        fewer than 3 axes: the missing axes take the last one's limits."""
+
+        def per_axis(name: str) -> tuple:
+            return tuple(get(f"{name}.{'xyz'[min(i, axes - 1)]}") / NM_PER_MM for i in range(AXES))
+
+        return cls(
+            v_max_mm_s=per_axis("max_velocity"),
+            a_max_mm_s2=per_axis("max_acceleration"),
+            j_max_mm_s3=per_axis("max_jerk"),
+            shape=_named(SHAPE_NAMES, "velocity_profile", get("velocity_profile")),
+            corner=_named(CORNER_NAMES, "corner_rule", get("corner_rule")),
+            junction_deviation_mm=get("junction_deviation") / NM_PER_MM,
+            corner_dv_mm_s=per_axis("corner_velocity_step"),
+            corner_acc_mm_s2=per_axis("corner_acceleration"),
+            min_block_time_s=get("min_block_time") / NS_PER_S,
+            mbt_window=get("min_block_window"),
+        )
 
     def to_c(self) -> _Profile:
         p = _Profile()

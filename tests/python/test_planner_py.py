@@ -11,7 +11,10 @@ from contour.planner import Planner, PlannerProfile
 
 
 def _prof(**kw) -> PlannerProfile:
+    # the per-block S-curve these closed forms are written for (the default
+    # is the drive's, the continuous S-curve)
     base = dict(
+        shape="s-curve",
         v_max_mm_s=(500.0, 500.0, 500.0),
         a_max_mm_s2=(2000.0, 2000.0, 2000.0),
         j_max_mm_s3=(50000.0, 50000.0, 50000.0),

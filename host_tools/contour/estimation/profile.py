@@ -24,6 +24,11 @@ from typing import Optional
 from contour.errors import UserError
 from contour.estimation.camargo2017 import OPTIONS as CAMARGO_OPTIONS
 from contour.estimation.fields import Field
+from contour.planner import PlannerProfile
+
+# the drive's defaults (its generated parameter table): the path rules of a
+# profile that does not set them are the drive's
+_DRIVE = PlannerProfile()
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -160,7 +165,7 @@ MOTION_FIELDS = (
     Field(
         "corner_rule",
         "",
-        "junction-deviation",
+        _DRIVE.corner,
         "Cornering rule of the planner: 'junction-deviation' (the drive's "
         "default: speed through a corner from the junction deviation and the "
         "acceleration), 'smoothed-corner' (the corner is rounded over half "
@@ -175,7 +180,7 @@ MOTION_FIELDS = (
     Field(
         "junction_deviation_mm",
         "mm",
-        0.01,
+        _DRIVE.junction_deviation_mm,
         "Cornering tolerance: the deviation from the corner allowed at the "
         "junction speed (junction-deviation rule).",
         "The path tolerance the user accepts (CAM tolerance order); larger is faster.",
@@ -184,7 +189,7 @@ MOTION_FIELDS = (
     Field(
         "velocity_profile",
         "",
-        "s-curve-continuous",
+        _DRIVE.shape,
         "Shape of the speed profile of each block: 's-curve' (jerk-limited), "
         "'trapezoid' (acceleration-limited), 's-curve-at-rest' (jerk-limited "
         "only for a block that starts or ends at rest: job start and end, exact "

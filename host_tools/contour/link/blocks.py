@@ -4,7 +4,12 @@
 (arcs split by the reader within a chord tolerance, dwells as dwell blocks),
 reading the file chunk by chunk (:func:`contour.program.chunks`), each block
 with its estimated time from the host build of the drive's planner
-(:mod:`contour.planner`), or length / feed when that is not available.
+(:mod:`contour.planner`) with the drive's profile (:attr:`DriveLimits.profile`:
+the planner parameters read from the drive; the drive's defaults, the
+continuous S-curve, where none is given). The estimate is what ``contour run``
+shows (progress bar, ETA, "estimated" in its report) and what its stall check
+allows a queued block. A block the planner refuses is refused with its line,
+never estimated another way.
 
 Every block is checked as it is built, so that one pass over the file
 (:func:`check_gcode`) finds everything the drive would refuse before the
@@ -33,10 +38,14 @@ import numpy as np
 
 from contour import protocol_gen as pg
 from contour.errors import UserError
+from contour.planner import Planner, PlannerProfile
 from contour.program import Report, chunks
 
 NM_PER_MM = 1_000_000
-RAPID_MM_MIN = 30000.0  # for the estimate only; the drive caps rapids at its limits
+# PROTO_RAPID_FEED_NM_S (proto_dispatch.h): the feed the drive queues a rapid
+# at; its planner holds each axis to its velocity limit
+RAPID_FEED_NM_S = 4_000_000_000
+RAPID_MM_MIN = RAPID_FEED_NM_S * 60 / NM_PER_MM
 
 POS_MAX_NM = 1 << 40  # soft_limit_min/max range, and SC_LEN_MAX for one block
 FEED_MIN_NM_S = 1000  # the planner's lowest feed
@@ -57,15 +66,18 @@ class Block:
 @dataclass
 class DriveLimits:
     """What a drive takes beyond the protocol: per axis soft limits (nm,
-    None where off) and velocity limits (nm/s)."""
+    None where off) and velocity limits (nm/s); and the profile its planner
+    runs, for the time estimate (None: the drive's defaults)."""
 
     soft_min_nm: tuple = (None, None, None)
     soft_max_nm: tuple = (None, None, None)
     max_velocity_nm_s: tuple = (None, None, None)
+    profile: Optional[PlannerProfile] = None
 
     @classmethod
     def read(cls, client, axes: int = 3) -> DriveLimits:
-        """The limits of a connected drive (its parameters)."""
+        """The limits and planner profile of a connected drive (its
+        parameters)."""
         lo, hi, vmax = [], [], []
         for a in range(3):
             if a >= axes:
@@ -80,7 +92,8 @@ class DriveLimits:
             lo.append(mn if on else None)
             hi.append(mx if on else None)
             vmax.append(client.get_param(f"max_velocity.{ax}"))
-        return cls(tuple(lo), tuple(hi), tuple(vmax))
+        profile = PlannerProfile.from_params(client.get_param, axes=max(1, min(axes, 3)))
+        return cls(tuple(lo), tuple(hi), tuple(vmax), profile)
 
 
 @dataclass
@@ -109,25 +122,30 @@ def check_position(where: str, axis: int, v_mm: float) -> None:
         )
 
 
-def _estimate(seg, feed, dwell, start_mm) -> np.ndarray:
-    n = len(seg)
+def _estimate(planner: Planner, seg, feed, dwell, start_mm) -> tuple:
+    """Planned time of each segment and None; or (None, (i, reason)) when
+    the planner refuses segment i (the caller refuses its line)."""
     try:
-        from contour.planner import Planner, PlannerProfile
-
-        res = Planner(PlannerProfile()).estimate(
+        res = planner.estimate(
             seg.end,
             np.where(dwell > 0, 1.0, feed),
             exact_stop=seg.exact_stop,
             dwell_s=dwell,
             start_mm=tuple(start_mm),
         )
-        est = np.asarray(res.blocks["t_total_s"], dtype=float)
-        if len(est) == n:
-            return est
-    except Exception:  # noqa: BLE001 - estimator unavailable: a plain estimate
-        pass
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.nan_to_num(seg.length / (feed / 60.0)) + dwell
+    except UserError as exc:  # "block i: reason" (contour.planner)
+        head, _, reason = str(exc).partition(": ")
+        i = int(head[len("block ") :]) if head.startswith("block ") and reason else 0
+        return None, (min(i, len(seg) - 1), reason or str(exc))
+    return np.asarray(res.blocks["t_total_s"], dtype=float), None
+
+
+def _planner(limits: Optional[DriveLimits]) -> Planner:
+    profile = limits.profile if limits is not None and limits.profile is not None else None
+    try:
+        return Planner(PlannerProfile() if profile is None else profile)
+    except UserError as exc:
+        raise UserError(f"job time estimate: {exc}") from None
 
 
 def blocks_from_gcode(
@@ -143,6 +161,7 @@ def blocks_from_gcode(
     `report` (if given) collects the reader's report and the notes."""
     from contour import gcode
 
+    planner = _planner(limits)
     start = [float(v) for v in start_mm][:3]
     prev = tuple(int(round(v * NM_PER_MM)) for v in start)
     vmax = None
@@ -160,13 +179,22 @@ def blocks_from_gcode(
         is_dwell = prog.kind[seg.block] == gcode.DWELL
         feed = np.where(seg.rapid, RAPID_MM_MIN, seg.feed)
         dwell = np.where(is_dwell, seg.dwell_s, 0.0)
-        est = _estimate(seg, feed, dwell, seg.start[0])
+        est, refused = _estimate(planner, seg, feed, dwell, seg.start[0])
         moved_rot = np.any(np.abs(seg.rotary) > 1e-9, axis=1)
-        fast = _fast(path, seg, is_dwell, feed, est, moved_rot, prev, limits, vmax, report)
+        fast = None
+        if refused is None:
+            fast = _fast(path, seg, is_dwell, feed, est, moved_rot, prev, limits, vmax, report)
         if fast is None:  # something to refuse in this chunk: block by block, in order
+            if refused is not None:  # the checks name the line if they refuse it too
+                est = np.full(n, np.nan)
             prev = yield from _one_by_one(
                 path, seg, is_dwell, feed, est, moved_rot, prev, limits, vmax, report
             )
+            if refused is not None:
+                i, reason = refused
+                raise UserError(
+                    f"{path}:{int(seg.line[i])}: the drive's planner refuses it: {reason}"
+                )
             continue
         yield from fast
         if fast:
