@@ -781,12 +781,46 @@ void calib_set_next_handler(calib_handler_fn fn)
     cb.next = fn;
 }
 
+/* One request of the calibration's range (proto_replay_exec_t). */
+static size_t execute(void *ctx, const uint8_t *msg, size_t len, uint8_t *out)
+{
+    const size_t plen = len - PROTO_MSG_HDR;
+    const uint8_t id = msg[0];
+
+    (void)ctx;
+    switch (id) {
+    case PROTO_MSG_CALIB_SETUP:
+        return h_setup(msg, plen, out);
+    case PROTO_MSG_CALIB_TARGETS:
+        return h_targets(msg, plen, out);
+    case PROTO_MSG_CALIB_START:
+        return h_start(msg, plen, out);
+    case PROTO_MSG_CALIB_STATUS:
+        return plen == 0u
+                   ? reply_state(out, msg[1])
+                   : reply_error(out, id, msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen, 0);
+    case PROTO_MSG_CALIB_READ:
+        return h_read(msg, plen, out);
+    case PROTO_MSG_CALIB_POINT:
+        return h_point(msg, plen, out);
+    case PROTO_MSG_CALIB_ABORT:
+        return h_abort(msg, plen, out);
+    case PROTO_MSG_COMP_WRITE:
+        return calib_h_comp_write(msg, plen, out);
+    case PROTO_MSG_COMP_COMMIT:
+        return calib_h_comp_commit(msg, plen, out);
+    case PROTO_MSG_COMP_GET:
+        return calib_h_comp_get(msg, plen, out);
+    case PROTO_MSG_COMP_CLEAR:
+        return calib_h_comp_clear(msg, plen, out);
+    default:
+        return reply_error(out, id, msg[1], PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
+    }
+}
+
 size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out, size_t cap)
 {
-    size_t plen, n;
     uint8_t id;
-    proto_replay_key_t key;
-    bool cacheable;
 
     if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX) {
         return 0;
@@ -802,59 +836,10 @@ size_t calib_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *ou
         return refuse(out, msg, PROTO_CALIB_STATUS_EXCITE, 0); /* the ring holds its samples */
     }
     cb.host_seen = true; /* the host is there (calib_poll's watchdog) */
-    plen = len - PROTO_MSG_HDR;
-    cacheable = mutating(id);
-    if (cacheable) {
-        proto_replay_key(&key, msg, len);
-        n = proto_replay_lookup(&cb.replay, &key, out, cap);
-        if (n != 0u) {
-            return n;
-        }
+    if (mutating(id)) {
+        return proto_replay_answer(&cb.replay, msg, len, out, cap, execute, NULL);
     }
-    switch (id) {
-    case PROTO_MSG_CALIB_SETUP:
-        n = h_setup(msg, plen, out);
-        break;
-    case PROTO_MSG_CALIB_TARGETS:
-        n = h_targets(msg, plen, out);
-        break;
-    case PROTO_MSG_CALIB_START:
-        n = h_start(msg, plen, out);
-        break;
-    case PROTO_MSG_CALIB_STATUS:
-        n = plen == 0u
-                ? reply_state(out, msg[1])
-                : reply_error(out, id, msg[1], PROTO_ERROR_CODE_BAD_LENGTH, (uint16_t)plen, 0);
-        break;
-    case PROTO_MSG_CALIB_READ:
-        n = h_read(msg, plen, out);
-        break;
-    case PROTO_MSG_CALIB_POINT:
-        n = h_point(msg, plen, out);
-        break;
-    case PROTO_MSG_CALIB_ABORT:
-        n = h_abort(msg, plen, out);
-        break;
-    case PROTO_MSG_COMP_WRITE:
-        n = calib_h_comp_write(msg, plen, out);
-        break;
-    case PROTO_MSG_COMP_COMMIT:
-        n = calib_h_comp_commit(msg, plen, out);
-        break;
-    case PROTO_MSG_COMP_GET:
-        n = calib_h_comp_get(msg, plen, out);
-        break;
-    case PROTO_MSG_COMP_CLEAR:
-        n = calib_h_comp_clear(msg, plen, out);
-        break;
-    default:
-        n = reply_error(out, id, msg[1], PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0);
-        break;
-    }
-    if (cacheable) {
-        proto_replay_store(&cb.replay, &key, out, n);
-    }
-    return n;
+    return execute(NULL, msg, len, out);
 }
 
 excite_sample_t *calib_excite_take(void)

@@ -273,12 +273,29 @@ static size_t h_read(const uint8_t *msg, size_t plen, uint8_t *out)
     return PROTO_MSG_HDR + proto_comp2d_data_encode(&d, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
 }
 
+/* One request of the 2-D compensation's range (proto_replay_exec_t). */
+static size_t execute(void *ctx, const uint8_t *msg, size_t len, uint8_t *out)
+{
+    const size_t plen = len - PROTO_MSG_HDR;
+
+    (void)ctx;
+    switch (msg[0]) {
+    case PROTO_MSG_COMP2D_WRITE:
+        return h_write(msg, plen, out);
+    case PROTO_MSG_COMP2D_COMMIT:
+        return h_commit(msg, plen, out);
+    case PROTO_MSG_COMP2D_CLEAR:
+        return h_clear(msg, plen, out);
+    case PROTO_MSG_COMP2D_READ:
+        return h_read(msg, plen, out);
+    default: /* comp2d_get */
+        return plen == 0u ? reply_info(out, msg[1]) : bad_length(out, msg, plen, 0u);
+    }
+}
+
 size_t comp2d_link_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out, size_t cap)
 {
-    proto_replay_key_t key;
-    size_t plen, n;
     uint8_t id;
-    bool cacheable;
     if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX) {
         return 0;
     }
@@ -290,35 +307,9 @@ size_t comp2d_link_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8
         return proto_reply_error(out, msg[1], id, (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0,
                                  0);
     }
-    plen = len - PROTO_MSG_HDR;
-    cacheable = id == PROTO_MSG_COMP2D_WRITE || id == PROTO_MSG_COMP2D_COMMIT ||
-                id == PROTO_MSG_COMP2D_CLEAR;
-    if (cacheable) {
-        proto_replay_key(&key, msg, len);
-        n = proto_replay_lookup(&lk2.replay, &key, out, cap);
-        if (n != 0u) {
-            return n;
-        }
+    if (id == PROTO_MSG_COMP2D_WRITE || id == PROTO_MSG_COMP2D_COMMIT ||
+        id == PROTO_MSG_COMP2D_CLEAR) {
+        return proto_replay_answer(&lk2.replay, msg, len, out, cap, execute, NULL);
     }
-    switch (id) {
-    case PROTO_MSG_COMP2D_WRITE:
-        n = h_write(msg, plen, out);
-        break;
-    case PROTO_MSG_COMP2D_COMMIT:
-        n = h_commit(msg, plen, out);
-        break;
-    case PROTO_MSG_COMP2D_CLEAR:
-        n = h_clear(msg, plen, out);
-        break;
-    case PROTO_MSG_COMP2D_READ:
-        n = h_read(msg, plen, out);
-        break;
-    default: /* comp2d_get */
-        n = plen == 0u ? reply_info(out, msg[1]) : bad_length(out, msg, plen, 0u);
-        break;
-    }
-    if (cacheable) {
-        proto_replay_store(&lk2.replay, &key, out, n);
-    }
-    return n;
+    return execute(NULL, msg, len, out);
 }

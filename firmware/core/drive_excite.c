@@ -240,14 +240,30 @@ static size_t h_abort(const uint8_t *msg, size_t plen, uint8_t *out)
     return reply_state(out, msg[1]);
 }
 
+/* One request of the excitation's range (proto_replay_exec_t). */
+static size_t execute(void *ctx, const uint8_t *msg, size_t len, uint8_t *out)
+{
+    const size_t plen = len - PROTO_MSG_HDR;
+
+    (void)ctx;
+    switch (msg[0]) {
+    case PROTO_MSG_EXCITE_START:
+        return h_start(msg, plen, out);
+    case PROTO_MSG_EXCITE_STATUS:
+        return plen == 0u ? reply_state(out, msg[1]) : bad_length(out, msg, plen);
+    case PROTO_MSG_EXCITE_READ:
+        return h_read(msg, plen, out);
+    case PROTO_MSG_EXCITE_ABORT:
+        return h_abort(msg, plen, out);
+    default:
+        return proto_reply_error(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u,
+                                 0, 0);
+    }
+}
+
 size_t drive_excite_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint8_t *out,
                            size_t cap)
 {
-    proto_replay_key_t key;
-    const size_t plen = len - PROTO_MSG_HDR;
-    bool cacheable;
-    size_t n;
-
     if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || cap < PROTO_MSG_MAX) {
         return 0;
     }
@@ -259,34 +275,8 @@ size_t drive_excite_handle(const uint8_t *msg, size_t len, uint32_t now_us, uint
                                  0, 0);
     }
     excite_host_alive(&dx.ex);
-    cacheable = msg[0] == PROTO_MSG_EXCITE_START || msg[0] == PROTO_MSG_EXCITE_ABORT;
-    if (cacheable) {
-        proto_replay_key(&key, msg, len);
-        n = proto_replay_lookup(&dx.replay, &key, out, cap);
-        if (n != 0u) {
-            return n;
-        }
+    if (msg[0] == PROTO_MSG_EXCITE_START || msg[0] == PROTO_MSG_EXCITE_ABORT) {
+        return proto_replay_answer(&dx.replay, msg, len, out, cap, execute, NULL);
     }
-    switch (msg[0]) {
-    case PROTO_MSG_EXCITE_START:
-        n = h_start(msg, plen, out);
-        break;
-    case PROTO_MSG_EXCITE_STATUS:
-        n = plen == 0u ? reply_state(out, msg[1]) : bad_length(out, msg, plen);
-        break;
-    case PROTO_MSG_EXCITE_READ:
-        n = h_read(msg, plen, out);
-        break;
-    case PROTO_MSG_EXCITE_ABORT:
-        n = h_abort(msg, plen, out);
-        break;
-    default:
-        n = proto_reply_error(out, msg[1], msg[0], (uint8_t)PROTO_ERROR_CODE_UNKNOWN_MESSAGE, 0u, 0,
-                              0);
-        break;
-    }
-    if (cacheable) {
-        proto_replay_store(&dx.replay, &key, out, n);
-    }
-    return n;
+    return execute(NULL, msg, len, out);
 }

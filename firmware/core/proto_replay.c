@@ -50,3 +50,19 @@ void proto_replay_store(proto_replay_t *c, const proto_replay_key_t *k, const ui
     c->len = (uint16_t)len;
     c->valid = true;
 }
+
+size_t proto_replay_answer(proto_replay_t *c, const uint8_t *msg, size_t len, uint8_t *out,
+                           size_t cap, proto_replay_exec_t exec, void *ctx)
+{
+    proto_replay_key_t k;
+    size_t n;
+
+    proto_replay_key(&k, msg, len);
+    n = proto_replay_lookup(c, &k, out, cap);
+    if (n != 0u) {
+        return n;
+    }
+    n = exec(ctx, msg, len, out);
+    proto_replay_store(c, &k, out, n);
+    return n;
+}

@@ -94,6 +94,24 @@ def test_soft_limits_refuse_a_jog_before_it_moves(server, capsys):
     assert run_cli(["set", "soft_limit_min.x", "0", *port], capsys)[0] == 0
 
 
+def _refused_before_any_write(server, path, capsys, before: dict) -> str:
+    """`config restore PATH` refused over encoder_mean with nothing written
+    (the parameters in `before` read as before); then the drive disabled.
+    Returns the error message."""
+    try:
+        argv = ["config", "restore", str(path), "--json", "--port", server.serial]
+        rc, out, _ = run_cli(argv, capsys)
+        assert rc == 1
+        msg = json.loads(out)["error"]["message"]
+        assert "encoder_mean" in msg and "nothing written" in msg, msg
+        with connect(port=server.serial) as c:
+            assert {n: c.get_param(n) for n in before} == before
+        return msg
+    finally:
+        with connect(port=server.serial) as c:
+            c.enable(False)
+
+
 def test_backup_and_restore(server, capsys, tmp_path):
     port = ["--port", server.serial]
     f = tmp_path / "drive.toml"
@@ -140,16 +158,7 @@ def test_backup_and_restore(server, capsys, tmp_path):
     assert 'encoder_mean = "0"' in edited
     with connect(port=server.serial) as c:
         c.enable(True)
-    try:
-        rc, out, _ = run_cli(["config", "restore", str(m), "--json", *port], capsys)
-        assert rc == 1
-        msg = json.loads(out)["error"]["message"]
-        assert "encoder_mean" in msg and "nothing written" in msg, msg
-        with connect(port=server.serial) as c:
-            assert c.get_param("max_velocity.y") == before["max_velocity.y"]
-    finally:
-        with connect(port=server.serial) as c:
-            c.enable(False)
+    _refused_before_any_write(server, m, capsys, before)
     rc, out, err = run_cli(["config", "restore", str(g), "--dry-run", "--json", *port], capsys)
     assert rc == 0 and json.loads(out)["written"] is False, err
     with connect(port=server.serial) as c:
@@ -205,16 +214,8 @@ def test_a_second_session_enabling_mid_restore_leaves_nothing_half_written(
         write_all(client, values)
 
     monkeypatch.setattr(cfg, "write_all", enable_then_write)
-    try:
-        rc, out, _ = run_cli(["config", "restore", str(g), "--json", *port], capsys)
-        assert rc == 1
-        msg = json.loads(out)["error"]["message"]
-        assert "encoder_mean" in msg and "nothing written" in msg, msg
-        with connect(port=server.serial) as c:
-            assert {n: c.get_param(n) for n in before} == before
-    finally:
-        with connect(port=server.serial) as c:
-            c.enable(False)
+    msg = _refused_before_any_write(server, g, capsys, before)
+    assert "another session" in msg, msg
 
 
 def _app_image() -> img.Image:

@@ -662,32 +662,25 @@ static size_t dispatch(boot_t *b, uint8_t id, uint8_t seq, const uint8_t *p, siz
     return proto_reply_error(out, seq, id, (uint8_t)PROTO_ERROR_CODE_BAD_LENGTH, 0u, 0, 0);
 }
 
+/* One request (proto_replay_exec_t; ctx is the boot_t). */
+static size_t execute(void *ctx, const uint8_t *msg, size_t len, uint8_t *out)
+{
+    return dispatch(ctx, msg[0], msg[1], msg + PROTO_MSG_HDR, len - PROTO_MSG_HDR, out);
+}
+
 size_t boot_handle(boot_t *b, const uint8_t *msg, size_t len, uint8_t *out, size_t cap)
 {
-    uint8_t id;
-    uint8_t seq;
-    proto_replay_key_t key;
-    size_t n;
     const proto_msg_info_t *info;
 
     if (msg == NULL || out == NULL || len < PROTO_MSG_HDR || len > PROTO_MSG_MAX ||
         cap < BOOT_REPLY_MAX) {
         return 0;
     }
-    id = msg[0];
-    seq = msg[1];
-    info = proto_msg_info(id);
+    info = proto_msg_info(msg[0]);
     if (info != NULL && info->dir == PROTO_DIR_D2H) {
         return 0; /* a reply or cyclic frame echoed back: never answer it */
     }
-    proto_replay_key(&key, msg, len);
-    n = proto_replay_lookup(&b->replay, &key, out, cap);
-    if (n != 0u) {
-        return n;
-    }
-    n = dispatch(b, id, seq, msg + PROTO_MSG_HDR, len - PROTO_MSG_HDR, out);
-    proto_replay_store(&b->replay, &key, out, n);
-    return n;
+    return proto_replay_answer(&b->replay, msg, len, out, cap, execute, b);
 }
 
 bool boot_heartbeat(boot_t *b, uint32_t now_us, uint8_t out[8])
