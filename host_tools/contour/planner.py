@@ -101,6 +101,15 @@ MOVE_DTYPE = native.PLAN_MOVE_DTYPE  # plan_move_t
 EST_DTYPE = native.PLAN_EST_DTYPE  # plan_est_t (firmware/core/estimator.h)
 
 
+class BlockRefused(UserError):
+    """The planner refused block `index` of an estimate (``reason``)."""
+
+    def __init__(self, index: int, reason: str) -> None:
+        super().__init__(f"block {index}: {reason}")
+        self.index = index
+        self.reason = reason
+
+
 def _lib():
     return native.load()
 
@@ -311,7 +320,7 @@ class Planner:
         bad = is_move & ~(np.isfinite(feed) & (feed > 0))
         if np.any(bad):
             i = int(np.argmax(bad))
-            raise UserError(f"block {i}: feed must be a positive number, got {feed[i]!r}")
+            raise BlockRefused(i, f"feed must be a positive number, got {feed[i]!r}")
         fnm = np.where(is_move, np.rint(np.nan_to_num(feed) * NM_PER_MM / 60.0), 0)
         moves["feed"] = np.minimum(fnm, V_LIMIT_NM_S).astype(np.int64)
         moves["feed"][is_move & (moves["feed"] < 1)] = 1
@@ -339,7 +348,7 @@ class Planner:
             ctypes.byref(bad_idx),
         )
         if rc < 0:
-            raise UserError(f"block {bad_idx.value}: {_ERRORS.get(rc, f'planner error {rc}')}")
+            raise BlockRefused(bad_idx.value, _ERRORS.get(rc, f"planner error {rc}"))
         return self._result(out)
 
     def _result(self, out: np.ndarray) -> EstimateResult:

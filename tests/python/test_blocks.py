@@ -7,7 +7,7 @@ import pytest
 from contour import protocol_gen as pg
 from contour.errors import UserError
 from contour.link import blocks as bl
-from contour.planner import CORNERS, SHAPES, Planner, PlannerProfile
+from contour.planner import CORNERS, SHAPES, BlockRefused, Planner, PlannerProfile
 from contour.program import Report
 
 JOB = """G21 G90 G17
@@ -122,7 +122,7 @@ def test_a_block_the_planner_refuses_is_refused_with_its_line(tmp_path, monkeypa
     path.write_text(EST_JOB)
 
     def refuse(self, *a, **kw):
-        raise UserError("block 1: planner ring full")
+        raise BlockRefused(1, "planner ring full")
 
     monkeypatch.setattr(Planner, "estimate", refuse)
     with pytest.raises(UserError, match=r"job.ngc:3: the drive's planner refuses it: planner ring"):

@@ -414,3 +414,14 @@ def test_estimate_equals_execution_on_the_simulated_drive(tmp_path):
     assert executed["faults"] == []
     est = estimate_program(gcode.read(prog), profiles.default().with_values(v), "planner")
     assert est.total_s == pytest.approx(executed["executed_s"], rel=0.001)
+
+
+def test_a_block_the_planner_refuses_names_its_program_line(monkeypatch):
+    from contour.planner import BlockRefused, Planner
+
+    def refuse(self, *a, **kw):
+        raise BlockRefused(1, "planner ring full")
+
+    monkeypatch.setattr(Planner, "estimate", refuse)
+    with pytest.raises(UserError, match=r"^line 3: planner: planner ring full$"):
+        run("G21 G90\nG1 X10 F600\nG1 X20\nG1 X30\n", "planner")

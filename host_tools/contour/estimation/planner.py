@@ -34,8 +34,6 @@ to rest with the rotary velocity and acceleration limits.
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from contour.errors import UserError
@@ -66,12 +64,9 @@ def planner_profile(profile):
     )
 
 
-_BLOCK_ERR = re.compile(r"^block (\d+): (.*)$")
-
-
 def run(moves: Moves, profile):
     """Raw :class:`contour.planner.EstimateResult` for prepared moves."""
-    from contour.planner import Planner
+    from contour.planner import BlockRefused, Planner
 
     planner = Planner(planner_profile(profile))
     ends = np.cumsum(moves.delta, axis=0)
@@ -88,11 +83,9 @@ def run(moves: Moves, profile):
             dwell_s=moves.dwell_s,
             tags=np.asarray(moves.line, dtype=np.uint32),
         )
-    except UserError as exc:
-        m = _BLOCK_ERR.match(str(exc))
-        if m and int(m.group(1)) < len(moves):
-            line = int(moves.line[int(m.group(1))])
-            raise UserError(f"line {line}: planner: {m.group(2)}") from None
+    except BlockRefused as exc:
+        if exc.index < len(moves):
+            raise UserError(f"line {int(moves.line[exc.index])}: planner: {exc.reason}") from None
         raise
 
 

@@ -38,7 +38,7 @@ import numpy as np
 
 from contour import protocol_gen as pg
 from contour.errors import UserError
-from contour.planner import Planner, PlannerProfile
+from contour.planner import BlockRefused, Planner, PlannerProfile
 from contour.program import Report, chunks
 
 NM_PER_MM = 1_000_000
@@ -124,7 +124,8 @@ def check_position(where: str, axis: int, v_mm: float) -> None:
 
 def _estimate(planner: Planner, seg, feed, dwell, start_mm) -> tuple:
     """Planned time of each segment and None; or (None, (i, reason)) when
-    the planner refuses segment i (the caller refuses its line)."""
+    the planner refuses segment i (the caller refuses its line; i None when
+    the planner names no block)."""
     try:
         res = planner.estimate(
             seg.end,
@@ -133,10 +134,10 @@ def _estimate(planner: Planner, seg, feed, dwell, start_mm) -> tuple:
             dwell_s=dwell,
             start_mm=tuple(start_mm),
         )
-    except UserError as exc:  # "block i: reason" (contour.planner)
-        head, _, reason = str(exc).partition(": ")
-        i = int(head[len("block ") :]) if head.startswith("block ") and reason else 0
-        return None, (min(i, len(seg) - 1), reason or str(exc))
+    except BlockRefused as exc:
+        return None, ((exc.index if exc.index < len(seg) else None), exc.reason)
+    except UserError as exc:
+        return None, (None, str(exc))
     return np.asarray(res.blocks["t_total_s"], dtype=float), None
 
 
@@ -192,9 +193,8 @@ def blocks_from_gcode(
             )
             if refused is not None:
                 i, reason = refused
-                raise UserError(
-                    f"{path}:{int(seg.line[i])}: the drive's planner refuses it: {reason}"
-                )
+                where = path if i is None else f"{path}:{int(seg.line[i])}"
+                raise UserError(f"{where}: the drive's planner refuses it: {reason}")
             continue
         yield from fast
         if fast:
