@@ -561,6 +561,11 @@ drive_result_t drive_param_set_all(const drive_param_value_t *v, unsigned n);
 drive_result_t drive_param_begin(void);
 drive_result_t drive_param_stage(drive_param_t id, unsigned axis, int64_t value);
 drive_result_t drive_param_commit(void);
+/* The range a staged value must lie in for commit to accept it: as
+ * drive_param_range, narrowed by the candidate's values instead of those in
+ * use (a staged max_jerk bounds a staged max_acceleration). Between begin
+ * and commit only. Main. */
+drive_result_t drive_param_staged_range(drive_param_t id, unsigned axis, int64_t *lo, int64_t *hi);
 
 /* Soft travel limits (drive_config_t.soft_min / soft_max): DRIVE_E_LIMIT
  * when an axis that moves (target != from) ends outside the limits of the

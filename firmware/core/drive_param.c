@@ -257,9 +257,11 @@ drive_result_t drive_param_get(drive_param_t id, unsigned axis, int64_t *value)
     return DRIVE_OK;
 }
 
-drive_result_t drive_param_range(drive_param_t id, unsigned axis, int64_t *lo, int64_t *hi)
+/* The range of a value in configuration c (drive_param_range). */
+static drive_result_t range_in(const drive_config_t *c, drive_param_t id, unsigned axis,
+                               int64_t *lo, int64_t *hi)
 {
-    const plan_profile_t *p = &drive_config()->plan;
+    const plan_profile_t *p = &c->plan;
     if (lo == NULL || hi == NULL || !param_ok(id, axis)) {
         return DRIVE_E_INVALID;
     }
@@ -276,6 +278,16 @@ drive_result_t drive_param_range(drive_param_t id, unsigned axis, int64_t *lo, i
         *lo = j > *lo ? j : *lo;
     }
     return DRIVE_OK;
+}
+
+drive_result_t drive_param_range(drive_param_t id, unsigned axis, int64_t *lo, int64_t *hi)
+{
+    return range_in(drive_config(), id, axis, lo, hi);
+}
+
+drive_result_t drive_param_staged_range(drive_param_t id, unsigned axis, int64_t *lo, int64_t *hi)
+{
+    return range_in(&cand, id, axis, lo, hi);
 }
 
 drive_result_t drive_param_set(drive_param_t id, unsigned axis, int64_t value)

@@ -561,6 +561,7 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
         /* nothing of an earlier session is replayed; the block stream goes
          * on (a second host may watch a job: status, monitor) */
         proto_replay_reset(&d->replay);
+        proto_ptxn_lose(&d->ptxn, PROTO_TXN_STATUS_NEW_SESSION); /* proto_ptxn.h */
         d->sessions++;
         rep.nonce = o.nonce;
         rep.sessions = d->sessions;
@@ -692,6 +693,17 @@ static size_t execute(proto_dispatch_t *d, uint8_t id, uint8_t seq, const uint8_
         proto_batch_flush(&d->batch, PROTO_ERROR_CODE_BUSY);
         drive_estop();
         return proto_reply_ack(out, seq, id);
+    case PROTO_MSG_PARAM_BEGIN:
+    case PROTO_MSG_PARAM_STAGE:
+    case PROTO_MSG_PARAM_COMMIT:
+    case PROTO_MSG_PARAM_ABORT: {
+        size_t len = proto_ptxn_request(d, id, seq, p, n, d->last_rx_us, out);
+
+        if (out[0] == PROTO_MSG_ERROR) {
+            d->stats.refused++;
+        }
+        return len;
+    }
     case PROTO_MSG_PARAM_SAVE: {
         uint32_t detail = 0u;
         param_store_result_t ps = param_store_save(NULL, &detail);
@@ -747,6 +759,7 @@ bool proto_dispatch_init(proto_dispatch_t *d, const proto_identity_t *ident, uin
     d->cec_mode = 0;
     proto_replay_reset(&d->replay);
     proto_batch_reset(&d->batch);
+    proto_ptxn_reset(&d->ptxn);
     d->sessions = 0;
     d->last_rx_us = now_us;
     d->stream_rx_us = now_us;
@@ -943,6 +956,7 @@ void proto_dispatch_poll(proto_dispatch_t *d, uint32_t now_us, proto_emit_fn emi
 
     proto_batch_pump(&d->batch); /* the host FIFO takes from the intake ring */
     watchdog(d, now_us);
+    proto_ptxn_poll(d, now_us);
     if (d->telem_period_ms != 0u && since >= (uint32_t)d->telem_period_ms * 1000u) {
         d->last_cycle_us = now_us;
         emit_cycle(d, true, emit, ctx);

@@ -33,6 +33,8 @@
  *     refused with error{not_supported, arg = PROTO_VERSION, lo = hi =
  *     PROTO_VERSION} and opens no session. session_reply and identify
  *     carry the drive's version.
+ *   - param_begin / _stage / _commit / _abort: all-or-nothing parameter
+ *     transactions (proto_ptxn.h); a session_open aborts an open one.
  *   - queue_batch: proto_batch.h. The stream is the drive's, not a
  *     session's: a second host opening a session (to watch a job) does not
  *     end it; a new job starts it again (start flag).
@@ -71,6 +73,7 @@
 #include "drive.h"
 #include "proto_batch.h"
 #include "proto_msgs.h"
+#include "proto_ptxn.h"
 #include "proto_replay.h"
 
 #define PROTO_RAPID_FEED_NM_S 4000000000u
@@ -105,7 +108,7 @@ typedef struct {
  * Returns false when the link had no room (the message is dropped). */
 typedef bool (*proto_emit_fn)(void *ctx, const uint8_t *msg, size_t len, uint8_t can_func);
 
-typedef struct {
+typedef struct proto_dispatch {
     proto_identity_t ident;
     /* link parameters (PROTO_PARAM_*, owner link) */
     uint32_t comm_timeout_ms;
@@ -117,6 +120,7 @@ typedef struct {
     proto_replay_t replay; /* last request and its reply (proto_replay.h) */
     uint16_t sessions;     /* session_open requests executed (wraps) */
     proto_batch_t batch;   /* the host's block stream (queue_batch) */
+    proto_ptxn_t ptxn;     /* the open parameter transaction (proto_ptxn.h) */
     /* watchdog (main) */
     uint32_t last_rx_us;     /* any valid request */
     uint32_t stream_rx_us;   /* the last queue_batch request */

@@ -275,6 +275,71 @@ bool proto_queue_batch_decode(const uint8_t *buf, size_t len, proto_queue_batch_
     return true;
 }
 
+size_t proto_param_stage_encode(const proto_param_stage_t *m, uint8_t *buf, size_t cap)
+{
+    uint16_t i;
+
+    if (m->data_len > 240u || cap < PROTO_PARAM_STAGE_LEN + (size_t)m->data_len) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->txn, 2u);
+    for (i = 0; i < m->data_len; i++) {
+        buf[2u + i] = m->data[i];
+    }
+    return PROTO_PARAM_STAGE_LEN + (size_t)m->data_len;
+}
+
+bool proto_param_stage_decode(const uint8_t *buf, size_t len, proto_param_stage_t *m)
+{
+    uint16_t i;
+
+    if (len < PROTO_PARAM_STAGE_LEN || len > PROTO_PARAM_STAGE_MAX_LEN) {
+        return false;
+    }
+    m->txn = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->data_len = (uint16_t)(len - PROTO_PARAM_STAGE_LEN);
+    for (i = 0; i < m->data_len; i++) {
+        m->data[i] = buf[2u + i];
+    }
+    return true;
+}
+
+size_t proto_param_commit_encode(const proto_param_commit_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_PARAM_COMMIT_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->txn, 2u);
+    return PROTO_PARAM_COMMIT_LEN;
+}
+
+bool proto_param_commit_decode(const uint8_t *buf, size_t len, proto_param_commit_t *m)
+{
+    if (len != PROTO_PARAM_COMMIT_LEN) {
+        return false;
+    }
+    m->txn = (uint16_t)proto_get_le(buf + 0, 2u);
+    return true;
+}
+
+size_t proto_param_abort_encode(const proto_param_abort_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_PARAM_ABORT_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->txn, 2u);
+    return PROTO_PARAM_ABORT_LEN;
+}
+
+bool proto_param_abort_decode(const uint8_t *buf, size_t len, proto_param_abort_t *m)
+{
+    if (len != PROTO_PARAM_ABORT_LEN) {
+        return false;
+    }
+    m->txn = (uint16_t)proto_get_le(buf + 0, 2u);
+    return true;
+}
+
 size_t proto_heartbeat_encode(const proto_heartbeat_t *m, uint8_t *buf, size_t cap)
 {
     if (cap < PROTO_HEARTBEAT_LEN) {
@@ -594,6 +659,28 @@ bool proto_batch_reply_decode(const uint8_t *buf, size_t len, proto_batch_reply_
     m->queued_us = (uint32_t)proto_get_le(buf + 14, 4u);
     m->blocks_done = (uint32_t)proto_get_le(buf + 18, 4u);
     m->state = (uint8_t)proto_get_le(buf + 22, 1u);
+    return true;
+}
+
+size_t proto_param_txn_encode(const proto_param_txn_t *m, uint8_t *buf, size_t cap)
+{
+    if (cap < PROTO_PARAM_TXN_LEN) {
+        return 0;
+    }
+    proto_put_le(buf + 0, (uint64_t)m->txn, 2u);
+    proto_put_le(buf + 2, (uint64_t)m->staged, 2u);
+    proto_put_le(buf + 4, (uint64_t)m->committed, 1u);
+    return PROTO_PARAM_TXN_LEN;
+}
+
+bool proto_param_txn_decode(const uint8_t *buf, size_t len, proto_param_txn_t *m)
+{
+    if (len != PROTO_PARAM_TXN_LEN) {
+        return false;
+    }
+    m->txn = (uint16_t)proto_get_le(buf + 0, 2u);
+    m->staged = (uint16_t)proto_get_le(buf + 2, 2u);
+    m->committed = (uint8_t)proto_get_le(buf + 4, 1u);
     return true;
 }
 
@@ -1644,6 +1731,10 @@ const proto_msg_info_t proto_msg_table[] = {
     {0x0Cu, PROTO_DIR_H2D, 0x4Cu, 0u, 6u, 6u, "session_open"},
     {0x0Du, PROTO_DIR_H2D, 0x70u, 0u, 47u, 47u, "home"},
     {0x0Eu, PROTO_DIR_H2D, 0x4Du, 0u, 6u, 250u, "queue_batch"},
+    {0x0Fu, PROTO_DIR_H2D, 0x4Eu, 0u, 0u, 0u, "param_begin"},
+    {0x10u, PROTO_DIR_H2D, 0x4Eu, 0u, 2u, 242u, "param_stage"},
+    {0x11u, PROTO_DIR_H2D, 0x4Eu, 0u, 2u, 2u, "param_commit"},
+    {0x12u, PROTO_DIR_H2D, 0x70u, 0u, 2u, 2u, "param_abort"},
     {0x2Eu, PROTO_DIR_H2D, 0x70u, 0u, 0u, 0u, "param_save"},
     {0x30u, PROTO_DIR_D2H, 0x00u, 31u, 8u, 8u, "heartbeat"},
     {0x31u, PROTO_DIR_D2H, 0x00u, 4u, 8u, 8u, "status"},
@@ -1663,6 +1754,7 @@ const proto_msg_info_t proto_msg_table[] = {
     {0x4Au, PROTO_DIR_D2H, 0x00u, 0u, 87u, 87u, "drive_state"},
     {0x4Cu, PROTO_DIR_D2H, 0x00u, 0u, 8u, 8u, "session_reply"},
     {0x4Du, PROTO_DIR_D2H, 0x00u, 0u, 23u, 23u, "batch_reply"},
+    {0x4Eu, PROTO_DIR_D2H, 0x00u, 0u, 5u, 5u, "param_txn"},
     {0x70u, PROTO_DIR_D2H, 0x00u, 0u, 1u, 1u, "ack"},
     {0x7Fu, PROTO_DIR_D2H, 0x00u, 0u, 20u, 20u, "error"},
     {0x80u, PROTO_DIR_H2D, 0x90u, 0u, 0u, 0u, "boot_connect"},

@@ -77,6 +77,14 @@
 #define PROTO_ERROR_CODE_BOOT 32u /* bootloader refused the request (arg = boot_status, lo = detail; docs/bootloader.md) */
 #define PROTO_ERROR_CODE_CALIB 33u /* calibration or compensation refused (arg = calib_status, lo = detail; docs/calibration.md) */
 #define PROTO_ERROR_CODE_EXCITE 34u /* excitation experiment refused (arg = excite_refusal, lo = detail; docs/commissioning.md) */
+#define PROTO_ERROR_CODE_TXN 35u /* parameter transaction refused or lost (arg = txn_status, lo = transaction id; protocol/README.md, Parameter transactions) */
+
+/* Why a parameter transaction request was refused: error.arg when error.code = txn (firmware/core/proto_ptxn.h). */
+#define PROTO_TXN_STATUS_NOT_OPEN 1u /* no open transaction with this id (never begun, committed, or aborted) */
+#define PROTO_TXN_STATUS_NEW_SESSION 2u /* a session_open (another host, or this one reconnecting) aborted it: nothing applied */
+#define PROTO_TXN_STATUS_LINK_TIMEOUT 3u /* no request of the transaction for comm_timeout_ms: aborted, nothing applied */
+#define PROTO_TXN_STATUS_SUPERSEDED 4u /* a param_begin (another session) aborted it: nothing applied */
+#define PROTO_TXN_STATUS_FULL 5u /* more values than the drive stages (hi = its limit); nothing of the frame staged */
 
 /* Drive state in status, heartbeat and drive_state. */
 #define PROTO_STATE_DISABLED 0u /* amplifiers off */
@@ -272,6 +280,10 @@
 #define PROTO_MSG_SESSION_OPEN 0x0Cu
 #define PROTO_MSG_HOME 0x0Du
 #define PROTO_MSG_QUEUE_BATCH 0x0Eu
+#define PROTO_MSG_PARAM_BEGIN 0x0Fu
+#define PROTO_MSG_PARAM_STAGE 0x10u
+#define PROTO_MSG_PARAM_COMMIT 0x11u
+#define PROTO_MSG_PARAM_ABORT 0x12u
 #define PROTO_MSG_PARAM_SAVE 0x2Eu
 #define PROTO_MSG_HEARTBEAT 0x30u
 #define PROTO_MSG_STATUS 0x31u
@@ -291,6 +303,7 @@
 #define PROTO_MSG_DRIVE_STATE 0x4Au
 #define PROTO_MSG_SESSION_REPLY 0x4Cu
 #define PROTO_MSG_BATCH_REPLY 0x4Du
+#define PROTO_MSG_PARAM_TXN 0x4Eu
 #define PROTO_MSG_ACK 0x70u
 #define PROTO_MSG_ERROR 0x7Fu
 #define PROTO_MSG_BOOT_CONNECT 0x80u
@@ -498,6 +511,36 @@ typedef struct {
 size_t proto_queue_batch_encode(const proto_queue_batch_t *m, uint8_t *buf, size_t cap);
 bool proto_queue_batch_decode(const uint8_t *buf, size_t len, proto_queue_batch_t *m);
 
+/* param_begin (h2d): Open a parameter transaction (all or nothing; protocol/README.md, Parameter transactions): the reply carries its id. An open transaction of any session is aborted (txn_status superseded). */
+#define PROTO_PARAM_BEGIN_LEN 0u
+
+/* param_stage (h2d): Stage values in the open transaction txn, nothing applied: `data` holds 1..24 pairs (u16 parameter id, i64 value). Each pair is checked like param_set's value (unknown_param, bad_axis, read_only, out_of_range, arg = id); a refused pair stages nothing of the frame. A parameter staged again takes the later value. */
+#define PROTO_PARAM_STAGE_LEN 2u
+#define PROTO_PARAM_STAGE_MAX_LEN 242u
+typedef struct {
+    uint16_t txn; /* transaction id (param_txn of param_begin) */
+    uint16_t data_len;
+    uint8_t data[240]; /* pairs: u16 parameter id (per-axis: id + axis), i64 value, little-endian */
+} proto_param_stage_t;
+size_t proto_param_stage_encode(const proto_param_stage_t *m, uint8_t *buf, size_t cap);
+bool proto_param_stage_decode(const uint8_t *buf, size_t len, proto_param_stage_t *m);
+
+/* param_commit (h2d): Check every staged value against the others and the drive state, then apply all of them or none. A refusal names the first refused parameter (arg = its id): busy (lo = drive state), out_of_range (lo, hi as the drive accepts it with the other staged values), bad_value, not_supported; the transaction stays open. A commit of a transaction already committed answers its param_txn again, applying nothing. */
+#define PROTO_PARAM_COMMIT_LEN 2u
+typedef struct {
+    uint16_t txn; /* transaction id */
+} proto_param_commit_t;
+size_t proto_param_commit_encode(const proto_param_commit_t *m, uint8_t *buf, size_t cap);
+bool proto_param_commit_decode(const uint8_t *buf, size_t len, proto_param_commit_t *m);
+
+/* param_abort (h2d): Drop the open transaction txn, nothing applied (ack also when it is not open). */
+#define PROTO_PARAM_ABORT_LEN 2u
+typedef struct {
+    uint16_t txn; /* transaction id */
+} proto_param_abort_t;
+size_t proto_param_abort_encode(const proto_param_abort_t *m, uint8_t *buf, size_t cap);
+bool proto_param_abort_decode(const uint8_t *buf, size_t len, proto_param_abort_t *m);
+
 /* param_save (h2d): Store the drive parameters in flash (loaded at start-up; docs/parameters.md). Only while disabled (bad_state, arg = state); a flash failure is internal (arg = comp_store result). */
 #define PROTO_PARAM_SAVE_LEN 0u
 
@@ -643,6 +686,16 @@ typedef struct {
 } proto_batch_reply_t;
 size_t proto_batch_reply_encode(const proto_batch_reply_t *m, uint8_t *buf, size_t cap);
 bool proto_batch_reply_decode(const uint8_t *buf, size_t len, proto_batch_reply_t *m);
+
+/* param_txn (d2h): Reply to param_begin, param_stage and param_commit. */
+#define PROTO_PARAM_TXN_LEN 5u
+typedef struct {
+    uint16_t txn; /* transaction id */
+    uint16_t staged; /* values staged (after a commit: applied) */
+    uint8_t committed; /* 1: applied (param_commit), 0: open */
+} proto_param_txn_t;
+size_t proto_param_txn_encode(const proto_param_txn_t *m, uint8_t *buf, size_t cap);
+bool proto_param_txn_decode(const uint8_t *buf, size_t len, proto_param_txn_t *m);
 
 /* ack (d2h): Request done. */
 #define PROTO_ACK_LEN 1u

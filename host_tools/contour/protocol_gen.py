@@ -110,6 +110,17 @@ class ErrorCode(IntEnum):
     BOOT = 32
     CALIB = 33
     EXCITE = 34
+    TXN = 35
+
+
+class TxnStatus(IntEnum):
+    """Why a parameter transaction request was refused: error.arg when error.code = txn (firmware/core/proto_ptxn.h)."""
+
+    NOT_OPEN = 1
+    NEW_SESSION = 2
+    LINK_TIMEOUT = 3
+    SUPERSEDED = 4
+    FULL = 5
 
 
 class State(IntEnum):
@@ -558,6 +569,58 @@ MESSAGES = (
         "Append `count` blocks numbered first_seq.. (records in `data`: protocol/README.md, Block batches) to the drive's intake ring, in order, until one is refused or the ring is full; the reply says how many were taken (accepted) and carries the window (free_bytes, queued_us, blocks_done, state). An empty batch (count 0) only reads the window. A malformed batch is refused whole (bad_value, arg = record index; bad_length: count differs).",
     ),
     Message(
+        "param_begin",
+        0x0F,
+        "h2d",
+        'param_txn',
+        None,
+        (
+        ),
+        0,
+        0,
+        'Open a parameter transaction (all or nothing; protocol/README.md, Parameter transactions): the reply carries its id. An open transaction of any session is aborted (txn_status superseded).',
+    ),
+    Message(
+        "param_stage",
+        0x10,
+        "h2d",
+        'param_txn',
+        None,
+        (
+            Field("txn", "u16", 2, 1, 0, 0, ""),
+            Field("data", "bytes", 1, 1, 240, 2, ""),
+        ),
+        2,
+        242,
+        "Stage values in the open transaction txn, nothing applied: `data` holds 1..24 pairs (u16 parameter id, i64 value). Each pair is checked like param_set's value (unknown_param, bad_axis, read_only, out_of_range, arg = id); a refused pair stages nothing of the frame. A parameter staged again takes the later value.",
+    ),
+    Message(
+        "param_commit",
+        0x11,
+        "h2d",
+        'param_txn',
+        None,
+        (
+            Field("txn", "u16", 2, 1, 0, 0, ""),
+        ),
+        2,
+        2,
+        'Check every staged value against the others and the drive state, then apply all of them or none. A refusal names the first refused parameter (arg = its id): busy (lo = drive state), out_of_range (lo, hi as the drive accepts it with the other staged values), bad_value, not_supported; the transaction stays open. A commit of a transaction already committed answers its param_txn again, applying nothing.',
+    ),
+    Message(
+        "param_abort",
+        0x12,
+        "h2d",
+        'ack',
+        None,
+        (
+            Field("txn", "u16", 2, 1, 0, 0, ""),
+        ),
+        2,
+        2,
+        'Drop the open transaction txn, nothing applied (ack also when it is not open).',
+    ),
+    Message(
         "param_save",
         0x2E,
         "h2d",
@@ -858,6 +921,21 @@ MESSAGES = (
         23,
         23,
         'Reply to queue_batch: the blocks queued and the window after them.',
+    ),
+    Message(
+        "param_txn",
+        0x4E,
+        "d2h",
+        None,
+        None,
+        (
+            Field("txn", "u16", 2, 1, 0, 0, ""),
+            Field("staged", "u16", 2, 1, 0, 2, ""),
+            Field("committed", "u8", 1, 1, 0, 4, ""),
+        ),
+        5,
+        5,
+        'Reply to param_begin, param_stage and param_commit.',
     ),
     Message(
         "ack",
