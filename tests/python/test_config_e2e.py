@@ -298,23 +298,143 @@ def test_save_survives_a_restart(capsys, tmp_path):
             assert c.get_param("max_velocity.y") != 123_000_000
 
 
-def test_a_refusal_after_the_first_write_says_how_much_was_written():
-    """Another session may start motion mid-restore (the planner's limits are
-    then busy): the error says how many values the drive now holds."""
+def test_a_drive_without_transactions_is_refused_with_nothing_written():
+    """An older drive answers param_begin with unknown_message: the restore
+    is refused before any value is written (no one-at-a-time fallback that
+    could stop halfway)."""
     from contour.commands import config as cfg
     from contour.errors import UserError
 
-    class Drive:
+    class OldDrive:
         def __init__(self):
-            self.got = {}
+            self.sent = []
+
+        def request(self, name, **fields):
+            self.sent.append(name)
+            if name.startswith("param_") and name not in ("param_get", "param_set"):
+                raise DriveError(name, {"code": pg.ErrorCode.UNKNOWN_MESSAGE}, "unknown")
+            raise AssertionError(f"{name} sent")
 
         def set_param(self, name, value):
-            if len(self.got) == 2:
-                raise DriveError("param_set", {"code": pg.ErrorCode.BUSY}, "busy")
-            self.got[name] = value
+            raise AssertionError(f"set_param {name} sent")
 
-    values = {"max_velocity.x": 1, "max_velocity.y": 2, "max_velocity.z": 3, "encoder_mean": 0}
-    d = Drive()
-    with pytest.raises(UserError, match=r"2 of 4 values written, the rest not") as e:
+    d = OldDrive()
+    values = {"max_velocity.x": 1, "max_velocity.y": 2, "encoder_mean": 0}
+    with pytest.raises(UserError, match=r"nothing written: the drive's firmware has no parameter "):
         cfg.write_all(d, values)
-    assert list(d.got)[0] == "encoder_mean" and "max_velocity.y" in str(e.value)
+    assert d.sent == ["param_begin"]
+
+
+class _BeforeCommit:
+    """A client whose param_commit runs `hook` first (between the last
+    param_stage and the commit)."""
+
+    def __init__(self, client, hook):
+        self.c, self.hook, self.staged = client, hook, 0
+
+    def request(self, name, **fields):
+        if name == "param_stage":
+            self.staged += 1
+        if name == "param_commit":
+            assert self.staged >= 2  # the whole file was staged, over several frames
+            self.hook()
+        return self.c.request(name, **fields)
+
+    def __getattr__(self, name):
+        return getattr(self.c, name)
+
+
+def _edited_backup(server, capsys, tmp_path) -> Path:
+    f = tmp_path / "drive.toml"
+    rc, _, err = run_cli(["config", "backup", str(f), "--port", server.serial], capsys)
+    assert rc == 0, err
+    text = f.read_text()
+    g = tmp_path / "edited.toml"
+    g.write_text(
+        text.replace(
+            text.split("max_velocity = ")[1].split("\n")[0],
+            '{ x = "321 mm/s", y = "6000 mm/min", z = "0.2 m/s" }',
+        ).replace("comm_timeout_ms = ", "comm_timeout_ms = 900 #")
+    )
+    return g
+
+
+def _restore_refused(server, capsys, path) -> str:
+    argv = ["config", "restore", str(path), "--json", "--port", server.serial]
+    rc, out, _ = run_cli(argv, capsys)
+    assert rc == 1, out
+    msg = json.loads(out)["error"]["message"]
+    assert "nothing written" in msg, msg
+    return msg
+
+
+WATCH = ("max_velocity.x", "max_velocity.y", "max_velocity.z", "comm_timeout_ms")
+
+
+def test_a_second_session_moving_between_stage_and_commit_leaves_nothing_written(
+    server, capsys, tmp_path, monkeypatch
+):
+    """A second session (slcan, open before the restore began) enables the
+    drive and starts a jog after the restore staged the whole file: the
+    drive refuses the commit, naming the first parameter it cannot change
+    while moving, and applies none of the file (not even comm_timeout_ms,
+    which it could)."""
+    from contour.commands import config as cfg
+    from linkhelp import client_for
+
+    g = _edited_backup(server, capsys, tmp_path)
+    with connect(port=server.serial) as c:
+        if c.status()["state"] in (pg.State.FAULT, pg.State.ESTOP):
+            c.request("fault_reset")
+        c.enable(False)
+        wait_state(c, (pg.State.DISABLED,))
+        before = {n: c.get_param(n) for n in WATCH}
+    assert before["max_velocity.x"] != 321_000_000 and before["comm_timeout_ms"] != 900
+    write_all = cfg.write_all
+    with client_for(server, "slcan") as other:  # the second session, opened first
+        other.status()  # its session_open goes out with its first request
+
+        def move():
+            other.enable(True)
+            assert wait_state(other, (pg.State.READY,))["state"] == pg.State.READY
+            other.request("jog", axis=1, feed=5_000_000, distance=5_000_000)  # 1 s
+
+        monkeypatch.setattr(cfg, "write_all", lambda c, v: write_all(_BeforeCommit(c, move), v))
+        try:
+            msg = _restore_refused(server, capsys, g)
+        finally:
+            other.request("stop")
+            wait_state(other, (pg.State.READY,))
+            other.enable(False)
+    # the first drive parameter of the file (table order)
+    assert "cec_mode cannot change now: the drive is running" in msg, msg
+    assert "another session" in msg, msg
+    with connect(port=server.serial) as c:
+        assert {n: c.get_param(n) for n in WATCH} == before
+
+
+def test_a_session_opened_between_stage_and_commit_loses_the_transaction(
+    server, capsys, tmp_path, monkeypatch
+):
+    """A second host connecting (session_open) after the restore staged the
+    file aborts the transaction: the restore's commit is refused as lost,
+    nothing written."""
+    from contour.commands import config as cfg
+    from linkhelp import client_for
+
+    g = _edited_backup(server, capsys, tmp_path)
+    with connect(port=server.serial) as c:
+        before = {n: c.get_param(n) for n in WATCH}
+
+    def connect_other():
+        with client_for(server, "slcan") as other:
+            other.status()
+
+    write_all = cfg.write_all
+    monkeypatch.setattr(
+        cfg, "write_all", lambda c, v: write_all(_BeforeCommit(c, connect_other), v)
+    )
+    msg = _restore_refused(server, capsys, g)
+    assert "lost: another session opened" in msg, msg
+    with connect(port=server.serial) as c:
+        assert {n: c.get_param(n) for n in WATCH} == before

@@ -9,14 +9,15 @@ restore FILE.toml
     count, only known writable parameters, every per-axis parameter with one
     value per axis of the drive, every value in its range, the drive not
     moving, a disabled-only parameter (encoder_mean) changed only on a
-    disabled drive. Nothing is written unless all of that holds. Then writes
-    the disabled-only parameters first (a second session that enabled the
-    drive since the check gets them refused before anything else is written),
-    the others in table order (a value the drive refuses because of another
-    one still to come, e.g. max_acceleration before max_jerk, is retried
-    after the others) and reads every value back. A refusal after the first
-    write (another session started motion) says how many values the drive
-    now holds. Another board id only warns.
+    disabled drive. Nothing is written unless all of that holds. Then sends
+    the whole file as one parameter transaction (param_begin, param_stage,
+    param_commit): the drive checks the values together (max_acceleration
+    against the file's max_jerk) and its state, and applies all of them or
+    none; then every value is read back. A second session that starts
+    motion, enables the drive or opens a session before the commit gets the
+    restore refused with nothing written and the reason (the first refused
+    parameter, or the lost transaction). A drive without transactions is
+    refused, nothing written. Another board id only warns.
 save
     Stores the drive parameters in the drive's flash (message param_save); the
     drive loads them at start-up and reports what it did in the read-only
@@ -25,6 +26,7 @@ save
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import json
 import sys
@@ -150,43 +152,51 @@ def parse_backup(text: str, axes: int, source: str = "file") -> tuple[dict, dict
 
 # Parameters the drive refuses to change unless it is disabled (drive.h).
 DISABLED_ONLY = ("encoder_mean",)
+# (u16 id, i64 value) pairs per param_stage frame (its data field: 240 bytes)
+STAGE_PAIRS = pg.MSG_BY_NAME["param_stage"].fields[-1].max // 10
 
 
 def write_all(client, values: dict[str, int]) -> None:
-    """Write the disabled-only parameters first, then the others in table
-    order; a refusal that another value may lift (range, bad value) is
-    retried after the others; then read every value back.
+    """Write `values` as one parameter transaction (param_begin, param_stage,
+    param_commit): the drive checks them together with its state at the
+    commit and applies all of them or none; then read every value back.
 
-    The caller checked the drive's state, but another session may enable or
-    move the drive before the writes: a disabled-only parameter written first
-    is then refused before anything else is written ("nothing written").
-    Any other refusal says how much of the file the drive now holds."""
-    order = [n for n in param_names(pg.MAX_AXES, writable_only=True) if n in values]
-    first = [n for n in order if parse_param(n)[0].name in DISABLED_ONLY]
-    pending = first + [n for n in order if n not in first]
-    errors: dict[str, DriveError] = {}
-    written = 0
-    for _ in range(3):
-        later = []
-        for name in pending:
-            try:
-                client.set_param(name, values[name])
-                written += 1
-            except DriveError as exc:
-                if exc.code not in (pg.ErrorCode.OUT_OF_RANGE, pg.ErrorCode.BAD_VALUE):
-                    raise UserError(
-                        f"restore stopped at {name}: {exc}: {_how_much(name, written, len(values))}"
-                    ) from None
-                later.append(name)
-                errors[name] = exc
-        if not later or later == pending:
-            pending = later
-            break
-        pending = later
-    if pending:
+    A second session that starts motion or enables the drive before the
+    commit gets the commit refused (naming the first parameter it refuses);
+    one that opens a session or begins a transaction of its own loses this
+    one. Either way nothing is written, and the error says why. A drive
+    without transactions (param_begin unknown) is refused before anything
+    is written: one value at a time could leave it half restored."""
+    try:
+        txn = client.request("param_begin").fields["txn"]
+    except DriveError as exc:
+        if exc.code == pg.ErrorCode.UNKNOWN_MESSAGE:
+            raise UserError(
+                "restore refused, nothing written: the drive's firmware has no parameter "
+                "transactions (param_begin unknown), and writing one value at a time could "
+                "leave it half restored; update its firmware (contour flash), or set values "
+                "one by one with contour set"
+            ) from None
+        raise
+    pairs = [(parse_param(n)[1], raw) for n, raw in values.items()]
+    try:
+        for i in range(0, len(pairs), STAGE_PAIRS):
+            data = b"".join(
+                pid.to_bytes(2, "little") + int(raw).to_bytes(8, "little", signed=True)
+                for pid, raw in pairs[i : i + STAGE_PAIRS]
+            )
+            client.request("param_stage", txn=txn, data=data)
+        done = client.request("param_commit", txn=txn).fields
+    except DriveError as exc:
+        _abort(client, txn)
+        why = ""
+        if exc.code == pg.ErrorCode.BUSY:
+            why = " (another session enabled or moved the drive since the restore's check?)"
+        raise UserError(f"restore refused, nothing written: {exc}{why}") from None
+    if not done["committed"] or done["staged"] != len(values):
         raise UserError(
-            f"restore incomplete ({written} of {len(values)} values written): the drive refused "
-            + "; ".join(f"{n}: {errors[n]}" for n in pending)
+            f"restore: the drive committed {done['staged']} of {len(values)} values "
+            f"(committed = {done['committed']})"
         )
     wrong = []
     for name, raw in values.items():
@@ -200,15 +210,10 @@ def write_all(client, values: dict[str, int]) -> None:
         raise UserError("restore verify failed: " + "; ".join(wrong))
 
 
-def _how_much(name: str, written: int, total: int) -> str:
-    if written == 0:
-        busy = parse_param(name)[0].name in DISABLED_ONLY
-        why = " (the drive is no longer disabled: another session?)" if busy else ""
-        return f"nothing written{why}"
-    return (
-        f"{written} of {total} values written, the rest not: the drive holds a mix "
-        "of its old values and the file's; restore again once it is at rest"
-    )
+def _abort(client, txn: int) -> None:
+    """Drop a refused transaction (a lost one is gone already)."""
+    with contextlib.suppress(DriveError):
+        client.request("param_abort", txn=txn)
 
 
 def run_backup(args) -> int:

@@ -82,15 +82,53 @@ def describe_error(request: str, f: dict) -> str:
         pg.ErrorCode.BUSY: "not allowed while moving",
         pg.ErrorCode.CAUSE_PRESENT: "the fault's cause is still present",
     }.get(code, cname)
+    txn_reqs = ("param_stage", "param_commit")
+    if code == pg.ErrorCode.TXN:
+        what = _txn_text(arg, f["lo"], f["hi"])
+    elif request in txn_reqs and code == pg.ErrorCode.BUSY:
+        what = f"{_param_label(arg)} cannot change now: the drive is {_state_name(f['lo'])}"
+    elif request in txn_reqs and code == pg.ErrorCode.BAD_VALUE:
+        what = (
+            f"{_param_label(arg)}: refused together with the other values "
+            "(planner profile or servo parameters)"
+        )
+    elif request in txn_reqs and code == pg.ErrorCode.NOT_SUPPORTED:
+        what = f"{_param_label(arg)}: not supported by this drive"
     if code == pg.ErrorCode.OUT_OF_RANGE:
         from contour.params import format_range, param_of_id
 
-        found = param_of_id(arg) if request in ("param_set", "param_get") else None
+        found = param_of_id(arg) if request in ("param_set", "param_get", *txn_reqs) else None
         if found is not None:
             what = f"{_param_label(arg)} out of range {format_range(found[0], f['lo'], f['hi'])}"
         else:
             what = f"field {arg} out of range [{f['lo']}, {f['hi']}]"
     return f"drive refused {request}: {what} ({cname})"
+
+
+def _state_name(v: int) -> str:
+    try:
+        return pg.State(v).name.lower()
+    except ValueError:
+        return f"in state {v}"
+
+
+_TXN_TEXT = {
+    pg.TxnStatus.NOT_OPEN: "parameter transaction {id} is not open (committed or aborted)",
+    pg.TxnStatus.NEW_SESSION: "parameter transaction {id} lost: another session opened "
+    "(session_open), nothing applied",
+    pg.TxnStatus.LINK_TIMEOUT: "parameter transaction {id} lost: link timeout "
+    "(comm_timeout_ms without a request of it), nothing applied",
+    pg.TxnStatus.SUPERSEDED: "parameter transaction {id} lost: another session began one, "
+    "nothing applied",
+    pg.TxnStatus.FULL: "parameter transaction {id}: more values than the drive stages ({hi})",
+}
+
+
+def _txn_text(arg: int, lo: int, hi: int) -> str:
+    try:
+        return _TXN_TEXT[pg.TxnStatus(arg)].format(id=lo, hi=hi)
+    except ValueError:
+        return f"parameter transaction {lo}: status {arg}"
 
 
 def parse_param(name: str) -> tuple[pg.Param, int]:
