@@ -184,8 +184,8 @@ def test_a_second_session_enabling_mid_restore_leaves_nothing_half_written(
 ):
     """encoder_mean changes only while disabled: the restore checks that up
     front, but a second session (slcan) may enable the drive between that
-    check and the writes. The restore writes such parameters first, so the
-    drive's refusal comes before any other value is written."""
+    check and the transaction. The drive refuses the commit over
+    encoder_mean, and nothing of the file is written."""
     from contour.commands import config as cfg
     from linkhelp import client_for
 
@@ -215,6 +215,7 @@ def test_a_second_session_enabling_mid_restore_leaves_nothing_half_written(
 
     monkeypatch.setattr(cfg, "write_all", enable_then_write)
     msg = _refused_before_any_write(server, g, capsys, before)
+    assert "encoder_mean cannot change now: the drive is ready" in msg, msg
     assert "another session" in msg, msg
 
 

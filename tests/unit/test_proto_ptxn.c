@@ -195,6 +195,31 @@ static void test_commit_while_moving_applies_nothing_and_names_the_parameter(voi
     TEST_ASSERT_EQUAL_INT64(100000000, get_param(VY));
 }
 
+static void test_encoder_mean_on_an_enabled_drive_applies_nothing(void)
+{
+    const uint16_t pid[2] = {VX, PROTO_PARAM_ENCODER_MEAN};
+    const int64_t v[2] = {250000000, 1};
+    uint8_t on[2] = {0x07, 1};
+    uint16_t txn = begin();
+    proto_error_t e;
+
+    expect_txn(stage(txn, pid, v, 2));
+    /* another session enables the drive between stage and commit */
+    TEST_ASSERT_TRUE(request(PROTO_MSG_ENABLE, on, 2) > 0);
+    run_ms(1);
+    e = expect_error(txn_req(PROTO_MSG_PARAM_COMMIT, txn), PROTO_ERROR_CODE_BUSY);
+    TEST_ASSERT_EQUAL_UINT16(PROTO_PARAM_ENCODER_MEAN, e.arg);
+    TEST_ASSERT_EQUAL_INT64(PROTO_STATE_READY, e.lo);
+    TEST_ASSERT_EQUAL_INT64(1000000000, get_param(VX));
+    TEST_ASSERT_EQUAL_INT64(0, get_param(PROTO_PARAM_ENCODER_MEAN));
+    on[1] = 0;
+    TEST_ASSERT_TRUE(request(PROTO_MSG_ENABLE, on, 2) > 0);
+    run_ms(1);
+    TEST_ASSERT_EQUAL_UINT8(1, expect_txn(txn_req(PROTO_MSG_PARAM_COMMIT, txn)).committed);
+    TEST_ASSERT_EQUAL_INT64(250000000, get_param(VX));
+    TEST_ASSERT_EQUAL_INT64(1, get_param(PROTO_PARAM_ENCODER_MEAN));
+}
+
 static void test_a_value_the_other_staged_values_refuse_applies_nothing(void)
 {
     /* S-curve: max_acceleration <= 3 s * max_jerk, with the staged jerk */
@@ -271,6 +296,7 @@ int main(void)
     RUN_TEST(test_staged_values_change_nothing_until_the_commit_applies_all);
     RUN_TEST(test_a_refused_pair_stages_nothing_of_its_frame);
     RUN_TEST(test_commit_while_moving_applies_nothing_and_names_the_parameter);
+    RUN_TEST(test_encoder_mean_on_an_enabled_drive_applies_nothing);
     RUN_TEST(test_a_value_the_other_staged_values_refuse_applies_nothing);
     RUN_TEST(test_a_retried_commit_is_applied_once);
     RUN_TEST(test_another_session_or_a_silent_host_loses_the_transaction);
