@@ -89,7 +89,9 @@ static bool normals_near(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t 
         *hint = fx_isqrt64_near((uint64_t)len2, *hint);
         len = (int32_t)*hint;
         for (k = 0; k < 3; k++) {
-            n1[k] = div_q30(c[k], len);
+            /* 0 / len is 0 (len >= 1): the plane normal's component of an
+             * in-plane tangent needs no division */
+            n1[k] = (c[k] == 0) ? 0 : div_q30(c[k], len);
         }
     } else {
         for (k = 0; k < 3; k++) {
@@ -610,9 +612,15 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     c->active = true;
     c->ch2_on = ch2;
     for (k = 0; k < 3; k++) {
-        e[k] = (k < CORE_AXES) ? fx_sat_diff32(ref->pos[k], meas[k]) : 0;
         c->n[0][k] = n1[k];
         c->n[1][k] = n2[k];
+    }
+    /* the axes' errors: every estimate but the exact one, which reads the
+     * measurement alone (an ARC's second channel takes them too) */
+    if (c->p.mode != CEC_MODE_EXACT || (ch2 && g->kind == MOTION_GEOM_ARC)) {
+        for (k = 0; k < 3; k++) {
+            e[k] = (k < CORE_AXES) ? fx_sat_diff32(ref->pos[k], meas[k]) : 0;
+        }
     }
 
     switch (c->p.mode) {
