@@ -291,6 +291,7 @@ void pid_disable(pid_loop_t *pid)
     pid->enabled = false;
     pid->bumpless = false;
     pid->ready = false;
+    pid->lean_rdy = false;
     pid->dq_live = false;
     pid->integ = 0;
     pid->dterm = 0;
@@ -316,6 +317,7 @@ void pid_reset(pid_loop_t *pid, bool bumpless)
     pid->primed = false;
     pid->bumpless = false;
     pid->ready = false;
+    pid->lean_rdy = false;
     pid->sat_ticks = 0;
 }
 
@@ -480,7 +482,9 @@ static inline int64_t coef_mid_apply(pid_coef_t c, int32_t x)
     if (PID_COEF_PIECES) {
         return coef_pieces(p, (unsigned)c.sh);
     }
-    return (p + ((int64_t)1 << (unsigned)(c.sh - 1))) >> (unsigned)c.sh;
+    /* floor((p + 2^(sh-1)) / 2^sh) == floor((floor(p / 2^(sh-1)) + 1) / 2):
+     * no rounding constant to build from the shift */
+    return ((p >> (unsigned)(c.sh - 1)) + 1) >> 1;
 }
 
 /* The lean general step (pid.h): pid_step_general's operations for
@@ -542,7 +546,7 @@ int32_t pid_step_e(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64
         }
         return pid_step_fast_inline(pid, e, meas, extra, true);
     }
-    if (pid->lean && pid->enabled && pid->primed && !pid->bumpless && !pid->dq_live) {
+    if (pid->lean_rdy) {
         return step_lean(pid, e, meas, vel, acc, extra);
     }
     return pid_step_general(pid, e, meas, vel, acc, extra);
