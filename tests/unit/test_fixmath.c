@@ -1619,11 +1619,25 @@ static void test_mul_rsh_and_mul_q30_pos(void)
             for (j = 0; j < sizeof x / sizeof x[0]; j++) {
                 int64_t ref = fx_mul32_shift(x[i], x[j], sh);
                 TEST_ASSERT_EQUAL_INT64(ref, fx_mul_rsh64(x[i], x[j], sh, rnd));
+                TEST_ASSERT_EQUAL_INT64(ref, fx_mul_rsh64_pieces(x[i], x[j], sh, rnd));
                 if (ref == (int32_t)ref) {
                     TEST_ASSERT_EQUAL_INT32((int32_t)ref, fx_mul_rsh32(x[i], x[j], sh, rnd));
+                    TEST_ASSERT_EQUAL_INT32((int32_t)ref, fx_mul_rsh32_pieces(x[i], x[j], sh, rnd));
                 }
             }
         }
+    }
+    /* the host form (FX_RSH_PIECES 0) against the M4's pieces, bit for bit
+     * (fx_mul_rsh32: the low word, whatever the value) */
+    TEST_ASSERT_EQUAL_INT(0, FX_RSH_PIECES);
+    rng_seed(0x31);
+    for (i = 0; i < 1000000u; i++) {
+        int32_t a = (int32_t)rng() >> (rng() % 32u), m = (int32_t)rng() >> (rng() % 32u);
+        unsigned s = 1u + (unsigned)(rng() % 31u);
+        uint32_t rnd = (uint32_t)1 << (s - 1u);
+        TEST_ASSERT_EQUAL_INT64(fx_mul_rsh64_pieces(a, m, s, rnd), fx_mul_rsh64(a, m, s, rnd));
+        TEST_ASSERT_EQUAL_INT64(fx_mul32_shift(a, m, s), fx_mul_rsh64(a, m, s, rnd));
+        TEST_ASSERT_EQUAL_INT32(fx_mul_rsh32_pieces(a, m, s, rnd), fx_mul_rsh32(a, m, s, rnd));
     }
     rng_seed(0x30);
     for (i = 0; i < 200000; i++) {
