@@ -565,10 +565,11 @@ static void osc_watch(cec_t *c)
 void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
 {
     const motion_geom_t *g;
-    q1_30_t t[3], n1[3], n2[3];
+    q1_30_t t[3], s1[3], s2[3];
+    const q1_30_t *n1 = c->n[0], *n2 = c->n[1];
     int32_t e[3], ec1, ec2 = 0;
     unsigned w = 2;
-    bool ch2;
+    bool ch2, changed;
     int k;
 
     if (c->p.mode == CEC_MODE_OFF || ref == NULL || !ref->active ||
@@ -595,26 +596,35 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     for (k = 0; k < 3; k++) {
         t[k] = (k < CORE_AXES) ? g->tangent[k] : 0;
     }
-    if ((g->kind != MOTION_GEOM_LINE && g->kind != MOTION_GEOM_ARC) || !geom_plane(g, &w) ||
-        !normals_near(t, w, n1, n2, &c->len_hint)) {
+    if ((g->kind != MOTION_GEOM_LINE && g->kind != MOTION_GEOM_ARC) || !geom_plane(g, &w)) {
+        c->bad_geom++;
+        deactivate(c);
+        return;
+    }
+    /* Within a segment the normals go straight into c->n (normals_near
+     * writes nothing when it fails). A new segment needs last tick's
+     * normals (new_segment projects the integral from them): the new ones
+     * wait in s1, s2 until it has run. */
+    changed = segment_changed(c, g, w);
+    if (!normals_near(t, w, changed ? s1 : c->n[0], changed ? s2 : c->n[1], &c->len_hint)) {
         c->bad_geom++;
         deactivate(c);
         return;
     }
     c->idle = false; /* the channels run (or are reset) below */
     ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
-    if (segment_changed(c, g, w)) {
-        new_segment(c, ref, w, n1, n2, ch2);
+    if (changed) {
+        new_segment(c, ref, w, s1, s2, ch2);
+        for (k = 0; k < 3; k++) {
+            c->n[0][k] = s1[k];
+            c->n[1][k] = s2[k];
+        }
     } else if (c->ch2_on && !ch2) {
         /* (a LINE's tangent is part of its key: only reached on an ARC) */
         pid_reset(&c->ch[1], false);
     }
     c->active = true;
     c->ch2_on = ch2;
-    for (k = 0; k < 3; k++) {
-        c->n[0][k] = n1[k];
-        c->n[1][k] = n2[k];
-    }
     /* the axes' errors: every estimate but the exact one, which reads the
      * measurement alone (an ARC's second channel takes them too) */
     if (c->p.mode != CEC_MODE_EXACT || (ch2 && g->kind == MOTION_GEOM_ARC)) {
@@ -705,7 +715,13 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
         }
     }
 
-    pid_step(&c->ch[0], 0, -(pos_nm_t)ec1, 0, 0, 0);
+    if (pid_fast_ready(&c->ch[0])) {
+        /* pid_step's fast step, inline: e = sat32(0 - -ec1) = ec1; its rest
+         * step (pid.h) would return the same */
+        pid_step_fast_inline(&c->ch[0], ec1, -(pos_nm_t)ec1, 0, true);
+    } else {
+        pid_step(&c->ch[0], 0, -(pos_nm_t)ec1, 0, 0, 0);
+    }
     if (ch2) {
         pid_step(&c->ch[1], 0, -(pos_nm_t)ec2, 0, 0, 0);
     } else {

@@ -251,6 +251,60 @@ static void test_exact_step_bit_exact(void)
     }
 }
 
+/* The channel's step inside cec_step (the PID's fast step inline while the
+ * loop is ready) against pid_step on a copy of the loop taken before the
+ * tick, every field the step writes equal: an exact arc with the bench's
+ * gains (D filtered), a lag that jumps now and then (the general path for
+ * a derivative out of the fast range) and an output clamp that saturates. */
+static void test_channel_step_equals_pid_step(void)
+{
+    cec_t c;
+    cec_params_t p;
+    arc_case_t a;
+    int i, fast = 0, sat = 0;
+    memset(&c, 0, sizeof c);
+    memset(&p, 0, sizeof p);
+    p.mode = CEC_MODE_EXACT;
+    p.pid.kp = Q32(2000.0);
+    p.pid.ki = Q32(2e5);
+    p.pid.kd = Q32(2.0);
+    p.pid.kt = Q32(10.0);
+    p.pid.d_tau_us = 1000;
+    p.pid.out_max_mv = 3000;
+    p.pid.i_max_mv = 2000;
+    p.pid.tick_hz = 10000;
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&c, &p, NULL));
+    srand(11);
+    for (i = 0; i < 20000; i++) {
+        double d = (i % 997 < 3) ? 3e6 : (double)(rand() % 4001 - 2000);
+        pid_loop_t before = c.ch[0];
+        arc_case(&a, 0, 2e7, 0.0002 * i, 1, 2e-5, d);
+        fast += before.ready;
+        cec_step(&c, &a.ref, a.meas);
+        TEST_ASSERT_TRUE(c.active);
+        if (i == 0) {
+            continue; /* the segment's first tick resets the loop first */
+        }
+        pid_step(&before, 0, -(pos_nm_t)c.ec_nm[0], 0, 0, 0);
+        sat += before.saturated;
+        TEST_ASSERT_EQUAL_INT64(before.out, c.ch[0].out);
+        TEST_ASSERT_EQUAL_INT32(before.out_mv, c.ch[0].out_mv);
+        TEST_ASSERT_EQUAL_INT64(before.integ, c.ch[0].integ);
+        TEST_ASSERT_EQUAL_INT64(before.dq, c.ch[0].dq);
+        TEST_ASSERT_EQUAL_INT64(before.dterm, c.ch[0].dterm);
+        TEST_ASSERT_EQUAL_INT64(before.extra, c.ch[0].extra);
+        TEST_ASSERT_EQUAL_INT32(before.err_nm, c.ch[0].err_nm);
+        TEST_ASSERT_EQUAL_INT64(before.meas_prev, c.ch[0].meas_prev);
+        TEST_ASSERT_EQUAL(before.saturated, c.ch[0].saturated);
+        TEST_ASSERT_EQUAL_UINT32(before.sat_ticks, c.ch[0].sat_ticks);
+        TEST_ASSERT_EQUAL_UINT32(before.sat_total, c.ch[0].sat_total);
+        TEST_ASSERT_EQUAL(before.ready, c.ch[0].ready);
+        TEST_ASSERT_EQUAL(before.dq_live, c.ch[0].dq_live);
+    }
+    TEST_ASSERT_TRUE(fast > 15000);           /* the inline fast step ran */
+    TEST_ASSERT_TRUE(sat > 10 && sat < 5000); /* and saturated now and then */
+}
+
 static void test_curvature_correction_vs_double(void)
 {
     static const double radii[] = {1e5, 1e6, 1e7, 5e7, 1e9, 1e11};
@@ -893,6 +947,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_normals);
     RUN_TEST(test_exact_step_bit_exact);
+    RUN_TEST(test_channel_step_equals_pid_step);
     RUN_TEST(test_curvature_correction_vs_double);
     RUN_TEST(test_circle_pure_lag_grid);
     RUN_TEST(test_circle_lag_and_radial_deviation);
