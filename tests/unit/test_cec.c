@@ -3,6 +3,7 @@
  * errors) and on three-axis lines, Koren's estimate, output distribution,
  * segment changes and hand-over, validation. */
 #include "cec.h"
+#include "cec_test.h"
 #include "unity.h"
 
 #include <math.h>
@@ -303,6 +304,83 @@ static void test_channel_step_equals_pid_step(void)
     }
     TEST_ASSERT_TRUE(fast > 15000);           /* the inline fast step ran */
     TEST_ASSERT_TRUE(sat > 10 && sat < 5000); /* and saturated now and then */
+}
+
+static uint64_t root_rng = 0x9E3779B97F4A7C15u;
+
+static uint64_t root_rand(void)
+{
+    root_rng ^= root_rng << 13;
+    root_rng ^= root_rng >> 7;
+    root_rng ^= root_rng << 17;
+    return root_rng;
+}
+
+/* The exact arc's root (cec_arc_root_test) against fx_isqrt64: points near
+ * the arc (the first-order estimate, either side), far from it (the
+ * fallback), radii from 1 nm to 2^31, the segment's 2^30 / r, a perturbed
+ * one, none and nonsense; the hint it leaves is the root. */
+static void test_exact_arc_root(void)
+{
+    int i, hits = 0;
+    for (i = 0; i < 2000000; i++) {
+        uint64_t x = root_rand();
+        pos_nm_t r = (pos_nm_t)((x & 0x7FFFFFFFu) >> (x >> 59)) + 1;
+        int kind = (int)((x >> 32) & 7u);
+        pid_coef_t inv;
+        uint64_t v, want;
+        uint32_t hint = (uint32_t)root_rand(), got;
+        int64_t dev;
+        TEST_ASSERT_TRUE(pid_coef_make(&inv, FX_ONE_Q30, 1, (uint64_t)r));
+        if (kind == 5) {
+            inv.m += (int32_t)(root_rand() % 2001u) - 1000; /* perturbed */
+        } else if (kind == 6) {
+            inv.m = 0;
+            inv.sh = 0;
+        } else if (kind == 7) {
+            inv.m = (int32_t)root_rand();
+            inv.sh = (int32_t)(root_rand() % 200u) - 100;
+        }
+        /* the distance off the radius: within 1 nm to beyond 2^40 / r */
+        dev = (int64_t)(root_rand() >> (24 + root_rand() % 40u)) * ((root_rand() & 1u) ? 1 : -1);
+        if (kind == 4) {
+            v = root_rand() >> 1; /* anywhere below 2^63 */
+        } else if ((int64_t)r + dev <= 0) {
+            v = root_rand() % ((uint64_t)r * (uint64_t)r + 1u);
+        } else {
+            uint64_t rho = (uint64_t)((int64_t)r + dev);
+            if (rho >= ((uint64_t)1 << 31)) {
+                rho = ((uint64_t)1 << 31) - 1u; /* v < 2^63, as the caller's */
+            }
+            v = rho * rho + root_rand() % (2u * rho + 1u);
+        }
+        want = fx_isqrt64(v);
+        got = cec_arc_root_test(v, r, inv, &hint);
+        TEST_ASSERT_EQUAL_UINT32((uint32_t)want, got);
+        TEST_ASSERT_EQUAL_UINT32(got, hint);
+        hits += (kind < 4 && dev > -1000 && dev < 1000);
+    }
+    TEST_ASSERT_TRUE(hits > 10000);
+    {
+        /* the edges: r^2 - 1, r^2, (r + 1)^2 - 1 and v below 2^63 */
+        static const pos_nm_t rs[] = {1, 2, 3, 20000000, 2147483646};
+        unsigned k;
+        for (k = 0; k < sizeof rs / sizeof rs[0]; k++) {
+            pid_coef_t inv;
+            uint64_t r = (uint64_t)rs[k], vv[4];
+            unsigned j;
+            uint32_t hint = 0;
+            TEST_ASSERT_TRUE(pid_coef_make(&inv, FX_ONE_Q30, 1, r));
+            vv[0] = r * r - 1u;
+            vv[1] = r * r;
+            vv[2] = (r + 1u) * (r + 1u) - 1u;
+            vv[3] = ((uint64_t)1 << 63) - 1u;
+            for (j = 0; j < 4; j++) {
+                TEST_ASSERT_EQUAL_UINT32(fx_isqrt64(vv[j]),
+                                         cec_arc_root_test(vv[j], rs[k], inv, &hint));
+            }
+        }
+    }
 }
 
 static void test_curvature_correction_vs_double(void)
@@ -948,6 +1026,7 @@ int main(void)
     RUN_TEST(test_normals);
     RUN_TEST(test_exact_step_bit_exact);
     RUN_TEST(test_channel_step_equals_pid_step);
+    RUN_TEST(test_exact_arc_root);
     RUN_TEST(test_curvature_correction_vs_double);
     RUN_TEST(test_circle_pure_lag_grid);
     RUN_TEST(test_circle_lag_and_radial_deviation);
