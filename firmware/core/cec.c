@@ -614,6 +614,7 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     const motion_geom_t *g;
     q1_30_t t[3], s1[3], s2[3];
     const q1_30_t *n1 = c->n[0], *n2 = c->n[1];
+    q1_30_t *o1 = c->n[0], *o2 = c->n[1]; /* where normals_near writes */
     int32_t e[3], ec1, ec2 = 0;
     unsigned w = 2;
     bool ch2, changed;
@@ -653,7 +654,11 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
      * normals (new_segment projects the integral from them): the new ones
      * wait in s1, s2 until it has run. */
     changed = segment_changed(c, g, w);
-    if (!normals_near(t, w, changed ? s1 : c->n[0], changed ? s2 : c->n[1], &c->len_hint)) {
+    if (changed) {
+        o1 = s1;
+        o2 = s2;
+    }
+    if (!normals_near(t, w, o1, o2, &c->len_hint)) {
         c->bad_geom++;
         deactivate(c);
         return;
