@@ -487,6 +487,15 @@ static inline int64_t coef_mid_apply(pid_coef_t c, int32_t x)
     return ((p >> (unsigned)(c.sh - 1)) + 1) >> 1;
 }
 
+/* fx_sat32_fast(v) with one compare on the usual path (an int32 value) */
+static inline int32_t sat32_usual(int64_t v)
+{
+    if (v == (int64_t)(int32_t)v) {
+        return (int32_t)v;
+    }
+    return (v < 0) ? INT32_MIN : INT32_MAX;
+}
+
 /* The lean general step (pid.h): pid_step_general's operations for
  * pid->lean and a usual step (deadband 0: edb = e; the D filter on; not
  * fast: no hand-over, ready stays false). */
@@ -498,8 +507,8 @@ static int32_t step_lean(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel,
     int64_t pterm = coef_mid_apply(pid->cp, e);
     int64_t draw = coef_mid_apply(pid->cd, de);
     int64_t dterm = pid->dterm + fx_mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
-    int64_t ff = coef_mid_apply(pid->cv, fx_sat32_fast(fx_round_shift64(vel, 2))) +
-                 coef_mid_apply(pid->ca, fx_sat32_fast(fx_round_shift64(acc, 10)));
+    int64_t ff = coef_mid_apply(pid->cv, sat32_usual(fx_round_shift64(vel, 2))) +
+                 coef_mid_apply(pid->ca, sat32_usual(fx_round_shift64(acc, 10)));
     int64_t ex = (extra == 0) ? 0 : fx_clamp_sym64(extra, PID_TERM_LIM);
     int64_t integ = fx_clamp_sym64(pid->integ + coef_mid_apply(pid->ci, e), pid->i_lim);
 
