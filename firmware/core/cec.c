@@ -3,6 +3,7 @@
  * specification in cec.h.
  */
 #include "cec.h"
+#include "cec_test.h"
 
 #include <stddef.h>
 
@@ -89,7 +90,9 @@ static bool normals_near(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t 
         *hint = fx_isqrt64_near((uint64_t)len2, *hint);
         len = (int32_t)*hint;
         for (k = 0; k < 3; k++) {
-            n1[k] = div_q30(c[k], len);
+            /* 0 / len is 0 (len >= 1): the plane normal's component of an
+             * in-plane tangent needs no division */
+            n1[k] = (c[k] == 0) ? 0 : div_q30(c[k], len);
         }
     } else {
         for (k = 0; k < 3; k++) {
@@ -208,16 +211,55 @@ int32_t cec_curv_correction(int32_t e_abs, pos_nm_t radius)
     return curv_corr(e_abs, radius, inv);
 }
 
+/* floor(sqrt(v)) for v = |P - C|^2 < 2^63 of a point near the arc of radius r
+ * (0 < r < 2^31), without a division on the usual tick: s = r + (v - r^2) /
+ * (2 r) from inv ~ 2^30 / r (the segment's inv_r, 15 of its bits), then
+ * checked, s^2 <= v < (s + 1)^2, one step either way (the estimate is
+ * within one of the root for |v - r^2| up to about r 2^14). Otherwise (far
+ * from the arc, no inv) fx_isqrt64_near from *hint. Exact for any inv:
+ * test_cec.c, test_exact_arc_root. */
+static inline uint32_t arc_root(uint64_t v, pos_nm_t r, pid_coef_t inv, uint32_t *hint)
+{
+    if ((uint64_t)r - 1u < (uint64_t)INT32_MAX - 1u) {
+        int64_t d = (int64_t)v - r * r; /* v < 2^63, r^2 < 2^62 */
+        /* any shift is exact (only the estimate depends on it): inv of
+         * 0 < r < 2^31 has inv.sh + 15 in 15..46 */
+        unsigned sh = (unsigned)(inv.sh + 15) & 63u;
+        bool near = (uint64_t)d + ((uint64_t)1 << 40) < ((uint64_t)1 << 41); /* |d| < 2^40 */
+        int64_t dn = near ? d : 0;
+        uint64_t s = (uint64_t)(r + ((dn * (inv.m >> 16)) >> sh)), sq = s * s; /* |dn m| < 2^55 */
+
+        if (near && s - 1u < (uint64_t)UINT32_MAX - 1u) { /* 1 <= s < 2^32 - 1 */
+            if (sq > v) {
+                s--;
+                sq = s * s;
+                if (sq <= v) {
+                    *hint = (uint32_t)s; /* v < (s + 1)^2: the step above */
+                    return (uint32_t)s;
+                }
+            } else if (v - sq <= 2u * s) { /* v < (s + 1)^2 */
+                *hint = (uint32_t)s;
+                return (uint32_t)s;
+            } else if (v - sq - 2u * s - 1u <= 2u * s + 2u) { /* (s + 1)^2 <= v < (s + 2)^2 */
+                *hint = (uint32_t)s + 1u;
+                return (uint32_t)s + 1u;
+            }
+        }
+    }
+    *hint = fx_isqrt64_near(v, *hint);
+    return *hint;
+}
+
 /* cec_exact_arc; *hint: the last root of this caller (fx_isqrt64_near,
- * taken where fx_hypot2 takes its one 64-bit root). */
+ * taken where fx_hypot2 takes its one 64-bit root); inv: 2^30 / radius
+ * (arc_root; m = 0: none). */
 static int32_t exact_arc_near(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius,
-                              int s, uint32_t *hint)
+                              int s, uint32_t *hint, pid_coef_t inv)
 {
     int64_t x = pu - cu, y = pv - cv, rho, d;
     uint64_t ax = fx_uabs64(x), ay = fx_uabs64(y);
     if ((ax | ay) < ((uint64_t)1 << 31)) {
-        *hint = fx_isqrt64_near(ax * ax + ay * ay, *hint);
-        rho = *hint;
+        rho = arc_root(ax * ax + ay * ay, radius, inv, hint);
     } else {
         rho = fx_hypot2(x, y);
     }
@@ -225,10 +267,17 @@ static int32_t exact_arc_near(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv
     return fx_sat32_fast((s < 0) ? -d : d);
 }
 
+/* Test hook: arc_root (cec_test.h). */
+uint32_t cec_arc_root_test(uint64_t v, pos_nm_t r, pid_coef_t inv, uint32_t *hint)
+{
+    return arc_root(v, r, inv, hint);
+}
+
 int32_t cec_exact_arc(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius, int s)
 {
     uint32_t hint = 0;
-    return exact_arc_near(pu, pv, cu, cv, radius, s, &hint);
+    pid_coef_t none = {0, 0};
+    return exact_arc_near(pu, pv, cu, cv, radius, s, &hint, none);
 }
 
 int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30_t n[3])
@@ -563,10 +612,12 @@ static void osc_watch(cec_t *c)
 void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
 {
     const motion_geom_t *g;
-    q1_30_t t[3], n1[3], n2[3];
+    q1_30_t t[3], s1[3], s2[3];
+    const q1_30_t *n1 = c->n[0], *n2 = c->n[1];
+    q1_30_t *o1 = c->n[0], *o2 = c->n[1]; /* where normals_near writes */
     int32_t e[3], ec1, ec2 = 0;
     unsigned w = 2;
-    bool ch2;
+    bool ch2, changed;
     int k;
 
     if (c->p.mode == CEC_MODE_OFF || ref == NULL || !ref->active ||
@@ -593,33 +644,52 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     for (k = 0; k < 3; k++) {
         t[k] = (k < CORE_AXES) ? g->tangent[k] : 0;
     }
-    if ((g->kind != MOTION_GEOM_LINE && g->kind != MOTION_GEOM_ARC) || !geom_plane(g, &w) ||
-        !normals_near(t, w, n1, n2, &c->len_hint)) {
+    if ((g->kind != MOTION_GEOM_LINE && g->kind != MOTION_GEOM_ARC) || !geom_plane(g, &w)) {
+        c->bad_geom++;
+        deactivate(c);
+        return;
+    }
+    /* Within a segment the normals go straight into c->n (normals_near
+     * writes nothing when it fails). A new segment needs last tick's
+     * normals (new_segment projects the integral from them): the new ones
+     * wait in s1, s2 until it has run. */
+    changed = segment_changed(c, g, w);
+    if (changed) {
+        o1 = s1;
+        o2 = s2;
+    }
+    if (!normals_near(t, w, o1, o2, &c->len_hint)) {
         c->bad_geom++;
         deactivate(c);
         return;
     }
     c->idle = false; /* the channels run (or are reset) below */
     ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
-    if (segment_changed(c, g, w)) {
-        new_segment(c, ref, w, n1, n2, ch2);
+    if (changed) {
+        new_segment(c, ref, w, s1, s2, ch2);
+        for (k = 0; k < 3; k++) {
+            c->n[0][k] = s1[k];
+            c->n[1][k] = s2[k];
+        }
     } else if (c->ch2_on && !ch2) {
         /* (a LINE's tangent is part of its key: only reached on an ARC) */
         pid_reset(&c->ch[1], false);
     }
     c->active = true;
     c->ch2_on = ch2;
-    for (k = 0; k < 3; k++) {
-        e[k] = (k < CORE_AXES) ? fx_sat_diff32(ref->pos[k], meas[k]) : 0;
-        c->n[0][k] = n1[k];
-        c->n[1][k] = n2[k];
+    /* the axes' errors: every estimate but the exact one, which reads the
+     * measurement alone (an ARC's second channel takes them too) */
+    if (c->p.mode != CEC_MODE_EXACT || (ch2 && g->kind == MOTION_GEOM_ARC)) {
+        for (k = 0; k < 3; k++) {
+            e[k] = (k < CORE_AXES) ? fx_sat_diff32(ref->pos[k], meas[k]) : 0;
+        }
     }
 
     switch (c->p.mode) {
     case CEC_MODE_EXACT:
         if (g->kind == MOTION_GEOM_ARC) {
             ec1 = exact_arc_near(meas[g->plane_u], meas[g->plane_v], g->centre_u, g->centre_v,
-                                 g->radius, c->s, &c->rho_hint);
+                                 g->radius, c->s, &c->rho_hint, c->inv_r);
         } else {
             pos_nm_t p3[3], s3[3];
             for (k = 0; k < 3; k++) {
@@ -697,7 +767,13 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
         }
     }
 
-    pid_step(&c->ch[0], 0, -(pos_nm_t)ec1, 0, 0, 0);
+    if (pid_fast_ready(&c->ch[0])) {
+        /* pid_step's fast step, inline: e = sat32(0 - -ec1) = ec1; its rest
+         * step (pid.h) would return the same */
+        pid_step_fast_inline(&c->ch[0], ec1, -(pos_nm_t)ec1, 0, true);
+    } else {
+        pid_step(&c->ch[0], 0, -(pos_nm_t)ec1, 0, 0, 0);
+    }
     if (ch2) {
         pid_step(&c->ch[1], 0, -(pos_nm_t)ec2, 0, 0, 0);
     } else {

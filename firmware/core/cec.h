@@ -204,7 +204,9 @@ typedef struct {
     uint32_t osc_ticks; /* consecutive ticks over the limit        */
     bool oscillating;   /* latched: a sustained limit cycle        */
     /* last roots of the normalisation and the exact arc distance (tick):
-     * starting points of fx_isqrt64_near only, any value is correct */
+     * starting points of fx_isqrt64_near only, any value is correct (the
+     * exact arc distance first tries one step about the radius with
+     * inv_r, without a division; cec.c, arc_root) */
     uint32_t len_hint;
     uint32_t rho_hint;
 } cec_t;

@@ -291,6 +291,7 @@ void pid_disable(pid_loop_t *pid)
     pid->enabled = false;
     pid->bumpless = false;
     pid->ready = false;
+    pid->lean_rdy = false;
     pid->dq_live = false;
     pid->integ = 0;
     pid->dterm = 0;
@@ -316,6 +317,7 @@ void pid_reset(pid_loop_t *pid, bool bumpless)
     pid->primed = false;
     pid->bumpless = false;
     pid->ready = false;
+    pid->lean_rdy = false;
     pid->sat_ticks = 0;
 }
 
@@ -480,7 +482,18 @@ static inline int64_t coef_mid_apply(pid_coef_t c, int32_t x)
     if (PID_COEF_PIECES) {
         return coef_pieces(p, (unsigned)c.sh);
     }
-    return (p + ((int64_t)1 << (unsigned)(c.sh - 1))) >> (unsigned)c.sh;
+    /* floor((p + 2^(sh-1)) / 2^sh) == floor((floor(p / 2^(sh-1)) + 1) / 2):
+     * no rounding constant to build from the shift */
+    return ((p >> (unsigned)(c.sh - 1)) + 1) >> 1;
+}
+
+/* fx_sat32_fast(v) with one compare on the usual path (an int32 value) */
+static inline int32_t sat32_usual(int64_t v)
+{
+    if (v == (int64_t)(int32_t)v) {
+        return (int32_t)v;
+    }
+    return (v < 0) ? INT32_MIN : INT32_MAX;
 }
 
 /* The lean general step (pid.h): pid_step_general's operations for
@@ -494,8 +507,8 @@ static int32_t step_lean(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel,
     int64_t pterm = coef_mid_apply(pid->cp, e);
     int64_t draw = coef_mid_apply(pid->cd, de);
     int64_t dterm = pid->dterm + fx_mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
-    int64_t ff = coef_mid_apply(pid->cv, fx_sat32_fast(fx_round_shift64(vel, 2))) +
-                 coef_mid_apply(pid->ca, fx_sat32_fast(fx_round_shift64(acc, 10)));
+    int64_t ff = coef_mid_apply(pid->cv, sat32_usual(fx_round_shift64(vel, 2))) +
+                 coef_mid_apply(pid->ca, sat32_usual(fx_round_shift64(acc, 10)));
     int64_t ex = (extra == 0) ? 0 : fx_clamp_sym64(extra, PID_TERM_LIM);
     int64_t integ = fx_clamp_sym64(pid->integ + coef_mid_apply(pid->ci, e), pid->i_lim);
 
@@ -542,7 +555,7 @@ int32_t pid_step_e(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64
         }
         return pid_step_fast_inline(pid, e, meas, extra, true);
     }
-    if (pid->lean && pid->enabled && pid->primed && !pid->bumpless && !pid->dq_live) {
+    if (pid->lean_rdy) {
         return step_lean(pid, e, meas, vel, acc, extra);
     }
     return pid_step_general(pid, e, meas, vel, acc, extra);

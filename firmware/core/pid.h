@@ -201,6 +201,8 @@ typedef struct {
                     * dq_live: re-derived (pid_refresh_ready) by every
                     * function that writes one of them, so the tick reads
                     * one flag; a copy that pokes fast must call it too */
+    bool lean_rdy; /* cached lean && enabled && primed && !bumpless &&
+                    * !dq_live (the lean step applies), kept as ready */
     /* status (read anywhere) */
     int32_t err_nm;     /* last error before the deadband                  */
     int32_t out_mv;     /* last output, mV                                 */
@@ -280,10 +282,11 @@ int32_t pid_fast_saturated(pid_loop_t *pid, int64_t raw, int64_t integ);
 /* The filtered D term in U, from whichever state is live. */
 int64_t pid_dterm(const pid_loop_t *pid);
 
-/* Re-derive pid->ready from its inputs. */
+/* Re-derive pid->ready and pid->lean_rdy from their inputs. */
 static inline void pid_refresh_ready(pid_loop_t *pid)
 {
     pid->ready = pid->fast && pid->primed && pid->enabled && !pid->bumpless && pid->dq_live;
+    pid->lean_rdy = pid->lean && pid->primed && pid->enabled && !pid->bumpless && !pid->dq_live;
 }
 
 /* The cached pid->ready. */

@@ -607,13 +607,19 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
      * ferr_nm[i] is sat32(ref_pos[i] - fb->pos[i]) of this tick (step 3;
      * nothing since changes either). The usual case, a ready loop with a
      * quiet CEC, runs the PID's fast step inline. */
-    i = quiet ? axes_fast(s, fb->pos, n) : 0u;
-    for (; i < n && i < CORE_AXES; i++) {
-        pid_loop_t *pid = &s->pid[i];
-
-        s->out_mv[i] = axis_step(s, i, s->ferr_nm[i], fb->pos[i], vel[i], acc[i], quiet);
-        if (pid->sat_ticks > s->sat_max) {
-            sat_fault(s, i);
+    if (quiet) {
+        for (i = axes_fast(s, fb->pos, n); i < n && i < CORE_AXES; i++) {
+            s->out_mv[i] = axis_step(s, i, s->ferr_nm[i], fb->pos[i], vel[i], acc[i], true);
+            if (s->pid[i].sat_ticks > s->sat_max) {
+                sat_fault(s, i);
+            }
+        }
+    } else {
+        for (i = 0; i < n && i < CORE_AXES; i++) {
+            s->out_mv[i] = axis_step(s, i, s->ferr_nm[i], fb->pos[i], vel[i], acc[i], false);
+            if (s->pid[i].sat_ticks > s->sat_max) {
+                sat_fault(s, i);
+            }
         }
     }
     tick_outputs(s);

@@ -3,6 +3,7 @@
  * errors) and on three-axis lines, Koren's estimate, output distribution,
  * segment changes and hand-over, validation. */
 #include "cec.h"
+#include "cec_test.h"
 #include "unity.h"
 
 #include <math.h>
@@ -247,6 +248,137 @@ static void test_exact_step_bit_exact(void)
         if (normals_oracle(t, w, o1, o2)) {
             TEST_ASSERT_EQUAL_INT32_ARRAY(o1, n1, 3);
             TEST_ASSERT_EQUAL_INT32_ARRAY(o2, n2, 3);
+        }
+    }
+}
+
+/* The channel's step inside cec_step (the PID's fast step inline while the
+ * loop is ready) against pid_step on a copy of the loop taken before the
+ * tick, every field the step writes equal: an exact arc with the bench's
+ * gains (D filtered), a lag that jumps now and then (the general path for
+ * a derivative out of the fast range) and an output clamp that saturates. */
+static void test_channel_step_equals_pid_step(void)
+{
+    cec_t c;
+    cec_params_t p;
+    arc_case_t a;
+    int i, fast = 0, sat = 0;
+    memset(&c, 0, sizeof c);
+    memset(&p, 0, sizeof p);
+    p.mode = CEC_MODE_EXACT;
+    p.pid.kp = Q32(2000.0);
+    p.pid.ki = Q32(2e5);
+    p.pid.kd = Q32(2.0);
+    p.pid.kt = Q32(10.0);
+    p.pid.d_tau_us = 1000;
+    p.pid.out_max_mv = 3000;
+    p.pid.i_max_mv = 2000;
+    p.pid.tick_hz = 10000;
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&c, &p, NULL));
+    srand(11);
+    for (i = 0; i < 20000; i++) {
+        double d = (i % 997 < 3) ? 3e6 : (double)(rand() % 4001 - 2000);
+        pid_loop_t before = c.ch[0];
+        arc_case(&a, 0, 2e7, 0.0002 * i, 1, 2e-5, d);
+        fast += before.ready;
+        cec_step(&c, &a.ref, a.meas);
+        TEST_ASSERT_TRUE(c.active);
+        if (i == 0) {
+            continue; /* the segment's first tick resets the loop first */
+        }
+        pid_step(&before, 0, -(pos_nm_t)c.ec_nm[0], 0, 0, 0);
+        sat += before.saturated;
+        TEST_ASSERT_EQUAL_INT64(before.out, c.ch[0].out);
+        TEST_ASSERT_EQUAL_INT32(before.out_mv, c.ch[0].out_mv);
+        TEST_ASSERT_EQUAL_INT64(before.integ, c.ch[0].integ);
+        TEST_ASSERT_EQUAL_INT64(before.dq, c.ch[0].dq);
+        TEST_ASSERT_EQUAL_INT64(before.dterm, c.ch[0].dterm);
+        TEST_ASSERT_EQUAL_INT64(before.extra, c.ch[0].extra);
+        TEST_ASSERT_EQUAL_INT32(before.err_nm, c.ch[0].err_nm);
+        TEST_ASSERT_EQUAL_INT64(before.meas_prev, c.ch[0].meas_prev);
+        TEST_ASSERT_EQUAL(before.saturated, c.ch[0].saturated);
+        TEST_ASSERT_EQUAL_UINT32(before.sat_ticks, c.ch[0].sat_ticks);
+        TEST_ASSERT_EQUAL_UINT32(before.sat_total, c.ch[0].sat_total);
+        TEST_ASSERT_EQUAL(before.ready, c.ch[0].ready);
+        TEST_ASSERT_EQUAL(before.dq_live, c.ch[0].dq_live);
+    }
+    TEST_ASSERT_TRUE(fast > 15000);           /* the inline fast step ran */
+    TEST_ASSERT_TRUE(sat > 10 && sat < 5000); /* and saturated now and then */
+}
+
+static uint64_t root_rng = 0x9E3779B97F4A7C15u;
+
+static uint64_t root_rand(void)
+{
+    root_rng ^= root_rng << 13;
+    root_rng ^= root_rng >> 7;
+    root_rng ^= root_rng << 17;
+    return root_rng;
+}
+
+/* The exact arc's root (cec_arc_root_test) against fx_isqrt64: points near
+ * the arc (the first-order estimate, either side), far from it (the
+ * fallback), radii from 1 nm to 2^31, the segment's 2^30 / r, a perturbed
+ * one, none and nonsense; the hint it leaves is the root. */
+static void test_exact_arc_root(void)
+{
+    int i, hits = 0;
+    for (i = 0; i < 2000000; i++) {
+        uint64_t x = root_rand();
+        pos_nm_t r = (pos_nm_t)((x & 0x7FFFFFFFu) >> (x >> 59)) + 1;
+        int kind = (int)((x >> 32) & 7u);
+        pid_coef_t inv;
+        uint64_t v, want;
+        uint32_t hint = (uint32_t)root_rand(), got;
+        int64_t dev;
+        TEST_ASSERT_TRUE(pid_coef_make(&inv, FX_ONE_Q30, 1, (uint64_t)r));
+        if (kind == 5) {
+            inv.m += (int32_t)(root_rand() % 2001u) - 1000; /* perturbed */
+        } else if (kind == 6) {
+            inv.m = 0;
+            inv.sh = 0;
+        } else if (kind == 7) {
+            inv.m = (int32_t)root_rand();
+            inv.sh = (int32_t)(root_rand() % 200u) - 100;
+        }
+        /* the distance off the radius: within 1 nm to beyond 2^40 / r */
+        dev = (int64_t)(root_rand() >> (24 + root_rand() % 40u)) * ((root_rand() & 1u) ? 1 : -1);
+        if (kind == 4) {
+            v = root_rand() >> 1; /* anywhere below 2^63 */
+        } else if ((int64_t)r + dev <= 0) {
+            v = root_rand() % ((uint64_t)r * (uint64_t)r + 1u);
+        } else {
+            uint64_t rho = (uint64_t)((int64_t)r + dev);
+            if (rho >= ((uint64_t)1 << 31)) {
+                rho = ((uint64_t)1 << 31) - 1u; /* v < 2^63, as the caller's */
+            }
+            v = rho * rho + root_rand() % (2u * rho + 1u);
+        }
+        want = fx_isqrt64(v);
+        got = cec_arc_root_test(v, r, inv, &hint);
+        TEST_ASSERT_EQUAL_UINT32((uint32_t)want, got);
+        TEST_ASSERT_EQUAL_UINT32(got, hint);
+        hits += (kind < 4 && dev > -1000 && dev < 1000);
+    }
+    TEST_ASSERT_TRUE(hits > 10000);
+    {
+        /* the edges: r^2 - 1, r^2, (r + 1)^2 - 1 and v below 2^63 */
+        static const pos_nm_t rs[] = {1, 2, 3, 20000000, 2147483646};
+        unsigned k;
+        for (k = 0; k < sizeof rs / sizeof rs[0]; k++) {
+            pid_coef_t inv;
+            uint64_t r = (uint64_t)rs[k], vv[4];
+            unsigned j;
+            uint32_t hint = 0;
+            TEST_ASSERT_TRUE(pid_coef_make(&inv, FX_ONE_Q30, 1, r));
+            vv[0] = r * r - 1u;
+            vv[1] = r * r;
+            vv[2] = (r + 1u) * (r + 1u) - 1u;
+            vv[3] = ((uint64_t)1 << 63) - 1u;
+            for (j = 0; j < 4; j++) {
+                TEST_ASSERT_EQUAL_UINT32(fx_isqrt64(vv[j]),
+                                         cec_arc_root_test(vv[j], rs[k], inv, &hint));
+            }
         }
     }
 }
@@ -893,6 +1025,8 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_normals);
     RUN_TEST(test_exact_step_bit_exact);
+    RUN_TEST(test_channel_step_equals_pid_step);
+    RUN_TEST(test_exact_arc_root);
     RUN_TEST(test_curvature_correction_vs_double);
     RUN_TEST(test_circle_pure_lag_grid);
     RUN_TEST(test_circle_lag_and_radial_deviation);

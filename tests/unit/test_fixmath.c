@@ -344,6 +344,37 @@ static void test_sat_diff32_exact(void)
     }
 }
 
+/* The host form of fx_sat_diff32 (FX_SUB_OVERFLOW: the subtraction's
+ * overflow flag) against the wrapped form the Cortex-M4 compiles, bit for
+ * bit, and both against the exact difference. */
+static void test_sat_diff32_host_equals_wrap(void)
+{
+    unsigned i, j;
+    TEST_ASSERT_EQUAL_INT(1, FX_SUB_OVERFLOW); /* the host form is the one in use */
+    for (i = 0; i < N_EDGE64; i++) {
+        for (j = 0; j < N_EDGE64; j++) {
+            int64_t a = edge64[i], b = edge64[j];
+            EXPECT_I64((int64_t)fx_sat_diff32_wrap(a, b), fx_sat_diff32(a, b),
+                       "diff %" PRId64 " %" PRId64, a, b);
+            EXPECT_I64((int64_t)clamp_i32((i128)a - b), fx_sat_diff32_wrap(a, b),
+                       "wrap %" PRId64 " %" PRId64, a, b);
+        }
+    }
+    rng_seed(33);
+    for (i = 0; i < 1000000u; i++) {
+        int64_t a = rnd_i64() >> (rng() % 64u), b;
+        i128 near = (i128)a + ((int32_t)rnd_i64() >> (rng() % 32u));
+        b = (i % 2u) ? (int64_t)near : rnd_i64() >> (rng() % 64u);
+        if ((i128)b != near && (i % 2u)) {
+            b = a; /* near left int64: the difference 0 */
+        }
+        EXPECT_I64((int64_t)fx_sat_diff32_wrap(a, b), fx_sat_diff32(a, b),
+                   "diff %" PRId64 " %" PRId64, a, b);
+        EXPECT_I64((int64_t)clamp_i32((i128)a - b), fx_sat_diff32(a, b),
+                   "exact %" PRId64 " %" PRId64, a, b);
+    }
+}
+
 static void test_clamp(void)
 {
     TEST_ASSERT_EQUAL_INT32(5, fx_clamp32(5, 0, 10));
@@ -1588,11 +1619,25 @@ static void test_mul_rsh_and_mul_q30_pos(void)
             for (j = 0; j < sizeof x / sizeof x[0]; j++) {
                 int64_t ref = fx_mul32_shift(x[i], x[j], sh);
                 TEST_ASSERT_EQUAL_INT64(ref, fx_mul_rsh64(x[i], x[j], sh, rnd));
+                TEST_ASSERT_EQUAL_INT64(ref, fx_mul_rsh64_pieces(x[i], x[j], sh, rnd));
                 if (ref == (int32_t)ref) {
                     TEST_ASSERT_EQUAL_INT32((int32_t)ref, fx_mul_rsh32(x[i], x[j], sh, rnd));
+                    TEST_ASSERT_EQUAL_INT32((int32_t)ref, fx_mul_rsh32_pieces(x[i], x[j], sh, rnd));
                 }
             }
         }
+    }
+    /* the host form (FX_RSH_PIECES 0) against the M4's pieces, bit for bit
+     * (fx_mul_rsh32: the low word, whatever the value) */
+    TEST_ASSERT_EQUAL_INT(0, FX_RSH_PIECES);
+    rng_seed(0x31);
+    for (i = 0; i < 1000000u; i++) {
+        int32_t a = (int32_t)rng() >> (rng() % 32u), m = (int32_t)rng() >> (rng() % 32u);
+        unsigned s = 1u + (unsigned)(rng() % 31u);
+        uint32_t rnd = (uint32_t)1 << (s - 1u);
+        TEST_ASSERT_EQUAL_INT64(fx_mul_rsh64_pieces(a, m, s, rnd), fx_mul_rsh64(a, m, s, rnd));
+        TEST_ASSERT_EQUAL_INT64(fx_mul32_shift(a, m, s), fx_mul_rsh64(a, m, s, rnd));
+        TEST_ASSERT_EQUAL_INT32(fx_mul_rsh32_pieces(a, m, s, rnd), fx_mul_rsh32(a, m, s, rnd));
     }
     rng_seed(0x30);
     for (i = 0; i < 200000; i++) {
@@ -1839,6 +1884,7 @@ int main(void)
     RUN_TEST(test_sat_arith32_edges_and_random);
     RUN_TEST(test_sat_arith64_edges_and_random);
     RUN_TEST(test_sat_diff32_exact);
+    RUN_TEST(test_sat_diff32_host_equals_wrap);
     RUN_TEST(test_clamp);
     RUN_TEST(test_round_shift64_ties_toward_plus_inf);
     RUN_TEST(test_round_shift64_extremes_and_random);

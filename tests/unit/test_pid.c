@@ -913,15 +913,30 @@ static void test_lean_step_equals_general(void)
                 int64_t extra = (sel < 8) ? 0 : rnd64() >> (22 + 2 * (sel - 8));
                 int32_t e = fx_sat_diff32(ref, next);
                 int32_t u, ub;
-                lean_steps += a.lean && a.enabled && a.primed && !a.bumpless && !a.dq_live;
                 if (k == 7000) {
                     TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &p));
                     TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&b, &p));
+                }
+                if (k == 10000) { /* three disabled steps, then on again */
+                    pid_disable(&a);
+                    pid_disable(&b);
+                }
+                if (k == 10003) {
+                    pid_enable(&a, 100);
+                    pid_enable(&b, 100);
                 }
                 if (k == 14000) {
                     pid_reset(&a, false);
                     pid_reset(&b, false);
                 }
+                if (k == 17000) {
+                    pid_reset(&a, true);
+                    pid_reset(&b, true);
+                }
+                /* the cached flag (pid_refresh_ready) is its definition */
+                TEST_ASSERT_EQUAL(a.lean && a.enabled && a.primed && !a.bumpless && !a.dq_live,
+                                  a.lean_rdy);
+                lean_steps += a.lean_rdy;
                 u = pid_step_e(&a, e, next, vel, acc, extra);
                 ub = pid_step_general(&b, e, next, vel, acc, extra);
                 sat_steps += a.saturated;

@@ -1,0 +1,15 @@
+/*
+ * cec_test.h - test hooks of cec (internal: the unit tests include it, the
+ * firmware's callers do not).
+ */
+#ifndef CEC_TEST_H
+#define CEC_TEST_H
+
+#include "cec.h"
+
+/* The exact arc distance's root, floor(sqrt(v)), from the first-order step
+ * about the radius r with inv ~ 2^30 / r (any inv: exact), falling back to
+ * fx_isqrt64_near from *hint (which it updates). */
+uint32_t cec_arc_root_test(uint64_t v, pos_nm_t r, pid_coef_t inv, uint32_t *hint);
+
+#endif /* CEC_TEST_H */
