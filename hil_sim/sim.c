@@ -44,6 +44,8 @@ static struct {
     double enc_index[SIM_AXES];   /* 1: an index pulse per motor turn    */
     double index_phase[SIM_AXES]; /* counts from position 0 to an index  */
     int enc_model;                /* SIM_ENC_*: how edges reach the decoder */
+    bool ref_noisy;               /* an axis's reference scale has noise:
+                                   * its counter is set every tick */
     uint64_t run_edges;           /* edges delivered in runs (SIM_ENC_FAST)  */
     double table[SIM_AXES];       /* axis_table_pos after the last substep,
                                    * plus the 2-D field (sim_field2d) */
@@ -631,6 +633,34 @@ int sim_set_link(unsigned node_id, int serial, int can, uint32_t capabilities, u
     return 0;
 }
 
+/* The home switch of an axis from the table position (hal_home_switch's
+ * source). The firmware reads its inputs in the tick and in the main
+ * context after it, before the plant moves (sim.h step 1): S.table is then
+ * the table of the tick's start, so computing a value when it is read
+ * gives what setting it at the tick's start gave, without the work on the
+ * ticks that do not read it. */
+static bool sim_home_read(void *ctx, unsigned axis)
+{
+    double x;
+    (void)ctx;
+    if (axis >= S.axes) {
+        return false;
+    }
+    x = S.table[axis] - S.home_switch[axis];
+    return (S.home_side[axis] < 0.0 && x <= 0.0) || (S.home_side[axis] > 0.0 && x >= 0.0);
+}
+
+/* The reference scale's counter of an axis without reading noise (channel
+ * axes + i's source; as sim_home_read). With noise, each tick draws a
+ * reading (run_ticks sets it), so that the noise sequence does not depend
+ * on when the drive samples. */
+static uint32_t sim_ref_read(void *ctx, unsigned ch)
+{
+    unsigned i = ch - S.axes;
+    (void)ctx;
+    return (uint32_t)(uint64_t)axis_ref_reading_at(&S.ax[i], S.table[i]);
+}
+
 int sim_start(void)
 {
     drive_config_t cfg;
@@ -726,18 +756,19 @@ int sim_start(void)
     if (drive_set_cec_mode((drive_cec_mode_t)S.cec_mode) != DRIVE_OK) {
         return SIM_E_DRIVE;
     }
+    hal_sim_set_home_source(sim_home_read, NULL);
+    S.ref_noisy = false;
+    for (i = 0; i < S.axes; i++) {
+        if (S.ax[i].p.ref_noise > 0.0) {
+            S.ref_noisy = true;
+        } else {
+            hal_sim_set_counter_source(S.axes + i, sim_ref_read, NULL);
+        }
+    }
     /* the drive started at time 0; the first tick comes one period later */
     S.t_ns = S.period_ns;
     S.started = 1;
     return 0;
-}
-
-/* The home switch of axis i from the table position. */
-static void sim_home_switch(unsigned i)
-{
-    double x = S.table[i] - S.home_switch[i];
-    hal_sim_set_home_switch(i, (S.home_side[i] < 0.0 && x <= 0.0) ||
-                                   (S.home_side[i] > 0.0 && x >= 0.0));
 }
 
 static void write_row(double *row)
@@ -983,10 +1014,13 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
     row_in = row_in == 0 ? 0 : every - row_in;
     for (k = 0; k < ticks; k++) {
         hal_sim_set_time_ns(S.t_ns);
-        for (i = 0; i < S.axes; i++) {
-            int64_t rc = axis_ref_reading_at(&S.ax[i], S.table[i]);
-            hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
-            sim_home_switch(i);
+        /* the home switches and the noiseless reference scales are read
+         * through their sources (sim_home_read, sim_ref_read) */
+        for (i = 0; S.ref_noisy && i < S.axes; i++) {
+            if (S.ax[i].p.ref_noise > 0.0) {
+                int64_t rc = axis_ref_reading_at(&S.ax[i], S.table[i]);
+                hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
+            }
         }
         app_tick();
         inject_tick();
