@@ -44,8 +44,9 @@ static struct {
     double enc_index[SIM_AXES];   /* 1: an index pulse per motor turn    */
     double index_phase[SIM_AXES]; /* counts from position 0 to an index  */
     int enc_model;                /* SIM_ENC_*: how edges reach the decoder */
-    bool ref_noisy;               /* an axis's reference scale has noise:
-                                   * its counter is set every tick */
+    bool ref_noisy;               /* an axis's reference scale has noise
+                                   * (or sim_test_eager_inputs): counters
+                                   * set every tick */
     uint64_t run_edges;           /* edges delivered in runs (SIM_ENC_FAST)  */
     double table[SIM_AXES];       /* axis_table_pos after the last substep,
                                    * plus the 2-D field (sim_field2d) */
@@ -633,6 +634,13 @@ int sim_set_link(unsigned node_id, int serial, int can, uint32_t capabilities, u
     return 0;
 }
 
+static int inputs_eager; /* sim_test_eager_inputs */
+
+void sim_test_eager_inputs(int on)
+{
+    inputs_eager = on;
+}
+
 /* The home switch of an axis from the table position (hal_home_switch's
  * source). The firmware reads its inputs in the tick and in the main
  * context after it, before the plant moves (sim.h step 1): S.table is then
@@ -756,10 +764,12 @@ int sim_start(void)
     if (drive_set_cec_mode((drive_cec_mode_t)S.cec_mode) != DRIVE_OK) {
         return SIM_E_DRIVE;
     }
-    hal_sim_set_home_source(sim_home_read, NULL);
-    S.ref_noisy = false;
+    S.ref_noisy = inputs_eager != 0;
+    if (!inputs_eager) {
+        hal_sim_set_home_source(sim_home_read, NULL);
+    }
     for (i = 0; i < S.axes; i++) {
-        if (S.ax[i].p.ref_noise > 0.0) {
+        if (S.ax[i].p.ref_noise > 0.0 || inputs_eager) {
             S.ref_noisy = true;
         } else {
             hal_sim_set_counter_source(S.axes + i, sim_ref_read, NULL);
@@ -1017,9 +1027,14 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         /* the home switches and the noiseless reference scales are read
          * through their sources (sim_home_read, sim_ref_read) */
         for (i = 0; S.ref_noisy && i < S.axes; i++) {
-            if (S.ax[i].p.ref_noise > 0.0) {
+            if (S.ax[i].p.ref_noise > 0.0 || inputs_eager) {
                 int64_t rc = axis_ref_reading_at(&S.ax[i], S.table[i]);
                 hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
+            }
+            if (inputs_eager) { /* the reference for sim_home_read */
+                double x = S.table[i] - S.home_switch[i];
+                hal_sim_set_home_switch(i, (S.home_side[i] < 0.0 && x <= 0.0) ||
+                                               (S.home_side[i] > 0.0 && x >= 0.0));
             }
         }
         app_tick();

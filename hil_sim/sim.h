@@ -43,7 +43,11 @@
  * drive_init ran at time 0):
  *   1. the HAL clock reads t_k; reference-scale counters are published on
  *      channels axes..2*axes-1 (hal_encoder_counter, 32-bit wrapping;
- *      axis_ref_reading: with the model's reference noise, if any);
+ *      axis_ref_reading: with the model's reference noise, if any) and the
+ *      home switches (hal_home_switch), both of the table at t_k; without
+ *      reference noise both are computed when the firmware reads them
+ *      (HAL sources, hal_sim.h: the same values, as the firmware reads its
+ *      inputs in steps 2 and 5 only, before the table moves);
  *   2. drive_tick(calib_sampling()) runs (decode, interpolate, servo,
  *      hal_motor_set_mv), then calib_tick with what it published;
  *   3. every axis's decoded count is compared with the count the model
@@ -233,6 +237,11 @@ unsigned sim_substeps(void);
  * first and then the generators (sim.c plant_tick1); off (0), it takes the
  * general loop, axis by axis, as with several substeps. Default on. */
 void sim_test_plant_split(int on);
+/* Test hook: on (1), the simulator sets every home switch and reference
+ * scale counter at the start of every tick, as a port without sources
+ * would, instead of computing them when the firmware reads them (the
+ * default, 0; sim.c sim_home_read). Takes effect at sim_start. */
+void sim_test_eager_inputs(int on);
 double sim_table_pos(unsigned axis);
 
 /* The drive's status in a fixed layout for the host (ctypes). */

@@ -21,7 +21,7 @@
 #define MAX_TICKS 40000u
 
 typedef struct {
-    int64_t pos, vel, index_pos;
+    int64_t pos, vel, index_pos, refscale;
     uint32_t count, nedge, t_last, index_events;
     int8_t dir;
     uint8_t ab;
@@ -49,14 +49,17 @@ void tearDown(void)
 static void tick(run_rec_t *r)
 {
     unsigned i;
+    drive_status_t st;
     TEST_ASSERT_TRUE(r->ticks < MAX_TICKS);
     TEST_ASSERT_EQUAL_INT(1, sim_run(1, r->trace[r->ticks], 1, 1));
+    drive_status(&st);
     for (i = 0; i < AXES; i++) {
         qdec_t d = *drive_test_encoder(i);
         enc_rec_t *e = &r->enc[r->ticks][i];
         e->pos = d.out.pos;
         e->vel = qdec_velocity(&d);
         e->index_pos = d.out.index_pos;
+        e->refscale = st.refscale[i];
         e->count = d.e.count;
         e->nedge = d.e.nedge;
         e->t_last = d.e.t_last;
@@ -85,6 +88,7 @@ static void start(int model)
  * reading goes back and forth within a tick) and Coulomb friction (ten
  * substeps per tick). */
 static bool rough;
+static bool ref_noise_x; /* reading noise on X's reference scale */
 
 static void circle(int model, run_rec_t *r, unsigned switch_at)
 {
@@ -111,6 +115,9 @@ static void circle(int model, run_rec_t *r, unsigned switch_at)
         TEST_ASSERT_EQUAL_INT(0, sim_axis_set(1, "enc_noise_counts", 0.3));
         TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "coulomb_motor", 0.01));
         TEST_ASSERT_EQUAL_INT(0, sim_axis_set(1, "coulomb_table", 10.0));
+    }
+    if (ref_noise_x) {
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "ref_noise", 20e-9));
     }
     TEST_ASSERT_EQUAL_INT(0, sim_start());
     TEST_ASSERT_EQUAL_INT(rough ? 10u : 1u, sim_substeps());
@@ -167,6 +174,7 @@ static void check_same(const run_rec_t *a, const run_rec_t *b)
             TEST_ASSERT_EQUAL_INT64(x->vel, y->vel);
             TEST_ASSERT_EQUAL_UINT32(x->index_events, y->index_events);
             TEST_ASSERT_EQUAL_INT64(x->index_pos, y->index_pos);
+            TEST_ASSERT_EQUAL_INT64(x->refscale, y->refscale);
         }
         TEST_ASSERT_EQUAL_INT(0, memcmp(a->trace[k], b->trace[k], sizeof a->trace[k]));
     }
@@ -286,6 +294,36 @@ static void test_plant_split_same_as_axis_by_axis(void)
     check_same(&rec[0], &rec[1]);
 }
 
+/* The home switches and reference scales computed when the firmware reads
+ * them (HAL sources, the default) against set at every tick's start
+ * (sim_test_eager_inputs(1)): the homing (the switch ends the search) and
+ * the circle with reading noise on X's scale (X set every tick, Y and Z
+ * read), decoders, the drive's reference-scale positions and the trace
+ * identical on every tick. */
+static void test_inputs_read_when_read_same_as_every_tick(void)
+{
+    unsigned k;
+    bool moved = false;
+    sim_test_eager_inputs(1);
+    homing(SIM_ENC_FAST, &rec[0]);
+    sim_test_eager_inputs(0);
+    homing(SIM_ENC_FAST, &rec[1]);
+    check_same(&rec[0], &rec[1]);
+    rough = false;
+    ref_noise_x = true;
+    sim_test_eager_inputs(1);
+    circle(SIM_ENC_FAST, &rec[0], ~0u);
+    sim_test_eager_inputs(0);
+    circle(SIM_ENC_FAST, &rec[1], ~0u);
+    ref_noise_x = false;
+    check_same(&rec[0], &rec[1]);
+    /* the scales moved: the drive sampled them along the circle */
+    for (k = 1; k < rec[1].ticks; k++) {
+        moved = moved || rec[1].enc[k][1].refscale != rec[1].enc[0][1].refscale;
+    }
+    TEST_ASSERT_TRUE(moved);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -294,5 +332,6 @@ int main(void)
     RUN_TEST(test_homing_to_index_same_in_both_models);
     RUN_TEST(test_model_switch_while_running);
     RUN_TEST(test_plant_split_same_as_axis_by_axis);
+    RUN_TEST(test_inputs_read_when_read_same_as_every_tick);
     return UNITY_END();
 }
