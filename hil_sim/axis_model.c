@@ -513,22 +513,14 @@ bool axis_substep(axis_t *ax, double u)
     return false;
 }
 
-double axis_encoder_counts(const axis_t *ax)
-{
-    return ax->z[0] * ax->enc_scale + ax->p.enc_offset_counts;
-}
-
-double axis_encoder_reading(axis_t *ax)
+double axis_encoder_noisy(axis_t *ax)
 {
     double c = axis_encoder_counts(ax);
-    if (ax->p.enc_noise_counts > 0.0) {
-        double u1 = uniform01(&ax->rng), u2 = uniform01(&ax->rng);
-        c += ax->p.enc_noise_counts * sqrt(-2.0 * log(u1)) * cos(2.0 * PI_D * u2);
-    }
-    return c;
+    double u1 = uniform01(&ax->rng), u2 = uniform01(&ax->rng);
+    return c + ax->p.enc_noise_counts * sqrt(-2.0 * log(u1)) * cos(2.0 * PI_D * u2);
 }
 
-static double pitch_error(const axis_params_t *p, double x, int dir)
+double axis_pitch_error(const axis_params_t *p, double x, int dir)
 {
     const double *e = dir > 0 ? p->pitch_err_fwd : p->pitch_err_rev;
     unsigned i;
@@ -547,11 +539,6 @@ static double pitch_error(const axis_params_t *p, double x, int dir)
     return e[p->pitch_n - 1];
 }
 
-double axis_table_pos(const axis_t *ax)
-{
-    double x = ax->p.l * ax->z[2];
-    return x + pitch_error(&ax->p, x, ax->pitch_dir);
-}
 
 int64_t axis_ref_count(const axis_t *ax)
 {

@@ -173,12 +173,32 @@ bool axis_init(axis_t *ax, const axis_params_t *p, double h);
 bool axis_substep(axis_t *ax, double u);
 
 /* Motor encoder position in counts (continuous, no noise) and the reading
- * the encoder reports (noise added, still continuous: the caller quantises). */
-double axis_encoder_counts(const axis_t *ax);
-double axis_encoder_reading(axis_t *ax);
+ * the encoder reports (noise added, still continuous: the caller quantises;
+ * axis_encoder_noisy: the reading with the noise drawn, the path of
+ * axis_encoder_reading with noise on). Inline: read every substep. */
+double axis_encoder_noisy(axis_t *ax);
 
-/* True table position, m (l th2 + pitch error). */
-double axis_table_pos(const axis_t *ax);
+static inline double axis_encoder_counts(const axis_t *ax)
+{
+    return ax->z[0] * ax->enc_scale + ax->p.enc_offset_counts;
+}
+
+static inline double axis_encoder_reading(axis_t *ax)
+{
+    return ax->p.enc_noise_counts > 0.0 ? axis_encoder_noisy(ax) : axis_encoder_counts(ax);
+}
+
+/* The pitch error map's error at table position x, moving in direction dir
+ * (0 without a map). */
+double axis_pitch_error(const axis_params_t *p, double x, int dir);
+
+/* True table position, m (l th2 + pitch error; without a map x + 0.0, as
+ * with one: -0.0 reads +0.0). */
+static inline double axis_table_pos(const axis_t *ax)
+{
+    double x = ax->p.l * ax->z[2];
+    return x + (ax->p.pitch_n > 0 ? axis_pitch_error(&ax->p, x, ax->pitch_dir) : 0.0);
+}
 
 /* Reference scale count: true table position / resolution, rounded to the
  * nearest count (no mean bias). */
