@@ -87,6 +87,7 @@ typedef struct {
     uint64_t glitches;      /* pulses injected                               */
     uint64_t last_edge_t;   /* time of the last event emitted, ns          */
     qgen_pos_t edge_off[4]; /* edge placement errors (qgen_set_edge_offsets) */
+    bool has_off;           /* internal: an edge_off is not 0               */
     /* internal (fast path): time per count of the current move, quotient + 1,
      * remainder - divisor (mod 2^64) and divisor */
     uint64_t step_q1, step_r1, step_den;
