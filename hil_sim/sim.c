@@ -63,6 +63,7 @@ static struct {
     size_t inj_k[SIM_AXES];
     size_t inj_n[SIM_AXES];
     double inj_now[SIM_AXES]; /* V added over the current tick */
+    bool inj_any;             /* an inj_n is not 0 */
     /* the mean reading (hal_encoder_mean) while the drive has enc_mean:
      * generator position at the start of the substep, count at the start
      * of the tick, integral of count - base over the tick so far (ns);
@@ -751,6 +752,7 @@ int sim_start(void)
     }
     for (i = 0; i < SIM_AXES; i++) {
         S.inj_n[i] = 0;
+        S.inj_any = false;
         S.inj_k[i] = 0;
         S.inj_now[i] = 0.0;
     }
@@ -797,9 +799,14 @@ static void write_row(double *row)
     row[3] = (double)st.contour_error_nm * 1e-9;
     for (i = 0; i < S.axes; i++) {
         row[4 + 4 * i] = (double)st.ref[i] * 1e-9;
-        row[5 + 4 * i] = S.tmean_on ? S.tmean[i] : S.table[i];
+        row[5 + 4 * i] = S.table[i];
         row[6 + 4 * i] = (double)st.pos[i] * 1e-9;
         row[7 + 4 * i] = (double)hal_sim_motor_mv(i) * 1e-3;
+    }
+    for (i = 0; (S.tmean_on || S.inj_any) && i < S.axes; i++) {
+        if (S.tmean_on) {
+            row[5 + 4 * i] = S.tmean[i];
+        }
         if (S.inj_n[i] > 0) {
             row[7 + 4 * i] += S.inj_now[i];
         }
@@ -810,7 +817,7 @@ static void write_row(double *row)
 static void inject_tick(void)
 {
     unsigned i;
-    for (i = 0; i < S.axes; i++) {
+    for (i = 0; S.inj_any && i < S.axes; i++) {
         if (S.inj_n[i] == 0) {
             continue;
         }
@@ -827,6 +834,7 @@ static void inject_tick(void)
 
 int sim_inject(unsigned axis, const double *volts, size_t n)
 {
+    unsigned i;
     if (!S.started) {
         return SIM_E_STATE;
     }
@@ -835,6 +843,10 @@ int sim_inject(unsigned axis, const double *volts, size_t n)
     }
     S.inj[axis] = volts;
     S.inj_n[axis] = volts != NULL ? n : 0;
+    S.inj_any = false;
+    for (i = 0; i < SIM_AXES; i++) {
+        S.inj_any = S.inj_any || S.inj_n[i] > 0;
+    }
     S.inj_k[axis] = 0;
     S.inj_now[axis] = 0.0;
     return 0;
@@ -983,7 +995,7 @@ static void plant_tick1(void)
     unsigned i;
     for (i = 0; i < S.axes; i++) {
         double u = (double)hal_sim_motor_mv(i) * 1e-3;
-        if (S.inj_n[i] > 0) {
+        if (S.inj_any && S.inj_n[i] > 0) {
             u += S.inj_now[i];
         }
         /* z unchanged and no reading noise: the reading is the one the
@@ -992,6 +1004,12 @@ static void plant_tick1(void)
                     ? S.gen[i].x
                     : to_qgen(axis_encoder_reading(&S.ax[i]));
         S.table[i] = axis_table_pos(&S.ax[i]);
+    }
+    if (!S.mean && S.rec == NULL) {
+        for (i = 0; i < S.axes; i++) {
+            S.edges += qgen_move_to(&S.gen[i], x1[i], S.t_ns + S.sub_ns[1]);
+        }
+        return;
     }
     for (i = 0; i < S.axes; i++) {
         if (S.mean) {
