@@ -940,6 +940,15 @@ static void sim_record_step(unsigned i, unsigned s)
 {
     uint64_t g0 = S.ticks * S.nsub, g = g0 + s + 1u;
     size_t row;
+    if (S.rec_m == 1u) { /* every substep a sample: no divisions */
+        row = S.rec_n + s;
+        if (row < S.rec_cap) {
+            double *r = S.rec + row * SIM_REC_COLS;
+            r[0] = (double)(S.t_ns + S.sub_ns[s + 1]) * 1e-9;
+            r[1 + i] = axis_table_pos(&S.ax[i]);
+        }
+        return;
+    }
     if (g % S.rec_m != 0u) {
         return;
     }
@@ -957,8 +966,14 @@ static void sim_record_step(unsigned i, unsigned s)
 static void sim_record_tick(void)
 {
     uint64_t g0 = S.ticks * S.nsub, g1 = g0 + S.nsub;
-    size_t n = (size_t)(g1 / S.rec_m - g0 / S.rec_m), k, last;
-    last = g1 % S.rec_m == 0u ? n - 1u : n;
+    size_t n, k, last;
+    if (S.rec_m == 1u) { /* as below with m = 1 */
+        n = S.nsub;
+        last = n - 1u;
+    } else {
+        n = (size_t)(g1 / S.rec_m - g0 / S.rec_m);
+        last = g1 % S.rec_m == 0u ? n - 1u : n;
+    }
     for (k = 0; k < n && S.rec_n + k < S.rec_cap; k++) {
         double *r = S.rec + (S.rec_n + k) * SIM_REC_COLS;
         unsigned i;
