@@ -1041,11 +1041,12 @@ static void plant_tick1(void)
 }
 
 static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
-                      unsigned min_free, uint64_t *ran)
+                      unsigned min_free, unsigned idle_step, uint64_t *ran)
 {
     uint64_t k;
     size_t rows = 0;
-    unsigned i, s, row_in; /* row_in: ticks until S.ticks % every == 0 */
+    unsigned i, s, row_in;        /* row_in: ticks until S.ticks % every == 0 */
+    unsigned idle_in = idle_step; /* ticks until the next status poll */
     bool split;
     if (!S.started) {
         return SIM_E_STATE;
@@ -1130,6 +1131,15 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
             k++;
             break;
         }
+        if (idle_step > 0 && --idle_in == 0) {
+            drive_status_t st;
+            idle_in = idle_step;
+            drive_status(&st);
+            if (st.faults != 0 || st.state == DRIVE_IDLE) {
+                k++;
+                break;
+            }
+        }
     }
     *ran = k;
     return (long)rows;
@@ -1138,14 +1148,25 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
 long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every)
 {
     uint64_t ran;
-    return run_ticks(ticks, trace, rows_cap, every, 0, &ran);
+    return run_ticks(ticks, trace, rows_cap, every, 0, 0, &ran);
 }
 
 long sim_run_until_free(uint64_t ticks, unsigned min_free, double *trace, size_t rows_cap,
                         unsigned every, uint64_t *ran)
 {
     uint64_t n = 0;
-    long rows = run_ticks(ticks, trace, rows_cap, every, min_free, &n);
+    long rows = run_ticks(ticks, trace, rows_cap, every, min_free, 0, &n);
+    if (ran != NULL) {
+        *ran = n;
+    }
+    return rows;
+}
+
+long sim_run_until_idle(uint64_t ticks, unsigned step, double *trace, size_t rows_cap,
+                        unsigned every, uint64_t *ran)
+{
+    uint64_t n = 0;
+    long rows = run_ticks(ticks, trace, rows_cap, every, 0, step > 0 ? step : 1u, &n);
     if (ran != NULL) {
         *ran = n;
     }

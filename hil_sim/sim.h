@@ -211,6 +211,14 @@ long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every);
  * run. Returns rows written or a negative code. */
 long sim_run_until_free(uint64_t ticks, unsigned min_free, double *trace, size_t rows_cap,
                         unsigned every, uint64_t *ran);
+/* As sim_run, in steps of `step` ticks (0: 1), stopping after the first
+ * step that ends with the drive idle (DRIVE_IDLE) or faulted
+ * (drive_status): what a host that runs `step` ticks at a time and polls
+ * the drive's status after each would run, in one call (contour sim
+ * circle). *ran (may be NULL): ticks run. Returns rows written or a
+ * negative code. */
+long sim_run_until_idle(uint64_t ticks, unsigned step, double *trace, size_t rows_cap,
+                        unsigned every, uint64_t *ran);
 
 /* An additive motor command per axis (V at the amplifier input), one value
  * per tick from `volts` (the host keeps the buffer alive): tick j after

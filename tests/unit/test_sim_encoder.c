@@ -324,6 +324,48 @@ static void test_inputs_read_when_read_same_as_every_tick(void)
     TEST_ASSERT_TRUE(moved);
 }
 
+/* A job run by sim_run_until_idle(stretch, 10) calls against sim_run(10)
+ * and a status poll after each, the loop of contour sim circle: the same
+ * ticks (a multiple of 10, past the end of the move), the same trace. */
+static unsigned idle_job(bool one_call, double (*trace)[SIM_TRACE_COLS])
+{
+    int64_t t[3] = {30000000, -20000000, 0};
+    int res = 0;
+    unsigned ticks = 0;
+    sim_status_t st;
+
+    start(SIM_ENC_FAST);
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, sim_enable(1));
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_line(t, 100000000, 3, 1, &res));
+    for (;;) {
+        if (one_call) {
+            uint64_t ran = 0;
+            long n = sim_run_until_idle(1000u, 10u, trace[ticks], MAX_TICKS - ticks, 1, &ran);
+            TEST_ASSERT_EQUAL_INT((long)ran, n);
+            ticks += (unsigned)ran;
+        } else {
+            TEST_ASSERT_EQUAL_INT(10, sim_run(10u, trace[ticks], MAX_TICKS - ticks, 1));
+            ticks += 10u;
+        }
+        TEST_ASSERT_EQUAL_INT(0, sim_drive_status(&st));
+        if (st.faults != 0u || st.state == DRIVE_IDLE || ticks + 1000u > MAX_TICKS) {
+            break;
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    return ticks;
+}
+
+static void test_run_until_idle_same_as_polling(void)
+{
+    unsigned a = idle_job(false, rec[0].trace), b = idle_job(true, rec[1].trace);
+    TEST_ASSERT_EQUAL_UINT(a, b);
+    TEST_ASSERT_EQUAL_UINT(0u, a % 10u);
+    TEST_ASSERT_TRUE(a > 1000u); /* more than one call of 1000 ticks */
+    TEST_ASSERT_EQUAL_INT(0, memcmp(rec[0].trace, rec[1].trace, sizeof rec[0].trace[0] * a));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -333,5 +375,6 @@ int main(void)
     RUN_TEST(test_model_switch_while_running);
     RUN_TEST(test_plant_split_same_as_axis_by_axis);
     RUN_TEST(test_inputs_read_when_read_same_as_every_tick);
+    RUN_TEST(test_run_until_idle_same_as_polling);
     return UNITY_END();
 }
