@@ -1040,9 +1040,26 @@ static void plant_tick1(void)
     }
 }
 
+/* After a tick of sim_run_until_free / _until_idle: true to stop there. */
+static __attribute__((noinline)) bool run_stop(unsigned min_free, unsigned idle_step,
+                                               unsigned *idle_in)
+{
+    if (min_free > 0 && drive_queue_free() >= min_free) {
+        return true;
+    }
+    if (idle_step > 0 && --*idle_in == 0) {
+        drive_status_t st;
+        *idle_in = idle_step;
+        drive_status(&st);
+        return st.faults != 0 || st.state == DRIVE_IDLE;
+    }
+    return false;
+}
+
 static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
                       unsigned min_free, unsigned idle_step, uint64_t *ran)
 {
+    bool stops = min_free > 0 || idle_step > 0;
     uint64_t k;
     size_t rows = 0;
     unsigned i, s, row_in;        /* row_in: ticks until S.ticks % every == 0 */
@@ -1127,18 +1144,9 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         }
         S.t_ns += S.period_ns;
         S.ticks++;
-        if (min_free > 0 && drive_queue_free() >= min_free) {
+        if (stops && run_stop(min_free, idle_step, &idle_in)) {
             k++;
             break;
-        }
-        if (idle_step > 0 && --idle_in == 0) {
-            drive_status_t st;
-            idle_in = idle_step;
-            drive_status(&st);
-            if (st.faults != 0 || st.state == DRIVE_IDLE) {
-                k++;
-                break;
-            }
         }
     }
     *ran = k;
