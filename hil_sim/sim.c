@@ -44,13 +44,18 @@ static struct {
     double enc_index[SIM_AXES];   /* 1: an index pulse per motor turn    */
     double index_phase[SIM_AXES]; /* counts from position 0 to an index  */
     int enc_model;                /* SIM_ENC_*: how edges reach the decoder */
-    bool ref_noisy;               /* an axis's reference scale has noise
-                                   * (or sim_test_eager_inputs): counters
-                                   * set every tick */
-    uint64_t run_edges;           /* edges delivered in runs (SIM_ENC_FAST)  */
-    double table[SIM_AXES];       /* axis_table_pos after the last substep,
-                                   * plus the 2-D field (sim_field2d) */
-    field2d_t field;              /* 2-D error field of X and Y (off: field.on) */
+    /* reference scales with reading noise (ref_noise > 0, also set per
+     * tick by the 2-D field) draw their reading at every tick's start, so
+     * that the noise sequence does not depend on when the drive reads:
+     * ref_per_tick (such a scale or the field; or sim_test_eager_inputs),
+     * ref_drawn[i] (this tick's reading of axis i is ref_val[i]) */
+    bool ref_per_tick;
+    bool ref_drawn[SIM_AXES];
+    uint32_t ref_val[SIM_AXES];
+    uint64_t run_edges;     /* edges delivered in runs (SIM_ENC_FAST)  */
+    double table[SIM_AXES]; /* axis_table_pos after the last substep,
+                             * plus the 2-D field (sim_field2d) */
+    field2d_t field;        /* 2-D error field of X and Y (off: field.on) */
     /* disturbances (sim.h "Disturbances"; all zero = off, no effect at all) */
     double cut_f_at[SIM_AXES];  /* N: F_at sign(v_ref) on this axis          */
     double cut_f_w;             /* N: cutting force F_w in the X-Y plane     */
@@ -667,6 +672,9 @@ static uint32_t sim_ref_read(void *ctx, unsigned ch)
 {
     unsigned i = ch - S.axes;
     (void)ctx;
+    if (S.ref_drawn[i]) {
+        return S.ref_val[i];
+    }
     return (uint32_t)(uint64_t)axis_ref_reading_at(&S.ax[i], S.table[i]);
 }
 
@@ -766,16 +774,16 @@ int sim_start(void)
     if (drive_set_cec_mode((drive_cec_mode_t)S.cec_mode) != DRIVE_OK) {
         return SIM_E_DRIVE;
     }
-    S.ref_noisy = inputs_eager != 0;
-    if (!inputs_eager) {
-        hal_sim_set_home_source(sim_home_read, NULL);
-    }
+    S.ref_per_tick = inputs_eager != 0 || (S.field.on && S.axes >= 2);
     for (i = 0; i < S.axes; i++) {
-        if (S.ax[i].p.ref_noise > 0.0 || inputs_eager) {
-            S.ref_noisy = true;
-        } else {
+        S.ref_drawn[i] = false;
+        S.ref_per_tick = S.ref_per_tick || S.ax[i].p.ref_noise > 0.0;
+        if (!inputs_eager) {
             hal_sim_set_counter_source(S.axes + i, sim_ref_read, NULL);
         }
+    }
+    if (!inputs_eager) {
+        hal_sim_set_home_source(sim_home_read, NULL);
     }
     /* the drive started at time 0; the first tick comes one period later */
     S.t_ns = S.period_ns;
@@ -1075,15 +1083,18 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
     row_in = row_in == 0 ? 0 : every - row_in;
     for (k = 0; k < ticks; k++) {
         hal_sim_set_time_ns(S.t_ns);
-        /* the home switches and the noiseless reference scales are read
-         * through their sources (sim_home_read, sim_ref_read) */
-        for (i = 0; S.ref_noisy && i < S.axes; i++) {
-            if (S.ax[i].p.ref_noise > 0.0 || inputs_eager) {
-                int64_t rc = axis_ref_reading_at(&S.ax[i], S.table[i]);
-                hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
+        /* the home switches and the reference scales are read through
+         * their sources (sim_home_read, sim_ref_read); a noisy scale's
+         * reading is drawn here, every tick */
+        for (i = 0; S.ref_per_tick && i < S.axes; i++) {
+            S.ref_drawn[i] = S.ax[i].p.ref_noise > 0.0 && !inputs_eager;
+            if (S.ref_drawn[i]) {
+                S.ref_val[i] = (uint32_t)(uint64_t)axis_ref_reading_at(&S.ax[i], S.table[i]);
             }
-            if (inputs_eager) { /* the reference for sim_home_read */
+            if (inputs_eager) { /* the reference for the sources */
+                int64_t rc = axis_ref_reading_at(&S.ax[i], S.table[i]);
                 double x = S.table[i] - S.home_switch[i];
+                hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
                 hal_sim_set_home_switch(i, (S.home_side[i] < 0.0 && x <= 0.0) ||
                                                (S.home_side[i] > 0.0 && x >= 0.0));
             }

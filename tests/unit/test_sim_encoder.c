@@ -45,21 +45,27 @@ void tearDown(void)
 }
 
 /* One tick with its trace row, then every decoder's state (the velocity
- * from a copy: qdec_velocity brings the copy's lazy estimate up to date). */
+ * from a copy: qdec_velocity brings the copy's lazy estimate up to date)
+ * and, every 97th tick, the reference scales' positions of the drive's
+ * status (a status request makes the next tick sample them: so that the
+ * drive samples them every DRIVE_REF_SAMPLE_TICKS ticks in between). */
 static void tick(run_rec_t *r)
 {
     unsigned i;
-    drive_status_t st;
+    drive_status_t st = {0};
+    bool status = r->ticks % 97u == 0u;
     TEST_ASSERT_TRUE(r->ticks < MAX_TICKS);
     TEST_ASSERT_EQUAL_INT(1, sim_run(1, r->trace[r->ticks], 1, 1));
-    drive_status(&st);
+    if (status) {
+        drive_status(&st);
+    }
     for (i = 0; i < AXES; i++) {
         qdec_t d = *drive_test_encoder(i);
         enc_rec_t *e = &r->enc[r->ticks][i];
         e->pos = d.out.pos;
         e->vel = qdec_velocity(&d);
         e->index_pos = d.out.index_pos;
-        e->refscale = st.refscale[i];
+        e->refscale = status ? st.refscale[i] : 0;
         e->count = d.e.count;
         e->nedge = d.e.nedge;
         e->t_last = d.e.t_last;
@@ -89,6 +95,7 @@ static void start(int model)
  * substeps per tick). */
 static bool rough;
 static bool ref_noise_x; /* reading noise on X's reference scale */
+static bool field_noise; /* a 2-D field whose scale noise is 0 for y < 5 mm */
 
 static void circle(int model, run_rec_t *r, unsigned switch_at)
 {
@@ -118,6 +125,16 @@ static void circle(int model, run_rec_t *r, unsigned switch_at)
     }
     if (ref_noise_x) {
         TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "ref_noise", 20e-9));
+    }
+    if (field_noise) {
+        /* 2 x 2 grid over the circle, errors of 1 um, rms noise 0 below
+         * the centre line and up to 30 nm above it, on both scales */
+        static const double col[16] = {1e-6, 0,    0,    1e-6, 1e-6, 0,    0,    1e-6,
+                                       0,    1e-6, 1e-6, 0,    0,    1e-6, 1e-6, 0};
+        static const double sig[8] = {-30e-9, -30e-9, 30e-9, 30e-9, -30e-9, -30e-9, 30e-9, 30e-9};
+        static const double row[8] = {0};
+        TEST_ASSERT_EQUAL_INT(
+            0, sim_field2d(2, 2, -0.04, 0.04, -0.015, 0.04, col, sig, 2, -0.04, 0.04, row, 1e-6));
     }
     TEST_ASSERT_EQUAL_INT(0, sim_start());
     TEST_ASSERT_EQUAL_INT(rough ? 10u : 1u, sim_substeps());
@@ -296,10 +313,11 @@ static void test_plant_split_same_as_axis_by_axis(void)
 
 /* The home switches and reference scales computed when the firmware reads
  * them (HAL sources, the default) against set at every tick's start
- * (sim_test_eager_inputs(1)): the homing (the switch ends the search) and
- * the circle with reading noise on X's scale (X set every tick, Y and Z
- * read), decoders, the drive's reference-scale positions and the trace
- * identical on every tick. */
+ * (sim_test_eager_inputs(1)): the homing (the switch ends the search), the
+ * circle with reading noise on X's scale (X drawn every tick, Y and Z
+ * read) and with a 2-D field whose noise is 0 on half the circle (drawn
+ * on the ticks with noise only); decoders, the drive's reference-scale
+ * positions and the trace identical on every tick. */
 static void test_inputs_read_when_read_same_as_every_tick(void)
 {
     unsigned k;
@@ -317,8 +335,16 @@ static void test_inputs_read_when_read_same_as_every_tick(void)
     circle(SIM_ENC_FAST, &rec[1], ~0u);
     ref_noise_x = false;
     check_same(&rec[0], &rec[1]);
+    field_noise = true;
+    sim_test_eager_inputs(1);
+    circle(SIM_ENC_FAST, &rec[0], ~0u);
+    sim_test_eager_inputs(0);
+    circle(SIM_ENC_FAST, &rec[1], ~0u);
+    field_noise = false;
+    TEST_ASSERT_EQUAL_INT(0, sim_field2d(0, 0, 0, 0, 0, 0, NULL, NULL, 0, 0, 0, NULL, 0));
+    check_same(&rec[0], &rec[1]);
     /* the scales moved: the drive sampled them along the circle */
-    for (k = 1; k < rec[1].ticks; k++) {
+    for (k = 97u; k < rec[1].ticks; k += 97u) {
         moved = moved || rec[1].enc[k][1].refscale != rec[1].enc[0][1].refscale;
     }
     TEST_ASSERT_TRUE(moved);
