@@ -234,8 +234,8 @@ static bool qgen_fast_ok(const qgen_t *g, qgen_pos_t x1, uint64_t dt)
 {
     const uint64_t lim = (uint64_t)1 << 61;
 
-    return dt < ((uint64_t)1 << 38) &&
-           (((uint64_t)g->x + lim) | ((uint64_t)x1 + lim)) < 2u * lim && !g->has_off;
+    return dt < ((uint64_t)1 << 38) && (((uint64_t)g->x + lim) | ((uint64_t)x1 + lim)) < 2u * lim &&
+           !g->has_off;
 }
 
 /* The fast path's set-up for a move to x1 (x1 != x) over dt: the number of
@@ -304,6 +304,7 @@ static bool qgen_move_run(qgen_t *g, qgen_pos_t x1, uint64_t dt, uint64_t *n)
     g->lines = qgen_ab[(uint64_t)c1 & 3u];
     g->last_edge_t = t_last;
     g->edges += k;
+    g->run_edges += k;
     *n = k;
     return true;
 }

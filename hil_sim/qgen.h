@@ -83,6 +83,7 @@ typedef struct {
     uint64_t index_period;
     uint32_t z_before, z_after;
     uint64_t edges;         /* A/B events emitted by motion                  */
+    uint64_t run_edges;     /* of edges, those in runs taken (qgen_set_run)  */
     uint64_t illegal;       /* illegal transitions injected                  */
     uint64_t glitches;      /* pulses injected                               */
     uint64_t last_edge_t;   /* time of the last event emitted, ns          */

@@ -52,7 +52,6 @@ static struct {
     bool ref_per_tick;
     bool ref_drawn[SIM_AXES];
     uint32_t ref_val[SIM_AXES];
-    uint64_t run_edges;     /* edges delivered in runs (SIM_ENC_FAST)  */
     double table[SIM_AXES]; /* axis_table_pos after the last substep,
                              * plus the 2-D field (sim_field2d) */
     field2d_t field;        /* 2-D error field of X and Y (off: field.on) */
@@ -545,11 +544,7 @@ static void emit_edge(void *ctx, uint32_t lines, uint32_t t_ns)
 
 static bool run_edges(void *ctx, int32_t steps, uint32_t t_last_ns)
 {
-    if (!drive_encoder_run((unsigned)(uintptr_t)ctx, steps, t_last_ns)) {
-        return false;
-    }
-    S.run_edges += (uint64_t)(steps < 0 ? -(int64_t)steps : (int64_t)steps);
-    return true;
+    return drive_encoder_run((unsigned)(uintptr_t)ctx, steps, t_last_ns);
 }
 
 int sim_encoder_model(int model)
@@ -711,7 +706,6 @@ int sim_start(void)
     S.ticks = 0;
     S.rec = NULL;
     S.edges = 0;
-    S.run_edges = 0;
     S.mismatches = 0;
     cfg = S.dcfg;
     cfg.tick_hz = S.tick_hz;
@@ -1219,7 +1213,12 @@ uint64_t sim_edges(void)
 
 uint64_t sim_run_edges(void)
 {
-    return S.run_edges;
+    uint64_t n = 0;
+    unsigned i;
+    for (i = 0; S.started && i < S.axes; i++) {
+        n += S.gen[i].run_edges;
+    }
+    return n;
 }
 
 uint64_t sim_edge_mismatches(void)
