@@ -969,6 +969,20 @@ static void sim_record_tick(void)
 {
     uint64_t g0 = S.ticks * S.nsub, g1 = g0 + S.nsub;
     size_t n, k, last;
+    if (S.rec_m == 1u && S.nsub == 1u) {
+        /* one sample, at the tick's end: its time, and the table below
+         * (plant_tick1 leaves the sample to this) */
+        if (S.rec_n < S.rec_cap) {
+            double *r = S.rec + S.rec_n * SIM_REC_COLS;
+            unsigned i;
+            r[0] = (double)(S.t_ns + S.sub_ns[1]) * 1e-9;
+            for (i = 0; i < S.axes; i++) {
+                r[1 + i] = S.table[i];
+            }
+        }
+        S.rec_n++;
+        return;
+    }
     if (S.rec_m == 1u) { /* as below with m = 1 */
         n = S.nsub;
         last = n - 1u;
@@ -1022,7 +1036,8 @@ static void plant_tick1(void)
                     : to_qgen(axis_encoder_reading(&S.ax[i]));
         S.table[i] = axis_table_pos(&S.ax[i]);
     }
-    if (!S.mean && S.rec == NULL) {
+    /* every substep a sample (rec_m 1): sim_record_tick takes it whole */
+    if (!S.mean && (S.rec == NULL || S.rec_m == 1u)) {
         for (i = 0; i < S.axes; i++) {
             S.edges += qgen_move_to(&S.gen[i], x1[i], S.t_ns + S.sub_ns[1]);
         }
