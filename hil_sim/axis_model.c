@@ -322,6 +322,7 @@ bool axis_init(axis_t *ax, const axis_params_t *p, double h)
         }
     }
     ax->p = *p;
+    axis_set_load_torque(ax, p->load_torque);
     ax->h = h;
     discretise(p, h, false, ax->phi, ax->gam);
     if (p->backlash > 0.0) {
@@ -488,11 +489,18 @@ static AXIS_NOINLINE void substep_general(axis_t *ax, double u)
     }
 }
 
+void axis_set_load_torque(axis_t *ax, double t)
+{
+    const axis_params_t *p = &ax->p;
+    ax->p.load_torque = t;
+    ax->lin_only = p->load_torque == 0.0 && p->backlash <= 0.0 && p->coulomb_motor <= 0.0 &&
+                   p->coulomb_table <= 0.0;
+}
+
 bool axis_substep(axis_t *ax, double u)
 {
     const axis_params_t *p = &ax->p;
-    if (p->load_torque == 0.0 && p->backlash <= 0.0 && p->coulomb_motor <= 0.0 &&
-        p->coulomb_table <= 0.0) {
+    if (ax->lin_only) {
         /* only u acts (T1 = T2 = 0: the same bits as the full update); at
          * rest with the same command, z and v_applied stay as they are */
         uint64_t ub;
@@ -538,7 +546,6 @@ double axis_pitch_error(const axis_params_t *p, double x, int dir)
     }
     return e[p->pitch_n - 1];
 }
-
 
 int64_t axis_ref_count(const axis_t *ax)
 {

@@ -121,6 +121,8 @@ typedef struct {
      * bench circle). Cleared by axis_init and axis_set_position. */
     bool rest;
     uint64_t rest_u;   /* the bits of that command (a double) */
+    bool lin_only;     /* only u acts: no load torque, friction or backlash
+                        * (axis_init, axis_set_load_torque) */
     double enc_scale;  /* encoder counts per rad of th1 (cpr / 2 pi)  */
     double v_applied;  /* motor voltage of the last substep, V    */
     int pitch_dir;     /* +1 / -1: direction for the pitch map      */
@@ -166,6 +168,10 @@ void axis_expm(unsigned n, const double *m, double t, double *out);
 /* Prepare the discretisation for substep h (s) and zero the state.
  * Returns false on invalid parameters (non-positive masses, h <= 0, ...). */
 bool axis_init(axis_t *ax, const axis_params_t *p, double h);
+
+/* Change the load torque (N m) of an initialised axis (p.load_torque: the
+ * other parameters are fixed by axis_init). */
+void axis_set_load_torque(axis_t *ax, double t);
 
 /* Advance one substep with amplifier command u (V). Returns true when z is
  * bit for bit what it was before (an axis at rest: see axis_t.rest), so the

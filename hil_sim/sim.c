@@ -888,7 +888,7 @@ static void disturbance_tick(void)
         f[1] -= S.cut_f_w * sin(S.cut_phi - alpha);
     }
     for (i = 0; i < S.axes; i++) {
-        S.ax[i].p.load_torque = S.par[i].load_torque + S.par[i].l * f[i];
+        axis_set_load_torque(&S.ax[i], S.par[i].load_torque + S.par[i].l * f[i]);
     }
 }
 
