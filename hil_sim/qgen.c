@@ -406,7 +406,7 @@ __attribute__((noinline)) static uint64_t qgen_move_general(qgen_t *g, qgen_pos_
     return n;
 }
 
-uint64_t qgen_move_to(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
+uint64_t qgen_move_changed(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
 {
     uint64_t dt = (t1_ns > g->t) ? t1_ns - g->t : 0u;
     uint64_t n;

@@ -127,8 +127,20 @@ bool qgen_set_edge_offsets(qgen_t *g, const qgen_pos_t off[4]);
 void qgen_set_run(qgen_t *g, qgen_run_fn run);
 
 /* Move to x1 arriving at t1_ns (>= current time; earlier is taken as the
- * current time). Returns the number of events emitted. */
-uint64_t qgen_move_to(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns);
+ * current time). Returns the number of events emitted. Inline: a move to
+ * the same position only advances the time (qgen_move_changed: the rest). */
+uint64_t qgen_move_changed(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns);
+
+static inline uint64_t qgen_move_to(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
+{
+    if (x1 == g->x) {
+        if (t1_ns > g->t) {
+            g->t = t1_ns;
+        }
+        return 0u;
+    }
+    return qgen_move_changed(g, x1, t1_ns);
+}
 
 /* Inject a pair of illegal transitions at t_ns and t_ns + gap_ns. */
 void qgen_illegal(qgen_t *g, uint64_t t_ns, uint32_t gap_ns);
