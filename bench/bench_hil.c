@@ -53,7 +53,7 @@ static double one_run(uint64_t ticks, int model, int hash, double *cpu)
 {
     static double row[4000 * SIM_TRACE_COLS];
     static double rec[4000 * SIM_REC_COLS]; /* one sample per substep */
-    const int64_t feed = 166666667; /* 10 m/min */
+    const int64_t feed = 166666667;         /* 10 m/min */
     int64_t on_circle[3] = {0, 5000000, 0};
     double t0, t1, c0, c1;
     int r = 0;

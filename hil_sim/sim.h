@@ -19,7 +19,8 @@
  *                                   SIM_HOME_SWITCH_M) and "home_side" (-1:
  *                                   the switch is active at table positions
  *                                   <= home_switch, +1: >=, 0: none; default
- *                                   -1): hal_home_switch, read each tick;
+ *                                   -1): hal_home_switch (of the table at
+ *                                   the tick, computed when read);
  *                                   "enc_index" (1: default, one index pulse
  *                                   per motor turn, one count wide, at
  *                                   "index_phase" counts from position 0 and
