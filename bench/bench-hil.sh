@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Realtime factor of the HIL simulator (three axes at 10 kHz, circle scenario):
+# Realtime factor of the HIL simulator (three axes at 10 kHz, circle scenario
+# with every tick traced and the instrument recording, as contour sim circle):
 # simulated seconds per wall-clock second (hil_realtime_factor, the issue's
 # definition) and per second of the process's CPU time
 # (hil_realtime_factor_cpu: what the code controls while other jobs take the

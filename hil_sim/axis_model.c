@@ -322,6 +322,7 @@ bool axis_init(axis_t *ax, const axis_params_t *p, double h)
         }
     }
     ax->p = *p;
+    axis_set_load_torque(ax, p->load_torque);
     ax->h = h;
     discretise(p, h, false, ax->phi, ax->gam);
     if (p->backlash > 0.0) {
@@ -488,11 +489,18 @@ static AXIS_NOINLINE void substep_general(axis_t *ax, double u)
     }
 }
 
+void axis_set_load_torque(axis_t *ax, double t)
+{
+    const axis_params_t *p = &ax->p;
+    ax->p.load_torque = t;
+    ax->lin_only = p->load_torque == 0.0 && p->backlash <= 0.0 && p->coulomb_motor <= 0.0 &&
+                   p->coulomb_table <= 0.0;
+}
+
 bool axis_substep(axis_t *ax, double u)
 {
     const axis_params_t *p = &ax->p;
-    if (p->load_torque == 0.0 && p->backlash <= 0.0 && p->coulomb_motor <= 0.0 &&
-        p->coulomb_table <= 0.0) {
+    if (ax->lin_only) {
         /* only u acts (T1 = T2 = 0: the same bits as the full update); at
          * rest with the same command, z and v_applied stay as they are */
         uint64_t ub;
@@ -513,22 +521,14 @@ bool axis_substep(axis_t *ax, double u)
     return false;
 }
 
-double axis_encoder_counts(const axis_t *ax)
-{
-    return ax->z[0] * ax->enc_scale + ax->p.enc_offset_counts;
-}
-
-double axis_encoder_reading(axis_t *ax)
+double axis_encoder_noisy(axis_t *ax)
 {
     double c = axis_encoder_counts(ax);
-    if (ax->p.enc_noise_counts > 0.0) {
-        double u1 = uniform01(&ax->rng), u2 = uniform01(&ax->rng);
-        c += ax->p.enc_noise_counts * sqrt(-2.0 * log(u1)) * cos(2.0 * PI_D * u2);
-    }
-    return c;
+    double u1 = uniform01(&ax->rng), u2 = uniform01(&ax->rng);
+    return c + ax->p.enc_noise_counts * sqrt(-2.0 * log(u1)) * cos(2.0 * PI_D * u2);
 }
 
-static double pitch_error(const axis_params_t *p, double x, int dir)
+double axis_pitch_error(const axis_params_t *p, double x, int dir)
 {
     const double *e = dir > 0 ? p->pitch_err_fwd : p->pitch_err_rev;
     unsigned i;
@@ -545,12 +545,6 @@ static double pitch_error(const axis_params_t *p, double x, int dir)
         }
     }
     return e[p->pitch_n - 1];
-}
-
-double axis_table_pos(const axis_t *ax)
-{
-    double x = ax->p.l * ax->z[2];
-    return x + pitch_error(&ax->p, x, ax->pitch_dir);
 }
 
 int64_t axis_ref_count(const axis_t *ax)

@@ -121,6 +121,8 @@ typedef struct {
      * bench circle). Cleared by axis_init and axis_set_position. */
     bool rest;
     uint64_t rest_u;   /* the bits of that command (a double) */
+    bool lin_only;     /* only u acts: no load torque, friction or backlash
+                        * (axis_init, axis_set_load_torque) */
     double enc_scale;  /* encoder counts per rad of th1 (cpr / 2 pi)  */
     double v_applied;  /* motor voltage of the last substep, V    */
     int pitch_dir;     /* +1 / -1: direction for the pitch map      */
@@ -167,18 +169,42 @@ void axis_expm(unsigned n, const double *m, double t, double *out);
  * Returns false on invalid parameters (non-positive masses, h <= 0, ...). */
 bool axis_init(axis_t *ax, const axis_params_t *p, double h);
 
+/* Change the load torque (N m) of an initialised axis (p.load_torque: the
+ * other parameters are fixed by axis_init). */
+void axis_set_load_torque(axis_t *ax, double t);
+
 /* Advance one substep with amplifier command u (V). Returns true when z is
  * bit for bit what it was before (an axis at rest: see axis_t.rest), so the
  * encoder reading without noise is the one of the previous substep. */
 bool axis_substep(axis_t *ax, double u);
 
 /* Motor encoder position in counts (continuous, no noise) and the reading
- * the encoder reports (noise added, still continuous: the caller quantises). */
-double axis_encoder_counts(const axis_t *ax);
-double axis_encoder_reading(axis_t *ax);
+ * the encoder reports (noise added, still continuous: the caller quantises;
+ * axis_encoder_noisy: the reading with the noise drawn, the path of
+ * axis_encoder_reading with noise on). Inline: read every substep. */
+double axis_encoder_noisy(axis_t *ax);
 
-/* True table position, m (l th2 + pitch error). */
-double axis_table_pos(const axis_t *ax);
+static inline double axis_encoder_counts(const axis_t *ax)
+{
+    return ax->z[0] * ax->enc_scale + ax->p.enc_offset_counts;
+}
+
+static inline double axis_encoder_reading(axis_t *ax)
+{
+    return ax->p.enc_noise_counts > 0.0 ? axis_encoder_noisy(ax) : axis_encoder_counts(ax);
+}
+
+/* The pitch error map's error at table position x, moving in direction dir
+ * (0 without a map). */
+double axis_pitch_error(const axis_params_t *p, double x, int dir);
+
+/* True table position, m (l th2 + pitch error; without a map x + 0.0, as
+ * with one: -0.0 reads +0.0). */
+static inline double axis_table_pos(const axis_t *ax)
+{
+    double x = ax->p.l * ax->z[2];
+    return x + (ax->p.pitch_n > 0 ? axis_pitch_error(&ax->p, x, ax->pitch_dir) : 0.0);
+}
 
 /* Reference scale count: true table position / resolution, rounded to the
  * nearest count (no mean bias). */

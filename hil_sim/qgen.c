@@ -147,8 +147,10 @@ bool qgen_set_edge_offsets(qgen_t *g, const qgen_pos_t off[4])
             return false;
         }
     }
+    g->has_off = false;
     for (i = 0; i < 4u; i++) {
         g->edge_off[i] = off[i];
+        g->has_off = g->has_off || off[i] != 0;
     }
     g->count = qgen_count_of(g, g->x);
     g->lines = qgen_lines_at(g, g->count);
@@ -226,14 +228,14 @@ static inline uint32_t qgen_run_ideal(qgen_t *g, uint32_t c, uint32_t inc, uint6
 }
 
 /* Fast path: ideal edges (no offsets), |x0|, |x1| < 2^61 and dt < 2^38 ns, so
- * every product and sum fits in 64 bits; boundary b lies at b * QGEN_ONE. */
+ * every product and sum fits in 64 bits; boundary b lies at b * QGEN_ONE.
+ * (Both shifted positions below 2^62, a power of two: their OR is.) */
 static bool qgen_fast_ok(const qgen_t *g, qgen_pos_t x1, uint64_t dt)
 {
     const uint64_t lim = (uint64_t)1 << 61;
 
-    return dt < ((uint64_t)1 << 38) && (uint64_t)g->x + lim < 2u * lim &&
-           (uint64_t)x1 + lim < 2u * lim &&
-           (g->edge_off[0] | g->edge_off[1] | g->edge_off[2] | g->edge_off[3]) == 0;
+    return dt < ((uint64_t)1 << 38) && (((uint64_t)g->x + lim) | ((uint64_t)x1 + lim)) < 2u * lim &&
+           !g->has_off;
 }
 
 /* The fast path's set-up for a move to x1 (x1 != x) over dt: the number of
@@ -302,6 +304,7 @@ static bool qgen_move_run(qgen_t *g, qgen_pos_t x1, uint64_t dt, uint64_t *n)
     g->lines = qgen_ab[(uint64_t)c1 & 3u];
     g->last_edge_t = t_last;
     g->edges += k;
+    g->run_edges += k;
     *n = k;
     return true;
 }
@@ -403,7 +406,7 @@ __attribute__((noinline)) static uint64_t qgen_move_general(qgen_t *g, qgen_pos_
     return n;
 }
 
-uint64_t qgen_move_to(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
+uint64_t qgen_move_changed(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
 {
     uint64_t dt = (t1_ns > g->t) ? t1_ns - g->t : 0u;
     uint64_t n;

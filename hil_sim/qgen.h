@@ -83,10 +83,12 @@ typedef struct {
     uint64_t index_period;
     uint32_t z_before, z_after;
     uint64_t edges;         /* A/B events emitted by motion                  */
+    uint64_t run_edges;     /* of edges, those in runs taken (qgen_set_run)  */
     uint64_t illegal;       /* illegal transitions injected                  */
     uint64_t glitches;      /* pulses injected                               */
     uint64_t last_edge_t;   /* time of the last event emitted, ns          */
     qgen_pos_t edge_off[4]; /* edge placement errors (qgen_set_edge_offsets) */
+    bool has_off;           /* internal: an edge_off is not 0               */
     /* internal (fast path): time per count of the current move, quotient + 1,
      * remainder - divisor (mod 2^64) and divisor */
     uint64_t step_q1, step_r1, step_den;
@@ -125,8 +127,20 @@ bool qgen_set_edge_offsets(qgen_t *g, const qgen_pos_t off[4]);
 void qgen_set_run(qgen_t *g, qgen_run_fn run);
 
 /* Move to x1 arriving at t1_ns (>= current time; earlier is taken as the
- * current time). Returns the number of events emitted. */
-uint64_t qgen_move_to(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns);
+ * current time). Returns the number of events emitted. Inline: a move to
+ * the same position only advances the time (qgen_move_changed: the rest). */
+uint64_t qgen_move_changed(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns);
+
+static inline uint64_t qgen_move_to(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
+{
+    if (x1 == g->x) {
+        if (t1_ns > g->t) {
+            g->t = t1_ns;
+        }
+        return 0u;
+    }
+    return qgen_move_changed(g, x1, t1_ns);
+}
 
 /* Inject a pair of illegal transitions at t_ns and t_ns + gap_ns. */
 void qgen_illegal(qgen_t *g, uint64_t t_ns, uint32_t gap_ns);

@@ -44,10 +44,17 @@ static struct {
     double enc_index[SIM_AXES];   /* 1: an index pulse per motor turn    */
     double index_phase[SIM_AXES]; /* counts from position 0 to an index  */
     int enc_model;                /* SIM_ENC_*: how edges reach the decoder */
-    uint64_t run_edges;           /* edges delivered in runs (SIM_ENC_FAST)  */
-    double table[SIM_AXES];       /* axis_table_pos after the last substep,
-                                   * plus the 2-D field (sim_field2d) */
-    field2d_t field;              /* 2-D error field of X and Y (off: field.on) */
+    /* reference scales with reading noise (ref_noise > 0, also set per
+     * tick by the 2-D field) draw their reading at every tick's start, so
+     * that the noise sequence does not depend on when the drive reads:
+     * ref_per_tick (such a scale or the field; or sim_test_eager_inputs),
+     * ref_drawn[i] (this tick's reading of axis i is ref_val[i]) */
+    bool ref_per_tick;
+    bool ref_drawn[SIM_AXES];
+    uint32_t ref_val[SIM_AXES];
+    double table[SIM_AXES]; /* axis_table_pos after the last substep,
+                             * plus the 2-D field (sim_field2d) */
+    field2d_t field;        /* 2-D error field of X and Y (off: field.on) */
     /* disturbances (sim.h "Disturbances"; all zero = off, no effect at all) */
     double cut_f_at[SIM_AXES];  /* N: F_at sign(v_ref) on this axis          */
     double cut_f_w;             /* N: cutting force F_w in the X-Y plane     */
@@ -60,6 +67,7 @@ static struct {
     size_t inj_k[SIM_AXES];
     size_t inj_n[SIM_AXES];
     double inj_now[SIM_AXES]; /* V added over the current tick */
+    bool inj_any;             /* an inj_n is not 0 */
     /* the mean reading (hal_encoder_mean) while the drive has enc_mean:
      * generator position at the start of the substep, count at the start
      * of the tick, integral of count - base over the tick so far (ns);
@@ -536,11 +544,7 @@ static void emit_edge(void *ctx, uint32_t lines, uint32_t t_ns)
 
 static bool run_edges(void *ctx, int32_t steps, uint32_t t_last_ns)
 {
-    if (!drive_encoder_run((unsigned)(uintptr_t)ctx, steps, t_last_ns)) {
-        return false;
-    }
-    S.run_edges += (uint64_t)(steps < 0 ? -(int64_t)steps : (int64_t)steps);
-    return true;
+    return drive_encoder_run((unsigned)(uintptr_t)ctx, steps, t_last_ns);
 }
 
 int sim_encoder_model(int model)
@@ -631,6 +635,44 @@ int sim_set_link(unsigned node_id, int serial, int can, uint32_t capabilities, u
     return 0;
 }
 
+static int inputs_eager; /* sim_test_eager_inputs */
+
+void sim_test_eager_inputs(int on)
+{
+    inputs_eager = on;
+}
+
+/* The home switch of an axis from the table position (hal_home_switch's
+ * source). The firmware reads its inputs in the tick and in the main
+ * context after it, before the plant moves (sim.h step 1): S.table is then
+ * the table of the tick's start, so computing a value when it is read
+ * gives what setting it at the tick's start gave, without the work on the
+ * ticks that do not read it. */
+static bool sim_home_read(void *ctx, unsigned axis)
+{
+    double x;
+    (void)ctx;
+    if (axis >= S.axes) {
+        return false;
+    }
+    x = S.table[axis] - S.home_switch[axis];
+    return (S.home_side[axis] < 0.0 && x <= 0.0) || (S.home_side[axis] > 0.0 && x >= 0.0);
+}
+
+/* The reference scale's counter of an axis without reading noise (channel
+ * axes + i's source; as sim_home_read). With noise, each tick draws a
+ * reading (run_ticks sets it), so that the noise sequence does not depend
+ * on when the drive samples. */
+static uint32_t sim_ref_read(void *ctx, unsigned ch)
+{
+    unsigned i = ch - S.axes;
+    (void)ctx;
+    if (S.ref_drawn[i]) {
+        return S.ref_val[i];
+    }
+    return (uint32_t)(uint64_t)axis_ref_reading_at(&S.ax[i], S.table[i]);
+}
+
 int sim_start(void)
 {
     drive_config_t cfg;
@@ -664,7 +706,6 @@ int sim_start(void)
     S.ticks = 0;
     S.rec = NULL;
     S.edges = 0;
-    S.run_edges = 0;
     S.mismatches = 0;
     cfg = S.dcfg;
     cfg.tick_hz = S.tick_hz;
@@ -713,6 +754,7 @@ int sim_start(void)
     }
     for (i = 0; i < SIM_AXES; i++) {
         S.inj_n[i] = 0;
+        S.inj_any = false;
         S.inj_k[i] = 0;
         S.inj_now[i] = 0.0;
     }
@@ -726,18 +768,21 @@ int sim_start(void)
     if (drive_set_cec_mode((drive_cec_mode_t)S.cec_mode) != DRIVE_OK) {
         return SIM_E_DRIVE;
     }
+    S.ref_per_tick = inputs_eager != 0 || (S.field.on && S.axes >= 2);
+    for (i = 0; i < S.axes; i++) {
+        S.ref_drawn[i] = false;
+        S.ref_per_tick = S.ref_per_tick || S.ax[i].p.ref_noise > 0.0;
+        if (!inputs_eager) {
+            hal_sim_set_counter_source(S.axes + i, sim_ref_read, NULL);
+        }
+    }
+    if (!inputs_eager) {
+        hal_sim_set_home_source(sim_home_read, NULL);
+    }
     /* the drive started at time 0; the first tick comes one period later */
     S.t_ns = S.period_ns;
     S.started = 1;
     return 0;
-}
-
-/* The home switch of axis i from the table position. */
-static void sim_home_switch(unsigned i)
-{
-    double x = S.table[i] - S.home_switch[i];
-    hal_sim_set_home_switch(i, (S.home_side[i] < 0.0 && x <= 0.0) ||
-                                   (S.home_side[i] > 0.0 && x >= 0.0));
 }
 
 static void write_row(double *row)
@@ -756,9 +801,14 @@ static void write_row(double *row)
     row[3] = (double)st.contour_error_nm * 1e-9;
     for (i = 0; i < S.axes; i++) {
         row[4 + 4 * i] = (double)st.ref[i] * 1e-9;
-        row[5 + 4 * i] = S.tmean_on ? S.tmean[i] : S.table[i];
+        row[5 + 4 * i] = S.table[i];
         row[6 + 4 * i] = (double)st.pos[i] * 1e-9;
         row[7 + 4 * i] = (double)hal_sim_motor_mv(i) * 1e-3;
+    }
+    for (i = 0; (S.tmean_on || S.inj_any) && i < S.axes; i++) {
+        if (S.tmean_on) {
+            row[5 + 4 * i] = S.tmean[i];
+        }
         if (S.inj_n[i] > 0) {
             row[7 + 4 * i] += S.inj_now[i];
         }
@@ -769,7 +819,7 @@ static void write_row(double *row)
 static void inject_tick(void)
 {
     unsigned i;
-    for (i = 0; i < S.axes; i++) {
+    for (i = 0; S.inj_any && i < S.axes; i++) {
         if (S.inj_n[i] == 0) {
             continue;
         }
@@ -786,6 +836,7 @@ static void inject_tick(void)
 
 int sim_inject(unsigned axis, const double *volts, size_t n)
 {
+    unsigned i;
     if (!S.started) {
         return SIM_E_STATE;
     }
@@ -794,6 +845,10 @@ int sim_inject(unsigned axis, const double *volts, size_t n)
     }
     S.inj[axis] = volts;
     S.inj_n[axis] = volts != NULL ? n : 0;
+    S.inj_any = false;
+    for (i = 0; i < SIM_AXES; i++) {
+        S.inj_any = S.inj_any || S.inj_n[i] > 0;
+    }
     S.inj_k[axis] = 0;
     S.inj_now[axis] = 0.0;
     return 0;
@@ -833,7 +888,7 @@ static void disturbance_tick(void)
         f[1] -= S.cut_f_w * sin(S.cut_phi - alpha);
     }
     for (i = 0; i < S.axes; i++) {
-        S.ax[i].p.load_torque = S.par[i].load_torque + S.par[i].l * f[i];
+        axis_set_load_torque(&S.ax[i], S.par[i].load_torque + S.par[i].l * f[i]);
     }
 }
 
@@ -887,6 +942,15 @@ static void sim_record_step(unsigned i, unsigned s)
 {
     uint64_t g0 = S.ticks * S.nsub, g = g0 + s + 1u;
     size_t row;
+    if (S.rec_m == 1u) { /* every substep a sample: no divisions */
+        row = S.rec_n + s;
+        if (row < S.rec_cap) {
+            double *r = S.rec + row * SIM_REC_COLS;
+            r[0] = (double)(S.t_ns + S.sub_ns[s + 1]) * 1e-9;
+            r[1 + i] = axis_table_pos(&S.ax[i]);
+        }
+        return;
+    }
     if (g % S.rec_m != 0u) {
         return;
     }
@@ -904,8 +968,28 @@ static void sim_record_step(unsigned i, unsigned s)
 static void sim_record_tick(void)
 {
     uint64_t g0 = S.ticks * S.nsub, g1 = g0 + S.nsub;
-    size_t n = (size_t)(g1 / S.rec_m - g0 / S.rec_m), k, last;
-    last = g1 % S.rec_m == 0u ? n - 1u : n;
+    size_t n, k, last;
+    if (S.rec_m == 1u && S.nsub == 1u) {
+        /* one sample, at the tick's end: its time, and the table below
+         * (plant_tick1 leaves the sample to this) */
+        if (S.rec_n < S.rec_cap) {
+            double *r = S.rec + S.rec_n * SIM_REC_COLS;
+            unsigned i;
+            r[0] = (double)(S.t_ns + S.sub_ns[1]) * 1e-9;
+            for (i = 0; i < S.axes; i++) {
+                r[1 + i] = S.table[i];
+            }
+        }
+        S.rec_n++;
+        return;
+    }
+    if (S.rec_m == 1u) { /* as below with m = 1 */
+        n = S.nsub;
+        last = n - 1u;
+    } else {
+        n = (size_t)(g1 / S.rec_m - g0 / S.rec_m);
+        last = g1 % S.rec_m == 0u ? n - 1u : n;
+    }
     for (k = 0; k < n && S.rec_n + k < S.rec_cap; k++) {
         double *r = S.rec + (S.rec_n + k) * SIM_REC_COLS;
         unsigned i;
@@ -942,7 +1026,7 @@ static void plant_tick1(void)
     unsigned i;
     for (i = 0; i < S.axes; i++) {
         double u = (double)hal_sim_motor_mv(i) * 1e-3;
-        if (S.inj_n[i] > 0) {
+        if (S.inj_any && S.inj_n[i] > 0) {
             u += S.inj_now[i];
         }
         /* z unchanged and no reading noise: the reading is the one the
@@ -951,6 +1035,13 @@ static void plant_tick1(void)
                     ? S.gen[i].x
                     : to_qgen(axis_encoder_reading(&S.ax[i]));
         S.table[i] = axis_table_pos(&S.ax[i]);
+    }
+    /* every substep a sample (rec_m 1): sim_record_tick takes it whole */
+    if (!S.mean && (S.rec == NULL || S.rec_m == 1u)) {
+        for (i = 0; i < S.axes; i++) {
+            S.edges += qgen_move_to(&S.gen[i], x1[i], S.t_ns + S.sub_ns[1]);
+        }
+        return;
     }
     for (i = 0; i < S.axes; i++) {
         if (S.mean) {
@@ -966,12 +1057,30 @@ static void plant_tick1(void)
     }
 }
 
-static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
-                      unsigned min_free, uint64_t *ran)
+/* After a tick of sim_run_until_free / _until_idle: true to stop there. */
+static __attribute__((noinline)) bool run_stop(unsigned min_free, unsigned idle_step,
+                                               unsigned *idle_in)
 {
+    if (min_free > 0 && drive_queue_free() >= min_free) {
+        return true;
+    }
+    if (idle_step > 0 && --*idle_in == 0) {
+        drive_status_t st;
+        *idle_in = idle_step;
+        drive_status(&st);
+        return st.faults != 0 || st.state == DRIVE_IDLE;
+    }
+    return false;
+}
+
+static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
+                      unsigned min_free, unsigned idle_step, uint64_t *ran)
+{
+    bool stops = min_free > 0 || idle_step > 0;
     uint64_t k;
     size_t rows = 0;
-    unsigned i, s, row_in; /* row_in: ticks until S.ticks % every == 0 */
+    unsigned i, s, row_in;        /* row_in: ticks until S.ticks % every == 0 */
+    unsigned idle_in = idle_step; /* ticks until the next status poll */
     bool split;
     if (!S.started) {
         return SIM_E_STATE;
@@ -983,10 +1092,21 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
     row_in = row_in == 0 ? 0 : every - row_in;
     for (k = 0; k < ticks; k++) {
         hal_sim_set_time_ns(S.t_ns);
-        for (i = 0; i < S.axes; i++) {
-            int64_t rc = axis_ref_reading_at(&S.ax[i], S.table[i]);
-            hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
-            sim_home_switch(i);
+        /* the home switches and the reference scales are read through
+         * their sources (sim_home_read, sim_ref_read); a noisy scale's
+         * reading is drawn here, every tick */
+        for (i = 0; S.ref_per_tick && i < S.axes; i++) {
+            S.ref_drawn[i] = S.ax[i].p.ref_noise > 0.0 && !inputs_eager;
+            if (S.ref_drawn[i]) {
+                S.ref_val[i] = (uint32_t)(uint64_t)axis_ref_reading_at(&S.ax[i], S.table[i]);
+            }
+            if (inputs_eager) { /* the reference for the sources */
+                int64_t rc = axis_ref_reading_at(&S.ax[i], S.table[i]);
+                double x = S.table[i] - S.home_switch[i];
+                hal_sim_set_counter(S.axes + i, (uint32_t)(uint64_t)rc, true);
+                hal_sim_set_home_switch(i, (S.home_side[i] < 0.0 && x <= 0.0) ||
+                                               (S.home_side[i] > 0.0 && x >= 0.0));
+            }
         }
         app_tick();
         inject_tick();
@@ -1044,7 +1164,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         }
         S.t_ns += S.period_ns;
         S.ticks++;
-        if (min_free > 0 && drive_queue_free() >= min_free) {
+        if (stops && run_stop(min_free, idle_step, &idle_in)) {
             k++;
             break;
         }
@@ -1056,14 +1176,25 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
 long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every)
 {
     uint64_t ran;
-    return run_ticks(ticks, trace, rows_cap, every, 0, &ran);
+    return run_ticks(ticks, trace, rows_cap, every, 0, 0, &ran);
 }
 
 long sim_run_until_free(uint64_t ticks, unsigned min_free, double *trace, size_t rows_cap,
                         unsigned every, uint64_t *ran)
 {
     uint64_t n = 0;
-    long rows = run_ticks(ticks, trace, rows_cap, every, min_free, &n);
+    long rows = run_ticks(ticks, trace, rows_cap, every, min_free, 0, &n);
+    if (ran != NULL) {
+        *ran = n;
+    }
+    return rows;
+}
+
+long sim_run_until_idle(uint64_t ticks, unsigned step, double *trace, size_t rows_cap,
+                        unsigned every, uint64_t *ran)
+{
+    uint64_t n = 0;
+    long rows = run_ticks(ticks, trace, rows_cap, every, 0, step > 0 ? step : 1u, &n);
     if (ran != NULL) {
         *ran = n;
     }
@@ -1097,7 +1228,12 @@ uint64_t sim_edges(void)
 
 uint64_t sim_run_edges(void)
 {
-    return S.run_edges;
+    uint64_t n = 0;
+    unsigned i;
+    for (i = 0; S.started && i < S.axes; i++) {
+        n += S.gen[i].run_edges;
+    }
+    return n;
 }
 
 uint64_t sim_edge_mismatches(void)

@@ -19,7 +19,8 @@
  *                                   SIM_HOME_SWITCH_M) and "home_side" (-1:
  *                                   the switch is active at table positions
  *                                   <= home_switch, +1: >=, 0: none; default
- *                                   -1): hal_home_switch, read each tick;
+ *                                   -1): hal_home_switch (of the table at
+ *                                   the tick, computed when read);
  *                                   "enc_index" (1: default, one index pulse
  *                                   per motor turn, one count wide, at
  *                                   "index_phase" counts from position 0 and
@@ -43,7 +44,11 @@
  * drive_init ran at time 0):
  *   1. the HAL clock reads t_k; reference-scale counters are published on
  *      channels axes..2*axes-1 (hal_encoder_counter, 32-bit wrapping;
- *      axis_ref_reading: with the model's reference noise, if any);
+ *      axis_ref_reading: with the model's reference noise, if any) and the
+ *      home switches (hal_home_switch), both of the table at t_k; without
+ *      reference noise both are computed when the firmware reads them
+ *      (HAL sources, hal_sim.h: the same values, as the firmware reads its
+ *      inputs in steps 2 and 5 only, before the table moves);
  *   2. drive_tick(calib_sampling()) runs (decode, interpolate, servo,
  *      hal_motor_set_mv), then calib_tick with what it published;
  *   3. every axis's decoded count is compared with the count the model
@@ -207,6 +212,14 @@ long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every);
  * run. Returns rows written or a negative code. */
 long sim_run_until_free(uint64_t ticks, unsigned min_free, double *trace, size_t rows_cap,
                         unsigned every, uint64_t *ran);
+/* As sim_run, in steps of `step` ticks (0: 1), stopping after the first
+ * step that ends with the drive idle (DRIVE_IDLE) or faulted
+ * (drive_status): what a host that runs `step` ticks at a time and polls
+ * the drive's status after each would run, in one call (contour sim
+ * circle). *ran (may be NULL): ticks run. Returns rows written or a
+ * negative code. */
+long sim_run_until_idle(uint64_t ticks, unsigned step, double *trace, size_t rows_cap,
+                        unsigned every, uint64_t *ran);
 
 /* An additive motor command per axis (V at the amplifier input), one value
  * per tick from `volts` (the host keeps the buffer alive): tick j after
@@ -233,6 +246,11 @@ unsigned sim_substeps(void);
  * first and then the generators (sim.c plant_tick1); off (0), it takes the
  * general loop, axis by axis, as with several substeps. Default on. */
 void sim_test_plant_split(int on);
+/* Test hook: on (1), the simulator sets every home switch and reference
+ * scale counter at the start of every tick, as a port without sources
+ * would, instead of computing them when the firmware reads them (the
+ * default, 0; sim.c sim_home_read). Takes effect at sim_start. */
+void sim_test_eager_inputs(int on);
 double sim_table_pos(unsigned axis);
 
 /* The drive's status in a fixed layout for the host (ctypes). */

@@ -256,6 +256,10 @@ SIGNATURES: dict[str, tuple] = {
         c.c_long,
         [c.c_uint64, c.c_uint, c.c_void_p, c.c_size_t, c.c_uint, _p(c.c_uint64)],
     ),
+    "sim_run_until_idle": (
+        c.c_long,
+        [c.c_uint64, c.c_uint, c.c_void_p, c.c_size_t, c.c_uint, _p(c.c_uint64)],
+    ),
     "sim_inject": (c.c_int, [c.c_uint, c.c_void_p, c.c_size_t]),
     "sim_inject_left": (c.c_size_t, [c.c_uint]),
     "sim_trace_cols": (c.c_uint, []),

@@ -21,7 +21,7 @@
 #define MAX_TICKS 40000u
 
 typedef struct {
-    int64_t pos, vel, index_pos;
+    int64_t pos, vel, index_pos, refscale;
     uint32_t count, nedge, t_last, index_events;
     int8_t dir;
     uint8_t ab;
@@ -45,18 +45,27 @@ void tearDown(void)
 }
 
 /* One tick with its trace row, then every decoder's state (the velocity
- * from a copy: qdec_velocity brings the copy's lazy estimate up to date). */
+ * from a copy: qdec_velocity brings the copy's lazy estimate up to date)
+ * and, every 97th tick, the reference scales' positions of the drive's
+ * status (a status request makes the next tick sample them: so that the
+ * drive samples them every DRIVE_REF_SAMPLE_TICKS ticks in between). */
 static void tick(run_rec_t *r)
 {
     unsigned i;
+    drive_status_t st = {0};
+    bool status = r->ticks % 97u == 0u;
     TEST_ASSERT_TRUE(r->ticks < MAX_TICKS);
     TEST_ASSERT_EQUAL_INT(1, sim_run(1, r->trace[r->ticks], 1, 1));
+    if (status) {
+        drive_status(&st);
+    }
     for (i = 0; i < AXES; i++) {
         qdec_t d = *drive_test_encoder(i);
         enc_rec_t *e = &r->enc[r->ticks][i];
         e->pos = d.out.pos;
         e->vel = qdec_velocity(&d);
         e->index_pos = d.out.index_pos;
+        e->refscale = status ? st.refscale[i] : 0;
         e->count = d.e.count;
         e->nedge = d.e.nedge;
         e->t_last = d.e.t_last;
@@ -85,6 +94,8 @@ static void start(int model)
  * reading goes back and forth within a tick) and Coulomb friction (ten
  * substeps per tick). */
 static bool rough;
+static bool ref_noise_x; /* reading noise on X's reference scale */
+static bool field_noise; /* a 2-D field whose scale noise is 0 for y < 5 mm */
 
 static void circle(int model, run_rec_t *r, unsigned switch_at)
 {
@@ -111,6 +122,19 @@ static void circle(int model, run_rec_t *r, unsigned switch_at)
         TEST_ASSERT_EQUAL_INT(0, sim_axis_set(1, "enc_noise_counts", 0.3));
         TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "coulomb_motor", 0.01));
         TEST_ASSERT_EQUAL_INT(0, sim_axis_set(1, "coulomb_table", 10.0));
+    }
+    if (ref_noise_x) {
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "ref_noise", 20e-9));
+    }
+    if (field_noise) {
+        /* 2 x 2 grid over the circle, errors of 1 um, rms noise 0 below
+         * the centre line and up to 30 nm above it, on both scales */
+        static const double col[16] = {1e-6, 0,    0,    1e-6, 1e-6, 0,    0,    1e-6,
+                                       0,    1e-6, 1e-6, 0,    0,    1e-6, 1e-6, 0};
+        static const double sig[8] = {-30e-9, -30e-9, 30e-9, 30e-9, -30e-9, -30e-9, 30e-9, 30e-9};
+        static const double row[8] = {0};
+        TEST_ASSERT_EQUAL_INT(
+            0, sim_field2d(2, 2, -0.04, 0.04, -0.015, 0.04, col, sig, 2, -0.04, 0.04, row, 1e-6));
     }
     TEST_ASSERT_EQUAL_INT(0, sim_start());
     TEST_ASSERT_EQUAL_INT(rough ? 10u : 1u, sim_substeps());
@@ -167,6 +191,7 @@ static void check_same(const run_rec_t *a, const run_rec_t *b)
             TEST_ASSERT_EQUAL_INT64(x->vel, y->vel);
             TEST_ASSERT_EQUAL_UINT32(x->index_events, y->index_events);
             TEST_ASSERT_EQUAL_INT64(x->index_pos, y->index_pos);
+            TEST_ASSERT_EQUAL_INT64(x->refscale, y->refscale);
         }
         TEST_ASSERT_EQUAL_INT(0, memcmp(a->trace[k], b->trace[k], sizeof a->trace[k]));
     }
@@ -286,6 +311,87 @@ static void test_plant_split_same_as_axis_by_axis(void)
     check_same(&rec[0], &rec[1]);
 }
 
+/* The home switches and reference scales computed when the firmware reads
+ * them (HAL sources, the default) against set at every tick's start
+ * (sim_test_eager_inputs(1)): the homing (the switch ends the search), the
+ * circle with reading noise on X's scale (X drawn every tick, Y and Z
+ * read) and with a 2-D field whose noise is 0 on half the circle (drawn
+ * on the ticks with noise only); decoders, the drive's reference-scale
+ * positions and the trace identical on every tick. */
+static void test_inputs_read_when_read_same_as_every_tick(void)
+{
+    unsigned k;
+    bool moved = false;
+    sim_test_eager_inputs(1);
+    homing(SIM_ENC_FAST, &rec[0]);
+    sim_test_eager_inputs(0);
+    homing(SIM_ENC_FAST, &rec[1]);
+    check_same(&rec[0], &rec[1]);
+    rough = false;
+    ref_noise_x = true;
+    sim_test_eager_inputs(1);
+    circle(SIM_ENC_FAST, &rec[0], ~0u);
+    sim_test_eager_inputs(0);
+    circle(SIM_ENC_FAST, &rec[1], ~0u);
+    ref_noise_x = false;
+    check_same(&rec[0], &rec[1]);
+    field_noise = true;
+    sim_test_eager_inputs(1);
+    circle(SIM_ENC_FAST, &rec[0], ~0u);
+    sim_test_eager_inputs(0);
+    circle(SIM_ENC_FAST, &rec[1], ~0u);
+    field_noise = false;
+    TEST_ASSERT_EQUAL_INT(0, sim_field2d(0, 0, 0, 0, 0, 0, NULL, NULL, 0, 0, 0, NULL, 0));
+    check_same(&rec[0], &rec[1]);
+    /* the scales moved: the drive sampled them along the circle */
+    for (k = 97u; k < rec[1].ticks; k += 97u) {
+        moved = moved || rec[1].enc[k][1].refscale != rec[1].enc[0][1].refscale;
+    }
+    TEST_ASSERT_TRUE(moved);
+}
+
+/* A job run by sim_run_until_idle(stretch, 10) calls against sim_run(10)
+ * and a status poll after each, the loop of contour sim circle: the same
+ * ticks (a multiple of 10, past the end of the move), the same trace. */
+static unsigned idle_job(bool one_call, double (*trace)[SIM_TRACE_COLS])
+{
+    int64_t t[3] = {30000000, -20000000, 0};
+    int res = 0;
+    unsigned ticks = 0;
+    sim_status_t st;
+
+    start(SIM_ENC_FAST);
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, sim_enable(1));
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_line(t, 100000000, 3, 1, &res));
+    for (;;) {
+        if (one_call) {
+            uint64_t ran = 0;
+            long n = sim_run_until_idle(1000u, 10u, trace[ticks], MAX_TICKS - ticks, 1, &ran);
+            TEST_ASSERT_EQUAL_INT((long)ran, n);
+            ticks += (unsigned)ran;
+        } else {
+            TEST_ASSERT_EQUAL_INT(10, sim_run(10u, trace[ticks], MAX_TICKS - ticks, 1));
+            ticks += 10u;
+        }
+        TEST_ASSERT_EQUAL_INT(0, sim_drive_status(&st));
+        if (st.faults != 0u || st.state == DRIVE_IDLE || ticks + 1000u > MAX_TICKS) {
+            break;
+        }
+    }
+    TEST_ASSERT_EQUAL_INT(DRIVE_IDLE, st.state);
+    return ticks;
+}
+
+static void test_run_until_idle_same_as_polling(void)
+{
+    unsigned a = idle_job(false, rec[0].trace), b = idle_job(true, rec[1].trace);
+    TEST_ASSERT_EQUAL_UINT(a, b);
+    TEST_ASSERT_EQUAL_UINT(0u, a % 10u);
+    TEST_ASSERT_TRUE(a > 1000u); /* more than one call of 1000 ticks */
+    TEST_ASSERT_EQUAL_INT(0, memcmp(rec[0].trace, rec[1].trace, sizeof rec[0].trace[0] * a));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -294,5 +400,7 @@ int main(void)
     RUN_TEST(test_homing_to_index_same_in_both_models);
     RUN_TEST(test_model_switch_while_running);
     RUN_TEST(test_plant_split_same_as_axis_by_axis);
+    RUN_TEST(test_inputs_read_when_read_same_as_every_tick);
+    RUN_TEST(test_run_until_idle_same_as_polling);
     return UNITY_END();
 }

@@ -32,6 +32,10 @@ static struct {
     bool home[HAL_MAX_AXES];
     uint32_t counter[HAL_SIM_CHANNELS];
     bool counter_valid[HAL_SIM_CHANNELS];
+    hal_sim_counter_fn counter_fn[HAL_SIM_CHANNELS]; /* NULL: counter[] */
+    void *counter_ctx[HAL_SIM_CHANNELS];
+    hal_sim_home_fn home_fn; /* NULL: home[] */
+    void *home_ctx;
     sim_ring_t to_drive, from_drive;
     sim_canq_t can_to_drive, can_from_drive;
     uint32_t kicks;
@@ -62,7 +66,14 @@ uint32_t hal_time_us(void)
 
 bool hal_encoder_counter(unsigned ch, uint32_t *count)
 {
-    if (ch >= HAL_SIM_CHANNELS || !sim.counter_valid[ch] || count == NULL) {
+    if (ch >= HAL_SIM_CHANNELS || count == NULL) {
+        return false;
+    }
+    if (sim.counter_fn[ch] != NULL) {
+        *count = sim.counter_fn[ch](sim.counter_ctx[ch], ch);
+        return true;
+    }
+    if (!sim.counter_valid[ch]) {
         return false;
     }
     *count = sim.counter[ch];
@@ -74,6 +85,15 @@ void hal_sim_set_counter(unsigned ch, uint32_t count, bool valid)
     if (ch < HAL_SIM_CHANNELS) {
         sim.counter[ch] = count;
         sim.counter_valid[ch] = valid;
+        sim.counter_fn[ch] = NULL;
+    }
+}
+
+void hal_sim_set_counter_source(unsigned ch, hal_sim_counter_fn fn, void *ctx)
+{
+    if (ch < HAL_SIM_CHANNELS) {
+        sim.counter_fn[ch] = fn;
+        sim.counter_ctx[ch] = ctx;
     }
 }
 
@@ -150,7 +170,16 @@ bool hal_sim_motor_enabled(unsigned axis)
 
 bool hal_home_switch(unsigned axis)
 {
-    return axis < HAL_MAX_AXES && sim.home[axis];
+    if (axis >= HAL_MAX_AXES) {
+        return false;
+    }
+    return sim.home_fn != NULL ? sim.home_fn(sim.home_ctx, axis) : sim.home[axis];
+}
+
+void hal_sim_set_home_source(hal_sim_home_fn fn, void *ctx)
+{
+    sim.home_fn = fn;
+    sim.home_ctx = ctx;
 }
 
 void hal_sim_set_home_switch(unsigned axis, bool on)

@@ -44,12 +44,22 @@ uint64_t hal_sim_time_ns(void);
 int32_t hal_sim_motor_mv(unsigned axis);
 bool hal_sim_motor_enabled(unsigned axis);
 void hal_sim_set_amp_fault(unsigned axis, bool fault);
-/* Home switch input of an axis (hal_home_switch; sim.c drives it from the
- * simulated table position every tick). */
+/* Home switch input of an axis (hal_home_switch): the value set here, or,
+ * with a source set (fn != NULL), what fn(ctx, axis) returns when the
+ * firmware reads it. */
 void hal_sim_set_home_switch(unsigned axis, bool on);
+typedef bool (*hal_sim_home_fn)(void *ctx, unsigned axis);
+void hal_sim_set_home_source(hal_sim_home_fn fn, void *ctx);
 
-/* Hardware counter value of channel ch (valid = false: edge mode). */
+/* Hardware counter value of channel ch (valid = false: edge mode); clears a
+ * source of that channel. */
 void hal_sim_set_counter(unsigned ch, uint32_t count, bool valid);
+/* A source of channel ch's counter (fn != NULL): hal_encoder_counter()
+ * reports fn(ctx, ch), computed when the firmware reads it (sim.c: the
+ * reference scales, which the drive samples on a few ticks only). fn NULL:
+ * the channel reports the last hal_sim_set_counter() value again. */
+typedef uint32_t (*hal_sim_counter_fn)(void *ctx, unsigned ch);
+void hal_sim_set_counter_source(unsigned ch, hal_sim_counter_fn fn, void *ctx);
 
 /* Mean reading of axis `axis` over the last tick (hal_encoder_mean): the
  * simulator sets it every tick from the generator's reading over the

@@ -72,6 +72,8 @@ FEEDFORWARD = ("none", "velocity", "full")
 # the instrument's minimum sample rate (Hz): well above the table modes of
 # the machine files (X 662.6 Hz, Y 948 Hz: >= 10 samples per period)
 SCORE_HZ = 10000.0
+# chunks of the run loop in one simulator call once every block is queued
+STRETCH_CHUNKS = 100
 SCORE_KEYS = ("iae_mm_s", "max_contour_error_mm", "circular_deviation_mm", "mean_radial_error_mm")
 
 
@@ -247,7 +249,11 @@ def run_circle(
     # the instrument: table positions at >= SCORE_HZ, recorded per chunk
     # (t, x, y kept: 24 bytes a sample)
     chunk_ticks = max(1, hz // 1000)
-    rec = np.zeros((chunk_ticks * so.sim_substeps() + 2, rec_cols(so)), dtype=np.float64)
+    # with every block queued, up to STRETCH_CHUNKS chunks in one call that
+    # stops where this loop would (core.run_until_idle: the same ticks)
+    rec = np.zeros(
+        (STRETCH_CHUNKS * chunk_ticks * so.sim_substeps() + 2, rec_cols(so)), dtype=np.float64
+    )
     dense = []
     tag = 1
     max_ticks = int((t_rev * (settle + 1) + 4 * (lead + lead_out) / v + 10.0) * hz)
@@ -271,7 +277,11 @@ def run_circle(
             tag += 1
         core.check(so.sim_table_record(rec.ctypes.data, rec.shape[0], SCORE_HZ), "record")
         try:
-            chunk = core.run(chunk_ticks)  # keep the host queue fed (short G1 chords)
+            if pending:
+                chunk = core.run(chunk_ticks)  # keep the host queue fed (short G1 chords)
+            else:  # up to the chunk that passes max_ticks, as chunk by chunk
+                n_chunks = min(STRETCH_CHUNKS, (max_ticks - ticks) // chunk_ticks + 1)
+                chunk = core.run_until_idle(n_chunks * chunk_ticks, chunk_ticks)
             n = so.sim_table_recorded()
             score_hz = so.sim_table_record_hz()
         finally:

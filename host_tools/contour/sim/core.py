@@ -103,6 +103,20 @@ def run_until_free(max_ticks: int, min_free: int) -> np.ndarray:
     return buf[:n]
 
 
+def run_until_idle(max_ticks: int, step: int) -> np.ndarray:
+    """Run up to `max_ticks` ticks in steps of `step`, stopping after the
+    first step that ends with the drive idle or faulted (as `run(step)` in a
+    loop that polls `status()` after each); trace rows of every tick."""
+    so = lib()
+    buf = np.zeros((max_ticks, so.sim_trace_cols()), dtype=np.float64)
+    ran = c.c_uint64(0)
+    n = check(
+        so.sim_run_until_idle(max_ticks, step, buf.ctypes.data, max_ticks, 1, c.byref(ran)),
+        "run",
+    )
+    return buf[:n]
+
+
 # drive_param_t (firmware/core/drive.h)
 DRIVE_PARAMS = {
     "v_max": 0,
