@@ -255,6 +255,10 @@ static int32_t curv_circle_near(int32_t eu, int32_t ev, q1_30_t n1u, q1_30_t n1v
         rho = fx_hypot2(xu, xv);
     }
     den = rho + r;
+    if (r < ((int64_t)1 << 31) && fx_uabs64(a) < ((uint64_t)1 << 30)) {
+        /* |2 r a| < 2^62 and e2 < 2^61: one division */
+        return fx_sat32_fast(fx_div_round64(((s < 0) ? -e2 : e2) + 2 * r * a, den));
+    }
     return fx_sat32_fast(
         fx_sat_add64(fx_div_round64((s < 0) ? -e2 : e2, den), fx_muldiv64(2 * a, r, den)));
 }
