@@ -71,8 +71,9 @@
  * restarts when the CEC stops, the mode or plane changes, or a LINE's
  * tangent turns by more than 30 degrees at a join (a corner, not a curve).
  * Cost: the per-tick check is a few multiplies; a sample ~600 cycles
- * (three roots and a division); every tick a division for g. CEC off
- * (control_tick_instructions_m4) is not affected.
+ * (three roots and a division); every tick of CURVATURE one root (from the
+ * last) and one division (thesis_form on a LINE: a division for g). CEC
+ * off (control_tick_instructions_m4) is not affected.
  * The second channel (only when the segment leaves the plane: |t_w| > 2^-20,
  * a three-axis line or helix) uses EC2 = E . n2 (EXACT on a LINE:
  * (start - P) . n2), so the controlled error is the whole part of E
