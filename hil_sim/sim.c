@@ -468,6 +468,8 @@ int sim_servo_set(unsigned axis, const char *name, double v)
         p->ffl_rate = (int32_t)floor(v + 0.5);
     } else if (strcmp(name, "handover") == 0) {
         p->cec.handover = v != 0.0;
+    } else if (strcmp(name, "cec_thesis_form") == 0 && (v == 0.0 || v == 1.0)) {
+        p->cec.thesis_form = v != 0.0;
     } else {
         return SIM_E_ARG;
     }

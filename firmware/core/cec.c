@@ -280,6 +280,44 @@ int32_t cec_exact_arc(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm
     return exact_arc_near(pu, pv, cu, cv, radius, s, &hint, none);
 }
 
+#define CIRCLE_E_MAX ((int64_t)1 << 30) /* E's plane components clamped (1.07 m) */
+
+/* cec_curv_circle; *hint: the last root of this caller (as exact_arc_near).
+ * s (rho - r) = (s |E|^2 + 2 r (E . n1)) / (rho + r): the difference of
+ * the squares is exact, so rho (from the rounded r n1) only scales it. */
+static int32_t curv_circle_near(int32_t eu, int32_t ev, q1_30_t n1u, q1_30_t n1v, pos_nm_t r, int s,
+                                uint32_t *hint)
+{
+    int64_t ecu = fx_clamp_sym64(eu, CIRCLE_E_MAX), ecv = fx_clamp_sym64(ev, CIRCLE_E_MAX);
+    int64_t a = fx_round_shift64(ecu * n1u + ecv * n1v, 30);             /* E . n1 */
+    int64_t xu = ecu + ((s < 0) ? -1 : 1) * fx_mul64x32_shift30(r, n1u); /* C - P */
+    int64_t xv = ecv + ((s < 0) ? -1 : 1) * fx_mul64x32_shift30(r, n1v);
+    uint64_t ax = fx_uabs64(xu), ay = fx_uabs64(xv);
+    int64_t rho, den, e2 = ecu * ecu + ecv * ecv;
+    if (r <= 0) {
+        return 0;
+    }
+    if ((ax | ay) < ((uint64_t)1 << 31)) {
+        *hint = fx_isqrt64_near(ax * ax + ay * ay, *hint);
+        rho = *hint;
+    } else {
+        rho = fx_hypot2(xu, xv);
+    }
+    den = rho + r;
+    if (r < ((int64_t)1 << 31) && fx_uabs64(a) < ((uint64_t)1 << 30)) {
+        /* |2 r a| < 2^62 and e2 < 2^61: one division */
+        return fx_sat32_fast(fx_div_round64(((s < 0) ? -e2 : e2) + 2 * r * a, den));
+    }
+    return fx_sat32_fast(
+        fx_sat_add64(fx_div_round64((s < 0) ? -e2 : e2, den), fx_muldiv64(2 * a, r, den)));
+}
+
+int32_t cec_curv_circle(int32_t eu, int32_t ev, q1_30_t n1u, q1_30_t n1v, pos_nm_t radius, int s)
+{
+    uint32_t hint = 0;
+    return curv_circle_near(eu, ev, n1u, n1v, radius, s, &hint);
+}
+
 int32_t cec_exact_line(const pos_nm_t p[3], const pos_nm_t start[3], const q1_30_t n[3])
 {
     int32_t d32[3];
@@ -725,14 +763,21 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     case CEC_MODE_CURVATURE:
     case CEC_MODE_CURV_HISTORY:
         ec1 = cec_dot(e, n1);
-        if (g->kind == MOTION_GEOM_ARC && c->p.mode == CEC_MODE_CURVATURE) {
+        if (g->kind == MOTION_GEOM_ARC && c->p.mode == CEC_MODE_CURVATURE && !c->p.thesis_form) {
+            ec1 = curv_circle_near(e[g->plane_u], e[g->plane_v], n1[g->plane_u], n1[g->plane_v],
+                                   g->radius, c->s, &c->rho_hint);
+        } else if (g->kind == MOTION_GEOM_ARC && c->p.mode == CEC_MODE_CURVATURE) {
             int64_t eabs = c->p.lag_from_tangent ? fx_sat_abs64(cec_dot(e, t))
                                                  : fx_hypot2(e[g->plane_u], e[g->plane_v]);
             int32_t corr = curv_corr(fx_sat32_fast(eabs), g->radius, c->inv_r);
             ec1 = fx_sat_add32(ec1, (c->s > 0) ? corr : -corr);
         } else {
             hist_step(c, ref, w);
-            if (c->hist_r > 0) {
+            if (c->hist_r > 0 && !c->p.thesis_form) {
+                unsigned u = (w + 1u) % 3u, v = (w + 2u) % 3u;
+                ec1 =
+                    curv_circle_near(e[u], e[v], n1[u], n1[v], c->hist_r, c->hist_s, &c->rho_hint);
+            } else if (c->hist_r > 0) {
                 unsigned u = (w + 1u) % 3u, v = (w + 2u) % 3u;
                 int64_t eabs =
                     c->p.lag_from_tangent ? fx_sat_abs64(cec_dot(e, t)) : fx_hypot2(e[u], e[v]);

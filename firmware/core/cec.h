@@ -23,17 +23,26 @@
  *   KOREN      LINE: EC1 = E . n_k with n_k the right-hand normal of R - start
  *              in the plane = (Ry Ex - Rx Ey) / |R| about the segment start;
  *              ARC: as TANGENT.                       (Koren, straight line)
- *   CURVATURE  ARC: EC1 = E . n1 + s * r * (sec g - 1), g = |E_uv| / r, with
- *              s = +1 when the centre lies on the +n1 side of the reference
- *              point (clockwise travel) and -1 otherwise (counter-clockwise),
- *              taken from the centre's position, so both directions of travel
- *              are right. g is limited to 0.5 rad. LINE: as TANGENT.
-              With lag_from_tangent, g = |E . t| / r: a radial deviation d
-              then no longer adds its own ~ d^2 / (2 r) to the estimate (the
-              thesis's form does), and the pure-lag error drops from
-              ~5|E|^4/(24 r^3) to ~|E|^4/(12 r^3).
+ *   CURVATURE  ARC: the distance of P from the circle of curvature at the
+ *              reference point, centre C = R + s r n1, radius r:
+ *                EC1 = s (|P_uv - C| - r) = (s |E_uv|^2 + 2 r (E . n1)) / (|P_uv - C| + r)
+ *              with s = +1 when the centre lies on the +n1 side of the
+ *              reference point (clockwise travel) and -1 otherwise
+ *              (counter-clockwise), taken from the centre's position, so both
+ *              directions of travel are right (the circle form; within 2 nm
+ *              of EXACT on an arc, for any lag and radial deviation).
+ *              With thesis_form (Lacerda 1998, its proposal): EC1 = E . n1 + s r
+ *              (sec g - 1), g = |E_uv| / r limited to 0.5 rad: a series that
+ *              is exact only to |E|^4 / (4 r^3) for a pure lag, a bias that
+ *              the CEC's integrator then holds as a radial error (without
+ *              feed-forward at a lag of 0.4 R: 84 um on R 10 mm).
+ *              With thesis_form and lag_from_tangent, g = |E . t| / r: a
+ *              radial deviation d then no longer adds its own ~ d^2 / (2 r)
+ *              to the estimate, and the pure-lag error drops from
+ *              ~5|E|^4/(24 r^3) to ~|E|^4/(12 r^3). LINE: as TANGENT.
  *              LINE (or any segment in CURV_HISTORY): r and the side from
- *              the reference history (below); TANGENT while it has fewer
+ *              the reference history (below), same form (the centre C on
+ *              the estimated normal at r); TANGENT while it has fewer
  *              than three samples or the path is straight.
  *   CURV_HISTORY as CURVATURE with r and s always from the reference
  *              history, also on an ARC (the thesis's `calcr` block).
@@ -44,10 +53,11 @@
  *   EXACT      LINE: EC1 = (start - P) . n1 (distance of P from the line).
  *              ARC:  EC1 = s * (|P_uv - C| - r)  (radial deviation).
  * Errors against the exact value on a circle, pure lag |E| (tests assert):
- *   tangent = -s |E|^2 / (2 r) exactly, curvature within |E|^4 / (4 r^3)
-   (+ quantisation, 3 nm); with a radial deviation d as well: thesis form
-   within d^2 / (2 r) + |E|^4 / (4 r^3), lag_from_tangent within
-   |d| g^2 + |E|^4 / (4 r^3).
+ *   tangent = -s |E|^2 / (2 r) exactly, curvature within 2 nm, with
+ *   thesis_form within |E|^4 / (4 r^3) (+ quantisation, 3 nm); with a
+ *   radial deviation d as well: curvature within 2 nm, thesis form within
+ *   d^2 / (2 r) + |E|^4 / (4 r^3), lag_from_tangent within
+ *   |d| g^2 + |E|^4 / (4 r^3).
  * Reference history (CURVATURE on a LINE, CURV_HISTORY): the reference
  * point is sampled in the plane (u, v) each time it has moved at least
  * span = p.curv_span_nm (0: CEC_CURV_SPAN_NM) from the last sample (path
@@ -61,8 +71,9 @@
  * restarts when the CEC stops, the mode or plane changes, or a LINE's
  * tangent turns by more than 30 degrees at a join (a corner, not a curve).
  * Cost: the per-tick check is a few multiplies; a sample ~600 cycles
- * (three roots and a division); every tick a division for g. CEC off
- * (control_tick_instructions_m4) is not affected.
+ * (three roots and a division); every tick of CURVATURE one root (from the
+ * last) and one division (thesis_form on a LINE: a division for g). CEC
+ * off (control_tick_instructions_m4) is not affected.
  * The second channel (only when the segment leaves the plane: |t_w| > 2^-20,
  * a three-axis line or helix) uses EC2 = E . n2 (EXACT on a LINE:
  * (start - P) . n2), so the controlled error is the whole part of E
@@ -150,7 +161,10 @@ typedef struct {
                             * clamps, deadband, D filter; kvff/kaff/d_on_measurement
                             * are ignored (no feed-forward; D on the error). */
     bool handover;         /* hand the integral to the axis loops (bumpless)    */
-    bool lag_from_tangent; /* CURVATURE: g = |E . t| / r (the lag only) instead
+    bool thesis_form;      /* CURVATURE, CURV_HISTORY: the thesis's series
+                            * E . n1 + s r (sec g - 1) instead of the circle
+                            * form (see above)                             */
+    bool lag_from_tangent; /* thesis_form: g = |E . t| / r (the lag only) instead
                             * of the thesis's |E_uv| / r; see below        */
     int32_t curv_span_nm;  /* history sample spacing, nm (0: CEC_CURV_SPAN_NM) */
     bool line_gains;       /* use pid_line on straight path (see Gain switching) */
@@ -232,6 +246,10 @@ int32_t cec_dot(const int32_t e[3], const q1_30_t n[3]);
 int32_t cec_est_koren(int32_t ex, int32_t ey, int64_t rx, int64_t ry);
 /* r * (sec g - 1) with g = min(e_abs / r, 0.5 rad), nm, rounded; 0 if r <= 0. */
 int32_t cec_curv_correction(int32_t e_abs, pos_nm_t radius);
+/* The circle form of CURVATURE: s (|P - C| - r) for C = R + s r n1, from
+ * E's plane components (eu, ev), n1's (n1u, n1v, q1_30) and r, nm (0 if
+ * r <= 0). */
+int32_t cec_curv_circle(int32_t eu, int32_t ev, q1_30_t n1u, q1_30_t n1v, pos_nm_t radius, int s);
 /* s * (|P - C| - r) in the plane, nm (|P - C| to the nearest nm below). */
 int32_t cec_exact_arc(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius, int s);
 /* Radius (nm, 0: straight or degenerate) and side s (+1 right turn, -1

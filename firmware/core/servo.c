@@ -44,6 +44,7 @@ void servo_params_default(servo_params_t *p, uint32_t tick_hz)
     p->cec.pid.kd = SI(100);
     p->cec.pid.d_on_measurement = false;
     p->cec.line_gains = false;
+    p->cec.thesis_form = false;
     p->cec.lag_from_tangent = false;
     p->cec.pid_line = p->cec.pid;
     p->cec.curv_span_nm = 0;

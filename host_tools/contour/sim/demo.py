@@ -426,7 +426,12 @@ def format_by_thesis_table(rows: list, exp: list) -> str:
         'like our max |radial deviation|, docs/simulator.md "Differences from the '
         'thesis, term by term"). Ours: max |radial deviation| and circular '
         "deviation (ISO 230-4) in um, IAE normalised the same way. Every "
-        "remaining difference is explained term by term there.\n",
+        "remaining difference is explained term by term there. Our cec-curvature is"
+        " the distance from the circle of curvature at the reference point (cec.h);"
+        " the thesis's series E.n + s r (sec g - 1) (`[servo] cec_thesis_form = 1`)"
+        " differs from it by up to |E|^4 / (4 r^3) where the lag |E| is a large"
+        ' part of R (no feed-forward: docs/simulator.md, "CEC never worse than the'
+        ' PIDs").\n',
         SCORE_NOTE,
     ]
     for table, trs in by_table.items():

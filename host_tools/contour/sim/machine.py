@@ -42,6 +42,9 @@ optional except where noted; units SI unless the name says otherwise)::
     encoder_mean = 0                # 1: the loops see each encoder's mean over the
                                     # tick, the reference at the same mean time
                                     # (drive.h enc_mean; docs/simulator.md)
+    cec_thesis_form = 0             # 1: the curvature CEC uses the thesis's series
+                                    # E.n + s r (sec g - 1) instead of the distance
+                                    # from the circle of curvature (cec.h)
 
     [gains.axis]                    # axis PIDs (every axis) ...
     kp = 1500.0  ki = 8000.0  kd = 5.0  d_tau = 1e-4  d_on_measurement = false
@@ -184,7 +187,7 @@ FF_KEYS = {
 }
 FF_KEYS |= {f"{k}_{ax}" for k in ("kvff", "kaff") for ax in "xyz"}
 FF_MODES = ("none", "velocity", "full")
-SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel", "encoder_mean"}
+SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel", "encoder_mean", "cec_thesis_form"}
 TOP_KEYS = {
     "name",
     "description",
@@ -588,6 +591,10 @@ def apply(
     core.check(
         so.sim_servo_set(0, b"enc_mean", 1.0 if m.servo.get("encoder_mean", 0) else 0.0),
         "encoder_mean",
+    )
+    core.check(
+        so.sim_servo_set(0, b"cec_thesis_form", 1.0 if m.servo.get("cec_thesis_form", 0) else 0.0),
+        "cec_thesis_form",
     )
     core.check(so.sim_plan_set(0, b"stop_decel", m.servo["stop_decel"]), "stop_decel")
     _gains(so, -1, m.gains["cec"], "cec")
