@@ -288,6 +288,9 @@ size_t proto_ptxn_request(struct proto_dispatch *d, uint8_t id, uint8_t seq, con
     case PROTO_MSG_PARAM_BEGIN:
         proto_ptxn_lose(t, PROTO_TXN_STATUS_SUPERSEDED);
         t->id = (uint16_t)(t->id + 1u == 0x10000u ? 1u : t->id + 1u);
+        if (t->id == t->done_id) {
+            t->done_id = 0; /* the ids wrapped: this one is not committed */
+        }
         t->state = PROTO_PTXN_OPEN;
         t->n = 0;
         t->last_us = now_us;

@@ -329,6 +329,28 @@ static void test_a_parameter_twice_in_a_frame_is_staged_once_with_the_later_valu
     TEST_ASSERT_EQUAL_INT64(100000000, get_param(VY));
 }
 
+/* 65535 begins later the ids wrap to the committed one: that new
+ * transaction is committed for real, not answered as the old one. */
+static void test_an_id_reused_after_the_wrap_is_not_taken_for_the_committed_one(void)
+{
+    const uint16_t pid[1] = {VX};
+    const int64_t v[2] = {250000000, 300000000};
+    uint16_t txn = begin();
+    uint16_t again;
+    unsigned k;
+
+    expect_txn(stage(txn, pid, v, 1));
+    TEST_ASSERT_EQUAL_UINT8(1, expect_txn(txn_req(PROTO_MSG_PARAM_COMMIT, txn)).committed);
+    for (k = 0; k < 65534u; k++) {
+        (void)begin();
+    }
+    again = begin();
+    TEST_ASSERT_EQUAL_UINT16(txn, again);
+    expect_txn(stage(again, pid, v + 1, 1));
+    TEST_ASSERT_EQUAL_UINT8(1, expect_txn(txn_req(PROTO_MSG_PARAM_COMMIT, again)).committed);
+    TEST_ASSERT_EQUAL_INT64(300000000, get_param(VX));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -341,5 +363,6 @@ int main(void)
     RUN_TEST(test_another_session_or_a_silent_host_loses_the_transaction);
     RUN_TEST(test_a_retried_commit_after_another_begin_still_reports_it_applied);
     RUN_TEST(test_a_parameter_twice_in_a_frame_is_staged_once_with_the_later_value);
+    RUN_TEST(test_an_id_reused_after_the_wrap_is_not_taken_for_the_committed_one);
     return UNITY_END();
 }
