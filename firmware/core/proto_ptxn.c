@@ -32,6 +32,8 @@ void proto_ptxn_reset(proto_ptxn_t *t)
     t->lost_why = 0;
     t->lost_id = 0;
     t->n = 0;
+    t->done_id = 0;
+    t->done_n = 0;
     t->last_us = 0;
 }
 
@@ -56,13 +58,13 @@ void proto_ptxn_poll(struct proto_dispatch *d, uint32_t now_us)
     }
 }
 
-static size_t put_txn(uint8_t *out, uint8_t seq, const proto_ptxn_t *t)
+static size_t put_txn(uint8_t *out, uint8_t seq, uint16_t txn, uint16_t n, bool committed)
 {
     proto_param_txn_t r;
 
-    r.txn = t->id;
-    r.staged = t->n;
-    r.committed = t->state == PROTO_PTXN_COMMITTED ? 1u : 0u;
+    r.txn = txn;
+    r.staged = n;
+    r.committed = committed ? 1u : 0u;
     out[0] = PROTO_MSG_PARAM_TXN;
     out[1] = seq;
     return PROTO_MSG_HDR + proto_param_txn_encode(&r, out + PROTO_MSG_HDR, PROTO_MAX_PAYLOAD);
@@ -286,20 +288,26 @@ size_t proto_ptxn_request(struct proto_dispatch *d, uint8_t id, uint8_t seq, con
     case PROTO_MSG_PARAM_BEGIN:
         proto_ptxn_lose(t, PROTO_TXN_STATUS_SUPERSEDED);
         t->id = (uint16_t)(t->id + 1u == 0x10000u ? 1u : t->id + 1u);
+        if (t->id == t->done_id) {
+            t->done_id = 0; /* the ids wrapped: this one is not committed */
+        }
         t->state = PROTO_PTXN_OPEN;
         t->n = 0;
         t->last_us = now_us;
-        return put_txn(out, seq, t);
+        return put_txn(out, seq, t->id, 0, false);
     case PROTO_MSG_PARAM_STAGE:
         r = stage(d, p, n, now_us);
         break;
     case PROTO_MSG_PARAM_COMMIT:
-        if (t->state == PROTO_PTXN_COMMITTED && txn == t->id) {
-            return put_txn(out, seq, t); /* a retry: applied once */
+        if (txn != 0u && txn == t->done_id) {
+            /* a retry: applied once (another begin may have come since) */
+            return put_txn(out, seq, txn, t->done_n, true);
         }
         r = t->state == PROTO_PTXN_OPEN && txn == t->id ? commit(d) : not_open(t, txn);
         if (r.code == PROTO_ERROR_CODE_NONE) {
             t->state = PROTO_PTXN_COMMITTED;
+            t->done_id = t->id;
+            t->done_n = t->n;
         }
         break;
     default: /* PROTO_MSG_PARAM_ABORT */
@@ -310,7 +318,7 @@ size_t proto_ptxn_request(struct proto_dispatch *d, uint8_t id, uint8_t seq, con
         return proto_reply_ack(out, seq, id);
     }
     if (r.code == PROTO_ERROR_CODE_NONE) {
-        return put_txn(out, seq, t);
+        return put_txn(out, seq, t->id, t->n, t->state == PROTO_PTXN_COMMITTED);
     }
     return proto_reply_error(out, seq, id, r.code, r.arg, r.lo, r.hi);
 }

@@ -26,13 +26,13 @@
  * then applies the drive values (drive_param_commit), cec_mode and the
  * link parameters, which can no longer be refused. A refused commit
  * applies nothing and leaves the transaction open (abort or commit again).
- * A commit of the transaction already committed answers param_txn again
- * and applies nothing (a retry whose reply was lost after the replay cache
- * moved on). Another request of another session may run between two
- * requests of a transaction, never inside one: the commit is one call in
- * main context; the tick changes the drive state only on requests main
- * posted, which drive_main_state already counts, so its checks hold until
- * its writes.
+ * A commit of the last transaction committed answers param_txn again and
+ * applies nothing (a retry whose reply was lost after the replay cache
+ * moved on), also after another session began one since. Another
+ * request of another session may run between two requests of a
+ * transaction, never inside one: the commit is one call in main context;
+ * the tick changes the drive state only on requests main posted, which
+ * drive_main_state already counts, so its checks hold until its writes.
  *
  * A transaction belongs to the session that began it and is aborted
  * (nothing applied; its next request answers error{txn, arg = reason,
@@ -65,6 +65,8 @@ typedef struct {
     uint8_t lost_why; /* PROTO_TXN_STATUS_* of lost_id */
     uint16_t lost_id; /* the last transaction aborted by someone else, 0 */
     uint16_t n;       /* values staged */
+    uint16_t done_id; /* the last transaction committed, 0: none */
+    uint16_t done_n;  /* values it applied */
     uint32_t last_us; /* the transaction's last begin / stage */
     uint16_t param[PROTO_PTXN_MAX];
     int64_t value[PROTO_PTXN_MAX];

@@ -290,6 +290,67 @@ static void test_another_session_or_a_silent_host_loses_the_transaction(void)
     TEST_ASSERT_EQUAL_INT64(1000000000, get_param(VX));
 }
 
+/* The commit's reply is lost; before the host's retry another session
+ * begins a transaction of its own. The retry must not say "not open"
+ * (the host reports "nothing written") for a transaction that was applied. */
+static void test_a_retried_commit_after_another_begin_still_reports_it_applied(void)
+{
+    const uint16_t pid[1] = {VX};
+    const int64_t v[1] = {250000000};
+    uint16_t txn = begin();
+    proto_param_txn_t t;
+
+    expect_txn(stage(txn, pid, v, 1));
+    TEST_ASSERT_EQUAL_UINT8(1, expect_txn(txn_req(PROTO_MSG_PARAM_COMMIT, txn)).committed);
+    TEST_ASSERT_EQUAL_INT64(250000000, get_param(VX));
+    (void)begin(); /* the other session */
+    t = expect_txn(txn_req(PROTO_MSG_PARAM_COMMIT, txn));
+    TEST_ASSERT_EQUAL_UINT16(txn, t.txn);
+    TEST_ASSERT_EQUAL_UINT8(1, t.committed);
+    TEST_ASSERT_EQUAL_UINT16(1, t.staged);
+}
+
+/* One parameter twice in a frame: staged once, the later value wins; a
+ * refused second copy stages nothing of the frame. */
+static void test_a_parameter_twice_in_a_frame_is_staged_once_with_the_later_value(void)
+{
+    const uint16_t pid[3] = {VX, VX, VY};
+    const int64_t v[3] = {250000000, 300000000, 100000000};
+    const int64_t bad[2] = {200000000, -1};
+    uint16_t txn = begin();
+    proto_param_txn_t t;
+
+    t = expect_txn(stage(txn, pid, v, 3));
+    TEST_ASSERT_EQUAL_UINT16(2, t.staged);
+    expect_error(stage(txn, pid, bad, 2), PROTO_ERROR_CODE_OUT_OF_RANGE);
+    t = expect_txn(txn_req(PROTO_MSG_PARAM_COMMIT, txn));
+    TEST_ASSERT_EQUAL_UINT16(2, t.staged);
+    TEST_ASSERT_EQUAL_INT64(300000000, get_param(VX));
+    TEST_ASSERT_EQUAL_INT64(100000000, get_param(VY));
+}
+
+/* 65535 begins later the ids wrap to the committed one: that new
+ * transaction is committed for real, not answered as the old one. */
+static void test_an_id_reused_after_the_wrap_is_not_taken_for_the_committed_one(void)
+{
+    const uint16_t pid[1] = {VX};
+    const int64_t v[2] = {250000000, 300000000};
+    uint16_t txn = begin();
+    uint16_t again;
+    unsigned k;
+
+    expect_txn(stage(txn, pid, v, 1));
+    TEST_ASSERT_EQUAL_UINT8(1, expect_txn(txn_req(PROTO_MSG_PARAM_COMMIT, txn)).committed);
+    for (k = 0; k < 65534u; k++) {
+        (void)begin();
+    }
+    again = begin();
+    TEST_ASSERT_EQUAL_UINT16(txn, again);
+    expect_txn(stage(again, pid, v + 1, 1));
+    TEST_ASSERT_EQUAL_UINT8(1, expect_txn(txn_req(PROTO_MSG_PARAM_COMMIT, again)).committed);
+    TEST_ASSERT_EQUAL_INT64(300000000, get_param(VX));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -300,5 +361,8 @@ int main(void)
     RUN_TEST(test_a_value_the_other_staged_values_refuse_applies_nothing);
     RUN_TEST(test_a_retried_commit_is_applied_once);
     RUN_TEST(test_another_session_or_a_silent_host_loses_the_transaction);
+    RUN_TEST(test_a_retried_commit_after_another_begin_still_reports_it_applied);
+    RUN_TEST(test_a_parameter_twice_in_a_frame_is_staged_once_with_the_later_value);
+    RUN_TEST(test_an_id_reused_after_the_wrap_is_not_taken_for_the_committed_one);
     return UNITY_END();
 }

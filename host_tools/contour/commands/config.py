@@ -252,8 +252,11 @@ def run_restore(args) -> int:
                 file=sys.stderr,
             )
         st = client.status()
-        if st["state"] in (pg.State.RUNNING, pg.State.STOPPING):
-            raise UserError("the drive is moving: nothing written (wait or stop it first)")
+        if st["state"] in (pg.State.RUNNING, pg.State.STOPPING, pg.State.HOMING):
+            raise UserError(
+                f"the drive is moving ({pg.State(st['state']).name.lower()}): nothing written "
+                "(wait or stop it first)"
+            )
         # The drive changes these only while disabled (busy otherwise): check
         # before the first write, so that a restore is never half-applied.
         for name in DISABLED_ONLY:

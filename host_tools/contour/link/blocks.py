@@ -9,7 +9,9 @@ the planner parameters read from the drive; the drive's defaults, the
 continuous S-curve, where none is given). The estimate is what ``contour run``
 shows (progress bar, ETA, "estimated" in its report) and what its stall check
 allows a queued block. A block the planner refuses is refused with its line,
-never estimated another way.
+never estimated another way. Without the host library (the reader runs
+without it too) the estimate is length / feed, rapids at the profile's
+lowest axis limit, and the report says so.
 
 Every block is checked as it is built, so that one pass over the file
 (:func:`check_gcode`) finds everything the drive would refuse before the
@@ -122,10 +124,15 @@ def check_position(where: str, axis: int, v_mm: float) -> None:
         )
 
 
-def _estimate(planner: Planner, seg, feed, dwell, start_mm) -> tuple:
+def _estimate(planner, seg, feed, dwell, start_mm) -> tuple:
     """Planned time of each segment and None; or (None, (i, reason)) when
     the planner refuses segment i (the caller refuses its line; i None when
-    the planner names no block)."""
+    the planner names no block). `planner` (float, no host library): the
+    plain estimate, length / feed with rapids at that speed (mm/s)."""
+    if not isinstance(planner, Planner):
+        f = np.where(seg.rapid, planner * 60.0, feed)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.nan_to_num(seg.length / (f / 60.0)) + dwell, None
     try:
         res = planner.estimate(
             seg.end,
@@ -141,10 +148,25 @@ def _estimate(planner: Planner, seg, feed, dwell, start_mm) -> tuple:
     return np.asarray(res.blocks["t_total_s"], dtype=float), None
 
 
-def _planner(limits: Optional[DriveLimits]) -> Planner:
+NO_LIBRARY = "plain time estimate"
+
+
+def _planner(limits: Optional[DriveLimits], report: Optional[Report] = None):
+    """The planner of the drive's profile; without the host library (the
+    reader runs without it too: docs/fast-paths.md) the speed rapids are
+    estimated at (the profile's lowest axis limit, mm/s) and a note."""
+    from contour import native
+
     profile = limits.profile if limits is not None and limits.profile is not None else None
+    profile = PlannerProfile() if profile is None else profile
     try:
-        return Planner(PlannerProfile() if profile is None else profile)
+        native.load()
+    except (UserError, OSError) as exc:
+        if report is not None:
+            report.note(NO_LIBRARY, 0, f"length / feed, no planner: {exc}")
+        return float(min(profile.v_max_mm_s))
+    try:
+        return Planner(profile)
     except UserError as exc:
         raise UserError(f"job time estimate: {exc}") from None
 
@@ -162,7 +184,7 @@ def blocks_from_gcode(
     `report` (if given) collects the reader's report and the notes."""
     from contour import gcode
 
-    planner = _planner(limits)
+    planner = _planner(limits, report)
     start = [float(v) for v in start_mm][:3]
     prev = tuple(int(round(v * NM_PER_MM)) for v in start)
     vmax = None
