@@ -275,6 +275,40 @@ static void test_substep_fast_path_is_bit_exact(void)
     }
 }
 
+/* The load torque changed at run time (axis_set_load_torque, as the
+ * simulator's disturbances do every tick): the substep follows the torque
+ * of the moment, bit for bit against the full update, through changes
+ * from 0 to a torque and back (axis_t.lin_only re-derived each time), also
+ * from rest. */
+static void test_load_torque_set_at_run_time(void)
+{
+    axis_params_t p;
+    axis_t a;
+    double z[AXIS_NSTATE];
+    unsigned i, k;
+    axis_params_lacerda(&p, false);
+    TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-4));
+    TEST_ASSERT_TRUE(a.lin_only);
+    axis_set_position(&a, 0.0);
+    for (i = 0; i < AXIS_NSTATE; i++) {
+        z[i] = a.z[i];
+    }
+    for (k = 0; k < 3000; k++) {
+        /* at rest (u = 0) until 500, then moving; the torque on in
+         * stretches of 100 substeps, off again in between */
+        double u = (k < 500) ? 0.0 : 3.0 * sin(0.007 * k);
+        double t = ((k / 100u) % 2u == 1u) ? 0.02 * cos(0.003 * k) : 0.0;
+        axis_set_load_torque(&a, t);
+        TEST_ASSERT_TRUE(a.lin_only == (t == 0.0));
+        axis_substep(&a, u);
+        ref_substep(&a, z, u, t);
+        for (i = 0; i < AXIS_NSTATE; i++) {
+            TEST_ASSERT_TRUE(z[i] == a.z[i]);
+        }
+    }
+    TEST_ASSERT_TRUE(fabs(a.z[1]) > 1.0); /* it moved */
+}
+
 /* The rest skip (axis_t.rest): an axis standing still with an unchanged
  * command is not updated. Against the same axis updated every substep (rest
  * cleared before each), bit for bit: z, v_applied, and the return value
@@ -413,6 +447,7 @@ int main(void)
     RUN_TEST(test_noise_is_deterministic_per_seed);
     RUN_TEST(test_invalid_parameters_refused);
     RUN_TEST(test_substep_fast_path_is_bit_exact);
+    RUN_TEST(test_load_torque_set_at_run_time);
     RUN_TEST(test_rest_skip_is_bit_exact);
     RUN_TEST(test_floor_and_ref_memo_exact);
     return UNITY_END();

@@ -383,6 +383,50 @@ static void test_exact_arc_root(void)
     }
 }
 
+/* The exact arc's root outside the first-order step's range: a radius of
+ * 0, negative, INT32_MAX and beyond 2^31 (an arc of more than 2.1 m), with
+ * the inverse of the radius, of another segment's (a stale inv_r: 20 mm)
+ * or none, at v = 0, 1, below 2^63 and around r^2 where it fits: the
+ * fallback's root, exact (fx_isqrt64). */
+static void test_exact_arc_root_outside_range(void)
+{
+    static const pos_nm_t rs[] = {0,
+                                  -1,
+                                  -((pos_nm_t)1 << 40),
+                                  2147483646,
+                                  INT32_MAX,
+                                  (pos_nm_t)1 << 31,
+                                  (pos_nm_t)3 << 31,
+                                  (pos_nm_t)1 << 40,
+                                  INT64_MAX};
+    unsigned k, j, m;
+    for (k = 0; k < sizeof rs / sizeof rs[0]; k++) {
+        pid_coef_t inv[3] = {{0, 0}, {0, 0}, {0, 0}};
+        uint64_t vv[8];
+        uint64_t r = (uint64_t)rs[k];
+        TEST_ASSERT_TRUE(pid_coef_make(&inv[0], FX_ONE_Q30, 1, 20000000u)); /* stale */
+        if (rs[k] > 0 && r < ((uint64_t)1 << 62)) { /* new_segment: none beyond */
+            TEST_ASSERT_TRUE(pid_coef_make(&inv[1], FX_ONE_Q30, 1, r));
+        }
+        vv[0] = 0;
+        vv[1] = 1;
+        vv[2] = ((uint64_t)1 << 63) - 1u;
+        vv[3] = (uint64_t)1 << 62;
+        vv[4] = ((uint64_t)1 << 62) - 1u;
+        vv[5] = (rs[k] > 0 && r < ((uint64_t)1 << 31)) ? r * r : 12345u;
+        vv[6] = (rs[k] > 0 && r < ((uint64_t)1 << 31)) ? r * r - 1u : 999999999999u;
+        vv[7] = (rs[k] > 0 && r < ((uint64_t)1 << 31)) ? r * r + 2u * r : 4611686014132420609u;
+        for (m = 0; m < 3; m++) {
+            for (j = 0; j < 8; j++) {
+                uint32_t hint = 7u;
+                uint32_t got = cec_arc_root_test(vv[j], rs[k], inv[m], &hint);
+                TEST_ASSERT_EQUAL_UINT32((uint32_t)fx_isqrt64(vv[j]), got);
+                TEST_ASSERT_EQUAL_UINT32(got, hint);
+            }
+        }
+    }
+}
+
 static void test_curvature_correction_vs_double(void)
 {
     static const double radii[] = {1e5, 1e6, 1e7, 5e7, 1e9, 1e11};
@@ -1107,6 +1151,7 @@ int main(void)
     RUN_TEST(test_exact_step_bit_exact);
     RUN_TEST(test_channel_step_equals_pid_step);
     RUN_TEST(test_exact_arc_root);
+    RUN_TEST(test_exact_arc_root_outside_range);
     RUN_TEST(test_curvature_correction_vs_double);
     RUN_TEST(test_circle_pure_lag_grid);
     RUN_TEST(test_circle_lag_and_radial_deviation);
