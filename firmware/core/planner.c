@@ -119,7 +119,8 @@ static void pl_derive(plan_t *p, const plan_profile_t *prof)
     p->blk_shape =
         (prof->shape == SC_SHAPE_SCURVE_CONTINUOUS) ? (uint8_t)SC_SHAPE_SCURVE : prof->shape;
     pl_pass_mode(p);
-    p->same_limits = pl_same(prof->v_max) && pl_same(prof->a_max) && pl_same(prof->j_max);
+    p->v_same = pl_same(prof->v_max);
+    p->same_limits = p->v_same && pl_same(prof->a_max) && pl_same(prof->j_max);
     p->jd_amin_dev = sc_mul_sat(plan_cont_derive(p), prof->junction_dev_nm); /* saturated */
     {
         sc_limits_t l0;
@@ -186,8 +187,9 @@ const plan_block_t *plan_peek(const plan_t *p, uint16_t i)
 
 /* sc_muldiv(a, b, c) (floor(a b / c), 0 for a <= 0 or b <= 0, saturated),
  * with one 64/64 division when a b fits 64 bits (both factors below 2^32,
- * one 32 x 32 multiply; or an exact 64 x 64 product without overflow):
- * the same quotient the 128-bit path gives. */
+ * one 32 x 32 multiply; or an exact 64 x 64 product without overflow), a
+ * 64/32 one when the quotient fits 32 bits: the same quotient the 128-bit
+ * path gives. */
 static int64_t pl_muldiv(int64_t a, int64_t b, int64_t c)
 {
     uint64_t n, q, rem;
@@ -202,6 +204,9 @@ static int64_t pl_muldiv(int64_t a, int64_t b, int64_t c)
         n = (uint64_t)(uint32_t)a * (uint32_t)b;
     } else if (__builtin_mul_overflow((uint64_t)a, (uint64_t)b, &n)) {
         return sc_muldiv(a, b, c);
+    }
+    if (((uint64_t)c >> 32) == 0u && (n >> 32) < (uint64_t)c) {
+        return (int64_t)fx_udiv64by32(n, (uint32_t)c); /* the quotient fits 32 bits */
     }
     q = fx_udivmod64(n, (uint64_t)c, &rem);
     return (q > (uint64_t)INT64_MAX) ? INT64_MAX : (int64_t)q;
@@ -424,6 +429,44 @@ static bool pl_same(const int64_t *lim)
     return true;
 }
 
+/* The block limits of a move d of length len > 0 (dm its largest
+ * component) by pl_axis_limit, exact, when plan_push's fast path does not
+ * apply: returns v_max (at most feed), lim[0..1] = a and j (at most
+ * SC_A_LIMIT, SC_J_LIMIT). A feed at most every axis's speed limit is the
+ * block's (len / |d_i| >= 1: no division). Equal speed limits: the longest
+ * component decides (what pl_axis_limit picks), one division. The
+ * continuous S-curve with axes of different limits reads neither a nor j
+ * (a run takes its class's, b->cont_cls set here: plan_cont_class sets
+ * them; j at an arc's join, pl_arc_corner): a 0, j -1. Out of line:
+ * plan_push's usual path keeps its registers. */
+static PL_NOINLINE int64_t pl_limits_exact(const plan_t *p, plan_block_t *b, const int64_t *d,
+                                           int64_t len, int64_t dm, int64_t feed, int64_t *lim)
+{
+    int64_t vmin = p->prof.v_max[0], v = feed;
+    int i;
+
+    for (i = 1; i < CORE_AXES; i++) {
+        vmin = fx_min64(vmin, p->prof.v_max[i]);
+    }
+    if (feed > vmin) {
+        v = fx_min64(feed,
+                     p->v_same ? pl_muldiv(vmin, len, dm) : pl_axis_limit(p->prof.v_max, d, len));
+    }
+    if (!p->same_limits && pl_cont(p)) {
+        unsigned mask = 0;
+        for (i = 0; i < CORE_AXES; i++) {
+            mask |= (d[i] != 0) ? (1u << i) : 0u;
+        }
+        b->cont_cls = p->cont_cls[mask]; /* the axes it moves */
+        lim[0] = 0;
+        lim[1] = -1;
+    } else {
+        lim[0] = fx_min64(SC_A_LIMIT, pl_axis_limit(p->prof.a_max, d, len));
+        lim[1] = fx_min64(SC_J_LIMIT, pl_axis_limit(p->prof.j_max, d, len));
+    }
+    return v;
+}
+
 void plan_test_jd_fast(plan_t *p, bool on)
 {
     p->jd_fast_off = !on;
@@ -496,11 +539,12 @@ static int64_t pl_arc_join(const plan_t *p, const int64_t *de, int64_t e, int64_
 }
 
 /* The join of two chords of one arc (PLAN_MOVE_ARC_JOIN; jt the new
- * block's j_max): an axis reversal or PLAN_CORNER_STOP stops, as in
+ * block's j_max, or -1 when pl_limits_exact left it out: then found
+ * from its move d): an axis reversal or PLAN_CORNER_STOP stops, as in
  * pl_corner; otherwise pl_arc_join. Kept out of line: plan_push's usual
  * path (lines) does not pay for it. */
-static PL_NOINLINE int64_t pl_arc_corner(const plan_t *p, const int32_t *w2, int64_t len2,
-                                         int64_t jt)
+static PL_NOINLINE int64_t pl_arc_corner(const plan_t *p, const int32_t *w2, const int64_t *d,
+                                         int64_t len2, int64_t jt)
 {
     const int32_t *w1 = p->last_q30;
     int64_t de[CORE_AXES], e2 = 0;
@@ -518,6 +562,9 @@ static PL_NOINLINE int64_t pl_arc_corner(const plan_t *p, const int32_t *w2, int
     }
     if (p->prof.corner == PLAN_CORNER_STOP) {
         return 0;
+    }
+    if (jt < 0) {
+        jt = fx_min64(SC_J_LIMIT, pl_axis_limit(p->prof.j_max, d, len2));
     }
     return pl_arc_join(p, de, (int64_t)fx_isqrt64((uint64_t)e2), (p->last_len + len2) / 2, jt);
 }
@@ -813,9 +860,10 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
             aaj = pl_scale31(p->aaj0, f) - 7;
         }
     } else {
-        vmax = fx_min64(m->feed, pl_axis_limit(p->prof.v_max, d, len));
-        amax = fx_min64(SC_A_LIMIT, pl_axis_limit(p->prof.a_max, d, len));
-        jmax = fx_min64(SC_J_LIMIT, pl_axis_limit(p->prof.j_max, d, len));
+        int64_t lim[2];
+        vmax = pl_limits_exact(p, b, d, len, dm, m->feed, lim);
+        amax = lim[0];
+        jmax = lim[1];
     }
     /* minimum block time: throughput window over this block and the W-1
      * before it */
@@ -850,7 +898,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         vj = fx_min64(vmax, p->last_vmax);
         if (m->flags & PLAN_MOVE_ARC_JOIN) {
             /* inside an arc the centripetal limit holds along the chord too */
-            vmax = fx_min64(vmax, pl_arc_corner(p, u30, len, jmax));
+            vmax = fx_min64(vmax, pl_arc_corner(p, u30, d, len, jmax));
             vj = fx_min64(vj, vmax);
         } else {
             vj = fx_min64(vj, pl_corner(p, u30, len, vj, &vc));
