@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# profile-m4.sh tick|planner|splanner [TOP] (planner: the planner workload
-# with the default continuous S-curve; splanner: with the per-block S-curve)
+# profile-m4.sh tick|planner|splanner|uplanner|vplanner [TOP] (planner: the planner workload
+# with the default continuous S-curve; splanner: with the per-block S-curve;
+# uplanner, vplanner: the same two with Z's a and j at half of X/Y's)
 # Flat instruction profile of one workload of the QEMU benchmark image
 # (bench_mps2.c) on the Cortex-M4 instruction set: QEMU runs one instruction
 # per translation block and logs each execution; the log is counted per
@@ -10,9 +11,9 @@
 # A development tool, not a figure of `make bench` (slow: ~1 s per 2 M lines).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-what=${1:?usage: profile-m4.sh tick|planner|splanner [TOP]}
+what=${1:?usage: profile-m4.sh tick|planner|splanner|uplanner|vplanner [TOP]}
 top=${2:-30}
-case $what in tick|planner|splanner) ;; *) echo "profile-m4: unknown workload '$what'" >&2; exit 2;; esac
+case $what in tick|planner|splanner|uplanner|vplanner) ;; *) echo "profile-m4: unknown workload '$what'" >&2; exit 2;; esac
 [ -f build/fw/mps2_an386/bench.elf ] || ./mk/firmware.sh >/dev/null
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT

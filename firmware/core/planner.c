@@ -3,10 +3,10 @@
  */
 #include "planner.h"
 #include "planner_cont.h"
+#include "planner_lim.h"
 #include "planner_test.h"
 
-#define NS_PER_S    ((int64_t)1000000000)
-#define PL_NOINLINE __attribute__((noinline))
+#define NS_PER_S ((int64_t)1000000000)
 
 static bool pl_same(const int64_t *lim);
 
@@ -119,7 +119,8 @@ static void pl_derive(plan_t *p, const plan_profile_t *prof)
     p->blk_shape =
         (prof->shape == SC_SHAPE_SCURVE_CONTINUOUS) ? (uint8_t)SC_SHAPE_SCURVE : prof->shape;
     pl_pass_mode(p);
-    p->same_limits = pl_same(prof->v_max) && pl_same(prof->a_max) && pl_same(prof->j_max);
+    p->v_same = pl_same(prof->v_max);
+    p->same_limits = p->v_same && pl_same(prof->a_max) && pl_same(prof->j_max);
     p->jd_amin_dev = sc_mul_sat(plan_cont_derive(p), prof->junction_dev_nm); /* saturated */
     {
         sc_limits_t l0;
@@ -184,29 +185,6 @@ const plan_block_t *plan_peek(const plan_t *p, uint16_t i)
     return (i < p->count) ? pl_at(p, i) : NULL;
 }
 
-/* sc_muldiv(a, b, c) (floor(a b / c), 0 for a <= 0 or b <= 0, saturated),
- * with one 64/64 division when a b fits 64 bits (both factors below 2^32,
- * one 32 x 32 multiply; or an exact 64 x 64 product without overflow):
- * the same quotient the 128-bit path gives. */
-static int64_t pl_muldiv(int64_t a, int64_t b, int64_t c)
-{
-    uint64_t n, q, rem;
-
-    if (a <= 0 || b <= 0) {
-        return 0;
-    }
-    if (c <= 0) {
-        return INT64_MAX;
-    }
-    if ((((uint64_t)a | (uint64_t)b) >> 32) == 0u) {
-        n = (uint64_t)(uint32_t)a * (uint32_t)b;
-    } else if (__builtin_mul_overflow((uint64_t)a, (uint64_t)b, &n)) {
-        return sc_muldiv(a, b, c);
-    }
-    q = fx_udivmod64(n, (uint64_t)c, &rem);
-    return (q > (uint64_t)INT64_MAX) ? INT64_MAX : (int64_t)q;
-}
-
 /* floor(a 2^62 / len) for 0 <= a < 2^63, len > 0 (saturated: INT64_MAX),
  * as sc_muldiv(a, 2^62, len): one 128/64 division of a 2^62 by len. */
 static int64_t pl_ratio(int64_t a, int64_t len)
@@ -225,7 +203,7 @@ static int64_t pl_ratio(int64_t a, int64_t len)
 
 int64_t plan_test_muldiv(int64_t a, int64_t b, int64_t c)
 {
-    return pl_muldiv(a, b, c);
+    return plan_lim_muldiv(a, b, c);
 }
 
 int64_t plan_test_ratio(int64_t a, int64_t len)
@@ -378,39 +356,6 @@ static int64_t pl_length(const int64_t *ad)
     return (int64_t)((uint64_t)fx_isqrt64(sum) << k);
 }
 
-/* min over the axes with d_i != 0 of floor(lim_i * len / |d_i|) (sc_muldiv,
- * INT64_MAX when no axis moves): the axis with the smallest lim_i / |d_i| is
- * found by comparing exact products, then one division gives its value,
- * the same as the minimum of every axis's quotient (the floor is monotone).
- * lim_i > 0, |d_i| < 2^63, len >= 0. */
-static int64_t pl_axis_limit(const int64_t *lim, const int64_t *d, int64_t len)
-{
-    int i, best = -1;
-    bool same = true; /* equal limits: the longest component decides */
-
-    for (i = 1; i < CORE_AXES; i++) {
-        same = same && lim[i] == lim[0];
-    }
-    for (i = 0; i < CORE_AXES; i++) {
-        uint64_t ad = fx_uabs64(d[i]);
-        if (ad == 0u) {
-            continue;
-        }
-        if (best < 0) {
-            best = i;
-        } else if (same) {
-            if (ad > fx_uabs64(d[best])) {
-                best = i;
-            }
-        } else if (sc_cmp_products((uint64_t)lim[i], fx_uabs64(d[best]), (uint64_t)lim[best], ad) <
-                   0) {
-            /* lim_i / ad_i < lim_b / ad_b  <=>  lim_i * ad_b < lim_b * ad_i */
-            best = i;
-        }
-    }
-    return (best < 0) ? INT64_MAX : pl_muldiv(lim[best], len, (int64_t)fx_uabs64(d[best]));
-}
-
 /* every axis has the same limit */
 static bool pl_same(const int64_t *lim)
 {
@@ -452,74 +397,6 @@ static bool pl_jd_above(const plan_t *p, int64_t c1, int64_t vcap)
     /* the exact comparison of the two 96-bit products */
     return fx_cmp128(fx_umul64x32((uint64_t)p->jd_amin_dev, h),
                      fx_umul64x32(vv, ((uint32_t)1 << 30) - h)) >= 0;
-}
-
-/* floor(cbrt(j r^2)) or a little less, j >= 0, r >= 0: r is cut by 3t
- * bits until j r^2 fits 63 bits, then the root is scaled back by 2^(2t)
- * (the cut only lowers it). */
-static int64_t pl_cbrt_jr2(int64_t j, int64_t r)
-{
-    unsigned t = 0, bj = fx_bitlen64((uint64_t)j);
-    uint64_t rs = (uint64_t)r;
-
-    while (rs != 0u && bj + 2u * fx_bitlen64(rs) > 63u) {
-        rs >>= 3;
-        t++;
-    }
-    return (int64_t)((uint64_t)fx_icbrt64((uint64_t)j * rs * rs) << (2u * t));
-}
-
-/* Join of two chords of one arc (PLAN_MOVE_ARC_JOIN): the arc's own
- * centripetal limits at the radius of the join, v^2 / R <= a_n and (jerk
- * shapes) v^3 / R^2 <= j_n, a_n and j_n the axis limits projected on the
- * normal e = u2 - u1 (as the junction-deviation rule's a_j) and j_n = jt,
- * the block's own jerk limit (the jerk of uniform circular motion, v^3/R^2,
- * is along the tangent: the chord's direction). R = l / |e|
- * with l the mean chord length: two chords of length l = 2 R sin(th/2)
- * turning by th have |u2 - u1| = 2 sin(th/2). de, e: u2 - u1 and its
- * length in q30. INT64_MAX when e = 0. */
-static int64_t pl_arc_join(const plan_t *p, const int64_t *de, int64_t e, int64_t l, int64_t jt)
-{
-    int64_t an, r, v;
-
-    if (e <= 0) {
-        return INT64_MAX;
-    }
-    an = pl_axis_limit(p->prof.a_max, de, e);
-    r = sc_muldiv(l, (int64_t)1 << 30, e);
-    /* an < 2^41, r < 2^63: the root is below 2^52 */
-    v = (int64_t)fx_isqrt128(fx_umul64((uint64_t)an, (uint64_t)r));
-    if (p->prof.shape != SC_SHAPE_TRAPEZOID) {
-        v = fx_min64(v, pl_cbrt_jr2(jt, r));
-    }
-    return v;
-}
-
-/* The join of two chords of one arc (PLAN_MOVE_ARC_JOIN; jt the new
- * block's j_max): an axis reversal or PLAN_CORNER_STOP stops, as in
- * pl_corner; otherwise pl_arc_join. Kept out of line: plan_push's usual
- * path (lines) does not pay for it. */
-static PL_NOINLINE int64_t pl_arc_corner(const plan_t *p, const int32_t *w2, int64_t len2,
-                                         int64_t jt)
-{
-    const int32_t *w1 = p->last_q30;
-    int64_t de[CORE_AXES], e2 = 0;
-    int i;
-
-    for (i = 0; i < CORE_AXES; i++) {
-        if ((w1[i] ^ w2[i]) < 0) {
-            int32_t a1 = (w1[i] < 0) ? -w1[i] : w1[i], a2 = (w2[i] < 0) ? -w2[i] : w2[i];
-            if (a1 >= PLAN_REVERSAL_MIN_Q30 && a2 >= PLAN_REVERSAL_MIN_Q30) {
-                return 0; /* axis reversal: stop */
-            }
-        }
-        de[i] = (int64_t)w2[i] - w1[i]; /* below 2^31: not a reversal */
-        e2 += de[i] * de[i];
-    }
-    if (p->prof.corner == PLAN_CORNER_STOP) {
-        return 0;
-    }
-    return pl_arc_join(p, de, (int64_t)fx_isqrt64((uint64_t)e2), (p->last_len + len2) / 2, jt);
 }
 
 /* Junction speed limit between the last queued move and a new one (nm/s,
@@ -609,7 +486,7 @@ static int64_t pl_corner(const plan_t *p, const int32_t *w2, int64_t len2, int64
         for (i = 0; i < CORE_AXES; i++) {
             de[i] = (int64_t)w2[i] - w1[i];
         }
-        aj = pl_axis_limit(pr->a_max, de, e);
+        aj = plan_axis_limit(pr->a_max, de, e);
         t = sc_muldiv(aj, s, ((int64_t)1 << 30) - s);
         v2 = sc_mul_sat(t, pr->junction_dev_nm);
         if (v2 < INT64_MAX) {
@@ -798,7 +675,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
     }
     if (p->same_limits && dm < ((int64_t)1 << 31)) {
         /* equal limits on every axis: the longest component limits all
-         * three (what pl_axis_limit picks), by one factor f = len / dm in
+         * three (what plan_axis_limit picks), by one factor f = len / dm in
          * q31 (rounded down: each limit at most its exact floor and at
          * most lim / 2^30 + 1 below it); a lower bound of A^2/J from the
          * profile's a^2/j: (a f - 1)^2 / (j f) > a^2 f / j - 2 a / j and
@@ -813,9 +690,10 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
             aaj = pl_scale31(p->aaj0, f) - 7;
         }
     } else {
-        vmax = fx_min64(m->feed, pl_axis_limit(p->prof.v_max, d, len));
-        amax = fx_min64(SC_A_LIMIT, pl_axis_limit(p->prof.a_max, d, len));
-        jmax = fx_min64(SC_J_LIMIT, pl_axis_limit(p->prof.j_max, d, len));
+        int64_t lim[2];
+        vmax = plan_limits_exact(p, b, d, len, m->feed, lim);
+        amax = lim[0];
+        jmax = lim[1];
     }
     /* minimum block time: throughput window over this block and the W-1
      * before it */
@@ -850,7 +728,7 @@ plan_result_t plan_push(plan_t *p, const plan_move_t *m)
         vj = fx_min64(vmax, p->last_vmax);
         if (m->flags & PLAN_MOVE_ARC_JOIN) {
             /* inside an arc the centripetal limit holds along the chord too */
-            vmax = fx_min64(vmax, pl_arc_corner(p, u30, len, jmax));
+            vmax = fx_min64(vmax, plan_arc_corner(p, u30, d, len, jmax));
             vj = fx_min64(vj, vmax);
         } else {
             vj = fx_min64(vj, pl_corner(p, u30, len, vj, &vc));

@@ -255,7 +255,10 @@ typedef struct {
     int64_t ratio_q62[CORE_AXES]; /* delta_i / len * 2^62                    */
     int64_t len;                  /* nm (0 for a dwell)                      */
     int64_t dwell_ns;
-    sc_limits_t lim;     /* block limits (v_max includes the cap)   */
+    sc_limits_t lim;     /* block limits (v_max includes the cap);
+                          * continuous S-curve, axes with different
+                          * limits: a and j of the block's class
+                          * (cont_a, cont_j), what its run takes    */
     int64_t v_junction;  /* entry speed limit, nm/s                 */
     int64_t v_entry;     /* planned entry speed, nm/s               */
     int64_t v_corner_in; /* smoothed-corner speed of the entry
@@ -312,6 +315,7 @@ typedef struct {
     uint16_t win_pos, win_n;
     int64_t win_sum;
     bool same_limits;    /* every axis has the same v, a and j limits      */
+    bool v_same;         /* every axis has the same v limit                */
     int64_t aaj0;        /* floor(a^2 / j) of axis 0's limits (plan_init)  */
     int64_t jd_amin_dev; /* min_i a_i * junction_dev_nm, saturated (init) */
     int64_t cruise_v;    /* speed of the last cruise-only block popped    */

@@ -650,17 +650,14 @@ int64_t plan_cont_derive(plan_t *p)
 /* Out of line: plan_push's usual path (equal limits) keeps its registers. */
 PC_NOINLINE void plan_cont_class(plan_t *p, plan_block_t *b)
 {
-    unsigned mask = 0;
-    int i;
+    uint8_t c = b->cont_cls;
 
-    for (i = 0; i < CORE_AXES; i++) {
-        mask |= (b->end[i] != b->start[i]) ? (1u << i) : 0u;
-    }
-    b->cont_cls = p->cont_cls[mask];
-    if (b->cont_cls != p->last_cls && b->v_junction >= b->lim.v_max) {
+    b->lim.a_max = p->cont_a[c]; /* (plan_push leaves them unset) */
+    b->lim.j_max = p->cont_j[c];
+    if (c != p->last_cls && b->v_junction >= b->lim.v_max) {
         b->v_junction = b->lim.v_max - 1; /* pc_joined: an anchor */
     }
-    p->last_cls = b->cont_cls;
+    p->last_cls = c;
 }
 
 void plan_cont_reset(plan_t *p)

@@ -14,7 +14,8 @@
 int64_t plan_cont_derive(plan_t *p);
 
 /* Axes with different limits (not same_limits), this shape: the limit
- * class of the block just queued (b, its v_junction and lim set) and,
+ * class of the block just queued (b, its v_junction, lim.v_max and
+ * cont_cls set: plan_push) gives its lim a and j and,
  * where the class changes, its junction 1 nm/s below v_max (an anchor).
  * plan_push. */
 void plan_cont_class(plan_t *p, plan_block_t *b);

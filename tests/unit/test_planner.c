@@ -989,24 +989,33 @@ static void test_axis_limits_projected(void)
 
 /* block limits (one division for the limiting axis, found by comparing
  * products) equal the minimum over the axes of every axis's quotient, with
- * equal and with different per-axis limits */
+ * equal and with different per-axis limits (all three, or a and j only:
+ * Z at half, as a real machine's), feeds above and below the smallest
+ * axis speed limit; with the continuous S-curve the same v_max, and a and
+ * j those of the class of the axes the block moves (what its run takes) */
 static void test_block_limits_are_axis_minimum(void)
 {
-    int run, k, i, aaj_lo = 0;
-    for (run = 0; run < 2; run++) {
-        plan_profile_t s = base_profile(SC_SHAPE_SCURVE, PLAN_CORNER_JD);
+    int run, k, i, aaj_lo = 0, below = 0, above = 0;
+    for (run = 0; run < 5; run++) {
+        uint8_t shape = (run >= 3) ? SC_SHAPE_SCURVE_CONTINUOUS : SC_SHAPE_SCURVE;
+        plan_profile_t s = base_profile(shape, PLAN_CORNER_JD);
         pos_nm_t pos[CORE_AXES] = {0, 0, 0};
-        if (run == 1) {
+        if (run == 1 || run == 3) {
             s.v_max[1] = 170 * MMS;
             s.a_max[0] = 700 * MMS;
             s.a_max[2] = 3100 * MMS;
             s.j_max[1] = 9000 * MMS;
             s.j_max[2] = 77777 * MMS;
+        } else if (run == 2 || run == 4) {
+            s.a_max[2] /= 2; /* a slower Z */
+            s.j_max[2] /= 2;
         }
         TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 256, &s, origin));
         for (k = 0; k < 3000; k++) {
-            plan_move_t m = mv(0, 0, 0, 4000);
+            plan_move_t m = mv(0, 0, 0, (run == 0) ? 4000 : 50 + (int64_t)(rnd() % 600));
             int64_t d[CORE_AXES], len = 0, ev = m.feed, ea = SC_A_LIMIT, ej = SC_J_LIMIT;
+            int64_t vmin = s.v_max[0];
+            unsigned mask = 0;
             const plan_block_t *b;
             for (i = 0; i < CORE_AXES; i++) {
                 int64_t step = (int64_t)(rnd() % 2000001) - 1000000;
@@ -1018,6 +1027,7 @@ static void test_block_limits_are_axis_minimum(void)
                     step *= 4300; /* up to 4.3 m: components of 2^31 nm and more */
                 }
                 m.target[i] = pos[i] + step;
+                vmin = (s.v_max[i] < vmin) ? s.v_max[i] : vmin;
             }
             if (plan_free_slots(&pl) == 0) {
                 plan_seg_t seg;
@@ -1026,6 +1036,8 @@ static void test_block_limits_are_axis_minimum(void)
             if (plan_push(&pl, &m) != PLAN_OK) {
                 continue; /* zero-length move */
             }
+            below += (m.feed <= vmin) ? 1 : 0;
+            above += (m.feed > vmin) ? 1 : 0;
             b = plan_peek(&pl, (uint16_t)(plan_count(&pl) - 1));
             len = b->len;
             for (i = 0; i < CORE_AXES; i++) {
@@ -1039,6 +1051,7 @@ static void test_block_limits_are_axis_minimum(void)
                     ev = v < ev ? v : ev;
                     ea = a < ea ? a : ea;
                     ej = j < ej ? j : ej;
+                    mask |= 1u << i;
                 }
             }
             if (run == 0) {
@@ -1055,14 +1068,86 @@ static void test_block_limits_are_axis_minimum(void)
                     TEST_ASSERT_TRUE((u128)b->rk.q + 32 >= aa / (u128)b->lim.j_max);
                     aaj_lo++;
                 }
-            } else {
+            } else if (run <= 2) {
                 TEST_ASSERT_EQUAL_INT64(ev, b->lim.v_max);
                 TEST_ASSERT_EQUAL_INT64(ea, b->lim.a_max);
                 TEST_ASSERT_EQUAL_INT64(ej, b->lim.j_max);
+            } else {
+                uint8_t c = pl.cont_cls[mask];
+                TEST_ASSERT_EQUAL_INT64(ev, b->lim.v_max);
+                TEST_ASSERT_EQUAL_UINT8(c, b->cont_cls);
+                TEST_ASSERT_EQUAL_INT64(pl.cont_a[c], b->lim.a_max);
+                TEST_ASSERT_EQUAL_INT64(pl.cont_j[c], b->lim.j_max);
             }
         }
     }
-    TEST_ASSERT_TRUE(aaj_lo > 1000); /* the lower-bound path is exercised */
+    TEST_ASSERT_TRUE(aaj_lo > 1000);                /* the lower-bound path is exercised */
+    TEST_ASSERT_TRUE(below > 1000 && above > 1000); /* feeds on both sides */
+}
+
+/* The continuous S-curve with axes of different limits leaves the
+ * projected a and j out of plan_push: the junctions must be those the
+ * per-block S-curve computes on the same path (arc joins read the block's
+ * projected j), but for the class anchors (v_junction 1 nm/s below v_max
+ * where the moving axes' class changes). Random paths of short chords,
+ * arc joins, corners and Z moves; both limit sets of a slower Z. */
+static void test_cont_junctions_match_per_block(void)
+{
+    static plan_block_t st2[64];
+    plan_t q;
+    int run, k, i, arcs = 0, anchors = 0;
+
+    for (run = 0; run < 4; run++) {
+        plan_profile_t s =
+            base_profile(SC_SHAPE_SCURVE, (run & 1) ? PLAN_CORNER_VSTEP : PLAN_CORNER_JD);
+        plan_profile_t c;
+        pos_nm_t pos[CORE_AXES] = {0, 0, 0};
+        int64_t dir = 0;
+        s.a_max[2] /= 2;
+        s.j_max[2] /= 2;
+        if (run >= 2) {
+            s.v_max[2] = 200 * MMS;
+        }
+        c = s;
+        c.shape = SC_SHAPE_SCURVE_CONTINUOUS;
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&pl, store, 64, &s, origin));
+        TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_init(&q, st2, 64, &c, origin));
+        for (k = 0; k < 4000; k++) {
+            plan_move_t m = mv(0, 0, 0, 20 + (int64_t)(rnd() % 500));
+            const plan_block_t *a, *b;
+            int64_t seg = 20000 + (int64_t)(rnd() % 300000);
+            double t;
+            uint32_t r = rnd() % 100u;
+            dir += (r < 5) ? (int64_t)(rnd() % 2049) - 1024 : (int64_t)(rnd() % 41) - 20;
+            t = (double)dir * 6.283185307179586 / 4096.0;
+            pos[0] += (int64_t)((double)seg * cos(t));
+            pos[1] += (int64_t)((double)seg * sin(t));
+            pos[2] += (r % 3u == 0u) ? (int64_t)(rnd() % 40001) - 20000 : 0;
+            for (i = 0; i < CORE_AXES; i++) {
+                m.target[i] = pos[i];
+            }
+            m.flags = (r >= 50) ? PLAN_MOVE_ARC_JOIN : 0u;
+            if (plan_free_slots(&pl) == 0) {
+                plan_seg_t sg;
+                TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&pl, &sg));
+                TEST_ASSERT_EQUAL_INT(PLAN_OK, plan_pop(&q, &sg));
+            }
+            TEST_ASSERT_EQUAL_INT(plan_push(&pl, &m), plan_push(&q, &m));
+            a = plan_peek(&pl, (uint16_t)(plan_count(&pl) - 1));
+            b = plan_peek(&q, (uint16_t)(plan_count(&q) - 1));
+            TEST_ASSERT_EQUAL_INT64(a->lim.v_max, b->lim.v_max);
+            TEST_ASSERT_EQUAL_INT64(a->v_corner_in, b->v_corner_in);
+            TEST_ASSERT_EQUAL_UINT8(a->flags, b->flags);
+            if (b->v_junction != a->v_junction) {
+                TEST_ASSERT_TRUE(a->v_junction >= a->lim.v_max);
+                TEST_ASSERT_EQUAL_INT64(a->lim.v_max - 1, b->v_junction);
+                anchors++;
+            }
+            arcs += (m.flags != 0u && a->v_junction > 0 && a->v_junction < a->lim.v_max) ? 1 : 0;
+        }
+    }
+    TEST_ASSERT_TRUE(arcs > 1000);   /* arc joins that limit the junction */
+    TEST_ASSERT_TRUE(anchors > 100); /* class changes */
 }
 
 /* The junction-deviation early exit (pl_jd_above) must give exactly the
@@ -1221,6 +1306,7 @@ int main(void)
     RUN_TEST(test_arc_chord_joins_use_the_arc_limit);
     RUN_TEST(test_axis_limits_projected);
     RUN_TEST(test_block_limits_are_axis_minimum);
+    RUN_TEST(test_cont_junctions_match_per_block);
     RUN_TEST(test_jd_early_exit_matches_full);
     RUN_TEST(test_limit_and_ratio_divisions);
     RUN_TEST(test_ratio_reciprocal);

@@ -19,7 +19,9 @@
  *                 over the RUNNING ticks.
  *   planner block plan_push() + plan_pop() per block with the look-ahead
  *                 ring full (64 blocks): 1000 chords of 0.2 mm around a
- *                 circle with a 3-axis component, feed 50 mm/s.
+ *                 circle with a 3-axis component, feed 50 mm/s; again
+ *                 with Z's a and j at half of X/Y's (a real machine's
+ *                 slower Z: figures named *_unequal).
  *   helpers       sc_muldiv (128/64 multiply-divide), a 64-bit division and
  *                 fx_isqrt64 per call: where the tick and block costs go.
  *   both again with the per-block S-curve (velocity_profile = scurve, a =
@@ -284,6 +286,10 @@ static void bench_tick(void)
 
 static plan_block_t ring[PLAN_DEPTH_DEFAULT];
 
+/* the planner workload on a machine with a slower Z (a and j at half of
+ * X/Y's): the figures named *_unequal */
+static bool plan_unequal;
+
 static void bench_planner(void)
 {
     drive_config_t cfg;
@@ -298,6 +304,10 @@ static void bench_planner(void)
     plant_drive_config(&cfg, MPS2_TICK_HZ, AXES);
     if (shape_override >= 0) {
         cfg.plan.shape = (uint8_t)shape_override;
+    }
+    if (plan_unequal) {
+        cfg.plan.a_max[2] /= 2;
+        cfg.plan.j_max[2] /= 2;
     }
     if (plan_init(&p, ring, PLAN_DEPTH_DEFAULT, &cfg.plan, origin) != PLAN_OK) {
         put("bench: plan_init refused\n");
@@ -326,7 +336,18 @@ static void bench_planner(void)
             n++;
         }
     }
-    line("planner_block_instructions_m4", instr(sum, n), "instr");
+    line(plan_unequal ? "planner_block_instructions_m4_unequal" : "planner_block_instructions_m4",
+         instr(sum, n), "instr");
+}
+
+/* the planner workload with equal axis limits, then with Z at half */
+static void bench_planners(void)
+{
+    plan_unequal = false;
+    bench_planner();
+    plan_unequal = true;
+    bench_planner();
+    plan_unequal = false;
 }
 
 /* Where the time goes: the building blocks the tick and the planner call
@@ -399,11 +420,18 @@ int main(void)
     } else if (cmd[0] == 's') { /* "splanner": the same, per-block S-curve */
         shape_override = SC_SHAPE_SCURVE;
         bench_planner();
+    } else if (cmd[0] == 'u') { /* "uplanner": the planner, Z at half */
+        plan_unequal = true;
+        bench_planner();
+    } else if (cmd[0] == 'v') { /* "vplanner": the same, per-block S-curve */
+        plan_unequal = true;
+        shape_override = SC_SHAPE_SCURVE;
+        bench_planner();
     } else if (cmd[0] == 't') { /* "tick": the first 1500 running ticks */
         tick_limit = 1500u;
         bench_tick();
     } else {
-        bench_planner();
+        bench_planners();
         bench_tick();
         bench_helpers();
         bench_comp2d();
@@ -411,7 +439,7 @@ int main(void)
          * (figures named *_scurve) */
         shape_override = SC_SHAPE_SCURVE;
         fig_suffix = "_scurve";
-        bench_planner();
+        bench_planners();
         bench_tick();
     }
     while (!hal_uart_tx_idle()) {
