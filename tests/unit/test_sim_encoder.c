@@ -14,6 +14,7 @@
 
 #include "drive.h"
 #include "drive_test.h"
+#include "hal_sim.h"
 #include "sim.h"
 #include "unity.h"
 
@@ -392,6 +393,43 @@ static void test_run_until_idle_same_as_polling(void)
     TEST_ASSERT_EQUAL_INT(0, memcmp(rec[0].trace, rec[1].trace, sizeof rec[0].trace[0] * a));
 }
 
+static bool home_source_on(void *ctx, unsigned axis)
+{
+    (void)ctx;
+    (void)axis;
+    return true;
+}
+
+static uint32_t counter_source_7(void *ctx, unsigned ch)
+{
+    (void)ctx;
+    (void)ch;
+    return 7u;
+}
+
+/* A value set on the simulated HAL after a source was installed is what the
+ * firmware reads (the setter clears the source), for the counters and the
+ * home switches alike: not ignored silently. */
+static void test_hal_sim_set_after_a_source_is_read(void)
+{
+    uint32_t count = 0;
+
+    hal_sim_reset();
+    hal_sim_set_counter_source(1, counter_source_7, NULL);
+    TEST_ASSERT_TRUE(hal_encoder_counter(1, &count));
+    TEST_ASSERT_EQUAL_UINT32(7u, count);
+    hal_sim_set_counter(1, 3u, true);
+    TEST_ASSERT_TRUE(hal_encoder_counter(1, &count));
+    TEST_ASSERT_EQUAL_UINT32(3u, count);
+    hal_sim_set_home_source(home_source_on, NULL);
+    TEST_ASSERT_TRUE(hal_home_switch(0));
+    TEST_ASSERT_TRUE(hal_home_switch(1));
+    hal_sim_set_home_switch(0, false);
+    TEST_ASSERT_FALSE(hal_home_switch(0));
+    TEST_ASSERT_FALSE(hal_home_switch(1)); /* its last value set: none */
+    hal_sim_reset();
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -402,5 +440,6 @@ int main(void)
     RUN_TEST(test_plant_split_same_as_axis_by_axis);
     RUN_TEST(test_inputs_read_when_read_same_as_every_tick);
     RUN_TEST(test_run_until_idle_same_as_polling);
+    RUN_TEST(test_hal_sim_set_after_a_source_is_read);
     return UNITY_END();
 }
