@@ -137,6 +137,8 @@ static double *sim_field(unsigned axis, const char *name)
     return NULL;
 }
 
+static int inputs_eager; /* sim_test_eager_inputs; sim_setup turns it off */
+
 int sim_setup(double tick_hz, unsigned axes)
 {
     unsigned i;
@@ -144,6 +146,7 @@ int sim_setup(double tick_hz, unsigned axes)
         return SIM_E_ARG;
     }
     memset(&S, 0, sizeof S);
+    inputs_eager = 0; /* a test's hook does not outlive its setup */
     S.axes = axes;
     S.tick_hz = (uint32_t)floor(tick_hz + 0.5);
     S.period_ns = (uint64_t)floor(1e9 / (double)S.tick_hz + 0.5);
@@ -636,8 +639,6 @@ int sim_set_link(unsigned node_id, int serial, int can, uint32_t capabilities, u
     S.boot = boot != 0;
     return 0;
 }
-
-static int inputs_eager; /* sim_test_eager_inputs */
 
 void sim_test_eager_inputs(int on)
 {

@@ -250,7 +250,8 @@ void sim_test_plant_split(int on);
 /* Test hook: on (1), the simulator sets every home switch and reference
  * scale counter at the start of every tick, as a port without sources
  * would, instead of computing them when the firmware reads them (the
- * default, 0; sim.c sim_home_read). Takes effect at sim_start. */
+ * default, 0; sim.c sim_home_read). Call it between sim_setup, which turns
+ * it off, and sim_start, where it takes effect. */
 void sim_test_eager_inputs(int on);
 double sim_table_pos(unsigned axis);
 

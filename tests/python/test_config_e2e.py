@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from contour import image as img
 from contour import protocol_gen as pg
-from contour.link import DriveError, connect
+from contour.link import DriveError, codec, connect
 from contour.sim.serve import spawn
 from linkhelp import run_cli, wait_state
 
@@ -439,3 +439,148 @@ def test_a_session_opened_between_stage_and_commit_loses_the_transaction(
     assert "lost: another session opened" in msg, msg
     with connect(port=server.serial) as c:
         assert {n: c.get_param(n) for n in WATCH} == before
+
+
+class _CommitReplyFaults:
+    """A transport that, from the first param_commit sent on, drops every
+    reply (`reply_drop`) or every param_commit sent (`commit_drop`) for the
+    first `tries` param_commit sends (None: for good)."""
+
+    def __init__(self, inner, tries, drop_commits: bool = False):
+        self.t, self.tries, self.drop_commits = inner, tries, drop_commits
+        self.commits = 0
+
+    def _dead(self) -> bool:
+        return self.commits > 0 and (self.tries is None or self.commits <= self.tries)
+
+    def send(self, data: bytes) -> None:
+        if data[0] == pg.MSG_BY_NAME["param_commit"].id:
+            self.commits += 1
+            if self.drop_commits and self._dead():
+                return
+        self.t.send(data)
+
+    def start(self, on_message) -> None:
+        def on(data: bytes, ts: float) -> None:
+            if self.drop_commits or not self._dead():
+                on_message(data, ts)
+
+        self.t.start(on)
+
+    def __getattr__(self, name):
+        return getattr(self.t, name)
+
+
+def _faulty_client(server, tries, drop_commits=False):
+    from contour.link.client import Client
+    from contour.link.transport import open_transport
+
+    t = _CommitReplyFaults(open_transport(port=server.serial), tries, drop_commits)
+    return Client(t, timeout=0.1, retries=3), t
+
+
+def _disabled_watch(server) -> dict:
+    with connect(port=server.serial) as c:
+        if c.status()["state"] in (pg.State.FAULT, pg.State.ESTOP):
+            c.request("fault_reset")
+        c.enable(False)
+        wait_state(c, (pg.State.DISABLED,))
+        return {n: c.get_param(n) for n in WATCH}
+
+
+def test_a_commit_whose_replies_are_all_lost_is_settled_as_applied(server, monkeypatch):
+    """The drive applies the commit, but its reply is lost on every try of
+    the client (4): the restore asks again (same transaction, a new
+    request) once the link answers, and the drive says committed without
+    applying twice; the values are read back."""
+    from contour.commands import config as cfg
+
+    monkeypatch.setattr(cfg, "COMMIT_ASK_PAUSE_S", 0.05)
+    before = _disabled_watch(server)
+    values = {"max_velocity.x": before["max_velocity.x"] + 1_000, "max_velocity.y": 7_000_000}
+    c, t = _faulty_client(server, tries=4)
+    with c:
+        cfg.write_all(c, values)
+        assert t.commits == 5  # the first request's 4 tries, then one that was answered
+        assert {n: c.get_param(n) for n in values} == values
+        c.set_param("max_velocity.x", before["max_velocity.x"])
+        c.set_param("max_velocity.y", before["max_velocity.y"])
+
+
+def test_a_commit_never_answered_says_the_outcome_is_unknown(server, monkeypatch):
+    """The link stays dead after the commit went out: the error says plainly
+    that the outcome is unknown and how to check, not just 'no reply'."""
+    from contour.commands import config as cfg
+    from contour.errors import UserError
+
+    monkeypatch.setattr(cfg, "COMMIT_ASK_PAUSE_S", 0.05)
+    before = _disabled_watch(server)
+    values = {"max_velocity.x": before["max_velocity.x"] + 2_000}
+    c, t = _faulty_client(server, tries=None)
+    with c:
+        with pytest.raises(UserError, match="restore outcome unknown") as e:
+            cfg.write_all(c, values)
+        assert t.commits == 4 * (1 + cfg.COMMIT_ASK_ROUNDS)
+    msg = str(e.value)
+    assert "config backup" in msg and "restore again" in msg, msg
+    with connect(port=server.serial) as c:  # (it was applied: the requests got through)
+        assert c.get_param("max_velocity.x") == values["max_velocity.x"]
+        c.set_param("max_velocity.x", before["max_velocity.x"])
+
+
+def test_a_commit_lost_on_the_way_is_settled_as_not_applied(server, monkeypatch):
+    """The commit requests themselves are lost for longer than the drive's
+    comm_timeout_ms: the drive dropped the transaction (link_timeout), and
+    the commit asked again says so: nothing written, definitely."""
+    from contour.commands import config as cfg
+    from contour.errors import UserError
+
+    monkeypatch.setattr(cfg, "COMMIT_ASK_PAUSE_S", 0.05)
+    before = _disabled_watch(server)
+    values = {"max_velocity.x": before["max_velocity.x"] + 3_000}
+    c, t = _faulty_client(server, tries=4, drop_commits=True)
+    with c:
+        c.set_param("comm_timeout_ms", 200)  # < the 4 tries of 0.1 s
+        try:
+            with pytest.raises(UserError, match="nothing written") as e:
+                cfg.write_all(c, values)
+        finally:
+            c.set_param("comm_timeout_ms", before["comm_timeout_ms"])
+        assert "lost: link timeout" in str(e.value), str(e.value)
+        assert c.get_param("max_velocity.x") == before["max_velocity.x"]
+
+
+@pytest.mark.parametrize("holds", [True, False])
+def test_a_commit_the_drive_no_longer_knows_is_settled_by_reading_back(holds, monkeypatch):
+    """No try of the commit answered, and when asked again the drive no
+    longer knows the transaction (not_open: another session's transaction
+    came since): the values read back say whether the drive holds the file."""
+    from contour.commands import config as cfg
+    from contour.errors import UserError
+    from contour.link.transport import LinkError
+
+    monkeypatch.setattr(cfg, "COMMIT_ASK_PAUSE_S", 0.0)
+    values = {"max_velocity.x": 5, "max_velocity.y": 6}
+
+    class Drive:
+        commits = 0
+
+        def request(self, name, **fields):
+            if name == "param_begin":
+                return codec.Decoded("param_txn", 0, 0, {"txn": 7})
+            if name == "param_commit":
+                self.commits += 1
+                if self.commits == 1:
+                    raise LinkError("no reply")
+                f = {"code": pg.ErrorCode.TXN, "arg": pg.TxnStatus.NOT_OPEN, "lo": 7, "hi": 0}
+                raise DriveError(name, f, "not open")
+            return codec.Decoded("ack", 0, 0, {})
+
+        def get_param(self, name):
+            return values[name] if holds or name.endswith(".x") else 0
+
+    if holds:
+        cfg.write_all(Drive(), values)
+    else:
+        with pytest.raises(UserError, match=r"restore not completed: .*\(max_velocity.y\)"):
+            cfg.write_all(Drive(), values)

@@ -14,6 +14,7 @@
 
 #include "drive.h"
 #include "drive_test.h"
+#include "hal_sim.h"
 #include "sim.h"
 #include "unity.h"
 
@@ -83,10 +84,13 @@ static void finish(run_rec_t *r)
     r->mismatches = sim_edge_mismatches();
 }
 
+static int eager; /* sim_test_eager_inputs of the next start */
+
 static void start(int model)
 {
     TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, AXES));
     TEST_ASSERT_EQUAL_INT(0, sim_encoder_model(model));
+    sim_test_eager_inputs(eager); /* sim_setup turned it off */
 }
 
 /* The scenario of bench/bench_hil.c, 1.5 s; at tick switch_at the other
@@ -322,23 +326,23 @@ static void test_inputs_read_when_read_same_as_every_tick(void)
 {
     unsigned k;
     bool moved = false;
-    sim_test_eager_inputs(1);
+    eager = 1;
     homing(SIM_ENC_FAST, &rec[0]);
-    sim_test_eager_inputs(0);
+    eager = 0;
     homing(SIM_ENC_FAST, &rec[1]);
     check_same(&rec[0], &rec[1]);
     rough = false;
     ref_noise_x = true;
-    sim_test_eager_inputs(1);
+    eager = 1;
     circle(SIM_ENC_FAST, &rec[0], ~0u);
-    sim_test_eager_inputs(0);
+    eager = 0;
     circle(SIM_ENC_FAST, &rec[1], ~0u);
     ref_noise_x = false;
     check_same(&rec[0], &rec[1]);
     field_noise = true;
-    sim_test_eager_inputs(1);
+    eager = 1;
     circle(SIM_ENC_FAST, &rec[0], ~0u);
-    sim_test_eager_inputs(0);
+    eager = 0;
     circle(SIM_ENC_FAST, &rec[1], ~0u);
     field_noise = false;
     TEST_ASSERT_EQUAL_INT(0, sim_field2d(0, 0, 0, 0, 0, 0, NULL, NULL, 0, 0, 0, NULL, 0));
@@ -392,6 +396,60 @@ static void test_run_until_idle_same_as_polling(void)
     TEST_ASSERT_EQUAL_INT(0, memcmp(rec[0].trace, rec[1].trace, sizeof rec[0].trace[0] * a));
 }
 
+static bool home_source_on(void *ctx, unsigned axis)
+{
+    (void)ctx;
+    (void)axis;
+    return true;
+}
+
+static uint32_t counter_source_7(void *ctx, unsigned ch)
+{
+    (void)ctx;
+    (void)ch;
+    return 7u;
+}
+
+/* A value set on the simulated HAL after a source was installed is what the
+ * firmware reads (the setter clears the source), for the counters and the
+ * home switches alike: not ignored silently. */
+static void test_hal_sim_set_after_a_source_is_read(void)
+{
+    uint32_t count = 0;
+
+    hal_sim_reset();
+    hal_sim_set_counter_source(1, counter_source_7, NULL);
+    TEST_ASSERT_TRUE(hal_encoder_counter(1, &count));
+    TEST_ASSERT_EQUAL_UINT32(7u, count);
+    hal_sim_set_counter(1, 3u, true);
+    TEST_ASSERT_TRUE(hal_encoder_counter(1, &count));
+    TEST_ASSERT_EQUAL_UINT32(3u, count);
+    hal_sim_set_home_source(home_source_on, NULL);
+    TEST_ASSERT_TRUE(hal_home_switch(0));
+    TEST_ASSERT_TRUE(hal_home_switch(1));
+    hal_sim_set_home_switch(0, false);
+    TEST_ASSERT_FALSE(hal_home_switch(0));
+    TEST_ASSERT_FALSE(hal_home_switch(1)); /* its last value set: none */
+    hal_sim_reset();
+}
+
+/* sim_setup turns sim_test_eager_inputs off: a test that leaves it on does
+ * not change the next one. Seen before the first tick: with the sources
+ * (the default) a home switch the table stands on reads on at once; set
+ * eagerly, it reads off until the first tick sets it. */
+static void test_sim_setup_turns_eager_inputs_off(void)
+{
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, AXES));
+    sim_test_eager_inputs(1);
+    TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "home_switch", 0.001));
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_FALSE(hal_home_switch(0));
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, AXES)); /* the next test's */
+    TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "home_switch", 0.001));
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_TRUE(hal_home_switch(0));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -402,5 +460,7 @@ int main(void)
     RUN_TEST(test_plant_split_same_as_axis_by_axis);
     RUN_TEST(test_inputs_read_when_read_same_as_every_tick);
     RUN_TEST(test_run_until_idle_same_as_polling);
+    RUN_TEST(test_hal_sim_set_after_a_source_is_read);
+    RUN_TEST(test_sim_setup_turns_eager_inputs_off);
     return UNITY_END();
 }

@@ -186,6 +186,7 @@ void hal_sim_set_home_switch(unsigned axis, bool on)
 {
     if (axis < HAL_MAX_AXES) {
         sim.home[axis] = on;
+        sim.home_fn = NULL; /* as hal_sim_set_counter: the value set is read */
     }
 }
 

@@ -46,7 +46,9 @@ bool hal_sim_motor_enabled(unsigned axis);
 void hal_sim_set_amp_fault(unsigned axis, bool fault);
 /* Home switch input of an axis (hal_home_switch): the value set here, or,
  * with a source set (fn != NULL), what fn(ctx, axis) returns when the
- * firmware reads it. */
+ * firmware reads it. hal_sim_set_home_switch clears the source (there is
+ * one for all axes: the other axes then read their last value set here),
+ * as hal_sim_set_counter clears its channel's. */
 void hal_sim_set_home_switch(unsigned axis, bool on);
 typedef bool (*hal_sim_home_fn)(void *ctx, unsigned axis);
 void hal_sim_set_home_source(hal_sim_home_fn fn, void *ctx);

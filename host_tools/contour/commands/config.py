@@ -16,7 +16,10 @@ restore FILE.toml
     none; then every value is read back. A second session that starts
     motion, enables the drive or opens a session before the commit gets the
     restore refused with nothing written and the reason (the first refused
-    parameter, or the lost transaction). A drive without transactions is
+    parameter, or the lost transaction). A commit whose reply is lost on
+    every try is asked again (same transaction) until the drive answers
+    applied or not; a link that stays dead ends in an error saying that the
+    outcome is unknown and how to check. A drive without transactions is
     refused, nothing written. Another board id only warns.
 save
     Stores the drive parameters in the drive's flash (message param_save); the
@@ -30,6 +33,7 @@ import contextlib
 import datetime
 import json
 import sys
+import time
 
 import tomllib
 
@@ -40,6 +44,7 @@ from contour.errors import UserError
 from contour.image import build_id_prefix
 from contour.link.client import DriveError, parse_param
 from contour.link.options import connect_from_args, link_options
+from contour.link.transport import LinkError
 
 AXES = "xyza"
 HEADER = """\
@@ -164,7 +169,8 @@ def write_all(client, values: dict[str, int]) -> None:
     A second session that starts motion or enables the drive before the
     commit gets the commit refused (naming the first parameter it refuses);
     one that opens a session or begins a transaction of its own loses this
-    one. Either way nothing is written, and the error says why. A drive
+    one. Either way nothing is written, and the error says why. A commit
+    not answered on any try is settled by asking again (_commit). A drive
     without transactions (param_begin unknown) is refused before anything
     is written: one value at a time could leave it half restored."""
     try:
@@ -186,7 +192,7 @@ def write_all(client, values: dict[str, int]) -> None:
                 for pid, raw in pairs[i : i + STAGE_PAIRS]
             )
             client.request("param_stage", txn=txn, data=data)
-        done = client.request("param_commit", txn=txn).fields
+        done = _commit(client, txn, values)
     except DriveError as exc:
         _abort(client, txn)
         why = ""
@@ -208,6 +214,58 @@ def write_all(client, values: dict[str, int]) -> None:
             )
     if wrong:
         raise UserError("restore verify failed: " + "; ".join(wrong))
+
+
+# A commit none of whose tries was answered is asked again, as a new request
+# of the same transaction, this many times (each with the client's own tries),
+# a pause before each: a link that comes back within about
+# ROUNDS * (PAUSE + (1 + retries) * timeout) settles the outcome.
+COMMIT_ASK_ROUNDS = 4
+COMMIT_ASK_PAUSE_S = 0.5
+
+
+def _commit(client, txn: int, values: dict[str, int]) -> dict:
+    """param_commit of `txn`; when no try of it was answered, ask again until
+    the drive answers: committed (now, or before: a commit of the drive's
+    last committed id answers committed and applies nothing twice) or an
+    error (the transaction lost or refused: nothing applied, DriveError). An
+    id the drive no longer knows (not_open: another session's transaction
+    came since) is settled by reading the values back. A link that stays
+    dead raises a UserError saying that the outcome is unknown."""
+    try:
+        return client.request("param_commit", txn=txn).fields
+    except LinkError as exc:
+        lost: LinkError = exc
+    for _ in range(COMMIT_ASK_ROUNDS):
+        time.sleep(COMMIT_ASK_PAUSE_S)
+        try:
+            return client.request("param_commit", txn=txn).fields
+        except LinkError as exc:
+            lost = exc
+        except DriveError as exc:
+            if exc.code != pg.ErrorCode.TXN or exc.fields["arg"] != pg.TxnStatus.NOT_OPEN:
+                raise
+            return _settle_by_reading(client, txn, values)
+    raise UserError(
+        f"restore outcome unknown: the drive did not answer the commit of transaction {txn} "
+        f"({lost}), so it may or may not have applied the file (all of it or none). "
+        "Check when the link is back: contour config backup OTHER.toml and compare it with "
+        "the file, or run the restore again (restoring the same file twice is harmless)"
+    ) from None
+
+
+def _settle_by_reading(client, txn: int, values: dict[str, int]) -> dict:
+    """The drive no longer knows `txn` (committed or lost, and another
+    session's transaction since): the drive holds the file or it does not."""
+    differ = [name for name, raw in values.items() if client.get_param(name) != raw]
+    if differ:
+        raise UserError(
+            f"restore not completed: the commit of transaction {txn} was not answered and "
+            "the drive no longer knows it (another session's transaction came since); "
+            f"{len(differ)} value(s) differ from the file ({', '.join(differ[:4])}"
+            f"{', ...' if len(differ) > 4 else ''}): run the restore again"
+        )
+    return {"txn": txn, "staged": len(values), "committed": 1}
 
 
 def _abort(client, txn: int) -> None:
