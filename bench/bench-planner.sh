@@ -17,7 +17,7 @@ set -euo pipefail
 bin=build/bench/bench_planner
 mkdir -p build/bench
 cc -std=c99 -O2 -g -D_DEFAULT_SOURCE -Ifirmware/core -Itests/unit/support -o "$bin" \
-  bench/bench_planner.c tests/unit/support/path_check.c firmware/core/planner.c \
+  bench/bench_planner.c tests/unit/support/path_check.c firmware/core/planner*.c \
   firmware/core/scurve.c firmware/core/scurve_reach.c firmware/core/estimator.c firmware/core/interp.c \
   firmware/core/fixmath.c firmware/core/fixmath_div.c -lm
 n=20000
