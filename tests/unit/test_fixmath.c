@@ -375,6 +375,25 @@ static void test_sat_diff32_host_equals_wrap(void)
     }
 }
 
+/* The host form of fx_round_shift64 (FX_ROUND_INC: floor((floor(v /
+ * 2^(s-1)) + 1) / 2)) against the dropped-bit form the Cortex-M4 compiles,
+ * bit for bit, and both against round half up of v / 2^s, every shift. */
+static void test_round_shift64_host_equals_bit(void)
+{
+    unsigned i, s;
+    TEST_ASSERT_EQUAL_INT(1, FX_ROUND_INC); /* the host form is the one in use */
+    for (s = 1; s < 64; s++) {
+        for (i = 0; i < N_EDGE64 + 20000u; i++) {
+            int64_t v = (i < N_EDGE64) ? edge64[i] : rnd_i64() >> (rng() % 64u);
+            i128 exact = ((i128)v + ((i128)1 << (s - 1))) >> s;
+
+            EXPECT_I64(fx_round_shift64_bit(v, s), fx_round_shift64(v, s), "host %" PRId64 " >> %u",
+                       v, s);
+            EXPECT_I64((int64_t)exact, fx_round_shift64_bit(v, s), "bit %" PRId64 " >> %u", v, s);
+        }
+    }
+}
+
 static void test_clamp(void)
 {
     TEST_ASSERT_EQUAL_INT32(5, fx_clamp32(5, 0, 10));
@@ -1885,6 +1904,7 @@ int main(void)
     RUN_TEST(test_sat_arith64_edges_and_random);
     RUN_TEST(test_sat_diff32_exact);
     RUN_TEST(test_sat_diff32_host_equals_wrap);
+    RUN_TEST(test_round_shift64_host_equals_bit);
     RUN_TEST(test_clamp);
     RUN_TEST(test_round_shift64_ties_toward_plus_inf);
     RUN_TEST(test_round_shift64_extremes_and_random);
