@@ -242,8 +242,7 @@ bool qdec_edge_run(qdec_t *q, int32_t steps, uint32_t t_last_ns)
     uint32_t n = (steps < 0) ? 0u - (uint32_t)steps : (uint32_t)steps;
     uint32_t seq, i;
 
-    if (n == 0u || q->cfg.glitch_ns != 0u || q->cfg.mode != QDEC_X4 || q->cfg.vel_cycle ||
-        e->z != 0u) {
+    if (n == 0u || !q->run_ok || e->z != 0u) {
         return false;
     }
     /* position in the forward cycle 00, A, AB, B: the Gray code's value */
@@ -833,6 +832,7 @@ bool qdec_init(qdec_t *q, const qdec_config_t *cfg, uint32_t initial, uint32_t n
     }
     q->nm_fast = qdec_nm_fast(&q->cfg);
     q->fast = cfg->input == QDEC_INPUT_EDGES && cfg->glitch_ns == 0u && !cfg->vel_cycle;
+    q->run_ok = cfg->glitch_ns == 0u && cfg->mode == QDEC_X4 && !cfg->vel_cycle;
     q->out.pos_nm_raw = qdec_counts_to_nm(q, 0);
     q->out.pos_nm = comp_correct(cfg->comp, q->out.pos_nm_raw, COMP_DIR_NONE);
     return true;

@@ -312,6 +312,7 @@ typedef struct {
     int64_t ill_t[QDEC_ILLEGAL_MAX]; /* times of the last illegal transitions  */
     uint8_t ill_head;
     uint8_t ill_n;
+    bool run_ok; /* no filter, x4, no vel_cycle: qdec_edge_run may count (init; in padding) */
     uint32_t last_rare; /* e.rare at the last sample (with last_illegal, last_idx_events) */
 } qdec_t;
 
