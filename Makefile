@@ -22,6 +22,7 @@ HIL_HDR    := $(sort $(wildcard hil_sim/*.h) $(wildcard firmware/ports/sim/*.h) 
                      $(wildcard firmware/ports/common/*.h))
 UNIT_SRC   := $(sort $(wildcard tests/unit/test_*.c))
 UNIT_SUP   := $(sort $(wildcard tests/unit/support/*.c))
+UNIT_SUP_HDR := $(sort $(wildcard tests/unit/support/*.h))
 UNIT_BIN   := $(patsubst tests/unit/%.c,$(BUILD)/unit/%,$(UNIT_SRC))
 
 UNITY_DIR  := $(CACHE)/unity/usr/share/cmock/vendor/unity/src
@@ -102,7 +103,7 @@ $(BUILD)/unit/obj/%.o: %.c $(CORE_HDR) $(HIL_HDR) | $(UNITY_C)
 	@mkdir -p $(@D)
 	$(CC) $(UNIT_CFLAGS) -c -o $@ $<
 
-$(BUILD)/unit/%: tests/unit/%.c $(UNIT_LIB_OBJ) $(CORE_HDR) $(HIL_HDR)
+$(BUILD)/unit/%: tests/unit/%.c $(UNIT_LIB_OBJ) $(CORE_HDR) $(HIL_HDR) $(UNIT_SUP_HDR)
 	@mkdir -p $(@D)
 	$(CC) $(UNIT_CFLAGS) -o $@ $< $(UNIT_LIB_OBJ) -lm
 

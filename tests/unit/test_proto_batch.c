@@ -11,21 +11,11 @@
 #include "proto_dispatch.h"
 #include "sim.h"
 #include "unity.h"
-
-static proto_dispatch_t d;
-static uint8_t out[PROTO_MSG_MAX];
-static size_t out_len;
-static uint32_t now_us;
-static uint8_t next_seq;
+#include "dispatch_fixture.h"
 
 void setUp(void)
 {
-    proto_identity_t id = {0x000100u, 0xABCDu, 7u, 10000u, 1u, 0u, 5u, 3u};
-
-    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 3));
-    TEST_ASSERT_EQUAL_INT(0, sim_start());
-    now_us = 0;
-    TEST_ASSERT_TRUE(proto_dispatch_init(&d, &id, now_us));
+    dispatch_fixture_start();
 }
 
 void tearDown(void)
@@ -41,25 +31,6 @@ static void run_ms(unsigned ms)
         now_us += 1000u;
         proto_dispatch_poll(&d, now_us, NULL, NULL);
     }
-}
-
-/* A request with an explicit header seq (a retry repeats it). */
-static size_t request_seq(uint8_t id, uint8_t seq, const uint8_t *payload, size_t n)
-{
-    uint8_t m[PROTO_MSG_MAX];
-
-    m[0] = id;
-    m[1] = seq;
-    if (n > 0) {
-        memcpy(m + 2, payload, n);
-    }
-    out_len = proto_dispatch_handle(&d, m, n + 2, now_us, out, sizeof out);
-    return out_len;
-}
-
-static size_t request(uint8_t id, const uint8_t *payload, size_t n)
-{
-    return request_seq(id, ++next_seq, payload, n);
 }
 
 /* The golden batch of tests/python/test_stream_batch.py: an origin at

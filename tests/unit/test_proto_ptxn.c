@@ -11,23 +11,14 @@
 #include "proto_dispatch.h"
 #include "sim.h"
 #include "unity.h"
-
-static proto_dispatch_t d;
-static uint8_t out[PROTO_MSG_MAX];
-static uint32_t now_us;
-static uint8_t next_seq;
+#include "dispatch_fixture.h"
 
 #define VX PROTO_PARAM_MAX_VELOCITY
 #define VY (PROTO_PARAM_MAX_VELOCITY + 1)
 
 void setUp(void)
 {
-    proto_identity_t id = {0x000100u, 0xABCDu, 7u, 10000u, 1u, 0u, 5u, 3u};
-
-    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 3));
-    TEST_ASSERT_EQUAL_INT(0, sim_start());
-    now_us = 0;
-    TEST_ASSERT_TRUE(proto_dispatch_init(&d, &id, now_us));
+    dispatch_fixture_start();
 }
 
 void tearDown(void)
@@ -38,28 +29,6 @@ static void run_ms(unsigned ms)
 {
     TEST_ASSERT_TRUE(sim_run((uint64_t)ms * 10u, NULL, 0, 0) >= 0);
     now_us += ms * 1000u;
-}
-
-static size_t request(uint8_t id, const uint8_t *payload, size_t n)
-{
-    uint8_t m[PROTO_MSG_MAX];
-
-    m[0] = id;
-    m[1] = ++next_seq;
-    if (n > 0) {
-        memcpy(m + 2, payload, n);
-    }
-    return proto_dispatch_handle(&d, m, n + 2, now_us, out, sizeof out);
-}
-
-static proto_error_t expect_error(size_t len, uint8_t code)
-{
-    proto_error_t e;
-
-    TEST_ASSERT_EQUAL_HEX8(PROTO_MSG_ERROR, out[0]);
-    TEST_ASSERT_TRUE(proto_error_decode(out + 2, len - 2, &e));
-    TEST_ASSERT_EQUAL_UINT8(code, e.code);
-    return e;
 }
 
 static proto_param_txn_t expect_txn(size_t len)
