@@ -497,20 +497,27 @@ void axis_set_load_torque(axis_t *ax, double t)
                    p->coulomb_table <= 0.0;
 }
 
+bool axis_substep_lin(axis_t *ax, double u)
+{
+    const axis_params_t *p = &ax->p;
+    /* only u acts (T1 = T2 = 0: the same bits as the full update); at
+     * rest with the same command, z and v_applied stay as they are */
+    uint64_t ub;
+    memcpy(&ub, &u, sizeof ub);
+    if (!ax->rest || ub != ax->rest_u) {
+        double v = clampd(u * p->kx, p->vmax) / p->kx;
+        ax->v_applied = v * p->kx;
+        ax->rest = lin_update(ax, v);
+        ax->rest_u = ub;
+    }
+    return ax->rest;
+}
+
 bool axis_substep(axis_t *ax, double u)
 {
     const axis_params_t *p = &ax->p;
     if (ax->lin_only) {
-        /* only u acts (T1 = T2 = 0: the same bits as the full update); at
-         * rest with the same command, z and v_applied stay as they are */
-        uint64_t ub;
-        memcpy(&ub, &u, sizeof ub);
-        if (!ax->rest || ub != ax->rest_u) {
-            double v = clampd(u * p->kx, p->vmax) / p->kx;
-            ax->v_applied = v * p->kx;
-            ax->rest = lin_update(ax, v);
-            ax->rest_u = ub;
-        }
+        axis_substep_lin(ax, u);
         if (p->pitch_n > 0) {
             track_direction(ax);
         }

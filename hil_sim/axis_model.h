@@ -177,6 +177,9 @@ void axis_set_load_torque(axis_t *ax, double t);
  * bit for bit what it was before (an axis at rest: see axis_t.rest), so the
  * encoder reading without noise is the one of the previous substep. */
 bool axis_substep(axis_t *ax, double u);
+/* The same for an axis with lin_only and no pitch map (pitch_n 0): the
+ * substep without those two tests. */
+bool axis_substep_lin(axis_t *ax, double u);
 
 /* Motor encoder position in counts (continuous, no noise) and the reading
  * the encoder reports (noise added, still continuous: the caller quantises;
@@ -204,6 +207,12 @@ static inline double axis_table_pos(const axis_t *ax)
 {
     double x = ax->p.l * ax->z[2];
     return x + (ax->p.pitch_n > 0 ? axis_pitch_error(&ax->p, x, ax->pitch_dir) : 0.0);
+}
+
+/* The same without a pitch map (p.pitch_n 0). */
+static inline double axis_table_pos_nomap(const axis_t *ax)
+{
+    return ax->p.l * ax->z[2] + 0.0;
 }
 
 /* Reference scale count: true table position / resolution, rounded to the

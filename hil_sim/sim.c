@@ -788,7 +788,7 @@ int sim_start(void)
     return 0;
 }
 
-static void write_row(double *row)
+static inline __attribute__((always_inline)) void write_row(double *row, bool plain)
 {
     drive_trace_t st;
     unsigned i;
@@ -808,7 +808,7 @@ static void write_row(double *row)
         row[6 + 4 * i] = (double)st.pos[i] * 1e-9;
         row[7 + 4 * i] = (double)hal_sim_motor_mv(i) * 1e-3;
     }
-    for (i = 0; (S.tmean_on || S.inj_any) && i < S.axes; i++) {
+    for (i = 0; !plain && (S.tmean_on || S.inj_any) && i < S.axes; i++) {
         if (S.tmean_on) {
             row[5 + 4 * i] = S.tmean[i];
         }
@@ -965,6 +965,22 @@ static void sim_record_step(unsigned i, unsigned s)
     }
 }
 
+/* sim_record_tick with one substep per tick and a sample per substep: one
+ * sample, at the tick's end: its time, and the table below (plant_tick1
+ * leaves the sample to this). */
+static inline void sim_record_tick1(void)
+{
+    if (S.rec_n < S.rec_cap) {
+        double *r = S.rec + S.rec_n * SIM_REC_COLS;
+        unsigned i;
+        r[0] = (double)(S.t_ns + S.sub_ns[1]) * 1e-9;
+        for (i = 0; i < S.axes; i++) {
+            r[1 + i] = S.table[i];
+        }
+    }
+    S.rec_n++;
+}
+
 /* After the tick's substeps and the 2-D field: a sample at the tick's end
  * is the next trace row's table (bit for bit); earlier ones get the field
  * at the direction tracked so far. */
@@ -973,17 +989,7 @@ static void sim_record_tick(void)
     uint64_t g0 = S.ticks * S.nsub, g1 = g0 + S.nsub;
     size_t n, k, last;
     if (S.rec_m == 1u && S.nsub == 1u) {
-        /* one sample, at the tick's end: its time, and the table below
-         * (plant_tick1 leaves the sample to this) */
-        if (S.rec_n < S.rec_cap) {
-            double *r = S.rec + S.rec_n * SIM_REC_COLS;
-            unsigned i;
-            r[0] = (double)(S.t_ns + S.sub_ns[1]) * 1e-9;
-            for (i = 0; i < S.axes; i++) {
-                r[1 + i] = S.table[i];
-            }
-        }
-        S.rec_n++;
+        sim_record_tick1();
         return;
     }
     if (S.rec_m == 1u) { /* as below with m = 1 */
@@ -1060,6 +1066,54 @@ static void plant_tick1(void)
     }
 }
 
+/* The plain path (run_ticks): one substep per tick with the split above,
+ * and no option that needs a test per tick or per axis: every axis linear
+ * only (no load torque, friction, backlash; so no disturbances) without a
+ * pitch map or encoder reading noise, no injection, no 2-D field, no
+ * reference scale drawn per tick, no table mean, the instrument off or
+ * sampling every substep. Only sim_start and the calls between runs change
+ * these, so run_ticks decides once per call; plant_tick_plain is
+ * plant_tick1 with the tests of those options left out (the drive's
+ * enc_mean, a parameter, is still tested per tick: plant_tick1 takes it). */
+static int plain_off; /* sim_test_plain */
+
+void sim_test_plain(int on)
+{
+    plain_off = !on;
+}
+
+static bool run_plain(void)
+{
+    unsigned i;
+    /* the 2-D field sets ref_per_tick (sim_start) */
+    if (plain_off || S.nsub != 1u || plant_split_off || S.inj_any || S.dist_on || S.ref_per_tick ||
+        S.tmean_on || (S.rec != NULL && S.rec_m != 1u)) {
+        return false;
+    }
+    for (i = 0; i < S.axes; i++) {
+        if (!S.ax[i].lin_only || S.ax[i].p.pitch_n > 0 || S.ax[i].p.enc_noise_counts != 0.0) {
+            return false;
+        }
+    }
+    return true;
+}
+
+static inline __attribute__((always_inline)) void plant_tick_plain(void)
+{
+    qgen_pos_t x1[SIM_AXES];
+    unsigned i;
+    for (i = 0; i < S.axes; i++) {
+        axis_t *ax = &S.ax[i];
+        double u = (double)hal_sim_motor_mv(i) * 1e-3;
+        /* z unchanged: the reading is the one the generator has */
+        x1[i] = axis_substep_lin(ax, u) ? S.gen[i].x : to_qgen(axis_encoder_counts(ax));
+        S.table[i] = axis_table_pos_nomap(ax);
+    }
+    for (i = 0; i < S.axes; i++) {
+        S.edges += qgen_move_to(&S.gen[i], x1[i], S.t_ns + S.sub_ns[1]);
+    }
+}
+
 /* After a tick of sim_run_until_free / _until_idle: true to stop there. */
 static __attribute__((noinline)) bool run_stop(unsigned min_free, unsigned idle_step,
                                                unsigned *idle_in)
@@ -1076,21 +1130,57 @@ static __attribute__((noinline)) bool run_stop(unsigned min_free, unsigned idle_
     return false;
 }
 
-static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
-                      unsigned min_free, unsigned idle_step, uint64_t *ran)
+/* The plant's tick, any options: the substeps, generators, mean reading,
+ * 2-D field and instrument. */
+static void plant_tick(void)
+{
+    unsigned i, s;
+    bool split = S.nsub == 1u && !plant_split_off;
+    if (split) {
+        plant_tick1();
+    }
+    for (i = 0; !split && i < S.axes; i++) {
+        double u = (double)hal_sim_motor_mv(i) * 1e-3;
+        if (S.inj_n[i] > 0) {
+            u += S.inj_now[i];
+        }
+        if (S.mean) {
+            sim_mean_step(i, -1);
+        }
+        for (s = 0; s < S.nsub; s++) {
+            /* z unchanged and no reading noise: the reading is the one
+             * the generator has (qgen_move_to keeps the last x1) */
+            qgen_pos_t x1 = (axis_substep(&S.ax[i], u) && S.ax[i].p.enc_noise_counts == 0.0)
+                                ? S.gen[i].x
+                                : to_qgen(axis_encoder_reading(&S.ax[i]));
+            S.edges += qgen_move_to(&S.gen[i], x1, S.t_ns + S.sub_ns[s + 1]);
+            if (S.mean) {
+                sim_mean_step(i, (int)s);
+            }
+            if (S.rec != NULL) {
+                sim_record_step(i, s);
+            }
+        }
+        S.table[i] = axis_table_pos(&S.ax[i]);
+    }
+    sim_apply_field();
+    if (S.rec != NULL) {
+        sim_record_tick();
+    }
+}
+
+/* The tick loop; plain (run_plain) leaves out the tests of the options
+ * that are off (two copies of the loop, one per value). */
+static inline __attribute__((always_inline)) long run_loop(const bool plain, uint64_t ticks,
+                                                           double *trace, size_t rows_cap,
+                                                           unsigned every, unsigned min_free,
+                                                           unsigned idle_step, uint64_t *ran)
 {
     bool stops = min_free > 0 || idle_step > 0;
     uint64_t k;
     size_t rows = 0;
-    unsigned i, s, row_in;        /* row_in: ticks until S.ticks % every == 0 */
+    unsigned i, row_in;           /* row_in: ticks until S.ticks % every == 0 */
     unsigned idle_in = idle_step; /* ticks until the next status poll */
-    bool split;
-    if (!S.started) {
-        return SIM_E_STATE;
-    }
-    if (every == 0) {
-        every = 1;
-    }
     row_in = (unsigned)(S.ticks % every);
     row_in = row_in == 0 ? 0 : every - row_in;
     for (k = 0; k < ticks; k++) {
@@ -1098,7 +1188,7 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         /* the home switches and the reference scales are read through
          * their sources (sim_home_read, sim_ref_read); a noisy scale's
          * reading is drawn here, every tick */
-        for (i = 0; S.ref_per_tick && i < S.axes; i++) {
+        for (i = 0; !plain && S.ref_per_tick && i < S.axes; i++) {
             S.ref_drawn[i] = S.ax[i].p.ref_noise > 0.0 && !inputs_eager;
             if (S.ref_drawn[i]) {
                 S.ref_val[i] = (uint32_t)(uint64_t)axis_ref_reading_at(&S.ax[i], S.table[i]);
@@ -1112,7 +1202,9 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
             }
         }
         app_tick();
-        inject_tick();
+        if (!plain) {
+            inject_tick();
+        }
         for (i = 0; i < S.axes; i++) {
             if (drive_encoder_count(i) + S.count0[i] != S.gen[i].count) {
                 S.mismatches++;
@@ -1121,49 +1213,25 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
         }
         if (row_in == 0) {
             if (trace != NULL && rows < rows_cap) {
-                write_row(trace + rows * SIM_TRACE_COLS);
+                write_row(trace + rows * SIM_TRACE_COLS, plain);
                 rows++;
             }
             row_in = every;
         }
         row_in--;
         app_poll();
-        if (S.dist_on) {
+        if (!plain && S.dist_on) {
             disturbance_tick();
         }
         /* after main: a parameter write */
-        S.mean = drive_config()->enc_mean || S.tmean_on;
-        split = S.nsub == 1u && !plant_split_off;
-        if (split) {
-            plant_tick1();
-        }
-        for (i = 0; !split && i < S.axes; i++) {
-            double u = (double)hal_sim_motor_mv(i) * 1e-3;
-            if (S.inj_n[i] > 0) {
-                u += S.inj_now[i];
+        S.mean = drive_config()->enc_mean || (!plain && S.tmean_on);
+        if (plain && !S.mean) {
+            plant_tick_plain();
+            if (S.rec != NULL) {
+                sim_record_tick1();
             }
-            if (S.mean) {
-                sim_mean_step(i, -1);
-            }
-            for (s = 0; s < S.nsub; s++) {
-                /* z unchanged and no reading noise: the reading is the one
-                 * the generator has (qgen_move_to keeps the last x1) */
-                qgen_pos_t x1 = (axis_substep(&S.ax[i], u) && S.ax[i].p.enc_noise_counts == 0.0)
-                                    ? S.gen[i].x
-                                    : to_qgen(axis_encoder_reading(&S.ax[i]));
-                S.edges += qgen_move_to(&S.gen[i], x1, S.t_ns + S.sub_ns[s + 1]);
-                if (S.mean) {
-                    sim_mean_step(i, (int)s);
-                }
-                if (S.rec != NULL) {
-                    sim_record_step(i, s);
-                }
-            }
-            S.table[i] = axis_table_pos(&S.ax[i]);
-        }
-        sim_apply_field();
-        if (S.rec != NULL) {
-            sim_record_tick();
+        } else {
+            plant_tick();
         }
         S.t_ns += S.period_ns;
         S.ticks++;
@@ -1174,6 +1242,21 @@ static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned e
     }
     *ran = k;
     return (long)rows;
+}
+
+static long run_ticks(uint64_t ticks, double *trace, size_t rows_cap, unsigned every,
+                      unsigned min_free, unsigned idle_step, uint64_t *ran)
+{
+    if (!S.started) {
+        return SIM_E_STATE;
+    }
+    if (every == 0) {
+        every = 1;
+    }
+    if (run_plain()) {
+        return run_loop(true, ticks, trace, rows_cap, every, min_free, idle_step, ran);
+    }
+    return run_loop(false, ticks, trace, rows_cap, every, min_free, idle_step, ran);
 }
 
 long sim_run(uint64_t ticks, double *trace, size_t rows_cap, unsigned every)

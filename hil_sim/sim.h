@@ -247,6 +247,10 @@ unsigned sim_substeps(void);
  * first and then the generators (sim.c plant_tick1); off (0), it takes the
  * general loop, axis by axis, as with several substeps. Default on. */
 void sim_test_plant_split(int on);
+/* Test hook: off (0), the loop takes the general path also when no option
+ * needs it (sim.c run_plain: the plain path leaves out their tests).
+ * Default on. */
+void sim_test_plain(int on);
 /* Test hook: on (1), the simulator sets every home switch and reference
  * scale counter at the start of every tick, as a port without sources
  * would, instead of computing them when the firmware reads them (the

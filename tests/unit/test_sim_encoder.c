@@ -31,14 +31,24 @@ typedef struct {
 typedef struct {
     enc_rec_t enc[MAX_TICKS][AXES];
     double trace[MAX_TICKS][SIM_TRACE_COLS];
+    double tab[MAX_TICKS][SIM_REC_COLS]; /* the instrument's rows (record) */
     unsigned ticks;
     uint64_t edges, run_edges, mismatches;
 } run_rec_t;
 
 static run_rec_t rec[2]; /* [SIM_ENC_EDGES], [SIM_ENC_FAST] */
 
+static bool record;   /* the instrument (sim_table_record) on every tick */
+static double rec_hz; /* its rate (0: 10 kHz, one sample per tick) */
+static bool mean_on;  /* the drive's mean reading (enc_mean) */
+static int option;    /* circle(): one of the plain loop's options, below */
+
 void setUp(void)
 {
+    record = false; /* not left on by a test that failed */
+    rec_hz = 0.0;
+    mean_on = false;
+    option = 0;
 }
 
 void tearDown(void)
@@ -56,6 +66,10 @@ static void tick(run_rec_t *r)
     drive_status_t st = {0};
     bool status = r->ticks % 97u == 0u;
     TEST_ASSERT_TRUE(r->ticks < MAX_TICKS);
+    if (record) {
+        TEST_ASSERT_EQUAL_INT(0,
+                              sim_table_record(r->tab[r->ticks], 1, rec_hz > 0.0 ? rec_hz : 1e4));
+    }
     TEST_ASSERT_EQUAL_INT(1, sim_run(1, r->trace[r->ticks], 1, 1));
     if (status) {
         drive_status(&st);
@@ -101,6 +115,47 @@ static bool rough;
 static bool ref_noise_x; /* reading noise on X's reference scale */
 static bool field_noise; /* a 2-D field whose scale noise is 0 for y < 5 mm */
 
+/* The option of circle() (option 1 to 9): each one that the plain loop
+ * (sim.c run_plain) leaves to the general path. */
+static void circle_option_before_start(void)
+{
+    static const double pos[2] = {-0.05, 0.05}, fwd[2] = {0.0, 2e-6}, rev[2] = {1e-6, 3e-6};
+    switch (option) {
+    case 1: /* a spring on X's table: a disturbance, load torque per tick */
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "spring_k", 200.0));
+        break;
+    case 2: /* a load torque on Y: not linear only */
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_set(1, "load_torque", 0.005));
+        break;
+    case 3: /* a pitch map on X */
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_pitch(0, 2, pos, fwd, rev));
+        break;
+    case 4: /* reading noise on Y's encoder, one substep */
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_set(1, "enc_noise_counts", 0.3));
+        break;
+    case 5: /* reading noise on X's reference scale: drawn per tick */
+        TEST_ASSERT_EQUAL_INT(0, sim_axis_set(0, "ref_noise", 20e-9));
+        break;
+    case 6: /* the trace's table as its mean over the tick */
+        TEST_ASSERT_EQUAL_INT(0, sim_trace_table_mean(1));
+        break;
+    case 7: { /* a 2-D field, no noise */
+        static const double col[16] = {1e-6, 0,    0,    1e-6, 1e-6, 0,    0,    1e-6,
+                                       0,    1e-6, 1e-6, 0,    0,    1e-6, 1e-6, 0};
+        static const double sig[8] = {0}, row[8] = {0};
+        TEST_ASSERT_EQUAL_INT(
+            0, sim_field2d(2, 2, -0.04, 0.04, -0.015, 0.04, col, sig, 2, -0.04, 0.04, row, 1e-6));
+        break;
+    }
+    case 9: /* the instrument at 5 kHz: a sample every other substep */
+        rec_hz = 5000.0;
+        record = true;
+        break;
+    default: /* 8: sim_inject, after sim_start */
+        break;
+    }
+}
+
 static void circle(int model, run_rec_t *r, unsigned switch_at)
 {
     const int64_t feed = 166666667; /* 10 m/min */
@@ -140,8 +195,19 @@ static void circle(int model, run_rec_t *r, unsigned switch_at)
         TEST_ASSERT_EQUAL_INT(
             0, sim_field2d(2, 2, -0.04, 0.04, -0.015, 0.04, col, sig, 2, -0.04, 0.04, row, 1e-6));
     }
+    circle_option_before_start();
     TEST_ASSERT_EQUAL_INT(0, sim_start());
     TEST_ASSERT_EQUAL_INT(rough ? 10u : 1u, sim_substeps());
+    if (mean_on) {
+        TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_param_set(DRIVE_PARAM_ENC_MEAN, 0, 1));
+    }
+    if (option == 8) { /* a voltage injected on X for 0.5 s from the start */
+        static double volts[5000];
+        for (k = 0; k < 5000u; k++) {
+            volts[k] = 0.2 * sin((double)k * 0.01);
+        }
+        TEST_ASSERT_EQUAL_INT(0, sim_inject(0, volts, 5000u));
+    }
     TEST_ASSERT_EQUAL_INT(DRIVE_OK, sim_enable(1));
     TEST_ASSERT_EQUAL_INT(0, sim_queue_line(on_circle, feed, 1, 0, &res));
     for (k = 0; k < 15000u; k++) {
@@ -198,6 +264,7 @@ static void check_same(const run_rec_t *a, const run_rec_t *b)
             TEST_ASSERT_EQUAL_INT64(x->refscale, y->refscale);
         }
         TEST_ASSERT_EQUAL_INT(0, memcmp(a->trace[k], b->trace[k], sizeof a->trace[k]));
+        TEST_ASSERT_EQUAL_INT(0, memcmp(a->tab[k], b->tab[k], sizeof a->tab[k]));
     }
 }
 
@@ -313,6 +380,67 @@ static void test_plant_split_same_as_axis_by_axis(void)
     sim_test_plant_split(1);
     circle(SIM_ENC_FAST, &rec[1], ~0u);
     check_same(&rec[0], &rec[1]);
+}
+
+/* The plain loop (sim.c run_plain: no tests for the options that are
+ * off) against the split plant with those tests (sim_test_plain(0)) and
+ * against the general loop axis by axis (sim_test_plant_split(0)): the
+ * bench circle with the instrument recording every tick, then again with
+ * the drive's mean reading on (enc_mean, which the plain loop still tests
+ * on every tick). Decoders, trace and instrument identical on every tick. */
+static void test_plain_loop_same_as_general(void)
+{
+    unsigned m;
+    record = true;
+    for (m = 0; m < 2u; m++) {
+        mean_on = m == 1u;
+        circle(SIM_ENC_FAST, &rec[0], ~0u);
+        /* recorded: a tick's sample is the next row's table, bit for bit */
+        TEST_ASSERT_EQUAL_DOUBLE(rec[0].trace[14999][0], rec[0].tab[14998][0]);
+        TEST_ASSERT_TRUE(memcmp(&rec[0].trace[14999][9], &rec[0].tab[14998][2], 8) == 0);
+        sim_test_plain(0);
+        circle(SIM_ENC_FAST, &rec[1], ~0u);
+        sim_test_plain(1);
+        check_same(&rec[0], &rec[1]);
+        sim_test_plant_split(0);
+        circle(SIM_ENC_FAST, &rec[1], ~0u);
+        sim_test_plant_split(1);
+        check_same(&rec[0], &rec[1]);
+    }
+    mean_on = false;
+    record = false;
+}
+
+/* Each option that the plain loop leaves to the general path (sim.c
+ * run_plain: load torque, disturbance, pitch map, encoder or scale
+ * reading noise, table mean, 2-D field, injection, the instrument at a
+ * sample every other substep) changes the circle's trace, and the run is
+ * the same with the plain loop allowed (the default) and not allowed
+ * (sim_test_plain(0)). */
+static bool runs_differ(const run_rec_t *a, const run_rec_t *b)
+{
+    return a->ticks != b->ticks || memcmp(a->enc, b->enc, sizeof a->enc[0] * a->ticks) != 0 ||
+           memcmp(a->trace, b->trace, sizeof a->trace[0] * a->ticks) != 0 ||
+           memcmp(a->tab, b->tab, sizeof a->tab[0] * a->ticks) != 0;
+}
+
+static void test_plain_loop_leaves_options_to_the_general_path(void)
+{
+    static run_rec_t none; /* no option */
+    record = true;
+    circle(SIM_ENC_FAST, &none, ~0u);
+    for (option = 1; option <= 9; option++) {
+        record = true;
+        circle(SIM_ENC_FAST, &rec[0], ~0u);
+        TEST_ASSERT_TRUE(runs_differ(&none, &rec[0]));
+        record = true;
+        sim_test_plain(0);
+        circle(SIM_ENC_FAST, &rec[1], ~0u);
+        sim_test_plain(1);
+        check_same(&rec[0], &rec[1]);
+        rec_hz = 0.0;
+    }
+    option = 0;
 }
 
 /* The home switches and reference scales computed when the firmware reads
@@ -458,6 +586,8 @@ int main(void)
     RUN_TEST(test_homing_to_index_same_in_both_models);
     RUN_TEST(test_model_switch_while_running);
     RUN_TEST(test_plant_split_same_as_axis_by_axis);
+    RUN_TEST(test_plain_loop_same_as_general);
+    RUN_TEST(test_plain_loop_leaves_options_to_the_general_path);
     RUN_TEST(test_inputs_read_when_read_same_as_every_tick);
     RUN_TEST(test_run_until_idle_same_as_polling);
     RUN_TEST(test_hal_sim_set_after_a_source_is_read);
