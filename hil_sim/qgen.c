@@ -268,23 +268,22 @@ static uint64_t qgen_ideal_setup(const qgen_t *g, qgen_pos_t x1, uint64_t dt, qg
 
 /* The fast path as one run (qgen_set_run): false when the move has an event
  * with Z high, more than 2^31 - 1 events, or the callback refuses it; *n
- * the events of a move taken. The last crossing is of boundary c1
- * (forward) or c1 + 1 (backward), at the time the stepper reaches: t +
- * floor(distance * dt / |dx|). */
+ * the events of a move taken. The count's change d = c1 - c0 has the
+ * move's sign (boundaries lie at whole counts), so it is the run's steps.
+ * The last crossing is of boundary c1 (forward) or c1 + 1 (backward), at
+ * the time the stepper reaches: t + floor(distance * dt / |dx|). */
 static bool qgen_move_run(qgen_t *g, qgen_pos_t x1, uint64_t dt, uint64_t *n)
 {
     qgen_pos_t x0 = g->x;
-    bool fwd = x1 > x0;
-    int64_t c0 = g->count, c1 = qgen_floor_count(x1);
-    uint64_t k = fwd ? (uint64_t)(c1 - c0) : (uint64_t)(c0 - c1);
+    int64_t c0 = g->count, c1 = qgen_floor_count(x1), d = c1 - c0;
     uint64_t den, dist, t_last;
     qgen_u128 q, r;
 
     *n = 0u;
-    if (k == 0u) {
+    if (d == 0) {
         return true;
     }
-    if (k > (uint64_t)INT32_MAX) {
+    if (d > INT32_MAX || d < -INT32_MAX) {
         return false;
     }
     if (!qgen_z_low(g, c0)) {
@@ -293,19 +292,24 @@ static bool qgen_move_run(qgen_t *g, qgen_pos_t x1, uint64_t dt, uint64_t *n)
     if (!qgen_z_low(g, c0) || !qgen_z_low(g, c1)) {
         return false; /* the span is contiguous: both ends inside, all inside */
     }
-    den = fwd ? (uint64_t)(x1 - x0) : (uint64_t)(x0 - x1);
-    dist = fwd ? (uint64_t)(c1 * QGEN_ONE - x0) : (uint64_t)(x0 - (c1 + 1) * QGEN_ONE);
+    if (d > 0) {
+        den = (uint64_t)(x1 - x0);
+        dist = (uint64_t)(c1 * QGEN_ONE - x0);
+    } else {
+        den = (uint64_t)(x0 - x1);
+        dist = (uint64_t)(x0 - (c1 + 1) * QGEN_ONE);
+    }
     qgen_divmod((qgen_u128)dist * dt, den, &q, &r);
     t_last = g->t + (uint64_t)q;
-    if (!g->run(g->ctx, fwd ? (int32_t)k : -(int32_t)k, (uint32_t)t_last)) {
+    if (!g->run(g->ctx, (int32_t)d, (uint32_t)t_last)) {
         return false;
     }
     g->count = c1;
     g->lines = qgen_ab[(uint64_t)c1 & 3u];
     g->last_edge_t = t_last;
-    g->edges += k;
-    g->run_edges += k;
-    *n = k;
+    *n = (uint64_t)(d > 0 ? d : -d);
+    g->edges += *n;
+    g->run_edges += *n;
     return true;
 }
 
@@ -411,9 +415,8 @@ uint64_t qgen_move_changed(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
     uint64_t dt = (t1_ns > g->t) ? t1_ns - g->t : 0u;
     uint64_t n;
 
-    if (x1 == g->x) {
-        n = 0u;
-    } else if (qgen_fast_ok(g, x1, dt)) {
+    /* x1 == x (qgen_move_to's test): no boundary crossed on either path */
+    if (qgen_fast_ok(g, x1, dt)) {
         n = qgen_move_ideal(g, x1, dt);
     } else {
         n = qgen_move_general(g, x1, dt);
