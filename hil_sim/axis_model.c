@@ -414,13 +414,17 @@ static bool same_state(const double *a, const double *b)
     return true;
 }
 
-/* Returns true when z came out bit for bit as it was. */
+/* Returns true when z came out bit for bit as it was: th1 first (it changes
+ * on almost every substep of a moving axis), the rest only when th1 did
+ * not; z is stored either way (the same bits when unchanged). */
 static bool lin_update(axis_t *ax, double u)
 {
     enum { R = AXIS_NSTATE + 1 };
     const double *l = &ax->lin[0][0];
-    double *z = ax->z, out[R];
+    double *z = ax->z, out[AXIS_NSTATE];
     axis_v2 acc[3], s = {z[0], z[0]};
+    uint64_t b0, z0;
+    bool same;
 
     acc[0] = v2_load(l) * s;
     acc[1] = v2_load(l + 2) * s;
@@ -430,12 +434,21 @@ static bool lin_update(axis_t *ax, double u)
     lin_column(acc, l + 3 * R, z[3]);
     lin_column(acc, l + 4 * R, z[4]);
     lin_column(acc, l + 5 * R, u);
-    memcpy(out, acc, sizeof acc);
-    if (same_state(out, z)) {
-        return true;
+    out[0] = acc[0][0];
+    memcpy(&b0, &out[0], sizeof b0);
+    memcpy(&z0, &z[0], sizeof z0);
+    same = b0 == z0;
+    if (same) {
+        out[1] = acc[0][1];
+        out[2] = acc[1][0];
+        out[3] = acc[1][1];
+        out[4] = acc[2][0];
+        same = same_state(out, z);
     }
-    memcpy(z, out, sizeof(double) * AXIS_NSTATE);
-    return false;
+    memcpy(z, &acc[0], sizeof acc[0]);
+    memcpy(z + 2, &acc[1], sizeof acc[1]);
+    z[4] = acc[2][0];
+    return same;
 }
 
 /* The substep with a load torque, friction or backlash (out of line: the

@@ -319,7 +319,7 @@ static void test_rest_skip_is_bit_exact(void)
     axis_params_t p;
     axis_t a, b;
     double before[AXIS_NSTATE];
-    unsigned k, skipped = 0;
+    unsigned k, skipped = 0, th1_still = 0;
     axis_params_lacerda(&p, false);
     TEST_ASSERT_TRUE(axis_init(&a, &p, 1e-4));
     axis_set_position(&a, 0.0);
@@ -345,6 +345,19 @@ static void test_rest_skip_is_bit_exact(void)
     }
     TEST_ASSERT_TRUE(skipped > 50);  /* the skip was taken */
     TEST_ASSERT_TRUE(a.z[0] != 0.0); /* and the 0.5 V moved the axis */
+    /* th1 standing while the rest of z moves (a small current with the
+     * axis far out: th1's change below its ulp): not at rest (lin_update
+     * looks at th1 first, then at the rest) */
+    axis_set_position(&a, 1e3);
+    a.z[4] = 1e-9;
+    for (k = 0; k < 50; k++) {
+        bool same;
+        memcpy(before, a.z, sizeof before);
+        same = axis_substep(&a, 0.0);
+        TEST_ASSERT_TRUE((memcmp(before, a.z, sizeof before) == 0) == same);
+        th1_still += before[0] == a.z[0] && !same;
+    }
+    TEST_ASSERT_EQUAL_UINT(50, th1_still);
 }
 
 /* axis_floor_i64 against floor on integers, halves, the neighbours of
