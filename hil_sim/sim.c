@@ -16,6 +16,13 @@
 
 #define PI_D 3.14159265358979323846
 
+/* A loop over the axes unrolled (GCC 8+; others: as written). */
+#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8
+#define SIM_UNROLL _Pragma("GCC unroll 4")
+#else
+#define SIM_UNROLL
+#endif
+
 static struct {
     int setup;   /* sim_setup called */
     int started; /* sim_start succeeded */
@@ -1102,15 +1109,22 @@ static inline __attribute__((always_inline)) void plant_tick_plain(void)
 {
     qgen_pos_t x1[SIM_AXES];
     unsigned i;
-    for (i = 0; i < S.axes; i++) {
-        axis_t *ax = &S.ax[i];
-        double u = (double)hal_sim_motor_mv(i) * 1e-3;
-        /* z unchanged: the reading is the one the generator has */
-        x1[i] = axis_substep_lin(ax, u) ? S.gen[i].x : to_qgen(axis_encoder_counts(ax));
-        S.table[i] = axis_table_pos_nomap(ax);
+    /* unrolled: each axis's fields at fixed addresses, no pointers to step */
+    SIM_UNROLL
+    for (i = 0; i < SIM_AXES; i++) {
+        if (i < S.axes) {
+            axis_t *ax = &S.ax[i];
+            double u = (double)hal_sim_motor_mv(i) * 1e-3;
+            /* z unchanged: the reading is the one the generator has */
+            x1[i] = axis_substep_lin(ax, u) ? S.gen[i].x : to_qgen(axis_encoder_counts(ax));
+            S.table[i] = axis_table_pos_nomap(ax);
+        }
     }
-    for (i = 0; i < S.axes; i++) {
-        S.edges += qgen_move_to(&S.gen[i], x1[i], S.t_ns + S.sub_ns[1]);
+    SIM_UNROLL
+    for (i = 0; i < SIM_AXES; i++) {
+        if (i < S.axes) {
+            S.edges += qgen_move_to(&S.gen[i], x1[i], S.t_ns + S.sub_ns[1]);
+        }
     }
 }
 

@@ -411,6 +411,43 @@ static void test_plain_loop_same_as_general(void)
     record = false;
 }
 
+/* The plain loop with fewer axes than SIM_AXES (its loops are unrolled
+ * to SIM_AXES): one and two axes on a line, the trace, the instrument and
+ * the edge count the general path's (sim_test_plain(0)). */
+static unsigned few_axes_job(unsigned axes, bool plain, double (*trace)[SIM_TRACE_COLS],
+                             double (*tab)[SIM_REC_COLS])
+{
+    int64_t t[3] = {3000000, -2000000, 0};
+    int res = 0;
+    unsigned k;
+
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, axes));
+    sim_test_plain(plain);
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, sim_enable(1));
+    TEST_ASSERT_EQUAL_INT(0, sim_queue_line(t, 50000000, 3, 1, &res));
+    for (k = 0; k < 3000u; k++) {
+        TEST_ASSERT_EQUAL_INT(0, sim_table_record(tab[k], 1, 1e4));
+        TEST_ASSERT_EQUAL_INT(1, sim_run(1, trace[k], 1, 1));
+    }
+    sim_test_plain(1);
+    TEST_ASSERT_EQUAL_UINT64(0, sim_edge_mismatches());
+    return (unsigned)sim_edges();
+}
+
+static void test_plain_loop_with_fewer_axes(void)
+{
+    unsigned axes;
+    for (axes = 1; axes < SIM_AXES; axes++) {
+        const unsigned n = 3000u; /* ticks */
+        unsigned edges = few_axes_job(axes, true, rec[0].trace, rec[0].tab);
+        TEST_ASSERT_EQUAL_UINT(edges, few_axes_job(axes, false, rec[1].trace, rec[1].tab));
+        TEST_ASSERT_TRUE(edges > 1000u); /* it moved */
+        TEST_ASSERT_EQUAL_INT(0, memcmp(rec[0].trace, rec[1].trace, sizeof rec[0].trace[0] * n));
+        TEST_ASSERT_EQUAL_INT(0, memcmp(rec[0].tab, rec[1].tab, sizeof rec[0].tab[0] * n));
+    }
+}
+
 /* Each option that the plain loop leaves to the general path (sim.c
  * run_plain: load torque, disturbance, pitch map, encoder or scale
  * reading noise, table mean, 2-D field, injection, the instrument at a
@@ -588,6 +625,7 @@ int main(void)
     RUN_TEST(test_plant_split_same_as_axis_by_axis);
     RUN_TEST(test_plain_loop_same_as_general);
     RUN_TEST(test_plain_loop_leaves_options_to_the_general_path);
+    RUN_TEST(test_plain_loop_with_fewer_axes);
     RUN_TEST(test_inputs_read_when_read_same_as_every_tick);
     RUN_TEST(test_run_until_idle_same_as_polling);
     RUN_TEST(test_hal_sim_set_after_a_source_is_read);
