@@ -266,53 +266,6 @@ static uint64_t qgen_ideal_setup(const qgen_t *g, qgen_pos_t x1, uint64_t dt, qg
     return n;
 }
 
-/* The fast path as one run (qgen_set_run): false when the move has an event
- * with Z high, more than 2^31 - 1 events, or the callback refuses it; *n
- * the events of a move taken. The count's change d = c1 - c0 has the
- * move's sign (boundaries lie at whole counts), so it is the run's steps.
- * The last crossing is of boundary c1 (forward) or c1 + 1 (backward), at
- * the time the stepper reaches: t + floor(distance * dt / |dx|). */
-static bool qgen_move_run(qgen_t *g, qgen_pos_t x1, uint64_t dt, uint64_t *n)
-{
-    qgen_pos_t x0 = g->x;
-    int64_t c0 = g->count, c1 = qgen_floor_count(x1), d = c1 - c0;
-    uint64_t den, dist, t_last;
-    qgen_u128 q, r;
-
-    *n = 0u;
-    if (d == 0) {
-        return true;
-    }
-    if (d > INT32_MAX || d < -INT32_MAX) {
-        return false;
-    }
-    if (!qgen_z_low(g, c0)) {
-        qgen_z_span(g);
-    }
-    if (!qgen_z_low(g, c0) || !qgen_z_low(g, c1)) {
-        return false; /* the span is contiguous: both ends inside, all inside */
-    }
-    if (d > 0) {
-        den = (uint64_t)(x1 - x0);
-        dist = (uint64_t)(c1 * QGEN_ONE - x0);
-    } else {
-        den = (uint64_t)(x0 - x1);
-        dist = (uint64_t)(x0 - (c1 + 1) * QGEN_ONE);
-    }
-    qgen_divmod((qgen_u128)dist * dt, den, &q, &r);
-    t_last = g->t + (uint64_t)q;
-    if (!g->run(g->ctx, (int32_t)d, (uint32_t)t_last)) {
-        return false;
-    }
-    g->count = c1;
-    g->lines = qgen_ab[(uint64_t)c1 & 3u];
-    g->last_edge_t = t_last;
-    *n = (uint64_t)(d > 0 ? d : -d);
-    g->edges += *n;
-    g->run_edges += *n;
-    return true;
-}
-
 /* The fast path with the callback. Without an index window, the loop keeps
  * everything in locals and writes the generator's fields back once at the
  * end (the callback must not read them; it gets the lines and the time). */
@@ -322,9 +275,6 @@ static uint64_t qgen_move_ideal(qgen_t *g, qgen_pos_t x1, uint64_t dt)
     uint64_t n, k, t, rem;
     bool fwd = x1 > g->x;
 
-    if (g->run != NULL && qgen_move_run(g, x1, dt, &n)) {
-        return n;
-    }
     n = qgen_ideal_setup(g, x1, dt, &st);
     if (n == 0u) {
         return 0u;
@@ -410,9 +360,10 @@ __attribute__((noinline)) static uint64_t qgen_move_general(qgen_t *g, qgen_pos_
     return n;
 }
 
-uint64_t qgen_move_changed(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
+/* A move by events (qgen_move_ideal's loops or the general path), and the
+ * position and time updated. */
+__attribute__((noinline)) static uint64_t qgen_move_events(qgen_t *g, qgen_pos_t x1, uint64_t dt)
 {
-    uint64_t dt = (t1_ns > g->t) ? t1_ns - g->t : 0u;
     uint64_t n;
 
     /* x1 == x (qgen_move_to's test): no boundary crossed on either path */
@@ -424,6 +375,121 @@ uint64_t qgen_move_changed(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
     g->x = x1;
     g->t += dt;
     return n;
+}
+
+/* The fast path as one run (qgen_set_run): the move by events when it has
+ * an event with Z high, more than 2^31 - 1 events, or the callback refuses
+ * it. The count's change d = c1 - c0 has the move's sign (boundaries lie
+ * at whole counts), so it is the run's steps. The last crossing is of
+ * boundary c1 (forward) or c1 + 1 (backward), at the time the stepper
+ * reaches: t + floor(distance * dt / |dx|). */
+
+/* The run of d steps (d != 0) with its last event at t_last: the state
+ * after it is written before the callback (which must not read the
+ * generator) and the one before it kept in undo_*, so that only the
+ * generator lives across the call; a refusal restores it and the events
+ * come one by one (lines and last_edge_t then the events' own). */
+static inline __attribute__((always_inline)) uint64_t
+qgen_run_commit(qgen_t *g, qgen_pos_t x1, uint64_t dt, int64_t d, uint64_t t_last)
+{
+    int64_t c1 = g->count + d;
+
+    g->undo_x = g->x;
+    g->undo_t = g->t;
+    g->undo_count = g->count;
+    g->x = x1;
+    g->t += dt;
+    g->count = c1;
+    g->lines = qgen_ab[(uint64_t)c1 & 3u];
+    g->last_edge_t = t_last;
+    if (!g->run(g->ctx, (int32_t)d, (uint32_t)t_last)) {
+        x1 = g->x;
+        dt = g->t - g->undo_t;
+        g->x = g->undo_x;
+        g->t = g->undo_t;
+        g->count = g->undo_count;
+        return qgen_move_events(g, x1, dt);
+    }
+    d = g->count - g->undo_count; /* nothing but g kept across the call */
+    g->edges += (uint64_t)(d > 0 ? d : -d);
+    g->run_edges += (uint64_t)(d > 0 ? d : -d);
+    return (uint64_t)(d > 0 ? d : -d);
+}
+
+/* Any run: the index window's span recomputed when the count left it, a
+ * 128-bit division when the product needs it. */
+__attribute__((noinline)) static uint64_t qgen_move_run_any(qgen_t *g, qgen_pos_t x1, uint64_t dt)
+{
+    qgen_pos_t x0 = g->x;
+    int64_t c0 = g->count, c1 = qgen_floor_count(x1), d = c1 - c0;
+    uint64_t den, dist;
+    qgen_u128 q, r;
+
+    if (d == 0) {
+        g->x = x1;
+        g->t += dt;
+        return 0u;
+    }
+    if (d > INT32_MAX || d < -INT32_MAX) {
+        return qgen_move_events(g, x1, dt);
+    }
+    if (!qgen_z_low(g, c0)) {
+        qgen_z_span(g);
+    }
+    if (!qgen_z_low(g, c0) || !qgen_z_low(g, c1)) {
+        /* the span is contiguous: both ends inside, all inside */
+        return qgen_move_events(g, x1, dt);
+    }
+    if (d > 0) {
+        den = (uint64_t)(x1 - x0);
+        dist = (uint64_t)(c1 * QGEN_ONE - x0);
+    } else {
+        den = (uint64_t)(x0 - x1);
+        dist = (uint64_t)(x0 - (c1 + 1) * QGEN_ONE);
+    }
+    qgen_divmod((qgen_u128)dist * dt, den, &q, &r);
+    return qgen_run_commit(g, x1, dt, d, g->t + (uint64_t)q);
+}
+
+/* The usual run: both ends inside the cached span, the product in 64
+ * bits, one division (the rest: qgen_move_run_any). */
+static inline uint64_t qgen_move_run(qgen_t *g, qgen_pos_t x1, uint64_t dt)
+{
+    qgen_pos_t x0 = g->x;
+    int64_t c0 = g->count, c1 = qgen_floor_count(x1), d = c1 - c0;
+    uint64_t den, dist;
+    qgen_u128 p;
+
+    if (d == 0) {
+        g->x = x1;
+        g->t += dt;
+        return 0u;
+    }
+    if (d > INT32_MAX || d < -INT32_MAX || !qgen_z_low(g, c0) || !qgen_z_low(g, c1)) {
+        return qgen_move_run_any(g, x1, dt);
+    }
+    if (d > 0) {
+        den = (uint64_t)(x1 - x0);
+        dist = (uint64_t)(c1 * QGEN_ONE - x0);
+    } else {
+        den = (uint64_t)(x0 - x1);
+        dist = (uint64_t)(x0 - (c1 + 1) * QGEN_ONE);
+    }
+    p = (qgen_u128)dist * dt;
+    if ((p >> 64) != 0u) {
+        return qgen_move_run_any(g, x1, dt);
+    }
+    return qgen_run_commit(g, x1, dt, d, g->t + (uint64_t)p / den);
+}
+
+uint64_t qgen_move_changed(qgen_t *g, qgen_pos_t x1, uint64_t t1_ns)
+{
+    uint64_t dt = (t1_ns > g->t) ? t1_ns - g->t : 0u;
+
+    if (g->run != NULL && qgen_fast_ok(g, x1, dt)) {
+        return qgen_move_run(g, x1, dt);
+    }
+    return qgen_move_events(g, x1, dt);
 }
 
 void qgen_illegal(qgen_t *g, uint64_t t_ns, uint32_t gap_ns)

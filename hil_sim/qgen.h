@@ -96,6 +96,10 @@ typedef struct {
     /* internal: counts z_lo..z_hi all have Z low (a cache: recomputed when
      * the count is outside it; z_lo > z_hi: Z high at the count) */
     int64_t z_lo, z_hi;
+    /* internal: x, t and count before a run handed to the callback */
+    qgen_pos_t undo_x;
+    uint64_t undo_t;
+    int64_t undo_count;
 } qgen_t;
 
 /* Start at position x0, time t0, no index. Emits nothing. */

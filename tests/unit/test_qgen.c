@@ -261,6 +261,7 @@ static void runs_case(qgen_pos_t x0, uint64_t t0, bool index)
 {
     qgen_t a, b;
     unsigned m, z_moves = 0, taken_before;
+    uint64_t run_edges = 0;
 
     qgen_init(&a, x0, t0, rec_emit, &rec);
     qgen_init(&b, x0, t0, rec_b_emit, NULL);
@@ -280,6 +281,9 @@ static void runs_case(qgen_pos_t x0, uint64_t t0, bool index)
         if (m % 17 == 6) {
             x1 = QGEN_COUNTS(count_of(xa) + 5); /* onto a whole count */
             dt = 1000u;
+        }
+        if (m % 29 == 3) { /* distance * dt past 2^64: the 128-bit quotient */
+            dt = ((uint64_t)1 << 37) + rnd64() % 1000u;
         }
         if (index && (m % 23 == 9 || m % 23 == 10 || m % 23 == 11 || m % 23 == 12)) {
             /* onto the edges of the index windows (counts ip - 1 .. ip + 2
@@ -321,6 +325,9 @@ static void runs_case(qgen_pos_t x0, uint64_t t0, bool index)
         TEST_ASSERT_EQUAL_UINT64(a.edges, b.edges);
         TEST_ASSERT_EQUAL_UINT64(a.last_edge_t, b.last_edge_t);
         TEST_ASSERT_EQUAL_UINT64(a.t, b.t);
+        TEST_ASSERT_EQUAL_INT64(a.x, b.x);
+        run_edges += runs.taken != taken_before ? n : 0u;
+        TEST_ASSERT_EQUAL_UINT64(run_edges, b.run_edges);
     }
     TEST_ASSERT_TRUE(runs.taken > 1000u);
     TEST_ASSERT_TRUE(runs.calls > runs.taken); /* some refused */
