@@ -93,6 +93,14 @@ static void tick(run_rec_t *r)
 
 static void finish(run_rec_t *r)
 {
+    uint32_t nedge = 0;
+    unsigned i;
+    /* every event the generators emitted reached a decoder (sim_edges
+     * counts them from the generators) */
+    for (i = 0; i < AXES; i++) {
+        nedge += drive_test_encoder(i)->e.nedge;
+    }
+    TEST_ASSERT_EQUAL_UINT32(nedge, (uint32_t)sim_edges());
     r->edges = sim_edges();
     r->run_edges = sim_run_edges();
     r->mismatches = sim_edge_mismatches();
