@@ -16,13 +16,6 @@
 
 #define PI_D 3.14159265358979323846
 
-/* A loop over the axes unrolled (GCC 8+; others: as written). */
-#if defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 8
-#define SIM_UNROLL _Pragma("GCC unroll 4")
-#else
-#define SIM_UNROLL
-#endif
-
 static struct {
     int setup;   /* sim_setup called */
     int started; /* sim_start succeeded */
@@ -1110,8 +1103,8 @@ static inline __attribute__((always_inline)) void plant_tick_plain(void)
 {
     qgen_pos_t x1[SIM_AXES];
     unsigned i;
-    /* unrolled: each axis's fields at fixed addresses, no pointers to step */
-    SIM_UNROLL
+    /* a constant trip count: the compiler unrolls the loop (each axis's
+     * fields at fixed addresses, no pointers to step) */
     for (i = 0; i < SIM_AXES; i++) {
         if (i < S.axes) {
             axis_t *ax = &S.ax[i];
@@ -1121,7 +1114,6 @@ static inline __attribute__((always_inline)) void plant_tick_plain(void)
             S.table[i] = axis_table_pos_nomap(ax);
         }
     }
-    SIM_UNROLL
     for (i = 0; i < SIM_AXES; i++) {
         if (i < S.axes) {
             (void)qgen_move_to(&S.gen[i], x1[i], S.t_ns + S.sub_ns[1]);
