@@ -112,11 +112,19 @@ void drive_inputs_sample_slow(drive_inputs_t *in, const drive_config_t *cfg, uin
     for (i = 0; (in->mean || in->interp) && i < cfg->axes; i++) {
         const qdec_t *q = &in->enc[i];
         int64_t lag = 0;
+        bool ok = true;
         if (in->interp) {
-            lag = enc_interp_step(&in->ip[i], q->out.pos, q->last_nedge, q->out.dir, q->t_edge,
-                                  q->now, in->mean ? in->tick_ns : 0u);
+            enc_interp_update(&in->ip[i], q->out.pos, q->last_nedge, q->out.dir, q->t_edge);
         }
-        if (in->interp || hal_encoder_mean(i, &lag)) {
+        if (in->mean) {
+            ok = hal_encoder_mean(i, &lag);
+            if (ok && in->interp) {
+                lag += enc_interp_mean_residual(&in->ip[i], q->now, in->tick_ns);
+            }
+        } else {
+            lag = enc_interp_pos(&in->ip[i], q->now);
+        }
+        if (ok) {
             /* 2^-16 counts -> nm, rounded */
             fb->pos[i] += fx_muldiv64(lag, cfg->nm_per_count_num[i],
                                       (int64_t)cfg->nm_per_count_den[i] * 65536);

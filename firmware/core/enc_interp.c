@@ -6,37 +6,25 @@
 
 #include "fixmath.h"
 
+#define HALF 32768 /* half a count in 2^-16 counts */
+
 void enc_interp_reset(enc_interp_t *s, int64_t pos, uint32_t nedge)
 {
     s->n = 0;
     s->pos = pos;
+    s->prev = pos;
     s->nedge = nedge;
+    s->back = false;
 }
 
-/* e * (a b + w) / c in 2^-16 counts, e in half counts (e 2^15). */
-static int64_t enc_interp_term(int64_t e, int64_t a, int64_t b, int64_t w, int64_t c)
+void enc_interp_update(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir, int64_t t_edge_ns)
 {
-    return fx_muldiv64(e * 32768, a * b + w, c);
-}
-
-int64_t enc_interp_step(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir,
-                        int64_t t_edge_ns, int64_t now_ns, uint32_t window_ns)
-{
-    int64_t lo = 2 * pos - 1, hi = 2 * pos + 1; /* half counts */
-    int64_t est, m, w;
-    unsigned k;
-
+    s->prev = s->pos;
+    s->back = false;
     if (nedge != s->nedge) {
         uint32_t edges = nedge - s->nedge;
-        uint64_t moved = fx_uabs64(pos - s->pos);
 
-        if (window_ns != 0u) {
-            /* the cells between the two counts, and one more on each
-             * side per two edges the count difference does not show */
-            int64_t extra = edges > moved ? (int64_t)(edges - moved) : 0;
-            lo = 2 * fx_min64(pos, s->pos) - 1 - extra;
-            hi = 2 * fx_max64(pos, s->pos) + 1 + extra;
-        }
+        s->back = edges > fx_uabs64(pos - s->pos);
         if (s->n == 0 || t_edge_ns > s->t[2]) { /* else it replaces the newest */
             s->e[0] = s->e[1];
             s->t[0] = s->t[1];
@@ -46,29 +34,87 @@ int64_t enc_interp_step(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir
         }
         s->e[2] = 2 * pos - (dir < 0 ? -1 : 1);
         s->t[2] = t_edge_ns;
-        s->pos = pos;
         s->nedge = nedge;
     }
-    /* events within the span, newest first: k of them */
-    k = 0;
+    s->pos = pos;
+}
+
+/* e * (a b + w) / c in 2^-16 counts, e in half counts (e 2^15). */
+static int64_t enc_interp_term(int64_t e, int64_t a, int64_t b, int64_t w, int64_t c)
+{
+    return fx_muldiv64(e * HALF, a * b + w, c);
+}
+
+/* The events' quadratic (or line) at the centre of a window of w ns ending
+ * at t_ns (its mean over the window), in 2^-16 counts relative to 2 pos
+ * half counts; false when fewer than two events lie within the span. */
+static bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns, uint32_t w,
+                            int64_t *x)
+{
+    int64_t m, w2, est;
+    unsigned k = 0;
+
     while (k < s->n && now_ns - s->t[2 - k] <= ENC_INTERP_SPAN_NS) {
         k++;
     }
     if (k < 2) {
-        return 0; /* no velocity known: the count */
+        return false;
     }
-    m = now_ns - (int64_t)(window_ns / 2u) - s->t[2]; /* the window's centre */
-    w = (int64_t)window_ns * window_ns / 12;
-    est = s->e[2] * 32768;
+    m = t_ns - (int64_t)(w / 2u) - s->t[2];
+    w2 = (int64_t)w * w / 12;
+    est = (s->e[2] - 2 * s->pos) * HALF;
     if (k == 2) {
         est += enc_interp_term(s->e[1] - s->e[2], m, 1, 0, s->t[1] - s->t[2]);
     } else {
         int64_t d1 = s->t[1] - s->t[2], d0 = s->t[0] - s->t[2];
-        est = fx_sat_add64(
-            est, enc_interp_term(s->e[1] - s->e[2], m, m - d0, w, d1 * (d1 - d0)));
-        est = fx_sat_add64(
-            est, enc_interp_term(s->e[0] - s->e[2], m, m - d1, w, d0 * (d0 - d1)));
+        est = fx_sat_add64(est,
+                           enc_interp_term(s->e[1] - s->e[2], m, m - d0, w2, d1 * (d1 - d0)));
+        est = fx_sat_add64(est,
+                           enc_interp_term(s->e[0] - s->e[2], m, m - d1, w2, d0 * (d0 - d1)));
     }
-    est = fx_clamp64(est, lo * 32768, hi * 32768);
-    return est - 2 * pos * 32768;
+    *x = est;
+    return true;
+}
+
+int64_t enc_interp_pos(const enc_interp_t *s, int64_t now_ns)
+{
+    int64_t x;
+
+    if (!enc_interp_eval(s, now_ns, now_ns, 0u, &x)) {
+        return 0; /* no velocity known: the count */
+    }
+    return fx_clamp64(x, -HALF, HALF);
+}
+
+/* Integral of the centred count, floor(y + 1/2), from 0 to y (2^-16
+ * counts), in 2^-16 counts^2: with c = floor(y + 1/2), the cells below
+ * contribute c (c - 1) / 2 + 1/2 ... evaluated as G(y + 1/2) - G(1/2),
+ * G(z) = n (n - 1) / 2 + n (z - n), n = floor(z): G(1/2) = 0. */
+static int64_t enc_interp_cells(int64_t y)
+{
+    int64_t z = y + HALF;
+    int64_t n = z >> 16; /* floor */
+
+    return n * (n - 1) / 2 * 65536 + n * (z - n * 65536);
+}
+
+int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t tick_ns)
+{
+    int64_t x0, x1, c0, c1, lin;
+
+    if (s->back || !enc_interp_eval(s, now_ns, now_ns - tick_ns, 0u, &x0) ||
+        !enc_interp_eval(s, now_ns, now_ns, 0u, &x1)) {
+        return 0; /* the count's mean alone */
+    }
+    /* each end inside the cell its sample's count proves */
+    x0 = fx_clamp64(x0, 2 * (s->prev - s->pos) * HALF - HALF, 2 * (s->prev - s->pos) * HALF + HALF);
+    x1 = fx_clamp64(x1, -HALF, HALF);
+    /* mean of x - floor(x + 1/2) along the line from x0 to x1 */
+    lin = (x0 + x1) / 2;
+    c0 = x0 + HALF;
+    c1 = x1 + HALF;
+    if ((c0 >> 16) == (c1 >> 16)) {
+        return lin - (c0 >> 16) * 65536;
+    }
+    return lin - fx_div_shift64(enc_interp_cells(x1) - enc_interp_cells(x0), x1 - x0, 16);
 }

@@ -5,53 +5,66 @@
  * Specification
  * -------------
  * Counts are centred: count n stands for the positions [n - 1/2, n + 1/2)
- * (in counts), so an edge lies half a count from the count on either side
+ * (counts), so each edge lies half a count from the counts on either side
  * of it. The decoder (qdec.h, edge input) gives at each sample its count
  * n, its counted edges (nedge, wrapping), the direction of the last one
- * and that edge's time t_edge (ns, qdec's extended clock): a counted edge
- * is an exact point of the trajectory, (n - dir / 2, t_edge), in half
- * counts 2 n - dir. One event is kept per sample that saw counted edges
- * (its last edge; the ones before it in the same sample are not timed),
- * the newest three (enc_interp_step).
+ * and that edge's time t_edge (ns, qdec's extended clock, the one of the
+ * sample times): a counted edge is an exact point of the trajectory,
+ * (n - dir / 2, t_edge), 2 n - dir in half counts. enc_interp_update
+ * keeps one such event per sample that saw counted edges (its last edge:
+ * the ones before it in the same sample are not timed), the newest three.
  *
- * The estimate is the quadratic through the three events (Lagrange form,
- * relative to the newest one):
- *   x(t) = E2 + e1 L1(u) + e0 L0(u),  u = t - T2, e_i = E_i - E2,
+ * The model is the quadratic through the three events (Lagrange form,
+ * relative to the newest one, E2 at T2):
+ *   x(t) = E2 + e1 L1(u) + e0 L0(u),  u = t - T2,  e_i = E_i - E2,
  *   L1 = u (u - d0) / (d1 (d1 - d0)),  L0 = u (u - d1) / (d0 (d0 - d1)),
  *   d_i = T_i - T2 (< 0),
- * which is exact for motion of constant acceleration: a decelerating
- * approach, and the reversal itself, where the same edge is crossed back
- * (events E, E at T1 < T2: the axis went past E by a (T2 - T1)^2 / 8 and
- * returned; with the edge before, E -+ 1 at T0, the three fix a, the peak
- * and the velocity -v at T2, and the quadratic follows the axis to the
- * next edge). Two events (the start, or the oldest too old): the line
- * through them. None, or no event within ENC_INTERP_SPAN_NS: the count
- * itself. The mean over a window W ending at the sample (enc_mean's tick,
- * drive.h) is the quadratic's exact mean, its value at the window's centre
- * m plus W^2 / 12 in each product: (m - a)(m - b) + W^2 / 12; W = 0 gives
- * the position at the sample.
+ * exact for motion of constant acceleration: a decelerating approach and
+ * the reversal itself, where the same edge is crossed back (events E, E at
+ * T1 < T2: the axis went a (T2 - T1)^2 / 8 past E and returned; with the
+ * edge before, E -+ 1 at T0, the three fix a, the peak and the velocity
+ * at T2, and the quadratic follows the axis to its next edge, which is
+ * where the count alone says nothing for longest). Two events (the start,
+ * or the oldest more than ENC_INTERP_SPAN_NS before the sample): the line
+ * through them. Fewer: nothing below the count (the count itself).
  *
- * Held inside what the counts prove: the estimate is clamped to the cells
- * the axis can have been in, with W = 0 the count's own interval
- * [n - 1/2, n + 1/2]; with W > 0 the cells from the count at the previous
- * sample to n, widened by one cell per two counted edges that do not show
- * in the count difference (a return within the window). So
- *   |error| <= 1 count always (the count alone: 1/2), and, for a
- *   trajectory x with |x'''| <= J over [T0, t] and exact edge times,
- *   |error| <= J |u (u - d1) (u - d0)| / 6 (the interpolation remainder;
- *   0 at constant acceleration) plus the timestamps' resolution times the
- *   velocity (1 ns: 1e-9 v), before the clamp, which only reduces it.
- * Edge placement errors e (a fraction of a count: quadrature phase, duty
- * cycle) enter as e times sum |L_i| (<= 3 while u lies between the oldest
- * event and a span past the newest equal to the events' spacing).
+ * enc_interp_pos: the model at the sample, held inside the count's cell,
+ * [-1/2, +1/2] count from n.
+ * enc_interp_mean_residual, for a drive that reads the count's mean over
+ * the tick (hal_encoder_mean, drive.h enc_mean): what that mean misses,
+ * the mean over the tick of x - round(x) (round: the centred count), with
+ * x the line between the model at the previous sample (held inside that
+ * sample's cell) and at this one (inside this one's), evaluated exactly
+ * (the integral of the centred count along a line in closed form, one
+ * division). The count's mean plus it is the mean of x: where the axis
+ * crosses many counts in a tick the sawtooth averages out and the count's
+ * mean stands (its boxcar, which removes what the sample would alias, is
+ * kept); where it crosses none, near a reversal, it is the model's mean
+ * position in the count. 0 after a return within the tick (more edges
+ * than the count moved: the line cannot stand for it).
  *
- * Fixed point: positions in half counts (int64), times in ns (int64);
- * the result in 2^-16 counts relative to n, two exact-rounding 128-bit
- * multiply-divides (fx_muldiv64) per quadratic; the span limit keeps every
- * time product below 2^54. Every counted edge moves the event ring; a
- * sample without a counted edge only evaluates.
+ * Error bounds (counts; exact edge times, J = max |x'''| over [T0, t]):
+ *   enc_interp_pos: |error| <= 1 always (held in the cell; the count
+ *     alone: 1/2), and <= J |u (u - d1) (u - d0)| / 6 (the interpolation
+ *     remainder: 0 at constant acceleration), which the hold only reduces;
+ *   enc_interp_mean_residual (with the count's exact mean): the mean of
+ *     the sawtooth along the line instead of along x, so at most the
+ *     largest |x - line| over the tick: the bound above at the two samples
+ *     plus |x''| T^2 / 8 between them (R 50 mm, 10 m/min at 10 kHz:
+ *     0.56 m/s^2, 4e-5 counts of 1.25 um); and always <= 1/2.
+ * Timestamps of resolution r add |v| r (1 ns); edge placement errors p (a
+ * fraction of a count: quadrature phase, duty cycle) add p times
+ * |L1| + |L0| + |1 - L1 - L0| (equally spaced events: 1 at an event, 3.5
+ * half a spacing past the newest, 7 a whole spacing past it). An axis that stops inside a cell is
+ * extrapolated for up to ENC_INTERP_SPAN_NS (the model turns it back to a
+ * cell edge, held there: within the first bound), then it is the count.
  *
- * Context: tick (drive_inputs_sample); state private to it.
+ * Fixed point: positions in half counts (int64), times in ns (int64),
+ * results in 2^-16 counts relative to n; two exact-rounding 128-bit
+ * multiply-divides (fx_muldiv64) per quadratic, the span keeping every
+ * time product below 2^54. No floating point, no heap.
+ *
+ * Context: tick (drive_inputs_sample_slow); the state is the tick's.
  */
 #ifndef ENC_INTERP_H
 #define ENC_INTERP_H
@@ -68,19 +81,29 @@ typedef struct {
     int64_t e[3];   /* events, half counts (2 n - dir), [2] the newest  */
     int64_t t[3];   /* their times, ns (the decoder's extended clock)  */
     uint8_t n;      /* events held, 0..3                               */
+    bool back;      /* the last sample's edges went back and forth     */
     int64_t pos;    /* count at the last sample                        */
+    int64_t prev;   /* count at the sample before                      */
     uint32_t nedge; /* counted edges at the last sample (wrapping)     */
 } enc_interp_t;
 
 /* Start with no event at count pos, nedge counted edges. */
 void enc_interp_reset(enc_interp_t *s, int64_t pos, uint32_t nedge);
 
-/* One sample at now_ns with the decoder's count pos, counted edges nedge,
- * the last edge's direction dir (+1 / -1) and time t_edge_ns: records the
- * event when nedge changed, and returns the estimated position (mean over
- * the window_ns before now_ns; 0: at now_ns) minus pos, in 2^-16 counts,
- * clamped as above (within [-2^15, 2^15] when window_ns is 0). */
-int64_t enc_interp_step(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir,
-                        int64_t t_edge_ns, int64_t now_ns, uint32_t window_ns);
+/* Once per sample, after the decoder's: its count pos, counted edges
+ * nedge, the last edge's direction dir (+1 / -1) and time t_edge_ns;
+ * records the event when nedge changed. */
+void enc_interp_update(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir, int64_t t_edge_ns);
+
+/* The position at the sample now_ns minus the count, 2^-16 counts, in
+ * [-2^15, 2^15] (0 without two events in the span). */
+int64_t enc_interp_pos(const enc_interp_t *s, int64_t now_ns);
+
+/* What the count's mean over the tick (tick_ns ending at the sample
+ * now_ns, the previous sample at its start) misses: the mean of
+ * x - round(x) along the line between the estimates at the two samples
+ * (each held in its sample's count), 2^-16 counts; 0 without two events in
+ * the span or after a return within the tick. */
+int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t tick_ns);
 
 #endif /* ENC_INTERP_H */
