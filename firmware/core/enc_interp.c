@@ -15,13 +15,15 @@ void enc_interp_reset(enc_interp_t *s, int64_t pos, uint32_t nedge)
     s->prev = pos;
     s->nedge = nedge;
     s->back = false;
+    s->edged = false;
 }
 
 void enc_interp_update(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir, int64_t t_edge_ns)
 {
     s->prev = s->pos;
     s->back = false;
-    if (nedge != s->nedge) {
+    s->edged = nedge != s->nedge;
+    if (s->edged) {
         uint32_t edges = nedge - s->nedge;
 
         s->back = edges > fx_uabs64(pos - s->pos);
@@ -86,10 +88,10 @@ int64_t enc_interp_pos(const enc_interp_t *s, int64_t now_ns)
     return fx_clamp64(x, -HALF, HALF);
 }
 
-/* Integral of the centred count, floor(y + 1/2), from 0 to y (2^-16
- * counts), in 2^-16 counts^2: with c = floor(y + 1/2), the cells below
- * contribute c (c - 1) / 2 + 1/2 ... evaluated as G(y + 1/2) - G(1/2),
- * G(z) = n (n - 1) / 2 + n (z - n), n = floor(z): G(1/2) = 0. */
+/* Integral of the centred count floor(y + 1/2) from 0 to y (y in 2^-16
+ * counts; the result in 2^-16 counts^2): G(y + 1/2) - G(1/2) with
+ * G(z) = n (n - 1) / 2 + n (z - n), n = floor(z), the integral of floor
+ * from 0 to z, and G(1/2) = 0. */
 static int64_t enc_interp_cells(int64_t y)
 {
     int64_t z = y + HALF;
@@ -98,23 +100,40 @@ static int64_t enc_interp_cells(int64_t y)
     return n * (n - 1) / 2 * 65536 + n * (z - n * 65536);
 }
 
+/* The integral over a segment of d ns along the line from y0 to y1 (2^-16
+ * counts) of y - floor(y + 1/2), in 2^-16 counts ns. */
+static int64_t enc_interp_saw(int64_t y0, int64_t y1, int64_t d)
+{
+    int64_t c0 = (y0 + HALF) >> 16, c1 = (y1 + HALF) >> 16;
+    int64_t cells;
+
+    if (c0 == c1) {
+        cells = c0 * 65536;
+    } else {
+        cells = fx_div_shift64(enc_interp_cells(y1) - enc_interp_cells(y0), y1 - y0, 16);
+    }
+    return ((y0 + y1) / 2 - cells) * d;
+}
+
 int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t tick_ns)
 {
-    int64_t x0, x1, c0, c1, lin;
+    int64_t t0 = now_ns - (int64_t)tick_ns, x0, x1, sum;
+    int64_t c0 = 2 * (s->prev - s->pos) * HALF; /* the previous count's centre */
 
-    if (s->back || !enc_interp_eval(s, now_ns, now_ns - tick_ns, 0u, &x0) ||
+    if (s->back || !enc_interp_eval(s, now_ns, t0, 0u, &x0) ||
         !enc_interp_eval(s, now_ns, now_ns, 0u, &x1)) {
         return 0; /* the count's mean alone */
     }
     /* each end inside the cell its sample's count proves */
-    x0 = fx_clamp64(x0, 2 * (s->prev - s->pos) * HALF - HALF, 2 * (s->prev - s->pos) * HALF + HALF);
+    x0 = fx_clamp64(x0, c0 - HALF, c0 + HALF);
     x1 = fx_clamp64(x1, -HALF, HALF);
-    /* mean of x - floor(x + 1/2) along the line from x0 to x1 */
-    lin = (x0 + x1) / 2;
-    c0 = x0 + HALF;
-    c1 = x1 + HALF;
-    if ((c0 >> 16) == (c1 >> 16)) {
-        return lin - (c0 >> 16) * 65536;
+    if (s->edged && s->t[2] > t0) {
+        /* through the tick's last edge, which is exact: the line crosses
+         * it when the axis did */
+        int64_t xe = (s->e[2] - 2 * s->pos) * HALF;
+        sum = enc_interp_saw(x0, xe, s->t[2] - t0) + enc_interp_saw(xe, x1, now_ns - s->t[2]);
+    } else {
+        sum = enc_interp_saw(x0, x1, (int64_t)tick_ns);
     }
-    return lin - fx_div_shift64(enc_interp_cells(x1) - enc_interp_cells(x0), x1 - x0, 16);
+    return fx_div_round64(sum, (int64_t)tick_ns);
 }

@@ -81,7 +81,8 @@ typedef struct {
     int64_t e[3];   /* events, half counts (2 n - dir), [2] the newest  */
     int64_t t[3];   /* their times, ns (the decoder's extended clock)  */
     uint8_t n;      /* events held, 0..3                               */
-    bool back;      /* the last sample's edges went back and forth     */
+    bool edged;     /* the last sample saw counted edges               */
+    bool back;      /* ... more than its count moved: back and forth    */
     int64_t pos;    /* count at the last sample                        */
     int64_t prev;   /* count at the sample before                      */
     uint32_t nedge; /* counted edges at the last sample (wrapping)     */
