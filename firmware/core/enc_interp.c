@@ -41,19 +41,18 @@ void enc_interp_update(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir,
     s->pos = pos;
 }
 
-/* e * (a b + w) / c in 2^-16 counts, e in half counts (e 2^15). */
-static int64_t enc_interp_term(int64_t e, int64_t a, int64_t b, int64_t w, int64_t c)
+/* e a b / c in 2^-16 counts, e in half counts (e 2^15). */
+static int64_t enc_interp_term(int64_t e, int64_t a, int64_t b, int64_t c)
 {
-    return fx_muldiv64(e * HALF, a * b + w, c);
+    return fx_muldiv64(e * HALF, a * b, c);
 }
 
-/* The events' quadratic (or line) at the centre of a window of w ns ending
- * at t_ns (its mean over the window), in 2^-16 counts relative to 2 pos
- * half counts; false when fewer than two events lie within the span. */
-static bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns, uint32_t w,
-                            int64_t *x)
+/* The events' quadratic (or line) at t_ns, in 2^-16 counts relative to
+ * the count; false when fewer than two events lie within the span before
+ * the sample now_ns. */
+static bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns, int64_t *x)
 {
-    int64_t m, w2, est;
+    int64_t m, est;
     unsigned k = 0;
 
     while (k < s->n && now_ns - s->t[2 - k] <= ENC_INTERP_SPAN_NS) {
@@ -62,17 +61,14 @@ static bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns,
     if (k < 2) {
         return false;
     }
-    m = t_ns - (int64_t)(w / 2u) - s->t[2];
-    w2 = (int64_t)w * w / 12;
+    m = t_ns - s->t[2];
     est = (s->e[2] - 2 * s->pos) * HALF;
     if (k == 2) {
-        est += enc_interp_term(s->e[1] - s->e[2], m, 1, 0, s->t[1] - s->t[2]);
+        est += enc_interp_term(s->e[1] - s->e[2], m, 1, s->t[1] - s->t[2]);
     } else {
         int64_t d1 = s->t[1] - s->t[2], d0 = s->t[0] - s->t[2];
-        est = fx_sat_add64(est,
-                           enc_interp_term(s->e[1] - s->e[2], m, m - d0, w2, d1 * (d1 - d0)));
-        est = fx_sat_add64(est,
-                           enc_interp_term(s->e[0] - s->e[2], m, m - d1, w2, d0 * (d0 - d1)));
+        est = fx_sat_add64(est, enc_interp_term(s->e[1] - s->e[2], m, m - d0, d1 * (d1 - d0)));
+        est = fx_sat_add64(est, enc_interp_term(s->e[0] - s->e[2], m, m - d1, d0 * (d0 - d1)));
     }
     *x = est;
     return true;
@@ -82,7 +78,7 @@ int64_t enc_interp_pos(const enc_interp_t *s, int64_t now_ns)
 {
     int64_t x;
 
-    if (!enc_interp_eval(s, now_ns, now_ns, 0u, &x)) {
+    if (!enc_interp_eval(s, now_ns, now_ns, &x)) {
         return 0; /* no velocity known: the count */
     }
     return fx_clamp64(x, -HALF, HALF);
@@ -120,8 +116,8 @@ int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t
     int64_t t0 = now_ns - (int64_t)tick_ns, x0, x1, sum;
     int64_t c0 = 2 * (s->prev - s->pos) * HALF; /* the previous count's centre */
 
-    if (s->back || !enc_interp_eval(s, now_ns, t0, 0u, &x0) ||
-        !enc_interp_eval(s, now_ns, now_ns, 0u, &x1)) {
+    if (s->back || !enc_interp_eval(s, now_ns, t0, &x0) ||
+        !enc_interp_eval(s, now_ns, now_ns, &x1)) {
         return 0; /* the count's mean alone */
     }
     /* each end inside the cell its sample's count proves */

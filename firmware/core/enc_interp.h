@@ -62,7 +62,11 @@
  * Fixed point: positions in half counts (int64), times in ns (int64),
  * results in 2^-16 counts relative to n; two exact-rounding 128-bit
  * multiply-divides (fx_muldiv64) per quadratic, the span keeping every
- * time product below 2^54. No floating point, no heap.
+ * time product below 2^54. No floating point, no heap. Cost on the
+ * Cortex-M4 (bench/bench-firmware.sh, the helix of three axes with
+ * enc_interp on, enc_interp_update + enc_interp_pos per axis and tick):
+ * control_tick_instructions_m4_interp 3787 against 1484 without, about
+ * 770 per axis, most of it the two 128-bit divisions.
  *
  * Context: tick (drive_inputs_sample_slow); the state is the tick's.
  */
