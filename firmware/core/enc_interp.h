@@ -32,37 +32,46 @@
  * [-1/2, +1/2] count from n.
  * enc_interp_mean_residual, for a drive that reads the count's mean over
  * the tick (hal_encoder_mean, drive.h enc_mean): what that mean misses,
- * the mean over the tick of x - round(x) (round: the centred count), with
- * x the line between the model at the previous sample (held inside that
- * sample's cell) and at this one (inside this one's), evaluated exactly
- * (the integral of the centred count along a line in closed form, one
- * division). The count's mean plus it is the mean of x: where the axis
+ * the mean over the tick of y - round(y) (round: the centred count), y
+ * the piecewise line from the model at the previous sample (held inside
+ * that sample's cell) through the tick's last edge, when the tick has
+ * one (exact), to the model at this sample (inside this one's cell),
+ * evaluated exactly (the integral of the centred count along a line in
+ * closed form, one division per segment that crosses an edge). The
+ * count's mean plus it is the mean of the position: where the axis
  * crosses many counts in a tick the sawtooth averages out and the count's
  * mean stands (its boxcar, which removes what the sample would alias, is
  * kept); where it crosses none, near a reversal, it is the model's mean
  * position in the count. 0 after a return within the tick (more edges
- * than the count moved: the line cannot stand for it).
+ * than the count moved: no line stands for it).
  *
- * Error bounds (counts; exact edge times, J = max |x'''| over [T0, t]):
+ * Error bounds (counts; exact edge times; x the true position, J the
+ * largest |x'''| over [T0, t], T the tick):
  *   enc_interp_pos: |error| <= 1 always (held in the cell; the count
  *     alone: 1/2), and <= J |u (u - d1) (u - d0)| / 6 (the interpolation
  *     remainder: 0 at constant acceleration), which the hold only reduces;
- *   enc_interp_mean_residual (with the count's exact mean): the mean of
- *     the sawtooth along the line instead of along x, so at most the
- *     largest |x - line| over the tick: the bound above at the two samples
- *     plus |x''| T^2 / 8 between them (R 50 mm, 10 m/min at 10 kHz:
- *     0.56 m/s^2, 4e-5 counts of 1.25 um); and always <= 1/2.
+ *   enc_interp_mean_residual, added to the count's exact mean: the
+ *     sawtooth's mean along y instead of x. Where both lie in one cell
+ *     they differ by x - y: the bound above at the two samples plus
+ *     |x''| T^2 / 8 between the knots (R 50 mm, 10 m/min at 10 kHz:
+ *     0.56 m/s^2, 5.6e-4 counts of 1.25 um; in the mean T^2 / 12). The
+ *     tick's last edge is a knot, so with at most one edge in the tick
+ *     the cells agree; each earlier edge of a tick moves its crossing by
+ *     |x - y| / |v| and adds |x - y| / (|v| T), below |x - y| since such
+ *     a tick crosses more than a count. Always within 1/2.
  * Timestamps of resolution r add |v| r (1 ns); edge placement errors p (a
  * fraction of a count: quadrature phase, duty cycle) add p times
  * |L1| + |L0| + |1 - L1 - L0| (equally spaced events: 1 at an event, 3.5
- * half a spacing past the newest, 7 a whole spacing past it). An axis that stops inside a cell is
- * extrapolated for up to ENC_INTERP_SPAN_NS (the model turns it back to a
- * cell edge, held there: within the first bound), then it is the count.
+ * half a spacing past the newest, 7 a whole spacing past it). An axis
+ * that stops inside a cell is extrapolated for up to ENC_INTERP_SPAN_NS
+ * (the model turns it back to a cell edge, held there: within the first
+ * bound), then it is the count.
  *
  * Fixed point: positions in half counts (int64), times in ns (int64),
  * results in 2^-16 counts relative to n; two exact-rounding 128-bit
  * multiply-divides (fx_muldiv64) per quadratic, the span keeping every
- * time product below 2^54. No floating point, no heap. Cost on the
+ * time product below 2^54; the sawtooth's integral is exact while a tick
+ * moves less than 2^23 counts. No floating point, no heap. Cost on the
  * Cortex-M4 (bench/bench-firmware.sh, the helix of three axes with
  * enc_interp on, enc_interp_update + enc_interp_pos per axis and tick):
  * control_tick_instructions_m4_interp 3787 against 1484 without, about
@@ -106,9 +115,10 @@ int64_t enc_interp_pos(const enc_interp_t *s, int64_t now_ns);
 
 /* What the count's mean over the tick (tick_ns ending at the sample
  * now_ns, the previous sample at its start) misses: the mean of
- * x - round(x) along the line between the estimates at the two samples
- * (each held in its sample's count), 2^-16 counts; 0 without two events in
- * the span or after a return within the tick. */
+ * y - round(y) along the line from the estimate at the previous sample
+ * through the tick's last edge to the one at this sample (each held in
+ * its sample's count), 2^-16 counts, within [-2^15, 2^15]; 0 without two
+ * events in the span or after a return within the tick. */
 int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t tick_ns);
 
 #endif /* ENC_INTERP_H */
