@@ -466,6 +466,8 @@ int sim_servo_set(unsigned axis, const char *name, double v)
         S.dcfg.qg_comp = v != 0.0;
     } else if (strcmp(name, "enc_mean") == 0 && (v == 0.0 || v == 1.0)) {
         S.dcfg.enc_mean = v != 0.0;
+    } else if (strcmp(name, "enc_interp") == 0 && (v == 0.0 || v == 1.0)) {
+        S.dcfg.enc_interp = v != 0.0;
     } else if (strcmp(name, "ffl_rate") == 0 && in_range(v, 0.0, SERVO_FFL_RATE_MAX)) {
         p->ffl_rate = (int32_t)floor(v + 0.5);
     } else if (strcmp(name, "handover") == 0) {

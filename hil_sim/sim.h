@@ -181,7 +181,8 @@ double sim_table_record_hz(void);
  *       ignored), ff_advance (s, drive.h ff_advance_ns; axis ignored),
  *       qg_comp (0/1, drive.h; axis ignored), ffl_rate (1/s, servo.h
  *       "Feed-forward learning"; axis ignored), cec_thesis_form (0/1,
- *       cec.h thesis_form; axis ignored).
+ *       cec.h thesis_form; axis ignored), enc_mean / enc_interp (0/1,
+ *       drive.h; axis ignored).
  *   sim_plan_set(axis, name, v)   v_max (m/s), a_max (m/s^2), j_max (m/s^3),
  *       corner_dv (m/s), corner_acc (m/s^2); axis ignored: junction_dev (m),
  *       corner (plan_corner_t), shape (sc_shape_t), min_block (s),

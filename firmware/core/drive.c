@@ -106,6 +106,11 @@ drive_result_t drive_init(const drive_config_t *cfg)
     if (cfg->enc_mean && !drive_inputs_mean_ok(cfg->axes)) {
         return DRIVE_E_UNSUPPORTED;
     }
+    for (i = 0; cfg->enc_interp && i < cfg->axes; i++) {
+        if (cfg->enc_counter[i]) {
+            return DRIVE_E_UNSUPPORTED; /* no edge times */
+        }
+    }
     drv.ready = false;
     drv.cfg = *cfg;
     drv.ff = (drive_ff_t){0};

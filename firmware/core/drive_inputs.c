@@ -58,6 +58,11 @@ bool drive_inputs_init(drive_inputs_t *in, const drive_config_t *cfg, uint32_t n
             }
         }
     }
+    in->interp = cfg->enc_interp;
+    in->tick_ns = (uint32_t)((1000000000u + cfg->tick_hz / 2u) / cfg->tick_hz);
+    for (i = 0; i < CORE_AXES; i++) {
+        enc_interp_reset(&in->ip[i], in->enc[i].out.pos, in->enc[i].last_nedge);
+    }
     drive_inputs_set_mean(in, cfg->enc_mean);
     return true;
 }
@@ -76,7 +81,7 @@ bool drive_inputs_mean_ok(unsigned axes)
 void drive_inputs_set_mean(drive_inputs_t *in, bool on)
 {
     in->mean = on;
-    in->slow = in->any_counter || on;
+    in->slow = in->any_counter || on || in->interp;
 }
 
 void drive_inputs_sample_slow(drive_inputs_t *in, const drive_config_t *cfg, uint32_t now_ns,
@@ -104,9 +109,22 @@ void drive_inputs_sample_slow(drive_inputs_t *in, const drive_config_t *cfg, uin
     }
     fb->enc_fault = enc_fault;
     comp2d_live_apply(&in->enc[0].out.pos_nm, &in->enc[1].out.pos_nm, &fb->pos[0], &fb->pos[1]);
-    for (i = 0; in->mean && i < cfg->axes; i++) {
+    for (i = 0; (in->mean || in->interp) && i < cfg->axes; i++) {
+        const qdec_t *q = &in->enc[i];
         int64_t lag = 0;
-        if (hal_encoder_mean(i, &lag)) {
+        bool ok = true;
+        if (in->interp) {
+            enc_interp_update(&in->ip[i], q->out.pos, q->last_nedge, q->out.dir, q->t_edge);
+        }
+        if (in->mean) {
+            ok = hal_encoder_mean(i, &lag);
+            if (ok && in->interp) {
+                lag += enc_interp_mean_residual(&in->ip[i], q->now, in->tick_ns);
+            }
+        } else {
+            lag = enc_interp_pos(&in->ip[i], q->now);
+        }
+        if (ok) {
             /* 2^-16 counts -> nm, rounded */
             fb->pos[i] += fx_muldiv64(lag, cfg->nm_per_count_num[i],
                                       (int64_t)cfg->nm_per_count_den[i] * 65536);

@@ -22,6 +22,11 @@
  * scaled by nm_per_count (rounded; after the 2-D map, which is taken at
  * the sample: the map's slope over half a tick's travel is below a nm);
  * the decoders' own output (pos_nm, the status) stays the sample's.
+ * Interpolated measurement (cfg->enc_interp, drive.h): the feedback of
+ * every axis is its decoder's position plus enc_interp_step's estimate
+ * below the count (2^-16 counts, scaled as the mean's lag), at the sample,
+ * or with enc_mean over the tick (1e9 / tick_hz rounded, ns) in place of
+ * hal_encoder_mean's lag; the decoders' own output stays the sample's.
  * drive_inputs_mean_ok: the port provides it for axes 0..axes-1.
  * drive_inputs_set_mean switches it (main, planner idle: the reference at
  * rest).
@@ -38,6 +43,7 @@
 
 #include "comp2d_live.h"
 #include "drive.h"
+#include "enc_interp.h"
 #include "hal.h"
 #include "qdec.h"
 #include "servo.h"
@@ -54,8 +60,12 @@ typedef struct {
     pos_nm_t ref_nm[CORE_AXES];  /* position, nm (published)            */
     bool any_counter;            /* some axis in use has enc_counter    */
     bool mean;                   /* enc_mean (main writes, planner idle) */
-    bool slow;                   /* any_counter or mean: the out-of-line
-                                  * sample (main writes with mean)     */
+    bool slow;                   /* any_counter, mean or interp: the
+                                  * out-of-line sample (main writes with
+                                  * mean)                              */
+    bool interp;                 /* enc_interp (drive_inputs_init)      */
+    uint32_t tick_ns;            /* 1e9 / tick_hz: enc_mean's window    */
+    enc_interp_t ip[CORE_AXES];  /* enc_interp per axis (tick)          */
 } drive_inputs_t;
 
 /* Set up the decoders of cfg's axes at now_ns (see above). False when a

@@ -7,7 +7,8 @@ cec-curvature, cec-exact, in three set-ups:
   B. the same at the thesis's 3 ms tick (thesis machine, its own gains);
   C. the product default (full feed-forward) at 10 kHz and at 3 ms, both
      with the mean measurement (default_mean.toml, thesis_mean.toml:
-     drive.h enc_mean);
+     drive.h enc_mean), at 10 kHz with the position below the count from
+     the edge times (drive.h enc_interp);
   D. the thesis's cutting-force disturbance (eq. 4.3) and a table spring
      on R 20 mm at 10 m/min (set-up A), with a steady-state model check;
   E. the thesis's experimental tests (Tables 5.10-5.18) at 3 ms.
@@ -38,7 +39,12 @@ THESIS_CTRL = {"pid": "pid", "cec-tangent": "pid+cec_tangent", "cec-curvature": 
 SETUPS = [
     ("A", "no feed-forward, 10 kHz", "default", "none"),
     ("B", "no feed-forward, 3 ms", "thesis", "none"),
-    ("C10", "full feed-forward, 10 kHz, mean measurement", "default_mean", "full"),
+    (
+        "C10",
+        "full feed-forward, 10 kHz, mean measurement with edge interpolation",
+        "default_mean",
+        "full",
+    ),
     ("C3", "full feed-forward, 3 ms, mean measurement", "thesis_mean", "full"),
 ]
 

@@ -42,6 +42,8 @@ optional except where noted; units SI unless the name says otherwise)::
     encoder_mean = 0                # 1: the loops see each encoder's mean over the
                                     # tick, the reference at the same mean time
                                     # (drive.h enc_mean; docs/simulator.md)
+    encoder_interp = 0              # 1: the position below the count from the
+                                    # edge times (drive.h enc_interp, enc_interp.h)
     cec_thesis_form = 0             # 1: the curvature CEC uses the thesis's series
                                     # E.n + s r (sec g - 1) instead of the distance
                                     # from the circle of curvature (cec.h)
@@ -187,7 +189,14 @@ FF_KEYS = {
 }
 FF_KEYS |= {f"{k}_{ax}" for k in ("kvff", "kaff") for ax in "xyz"}
 FF_MODES = ("none", "velocity", "full")
-SERVO_KEYS = {"ferr_limit_mm", "sat_limit_s", "stop_decel", "encoder_mean", "cec_thesis_form"}
+SERVO_KEYS = {
+    "ferr_limit_mm",
+    "sat_limit_s",
+    "stop_decel",
+    "encoder_mean",
+    "encoder_interp",
+    "cec_thesis_form",
+}
 TOP_KEYS = {
     "name",
     "description",
@@ -591,6 +600,10 @@ def apply(
     core.check(
         so.sim_servo_set(0, b"enc_mean", 1.0 if m.servo.get("encoder_mean", 0) else 0.0),
         "encoder_mean",
+    )
+    core.check(
+        so.sim_servo_set(0, b"enc_interp", 1.0 if m.servo.get("encoder_interp", 0) else 0.0),
+        "encoder_interp",
     )
     core.check(
         so.sim_servo_set(0, b"cec_thesis_form", 1.0 if m.servo.get("cec_thesis_form", 0) else 0.0),

@@ -1,0 +1,135 @@
+/*
+ * enc_interp.c - an encoder's position below the count (specification in
+ * enc_interp.h).
+ */
+#include "enc_interp.h"
+
+#include "fixmath.h"
+
+#define HALF 32768 /* half a count in 2^-16 counts */
+
+void enc_interp_reset(enc_interp_t *s, int64_t pos, uint32_t nedge)
+{
+    s->n = 0;
+    s->pos = pos;
+    s->prev = pos;
+    s->nedge = nedge;
+    s->back = false;
+    s->edged = false;
+}
+
+void enc_interp_update(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir, int64_t t_edge_ns)
+{
+    s->prev = s->pos;
+    s->back = false;
+    s->edged = nedge != s->nedge;
+    if (s->edged) {
+        uint32_t edges = nedge - s->nedge;
+
+        s->back = edges > fx_uabs64(pos - s->pos);
+        if (s->n == 0 || t_edge_ns > s->t[2]) { /* else it replaces the newest */
+            s->e[0] = s->e[1];
+            s->t[0] = s->t[1];
+            s->e[1] = s->e[2];
+            s->t[1] = s->t[2];
+            s->n = (uint8_t)(s->n < 3u ? s->n + 1u : 3u);
+        }
+        s->e[2] = 2 * pos - (dir < 0 ? -1 : 1);
+        s->t[2] = t_edge_ns;
+        s->nedge = nedge;
+    }
+    s->pos = pos;
+}
+
+/* e a b / c in 2^-16 counts, e in half counts (e 2^15). */
+static int64_t enc_interp_term(int64_t e, int64_t a, int64_t b, int64_t c)
+{
+    return fx_muldiv64(e * HALF, a * b, c);
+}
+
+/* The events' quadratic (or line) at t_ns, in 2^-16 counts relative to
+ * the count; false when fewer than two events lie within the span before
+ * the sample now_ns. */
+static bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns, int64_t *x)
+{
+    int64_t m, est;
+    unsigned k = 0;
+
+    while (k < s->n && now_ns - s->t[2 - k] <= ENC_INTERP_SPAN_NS) {
+        k++;
+    }
+    if (k < 2) {
+        return false;
+    }
+    m = t_ns - s->t[2];
+    est = (s->e[2] - 2 * s->pos) * HALF;
+    if (k == 2) {
+        est += enc_interp_term(s->e[1] - s->e[2], m, 1, s->t[1] - s->t[2]);
+    } else {
+        int64_t d1 = s->t[1] - s->t[2], d0 = s->t[0] - s->t[2];
+        est = fx_sat_add64(est, enc_interp_term(s->e[1] - s->e[2], m, m - d0, d1 * (d1 - d0)));
+        est = fx_sat_add64(est, enc_interp_term(s->e[0] - s->e[2], m, m - d1, d0 * (d0 - d1)));
+    }
+    *x = est;
+    return true;
+}
+
+int64_t enc_interp_pos(const enc_interp_t *s, int64_t now_ns)
+{
+    int64_t x;
+
+    if (!enc_interp_eval(s, now_ns, now_ns, &x)) {
+        return 0; /* no velocity known: the count */
+    }
+    return fx_clamp64(x, -HALF, HALF);
+}
+
+/* Integral of the centred count floor(y + 1/2) from 0 to y (y in 2^-16
+ * counts; the result in 2^-16 counts^2): G(y + 1/2) - G(1/2) with
+ * G(z) = n (n - 1) / 2 + n (z - n), n = floor(z), the integral of floor
+ * from 0 to z, and G(1/2) = 0. */
+static int64_t enc_interp_cells(int64_t y)
+{
+    int64_t z = y + HALF;
+    int64_t n = z >> 16; /* floor */
+
+    return n * (n - 1) / 2 * 65536 + n * (z - n * 65536);
+}
+
+/* The integral over a segment of d ns along the line from y0 to y1 (2^-16
+ * counts) of y - floor(y + 1/2), in 2^-16 counts ns. */
+static int64_t enc_interp_saw(int64_t y0, int64_t y1, int64_t d)
+{
+    int64_t c0 = (y0 + HALF) >> 16, c1 = (y1 + HALF) >> 16;
+    int64_t cells;
+
+    if (c0 == c1) {
+        cells = c0 * 65536;
+    } else {
+        cells = fx_div_shift64(enc_interp_cells(y1) - enc_interp_cells(y0), y1 - y0, 16);
+    }
+    return ((y0 + y1) / 2 - cells) * d;
+}
+
+int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t tick_ns)
+{
+    int64_t t0 = now_ns - (int64_t)tick_ns, x0, x1, sum;
+    int64_t c0 = 2 * (s->prev - s->pos) * HALF; /* the previous count's centre */
+
+    if (s->back || !enc_interp_eval(s, now_ns, t0, &x0) ||
+        !enc_interp_eval(s, now_ns, now_ns, &x1)) {
+        return 0; /* the count's mean alone */
+    }
+    /* each end inside the cell its sample's count proves */
+    x0 = fx_clamp64(x0, c0 - HALF, c0 + HALF);
+    x1 = fx_clamp64(x1, -HALF, HALF);
+    if (s->edged && s->t[2] > t0) {
+        /* through the tick's last edge, which is exact: the line crosses
+         * it when the axis did */
+        int64_t xe = (s->e[2] - 2 * s->pos) * HALF;
+        sum = enc_interp_saw(x0, xe, s->t[2] - t0) + enc_interp_saw(xe, x1, now_ns - s->t[2]);
+    } else {
+        sum = enc_interp_saw(x0, x1, (int64_t)tick_ns);
+    }
+    return fx_div_round64(sum, (int64_t)tick_ns);
+}

@@ -1,0 +1,132 @@
+/*
+ * The interpolated measurement in the drive (drive.h enc_interp, issue 21):
+ *   - drive_init refuses it when an axis is read as a counter (no edge
+ *     times), takes it on edge axes;
+ *   - alone, the loops see the decoder's count plus enc_interp_pos (the
+ *     edge model at the sample); with enc_mean, the count's mean over the
+ *     tick (hal_encoder_mean) plus enc_interp_mean_residual; off, the
+ *     count. An axis with P-only gains at rest: the command is -Kp times
+ *     the feedback.
+ * The drive runs on the sim HAL without a plant (as test_drive_mean.c).
+ */
+#include "calib.h"
+#include "drive.h"
+#include "hal_sim.h"
+#include "unity.h"
+
+#define TICK_NS 100000ull /* 10 kHz */
+
+static uint64_t t_ns;
+
+void setUp(void)
+{
+    hal_sim_reset();
+    t_ns = 1000000;
+    hal_sim_set_time_ns(t_ns);
+}
+
+void tearDown(void)
+{
+}
+
+static void tick(void)
+{
+    const drive_tick_out_t *t;
+
+    t_ns += TICK_NS;
+    hal_sim_set_time_ns(t_ns);
+    t = drive_tick(calib_sampling());
+    if (t != NULL) {
+        calib_tick(t->st, t->vel_ref);
+    }
+}
+
+static void config(drive_config_t *cfg)
+{
+    unsigned i;
+    drive_config_default(cfg, 10000, 2);
+    for (i = 0; i < 2; i++) {
+        cfg->nm_per_count_num[i] = 1250; /* 5 mm per 4000 counts */
+        cfg->nm_per_count_den[i] = 1;
+        /* P only, no feed-forward: 1e5 V/m = 0.1 mV/nm */
+        cfg->servo.axis[i].kp = (q32_32_t)100000 << 32;
+        cfg->servo.axis[i].ki = 0;
+        cfg->servo.axis[i].kd = 0;
+        cfg->servo.axis[i].kvff = 0;
+        cfg->servo.axis[i].kaff = 0;
+    }
+}
+
+static void test_counter_axis_refuses_it(void)
+{
+    drive_config_t cfg;
+
+    hal_sim_set_counter(1, 0, true);
+    config(&cfg);
+    cfg.enc_interp = true;
+    cfg.enc_counter[1] = true;
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_UNSUPPORTED, drive_init(&cfg));
+    cfg.enc_counter[1] = false;
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_init(&cfg));
+    TEST_ASSERT_TRUE(drive_config()->enc_interp);
+}
+
+/* Axis 0 moves forward one count per 400 us, edges at 30, 430 and 830 us
+ * after the enable (x = 0.5, 1.5, 2.5 counts); the command of axis 0 at
+ * 1100 us, where x = 3.175 counts: count 3, 0.175 above it. */
+static int32_t command_after_edges(bool interp, bool mean)
+{
+    static const uint32_t fwd[4] = {0u, 1u, 3u, 2u}; /* A leading B */
+    drive_config_t cfg;
+    drive_status_t st;
+    uint64_t start;
+    unsigned k, e = 0;
+
+    config(&cfg);
+    cfg.enc_interp = interp;
+    cfg.enc_mean = mean;
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_init(&cfg));
+    calib_init();
+    TEST_ASSERT_EQUAL_INT(DRIVE_OK, drive_enable(true));
+    tick();
+    start = t_ns;
+    for (k = 1; k <= 11; k++) {
+        while (e < 3 && start + 30000u + 400000u * e <= start + k * TICK_NS) {
+            drive_encoder_edge(0, fwd[(e + 1u) & 3u], (uint32_t)(start + 30000u + 400000u * e));
+            e++;
+        }
+        tick();
+    }
+    drive_snapshot(&st);
+    TEST_ASSERT_EQUAL_INT64(3 * 1250, st.pos[0]); /* the decoder's own position */
+    return st.motor_mv[0];
+}
+
+static void test_alone_the_loops_see_the_position_at_the_sample(void)
+{
+    /* 3.175 counts = 3968.75 nm: -396.875 mV */
+    TEST_ASSERT_EQUAL_INT32(-397, command_after_edges(true, false));
+}
+
+static void test_with_the_mean_the_count_mean_plus_the_residual(void)
+{
+    /* the port's mean reading 0 (the count over the tick) plus the model's
+     * mean in count 3 over [1000, 1100] us, from 2.925 to 3.175: +0.05,
+     * 3812.5 nm: -381.25 mV */
+    TEST_ASSERT_EQUAL_INT32(-381, command_after_edges(true, true));
+}
+
+static void test_off_the_count(void)
+{
+    TEST_ASSERT_EQUAL_INT32(-375, command_after_edges(false, false));
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_counter_axis_refuses_it);
+    RUN_TEST(test_alone_the_loops_see_the_position_at_the_sample);
+    RUN_TEST(test_with_the_mean_the_count_mean_plus_the_residual);
+    RUN_TEST(test_off_the_count);
+    return UNITY_END();
+}

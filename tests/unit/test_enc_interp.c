@@ -1,0 +1,254 @@
+/*
+ * The position below the count from the edge times (enc_interp.h, issue
+ * 21), against trajectories whose edges the test computes itself (centred
+ * counts: count n for x in [n - 1/2, n + 1/2), edges at n + 1/2, times
+ * rounded down to the ns, one sample every 100 us, the decoder's view: the
+ * count, the counted edges, the last one's direction and time):
+ *   - exact integers: three events of constant velocity, and of constant
+ *     acceleration through a reversal (the same edge crossed back), give
+ *     the model's value to the rounding;
+ *   - a reversal at R 50 mm, 10 m/min (0.56 m/s^2 on a 1.25 um count): the
+ *     position at every sample within 2e-3 counts, where the count alone
+ *     is off by up to 1/2 (and more than 0.3 at some samples);
+ *   - the mean residual: the count's exact mean over the tick plus it is
+ *     the true mean within 2e-3 counts, at 3.3 counts per tick and through
+ *     the reversal;
+ *   - the hold: an axis that stops inside a count is never estimated
+ *     outside it, and after ENC_INTERP_SPAN_NS without an edge it is the
+ *     count; a return within one tick leaves the mean residual 0.
+ */
+#include <math.h>
+
+#include "enc_interp.h"
+#include "unity.h"
+
+#define TICK_NS 100000 /* 10 kHz */
+#define Q16     65536.0
+
+void setUp(void)
+{
+}
+
+void tearDown(void)
+{
+}
+
+typedef double (*traj_fn)(double t_s);
+
+/* The decoder as the test sees it: count, counted edges, last direction
+ * and time; the exact integral of the count over the current tick. */
+typedef struct {
+    int64_t count;
+    uint32_t nedge;
+    int8_t dir;
+    int64_t t_edge;
+    double count_int; /* integral of the count over the tick, count ns */
+} dec_t;
+
+static int64_t cell(double x)
+{
+    return (int64_t)floor(x + 0.5);
+}
+
+/* Advance the decoder from t0 to t1 (ns) along x in steps of step_ns: each
+ * change of cell is an edge at the step where it happens (the crossing
+ * found by bisection to well below 1 ns, then rounded down). */
+static void advance(dec_t *d, traj_fn x, int64_t t0, int64_t t1, int64_t step_ns)
+{
+    int64_t t;
+    d->count_int = 0.0;
+    for (t = t0; t < t1; t += step_ns) {
+        double a = (double)t, b = (double)(t + step_ns);
+        int64_t c1 = cell(x(b * 1e-9));
+        while (c1 != d->count) {
+            /* the first crossing after a: the edge next to the count */
+            int8_t dir = c1 > d->count ? 1 : -1;
+            double edge = (double)d->count + 0.5 * dir, lo = a, hi = b;
+            int i;
+            for (i = 0; i < 60; i++) {
+                double mid = 0.5 * (lo + hi);
+                double xm = x(mid * 1e-9);
+                if ((dir > 0) ? (xm >= edge) : (xm < edge)) {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            d->count_int += (double)d->count * (hi - a);
+            a = hi;
+            d->count += dir;
+            d->nedge++;
+            d->dir = dir;
+            d->t_edge = (int64_t)floor(hi);
+            c1 = cell(x(b * 1e-9));
+        }
+        d->count_int += (double)d->count * (b - a);
+    }
+}
+
+/* ---- exact cases ------------------------------------------------------------ */
+
+static void test_three_events_of_constant_velocity(void)
+{
+    enc_interp_t s;
+    /* one count per 1000 ns forward: edges -1/2 at 0, 1/2 at 1000, 3/2 at
+     * 2000 (counts 0, 1, 2 after them) */
+    enc_interp_reset(&s, -1, 0);
+    enc_interp_update(&s, 0, 1, 1, 0);
+    enc_interp_update(&s, 1, 2, 1, 1000);
+    /* two events: the line; at 1250 ns x = 0.75, count 1: -0.25 */
+    TEST_ASSERT_EQUAL_INT64(-16384, enc_interp_pos(&s, 1250));
+    enc_interp_update(&s, 2, 3, 1, 2000);
+    TEST_ASSERT_EQUAL_INT64(-16384, enc_interp_pos(&s, 2250)); /* x 1.75 */
+    TEST_ASSERT_EQUAL_INT64(0, enc_interp_pos(&s, 2500));      /* x 2.0 */
+    /* past the next edge without it: held at the cell's edge */
+    TEST_ASSERT_EQUAL_INT64(32768, enc_interp_pos(&s, 3400));
+}
+
+static void test_reversal_of_constant_acceleration(void)
+{
+    enc_interp_t s;
+    /* x(t) = 1 - (t / 1000 - 2)^2 / 2 (counts, t ns): edge -1/2 up at
+     * t = 2000 - 1000 sqrt(3) (not used), +1/2 up at 1000, the same edge
+     * back down at 3000; the edge -1/2 up at 2000 - 1732.05 = 267.95 */
+    enc_interp_reset(&s, -1, 0);
+    enc_interp_update(&s, 0, 1, 1, 268);
+    enc_interp_update(&s, 1, 2, 1, 1000);
+    enc_interp_update(&s, 0, 3, -1, 3000);
+    /* at 3500: x = 1 - 1.5^2 / 2 = -0.125 in count 0 */
+    TEST_ASSERT_INT64_WITHIN(40, (int64_t)(-0.125 * Q16), enc_interp_pos(&s, 3500));
+    /* before the return (t = 2000, the peak, 1 count from count 0's
+     * centre): the model knows it, the cell holds it at +1/2 */
+    TEST_ASSERT_EQUAL_INT64(32768, enc_interp_pos(&s, 2000));
+}
+
+/* ---- trajectories ------------------------------------------------------------ */
+
+/* R 50 mm at 10 m/min: 0.556 m/s^2 over 1.25 um counts, peak at 5 ms */
+#define ACC_CPS2 444444.0
+static double reversal(double t)
+{
+    return 10.3 - 0.5 * ACC_CPS2 * (t - 0.005) * (t - 0.005);
+}
+
+static double fast(double t)
+{
+    return 0.17 + 33000.0 * t; /* 3.3 counts per tick */
+}
+
+/* Runs traj over n ticks; checks the position at every sample (pos_tol)
+ * and the count's mean plus the residual against the true mean (mean_tol),
+ * from the tick with three events on. Returns the largest |x - count| seen
+ * at a sample after that. */
+static double run_traj(traj_fn x, unsigned n, double pos_tol, double mean_tol)
+{
+    enc_interp_t s;
+    dec_t d = {0};
+    unsigned k;
+    double worst_count = 0.0;
+
+    d.count = cell(x(0.0));
+    enc_interp_reset(&s, d.count, 0);
+    for (k = 0; k < n; k++) {
+        int64_t t0 = (int64_t)k * TICK_NS, t1 = t0 + TICK_NS;
+        double xt, xmean = 0.0, est, mean;
+        int j;
+        advance(&d, x, t0, t1, 100);
+        enc_interp_update(&s, d.count, d.nedge, d.dir, d.t_edge);
+        if (s.n < 3) {
+            continue;
+        }
+        xt = x((double)t1 * 1e-9);
+        for (j = 0; j < 1000; j++) { /* the true mean over the tick (midpoint rule) */
+            xmean += x(((double)t0 + (j + 0.5) * TICK_NS / 1000.0) * 1e-9) / 1000.0;
+        }
+        est = (double)d.count + (double)enc_interp_pos(&s, t1) / Q16;
+        TEST_ASSERT_DOUBLE_WITHIN(pos_tol, xt, est);
+        mean = d.count_int / TICK_NS + (double)enc_interp_mean_residual(&s, t1, TICK_NS) / Q16;
+        TEST_ASSERT_DOUBLE_WITHIN(mean_tol, xmean, mean);
+        if (fabs(xt - (double)d.count) > worst_count) {
+            worst_count = fabs(xt - (double)d.count);
+        }
+    }
+    return worst_count;
+}
+
+static void test_reversal_at_r50_10m_min(void)
+{
+    /* 10 ms: the axis comes up 11 counts, turns inside count 10 and goes
+     * back; the count alone is more than 0.3 off at some sample */
+    double worst = run_traj(reversal, 100, 2e-4, 5e-4);
+    TEST_ASSERT_TRUE(worst > 0.3);
+}
+
+static void test_moving_axis_mean(void)
+{
+    run_traj(fast, 40, 2e-4, 5e-4);
+}
+
+/* ---- the hold ---------------------------------------------------------------- */
+
+static double stopping(double t)
+{
+    /* decelerates at 4e5 counts/s^2 from 2000 counts/s to rest at 5 ms,
+     * 0.2 counts past count 3's lower edge (2.5), then stays */
+    const double ts = 0.005;
+    double u = t < ts ? t : ts;
+    return 2.7 - 0.5 * 4e5 * (ts - u) * (ts - u);
+}
+
+static void test_stopped_axis_held_in_its_count(void)
+{
+    enc_interp_t s;
+    dec_t d = {0};
+    unsigned k;
+    int64_t last = 0;
+
+    d.count = cell(stopping(0.0));
+    enc_interp_reset(&s, d.count, 0);
+    for (k = 0; k < 1000; k++) { /* 100 ms */
+        int64_t t1 = (int64_t)(k + 1) * TICK_NS;
+        int64_t r, m;
+        advance(&d, stopping, t1 - TICK_NS, t1, 1000);
+        enc_interp_update(&s, d.count, d.nedge, d.dir, d.t_edge);
+        r = enc_interp_pos(&s, t1);
+        m = enc_interp_mean_residual(&s, t1, TICK_NS);
+        TEST_ASSERT_TRUE(r >= -32768 && r <= 32768);
+        TEST_ASSERT_TRUE(m >= -32768 && m <= 32768);
+        if (t1 - s.t[2] > ENC_INTERP_SPAN_NS) {
+            TEST_ASSERT_EQUAL_INT64(0, r); /* too long without an edge: the count */
+        }
+        last = r;
+    }
+    TEST_ASSERT_EQUAL_INT64(3, d.count);
+    TEST_ASSERT_EQUAL_UINT32(5, d.nedge);
+    TEST_ASSERT_EQUAL_INT64(0, last);
+}
+
+static void test_return_within_a_tick_leaves_the_mean(void)
+{
+    enc_interp_t s;
+    /* one count per 150 us: edges into counts 1, 2, 3 */
+    enc_interp_reset(&s, 0, 0);
+    enc_interp_update(&s, 1, 1, 1, 10000);
+    enc_interp_update(&s, 2, 2, 1, 160000);
+    enc_interp_update(&s, 3, 3, 1, 310000);
+    /* over [280, 380] us the line from 2.3 to 2.967: the sawtooth's mean
+     * is -1/15 count */
+    TEST_ASSERT_INT64_WITHIN(8, -65536 / 15, enc_interp_mean_residual(&s, 380000, TICK_NS));
+    /* up to 4 and back to 3 in the next tick: two edges, count unchanged */
+    enc_interp_update(&s, 3, 5, -1, 470000);
+    TEST_ASSERT_EQUAL_INT64(0, enc_interp_mean_residual(&s, 480000, TICK_NS));
+}
+
+int main(void)
+{
+    UNITY_BEGIN();
+    RUN_TEST(test_three_events_of_constant_velocity);
+    RUN_TEST(test_reversal_of_constant_acceleration);
+    RUN_TEST(test_reversal_at_r50_10m_min);
+    RUN_TEST(test_moving_axis_mean);
+    RUN_TEST(test_stopped_axis_held_in_its_count);
+    RUN_TEST(test_return_within_a_tick_leaves_the_mean);
+    return UNITY_END();
+}
