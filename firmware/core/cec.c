@@ -25,19 +25,53 @@
 /* ---- estimators ------------------------------------------------------------ */
 
 /* fx_div_sat32(num, den, 30), the same value: for 0 < den and |num| < 2^33
- * the numerator fits 64 bits, so one 64-bit division and its remainder's
- * rounding (ties away from zero) without the 128-bit general path. */
+ * the numerator fits 64 bits, so one 64-bit division: ties away from zero
+ * as floor((|num| 2^30 + floor(den / 2)) / den) with num's sign (the
+ * remainder r of |num| 2^30 / den rounds up exactly when 2 r >= den), which
+ * C's truncating division of num 2^30 -+ floor(den / 2) gives directly. */
 static inline int32_t div_q30(int64_t num, int32_t den)
 {
-    uint64_t a = fx_uabs64(num), q, r;
-    if (den <= 0 || a >= ((uint64_t)1 << 33)) {
+    int64_t h = den >> 1;
+    if (den <= 0 || fx_uabs64(num) >= ((uint64_t)1 << 33)) {
         return fx_div_sat32(num, den, 30);
     }
-    q = fx_udivmod64(a << 30, (uint64_t)den, &r);
-    if (r >= (uint64_t)den - r) {
-        q++; /* q < 2^63 */
+    return fx_sat32_fast((num * ((int64_t)1 << 30) + ((num < 0) ? -h : h)) / den);
+}
+
+/* The normals of a tangent off the plane normal (t x e_w at least 2^-10
+ * long): c = t x e_w = (c_u, c_v) = (t_v, -t_u) in the plane, n1_w = 0, no
+ * plunge. As the general path below computes them (the same operations on
+ * the same values); n2 = n1 x t without its two zero products when t_w = 0. */
+static void normals_plane(const q1_30_t t[3], unsigned w, unsigned u, unsigned v, int64_t cu,
+                          int64_t cv, int64_t len2, q1_30_t n1[3], q1_30_t n2[3], uint32_t *hint)
+{
+    int64_t n1u, n1v;
+    if (fx_sat_abs64(len2 - ((int64_t)1 << 60)) > UNIT_TOL2) {
+        int32_t len;
+        /* scale short vectors up first so that the root keeps 30 bits */
+        while (fx_sat_abs64(cu) < ((int64_t)1 << 29) && fx_sat_abs64(cv) < ((int64_t)1 << 29)) {
+            cu *= 2;
+            cv *= 2;
+        }
+        *hint = fx_isqrt64_near((uint64_t)(cu * cu + cv * cv), *hint);
+        len = (int32_t)*hint;
+        n1u = div_q30(cu, len);
+        n1v = div_q30(cv, len);
+    } else {
+        n1u = (q1_30_t)cu;
+        n1v = (q1_30_t)cv;
     }
-    return fx_sat32(num < 0 ? -(int64_t)q : (int64_t)q);
+    n1[u] = (q1_30_t)n1u;
+    n1[v] = (q1_30_t)n1v;
+    n1[w] = 0;
+    if (t[w] == 0) {
+        n2[u] = 0;
+        n2[v] = 0;
+    } else {
+        n2[u] = (q1_30_t)fx_round_shift64(n1v * t[w], 30);
+        n2[v] = (q1_30_t)fx_round_shift64(-n1u * t[w], 30);
+    }
+    n2[w] = (q1_30_t)fx_round_shift64(n1u * t[v] - n1v * t[u], 30);
 }
 
 /* cec_normals; *hint: the last root of this caller (fx_isqrt64_near). */
@@ -47,6 +81,15 @@ static bool normals_near(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t 
     int64_t c[3], len2;
     int k;
 
+    if (w < 3u) {
+        unsigned u = (w == 2u) ? 0u : w + 1u, v = (w == 0u) ? 2u : w - 1u;
+        int64_t cu = t[v], cv = -(int64_t)t[u];
+        len2 = cu * cu + cv * cv;
+        if (len2 >= PLUNGE_LEN2) {
+            normals_plane(t, w, u, v, cu, cv, len2, n1, n2, hint);
+            return true;
+        }
+    }
     if (t[0] == 0 && t[1] == 0 && t[2] == 0) {
         return false;
     }

@@ -12,4 +12,8 @@
  * fx_isqrt64_near from *hint (which it updates). */
 uint32_t cec_arc_root_test(uint64_t v, pos_nm_t r, pid_coef_t inv, uint32_t *hint);
 
+/* The normalisation's division: fx_div_sat32(num, den, 30), by one 64-bit
+ * division where it fits. */
+int32_t cec_div_q30_test(int64_t num, int32_t den);
+
 #endif /* CEC_TEST_H */

@@ -243,6 +243,8 @@ static void test_exact_step_bit_exact(void)
         }
         if (i % 5 == 0) {
             t[(w + 1u) % 3u] = t[(w + 2u) % 3u] = (q1_30_t)(rand() % 512); /* plunges */
+        } else if (i % 5 == 1) {
+            t[w] = 0; /* in the plane (the arcs' tangents) */
         }
         TEST_ASSERT_EQUAL(normals_oracle(t, w, o1, o2), cec_normals(t, w, n1, n2));
         if (normals_oracle(t, w, o1, o2)) {
@@ -314,6 +316,40 @@ static uint64_t root_rand(void)
     root_rng ^= root_rng >> 7;
     root_rng ^= root_rng << 17;
     return root_rng;
+}
+
+/* The normalisation's division (cec_div_q30_test) against fx_div_sat32:
+ * every remainder of small divisors (the ties: rounding away from zero
+ * exactly when 2 r >= den, for either sign), numerators at the 2^33 edge of
+ * the one-division form and beyond, divisors up to INT32_MAX, 0 and below. */
+static void test_normalisation_division(void)
+{
+    static const int64_t big[] = {((int64_t)1 << 33) - 1, (int64_t)1 << 33, ((int64_t)1 << 33) + 1,
+                                  (int64_t)1 << 31,       INT32_MAX,        INT64_MAX};
+    static const int32_t dens[] = {1,         2, 3,  (int32_t)1 << 30, ((int32_t)1 << 30) + 1,
+                                   INT32_MAX, 0, -1, INT32_MIN};
+    int64_t num;
+    int32_t den;
+    unsigned i, j;
+    for (den = 1; den <= 200; den++) {
+        for (num = -700; num <= 700; num++) {
+            TEST_ASSERT_EQUAL_INT32(fx_div_sat32(num, den, 30), cec_div_q30_test(num, den));
+        }
+    }
+    for (i = 0; i < sizeof big / sizeof big[0]; i++) {
+        for (j = 0; j < sizeof dens / sizeof dens[0]; j++) {
+            TEST_ASSERT_EQUAL_INT32(fx_div_sat32(big[i], dens[j], 30),
+                                    cec_div_q30_test(big[i], dens[j]));
+            TEST_ASSERT_EQUAL_INT32(fx_div_sat32(-big[i], dens[j], 30),
+                                    cec_div_q30_test(-big[i], dens[j]));
+        }
+    }
+    for (i = 0; i < 1000000; i++) {
+        uint64_t x = root_rand();
+        num = (int64_t)(root_rand() >> (29 + x % 35u)) * ((x & 64u) ? -1 : 1);
+        den = (int32_t)((uint32_t)(x >> 34) >> ((x >> 3) % 31u)) + 1;
+        TEST_ASSERT_EQUAL_INT32(fx_div_sat32(num, den, 30), cec_div_q30_test(num, den));
+    }
 }
 
 /* The exact arc's root (cec_arc_root_test) against fx_isqrt64: points near
@@ -1151,6 +1187,7 @@ int main(void)
     RUN_TEST(test_exact_step_bit_exact);
     RUN_TEST(test_channel_step_equals_pid_step);
     RUN_TEST(test_exact_arc_root);
+    RUN_TEST(test_normalisation_division);
     RUN_TEST(test_exact_arc_root_outside_range);
     RUN_TEST(test_curvature_correction_vs_double);
     RUN_TEST(test_circle_pure_lag_grid);
