@@ -42,8 +42,9 @@ static inline int32_t div_q30(int64_t num, int32_t den)
  * long): c = t x e_w = (c_u, c_v) = (t_v, -t_u) in the plane, n1_w = 0, no
  * plunge. As the general path below computes them (the same operations on
  * the same values); n2 = n1 x t without its two zero products when t_w = 0. */
-static void normals_plane(const q1_30_t t[3], unsigned w, unsigned u, unsigned v, int64_t cu,
-                          int64_t cv, int64_t len2, q1_30_t n1[3], q1_30_t n2[3], uint32_t *hint)
+static PID_ALWAYS_INLINE void normals_plane(const q1_30_t t[3], unsigned w, unsigned u, unsigned v,
+                                            int64_t cu, int64_t cv, int64_t len2, q1_30_t n1[3],
+                                            q1_30_t n2[3], uint32_t *hint)
 {
     int64_t n1u, n1v;
     if (fx_sat_abs64(len2 - ((int64_t)1 << 60)) > UNIT_TOL2) {
@@ -55,8 +56,17 @@ static void normals_plane(const q1_30_t t[3], unsigned w, unsigned u, unsigned v
         }
         *hint = fx_isqrt64_near((uint64_t)(cu * cu + cv * cv), *hint);
         len = (int32_t)*hint;
-        n1u = div_q30(cu, len);
-        n1v = div_q30(cv, len);
+        if (len > 0) {
+            /* div_q30 without its range tests: |c| <= 2^31 and len >=
+             * |c_u|, |c_v| (the floor of a root over an integer), so the
+             * quotient is at most 2^30 */
+            int64_t h = len >> 1;
+            n1u = (cu * ((int64_t)1 << 30) + ((cu < 0) ? -h : h)) / len;
+            n1v = (cv * ((int64_t)1 << 30) + ((cv < 0) ? -h : h)) / len;
+        } else {
+            n1u = div_q30(cu, len);
+            n1v = div_q30(cv, len);
+        }
     } else {
         n1u = (q1_30_t)cu;
         n1v = (q1_30_t)cv;
@@ -310,6 +320,12 @@ static int32_t exact_arc_near(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv
     return fx_sat32_fast((s < 0) ? -d : d);
 }
 
+/* Test hook: div_q30 (cec_test.h). */
+int32_t cec_div_q30_test(int64_t num, int32_t den)
+{
+    return div_q30(num, den);
+}
+
 /* Test hook: arc_root (cec_test.h). */
 uint32_t cec_arc_root_test(uint64_t v, pos_nm_t r, pid_coef_t inv, uint32_t *hint)
 {
@@ -542,6 +558,30 @@ static bool segment_changed(const cec_t *c, const motion_geom_t *g, unsigned w)
            c->key_sense != g->sense;
 }
 
+/* The tick's shortcut past geom_plane and segment_changed: the geometry
+ * is the active segment's (kind, plane_u and plane_v as given, the LINE's
+ * start and tangent, the ARC's centre, radius and sense), so it is valid
+ * and unchanged with the plane normal c->w (both depend on these fields
+ * alone). False sends the tick the general way. */
+static inline bool same_segment(const cec_t *c, const motion_geom_t *g)
+{
+    int k;
+    if (!c->active || c->reseg || c->kind != g->kind || c->key_u != g->plane_u ||
+        c->key_v != g->plane_v) {
+        return false;
+    }
+    if (g->kind == MOTION_GEOM_ARC) {
+        return c->key_p[0] == g->centre_u && c->key_p[1] == g->centre_v && c->key_r == g->radius &&
+               c->key_sense == g->sense;
+    }
+    for (k = 0; k < 3 && k < CORE_AXES; k++) {
+        if (c->key_t[k] != g->tangent[k] || c->key_p[k] != g->start[k]) {
+            return false;
+        }
+    }
+    return true;
+}
+
 static void new_segment(cec_t *c, const motion_ref_t *ref, unsigned w, const q1_30_t n1[3],
                         const q1_30_t n2[3], bool ch2)
 {
@@ -595,6 +635,8 @@ static void new_segment(cec_t *c, const motion_ref_t *ref, unsigned w, const q1_
     }
     c->key_r = 0;
     c->key_sense = 0;
+    c->key_u = g->plane_u;
+    c->key_v = g->plane_v;
     if (g->kind == MOTION_GEOM_ARC) {
         unsigned u = g->plane_u, v = g->plane_v;
         int64_t du = g->centre_u - ref->pos[u], dv = g->centre_v - ref->pos[v], dot;
@@ -725,36 +767,58 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     for (k = 0; k < 3; k++) {
         t[k] = (k < CORE_AXES) ? g->tangent[k] : 0;
     }
-    if ((g->kind != MOTION_GEOM_LINE && g->kind != MOTION_GEOM_ARC) || !geom_plane(g, &w)) {
-        c->bad_geom++;
-        deactivate(c);
-        return;
-    }
-    /* Within a segment the normals go straight into c->n (normals_near
-     * writes nothing when it fails). A new segment needs last tick's
-     * normals (new_segment projects the integral from them): the new ones
-     * wait in s1, s2 until it has run. */
-    changed = segment_changed(c, g, w);
-    if (changed) {
-        o1 = s1;
-        o2 = s2;
-    }
-    if (!normals_near(t, w, o1, o2, &c->len_hint)) {
-        c->bad_geom++;
-        deactivate(c);
-        return;
-    }
-    c->idle = false; /* the channels run (or are reset) below */
-    ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
-    if (changed) {
-        new_segment(c, ref, w, s1, s2, ch2);
-        for (k = 0; k < 3; k++) {
-            c->n[0][k] = s1[k];
-            c->n[1][k] = s2[k];
+    if (same_segment(c, g)) {
+        /* a LINE's normals are last tick's (its tangent is in the key) */
+        w = c->w;
+        if (g->kind != MOTION_GEOM_LINE) {
+            unsigned u = (w == 2u) ? 0u : w + 1u, v = (w == 0u) ? 2u : w - 1u;
+            int64_t cu = t[v], cv = -(int64_t)t[u], len2 = cu * cu + cv * cv;
+            if (len2 >= PLUNGE_LEN2) { /* normals_near's usual case, inline */
+                normals_plane(t, w, u, v, cu, cv, len2, c->n[0], c->n[1], &c->len_hint);
+            } else if (!normals_near(t, w, c->n[0], c->n[1], &c->len_hint)) {
+                c->bad_geom++;
+                deactivate(c);
+                return;
+            }
         }
-    } else if (c->ch2_on && !ch2) {
-        /* (a LINE's tangent is part of its key: only reached on an ARC) */
-        pid_reset(&c->ch[1], false);
+        c->idle = false;
+        ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
+        if (c->ch2_on && !ch2) {
+            /* (a LINE's tangent is part of its key: only reached on an ARC) */
+            pid_reset(&c->ch[1], false);
+        }
+    } else {
+        if ((g->kind != MOTION_GEOM_LINE && g->kind != MOTION_GEOM_ARC) || !geom_plane(g, &w)) {
+            c->bad_geom++;
+            deactivate(c);
+            return;
+        }
+        /* Within a segment the normals go straight into c->n (normals_near
+         * writes nothing when it fails). A new segment needs last tick's
+         * normals (new_segment projects the integral from them): the new
+         * ones wait in s1, s2 until it has run. */
+        changed = segment_changed(c, g, w);
+        if (changed) {
+            o1 = s1;
+            o2 = s2;
+        }
+        if (!normals_near(t, w, o1, o2, &c->len_hint)) {
+            c->bad_geom++;
+            deactivate(c);
+            return;
+        }
+        c->idle = false; /* the channels run (or are reset) below */
+        ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
+        if (changed) {
+            new_segment(c, ref, w, s1, s2, ch2);
+            for (k = 0; k < 3; k++) {
+                c->n[0][k] = s1[k];
+                c->n[1][k] = s2[k];
+            }
+        } else if (c->ch2_on && !ch2) {
+            /* (a LINE's tangent is part of its key: only reached on an ARC) */
+            pid_reset(&c->ch[1], false);
+        }
     }
     c->active = true;
     c->ch2_on = ch2;
