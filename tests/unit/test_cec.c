@@ -254,6 +254,105 @@ static void test_exact_step_bit_exact(void)
     }
 }
 
+/* The tick's same-segment shortcut (same_segment) against the general
+ * path's segment test: geometries that change one field at a time, by one
+ * nm or LSB (an ARC's centre_u, centre_v, radius, sense, plane, a swap of
+ * its plane's axes, a LINE's start or tangent on each axis, the kind),
+ * with stretches of unchanged ticks between: after every tick the
+ * segment's key is the geometry's (a new segment took it over) and the
+ * normals are those of the tangent. */
+static void test_segment_keys_follow_geometry(void)
+{
+    cec_t c;
+    motion_ref_t ref;
+    pos_nm_t meas[CORE_AXES] = {1000, -2000, 3000};
+    q1_30_t o1[3], o2[3];
+    int i, k, restarts = 0;
+    config(&c, CEC_MODE_EXACT, 2000.0, 0.0);
+    memset(&ref, 0, sizeof ref);
+    ref.active = true;
+    ref.geom.kind = MOTION_GEOM_ARC;
+    ref.geom.plane_u = 0;
+    ref.geom.plane_v = 1;
+    ref.geom.centre_u = 5000000;
+    ref.geom.centre_v = -7000000;
+    ref.geom.radius = 20000000;
+    ref.geom.sense = 1;
+    ref.geom.tangent[0] = Q30(0.6);
+    ref.geom.tangent[1] = Q30(0.8);
+    srand(17);
+    for (i = 0; i < 30000; i++) {
+        motion_geom_t *g = &ref.geom;
+        unsigned w;
+        int what = (i % 3 == 0) ? rand() % 12 : -1;
+        int d = (rand() % 2) ? 1 : -1;
+        switch (what) {
+        case 0:
+            g->centre_u += d;
+            break;
+        case 1:
+            g->centre_v += d;
+            break;
+        case 2:
+            g->radius += d;
+            break;
+        case 3:
+            g->sense = (int8_t)-g->sense;
+            break;
+        case 4: {
+            unsigned pl = (unsigned)rand() % PLANES;
+            g->plane_u = (uint8_t)plane_uv[pl][0];
+            g->plane_v = (uint8_t)plane_uv[pl][1];
+            break;
+        }
+        case 5: { /* the same plane with its axes swapped */
+            uint8_t x = g->plane_u;
+            g->plane_u = g->plane_v;
+            g->plane_v = x;
+            break;
+        }
+        case 6:
+        case 7:
+            g->start[rand() % 3] += d;
+            break;
+        case 8:
+        case 9:
+            g->tangent[rand() % 3] += d;
+            break;
+        case 10:
+            g->kind = (g->kind == MOTION_GEOM_ARC) ? MOTION_GEOM_LINE : MOTION_GEOM_ARC;
+            break;
+        case 11: /* a tangent off the plane now and then */
+            g->tangent[rand() % 3] = Q30((double)(rand() % 2001 - 1000) / 1000.0);
+            break;
+        default:
+            break;
+        }
+        ref.pos[0] += 300;
+        cec_step(&c, &ref, meas);
+        TEST_ASSERT_TRUE(c.active);
+        w = 3u - g->plane_u - g->plane_v;
+        TEST_ASSERT_EQUAL_INT(g->kind, c.kind);
+        TEST_ASSERT_EQUAL_UINT(w, c.w);
+        if (g->kind == MOTION_GEOM_ARC) {
+            TEST_ASSERT_EQUAL_INT64(g->centre_u, c.key_p[0]);
+            TEST_ASSERT_EQUAL_INT64(g->centre_v, c.key_p[1]);
+            TEST_ASSERT_EQUAL_INT64(g->radius, c.key_r);
+            TEST_ASSERT_EQUAL_INT(g->sense, c.key_sense);
+        } else {
+            for (k = 0; k < 3; k++) {
+                TEST_ASSERT_EQUAL_INT32(g->tangent[k], c.key_t[k]);
+                TEST_ASSERT_EQUAL_INT64(g->start[k], c.key_p[k]);
+            }
+        }
+        TEST_ASSERT_TRUE(normals_oracle(g->tangent, w, o1, o2));
+        TEST_ASSERT_EQUAL_INT32_ARRAY(o1, c.n[0], 3);
+        TEST_ASSERT_EQUAL_INT32_ARRAY(o2, c.n[1], 3);
+        restarts += (what >= 0 && what != 5);
+    }
+    TEST_ASSERT_TRUE(restarts > 5000);
+}
+
 /* The channel's step inside cec_step (the PID's fast step inline while the
  * loop is ready) against pid_step on a copy of the loop taken before the
  * tick, every field the step writes equal: an exact arc with the bench's
@@ -1185,6 +1284,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_normals);
     RUN_TEST(test_exact_step_bit_exact);
+    RUN_TEST(test_segment_keys_follow_geometry);
     RUN_TEST(test_channel_step_equals_pid_step);
     RUN_TEST(test_exact_arc_root);
     RUN_TEST(test_normalisation_division);
