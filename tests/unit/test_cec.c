@@ -353,6 +353,87 @@ static void test_segment_keys_follow_geometry(void)
     TEST_ASSERT_TRUE(restarts > 5000);
 }
 
+/* cec_step (its usual exact arc tick, exact_arc_tick, where it applies)
+ * against the general path alone (cec_step_general_test) on two copies of
+ * the controller, the whole state equal after every tick: exact arcs in
+ * every plane and direction with tangents off unit length, lag jumps (the
+ * PID's general step) and an output clamp that saturates, and now and then
+ * what the usual tick does not take: a new arc, a tangent off the plane
+ * (the second channel) or along its normal (a plunge), a LINE with its own
+ * gains (line_gains), another estimate, no reference, new gains (the PID's
+ * bumpless step, a deadband: not on its fast path). */
+static void test_exact_arc_tick_equals_general(void)
+{
+    static cec_t a, b;
+    cec_params_t p;
+    arc_case_t ac;
+    int i, k, plain = 0;
+    memset(&a, 0, sizeof a);
+    memset(&p, 0, sizeof p);
+    p.mode = CEC_MODE_EXACT;
+    p.handover = true;
+    p.pid.kp = Q32(2000.0);
+    p.pid.ki = Q32(2e5);
+    p.pid.kd = Q32(2.0);
+    p.pid.kt = Q32(10.0);
+    p.pid.d_tau_us = 1000;
+    p.pid.out_max_mv = 3000;
+    p.pid.i_max_mv = 2000;
+    p.pid.tick_hz = 10000;
+    p.pid_line = p.pid;
+    p.pid_line.kp = Q32(3000.0);
+    p.line_gains = true;
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&a, &p, NULL));
+    b = a;
+    srand(23);
+    for (i = 0; i < 60000; i++) {
+        unsigned pl = (unsigned)(i / 2000) % PLANES, w;
+        int dir = ((i / 6000) % 2) ? -1 : 1, ev = rand() % 1000;
+        double d = (i % 997 < 3) ? 3e6 : (double)(rand() % 4001 - 2000);
+        const motion_ref_t *r = &ac.ref;
+        arc_case(&ac, pl, 2e7 + (double)(i / 500), 0.0003 * i, dir, 2e-5, d);
+        w = 3u - plane_uv[pl][0] - plane_uv[pl][1];
+        if (i % 7 == 0) { /* a tangent off unit length by a few LSB */
+            ac.ref.geom.tangent[plane_uv[pl][0]] += (q1_30_t)(rand() % 9 - 4);
+        }
+        if (ev < 5) {
+            ac.ref.geom.tangent[w] = (q1_30_t)(rand() % 4001 - 2000); /* off the plane */
+        } else if (ev < 7) {
+            ac.ref.geom.tangent[plane_uv[pl][0]] = (q1_30_t)(rand() % 300); /* plunge */
+            ac.ref.geom.tangent[plane_uv[pl][1]] = (q1_30_t)(rand() % 300);
+            ac.ref.geom.tangent[w] = FX_ONE_Q30;
+        } else if (ev < 9) {
+            ac.ref.geom.kind = MOTION_GEOM_LINE; /* the line gains, then back */
+            ac.ref.geom.start[0] = 1000;
+        } else if (ev < 10) {
+            r = NULL;
+        } else if (ev < 11) {
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&a, CEC_MODE_TANGENT));
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&b, CEC_MODE_TANGENT));
+        } else if (ev < 14) {
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&a, CEC_MODE_EXACT));
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&b, CEC_MODE_EXACT));
+        } else if (ev < 16) { /* new gains while running: a bumpless step next */
+            p.pid.kp = Q32((ev == 14) ? 2500.0 : 2000.0);
+            p.pid.deadband_nm = (i % 3 == 0) ? 50 : 0;
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&a, &p, NULL));
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&b, &p, NULL));
+        }
+        plain += (ev >= 16 && a.p.mode == CEC_MODE_EXACT);
+        cec_step(&a, r, ac.meas);
+        cec_step_general_test(&b, r, ac.meas);
+        TEST_ASSERT_EQUAL_INT32_ARRAY(b.ec_nm, a.ec_nm, 2);
+        TEST_ASSERT_EQUAL_INT32_ARRAY(b.n[0], a.n[0], 3);
+        TEST_ASSERT_EQUAL_INT32_ARRAY(b.n[1], a.n[1], 3);
+        for (k = 0; k < CORE_AXES; k++) {
+            TEST_ASSERT_EQUAL_INT64(b.out_u[k], a.out_u[k]);
+            TEST_ASSERT_EQUAL_INT64(b.handover_u[k], a.handover_u[k]);
+        }
+        TEST_ASSERT_EQUAL_MEMORY(&b, &a, sizeof a); /* and every other field */
+    }
+    TEST_ASSERT_TRUE(plain > 40000);
+}
+
 /* The channel's step inside cec_step (the PID's fast step inline while the
  * loop is ready) against pid_step on a copy of the loop taken before the
  * tick, every field the step writes equal: an exact arc with the bench's
@@ -1284,6 +1365,7 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_normals);
     RUN_TEST(test_exact_step_bit_exact);
+    RUN_TEST(test_exact_arc_tick_equals_general);
     RUN_TEST(test_segment_keys_follow_geometry);
     RUN_TEST(test_channel_step_equals_pid_step);
     RUN_TEST(test_exact_arc_root);
