@@ -279,8 +279,9 @@ static inline uint32_t arc_root(uint64_t v, pos_nm_t r, pid_coef_t inv, uint32_t
 /* cec_exact_arc; *hint: the last root of this caller (fx_isqrt64_near,
  * taken where fx_hypot2 takes its one 64-bit root); inv: 2^30 / radius
  * (arc_root; m = 0: none). */
-static int32_t exact_arc_near(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius,
-                              int s, uint32_t *hint, pid_coef_t inv)
+static PID_ALWAYS_INLINE int32_t exact_arc_near(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv,
+                                                pos_nm_t radius, int s, uint32_t *hint,
+                                                pid_coef_t inv)
 {
     int64_t x = pu - cu, y = pv - cv, rho, d;
     uint64_t ax = fx_uabs64(x), ay = fx_uabs64(y);
