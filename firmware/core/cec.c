@@ -54,10 +54,13 @@ static PID_ALWAYS_INLINE void normals_plane(q1_30_t tu, q1_30_t tv, q1_30_t tw, 
                                             q1_30_t n2[3], uint32_t *hint)
 {
     int64_t cu = tv, cv = -(int64_t)tu, n1u, n1v;
-    if (fx_sat_abs64(len2 - ((int64_t)1 << 60)) > UNIT_TOL2) {
+    /* |len2 - 2^60| > UNIT_TOL2 (len2 - 2^60 >= -2^60: no overflow) */
+    if ((uint64_t)(len2 - ((int64_t)1 << 60) + UNIT_TOL2) > 2u * (uint64_t)UNIT_TOL2) {
         int32_t len;
-        /* scale short vectors up first so that the root keeps 30 bits */
-        while (fx_sat_abs64(cu) < ((int64_t)1 << 29) && fx_sat_abs64(cv) < ((int64_t)1 << 29)) {
+        /* scale short vectors up first so that the root keeps 30 bits:
+         * while |c_u|, |c_v| < 2^29 (|c| <= 2^31 here, doubled below 2^30) */
+        while ((uint64_t)(cu + ((int64_t)1 << 29) - 1) < ((uint64_t)1 << 30) - 1u &&
+               (uint64_t)(cv + ((int64_t)1 << 29) - 1) < ((uint64_t)1 << 30) - 1u) {
             cu *= 2;
             cv *= 2;
         }

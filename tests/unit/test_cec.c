@@ -252,6 +252,70 @@ static void test_exact_step_bit_exact(void)
             TEST_ASSERT_EQUAL_INT32_ARRAY(o2, n2, 3);
         }
     }
+    {
+        /* the edges of the scaling (2^29) and of the unit tolerance
+         * (|len^2 - 2^60| against 2^33: 2^30 -+ 4), both signs */
+        static const int32_t x[] = {0,
+                                    1,
+                                    (1 << 29) - 1,
+                                    1 << 29,
+                                    (1 << 29) + 1,
+                                    (1 << 30) - 5,
+                                    (1 << 30) - 4,
+                                    (1 << 30) - 3,
+                                    1 << 30,
+                                    (1 << 30) + 3,
+                                    (1 << 30) + 4,
+                                    (1 << 30) + 5,
+                                    INT32_MAX};
+        static const int32_t tws[] = {0, 5, 1 << 30};
+        /* |t|^2 - 2^60 = 2^33 - 7, 2^33 + 4, -2^33 + 8: either side of the
+         * tolerance (found by search) */
+        static const int32_t tol[][2] = {
+            {1073411765, 26621344}, {1073741826, 65536}, {1029800406, 304027334}};
+        unsigned a, b, j, n = sizeof x / sizeof x[0];
+        for (a = 0; a < 2 * n; a++) {
+            for (b = 0; b < 2 * n; b++) {
+                for (j = 0; j < 9; j++) {
+                    unsigned w = j % 3u;
+                    t[(w + 1u) % 3u] = (a < n) ? x[a] : -x[a - n];
+                    t[(w + 2u) % 3u] = (b < n) ? x[b] : -x[b - n];
+                    t[w] = tws[j / 3u];
+                    TEST_ASSERT_EQUAL(normals_oracle(t, w, o1, o2), cec_normals(t, w, n1, n2));
+                    if (normals_oracle(t, w, o1, o2)) {
+                        TEST_ASSERT_EQUAL_INT32_ARRAY(o1, n1, 3);
+                        TEST_ASSERT_EQUAL_INT32_ARRAY(o2, n2, 3);
+                    }
+                }
+            }
+        }
+        /* (t_u, t_v) where one more doubling at |c| = 2^29 (c = (t_v, -t_u))
+         * changes the normal's rounding (found by search) */
+        static const int32_t scale[][2] = {{(1 << 29) - 2, 1 << 29},
+                                           {(1 << 29) - 2, -(1 << 29)},
+                                           {1 << 29, -((1 << 29) - 2)},
+                                           {-(1 << 29), -((1 << 29) - 2)}};
+        for (a = 0; a < 3 * 4; a++) {
+            unsigned w = a % 3u;
+            t[w] = 0;
+            t[(w + 1u) % 3u] = scale[a / 3u][0];
+            t[(w + 2u) % 3u] = scale[a / 3u][1];
+            TEST_ASSERT_TRUE(normals_oracle(t, w, o1, o2));
+            TEST_ASSERT_TRUE(cec_normals(t, w, n1, n2));
+            TEST_ASSERT_EQUAL_INT32_ARRAY(o1, n1, 3);
+            TEST_ASSERT_EQUAL_INT32_ARRAY(o2, n2, 3);
+        }
+        for (a = 0; a < 3 * 8; a++) {
+            unsigned w = a % 3u, m = (a / 3u) % 8u;
+            t[w] = 0;
+            t[(w + 1u) % 3u] = tol[a % 3u][m & 1u] * ((m & 2u) ? -1 : 1);
+            t[(w + 2u) % 3u] = tol[a % 3u][(m & 1u) ^ 1u] * ((m & 4u) ? -1 : 1);
+            TEST_ASSERT_TRUE(normals_oracle(t, w, o1, o2));
+            TEST_ASSERT_TRUE(cec_normals(t, w, n1, n2));
+            TEST_ASSERT_EQUAL_INT32_ARRAY(o1, n1, 3);
+            TEST_ASSERT_EQUAL_INT32_ARRAY(o2, n2, 3);
+        }
+    }
 }
 
 /* The tick's same-segment shortcut (same_segment) against the general
