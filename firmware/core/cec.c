@@ -677,9 +677,10 @@ static void osc_watch(cec_t *c)
  * returning false otherwise before it writes anything: the active segment
  * (same_segment), a tangent in the plane (t_w = 0: no second channel, now
  * or last tick) off the plane normal and the channel's PID on its fast
- * path (the curve gains are in place: the ARC's last tick left them). The general path's operations
- * for that case in its order, without its tests for the cases that cannot arise: the same results
- * (test_cec.c, test_exact_arc_tick_equals_general). */
+ * path (the curve gains are in place: the ARC's last tick left them). The
+ * general path's operations for that case in its order, without its tests
+ * for the cases that cannot arise: the same results (test_cec.c,
+ * test_exact_arc_tick_equals_general). */
 static inline bool exact_arc_tick(cec_t *c, const motion_geom_t *g, const pos_nm_t meas[CORE_AXES])
 {
     unsigned w = c->w, u = (w == 2u) ? 0u : w + 1u, v = (w == 0u) ? 2u : w - 1u;
