@@ -764,16 +764,10 @@ static CEC_NOINLINE void step_general(cec_t *c, const motion_ref_t *ref,
     if (same_segment(c, g)) {
         /* a LINE's normals are last tick's (its tangent is in the key) */
         w = c->w;
-        if (g->kind != MOTION_GEOM_LINE) {
-            unsigned u = (w == 2u) ? 0u : w + 1u, v = (w == 0u) ? 2u : w - 1u;
-            int64_t cu = t[v], cv = -(int64_t)t[u], len2 = cu * cu + cv * cv;
-            if (len2 >= PLUNGE_LEN2) { /* normals_near's usual case, inline */
-                normals_plane(t[u], t[v], t[w], w, u, v, len2, c->n[0], c->n[1], &c->len_hint);
-            } else if (!normals_near(t, w, c->n[0], c->n[1], &c->len_hint)) {
-                c->bad_geom++;
-                deactivate(c);
-                return;
-            }
+        if (g->kind != MOTION_GEOM_LINE && !normals_near(t, w, c->n[0], c->n[1], &c->len_hint)) {
+            c->bad_geom++;
+            deactivate(c);
+            return;
         }
         c->idle = false;
         ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
