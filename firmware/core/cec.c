@@ -3,6 +3,7 @@
  * specification in cec.h.
  */
 #include "cec.h"
+#include "cec_hist.h"
 #include "cec_test.h"
 
 #include <stddef.h>
@@ -19,25 +20,78 @@
 #define PLUNGE_LEN2   ((int64_t)1 << 40) /* |t x e_w|^2 below (2^-10)^2 in q60 */
 #define UNIT_TOL2     ((int64_t)1 << 33) /* |len^2 - 1| tolerated without normalising */
 #define OFFPLANE_Q30  1024               /* |t_w| above 2^-20: second channel on */
+#if defined(__GNUC__)
+#define CEC_NOINLINE __attribute__((noinline))
+#else
+#define CEC_NOINLINE
+#endif
 /* cos 30 degrees, q60: a LINE join turning more restarts the history */
 #define HIST_CORNER_COS_Q60 ((int64_t)998459311558907264)
 
 /* ---- estimators ------------------------------------------------------------ */
 
 /* fx_div_sat32(num, den, 30), the same value: for 0 < den and |num| < 2^33
- * the numerator fits 64 bits, so one 64-bit division and its remainder's
- * rounding (ties away from zero) without the 128-bit general path. */
+ * the numerator fits 64 bits, so one 64-bit division: ties away from zero
+ * as floor((|num| 2^30 + floor(den / 2)) / den) with num's sign (the
+ * remainder r of |num| 2^30 / den rounds up exactly when 2 r >= den), which
+ * C's truncating division of num 2^30 -+ floor(den / 2) gives directly. */
 static inline int32_t div_q30(int64_t num, int32_t den)
 {
-    uint64_t a = fx_uabs64(num), q, r;
-    if (den <= 0 || a >= ((uint64_t)1 << 33)) {
+    int64_t h = den >> 1;
+    if (den <= 0 || fx_uabs64(num) >= ((uint64_t)1 << 33)) {
         return fx_div_sat32(num, den, 30);
     }
-    q = fx_udivmod64(a << 30, (uint64_t)den, &r);
-    if (r >= (uint64_t)den - r) {
-        q++; /* q < 2^63 */
+    return fx_sat32_fast((num * ((int64_t)1 << 30) + ((num < 0) ? -h : h)) / den);
+}
+
+/* The normals of a tangent off the plane normal (t x e_w at least 2^-10
+ * long, len2 = |t x e_w|^2): c = t x e_w = (c_u, c_v) = (t_v, -t_u) in the
+ * plane, n1_w = 0, no plunge. As the general path below computes them (the
+ * same operations on the same values); n2 = n1 x t without its two zero
+ * products when t_w = 0. tu, tv, tw: t's components. */
+static PID_ALWAYS_INLINE void normals_plane(q1_30_t tu, q1_30_t tv, q1_30_t tw, unsigned w,
+                                            unsigned u, unsigned v, int64_t len2, q1_30_t n1[3],
+                                            q1_30_t n2[3], uint32_t *hint)
+{
+    int64_t cu = tv, cv = -(int64_t)tu, n1u, n1v;
+    /* |len2 - 2^60| > UNIT_TOL2 (len2 - 2^60 >= -2^60: no overflow) */
+    if ((uint64_t)(len2 - ((int64_t)1 << 60) + UNIT_TOL2) > 2u * (uint64_t)UNIT_TOL2) {
+        int32_t len;
+        /* scale short vectors up first so that the root keeps 30 bits:
+         * while |c_u|, |c_v| < 2^29 (|c| <= 2^31 here, doubled below 2^30) */
+        while ((uint64_t)(cu + ((int64_t)1 << 29) - 1) < ((uint64_t)1 << 30) - 1u &&
+               (uint64_t)(cv + ((int64_t)1 << 29) - 1) < ((uint64_t)1 << 30) - 1u) {
+            cu *= 2;
+            cv *= 2;
+        }
+        *hint = fx_isqrt64_near((uint64_t)(cu * cu + cv * cv), *hint);
+        len = (int32_t)*hint;
+        if (len > 0) {
+            /* div_q30 without its range tests: |c| <= 2^31 and len >=
+             * |c_u|, |c_v| (the floor of a root over an integer), so the
+             * quotient is at most 2^30 */
+            int64_t h = len >> 1;
+            n1u = (cu * ((int64_t)1 << 30) + ((cu < 0) ? -h : h)) / len;
+            n1v = (cv * ((int64_t)1 << 30) + ((cv < 0) ? -h : h)) / len;
+        } else {
+            n1u = div_q30(cu, len);
+            n1v = div_q30(cv, len);
+        }
+    } else {
+        n1u = (q1_30_t)cu;
+        n1v = (q1_30_t)cv;
     }
-    return fx_sat32(num < 0 ? -(int64_t)q : (int64_t)q);
+    n1[u] = (q1_30_t)n1u;
+    n1[v] = (q1_30_t)n1v;
+    n1[w] = 0;
+    if (tw == 0) {
+        n2[u] = 0;
+        n2[v] = 0;
+    } else {
+        n2[u] = (q1_30_t)fx_round_shift64(n1v * tw, 30);
+        n2[v] = (q1_30_t)fx_round_shift64(-n1u * tw, 30);
+    }
+    n2[w] = (q1_30_t)fx_round_shift64(n1u * tv - n1v * tu, 30);
 }
 
 /* cec_normals; *hint: the last root of this caller (fx_isqrt64_near). */
@@ -47,6 +101,15 @@ static bool normals_near(const q1_30_t t[3], unsigned w, q1_30_t n1[3], q1_30_t 
     int64_t c[3], len2;
     int k;
 
+    if (w < 3u) {
+        unsigned u = (w == 2u) ? 0u : w + 1u, v = (w == 0u) ? 2u : w - 1u;
+        int64_t cu = t[v], cv = -(int64_t)t[u];
+        len2 = cu * cu + cv * cv;
+        if (len2 >= PLUNGE_LEN2) {
+            normals_plane(t[u], t[v], t[w], w, u, v, len2, n1, n2, hint);
+            return true;
+        }
+    }
     if (t[0] == 0 && t[1] == 0 && t[2] == 0) {
         return false;
     }
@@ -168,40 +231,6 @@ static int32_t curv_corr_div(int32_t e_abs, pos_nm_t r)
     return curv_corr_x(e_abs, r, fx_div_round64((int64_t)e_abs << 30, r));
 }
 
-#define CIRCLE3_LIM   ((int64_t)1 << 20) /* components scaled below this      */
-#define CIRCLE3_SHIFT 20                 /* q of |b-a| |c-b| / (2 |cross|)     */
-
-pos_nm_t cec_circle3(const pos_nm_t a[2], const pos_nm_t b[2], const pos_nm_t c[2], int8_t *s)
-{
-    int64_t d1u = b[0] - a[0], d1v = b[1] - a[1], d2u = c[0] - b[0], d2v = c[1] - b[1];
-    int64_t cr, l1, l2, l3, q;
-    unsigned sh = 0;
-
-    *s = 0;
-    while (fx_sat_abs64(d1u) >= CIRCLE3_LIM || fx_sat_abs64(d1v) >= CIRCLE3_LIM ||
-           fx_sat_abs64(d2u) >= CIRCLE3_LIM || fx_sat_abs64(d2v) >= CIRCLE3_LIM) {
-        d1u /= 2;
-        d1v /= 2;
-        d2u /= 2;
-        d2v /= 2;
-        sh++;
-    }
-    cr = d1u * d2v - d1v * d2u; /* below 2^41 */
-    l1 = fx_hypot2(d1u, d1v);
-    l2 = fx_hypot2(d2u, d2v);
-    l3 = fx_hypot2(d1u + d2u, d1v + d2v);
-    if (cr == 0 || l1 == 0 || l2 == 0 || l3 == 0) {
-        return 0;
-    }
-    /* q = |b-a| |c-b| / (2 |cross|) = 1 / (2 sin(turn)), q20; r = q |c-a| */
-    q = fx_div_round64((l1 * l2) << CIRCLE3_SHIFT, 2 * fx_sat_abs64(cr));
-    if (sh > 40 || q > ((CEC_CURV_R_MAX << CIRCLE3_SHIFT) >> sh) / l3) {
-        return 0; /* straight */
-    }
-    *s = (int8_t)((cr > 0) ? -1 : 1);
-    return (pos_nm_t)(((q * l3) >> CIRCLE3_SHIFT) << sh);
-}
-
 int32_t cec_curv_correction(int32_t e_abs, pos_nm_t radius)
 {
     pid_coef_t inv;
@@ -253,8 +282,9 @@ static inline uint32_t arc_root(uint64_t v, pos_nm_t r, pid_coef_t inv, uint32_t
 /* cec_exact_arc; *hint: the last root of this caller (fx_isqrt64_near,
  * taken where fx_hypot2 takes its one 64-bit root); inv: 2^30 / radius
  * (arc_root; m = 0: none). */
-static int32_t exact_arc_near(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv, pos_nm_t radius,
-                              int s, uint32_t *hint, pid_coef_t inv)
+static PID_ALWAYS_INLINE int32_t exact_arc_near(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv,
+                                                pos_nm_t radius, int s, uint32_t *hint,
+                                                pid_coef_t inv)
 {
     int64_t x = pu - cu, y = pv - cv, rho, d;
     uint64_t ax = fx_uabs64(x), ay = fx_uabs64(y);
@@ -265,6 +295,12 @@ static int32_t exact_arc_near(pos_nm_t pu, pos_nm_t pv, pos_nm_t cu, pos_nm_t cv
     }
     d = rho - radius;
     return fx_sat32_fast((s < 0) ? -d : d);
+}
+
+/* Test hook: div_q30 (cec_test.h). */
+int32_t cec_div_q30_test(int64_t num, int32_t den)
+{
+    return div_q30(num, den);
 }
 
 /* Test hook: arc_root (cec_test.h). */
@@ -499,6 +535,30 @@ static bool segment_changed(const cec_t *c, const motion_geom_t *g, unsigned w)
            c->key_sense != g->sense;
 }
 
+/* The tick's shortcut past geom_plane and segment_changed: the geometry
+ * is the active segment's (kind, plane_u and plane_v as given, the LINE's
+ * start and tangent, the ARC's centre, radius and sense), so it is valid
+ * and unchanged with the plane normal c->w (both depend on these fields
+ * alone). False sends the tick the general way. */
+static inline bool same_segment(const cec_t *c, const motion_geom_t *g)
+{
+    int k;
+    if (!c->active || c->reseg || c->kind != g->kind || c->key_u != g->plane_u ||
+        c->key_v != g->plane_v) {
+        return false;
+    }
+    if (g->kind == MOTION_GEOM_ARC) {
+        return c->key_p[0] == g->centre_u && c->key_p[1] == g->centre_v && c->key_r == g->radius &&
+               c->key_sense == g->sense;
+    }
+    for (k = 0; k < 3 && k < CORE_AXES; k++) {
+        if (c->key_t[k] != g->tangent[k] || c->key_p[k] != g->start[k]) {
+            return false;
+        }
+    }
+    return true;
+}
+
 static void new_segment(cec_t *c, const motion_ref_t *ref, unsigned w, const q1_30_t n1[3],
                         const q1_30_t n2[3], bool ch2)
 {
@@ -552,6 +612,8 @@ static void new_segment(cec_t *c, const motion_ref_t *ref, unsigned w, const q1_
     }
     c->key_r = 0;
     c->key_sense = 0;
+    c->key_u = g->plane_u;
+    c->key_v = g->plane_v;
     if (g->kind == MOTION_GEOM_ARC) {
         unsigned u = g->plane_u, v = g->plane_v;
         int64_t du = g->centre_u - ref->pos[u], dv = g->centre_v - ref->pos[v], dot;
@@ -570,42 +632,6 @@ static void new_segment(cec_t *c, const motion_ref_t *ref, unsigned w, const q1_
             c->inv_r.m = 0;
             c->inv_r.sh = 0;
         }
-    }
-}
-
-/* Sample the reference into the history (see cec.h) and, with a new
- * sample, the circle through the last three. */
-static void hist_step(cec_t *c, const motion_ref_t *ref, unsigned w)
-{
-    unsigned u = (w + 1u) % 3u, v = (w + 2u) % 3u;
-    pos_nm_t pu = (u < CORE_AXES) ? ref->pos[u] : 0, pv = (v < CORE_AXES) ? ref->pos[v] : 0;
-    int64_t span = (c->p.curv_span_nm > 0) ? c->p.curv_span_nm : CEC_CURV_SPAN_NM;
-    int64_t du, dv;
-
-    if (c->hist_n == 0 || c->hist_w != w) {
-        c->hist_n = 1;
-        c->hist_w = (uint8_t)w;
-        c->hist_r = 0;
-        c->hist[0][0] = pu;
-        c->hist[0][1] = pv;
-        return;
-    }
-    du = pu - c->hist[0][0];
-    dv = pv - c->hist[0][1];
-    if (fx_sat_abs64(du) < span && fx_sat_abs64(dv) < span && du * du + dv * dv < span * span) {
-        return;
-    }
-    c->hist[2][0] = c->hist[1][0];
-    c->hist[2][1] = c->hist[1][1];
-    c->hist[1][0] = c->hist[0][0];
-    c->hist[1][1] = c->hist[0][1];
-    c->hist[0][0] = pu;
-    c->hist[0][1] = pv;
-    if (c->hist_n < 3) {
-        c->hist_n++;
-    }
-    if (c->hist_n == 3) {
-        c->hist_r = cec_circle3(c->hist[2], c->hist[1], c->hist[0], &c->hist_s);
     }
 }
 
@@ -647,7 +673,60 @@ static void osc_watch(cec_t *c)
     c->osc_u[0] = u;
 }
 
-void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
+/* The usual tick of the EXACT estimate on an arc, taken when it applies and
+ * returning false otherwise before it writes anything: the active segment
+ * (same_segment), a tangent in the plane (t_w = 0: no second channel, now
+ * or last tick) off the plane normal and the channel's PID on its fast
+ * path (the curve gains are in place: the ARC's last tick left them). The
+ * general path's operations for that case in its order, without its tests
+ * for the cases that cannot arise: the same results (test_cec.c,
+ * test_exact_arc_tick_equals_general). */
+static inline bool exact_arc_tick(cec_t *c, const motion_geom_t *g, const pos_nm_t meas[CORE_AXES])
+{
+    unsigned w = c->w, u = (w == 2u) ? 0u : w + 1u, v = (w == 0u) ? 2u : w - 1u;
+    q1_30_t tu, tv;
+    int64_t len2;
+    int32_t ec1, u1;
+    int k;
+
+    if (g->kind != MOTION_GEOM_ARC || !same_segment(c, g) || g->tangent[w] != 0 || c->ch2_on ||
+        !pid_fast_ready(&c->ch[0])) {
+        return false;
+    }
+    tu = g->tangent[u];
+    tv = g->tangent[v];
+    len2 = (int64_t)tv * tv + (int64_t)tu * tu;
+    if (len2 < PLUNGE_LEN2) {
+        return false;
+    }
+    for (k = 0; k < CORE_AXES; k++) {
+        c->handover_u[k] = 0;
+    }
+    c->out_zero = false;
+    normals_plane(tu, tv, 0, w, u, v, len2, c->n[0], c->n[1], &c->len_hint);
+    c->idle = false;
+    ec1 = exact_arc_near(meas[g->plane_u], meas[g->plane_v], g->centre_u, g->centre_v, g->radius,
+                         c->s, &c->rho_hint, c->inv_r);
+    c->ec_nm[0] = ec1;
+    c->ec_nm[1] = 0;
+    pid_step_fast_inline(&c->ch[0], ec1, -(pos_nm_t)ec1, 0, true);
+    c->ch[1].out = 0;
+    c->ch[1].saturated = false;
+    c->saturated = c->ch[0].saturated;
+    osc_watch(c);
+    u1 = (int32_t)fx_round_shift64(c->ch[0].out, 22); /* mV q10 */
+    for (k = 0; k < 3 && k < CORE_AXES; k++) {
+        c->out_u[k] = fx_round_shift64((int64_t)u1 * c->n[0][k], 8);
+    }
+    for (k = 3; k < CORE_AXES; k++) {
+        c->out_u[k] = 0;
+    }
+    return true;
+}
+
+/* cec_step for every case (exact_arc_tick: its usual one). */
+static CEC_NOINLINE void step_general(cec_t *c, const motion_ref_t *ref,
+                                      const pos_nm_t meas[CORE_AXES])
 {
     const motion_geom_t *g;
     q1_30_t t[3], s1[3], s2[3];
@@ -682,36 +761,52 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
     for (k = 0; k < 3; k++) {
         t[k] = (k < CORE_AXES) ? g->tangent[k] : 0;
     }
-    if ((g->kind != MOTION_GEOM_LINE && g->kind != MOTION_GEOM_ARC) || !geom_plane(g, &w)) {
-        c->bad_geom++;
-        deactivate(c);
-        return;
-    }
-    /* Within a segment the normals go straight into c->n (normals_near
-     * writes nothing when it fails). A new segment needs last tick's
-     * normals (new_segment projects the integral from them): the new ones
-     * wait in s1, s2 until it has run. */
-    changed = segment_changed(c, g, w);
-    if (changed) {
-        o1 = s1;
-        o2 = s2;
-    }
-    if (!normals_near(t, w, o1, o2, &c->len_hint)) {
-        c->bad_geom++;
-        deactivate(c);
-        return;
-    }
-    c->idle = false; /* the channels run (or are reset) below */
-    ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
-    if (changed) {
-        new_segment(c, ref, w, s1, s2, ch2);
-        for (k = 0; k < 3; k++) {
-            c->n[0][k] = s1[k];
-            c->n[1][k] = s2[k];
+    if (same_segment(c, g)) {
+        /* a LINE's normals are last tick's (its tangent is in the key) */
+        w = c->w;
+        if (g->kind != MOTION_GEOM_LINE && !normals_near(t, w, c->n[0], c->n[1], &c->len_hint)) {
+            c->bad_geom++;
+            deactivate(c);
+            return;
         }
-    } else if (c->ch2_on && !ch2) {
-        /* (a LINE's tangent is part of its key: only reached on an ARC) */
-        pid_reset(&c->ch[1], false);
+        c->idle = false;
+        ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
+        if (c->ch2_on && !ch2) {
+            /* (a LINE's tangent is part of its key: only reached on an ARC) */
+            pid_reset(&c->ch[1], false);
+        }
+    } else {
+        if ((g->kind != MOTION_GEOM_LINE && g->kind != MOTION_GEOM_ARC) || !geom_plane(g, &w)) {
+            c->bad_geom++;
+            deactivate(c);
+            return;
+        }
+        /* Within a segment the normals go straight into c->n (normals_near
+         * writes nothing when it fails). A new segment needs last tick's
+         * normals (new_segment projects the integral from them): the new
+         * ones wait in s1, s2 until it has run. */
+        changed = segment_changed(c, g, w);
+        if (changed) {
+            o1 = s1;
+            o2 = s2;
+        }
+        if (!normals_near(t, w, o1, o2, &c->len_hint)) {
+            c->bad_geom++;
+            deactivate(c);
+            return;
+        }
+        c->idle = false; /* the channels run (or are reset) below */
+        ch2 = w < CORE_AXES && (t[w] > OFFPLANE_Q30 || t[w] < -OFFPLANE_Q30);
+        if (changed) {
+            new_segment(c, ref, w, s1, s2, ch2);
+            for (k = 0; k < 3; k++) {
+                c->n[0][k] = s1[k];
+                c->n[1][k] = s2[k];
+            }
+        } else if (c->ch2_on && !ch2) {
+            /* (a LINE's tangent is part of its key: only reached on an ARC) */
+            pid_reset(&c->ch[1], false);
+        }
     }
     c->active = true;
     c->ch2_on = ch2;
@@ -749,7 +844,7 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
             rr = g->radius;
             s = c->s;
         } else {
-            hist_step(c, ref, w);
+            cec_hist_step(c, ref, w);
             rr = c->hist_r;
             s = c->hist_s;
         }
@@ -772,7 +867,7 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
             int32_t corr = curv_corr(fx_sat32_fast(eabs), g->radius, c->inv_r);
             ec1 = fx_sat_add32(ec1, (c->s > 0) ? corr : -corr);
         } else {
-            hist_step(c, ref, w);
+            cec_hist_step(c, ref, w);
             if (c->hist_r > 0 && !c->p.thesis_form) {
                 unsigned u = (w + 1u) % 3u, v = (w + 2u) % 3u;
                 ec1 =
@@ -835,4 +930,19 @@ void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
             c->out_u[k] = fx_round_shift64(a, 8); /* q10 * q30 = q40 -> U (q32) */
         }
     }
+}
+
+void cec_step(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
+{
+    if (ref != NULL && c->p.mode == CEC_MODE_EXACT && ref->active &&
+        exact_arc_tick(c, &ref->geom, meas)) {
+        return;
+    }
+    step_general(c, ref, meas);
+}
+
+/* Test hook: the general path alone (cec_test.h). */
+void cec_step_general_test(cec_t *c, const motion_ref_t *ref, const pos_nm_t meas[CORE_AXES])
+{
+    step_general(c, ref, meas);
 }

@@ -198,12 +198,13 @@ typedef struct {
     pos_nm_t key_p[3];
     pos_nm_t key_r;
     int8_t key_sense;
-    pid_coef_t inv_r; /* 2^30 / radius */
-    int8_t s;         /* side of the centre: +1 on +n1 */
-    bool idle;        /* inactive and the channels reset, untouched since:
-                       * the next inactive tick has nothing to do (tick) */
-    bool out_zero;    /* idle, and out_u / handover_u already 0: an inactive
-                       * tick returns at once (tick) */
+    uint8_t key_u, key_v; /* the geometry's plane_u, plane_v (same_segment) */
+    pid_coef_t inv_r;     /* 2^30 / radius */
+    int8_t s;             /* side of the centre: +1 on +n1 */
+    bool idle;            /* inactive and the channels reset, untouched since:
+                           * the next inactive tick has nothing to do (tick) */
+    bool out_zero;        /* idle, and out_u / handover_u already 0: an inactive
+                           * tick returns at once (tick) */
     /* reference history (tick): samples h[0] newest .. h[2], in the plane
      * (u, v) of normal axis hist_w; hist_r 0: no curvature known */
     uint8_t hist_n;

@@ -243,6 +243,8 @@ static void test_exact_step_bit_exact(void)
         }
         if (i % 5 == 0) {
             t[(w + 1u) % 3u] = t[(w + 2u) % 3u] = (q1_30_t)(rand() % 512); /* plunges */
+        } else if (i % 5 == 1) {
+            t[w] = 0; /* in the plane (the arcs' tangents) */
         }
         TEST_ASSERT_EQUAL(normals_oracle(t, w, o1, o2), cec_normals(t, w, n1, n2));
         if (normals_oracle(t, w, o1, o2)) {
@@ -250,6 +252,250 @@ static void test_exact_step_bit_exact(void)
             TEST_ASSERT_EQUAL_INT32_ARRAY(o2, n2, 3);
         }
     }
+    {
+        /* the edges of the scaling (2^29) and of the unit tolerance
+         * (|len^2 - 2^60| against 2^33: 2^30 -+ 4), both signs */
+        static const int32_t x[] = {0,
+                                    1,
+                                    (1 << 29) - 1,
+                                    1 << 29,
+                                    (1 << 29) + 1,
+                                    (1 << 30) - 5,
+                                    (1 << 30) - 4,
+                                    (1 << 30) - 3,
+                                    1 << 30,
+                                    (1 << 30) + 3,
+                                    (1 << 30) + 4,
+                                    (1 << 30) + 5,
+                                    INT32_MAX};
+        static const int32_t tws[] = {0, 5, 1 << 30};
+        /* |t|^2 - 2^60 = 2^33 - 7, 2^33 + 4, -2^33 + 8: either side of the
+         * tolerance (found by search) */
+        static const int32_t tol[][2] = {
+            {1073411765, 26621344}, {1073741826, 65536}, {1029800406, 304027334}};
+        unsigned a, b, j, n = sizeof x / sizeof x[0];
+        for (a = 0; a < 2 * n; a++) {
+            for (b = 0; b < 2 * n; b++) {
+                for (j = 0; j < 9; j++) {
+                    unsigned w = j % 3u;
+                    t[(w + 1u) % 3u] = (a < n) ? x[a] : -x[a - n];
+                    t[(w + 2u) % 3u] = (b < n) ? x[b] : -x[b - n];
+                    t[w] = tws[j / 3u];
+                    TEST_ASSERT_EQUAL(normals_oracle(t, w, o1, o2), cec_normals(t, w, n1, n2));
+                    if (normals_oracle(t, w, o1, o2)) {
+                        TEST_ASSERT_EQUAL_INT32_ARRAY(o1, n1, 3);
+                        TEST_ASSERT_EQUAL_INT32_ARRAY(o2, n2, 3);
+                    }
+                }
+            }
+        }
+        /* (t_u, t_v) where one more doubling at |c| = 2^29 (c = (t_v, -t_u))
+         * changes the normal's rounding (found by search) */
+        static const int32_t scale[][2] = {{(1 << 29) - 2, 1 << 29},
+                                           {(1 << 29) - 2, -(1 << 29)},
+                                           {1 << 29, -((1 << 29) - 2)},
+                                           {-(1 << 29), -((1 << 29) - 2)}};
+        for (a = 0; a < 3 * 4; a++) {
+            unsigned w = a % 3u;
+            t[w] = 0;
+            t[(w + 1u) % 3u] = scale[a / 3u][0];
+            t[(w + 2u) % 3u] = scale[a / 3u][1];
+            TEST_ASSERT_TRUE(normals_oracle(t, w, o1, o2));
+            TEST_ASSERT_TRUE(cec_normals(t, w, n1, n2));
+            TEST_ASSERT_EQUAL_INT32_ARRAY(o1, n1, 3);
+            TEST_ASSERT_EQUAL_INT32_ARRAY(o2, n2, 3);
+        }
+        for (a = 0; a < 3 * 8; a++) {
+            unsigned w = a % 3u, m = (a / 3u) % 8u;
+            t[w] = 0;
+            t[(w + 1u) % 3u] = tol[a % 3u][m & 1u] * ((m & 2u) ? -1 : 1);
+            t[(w + 2u) % 3u] = tol[a % 3u][(m & 1u) ^ 1u] * ((m & 4u) ? -1 : 1);
+            TEST_ASSERT_TRUE(normals_oracle(t, w, o1, o2));
+            TEST_ASSERT_TRUE(cec_normals(t, w, n1, n2));
+            TEST_ASSERT_EQUAL_INT32_ARRAY(o1, n1, 3);
+            TEST_ASSERT_EQUAL_INT32_ARRAY(o2, n2, 3);
+        }
+    }
+}
+
+/* The tick's same-segment shortcut (same_segment) against the general
+ * path's segment test: geometries that change one field at a time, by one
+ * nm or LSB (an ARC's centre_u, centre_v, radius, sense, plane, a swap of
+ * its plane's axes, a LINE's start or tangent on each axis, the kind),
+ * with stretches of unchanged ticks between: after every tick the
+ * segment's key is the geometry's (a new segment took it over) and the
+ * normals are those of the tangent. */
+static void test_segment_keys_follow_geometry(void)
+{
+    cec_t c;
+    motion_ref_t ref;
+    pos_nm_t meas[CORE_AXES] = {1000, -2000, 3000};
+    q1_30_t o1[3], o2[3];
+    int i, k, restarts = 0;
+    config(&c, CEC_MODE_EXACT, 2000.0, 0.0);
+    memset(&ref, 0, sizeof ref);
+    ref.active = true;
+    ref.geom.kind = MOTION_GEOM_ARC;
+    ref.geom.plane_u = 0;
+    ref.geom.plane_v = 1;
+    ref.geom.centre_u = 5000000;
+    ref.geom.centre_v = -7000000;
+    ref.geom.radius = 20000000;
+    ref.geom.sense = 1;
+    ref.geom.tangent[0] = Q30(0.6);
+    ref.geom.tangent[1] = Q30(0.8);
+    srand(17);
+    for (i = 0; i < 30000; i++) {
+        motion_geom_t *g = &ref.geom;
+        unsigned w;
+        int what = (i % 3 == 0) ? rand() % 12 : -1;
+        int d = (rand() % 2) ? 1 : -1;
+        switch (what) {
+        case 0:
+            g->centre_u += d;
+            break;
+        case 1:
+            g->centre_v += d;
+            break;
+        case 2:
+            g->radius += d;
+            break;
+        case 3:
+            g->sense = (int8_t)-g->sense;
+            break;
+        case 4: {
+            unsigned pl = (unsigned)rand() % PLANES;
+            g->plane_u = (uint8_t)plane_uv[pl][0];
+            g->plane_v = (uint8_t)plane_uv[pl][1];
+            break;
+        }
+        case 5: { /* the same plane with its axes swapped */
+            uint8_t x = g->plane_u;
+            g->plane_u = g->plane_v;
+            g->plane_v = x;
+            break;
+        }
+        case 6:
+        case 7:
+            g->start[rand() % 3] += d;
+            break;
+        case 8:
+        case 9:
+            g->tangent[rand() % 3] += d;
+            break;
+        case 10:
+            g->kind = (g->kind == MOTION_GEOM_ARC) ? MOTION_GEOM_LINE : MOTION_GEOM_ARC;
+            break;
+        case 11: /* a tangent off the plane now and then */
+            g->tangent[rand() % 3] = Q30((double)(rand() % 2001 - 1000) / 1000.0);
+            break;
+        default:
+            break;
+        }
+        ref.pos[0] += 300;
+        cec_step(&c, &ref, meas);
+        TEST_ASSERT_TRUE(c.active);
+        w = 3u - g->plane_u - g->plane_v;
+        TEST_ASSERT_EQUAL_INT(g->kind, c.kind);
+        TEST_ASSERT_EQUAL_UINT(w, c.w);
+        if (g->kind == MOTION_GEOM_ARC) {
+            TEST_ASSERT_EQUAL_INT64(g->centre_u, c.key_p[0]);
+            TEST_ASSERT_EQUAL_INT64(g->centre_v, c.key_p[1]);
+            TEST_ASSERT_EQUAL_INT64(g->radius, c.key_r);
+            TEST_ASSERT_EQUAL_INT(g->sense, c.key_sense);
+        } else {
+            for (k = 0; k < 3; k++) {
+                TEST_ASSERT_EQUAL_INT32(g->tangent[k], c.key_t[k]);
+                TEST_ASSERT_EQUAL_INT64(g->start[k], c.key_p[k]);
+            }
+        }
+        TEST_ASSERT_TRUE(normals_oracle(g->tangent, w, o1, o2));
+        TEST_ASSERT_EQUAL_INT32_ARRAY(o1, c.n[0], 3);
+        TEST_ASSERT_EQUAL_INT32_ARRAY(o2, c.n[1], 3);
+        restarts += (what >= 0 && what != 5);
+    }
+    TEST_ASSERT_TRUE(restarts > 5000);
+}
+
+/* cec_step (its usual exact arc tick, exact_arc_tick, where it applies)
+ * against the general path alone (cec_step_general_test) on two copies of
+ * the controller, the whole state equal after every tick: exact arcs in
+ * every plane and direction with tangents off unit length, lag jumps (the
+ * PID's general step) and an output clamp that saturates, and now and then
+ * what the usual tick does not take: a new arc, a tangent off the plane
+ * (the second channel) or along its normal (a plunge), a LINE with its own
+ * gains (line_gains), another estimate, no reference, new gains (the PID's
+ * bumpless step, a deadband: not on its fast path). */
+static void test_exact_arc_tick_equals_general(void)
+{
+    static cec_t a, b;
+    cec_params_t p;
+    arc_case_t ac;
+    int i, k, plain = 0;
+    memset(&a, 0, sizeof a);
+    memset(&p, 0, sizeof p);
+    p.mode = CEC_MODE_EXACT;
+    p.handover = true;
+    p.pid.kp = Q32(2000.0);
+    p.pid.ki = Q32(2e5);
+    p.pid.kd = Q32(2.0);
+    p.pid.kt = Q32(10.0);
+    p.pid.d_tau_us = 1000;
+    p.pid.out_max_mv = 3000;
+    p.pid.i_max_mv = 2000;
+    p.pid.tick_hz = 10000;
+    p.pid_line = p.pid;
+    p.pid_line.kp = Q32(3000.0);
+    p.line_gains = true;
+    TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&a, &p, NULL));
+    b = a;
+    srand(23);
+    for (i = 0; i < 60000; i++) {
+        unsigned pl = (unsigned)(i / 2000) % PLANES, w;
+        int dir = ((i / 6000) % 2) ? -1 : 1, ev = rand() % 1000;
+        double d = (i % 997 < 3) ? 3e6 : (double)(rand() % 4001 - 2000);
+        const motion_ref_t *r = &ac.ref;
+        arc_case(&ac, pl, 2e7 + (double)(i / 500), 0.0003 * i, dir, 2e-5, d);
+        w = 3u - plane_uv[pl][0] - plane_uv[pl][1];
+        if (i % 7 == 0) { /* a tangent off unit length by a few LSB */
+            ac.ref.geom.tangent[plane_uv[pl][0]] += (q1_30_t)(rand() % 9 - 4);
+        }
+        if (ev < 5) {
+            ac.ref.geom.tangent[w] = (q1_30_t)(rand() % 4001 - 2000); /* off the plane */
+        } else if (ev < 7) {
+            ac.ref.geom.tangent[plane_uv[pl][0]] = (q1_30_t)(rand() % 300); /* plunge */
+            ac.ref.geom.tangent[plane_uv[pl][1]] = (q1_30_t)(rand() % 300);
+            ac.ref.geom.tangent[w] = FX_ONE_Q30;
+        } else if (ev < 9) {
+            ac.ref.geom.kind = MOTION_GEOM_LINE; /* the line gains, then back */
+            ac.ref.geom.start[0] = 1000;
+        } else if (ev < 10) {
+            r = NULL;
+        } else if (ev < 11) {
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&a, CEC_MODE_TANGENT));
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&b, CEC_MODE_TANGENT));
+        } else if (ev < 14) {
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&a, CEC_MODE_EXACT));
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_set_mode(&b, CEC_MODE_EXACT));
+        } else if (ev < 16) { /* new gains while running: a bumpless step next */
+            p.pid.kp = Q32((ev == 14) ? 2500.0 : 2000.0);
+            p.pid.deadband_nm = (i % 3 == 0) ? 50 : 0;
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&a, &p, NULL));
+            TEST_ASSERT_EQUAL_INT(CEC_OK, cec_config(&b, &p, NULL));
+        }
+        plain += (ev >= 16 && a.p.mode == CEC_MODE_EXACT);
+        cec_step(&a, r, ac.meas);
+        cec_step_general_test(&b, r, ac.meas);
+        TEST_ASSERT_EQUAL_INT32_ARRAY(b.ec_nm, a.ec_nm, 2);
+        TEST_ASSERT_EQUAL_INT32_ARRAY(b.n[0], a.n[0], 3);
+        TEST_ASSERT_EQUAL_INT32_ARRAY(b.n[1], a.n[1], 3);
+        for (k = 0; k < CORE_AXES; k++) {
+            TEST_ASSERT_EQUAL_INT64(b.out_u[k], a.out_u[k]);
+            TEST_ASSERT_EQUAL_INT64(b.handover_u[k], a.handover_u[k]);
+        }
+        TEST_ASSERT_EQUAL_MEMORY(&b, &a, sizeof a); /* and every other field */
+    }
+    TEST_ASSERT_TRUE(plain > 40000);
 }
 
 /* The channel's step inside cec_step (the PID's fast step inline while the
@@ -314,6 +560,40 @@ static uint64_t root_rand(void)
     root_rng ^= root_rng >> 7;
     root_rng ^= root_rng << 17;
     return root_rng;
+}
+
+/* The normalisation's division (cec_div_q30_test) against fx_div_sat32:
+ * every remainder of small divisors (the ties: rounding away from zero
+ * exactly when 2 r >= den, for either sign), numerators at the 2^33 edge of
+ * the one-division form and beyond, divisors up to INT32_MAX, 0 and below. */
+static void test_normalisation_division(void)
+{
+    static const int64_t big[] = {((int64_t)1 << 33) - 1, (int64_t)1 << 33, ((int64_t)1 << 33) + 1,
+                                  (int64_t)1 << 31,       INT32_MAX,        INT64_MAX};
+    static const int32_t dens[] = {1,         2, 3,  (int32_t)1 << 30, ((int32_t)1 << 30) + 1,
+                                   INT32_MAX, 0, -1, INT32_MIN};
+    int64_t num;
+    int32_t den;
+    unsigned i, j;
+    for (den = 1; den <= 200; den++) {
+        for (num = -700; num <= 700; num++) {
+            TEST_ASSERT_EQUAL_INT32(fx_div_sat32(num, den, 30), cec_div_q30_test(num, den));
+        }
+    }
+    for (i = 0; i < sizeof big / sizeof big[0]; i++) {
+        for (j = 0; j < sizeof dens / sizeof dens[0]; j++) {
+            TEST_ASSERT_EQUAL_INT32(fx_div_sat32(big[i], dens[j], 30),
+                                    cec_div_q30_test(big[i], dens[j]));
+            TEST_ASSERT_EQUAL_INT32(fx_div_sat32(-big[i], dens[j], 30),
+                                    cec_div_q30_test(-big[i], dens[j]));
+        }
+    }
+    for (i = 0; i < 1000000; i++) {
+        uint64_t x = root_rand();
+        num = (int64_t)(root_rand() >> (29 + x % 35u)) * ((x & 64u) ? -1 : 1);
+        den = (int32_t)((uint32_t)(x >> 34) >> ((x >> 3) % 31u)) + 1;
+        TEST_ASSERT_EQUAL_INT32(fx_div_sat32(num, den, 30), cec_div_q30_test(num, den));
+    }
 }
 
 /* The exact arc's root (cec_arc_root_test) against fx_isqrt64: points near
@@ -1149,8 +1429,11 @@ int main(void)
     UNITY_BEGIN();
     RUN_TEST(test_normals);
     RUN_TEST(test_exact_step_bit_exact);
+    RUN_TEST(test_exact_arc_tick_equals_general);
+    RUN_TEST(test_segment_keys_follow_geometry);
     RUN_TEST(test_channel_step_equals_pid_step);
     RUN_TEST(test_exact_arc_root);
+    RUN_TEST(test_normalisation_division);
     RUN_TEST(test_exact_arc_root_outside_range);
     RUN_TEST(test_curvature_correction_vs_double);
     RUN_TEST(test_circle_pure_lag_grid);
