@@ -39,10 +39,29 @@ void drive_ff_config(drive_ff_t *f, const drive_config_t *cfg, unsigned axes)
     f->on = on;
 }
 
-/* Quadrant-glitch compensation of axis i: v the reference velocity, fr
- * the friction feed-forward (mV, > 0 or < 0). */
-static void qg_step(drive_ff_t *f, pid_loop_t *pid, unsigned i, int64_t v, int64_t fr)
+/* What the CEC's integrators hold on axis i, U: part of the axis's
+ * integral action while the CEC is active (it hands it to the axis
+ * integrator when it stops: cec.h handover), 0 while it is not. */
+static int64_t cec_held(const cec_t *c, unsigned i)
 {
+    int64_t u;
+    if (!c->active || i >= 3u) {
+        return 0;
+    }
+    u = fx_mul64x32_shift(c->ch[0].integ, c->n[0][i], 30);
+    if (c->ch2_on) {
+        u += fx_mul64x32_shift(c->ch[1].integ, c->n[1][i], 30);
+    }
+    return u;
+}
+
+/* Quadrant-glitch compensation of axis i: v the reference velocity, fr
+ * the friction feed-forward (mV, > 0 or < 0). The friction the loops hold
+ * is in the axis integrator and, along the normal (at a reversal: this
+ * axis), in the CEC's: the swing is read from both, made on the axis's. */
+static void qg_step(drive_ff_t *f, servo_t *servo, unsigned i, int64_t v, int64_t fr)
+{
+    pid_loop_t *pid = &servo->pid[i];
     int8_t sg = v > 0 ? 1 : (v < 0 ? -1 : 0);
     int8_t old = f->qg_sign[i];
 
@@ -53,7 +72,7 @@ static void qg_step(drive_ff_t *f, pid_loop_t *pid, unsigned i, int64_t v, int64
     if (old != 0) {
         unsigned k = old > 0 ? 0u : 1u; /* out of + or out of - */
 
-        f->qg_ipre[i][k] = pid->integ;
+        f->qg_ipre[i][k] = pid->integ + cec_held(&servo->cec, i);
         f->qg_have[i] |= (uint8_t)(1u << k);
         if (f->qg_have[i] == 3u) {
             /* I(+ -> -) - I(- -> +) = twice the friction the integrator
@@ -131,7 +150,7 @@ const motion_ref_t *drive_ff_step(drive_ff_t *f, servo_t *servo, motion_ref_t *r
         fr = f->fric_mv[i];
         v = ref->vel[i];
         if (f->qg) {
-            qg_step(f, &servo->pid[i], i, v, fr);
+            qg_step(f, servo, i, v, fr);
         }
         kaff = servo->p.axis[i].kaff >> 16;
         if (kaff <= 0 || v == 0) {

@@ -17,7 +17,8 @@
  *   ref.vel += ref.acc * advance;
  *   friction_ff_mv F != 0: qg_comp: at a reversal of ref.vel the axis
  *   integrator jumps by I(+ -> -) - I(- -> +) of the last two reversals
- *   toward the new direction (at most 2 |F|); then with Kaff > 0 the
+ *   toward the new direction (at most 2 |F|), I the axis integrator plus,
+ *   while the CEC is active, its integrators' part on the axis; then with Kaff > 0 the
  *   friction F * clamp(v / band, -1, 1) mV is added as the reference
  *   acceleration F / Kaff.
  * Mean alignment (cfg->enc_mean; drive.h): fb then holds each axis's mean

@@ -320,7 +320,101 @@ def figures(out: Path, traces: dict, alias: dict) -> None:
     plt.close(fig)
 
 
+# The sweep of "CEC never worse than the PIDs" (docs/simulator.md, "Outside
+# the tables: the sweep"): id -> machine file, feed-forward (make run's
+# set-ups, demo.SETUPS, and F).
+SWEEP_SETUPS = {
+    "A": ("default", "none"),
+    "B": ("thesis", "none"),
+    "C10": ("default_mean", "full"),
+    "C3": ("thesis_mean", "full"),
+    "F": ("realistic", "full"),
+}
+SWEEP_RADII = (5, 7.5, 10, 15, 20, 25, 30, 40, 50, 75, 100)
+SWEEP_FEEDS = (2, 3, 5, 7.5, 10, 15, 20, 25, 30)
+SWEEP_CTL = ("pid", "cec-curvature", "cec-exact")
+
+
+def sweep(
+    setups=tuple(SWEEP_SETUPS),
+    radii=SWEEP_RADII,
+    feeds=SWEEP_FEEDS,
+    dirs=("ccw", "cw"),
+    log=print,
+) -> list:
+    """Every controller of SWEEP_CTL on a grid of circles (R mm, feed m/min)
+    at the stated feed (the ones the planner limits are left out), scored as
+    `make run` scores them; rows of dicts (circular deviation and max error
+    in um)."""
+    rows = []
+    for sid in setups:
+        name, ff = SWEEP_SETUPS[sid]
+        m = machine.load(name)
+        for r in radii:
+            for f in feeds:
+                if circle.limits(r, f * 1000, m.planner):
+                    continue
+                for d in dirs:
+                    for ctl in SWEEP_CTL:
+                        x = circle.run_circle(
+                            r, f * 1000, d, controller=ctl, feedforward=ff, mach=m
+                        )
+                        rows.append(
+                            {
+                                "setup": sid,
+                                "radius_mm": r,
+                                "feed_m_min": f,
+                                "direction": d,
+                                "controller": ctl,
+                                "circular_deviation_um": x.result.circular_deviation_mm * 1e3,
+                                "max_contour_error_um": x.result.max_contour_error_mm * 1e3,
+                                "mean_radial_error_um": x.result.mean_radial_error_mm * 1e3,
+                            }
+                        )
+            log(f"{sid}: {sum(x['setup'] == sid for x in rows)} runs")
+    return rows
+
+
+def sweep_worse(rows: list, tol: float = 0.01) -> list:
+    """(setup, R, feed, direction, controller, score, pid, cec) for every CEC
+    row worse than the PIDs alone by more than tol in circular deviation
+    ("cd") or max error ("max")."""
+    pid = {
+        (x["setup"], x["radius_mm"], x["feed_m_min"], x["direction"]): x
+        for x in rows
+        if x["controller"] == "pid"
+    }
+    out = []
+    for x in rows:
+        p = pid.get((x["setup"], x["radius_mm"], x["feed_m_min"], x["direction"]))
+        if x["controller"] == "pid" or p is None:
+            continue
+        for lab, k in (("cd", "circular_deviation_um"), ("max", "max_contour_error_um")):
+            if x[k] > (1 + tol) * p[k]:
+                key = (x["setup"], x["radius_mm"], x["feed_m_min"], x["direction"])
+                out.append((*key, x["controller"], lab, p[k], x[k]))
+    return out
+
+
+def sweep_main(argv: list) -> int:
+    """`python -m contour.sim.diagnose sweep [SETUPS]`: the sweep and its
+    worse rows (SETUPS: comma-separated ids, default all)."""
+    setups = argv[0].split(",") if argv else tuple(SWEEP_SETUPS)
+    rows = sweep(setups)
+    worse = sweep_worse(rows)
+    for sid in setups:
+        n = sum(x["setup"] == sid and x["controller"] != "pid" for x in rows)
+        w = {w[:5] for w in worse if w[0] == sid}
+        print(f"{sid}: {len(w)} of {n} CEC rows worse than the PIDs by > 1 %")
+    for w in worse:
+        sid, r, f, d, ctl, score, p, c = w
+        print(f"  {sid} R {r:g} mm {f:g} m/min {d} {ctl} {score}: pid {p:.3f}, cec {c:.3f} um")
+    return 0
+
+
 def main(argv: list) -> int:
+    if argv and argv[0] == "sweep":
+        return sweep_main(argv[1:])
     traces = realistic_table()
     c3_table()
     why_table()
