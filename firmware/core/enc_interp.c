@@ -116,9 +116,9 @@ int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t
     int64_t t0 = now_ns - (int64_t)tick_ns, x0, x1, sum;
     int64_t c0 = 2 * (s->prev - s->pos) * HALF; /* the previous count's centre */
 
-    if (s->back || !enc_interp_eval(s, now_ns, t0, &x0) ||
-        !enc_interp_eval(s, now_ns, now_ns, &x1)) {
-        return 0; /* the count's mean alone */
+    if (s->back || fx_uabs64(s->prev - s->pos) > ENC_INTERP_MOVE_MAX ||
+        !enc_interp_eval(s, now_ns, t0, &x0) || !enc_interp_eval(s, now_ns, now_ns, &x1)) {
+        return 0; /* the count's mean alone (past the move limit: exact) */
     }
     /* each end inside the cell its sample's count proves */
     x0 = fx_clamp64(x0, c0 - HALF, c0 + HALF);
@@ -127,7 +127,8 @@ int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t
         /* through the tick's last edge, which is exact: the line crosses
          * it when the axis did */
         int64_t xe = (s->e[2] - 2 * s->pos) * HALF;
-        sum = enc_interp_saw(x0, xe, s->t[2] - t0) + enc_interp_saw(xe, x1, now_ns - s->t[2]);
+        int64_t te = s->t[2] < now_ns ? s->t[2] : now_ns; /* stamped after the sample */
+        sum = enc_interp_saw(x0, xe, te - t0) + enc_interp_saw(xe, x1, now_ns - te);
     } else {
         sum = enc_interp_saw(x0, x1, (int64_t)tick_ns);
     }

@@ -90,6 +90,13 @@
  * good as stopped; the products stay below 2^54). */
 #define ENC_INTERP_SPAN_NS (1ll << 26)
 
+/* Largest move between two samples, counts, for which
+ * enc_interp_mean_residual evaluates the sawtooth (beyond it the result is
+ * 0: along a line across N cells its mean is at most 1 / (8 N) counts,
+ * below the result's 2^-16 from N = 2^13 on; the integral's int64 terms
+ * hold up to 2^23). The decoder itself accepts up to 2^30 - 1 per sample. */
+#define ENC_INTERP_MOVE_MAX (1ll << 23)
+
 typedef struct {
     int64_t e[3];   /* events, half counts (2 n - dir), [2] the newest  */
     int64_t t[3];   /* their times, ns (the decoder's extended clock)  */

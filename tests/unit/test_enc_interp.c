@@ -241,6 +241,46 @@ static void test_return_within_a_tick_leaves_the_mean(void)
     TEST_ASSERT_EQUAL_INT64(0, enc_interp_mean_residual(&s, 480000, TICK_NS));
 }
 
+/* ---- the range limits ------------------------------------------------------- */
+
+/* An edge time-stamped after the sample's time read (qdec.h: edges after
+ * it are fine): the tick's last edge lies past the sample. The mean
+ * residual stays within the half count it promises. A slow approach from
+ * below (one count in 10.2 ms: the model puts the axis just under the edge
+ * at the tick's start), the edge into count 1 5 us after the sample. */
+static void test_edge_after_the_sample_keeps_the_mean_within_half(void)
+{
+    enc_interp_t s;
+    int64_t m;
+
+    enc_interp_reset(&s, -1, 0);
+    enc_interp_update(&s, 0, 1, 1, 0);
+    enc_interp_update(&s, 1, 2, 1, 10205000);
+    m = enc_interp_mean_residual(&s, 10200000, TICK_NS);
+    TEST_ASSERT_TRUE(m >= -32768 && m <= 32768);
+    /* the axis spent the tick just under the edge into count 1, in count
+     * 0 (the count's mean over the tick, 0 there): about +1/2 */
+    TEST_ASSERT_INT64_WITHIN(700, 32768, m);
+}
+
+/* More than 2^23 counts in one tick (the decoder's overspeed limit is 2^30
+ * - 1 per sample with edge input): the sawtooth averages out (its mean over
+ * N cells is at most 1/(8 N) counts), the mean residual is 0 and nothing
+ * overflows (the sanitizer build traps signed overflow). */
+static void test_huge_move_in_a_tick(void)
+{
+    enc_interp_t s;
+    const int64_t jump = (int64_t)1 << 28;
+
+    enc_interp_reset(&s, 0, 0);
+    enc_interp_update(&s, 1, 1, 1, 50000);
+    enc_interp_update(&s, 2, 2, 1, 150000);
+    enc_interp_update(&s, 2 + jump, 2u + (uint32_t)jump, 1, 250000);
+    TEST_ASSERT_EQUAL_INT64(0, enc_interp_mean_residual(&s, 300000, TICK_NS));
+    enc_interp_update(&s, 2 + 2 * jump, 2u + 2u * (uint32_t)jump, 1, 350000);
+    TEST_ASSERT_EQUAL_INT64(0, enc_interp_mean_residual(&s, 400000, TICK_NS));
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -250,5 +290,7 @@ int main(void)
     RUN_TEST(test_moving_axis_mean);
     RUN_TEST(test_stopped_axis_held_in_its_count);
     RUN_TEST(test_return_within_a_tick_leaves_the_mean);
+    RUN_TEST(test_edge_after_the_sample_keeps_the_mean_within_half);
+    RUN_TEST(test_huge_move_in_a_tick);
     return UNITY_END();
 }
