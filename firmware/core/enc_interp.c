@@ -41,10 +41,51 @@ void enc_interp_update(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir,
     s->pos = pos;
 }
 
-/* e a b / c in 2^-16 counts, e in half counts (e 2^15). */
-static int64_t enc_interp_term(int64_t e, int64_t a, int64_t b, int64_t c)
+int64_t enc_interp_muldiv(int64_t e, int64_t ab, int64_t c)
 {
-    return fx_muldiv64(e * HALF, a * b, c);
+    uint64_t ue = fx_uabs64(e), d = fx_uabs64(c), u, q;
+    int64_t r;
+    fx_u128_t p;
+
+    /* the short form: |e| < 2^16, |e ab| < 2^48 (so u = |e| 2^15 |ab| <
+     * 2^63), 0 < d < 2^60, quotient below 2^32 */
+    if (ue >= 65536u || d == 0u || d >= ((uint64_t)1 << 60)) {
+        return fx_muldiv64(e * HALF, ab, c);
+    }
+    p = fx_umul64x32(fx_uabs64(ab), (uint32_t)ue);
+    if (p.hi != 0u || (p.lo >> 48) != 0u) {
+        return fx_muldiv64(e * HALF, ab, c);
+    }
+    u = p.lo << 15;
+    if ((u >> 32) >= d) {
+        return fx_muldiv64(e * HALF, ab, c);
+    }
+    if ((d >> 32) == 0u) {
+        q = fx_udiv64by32(u, (uint32_t)d); /* exact: the quotient fits */
+    } else {
+        /* estimate from the divisor's top 32 bits (bit 31 set): within
+         * [q - 1, q + 2] of the quotient q (ut / dt - u / d lies within
+         * (-2^-31, q 2^-31 (1 + 2^-30)]) */
+        unsigned sh = 32u - fx_clz32((uint32_t)(d >> 32));
+        uint64_t ut = u >> sh;
+        uint32_t dt = (uint32_t)(d >> sh);
+
+        q = (ut >> 32) >= dt ? UINT32_MAX : fx_udiv64by32(ut, dt);
+    }
+    /* the remainder, exact: q d <= u + 2 d < 2^64, u - q d >= -2 d */
+    r = (int64_t)(u - q * d);
+    while (r < 0) {
+        q--;
+        r += (int64_t)d;
+    }
+    while ((uint64_t)r >= d) {
+        q++;
+        r -= (int64_t)d;
+    }
+    if ((uint64_t)r >= d - (uint64_t)r) {
+        q++; /* ties away from zero, as fx_muldiv64 */
+    }
+    return (((e < 0) != (ab < 0)) != (c < 0)) ? -(int64_t)q : (int64_t)q;
 }
 
 /* The events' quadratic (or line) at t_ns, in 2^-16 counts relative to
@@ -52,7 +93,7 @@ static int64_t enc_interp_term(int64_t e, int64_t a, int64_t b, int64_t c)
  * the sample now_ns. */
 static bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns, int64_t *x)
 {
-    int64_t m, est;
+    int64_t m, est, a, b;
     unsigned k = 0;
 
     while (k < s->n && now_ns - s->t[2 - k] <= ENC_INTERP_SPAN_NS) {
@@ -64,11 +105,17 @@ static bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns,
     m = t_ns - s->t[2];
     est = (s->e[2] - 2 * s->pos) * HALF;
     if (k == 2) {
-        est += enc_interp_term(s->e[1] - s->e[2], m, 1, s->t[1] - s->t[2]);
+        a = enc_interp_muldiv(s->e[1] - s->e[2], m, s->t[1] - s->t[2]);
+        b = 0;
     } else {
         int64_t d1 = s->t[1] - s->t[2], d0 = s->t[0] - s->t[2];
-        est = fx_sat_add64(est, enc_interp_term(s->e[1] - s->e[2], m, m - d0, d1 * (d1 - d0)));
-        est = fx_sat_add64(est, enc_interp_term(s->e[0] - s->e[2], m, m - d1, d0 * (d0 - d1)));
+        a = enc_interp_muldiv(s->e[1] - s->e[2], m * (m - d0), d1 * (d1 - d0));
+        b = enc_interp_muldiv(s->e[0] - s->e[2], m * (m - d1), d0 * (d0 - d1));
+    }
+    if (fx_uabs64(a) < ((uint64_t)1 << 40) && fx_uabs64(b) < ((uint64_t)1 << 40)) {
+        est += a + b; /* no saturation possible: est is +-2^15 */
+    } else {
+        est = fx_sat_add64(fx_sat_add64(est, a), b);
     }
     *x = est;
     return true;
@@ -81,7 +128,7 @@ int64_t enc_interp_pos(const enc_interp_t *s, int64_t now_ns)
     if (!enc_interp_eval(s, now_ns, now_ns, &x)) {
         return 0; /* no velocity known: the count */
     }
-    return fx_clamp64(x, -HALF, HALF);
+    return x < -HALF ? -HALF : x > HALF ? HALF : x;
 }
 
 /* Integral of the centred count floor(y + 1/2) from 0 to y (y in 2^-16

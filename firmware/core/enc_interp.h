@@ -128,4 +128,11 @@ int64_t enc_interp_pos(const enc_interp_t *s, int64_t now_ns);
  * events in the span or after a return within the tick. */
 int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t tick_ns);
 
+/* fx_muldiv64(e 2^15, ab, c), the same result for every argument: the
+ * model's Lagrange terms (e half counts, ab the time product, c the
+ * events' one), with a 64/32 long division (fx_udiv64by32) and an exact
+ * remainder correction where |e| < 2^16, |e ab| < 2^48, |c| < 2^60 and
+ * the quotient is below 2^32; fx_muldiv64 otherwise. Pure. */
+int64_t enc_interp_muldiv(int64_t e, int64_t ab, int64_t c);
+
 #endif /* ENC_INTERP_H */
