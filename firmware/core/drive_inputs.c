@@ -84,20 +84,6 @@ void drive_inputs_set_mean(drive_inputs_t *in, bool on)
     in->slow = in->any_counter || on || in->interp;
 }
 
-/* den 1 and |lag| < 2^31 (the usual scale, a lag within 2^15 counts): one
- * 32 x 32 -> 64 product (|lag num| < 2^62) and a rounding shift, ties away
- * from zero on the magnitude as fx_muldiv64 rounds. */
-int64_t drive_inputs_lag_nm(int64_t lag, int32_t num, int32_t den)
-{
-    if (den == 1 && lag == (int64_t)(int32_t)lag) {
-        int64_t p = (int64_t)(int32_t)lag * num;
-        int64_t q = (int64_t)((fx_uabs64(p) + 32768u) >> 16);
-
-        return p < 0 ? -q : q;
-    }
-    return fx_muldiv64(lag, num, (int64_t)den * 65536);
-}
-
 void drive_inputs_sample_slow(drive_inputs_t *in, const drive_config_t *cfg, uint32_t now_ns,
                               servo_fb_t *fb)
 {

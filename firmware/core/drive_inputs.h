@@ -80,8 +80,19 @@ void drive_inputs_set_mean(drive_inputs_t *in, bool on);
 
 /* A lag in 2^-16 counts in nm: fx_muldiv64(lag, num, den 2^16) (rounded,
  * ties away from zero, saturated), the same result for every argument, in
- * one product and a shift for den 1 and |lag| < 2^31. Pure. */
-int64_t drive_inputs_lag_nm(int64_t lag, int32_t num, int32_t den);
+ * one product and a shift for den 1 and |lag| < 2^31 (the usual scale, a
+ * lag within 2^15 counts). Pure. */
+static inline int64_t drive_inputs_lag_nm(int64_t lag, int32_t num, int32_t den)
+{
+    if (den == 1 && lag == (int64_t)(int32_t)lag) {
+        /* |lag num| < 2^62; ties away from zero on the magnitude */
+        int64_t p = (int64_t)(int32_t)lag * num;
+        int64_t q = (int64_t)((fx_uabs64(p) + 32768u) >> 16);
+
+        return p < 0 ? -q : q;
+    }
+    return fx_muldiv64(lag, num, (int64_t)den * 65536);
+}
 
 /* drive_inputs_sample with counters or the mean (out of line). Tick. */
 void drive_inputs_sample_slow(drive_inputs_t *in, const drive_config_t *cfg, uint32_t now_ns,

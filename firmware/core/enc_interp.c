@@ -41,25 +41,22 @@ void enc_interp_update(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir,
     s->pos = pos;
 }
 
-int64_t enc_interp_muldiv(int64_t e, int64_t ab, int64_t c)
+/* fx_muldiv64(e 2^15, a, c) (enc_interp.h, enc_interp_muldiv). */
+static inline int64_t enc_interp_term(int64_t e, int64_t a, int64_t c)
 {
-    uint64_t ue = fx_uabs64(e), d = fx_uabs64(c), u, q;
+    uint64_t ue = fx_uabs64(e), ua = fx_uabs64(a), d = fx_uabs64(c), u, q;
     int64_t r;
-    fx_u128_t p;
 
-    /* the short form: |e| < 2^16, |e ab| < 2^48 (so u = |e| 2^15 |ab| <
-     * 2^63), 0 < d < 2^60, quotient below 2^32 */
-    if (ue >= 65536u || d == 0u || d >= ((uint64_t)1 << 60)) {
-        return fx_muldiv64(e * HALF, ab, c);
+    /* the short form: |e| < 2^16, |a| < 2^47, |e a| < 2^48 (u = |e| 2^15
+     * |a| < 2^63), 0 < d < 2^60, the quotient below 2^32 */
+    if (ue >= 65536u || (ua >> 47) != 0u || d - 1u >= ((uint64_t)1 << 60) - 1u) {
+        return fx_muldiv64(e * HALF, a, c);
     }
-    p = fx_umul64x32(fx_uabs64(ab), (uint32_t)ue);
-    if (p.hi != 0u || (p.lo >> 48) != 0u) {
-        return fx_muldiv64(e * HALF, ab, c);
+    u = ua * ue;
+    if ((u >> 48) != 0u || ((u << 15) >> 32) >= d) {
+        return fx_muldiv64(e * HALF, a, c);
     }
-    u = p.lo << 15;
-    if ((u >> 32) >= d) {
-        return fx_muldiv64(e * HALF, ab, c);
-    }
+    u <<= 15;
     if ((d >> 32) == 0u) {
         q = fx_udiv64by32(u, (uint32_t)d); /* exact: the quotient fits */
     } else {
@@ -85,32 +82,36 @@ int64_t enc_interp_muldiv(int64_t e, int64_t ab, int64_t c)
     if ((uint64_t)r >= d - (uint64_t)r) {
         q++; /* ties away from zero, as fx_muldiv64 */
     }
-    return (((e < 0) != (ab < 0)) != (c < 0)) ? -(int64_t)q : (int64_t)q;
+    return (((e < 0) != (a < 0)) != (c < 0)) ? -(int64_t)q : (int64_t)q;
+}
+
+int64_t enc_interp_muldiv(int64_t e, int64_t ab, int64_t c)
+{
+    return enc_interp_term(e, ab, c);
 }
 
 /* The events' quadratic (or line) at t_ns, in 2^-16 counts relative to
  * the count; false when fewer than two events lie within the span before
- * the sample now_ns. */
-static bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns, int64_t *x)
+ * the sample now_ns (the newest k events, k the first one outside). */
+static inline bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns, int64_t *x)
 {
-    int64_t m, est, a, b;
-    unsigned k = 0;
+    int64_t m, est, a, b, d1;
 
-    while (k < s->n && now_ns - s->t[2 - k] <= ENC_INTERP_SPAN_NS) {
-        k++;
-    }
-    if (k < 2) {
+    if (s->n < 2u || now_ns - s->t[2] > ENC_INTERP_SPAN_NS ||
+        now_ns - s->t[1] > ENC_INTERP_SPAN_NS) {
         return false;
     }
     m = t_ns - s->t[2];
+    d1 = s->t[1] - s->t[2];
     est = (s->e[2] - 2 * s->pos) * HALF;
-    if (k == 2) {
-        a = enc_interp_muldiv(s->e[1] - s->e[2], m, s->t[1] - s->t[2]);
+    if (s->n < 3u || now_ns - s->t[0] > ENC_INTERP_SPAN_NS) {
+        a = enc_interp_term(s->e[1] - s->e[2], m, d1);
         b = 0;
     } else {
-        int64_t d1 = s->t[1] - s->t[2], d0 = s->t[0] - s->t[2];
-        a = enc_interp_muldiv(s->e[1] - s->e[2], m * (m - d0), d1 * (d1 - d0));
-        b = enc_interp_muldiv(s->e[0] - s->e[2], m * (m - d1), d0 * (d0 - d1));
+        int64_t d0 = s->t[0] - s->t[2];
+
+        a = enc_interp_term(s->e[1] - s->e[2], m * (m - d0), d1 * (d1 - d0));
+        b = enc_interp_term(s->e[0] - s->e[2], m * (m - d1), d0 * (d0 - d1));
     }
     if (fx_uabs64(a) < ((uint64_t)1 << 40) && fx_uabs64(b) < ((uint64_t)1 << 40)) {
         est += a + b; /* no saturation possible: est is +-2^15 */
