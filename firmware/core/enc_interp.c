@@ -48,8 +48,8 @@ static inline int64_t enc_interp_term(int64_t e, int64_t a, int64_t c)
     int64_t r;
 
     /* the short form: |e| < 2^16, |a| < 2^47, |e a| < 2^48 (u = |e| 2^15
-     * |a| < 2^63), 0 < d < 2^60, the quotient below 2^32 */
-    if (ue >= 65536u || (ua >> 47) != 0u || d - 1u >= ((uint64_t)1 << 60) - 1u) {
+     * |a| < 2^63), 0 < d < 2^56, the quotient below 2^32 */
+    if (ue >= 65536u || (ua >> 47) != 0u || d - 1u >= ((uint64_t)1 << 56) - 1u) {
         return fx_muldiv64(e * HALF, a, c);
     }
     u = ua * ue;
@@ -57,19 +57,34 @@ static inline int64_t enc_interp_term(int64_t e, int64_t a, int64_t c)
         return fx_muldiv64(e * HALF, a, c);
     }
     u <<= 15;
-    if ((d >> 32) == 0u) {
-        q = fx_udiv64by32(u, (uint32_t)d); /* exact: the quotient fits */
-    } else {
-        /* estimate from the divisor's top 32 bits (bit 31 set): within
-         * [q - 1, q + 2] of the quotient q (ut / dt - u / d lies within
-         * (-2^-31, q 2^-31 (1 + 2^-30)]) */
-        unsigned sh = 32u - fx_clz32((uint32_t)(d >> 32));
-        uint64_t ut = u >> sh;
-        uint32_t dt = (uint32_t)(d >> sh);
+    {
+        /* d normalised to dt in [2^31, 2^32), u with it (exact for d <
+         * 2^32, else both truncated: ut / dt within (-2^-31, q 2^-30] of
+         * u / d); x ~ 2^63 / dt from a 16-bit hardware quotient and one
+         * Newton step (from below, relative error below 2^-28), so the
+         * estimate floor(ut x / 2^63) lies within [q - 15, q + 2] of q =
+         * floor(u / d) (q < 2^32; q - 1 .. q where q < 2^27) */
+        uint64_t ut, p, err;
+        uint32_t dt, x;
 
-        q = (ut >> 32) >= dt ? UINT32_MAX : fx_udiv64by32(ut, dt);
+        if ((d >> 32) != 0u) {
+            unsigned sh = 32u - fx_clz32((uint32_t)(d >> 32));
+
+            dt = (uint32_t)(d >> sh);
+            ut = u >> sh;
+        } else {
+            unsigned ls = fx_clz32((uint32_t)d);
+
+            dt = (uint32_t)d << ls;
+            ut = u << ls; /* < dt 2^32: the quotient is below 2^32 */
+        }
+        x = (0xFFFFFFFFu / ((dt >> 16) + 1u)) << 15;
+        p = (uint64_t)dt * x;                  /* <= 2^63 */
+        err = (((uint64_t)1 << 63) - p) >> 17; /* < 2^32 */
+        x += (uint32_t)(((uint64_t)x * (uint32_t)err) >> 46);
+        q = (((ut >> 32) * x) + ((((uint64_t)(uint32_t)ut) * x) >> 32)) >> 31;
     }
-    /* the remainder, exact: q d <= u + 2 d < 2^64, u - q d >= -2 d */
+    /* the remainder, exact: |q - floor(u / d)| <= 15 and d < 2^56 */
     r = (int64_t)(u - q * d);
     while (r < 0) {
         q--;
