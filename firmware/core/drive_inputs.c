@@ -125,9 +125,8 @@ void drive_inputs_sample_slow(drive_inputs_t *in, const drive_config_t *cfg, uin
             lag = enc_interp_pos(&in->ip[i], q->now);
         }
         if (ok) {
-            /* 2^-16 counts -> nm, rounded */
-            fb->pos[i] += fx_muldiv64(lag, cfg->nm_per_count_num[i],
-                                      (int64_t)cfg->nm_per_count_den[i] * 65536);
+            fb->pos[i] +=
+                drive_inputs_lag_nm(lag, cfg->nm_per_count_num[i], cfg->nm_per_count_den[i]);
         }
     }
 }

@@ -23,10 +23,11 @@
  * the sample: the map's slope over half a tick's travel is below a nm);
  * the decoders' own output (pos_nm, the status) stays the sample's.
  * Interpolated measurement (cfg->enc_interp, drive.h): the feedback of
- * every axis is its decoder's position plus enc_interp_step's estimate
+ * every axis is its decoder's position plus enc_interp_pos's estimate
  * below the count (2^-16 counts, scaled as the mean's lag), at the sample,
- * or with enc_mean over the tick (1e9 / tick_hz rounded, ns) in place of
- * hal_encoder_mean's lag; the decoders' own output stays the sample's.
+ * or with enc_mean hal_encoder_mean's lag plus enc_interp_mean_residual
+ * over the tick (1e9 / tick_hz rounded, ns); the decoders' own output
+ * stays the sample's.
  * drive_inputs_mean_ok: the port provides it for axes 0..axes-1.
  * drive_inputs_set_mean switches it (main, planner idle: the reference at
  * rest).
@@ -76,6 +77,22 @@ bool drive_inputs_init(drive_inputs_t *in, const drive_config_t *cfg, uint32_t n
 /* True when hal_encoder_mean answers for axes 0..axes-1. Any. */
 bool drive_inputs_mean_ok(unsigned axes);
 void drive_inputs_set_mean(drive_inputs_t *in, bool on);
+
+/* A lag in 2^-16 counts in nm: fx_muldiv64(lag, num, den 2^16) (rounded,
+ * ties away from zero, saturated), the same result for every argument, in
+ * one product and a shift for den 1 and |lag| < 2^31 (the usual scale, a
+ * lag within 2^15 counts). Pure. */
+static inline int64_t drive_inputs_lag_nm(int64_t lag, int32_t num, int32_t den)
+{
+    if (den == 1 && lag == (int64_t)(int32_t)lag) {
+        /* |lag num| < 2^62; ties away from zero on the magnitude */
+        int64_t p = (int64_t)(int32_t)lag * num;
+        int64_t q = (int64_t)((fx_uabs64(p) + 32768u) >> 16);
+
+        return p < 0 ? -q : q;
+    }
+    return fx_muldiv64(lag, num, (int64_t)den * 65536);
+}
 
 /* drive_inputs_sample with counters or the mean (out of line). Tick. */
 void drive_inputs_sample_slow(drive_inputs_t *in, const drive_config_t *cfg, uint32_t now_ns,

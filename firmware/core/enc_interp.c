@@ -41,34 +41,97 @@ void enc_interp_update(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir,
     s->pos = pos;
 }
 
-/* e a b / c in 2^-16 counts, e in half counts (e 2^15). */
-static int64_t enc_interp_term(int64_t e, int64_t a, int64_t b, int64_t c)
+/* fx_muldiv64(e 2^15, a, c) (enc_interp.h, enc_interp_muldiv). */
+static inline int64_t enc_interp_term(int64_t e, int64_t a, int64_t c)
 {
-    return fx_muldiv64(e * HALF, a * b, c);
+    uint64_t ue = fx_uabs64(e), ua = fx_uabs64(a), d = fx_uabs64(c), u, q;
+    int64_t r;
+
+    /* the short form: |e| < 2^16, |a| < 2^47, |e a| < 2^48 (u = |e| 2^15
+     * |a| < 2^63), 0 < d < 2^56, the quotient below 2^32 */
+    if (ue >= 65536u || (ua >> 47) != 0u || d - 1u >= ((uint64_t)1 << 56) - 1u) {
+        return fx_muldiv64(e * HALF, a, c);
+    }
+    u = ua * ue;
+    if ((u >> 48) != 0u || ((u << 15) >> 32) >= d) {
+        return fx_muldiv64(e * HALF, a, c);
+    }
+    u <<= 15;
+    {
+        /* d normalised to dt in [2^31, 2^32), u with it (exact for d <
+         * 2^32, else both truncated: ut / dt within (-2^-31, q 2^-30] of
+         * u / d); x ~ 2^63 / dt from a 16-bit hardware quotient and one
+         * Newton step (from below, relative error below 2^-28), so the
+         * estimate floor(ut x / 2^63) lies within [q - 15, q + 2] of q =
+         * floor(u / d) (q < 2^32; q - 1 .. q where q < 2^27) */
+        uint64_t ut, p, err;
+        uint32_t dt, x;
+
+        if ((d >> 32) != 0u) {
+            unsigned sh = 32u - fx_clz32((uint32_t)(d >> 32));
+
+            dt = (uint32_t)(d >> sh);
+            ut = u >> sh;
+        } else {
+            unsigned ls = fx_clz32((uint32_t)d);
+
+            dt = (uint32_t)d << ls;
+            ut = u << ls; /* < dt 2^32: the quotient is below 2^32 */
+        }
+        x = (0xFFFFFFFFu / ((dt >> 16) + 1u)) << 15;
+        p = (uint64_t)dt * x;                  /* <= 2^63 */
+        err = (((uint64_t)1 << 63) - p) >> 17; /* < 2^32 */
+        x += (uint32_t)(((uint64_t)x * (uint32_t)err) >> 46);
+        q = (((ut >> 32) * x) + ((((uint64_t)(uint32_t)ut) * x) >> 32)) >> 31;
+    }
+    /* the remainder, exact: |q - floor(u / d)| <= 15 and d < 2^56 */
+    r = (int64_t)(u - q * d);
+    while (r < 0) {
+        q--;
+        r += (int64_t)d;
+    }
+    while ((uint64_t)r >= d) {
+        q++;
+        r -= (int64_t)d;
+    }
+    if ((uint64_t)r >= d - (uint64_t)r) {
+        q++; /* ties away from zero, as fx_muldiv64 */
+    }
+    return (((e < 0) != (a < 0)) != (c < 0)) ? -(int64_t)q : (int64_t)q;
+}
+
+int64_t enc_interp_muldiv(int64_t e, int64_t ab, int64_t c)
+{
+    return enc_interp_term(e, ab, c);
 }
 
 /* The events' quadratic (or line) at t_ns, in 2^-16 counts relative to
  * the count; false when fewer than two events lie within the span before
- * the sample now_ns. */
-static bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns, int64_t *x)
+ * the sample now_ns (the newest k events, k the first one outside). */
+static inline bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns, int64_t *x)
 {
-    int64_t m, est;
-    unsigned k = 0;
+    int64_t m, est, a, b, d1;
 
-    while (k < s->n && now_ns - s->t[2 - k] <= ENC_INTERP_SPAN_NS) {
-        k++;
-    }
-    if (k < 2) {
+    if (s->n < 2u || now_ns - s->t[2] > ENC_INTERP_SPAN_NS ||
+        now_ns - s->t[1] > ENC_INTERP_SPAN_NS) {
         return false;
     }
     m = t_ns - s->t[2];
+    d1 = s->t[1] - s->t[2];
     est = (s->e[2] - 2 * s->pos) * HALF;
-    if (k == 2) {
-        est += enc_interp_term(s->e[1] - s->e[2], m, 1, s->t[1] - s->t[2]);
+    if (s->n < 3u || now_ns - s->t[0] > ENC_INTERP_SPAN_NS) {
+        a = enc_interp_term(s->e[1] - s->e[2], m, d1);
+        b = 0;
     } else {
-        int64_t d1 = s->t[1] - s->t[2], d0 = s->t[0] - s->t[2];
-        est = fx_sat_add64(est, enc_interp_term(s->e[1] - s->e[2], m, m - d0, d1 * (d1 - d0)));
-        est = fx_sat_add64(est, enc_interp_term(s->e[0] - s->e[2], m, m - d1, d0 * (d0 - d1)));
+        int64_t d0 = s->t[0] - s->t[2];
+
+        a = enc_interp_term(s->e[1] - s->e[2], m * (m - d0), d1 * (d1 - d0));
+        b = enc_interp_term(s->e[0] - s->e[2], m * (m - d1), d0 * (d0 - d1));
+    }
+    if (fx_uabs64(a) < ((uint64_t)1 << 40) && fx_uabs64(b) < ((uint64_t)1 << 40)) {
+        est += a + b; /* no saturation possible: est is +-2^15 */
+    } else {
+        est = fx_sat_add64(fx_sat_add64(est, a), b);
     }
     *x = est;
     return true;
@@ -81,7 +144,7 @@ int64_t enc_interp_pos(const enc_interp_t *s, int64_t now_ns)
     if (!enc_interp_eval(s, now_ns, now_ns, &x)) {
         return 0; /* no velocity known: the count */
     }
-    return fx_clamp64(x, -HALF, HALF);
+    return x < -HALF ? -HALF : x > HALF ? HALF : x;
 }
 
 /* Integral of the centred count floor(y + 1/2) from 0 to y (y in 2^-16
@@ -116,9 +179,9 @@ int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t
     int64_t t0 = now_ns - (int64_t)tick_ns, x0, x1, sum;
     int64_t c0 = 2 * (s->prev - s->pos) * HALF; /* the previous count's centre */
 
-    if (s->back || !enc_interp_eval(s, now_ns, t0, &x0) ||
-        !enc_interp_eval(s, now_ns, now_ns, &x1)) {
-        return 0; /* the count's mean alone */
+    if (s->back || fx_uabs64(s->prev - s->pos) > ENC_INTERP_MOVE_MAX ||
+        !enc_interp_eval(s, now_ns, t0, &x0) || !enc_interp_eval(s, now_ns, now_ns, &x1)) {
+        return 0; /* the count's mean alone (past the move limit: exact) */
     }
     /* each end inside the cell its sample's count proves */
     x0 = fx_clamp64(x0, c0 - HALF, c0 + HALF);
@@ -127,7 +190,8 @@ int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t
         /* through the tick's last edge, which is exact: the line crosses
          * it when the axis did */
         int64_t xe = (s->e[2] - 2 * s->pos) * HALF;
-        sum = enc_interp_saw(x0, xe, s->t[2] - t0) + enc_interp_saw(xe, x1, now_ns - s->t[2]);
+        int64_t te = s->t[2] < now_ns ? s->t[2] : now_ns; /* stamped after the sample */
+        sum = enc_interp_saw(x0, xe, te - t0) + enc_interp_saw(xe, x1, now_ns - te);
     } else {
         sum = enc_interp_saw(x0, x1, (int64_t)tick_ns);
     }

@@ -58,7 +58,11 @@
  *     tick's last edge is a knot, so with at most one edge in the tick
  *     the cells agree; each earlier edge of a tick moves its crossing by
  *     |x - y| / |v| and adds |x - y| / (|v| T), below |x - y| since such
- *     a tick crosses more than a count. Always within 1/2.
+ *     a tick crosses more than a count. Always within 1/2, also when the
+ *     tick's last edge is stamped after the sample (qdec.h allows edges
+ *     after the sample's time read): the knot is then taken at the
+ *     sample. 0 when the count moved more than ENC_INTERP_MOVE_MAX in
+ *     the tick.
  * Timestamps of resolution r add |v| r (1 ns); edge placement errors p (a
  * fraction of a count: quadrature phase, duty cycle) add p times
  * |L1| + |L0| + |1 - L1 - L0| (equally spaced events: 1 at an event, 3.5
@@ -68,14 +72,28 @@
  * bound), then it is the count.
  *
  * Fixed point: positions in half counts (int64), times in ns (int64),
- * results in 2^-16 counts relative to n; two exact-rounding 128-bit
- * multiply-divides (fx_muldiv64) per quadratic, the span keeping every
- * time product below 2^54; the sawtooth's integral is exact while a tick
- * moves less than 2^23 counts. No floating point, no heap. Cost on the
- * Cortex-M4 (bench/bench-firmware.sh, the helix of three axes with
- * enc_interp on, enc_interp_update + enc_interp_pos per axis and tick):
- * control_tick_instructions_m4_interp 3787 against 1484 without, about
- * 770 per axis, most of it the two 128-bit divisions.
+ * results in 2^-16 counts relative to n; each Lagrange term is
+ * round(e 2^15 a / c) exactly as fx_muldiv64 rounds (ties away from zero;
+ * enc_interp_muldiv, tested against it), the span keeping every time
+ * product below 2^54. Where |e| < 2^16, |e a| < 2^48, |c| < 2^56 and the
+ * quotient is below 2^32 (the usual operands: a few counts between
+ * events within a few ms), the quotient is estimated without a long
+ * division: c
+ * normalised to 32 bits, 2^63 / c from a 16-bit hardware quotient and one
+ * Newton step (relative error < 2^-28), the estimate within [q - 15,
+ * q + 2], then corrected on the exact 64-bit remainder; elsewhere
+ * fx_muldiv64 (128-bit). The sawtooth's integral is exact while a tick
+ * moves less than 2^23 counts. No floating point, no heap.
+ * Cost on the Cortex-M4 (bash bench/bench-firmware.sh: the helix of three
+ * axes at 5 kHz with enc_interp on, enc_interp_update + enc_interp_pos
+ * per axis and tick, X and Y with an edge in most ticks):
+ * control_tick_instructions_m4_interp 2907 against 1484 without (3787
+ * with two fx_muldiv64 per quadratic), about 475 per axis. Measured
+ * apart on typical operands (three events 200 us apart, 3 counts each):
+ * enc_interp_pos about 360 (the two quotients about 100 each, the rest
+ * the 64-bit times and positions), enc_interp_update about 90 with an
+ * edge; the rest of the 475 is the out-of-line sample and the lag's
+ * scaling (drive_inputs.c).
  *
  * Context: tick (drive_inputs_sample_slow); the state is the tick's.
  */
@@ -89,6 +107,13 @@
  * fewer events (2^26 ns, 67 ms: an axis that long inside one count is as
  * good as stopped; the products stay below 2^54). */
 #define ENC_INTERP_SPAN_NS (1ll << 26)
+
+/* Largest move between two samples, counts, for which
+ * enc_interp_mean_residual evaluates the sawtooth (beyond it the result is
+ * 0: along a line across N cells its mean is at most 1 / (8 N) counts,
+ * below the result's 2^-16 from N = 2^13 on; the integral's int64 terms
+ * hold up to 2^23). The decoder itself accepts up to 2^30 - 1 per sample. */
+#define ENC_INTERP_MOVE_MAX (1ll << 23)
 
 typedef struct {
     int64_t e[3];   /* events, half counts (2 n - dir), [2] the newest  */
@@ -120,5 +145,12 @@ int64_t enc_interp_pos(const enc_interp_t *s, int64_t now_ns);
  * its sample's count), 2^-16 counts, within [-2^15, 2^15]; 0 without two
  * events in the span or after a return within the tick. */
 int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t tick_ns);
+
+/* fx_muldiv64(e 2^15, ab, c), the same result for every argument: the
+ * model's Lagrange terms (e half counts, ab the time product, c the
+ * events' one), with a 64/32 long division (fx_udiv64by32) and an exact
+ * remainder correction where |e| < 2^16, |e ab| < 2^48, |c| < 2^60 and
+ * the quotient is below 2^32; fx_muldiv64 otherwise. Pure. */
+int64_t enc_interp_muldiv(int64_t e, int64_t ab, int64_t c);
 
 #endif /* ENC_INTERP_H */

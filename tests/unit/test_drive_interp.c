@@ -11,6 +11,8 @@
  */
 #include "calib.h"
 #include "drive.h"
+#include "drive_inputs.h"
+#include "fixmath.h"
 #include "hal_sim.h"
 #include "unity.h"
 
@@ -121,6 +123,32 @@ static void test_off_the_count(void)
     TEST_ASSERT_EQUAL_INT32(-375, command_after_edges(false, false));
 }
 
+/* drive_inputs_lag_nm is fx_muldiv64(lag, num, den 2^16): ties (lag num
+ * an odd multiple of 2^15) of either sign, random lags and scales, den 1
+ * and not, lags past 2^31 */
+static void test_lag_nm_is_fx_muldiv64(void)
+{
+    static const int32_t nums[] = {1250, -1250, 1, -1, 7, 2147483647, -2147483647 - 1};
+    static const int32_t dens[] = {1, 3, 1000};
+    uint64_t x = 12345u;
+    unsigned i, j, k;
+
+    for (i = 0; i < sizeof nums / sizeof nums[0]; i++) {
+        for (j = 0; j < sizeof dens / sizeof dens[0]; j++) {
+            for (k = 0; k < 20000u; k++) {
+                int64_t lag;
+                x = x * 6364136223846793005ull + 1442695040888963407ull;
+                lag = (int64_t)(x >> (k % 38u + 24u)) - (int64_t)(x >> (k % 38u + 25u)) * 2;
+                if (k < 64u) {
+                    lag = (int64_t)k * 32768 - 1048576; /* odd multiples of 2^15: ties */
+                }
+                TEST_ASSERT_EQUAL_INT64(fx_muldiv64(lag, nums[i], (int64_t)dens[j] * 65536),
+                                        drive_inputs_lag_nm(lag, nums[i], dens[j]));
+            }
+        }
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -128,5 +156,6 @@ int main(void)
     RUN_TEST(test_alone_the_loops_see_the_position_at_the_sample);
     RUN_TEST(test_with_the_mean_the_count_mean_plus_the_residual);
     RUN_TEST(test_off_the_count);
+    RUN_TEST(test_lag_nm_is_fx_muldiv64);
     return UNITY_END();
 }

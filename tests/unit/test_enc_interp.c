@@ -18,8 +18,10 @@
  *     count; a return within one tick leaves the mean residual 0.
  */
 #include <math.h>
+#include <stdio.h>
 
 #include "enc_interp.h"
+#include "fixmath.h"
 #include "unity.h"
 
 #define TICK_NS 100000 /* 10 kHz */
@@ -241,6 +243,121 @@ static void test_return_within_a_tick_leaves_the_mean(void)
     TEST_ASSERT_EQUAL_INT64(0, enc_interp_mean_residual(&s, 480000, TICK_NS));
 }
 
+/* ---- the range limits ------------------------------------------------------- */
+
+/* An edge time-stamped after the sample's time read (qdec.h: edges after
+ * it are fine): the tick's last edge lies past the sample. The mean
+ * residual stays within the half count it promises. A slow approach from
+ * below (one count in 10.2 ms: the model puts the axis just under the edge
+ * at the tick's start), the edge into count 1 5 us after the sample. */
+static void test_edge_after_the_sample_keeps_the_mean_within_half(void)
+{
+    enc_interp_t s;
+    int64_t m;
+
+    enc_interp_reset(&s, -1, 0);
+    enc_interp_update(&s, 0, 1, 1, 0);
+    enc_interp_update(&s, 1, 2, 1, 10205000);
+    m = enc_interp_mean_residual(&s, 10200000, TICK_NS);
+    TEST_ASSERT_TRUE(m >= -32768 && m <= 32768);
+    /* the axis spent the tick just under the edge into count 1, in count
+     * 0 (the count's mean over the tick, 0 there): about +1/2 */
+    TEST_ASSERT_INT64_WITHIN(700, 32768, m);
+}
+
+/* More than 2^23 counts in one tick (the decoder's overspeed limit is 2^30
+ * - 1 per sample with edge input): the sawtooth averages out (its mean over
+ * N cells is at most 1/(8 N) counts), the mean residual is 0 and nothing
+ * overflows (the sanitizer build traps signed overflow). */
+static void test_huge_move_in_a_tick(void)
+{
+    enc_interp_t s;
+    const int64_t jump = (int64_t)1 << 28;
+
+    enc_interp_reset(&s, 0, 0);
+    enc_interp_update(&s, 1, 1, 1, 50000);
+    enc_interp_update(&s, 2, 2, 1, 150000);
+    enc_interp_update(&s, 2 + jump, 2u + (uint32_t)jump, 1, 250000);
+    TEST_ASSERT_EQUAL_INT64(0, enc_interp_mean_residual(&s, 300000, TICK_NS));
+    enc_interp_update(&s, 2 + 2 * jump, 2u + 2u * (uint32_t)jump, 1, 350000);
+    TEST_ASSERT_EQUAL_INT64(0, enc_interp_mean_residual(&s, 400000, TICK_NS));
+}
+
+/* ---- the multiply-divide ---------------------------------------------------- */
+
+static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
+
+static uint64_t rng(void)
+{
+    rng_state = rng_state * 6364136223846793005ull + 1442695040888963407ull;
+    return rng_state ^ (rng_state >> 29);
+}
+
+/* a value of about `bits` bits, either sign */
+static int64_t rnd_bits(unsigned bits)
+{
+    uint64_t v = bits >= 63u ? rng() >> 1 : rng() & (((uint64_t)1 << bits) - 1u);
+    return (rng() & 1u) ? -(int64_t)v : (int64_t)v;
+}
+
+static void check_muldiv(int64_t e, int64_t ab, int64_t c)
+{
+    int64_t want = fx_muldiv64(e * 32768, ab, c);
+    int64_t got = enc_interp_muldiv(e, ab, c);
+    if (want != got) {
+        char msg[160];
+        snprintf(msg, sizeof msg, "e %lld ab %lld c %lld", (long long)e, (long long)ab,
+                 (long long)c);
+        TEST_ASSERT_EQUAL_INT64_MESSAGE(want, got, msg);
+    }
+}
+
+/* enc_interp_muldiv is fx_muldiv64(e 2^15, ab, c) for every argument:
+ * random magnitudes over the short form's domain and past its limits,
+ * exact quotients and ties (round half away from zero), divisors at 2^32
+ * and quotients next to 2^32 */
+static void test_muldiv_is_fx_muldiv64(void)
+{
+    static const int64_t es[] = {0, 1, -1, 2, -7, 65535, -65535, 65536, -65536, 1 << 20};
+    unsigned i, j;
+
+    for (i = 0; i < 200000u; i++) {
+        unsigned be = 1u + (unsigned)(rng() % 18u), bab = 1u + (unsigned)(rng() % 54u);
+        unsigned bc = 1u + (unsigned)(rng() % 62u);
+        check_muldiv(rnd_bits(be), rnd_bits(bab), rnd_bits(bc));
+    }
+    for (i = 0; i < sizeof es / sizeof es[0]; i++) {
+        for (j = 0; j < 20000u; j++) {
+            int64_t c = rnd_bits(1u + (unsigned)(rng() % 42u)), k = rnd_bits(20), ab;
+            int64_t e = es[i];
+            if (c == 0 || e == 0) {
+                check_muldiv(e, k, c);
+                continue;
+            }
+            /* ab such that e 2^15 ab is c k, or c k + c / 2 (a tie), when
+             * it divides */
+            ab = (c * k) / (e * 32768);
+            check_muldiv(e, ab, c);
+            check_muldiv(e, ab + 1, c);
+            check_muldiv(e, ab - 1, c);
+            check_muldiv(e, ab, 2 * e * 32768);        /* ties: c = 2 e 2^15 */
+            check_muldiv(e, 2 * k + 1, 2 * e * 32768); /* k + 1/2 */
+            check_muldiv(e, -(2 * k + 1), 2 * e * 32768);
+        }
+    }
+    /* divisors around 2^32 and quotients next to 2^32 */
+    for (i = 0; i < 64u; i++) {
+        int64_t d = ((int64_t)1 << 32) - 32 + (int64_t)i;
+        int64_t top = (int64_t)(((((uint64_t)1 << 32) - 1u) * (uint64_t)d) >> 15);
+        check_muldiv(1, top, d);
+        check_muldiv(1, top + 1, d);
+        check_muldiv(1, top - 1, d);
+        check_muldiv(3, top / 3, d);
+        check_muldiv(1, (int64_t)rng() >> 20, d);
+        check_muldiv(1, ((int64_t)1 << 47) - 1, d >> 8);
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -250,5 +367,8 @@ int main(void)
     RUN_TEST(test_moving_axis_mean);
     RUN_TEST(test_stopped_axis_held_in_its_count);
     RUN_TEST(test_return_within_a_tick_leaves_the_mean);
+    RUN_TEST(test_edge_after_the_sample_keeps_the_mean_within_half);
+    RUN_TEST(test_huge_move_in_a_tick);
+    RUN_TEST(test_muldiv_is_fx_muldiv64);
     return UNITY_END();
 }
