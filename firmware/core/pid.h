@@ -502,7 +502,7 @@ static PID_ALWAYS_INLINE int32_t pid_step_lean_inline(pid_loop_t *pid, int32_t e
     if (raw > lim || raw < -lim) {
         return pid_fast_saturated(pid, raw, integ);
     }
-    pid_rest_clear(pid);
+    /* pid->rest is false already: lean_rdy excludes ready, which it needs */
     pid->saturated = false;
     pid->sat_ticks = 0;
     pid->integ = integ;
