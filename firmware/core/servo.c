@@ -563,8 +563,8 @@ static inline void tick_outputs(servo_t *s)
 
 /* Steps 2 to 7 (after the input faults of step 1): every case. run: RUN
  * with a reference at the start of the tick. */
-static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb,
-                                        bool run)
+static PID_ALWAYS_INLINE void tick_general_body(servo_t *s, const motion_ref_t *ref,
+                                                const servo_fb_t *fb, bool run)
 {
     const unsigned n = s->p.axes;
     const int64_t *vel, *acc;
@@ -644,6 +644,12 @@ static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, con
     tick_outputs(s);
 }
 
+static SERVO_NOINLINE void tick_general(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb,
+                                        bool run)
+{
+    tick_general_body(s, ref, fb, run);
+}
+
 /* tick_fast's pass 2 from axis i on, when axis i's loop is not ready or
  * has just saturated beyond the limit (done: stepped, out_mv[i] written):
  * the general step per axis, saturation supervision in axis order. */
@@ -717,27 +723,60 @@ static inline bool tick_fast(servo_t *s, const motion_ref_t *ref, const servo_fb
     return true;
 }
 
-void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
+/* Step 1: input faults; fb and the fault inputs are read once (neither
+ * changes during the tick). */
+static inline void tick_inputs(servo_t *s, const servo_fb_t *fb)
 {
-    const unsigned n = s->p.axes;
-    const bool run = s->state == SERVO_RUN && ref != NULL;
     const uint32_t enc_fault = fb->enc_fault;
-    uint32_t amp = 0;
 
-    s->ticks++;
-    /* 1. input faults; fb and the fault inputs are read once (neither
-     * changes during the tick) */
     if (s->amp_fault_mask != NULL) {
-        amp = s->amp_fault_mask(n);
+        uint32_t amp = s->amp_fault_mask(s->p.axes);
         if ((amp | enc_fault) != 0u) {
             tick_input_faults(s, enc_fault, amp, false);
         }
     } else if (s->io.amp_fault != NULL || enc_fault != 0u) {
         tick_input_faults(s, enc_fault, 0, true);
     }
+}
+
+/* servo_tick with the contour error controller's mode not OFF (no input
+ * fault changes the mode, so tick_fast is out): one function with the
+ * general steps inline, on 64-bit hosts (PID_HOST_INLINE; x86 bench_hil:
+ * servo_tick's frame for tick_fast is not built on such ticks). */
+static SERVO_NOINLINE void tick_cec_on(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
+{
+    const bool run = s->state == SERVO_RUN && ref != NULL;
+
+    s->ticks++;
+    tick_inputs(s, fb);
+    tick_general_body(s, ref, fb, run);
+}
+
+/* servo_tick in every case (the M4's: inline); out of line on 64-bit
+ * hosts, so that servo_tick itself builds no frame for tick_cec_on's ticks */
+#if PID_HOST_INLINE
+#define SERVO_HOST_NOINLINE SERVO_NOINLINE
+#else
+#define SERVO_HOST_NOINLINE inline
+#endif
+static SERVO_HOST_NOINLINE void tick_any(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
+{
+    const bool run = s->state == SERVO_RUN && ref != NULL;
+
+    s->ticks++;
+    tick_inputs(s, fb);
     if (run && s->state == SERVO_RUN && s->cec.p.mode == CEC_MODE_OFF && s->cec.idle &&
         s->cec.out_zero && tick_fast(s, ref, fb)) {
         return;
     }
     tick_general(s, ref, fb, run);
+}
+
+void servo_tick(servo_t *s, const motion_ref_t *ref, const servo_fb_t *fb)
+{
+    if (PID_HOST_INLINE && s->cec.p.mode != CEC_MODE_OFF) {
+        tick_cec_on(s, ref, fb);
+        return;
+    }
+    tick_any(s, ref, fb);
 }

@@ -878,6 +878,57 @@ static void test_cec_tick_axis_steps_equal_pid_step_e(void)
     }
 }
 
+/* A tick with the contour error controller on (tick_cec_on on 64-bit
+ * hosts) counts itself and takes step 1 as every tick does: an encoder
+ * fault and an amplifier fault (the per-axis callback and, on a second
+ * servo, the one-call mask) are raised in the tick they come in. */
+static void test_cec_on_tick_counts_and_input_faults(void)
+{
+    static servo_t s2;
+    servo_params_t p;
+    servo_fb_t fb, fb0;
+    motion_ref_t ref;
+    const int64_t v[CORE_AXES] = {100000000, 0, 0};
+    unsigned k;
+
+    servo_params_default(&p, HZ);
+    p.cec.mode = CEC_MODE_TANGENT;
+    start(&p, &fb);
+    fb0 = fb;
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_init(&s2, &p, &io));
+    servo_set_io_all(&s2, fake_set_mv_all, fake_amp_fault_mask);
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_enable(&s2, &fb));
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s2));
+    mask_calls = 0;
+    for (k = 0; k < 100; k++) {
+        ramp_ref(&ref, &fb0, v, k);
+        memcpy(fb.pos, ref.pos, sizeof fb.pos);
+        fb.pos[1] += 10000;
+        servo_tick(&s, &ref, &fb);
+        servo_tick(&s2, &ref, &fb);
+    }
+    TEST_ASSERT_TRUE(s.cec.active);
+    TEST_ASSERT_EQUAL_UINT64(100, s.ticks);
+    TEST_ASSERT_EQUAL_UINT64(100, s2.ticks);
+    TEST_ASSERT_EQUAL_UINT32(100, mask_calls);
+    TEST_ASSERT_EQUAL_UINT32(0, s.faults);
+    fb.enc_fault = 1u << 2;
+    servo_tick(&s, &ref, &fb);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_ENCODER, s.faults);
+    TEST_ASSERT_EQUAL_UINT32(1u << 2, s.fault_axes);
+    TEST_ASSERT_EQUAL_INT32(0, mv_log[2]);
+    fb.enc_fault = 0;
+    amp_bad[1] = true;
+    servo_tick(&s, &ref, &fb);
+    servo_tick(&s2, &ref, &fb);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_ENCODER | SERVO_FAULT_AMPLIFIER, s.faults);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_AMPLIFIER, s2.faults);
+    TEST_ASSERT_EQUAL_UINT32(1u << 1, s2.fault_axes);
+    TEST_ASSERT_EQUAL_INT32(0, mv_log[1]);
+    TEST_ASSERT_EQUAL_INT32(0, mv_all_log[1]);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -887,6 +938,7 @@ int main(void)
     RUN_TEST(test_fast_tick_and_one_call_io);
     RUN_TEST(test_cec_in_the_tick_and_handover);
     RUN_TEST(test_cec_tick_axis_steps_equal_pid_step_e);
+    RUN_TEST(test_cec_on_tick_counts_and_input_faults);
     RUN_TEST(test_following_error_disables_everything);
     RUN_TEST(test_encoder_fault_controlled_stop);
     RUN_TEST(test_amplifier_fault);
