@@ -276,7 +276,11 @@ int32_t pid_step_fast0(pid_loop_t *pid, int32_t e, pos_nm_t meas);
  * increment are 0 and the fast step would write the same values again
  * (out_mv is re-derived from out as the fast step derives it). An axis
  * standing still (Z on a circle in the X-Y plane) takes it on every tick
- * (test_pid.c: test_rest_step_equals_fast). */
+ * (test_pid.c: test_rest_step_equals_fast). The rest step sets pid->rest;
+ * while nothing else has written the loop, pid_rest_cached tests only the
+ * step's own inputs (the servo's axes with the contour error controller
+ * on: test_pid.c test_rest_cached_equals_step, test_servo.c
+ * test_cec_tick_axis_steps_equal_pid_step_e). */
 int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
                          int64_t extra);
 /* The saturated end of a fast step (out of line: rare). raw: u_raw in U;

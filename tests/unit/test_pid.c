@@ -1059,6 +1059,7 @@ static void test_rest_step_equals_fast(void)
 }
 
 /* Every field the steps compare (not the caches ready, lean_rdy, rest). */
+
 static void assert_loops_equal(const pid_loop_t *b, const pid_loop_t *a)
 {
     TEST_ASSERT_EQUAL_INT32(b->out_mv, a->out_mv);
@@ -1076,6 +1077,57 @@ static void assert_loops_equal(const pid_loop_t *b, const pid_loop_t *a)
     TEST_ASSERT_EQUAL(b->dq_live, a->dq_live);
     TEST_ASSERT_EQUAL(b->bumpless, a->bumpless);
     TEST_ASSERT_EQUAL_INT32(b->hold_mv, a->hold_mv);
+}
+
+/* The fast step's range test of its D input (|de| <= de_max, pid.h Fast
+ * path) at its edges, D on the error and on the measurement, both signs:
+ * at de_max the step equals the fast formula (a copy whose de_max admits
+ * any input), one beyond it equals the general step on a copy. */
+static void test_fast_d_input_range_edges(void)
+{
+    int d, sgn, k;
+
+    for (d = 0; d < 2; d++) {
+        for (sgn = -1; sgn <= 1; sgn += 2) {
+            for (k = 0; k < 2; k++) {
+                pid_params_t p = params(1300, 2e4, 2e3, 10000); /* de_max about 2^18 */
+                pid_loop_t a, b;
+                int64_t de;
+                int32_t e = 1000;
+                pos_nm_t meas = 5000;
+
+                p.d_on_measurement = d != 0;
+                p.d_tau_us = 200;
+                start(&a, &p);
+                pid_step_e(&a, e, meas, 0, 0, 0); /* primed: fast from here */
+                pid_step_e(&a, e, meas, 0, 0, 0);
+                TEST_ASSERT_TRUE(a.ready);
+                TEST_ASSERT_TRUE(a.de_max < 0x7FFFFFFFu);
+                de = sgn * ((int64_t)a.de_max + k);
+                b = a;
+                if (k == 0) {
+                    b.de_max = 0x7FFFFFFFu;
+                }
+                if (d != 0) { /* de = meas_prev - meas */
+                    pid_step_e(&a, e, meas - de, 0, 0, 0);
+                    if (k == 0) {
+                        pid_step_fast(&b, e, meas - de, 0);
+                    } else {
+                        pid_step_general(&b, e, meas - de, 0, 0, 0);
+                    }
+                } else { /* de = e - e_prev */
+                    pid_step_e(&a, (int32_t)(e + de), meas, 0, 0, 0);
+                    if (k == 0) {
+                        pid_step_fast(&b, (int32_t)(e + de), meas, 0);
+                    } else {
+                        pid_step_general(&b, (int32_t)(e + de), meas, 0, 0, 0);
+                    }
+                }
+                b.de_max = a.de_max;
+                assert_loops_equal(&b, &a);
+            }
+        }
+    }
 }
 
 /* The cached rest step (pid_rest_cached, 64-bit hosts) as the servo's axis
@@ -1239,6 +1291,7 @@ int main(void)
     RUN_TEST(test_lean_step_equals_general);
     RUN_TEST(test_rest_step_equals_fast);
     RUN_TEST(test_rest_cached_equals_step);
+    RUN_TEST(test_fast_d_input_range_edges);
     RUN_TEST(test_d_filter_product_exact);
     RUN_TEST(test_d_filter_bound_at_the_longest_time_constant);
     return UNITY_END();
