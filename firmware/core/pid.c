@@ -186,6 +186,15 @@ static void fast_config(pid_loop_t *pid)
     pid->lean = !ok && p->deadband_nm == 0 && pid->cd.m != 0 && pid->alpha_q30 < FX_ONE_Q30 &&
                 coef_mid(pid->cp) && coef_mid(pid->ci) && coef_mid(pid->cd) && coef_mid(pid->cv) &&
                 coef_mid(pid->ca);
+#if PID_HOST_INLINE
+    if (pid->lean) { /* every shift in 2..31 */
+        pid->lean_sh1[0] = (uint8_t)(pid->cp.sh - 1);
+        pid->lean_sh1[1] = (uint8_t)(pid->cd.sh - 1);
+        pid->lean_sh1[2] = (uint8_t)(pid->cv.sh - 1);
+        pid->lean_sh1[3] = (uint8_t)(pid->ca.sh - 1);
+        pid->lean_sh1[4] = (uint8_t)(pid->ci.sh - 1);
+    }
+#endif
 }
 
 static bool gain_ok(q32_32_t g)

@@ -114,6 +114,17 @@
 
 #include "fixmath.h"
 
+/* 64-bit hosts: the servo's axis step takes the lean step inline
+ * (pid_step_lean_inline; servo.c axis_step); 32-bit targets call
+ * pid_step_e (the Cortex-M4's tick and flash keep their figures). */
+#ifndef PID_HOST_INLINE
+#if UINTPTR_MAX > 0xFFFFFFFFu
+#define PID_HOST_INLINE 1
+#else
+#define PID_HOST_INLINE 0
+#endif
+#endif
+
 #define PID_MV_MAX       1000000 /* largest out_max_mv / i_max_mv accepted (1 kV) */
 #define PID_TICK_HZ_MIN  100
 #define PID_TICK_HZ_MAX  100000
@@ -203,10 +214,15 @@ typedef struct {
                     * one flag; a copy that pokes fast must call it too */
     bool lean_rdy; /* cached lean && enabled && primed && !bumpless &&
                     * !dq_live (the lean step applies), kept as ready */
-    bool rest;     /* 64-bit hosts (PID_REST): the last write was a rest
-                    * step, so the rest step's conditions on the state
-                    * hold (see pid_rest_cached); every other pid.h/pid.c
-                    * writer clears it. Always false on 32-bit targets. */
+#if PID_HOST_INLINE
+    uint8_t lean_sh1[5]; /* pid_config, 64-bit hosts: the lean step's shifts
+                          * - 1 (cp, cd, cv, ca, ci; lean only): the
+                          * products' rounding without a decrement each */
+#endif
+    bool rest; /* 64-bit hosts (PID_REST): the last write was a rest
+                * step, so the rest step's conditions on the state
+                * hold (see pid_rest_cached); every other pid.h/pid.c
+                * writer clears it. Always false on 32-bit targets. */
     /* status (read anywhere) */
     int32_t err_nm;     /* last error before the deadband                  */
     int32_t out_mv;     /* last output, mV                                 */
@@ -420,17 +436,6 @@ static PID_ALWAYS_INLINE int32_t pid_step_fast_inline(pid_loop_t *pid, int32_t e
     return rh;
 }
 
-/* 64-bit hosts: the servo's axis step takes the lean step inline
- * (pid_step_lean_inline; servo.c axis_step); 32-bit targets call
- * pid_step_e (the Cortex-M4's tick and flash keep their figures). */
-#ifndef PID_HOST_INLINE
-#if UINTPTR_MAX > 0xFFFFFFFFu
-#define PID_HOST_INLINE 1
-#else
-#define PID_HOST_INLINE 0
-#endif
-#endif
-
 /* Shifts 1..31 in 32-bit pieces on 32-bit targets (the Cortex-M4 has no
  * 64-bit shift); a 64-bit host shifts the product in one instruction (the
  * general form in pid.c, the same value: round half up of p / 2^sh), which
@@ -467,6 +472,12 @@ static inline int64_t pid_coef_mid_apply(pid_coef_t c, int32_t x)
     return ((p >> (unsigned)(c.sh - 1)) + 1) >> 1;
 }
 
+/* pid_coef_mid_apply with the shift - 1 at hand (64-bit hosts' form) */
+static inline int64_t pid_coef_mid_sh1(int32_t m, unsigned sh1, int32_t x)
+{
+    return ((((int64_t)x * m) >> sh1) + 1) >> 1;
+}
+
 /* fx_sat32_fast(v) with one compare on the usual path (an int32 value) */
 static inline int32_t pid_sat32_usual(int64_t v)
 {
@@ -487,13 +498,23 @@ static PID_ALWAYS_INLINE int32_t pid_step_lean_inline(pid_loop_t *pid, int32_t e
 {
     int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
                                          : fx_sat_diff32(e, pid->err_nm);
+#if PID_HOST_INLINE
+    int64_t pterm = pid_coef_mid_sh1(pid->cp.m, pid->lean_sh1[0], e);
+    int64_t draw = pid_coef_mid_sh1(pid->cd.m, pid->lean_sh1[1], de);
+    int64_t ff =
+        pid_coef_mid_sh1(pid->cv.m, pid->lean_sh1[2], pid_sat32_usual(fx_round_shift64(vel, 2))) +
+        pid_coef_mid_sh1(pid->ca.m, pid->lean_sh1[3], pid_sat32_usual(fx_round_shift64(acc, 10)));
+    int64_t ii = pid_coef_mid_sh1(pid->ci.m, pid->lean_sh1[4], e);
+#else
     int64_t pterm = pid_coef_mid_apply(pid->cp, e);
     int64_t draw = pid_coef_mid_apply(pid->cd, de);
-    int64_t dterm = pid->dterm + fx_mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
     int64_t ff = pid_coef_mid_apply(pid->cv, pid_sat32_usual(fx_round_shift64(vel, 2))) +
                  pid_coef_mid_apply(pid->ca, pid_sat32_usual(fx_round_shift64(acc, 10)));
+    int64_t ii = pid_coef_mid_apply(pid->ci, e);
+#endif
+    int64_t dterm = pid->dterm + fx_mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
     int64_t ex = (extra == 0) ? 0 : fx_clamp_sym64(extra, PID_TERM_LIM);
-    int64_t integ = fx_clamp_sym64(pid->integ + pid_coef_mid_apply(pid->ci, e), pid->i_lim);
+    int64_t integ = fx_clamp_sym64(pid->integ + ii, pid->i_lim);
     int64_t raw, lim;
 
     pid->err_nm = e;
