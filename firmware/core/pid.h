@@ -114,9 +114,11 @@
 
 #include "fixmath.h"
 
-/* 64-bit hosts: the servo's axis step takes the lean step inline
- * (pid_step_lean_inline; servo.c axis_step); 32-bit targets call
- * pid_step_e (the Cortex-M4's tick and flash keep their figures). */
+/* Host-only forms (64-bit hosts; docs/fast-paths.md): the servo's axis
+ * step takes the lean step inline (pid_step_lean_inline; servo.c
+ * axis_step) with its shifts - 1 kept (lean_sh1), and the fast step tests
+ * its D input on the error with one compare; 32-bit targets keep their
+ * forms and call pid_step_e (the Cortex-M4's tick keeps its figures). */
 #ifndef PID_HOST_INLINE
 #if UINTPTR_MAX > 0xFFFFFFFFu
 #define PID_HOST_INLINE 1
