@@ -112,6 +112,7 @@ drive_result_t drive_init(const drive_config_t *cfg)
         }
     }
     drv.ready = false;
+    drv.enc_edges = 0;
     drv.cfg = *cfg;
     drv.ff = (drive_ff_t){0};
     drive_ff_config(&drv.ff, cfg, cfg->axes);
@@ -163,6 +164,9 @@ drive_result_t drive_init(const drive_config_t *cfg)
     for (i = 0; i < cfg->axes; i++) {
         hal_motor_enable(i, false);
         hal_motor_set_mv(i, 0);
+    }
+    for (i = 0; i < cfg->axes; i++) {
+        drv.enc_edges |= (uint8_t)(cfg->enc_counter[i] ? 0u : 1u << i);
     }
     drv.ready = true;
     publish(false); /* the next tick's ref_sampling decides what is copied */
@@ -707,16 +711,20 @@ void drive_status(drive_status_t *out)
     out->queued_time_ns = feed_queued_ns(&feed, rd, rem);
 }
 
+#if CORE_AXES > 8
+#error "drv.enc_edges holds one bit per axis"
+#endif
+
 void drive_encoder_edge(unsigned ch, uint32_t lines, uint32_t t_ns)
 {
-    if (drv.ready && ch < drv.cfg.axes && !drv.cfg.enc_counter[ch]) {
+    if (ch < CORE_AXES && (drv.enc_edges & (1u << ch)) != 0u) {
         qdec_edge(&drv.in.enc[ch], lines, t_ns);
     }
 }
 
 bool drive_encoder_run(unsigned ch, int32_t steps, uint32_t t_last_ns)
 {
-    return drv.ready && ch < drv.cfg.axes && !drv.cfg.enc_counter[ch] &&
+    return ch < CORE_AXES && (drv.enc_edges & (1u << ch)) != 0u &&
            qdec_edge_run(&drv.in.enc[ch], steps, t_last_ns);
 }
 

@@ -23,6 +23,9 @@
  * drive_init). Only drive.c and drive_req.c touch it. */
 typedef struct {
     bool ready;                /* init (drive_init runs before the tick is started) */
+    uint8_t enc_edges;         /* init: bit i: ready, i < cfg.axes and not enc_counter[i]
+                                * (the channels drive_encoder_edge / _run deliver to;
+                                * CORE_AXES <= 8, checked in drive.c) */
     drive_config_t cfg;        /* init; main: see docs/tick-main.md */
     drive_cec_mode_t cec_mode; /* main */
     interp_t ip;               /* producer side main, consumer side tick (interp.h) */

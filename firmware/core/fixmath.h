@@ -445,7 +445,7 @@ static inline int64_t fx_umul_shift_hi(uint64_t ua, uint64_t ub, bool neg, unsig
 /* round(a * b / 2^32) (shift rule) == fx_mul64x32_shift(a, b, 32) for every
  * int64 a and int32 b (|a * b| <= 2^94: never saturates), inline: two
  * 32 x 32 -> 64 products. */
-static inline int64_t fx_mul64x32_shift32(int64_t a, int32_t b)
+static inline int64_t fx_mul64x32_shift32_pieces(int64_t a, int32_t b)
 {
     fx_u128_t p = fx_umul64x32(fx_uabs64(a), (uint32_t)fx_uabs64(b));
     uint64_t hi = (p.hi << 32) | (p.lo >> 32); /* |a * b| >> 32 */
@@ -455,6 +455,20 @@ static inline int64_t fx_mul64x32_shift32(int64_t a, int32_t b)
         return -(int64_t)(hi + (((uint64_t)l32 + 0x7FFFFFFFu) >> 32));
     }
     return (int64_t)(hi + (((uint64_t)l32 + 0x80000000u) >> 32));
+}
+
+/* The same value: floor((a b + 2^31) / 2^32) from the signed 128-bit
+ * product on hosts with one (FX_MUL_PIECES 0: no magnitudes and sign
+ * fix-up; the interpolator's cruise correction, test_fixmath.c:
+ * test_mul_q30_host_equals_pieces), the magnitudes' form elsewhere. */
+static inline int64_t fx_mul64x32_shift32(int64_t a, int32_t b)
+{
+#if FX_MUL_PIECES
+    return fx_mul64x32_shift32_pieces(a, b);
+#else
+    __extension__ typedef __int128 fx_host_i128;
+    return (int64_t)(((fx_host_i128)a * b + ((fx_host_i128)1 << 31)) >> 32);
+#endif
 }
 
 /* Number of leading zero bits of v != 0 (32-bit CLZ only: Cortex-M4 has no
@@ -501,13 +515,27 @@ static inline int32_t fx_opaque32(int32_t v)
  * |a| <= 2^61 and 0 <= b <= 2^30, without a 96-bit product: a = ah * 2^32 +
  * al with al unsigned; a * b = ah * b * 2^32 + al * b (one SMULL, one
  * UMULL). The PID's filter and back-calculation gains. */
-static inline int64_t fx_mul_q30_pos(int64_t a, q1_30_t b)
+static inline int64_t fx_mul_q30_pos_pieces(int64_t a, q1_30_t b)
 {
     int32_t ah = fx_opaque32((int32_t)(a >> 32)); /* |ah| <= 2^29 */
     uint32_t al = (uint32_t)a;
     int64_t h = (int64_t)ah * b;              /* |h| <= 2^59 */
     uint64_t lo = (uint64_t)al * (uint32_t)b; /* < 2^62 */
     return (int64_t)((uint64_t)h << 2) + (int64_t)((lo + ((uint64_t)1 << 29)) >> 30);
+}
+
+/* The same value, floor((a b + 2^29) / 2^30), from the signed 128-bit
+ * product on hosts with one (FX_MUL_PIECES 0; the PID's D filter and
+ * back-calculation; test_fixmath.c: test_mul_q30_host_equals_pieces), the
+ * two 32-bit pieces elsewhere. */
+static inline int64_t fx_mul_q30_pos(int64_t a, q1_30_t b)
+{
+#if FX_MUL_PIECES
+    return fx_mul_q30_pos_pieces(a, b);
+#else
+    __extension__ typedef __int128 fx_host_i128;
+    return (int64_t)(((fx_host_i128)a * b + ((fx_host_i128)1 << 29)) >> 30);
+#endif
 }
 
 /* |v| <= max for max <= 2^31 - 1, with one add and one unsigned compare:

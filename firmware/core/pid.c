@@ -72,29 +72,6 @@ bool pid_coef_make(pid_coef_t *c, int64_t num, uint32_t mul, uint64_t den)
     return true;
 }
 
-/* Shifts 1..31 in 32-bit pieces on 32-bit targets (the Cortex-M4 has no
- * 64-bit shift); a 64-bit host shifts the product in one instruction (the
- * general form below, the same value: round half up of p / 2^sh), which
- * saves it about 25 instructions per term (x86 bench_hil: 8 terms, 235 per
- * simulated tick). test_pid.c: test_coef_pieces_equal_wide. */
-#ifndef PID_COEF_PIECES
-#if UINTPTR_MAX > 0xFFFFFFFFu
-#define PID_COEF_PIECES 0
-#else
-#define PID_COEF_PIECES 1
-#endif
-#endif
-
-/* round(p / 2^sh) half up for sh in 1..31 with 32-bit shifts; |p| < 2^62 */
-static inline int64_t coef_pieces(int64_t p, unsigned sh)
-{
-    uint64_t u = (uint64_t)p + ((uint32_t)1 << (sh - 1u));
-    uint32_t lo = (uint32_t)u, hi = (uint32_t)(u >> 32);
-    uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
-    uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
-    return (int64_t)(((uint64_t)rhi << 32) | rlo);
-}
-
 static inline int64_t coef_apply(pid_coef_t c, int32_t x)
 {
     int64_t p = (int64_t)x * c.m; /* |p| < 2^62: one SMULL */
@@ -103,7 +80,7 @@ static inline int64_t coef_apply(pid_coef_t c, int32_t x)
          * the default gains at 5-10 kHz); |v| < 2^61 needs the clamp only
          * for sh == 1 */
         unsigned sh = (unsigned)c.sh;
-        int64_t v = coef_pieces(p, sh);
+        int64_t v = pid_coef_pieces(p, sh);
         return (sh >= 2u) ? v : fx_clamp_sym64(v, PID_TERM_LIM);
     }
     if (c.sh > 0) {
@@ -145,7 +122,7 @@ int64_t pid_coef_pieces_test(pid_coef_t c, int32_t x)
     if (c.sh <= 0 || c.sh >= 32) {
         return coef_apply(c, x);
     }
-    v = coef_pieces((int64_t)x * c.m, (unsigned)c.sh);
+    v = pid_coef_pieces((int64_t)x * c.m, (unsigned)c.sh);
     return (c.sh >= 2) ? v : fx_clamp_sym64(v, PID_TERM_LIM);
 }
 
@@ -209,6 +186,15 @@ static void fast_config(pid_loop_t *pid)
     pid->lean = !ok && p->deadband_nm == 0 && pid->cd.m != 0 && pid->alpha_q30 < FX_ONE_Q30 &&
                 coef_mid(pid->cp) && coef_mid(pid->ci) && coef_mid(pid->cd) && coef_mid(pid->cv) &&
                 coef_mid(pid->ca);
+#if PID_HOST_INLINE
+    if (pid->lean) { /* every shift in 2..31 */
+        pid->lean_sh1[0] = (uint8_t)(pid->cp.sh - 1);
+        pid->lean_sh1[1] = (uint8_t)(pid->cd.sh - 1);
+        pid->lean_sh1[2] = (uint8_t)(pid->cv.sh - 1);
+        pid->lean_sh1[3] = (uint8_t)(pid->ca.sh - 1);
+        pid->lean_sh1[4] = (uint8_t)(pid->ci.sh - 1);
+    }
+#endif
 }
 
 static bool gain_ok(q32_32_t g)
@@ -265,6 +251,7 @@ pid_err_t pid_config(pid_loop_t *pid, const pid_params_t *p)
     pid->out_lim = (int64_t)p->out_max_mv * U_PER_MV;
     pid->deadband = p->deadband_nm;
     fast_config(pid);
+    pid_rest_clear(pid);
     if (pid->enabled && pid->primed) {
         /* bumpless gain change: the next step continues from the last output */
         pid->hold_mv = pid->out_mv;
@@ -288,6 +275,7 @@ void pid_enable(pid_loop_t *pid, int32_t u_hold_mv)
 
 void pid_disable(pid_loop_t *pid)
 {
+    pid_rest_clear(pid);
     pid->enabled = false;
     pid->bumpless = false;
     pid->ready = false;
@@ -304,6 +292,7 @@ void pid_disable(pid_loop_t *pid)
 
 void pid_reset(pid_loop_t *pid, bool bumpless)
 {
+    pid_rest_clear(pid);
     if (bumpless) {
         pid->hold_mv = pid->out_mv;
         pid->bumpless = pid->enabled;
@@ -323,11 +312,13 @@ void pid_reset(pid_loop_t *pid, bool bumpless)
 
 void pid_rebase(pid_loop_t *pid, pos_nm_t offset_nm)
 {
+    pid_rest_clear(pid);
     pid->meas_prev += offset_nm;
 }
 
 void pid_add_integrator(pid_loop_t *pid, int64_t delta_u)
 {
+    pid_rest_clear(pid);
     pid->integ = fx_clamp_sym64(pid->integ + fx_clamp_sym64(delta_u, PID_TERM_LIM), pid->i_lim);
 }
 
@@ -354,6 +345,7 @@ static inline int32_t pid_finish_raw(pid_loop_t *pid, int64_t raw, int64_t integ
 {
     int64_t u = fx_clamp_sym64(raw, pid->out_lim);
 
+    pid_rest_clear(pid);
     if (u != raw) {
         pid->saturated = true;
         pid->sat_ticks++;
@@ -475,60 +467,12 @@ int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel,
     return pid_finish_raw(pid, pterm + integ + dterm + ff + ex, integ);
 }
 
-/* coef_apply for a shift in 2..31 (coef_mid): the same value, no tests */
-static inline int64_t coef_mid_apply(pid_coef_t c, int32_t x)
-{
-    int64_t p = (int64_t)x * c.m;
-    if (PID_COEF_PIECES) {
-        return coef_pieces(p, (unsigned)c.sh);
-    }
-    /* floor((p + 2^(sh-1)) / 2^sh) == floor((floor(p / 2^(sh-1)) + 1) / 2):
-     * no rounding constant to build from the shift */
-    return ((p >> (unsigned)(c.sh - 1)) + 1) >> 1;
-}
-
-/* fx_sat32_fast(v) with one compare on the usual path (an int32 value) */
-static inline int32_t sat32_usual(int64_t v)
-{
-    if (v == (int64_t)(int32_t)v) {
-        return (int32_t)v;
-    }
-    return (v < 0) ? INT32_MIN : INT32_MAX;
-}
-
-/* The lean general step (pid.h): pid_step_general's operations for
- * pid->lean and a usual step (deadband 0: edb = e; the D filter on; not
- * fast: no hand-over, ready stays false). */
+/* The lean general step (pid.h): pid_step_lean_inline out of line. */
 static int32_t step_lean(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
                          int64_t extra)
 {
-    int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
-                                         : fx_sat_diff32(e, pid->err_nm);
-    int64_t pterm = coef_mid_apply(pid->cp, e);
-    int64_t draw = coef_mid_apply(pid->cd, de);
-    int64_t dterm = pid->dterm + fx_mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
-    int64_t ff = coef_mid_apply(pid->cv, sat32_usual(fx_round_shift64(vel, 2))) +
-                 coef_mid_apply(pid->ca, sat32_usual(fx_round_shift64(acc, 10)));
-    int64_t ex = (extra == 0) ? 0 : fx_clamp_sym64(extra, PID_TERM_LIM);
-    int64_t integ = fx_clamp_sym64(pid->integ + coef_mid_apply(pid->ci, e), pid->i_lim);
-
-    pid->err_nm = e;
-    pid->dterm = dterm;
-    pid->meas_prev = meas;
-    pid->ff = ff;
-    pid->extra = ex;
-    return pid_finish_raw(pid, pterm + integ + dterm + ff + ex, integ);
+    return pid_step_lean_inline(pid, e, meas, vel, acc, extra);
 }
-
-/* The rest step (pid.h, Rest step): on 64-bit hosts only (PID_REST; the
- * M4 tick keeps its instructions). */
-#ifndef PID_REST
-#if UINTPTR_MAX > 0xFFFFFFFFu
-#define PID_REST 1
-#else
-#define PID_REST 0
-#endif
-#endif
 
 /* A fast step at rest would write every field as it is (pid.h): no
  * error, no D input (both forms), the D state inside its fixed point, the
@@ -550,6 +494,7 @@ int32_t pid_step_e(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64
             if (step_is_rest(pid, e, meas, ex)) {
                 /* round(out / 2^32) as the fast step writes it */
                 pid->out_mv = (int32_t)(pid->out >> 32) + (int32_t)((uint32_t)pid->out >> 31);
+                pid->rest = true; /* pid_rest_cached */
                 return pid->out_mv;
             }
         }

@@ -114,6 +114,19 @@
 
 #include "fixmath.h"
 
+/* Host-only forms (64-bit hosts; docs/fast-paths.md): the servo's axis
+ * step takes the lean step inline (pid_step_lean_inline; servo.c
+ * axis_step) with its shifts - 1 kept (lean_sh1), and the fast step tests
+ * its D input on the error with one compare; 32-bit targets keep their
+ * forms and call pid_step_e (the Cortex-M4's tick keeps its figures). */
+#ifndef PID_HOST_INLINE
+#if UINTPTR_MAX > 0xFFFFFFFFu
+#define PID_HOST_INLINE 1
+#else
+#define PID_HOST_INLINE 0
+#endif
+#endif
+
 #define PID_MV_MAX       1000000 /* largest out_max_mv / i_max_mv accepted (1 kV) */
 #define PID_TICK_HZ_MIN  100
 #define PID_TICK_HZ_MAX  100000
@@ -203,6 +216,15 @@ typedef struct {
                     * one flag; a copy that pokes fast must call it too */
     bool lean_rdy; /* cached lean && enabled && primed && !bumpless &&
                     * !dq_live (the lean step applies), kept as ready */
+#if PID_HOST_INLINE
+    uint8_t lean_sh1[5]; /* pid_config, 64-bit hosts: the lean step's shifts
+                          * - 1 (cp, cd, cv, ca, ci; lean only): the
+                          * products' rounding without a decrement each */
+#endif
+    bool rest; /* 64-bit hosts (PID_REST): the last write was a rest
+                * step, so the rest step's conditions on the state
+                * hold (see pid_rest_cached); every other pid.h/pid.c
+                * writer clears it. Always false on 32-bit targets. */
     /* status (read anywhere) */
     int32_t err_nm;     /* last error before the deadband                  */
     int32_t out_mv;     /* last output, mV                                 */
@@ -262,7 +284,7 @@ int32_t pid_step_fast0(pid_loop_t *pid, int32_t e, pos_nm_t meas);
  * test_lean_step_equals_general). The X and Y loops of a circle with
  * feed-forward take it on every tick (host simulator).
  *
- * Rest step (exact, 64-bit hosts only, PID_REST in pid.c): a ready loop
+ * Rest step (exact, 64-bit hosts only, PID_REST): a ready loop
  * (fast path) whose step would leave every field as it is returns at once
  * from pid_step_e: e == 0 and the last e == 0 and meas == meas_prev (no D
  * input in either form), the D state at its fixed point (dq / 2^31 == 0
@@ -272,7 +294,11 @@ int32_t pid_step_fast0(pid_loop_t *pid, int32_t e, pos_nm_t meas);
  * increment are 0 and the fast step would write the same values again
  * (out_mv is re-derived from out as the fast step derives it). An axis
  * standing still (Z on a circle in the X-Y plane) takes it on every tick
- * (test_pid.c: test_rest_step_equals_fast). */
+ * (test_pid.c: test_rest_step_equals_fast). The rest step sets pid->rest;
+ * while nothing else has written the loop, pid_rest_cached tests only the
+ * step's own inputs (the servo's axes with the contour error controller
+ * on: test_pid.c test_rest_cached_equals_step, test_servo.c
+ * test_cec_tick_axis_steps_equal_pid_step_e). */
 int32_t pid_step_general(pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t vel, int64_t acc,
                          int64_t extra);
 /* The saturated end of a fast step (out of line: rare). raw: u_raw in U;
@@ -282,11 +308,45 @@ int32_t pid_fast_saturated(pid_loop_t *pid, int64_t raw, int64_t integ);
 /* The filtered D term in U, from whichever state is live. */
 int64_t pid_dterm(const pid_loop_t *pid);
 
+/* The rest step (see pid_step_general, Rest step) and its cached form:
+ * on 64-bit hosts only (the Cortex-M4 tick keeps its instructions). */
+#ifndef PID_REST
+#if UINTPTR_MAX > 0xFFFFFFFFu
+#define PID_REST 1
+#else
+#define PID_REST 0
+#endif
+#endif
+
+/* Every write to a loop but the rest step's: pid->rest no longer holds. */
+static inline void pid_rest_clear(pid_loop_t *pid)
+{
+    if (PID_REST) {
+        pid->rest = false;
+    }
+}
+
+/* The rest step with its conditions on the state cached (pid->rest, set by
+ * pid_step_e's rest step): true when pid_step_e(pid, e, meas, vel, acc,
+ * extra) would be a rest step again, which writes nothing and returns
+ * pid->out_mv (the rest step before wrote it). The per-step conditions
+ * are tested here: e == 0, meas == meas_prev and extra == pid->extra
+ * (pid->extra is clamped, so this is the rest step's test on the clamped
+ * extra input; an extra input that clamps to it is left to pid_step_e).
+ * Only for loops written by pid.c and pid.h alone (the servo's axes: the
+ * contour error controller writes its channels' outputs itself, which
+ * would not clear pid->rest). False on 32-bit targets. */
+static inline bool pid_rest_cached(const pid_loop_t *pid, int32_t e, pos_nm_t meas, int64_t extra)
+{
+    return PID_REST && pid->rest && e == 0 && meas == pid->meas_prev && extra == pid->extra;
+}
+
 /* Re-derive pid->ready and pid->lean_rdy from their inputs. */
 static inline void pid_refresh_ready(pid_loop_t *pid)
 {
     pid->ready = pid->fast && pid->primed && pid->enabled && !pid->bumpless && pid->dq_live;
     pid->lean_rdy = pid->lean && pid->primed && pid->enabled && !pid->bumpless && !pid->dq_live;
+    pid_rest_clear(pid);
 }
 
 /* The cached pid->ready. */
@@ -327,14 +387,21 @@ static PID_ALWAYS_INLINE int32_t pid_step_fast_inline(pid_loop_t *pid, int32_t e
         if ((int32_t)((ah ^ bh) & (ah ^ dh)) < 0 || (int32_t)dh != (de >> 31)) {
             return pid_step_general(pid, e, meas, 0, 0, extra); /* |de| >= 2^31 */
         }
+        if (PID_HOST_INLINE && !fx_in_range32(de, pid->de_max)) {
+            return pid_step_general(pid, e, meas, 0, 0, extra);
+        }
     } else {
         int64_t d = (int64_t)e - pid->err_nm; /* err_nm: the previous step's e */
-        if (d > (int64_t)pid->de_max || d < -(int64_t)pid->de_max) {
+        /* 64-bit hosts: |d| <= de_max (< 2^31) as one unsigned compare (|d| <
+         * 2^32), no second test; the M4 keeps its form (this one cost its
+         * tick 30 instructions: code generation of the axes' steps) */
+        if (PID_HOST_INLINE ? (uint64_t)(d + (int64_t)pid->de_max) > 2u * (uint64_t)pid->de_max
+                            : d > (int64_t)pid->de_max || d < -(int64_t)pid->de_max) {
             return pid_step_general(pid, e, meas, 0, 0, extra);
         }
         de = (int32_t)d;
     }
-    if (!fx_in_range32(de, pid->de_max)) {
+    if (!PID_HOST_INLINE && !fx_in_range32(de, pid->de_max)) {
         return pid_step_general(pid, e, meas, 0, 0, extra);
     }
     dn = fx_mul_rsh32(de, pid->fd_m, pid->fd_sh, pid->fd_rnd);
@@ -346,6 +413,7 @@ static PID_ALWAYS_INLINE int32_t pid_step_fast_inline(pid_loop_t *pid, int32_t e
         dq = (int64_t)((uint64_t)(int64_t)dn << 31);
     }
     df = (int32_t)(dq >> 31);
+    pid_rest_clear(pid);
     pid->dq = dq;
     pid->meas_prev = meas;
     pid->err_nm = e;
@@ -375,6 +443,106 @@ static PID_ALWAYS_INLINE int32_t pid_step_fast_inline(pid_loop_t *pid, int32_t e
     rh += (int32_t)((uint32_t)raw >> 31); /* round(u / 2^32) */
     pid->out_mv = rh;
     return rh;
+}
+
+/* Shifts 1..31 in 32-bit pieces on 32-bit targets (the Cortex-M4 has no
+ * 64-bit shift); a 64-bit host shifts the product in one instruction (the
+ * general form in pid.c, the same value: round half up of p / 2^sh), which
+ * saves it about 25 instructions per term (x86 bench_hil: 8 terms, 235 per
+ * simulated tick). test_pid.c: test_coef_pieces_equal_wide. */
+#ifndef PID_COEF_PIECES
+#if UINTPTR_MAX > 0xFFFFFFFFu
+#define PID_COEF_PIECES 0
+#else
+#define PID_COEF_PIECES 1
+#endif
+#endif
+
+/* round(p / 2^sh) half up for sh in 1..31 with 32-bit shifts; |p| < 2^62 */
+static inline int64_t pid_coef_pieces(int64_t p, unsigned sh)
+{
+    uint64_t u = (uint64_t)p + ((uint32_t)1 << (sh - 1u));
+    uint32_t lo = (uint32_t)u, hi = (uint32_t)(u >> 32);
+    uint32_t rlo = (lo >> sh) | (hi << (32u - sh));
+    uint32_t rhi = (uint32_t)((int32_t)hi >> sh);
+    return (int64_t)(((uint64_t)rhi << 32) | rlo);
+}
+
+/* pid_coef_apply for a shift in 2..31: the same value, no tests (|x m| <
+ * 2^62, so |result| <= 2^60: no clamp) */
+static inline int64_t pid_coef_mid_apply(pid_coef_t c, int32_t x)
+{
+    int64_t p = (int64_t)x * c.m;
+    if (PID_COEF_PIECES) {
+        return pid_coef_pieces(p, (unsigned)c.sh);
+    }
+    /* floor((p + 2^(sh-1)) / 2^sh) == floor((floor(p / 2^(sh-1)) + 1) / 2):
+     * no rounding constant to build from the shift */
+    return ((p >> (unsigned)(c.sh - 1)) + 1) >> 1;
+}
+
+/* pid_coef_mid_apply with the shift - 1 at hand (64-bit hosts' form) */
+static inline int64_t pid_coef_mid_sh1(int32_t m, unsigned sh1, int32_t x)
+{
+    return ((((int64_t)x * m) >> sh1) + 1) >> 1;
+}
+
+/* fx_sat32_fast(v) with one compare on the usual path (an int32 value) */
+static inline int32_t pid_sat32_usual(int64_t v)
+{
+    if (v == (int64_t)(int32_t)v) {
+        return (int32_t)v;
+    }
+    return (v < 0) ? INT32_MIN : INT32_MAX;
+}
+
+/* The lean general step (see pid_step_general), valid only while
+ * pid->lean_rdy: pid_step_general's operations for pid->lean and a usual
+ * step (deadband 0: edb = e; the D filter on; not fast: no hand-over,
+ * ready stays false); a saturated output ends in pid_fast_saturated (the
+ * general path's end). pid_step_e takes it out of line; the servo's axis
+ * step inline on 64-bit hosts (PID_HOST_INLINE, servo.c). */
+static PID_ALWAYS_INLINE int32_t pid_step_lean_inline(pid_loop_t *pid, int32_t e, pos_nm_t meas,
+                                                      int64_t vel, int64_t acc, int64_t extra)
+{
+    int32_t de = pid->p.d_on_measurement ? fx_sat_diff32(pid->meas_prev, meas)
+                                         : fx_sat_diff32(e, pid->err_nm);
+#if PID_HOST_INLINE
+    int64_t pterm = pid_coef_mid_sh1(pid->cp.m, pid->lean_sh1[0], e);
+    int64_t draw = pid_coef_mid_sh1(pid->cd.m, pid->lean_sh1[1], de);
+    int64_t ff =
+        pid_coef_mid_sh1(pid->cv.m, pid->lean_sh1[2], pid_sat32_usual(fx_round_shift64(vel, 2))) +
+        pid_coef_mid_sh1(pid->ca.m, pid->lean_sh1[3], pid_sat32_usual(fx_round_shift64(acc, 10)));
+    int64_t ii = pid_coef_mid_sh1(pid->ci.m, pid->lean_sh1[4], e);
+#else
+    int64_t pterm = pid_coef_mid_apply(pid->cp, e);
+    int64_t draw = pid_coef_mid_apply(pid->cd, de);
+    int64_t ff = pid_coef_mid_apply(pid->cv, pid_sat32_usual(fx_round_shift64(vel, 2))) +
+                 pid_coef_mid_apply(pid->ca, pid_sat32_usual(fx_round_shift64(acc, 10)));
+    int64_t ii = pid_coef_mid_apply(pid->ci, e);
+#endif
+    int64_t dterm = pid->dterm + fx_mul_q30_pos(draw - pid->dterm, pid->alpha_q30);
+    int64_t ex = (extra == 0) ? 0 : fx_clamp_sym64(extra, PID_TERM_LIM);
+    int64_t integ = fx_clamp_sym64(pid->integ + ii, pid->i_lim);
+    int64_t raw, lim;
+
+    pid->err_nm = e;
+    pid->dterm = dterm;
+    pid->meas_prev = meas;
+    pid->ff = ff;
+    pid->extra = ex;
+    raw = pterm + integ + dterm + ff + ex;
+    lim = pid->out_lim;
+    if (raw > lim || raw < -lim) {
+        return pid_fast_saturated(pid, raw, integ);
+    }
+    /* pid->rest is false already: lean_rdy excludes ready, which it needs */
+    pid->saturated = false;
+    pid->sat_ticks = 0;
+    pid->integ = integ;
+    pid->out = raw;
+    pid->out_mv = (int32_t)fx_round_shift64(raw, 32);
+    return pid->out_mv;
 }
 
 #endif /* PID_H */

@@ -138,6 +138,23 @@ static void test_edges_ignored_on_counter_axis(void)
     TEST_ASSERT_EQUAL_INT64(-3, drive_encoder_count(0));
     TEST_ASSERT_EQUAL_INT64(-3 * 1250, pos_nm(0));
     TEST_ASSERT_EQUAL_INT64(8, drive_encoder_count(1));
+    /* runs of edges (drive_encoder_run): the edge axis only, not the
+     * counter axis nor a channel beyond the configured axes */
+    TEST_ASSERT_FALSE(drive_encoder_run(0, 5, (uint32_t)(t_ns + 9000u)));
+    TEST_ASSERT_TRUE(drive_encoder_run(1, 5, (uint32_t)(t_ns + 9000u)));
+    TEST_ASSERT_FALSE(drive_encoder_run(2, 5, (uint32_t)(t_ns + 9000u)));
+    TEST_ASSERT_FALSE(drive_encoder_run(CORE_AXES, 5, (uint32_t)(t_ns + 9000u)));
+    TEST_ASSERT_FALSE(drive_encoder_run(40, 5, (uint32_t)(t_ns + 9000u)));
+    drive_encoder_edge(2, fwd[0], (uint32_t)(t_ns + 9500u));
+    drive_encoder_edge(40, fwd[0], (uint32_t)(t_ns + 9500u));
+    tick();
+    TEST_ASSERT_EQUAL_INT64(-3, drive_encoder_count(0));
+    TEST_ASSERT_EQUAL_INT64(13, drive_encoder_count(1));
+    /* a drive_init that fails after taking the configuration: not ready,
+     * no channel takes edges */
+    cfg.servo.axis[0].out_max_mv = 0;
+    TEST_ASSERT_EQUAL_INT(DRIVE_E_INVALID, drive_init(&cfg));
+    TEST_ASSERT_FALSE(drive_encoder_run(1, 5, (uint32_t)(t_ns + 9900u)));
 }
 
 static void test_missing_snapshot_keeps_position(void)

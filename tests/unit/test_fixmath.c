@@ -1669,6 +1669,57 @@ static void test_mul_rsh_and_mul_q30_pos(void)
     TEST_ASSERT_EQUAL_INT64(0, fx_mul_q30_pos(-((int64_t)1 << 61), 0));
 }
 
+/* The host forms of fx_mul_q30_pos and fx_mul64x32_shift32 (FX_MUL_PIECES
+ * 0: the signed 128-bit product) against the pieces the M4 compiles, bit
+ * for bit: the operands' edges pairwise and random operands of every
+ * magnitude, over each function's whole domain (|a| <= 2^61 and 0 <= b <=
+ * 2^30; every int64 a and int32 b). */
+static void test_mul_q30_host_equals_pieces(void)
+{
+    static const int64_t ea[] = {0,
+                                 1,
+                                 -1,
+                                 2,
+                                 -2,
+                                 0x7FFFFFFF,
+                                 -0x80000000LL,
+                                 0xFFFFFFFFLL,
+                                 0x100000000LL,
+                                 -0x100000001LL,
+                                 ((int64_t)1 << 61) - 1,
+                                 (int64_t)1 << 61,
+                                 -((int64_t)1 << 61),
+                                 INT64_MAX,
+                                 INT64_MIN,
+                                 INT64_MIN + 1};
+    static const int32_t eb[] = {0,          1,          -1,           2,
+                                 0x1FFFFFFF, 0x20000000, 0x3FFFFFFF,   FX_ONE_Q30,
+                                 INT32_MAX,  INT32_MIN,  INT32_MIN + 1};
+    const unsigned na = sizeof ea / sizeof ea[0], nb = sizeof eb / sizeof eb[0];
+    unsigned i, j;
+
+    TEST_ASSERT_EQUAL_INT(0, FX_MUL_PIECES); /* the host form is the one in use */
+    for (i = 0; i < na; i++) {
+        for (j = 0; j < nb; j++) {
+            int64_t a = ea[i];
+            int32_t b = eb[j];
+            TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift32_pieces(a, b), fx_mul64x32_shift32(a, b));
+            if (a >= -((int64_t)1 << 61) && a <= ((int64_t)1 << 61) && b >= 0 && b <= FX_ONE_Q30) {
+                TEST_ASSERT_EQUAL_INT64(fx_mul_q30_pos_pieces(a, b), fx_mul_q30_pos(a, b));
+            }
+        }
+    }
+    rng_seed(0x51);
+    for (i = 0; i < 2000000u; i++) {
+        int64_t a = (int64_t)rnd_u64() >> (rng() % 64u);
+        int32_t b = (int32_t)rng() >> (rng() % 32u);
+        int64_t a61 = a >> 2; /* |a61| <= 2^61 */
+        q1_30_t b30 = (q1_30_t)((uint32_t)b % ((uint32_t)FX_ONE_Q30 + 1u));
+        TEST_ASSERT_EQUAL_INT64(fx_mul64x32_shift32_pieces(a, b), fx_mul64x32_shift32(a, b));
+        TEST_ASSERT_EQUAL_INT64(fx_mul_q30_pos_pieces(a61, b30), fx_mul_q30_pos(a61, b30));
+    }
+}
+
 /* the inline high-word products against fx_mul64_shift at every shift,
  * the extremes (2^63 magnitudes, ties of both signs) and random operands */
 static void check_umul_shift_hi(uint64_t ua, uint64_t ub, unsigned t)
@@ -1923,6 +1974,7 @@ int main(void)
     RUN_TEST(test_isqrt64_boundaries_and_random);
     RUN_TEST(test_isqrt64_near);
     RUN_TEST(test_umul64_host_equals_pieces);
+    RUN_TEST(test_mul_q30_host_equals_pieces);
     RUN_TEST(test_icbrt64_every_cube_boundary);
     RUN_TEST(test_sin_cos_exact_points);
     RUN_TEST(test_sin_cos_dense_grid_and_octants);

@@ -1058,6 +1058,210 @@ static void test_rest_step_equals_fast(void)
     TEST_ASSERT_TRUE(sat_steps > 100 && sat_steps < 100000); /* some saturated */
 }
 
+/* Every field the steps compare (not the caches ready, lean_rdy, rest). */
+
+static void assert_loops_equal(const pid_loop_t *b, const pid_loop_t *a)
+{
+    TEST_ASSERT_EQUAL_INT32(b->out_mv, a->out_mv);
+    TEST_ASSERT_EQUAL_INT64(b->out, a->out);
+    TEST_ASSERT_EQUAL_INT64(b->integ, a->integ);
+    TEST_ASSERT_EQUAL_INT64(b->dq, a->dq);
+    TEST_ASSERT_EQUAL_INT64(b->dterm, a->dterm);
+    TEST_ASSERT_EQUAL_INT64(b->extra, a->extra);
+    TEST_ASSERT_EQUAL_INT32(b->err_nm, a->err_nm);
+    TEST_ASSERT_EQUAL_INT64(b->meas_prev, a->meas_prev);
+    TEST_ASSERT_EQUAL(b->saturated, a->saturated);
+    TEST_ASSERT_EQUAL_UINT32(b->sat_ticks, a->sat_ticks);
+    TEST_ASSERT_EQUAL_UINT32(b->sat_total, a->sat_total);
+    TEST_ASSERT_EQUAL(b->ready, a->ready);
+    TEST_ASSERT_EQUAL(b->dq_live, a->dq_live);
+    TEST_ASSERT_EQUAL(b->bumpless, a->bumpless);
+    TEST_ASSERT_EQUAL_INT32(b->hold_mv, a->hold_mv);
+}
+
+/* The fast step's range test of its D input (|de| <= de_max, pid.h Fast
+ * path) at its edges, D on the error and on the measurement, both signs:
+ * at de_max the step equals the fast formula (a copy whose de_max admits
+ * any input), one beyond it equals the general step on a copy. */
+static void test_fast_d_input_range_edges(void)
+{
+    int d, sgn, k;
+
+    for (d = 0; d < 2; d++) {
+        for (sgn = -1; sgn <= 1; sgn += 2) {
+            for (k = 0; k < 2; k++) {
+                pid_params_t p = params(1300, 2e4, 2e3, 10000); /* de_max about 2^18 */
+                pid_loop_t a, b;
+                int64_t de;
+                int32_t e = 1000;
+                pos_nm_t meas = 5000;
+
+                p.d_on_measurement = d != 0;
+                p.d_tau_us = 200;
+                start(&a, &p);
+                pid_step_e(&a, e, meas, 0, 0, 0); /* primed: fast from here */
+                pid_step_e(&a, e, meas, 0, 0, 0);
+                TEST_ASSERT_TRUE(a.ready);
+                TEST_ASSERT_TRUE(a.de_max < 0x7FFFFFFFu);
+                de = sgn * ((int64_t)a.de_max + k);
+                b = a;
+                if (k == 0) {
+                    b.de_max = 0x7FFFFFFFu;
+                }
+                if (d != 0) { /* de = meas_prev - meas */
+                    pid_step_e(&a, e, meas - de, 0, 0, 0);
+                    if (k == 0) {
+                        pid_step_fast(&b, e, meas - de, 0);
+                    } else {
+                        pid_step_general(&b, e, meas - de, 0, 0, 0);
+                    }
+                } else { /* de = e - e_prev */
+                    pid_step_e(&a, (int32_t)(e + de), meas, 0, 0, 0);
+                    if (k == 0) {
+                        pid_step_fast(&b, (int32_t)(e + de), meas, 0);
+                    } else {
+                        pid_step_general(&b, (int32_t)(e + de), meas, 0, 0, 0);
+                    }
+                }
+                b.de_max = a.de_max;
+                assert_loops_equal(&b, &a);
+            }
+        }
+    }
+}
+
+/* The cached rest step (pid_rest_cached, 64-bit hosts) as the servo's axis
+ * step takes it: a loop stepped by "pid_rest_cached ? out_mv : pid_step_e"
+ * against a copy stepped by pid_step_e alone, through rest stretches broken
+ * by every other writer of a loop (integrator hand-overs, fast steps with
+ * and without the extra input, rebases, bumpless and hard resets,
+ * disable/enable, gain changes, general steps) and by error bursts and
+ * extra-input changes: every output and state field equal. */
+static void test_rest_cached_equals_step(void)
+{
+    static const double gains[][4] = {
+        /* Kp, Ki, Kd, D filter us */
+        {1300, 2e4, 2, 200},
+        {1300, 2e4, 2, 0},
+        {2e4, 2e6, 0.02, 50},
+    };
+    uint64_t saved = lcg_state; /* the tests after this one draw as before */
+    long hits = 0, writes = 0;
+    size_t g;
+    int d, k;
+
+    for (g = 0; g < sizeof gains / sizeof gains[0]; g++) {
+        for (d = 0; d < 2; d++) {
+            pid_params_t p = params(gains[g][0], gains[g][1], gains[g][2], 10000);
+            pid_loop_t a, b;
+            pos_nm_t meas = 0;
+            int64_t extra = 0;
+            int burst = 0;
+            p.d_on_measurement = d != 0;
+            p.d_tau_us = (uint32_t)gains[g][3];
+            p.kt = Q32(10);
+            p.out_max_mv = 10000;
+            p.i_max_mv = 8000;
+            memset(&a, 0, sizeof a);
+            TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &p));
+            pid_enable(&a, 0);
+            b = a;
+            for (k = 0; k < 40000; k++) {
+                int64_t r = rnd64();
+                int sel = (int)((uint64_t)r >> 58);
+                pos_nm_t next = meas;
+                int32_t e = 0, u, ub;
+                bool was_rest = a.rest;
+
+                if (burst > 0) { /* the error, the measurement or both move */
+                    burst--;
+                    next = (sel & 4) ? meas : meas + (rnd64() >> ((sel & 1) ? 54 : 40));
+                    e = (sel & 8) ? 0 : (int32_t)(rnd64() >> ((sel & 2) ? 52 : 36));
+                } else if (sel == 0) {
+                    burst = 1 + (int)(((uint64_t)r >> 40) & 3u);
+                } else if (sel == 1) {
+                    extra = (r & 1) ? 0 : rnd64() >> 24;
+                } else if (sel == 2) {
+                    extra = rnd64() >> 1; /* beyond the clamps */
+                }
+                if (sel >= 3 && sel <= 11) {
+                    /* one write to both loops between two steps */
+                    int64_t h = rnd64() >> 30;
+                    writes += was_rest;
+                    switch (sel) {
+                    case 3:
+                        pid_add_integrator(&a, h);
+                        pid_add_integrator(&b, h);
+                        break;
+                    case 4: /* the servo's quiet fast step: no extra input */
+                        if (a.ready) {
+                            TEST_ASSERT_EQUAL_INT32(pid_step_fast0(&b, 0, meas),
+                                                    pid_step_fast0(&a, 0, meas));
+                        }
+                        break;
+                    case 5:
+                        if (a.ready) {
+                            TEST_ASSERT_EQUAL_INT32(pid_step_fast(&b, 0, meas, h),
+                                                    pid_step_fast(&a, 0, meas, h));
+                        }
+                        break;
+                    case 6:
+                        pid_rebase(&a, h >> 8);
+                        pid_rebase(&b, h >> 8);
+                        next = meas + (h >> 8); /* at rest in the new frame */
+                        break;
+                    case 7:
+                        pid_reset(&a, (r & 1) != 0);
+                        pid_reset(&b, (r & 1) != 0);
+                        break;
+                    case 8:
+                        pid_disable(&a);
+                        pid_disable(&b);
+                        pid_enable(&a, (int32_t)(h >> 20));
+                        pid_enable(&b, (int32_t)(h >> 20));
+                        break;
+                    case 9: {
+                        pid_params_t q = p;
+                        q.kp = (r & 1) ? p.kp : p.kp / 2;
+                        TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&a, &q));
+                        TEST_ASSERT_EQUAL_INT(PID_OK, pid_config(&b, &q));
+                        break;
+                    }
+                    case 10:
+                        TEST_ASSERT_EQUAL_INT32(pid_step_general(&b, 0, meas, 0, 0, extra),
+                                                pid_step_general(&a, 0, meas, 0, 0, extra));
+                        break;
+                    default: /* a fast step's end, saturated or not */
+                        TEST_ASSERT_EQUAL_INT32(pid_fast_saturated(&b, r >> 17, b.integ),
+                                                pid_fast_saturated(&a, r >> 17, a.integ));
+                        break;
+                    }
+                    assert_loops_equal(&b, &a);
+                }
+                if (pid_rest_cached(&a, e, next, extra)) {
+                    hits++;
+                    u = a.out_mv;
+                } else {
+                    u = pid_step_e(&a, e, next, 0, 0, extra);
+                }
+                ub = pid_step_e(&b, e, next, 0, 0, extra);
+                TEST_ASSERT_EQUAL_INT32(ub, u);
+                assert_loops_equal(&b, &a);
+                meas = next;
+            }
+        }
+    }
+    lcg_state = saved;
+    printf("rest cached: %ld hits, %ld writes at rest\n", hits, writes);
+    if (PID_REST) {
+        /* long rest stretches, and writes in the middle of them */
+        TEST_ASSERT_TRUE(hits > 50000);
+        TEST_ASSERT_TRUE(writes > 5000);
+    } else {
+        TEST_ASSERT_EQUAL_INT32(0, hits);
+    }
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -1086,6 +1290,8 @@ int main(void)
     RUN_TEST(test_fast_path_matches_general);
     RUN_TEST(test_lean_step_equals_general);
     RUN_TEST(test_rest_step_equals_fast);
+    RUN_TEST(test_rest_cached_equals_step);
+    RUN_TEST(test_fast_d_input_range_edges);
     RUN_TEST(test_d_filter_product_exact);
     RUN_TEST(test_d_filter_bound_at_the_longest_time_constant);
     return UNITY_END();

@@ -805,6 +805,130 @@ static void test_fast_tick_and_one_call_io(void)
     TEST_ASSERT_TRUE(sat_ticks > 0);      /* and saturated */
 }
 
+/* The axis steps of a tick with the contour error controller active (the
+ * host's inline lean and cached rest steps, PID_HOST_INLINE) against
+ * copies of the loops stepped by pid_step_e from the same inputs: X and Y
+ * with feed-forward (the lean step), Z at rest with a nudge now and then,
+ * lags that saturate the outputs now and then; every output and state
+ * field equal on every tick. */
+static void test_cec_tick_axis_steps_equal_pid_step_e(void)
+{
+    servo_params_t p;
+    servo_fb_t fb, fb0;
+    motion_ref_t ref;
+    const int64_t v[CORE_AXES] = {100000000, 0, 0};
+    unsigned k, i, lean = 0, rest = 0, sat = 0;
+
+    servo_params_default(&p, HZ);
+    p.cec.mode = CEC_MODE_TANGENT;
+    p.sat_limit_ticks = 0;
+    for (i = 0; i < 2; i++) {
+        p.axis[i].kvff = (q32_32_t)16 << 32;
+        p.axis[i].kaff = (q32_32_t)1 << 29;
+        p.ferr_limit_nm[i] = 0;
+    }
+    start(&p, &fb);
+    fb0 = fb;
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
+    for (k = 0; k < 3000; k++) {
+        pid_loop_t copy[CORE_AXES];
+        ramp_ref(&ref, &fb0, v, k);
+        for (i = 0; i < 2; i++) {
+            ref.acc[i] = (int64_t)((k * 7919u) % 2001u) * 1000 - 1000000;
+        }
+        fb.pos[0] = ref.pos[0] - 3000 - (pos_nm_t)((k * 37) % 500);
+        fb.pos[1] = ref.pos[1] + 10000 + (pos_nm_t)(k % 1000) / 10;
+        if (k % 211 < 3) {
+            fb.pos[0] -= 20000000; /* saturates X (the D term) */
+        }
+        /* Z: a nudge of the measurement, the reference, or both */
+        ref.pos[2] += (k % 401 == 0 || k % 409 == 0) ? 5 : 0;
+        fb.pos[2] = fb0.pos[2] + ((k % 397 == 0 || k % 409 == 0) ? 5 : 0);
+        memcpy(copy, s.pid, sizeof copy);
+        servo_tick(&s, &ref, &fb);
+        TEST_ASSERT_TRUE(s.cec.active);
+        TEST_ASSERT_EQUAL_INT(SERVO_RUN, s.state);
+        for (i = 0; i < CORE_AXES; i++) {
+            pid_loop_t *a = &s.pid[i], *b = &copy[i];
+            int32_t want;
+            lean += b->lean_rdy;
+            rest += b->rest && a->rest;
+            TEST_ASSERT_EQUAL_INT64(0, s.cec.handover_u[i]);
+            want = pid_step_e(b, s.ferr_nm[i], fb.pos[i], ref.vel[i], ref.acc[i], s.cec.out_u[i]);
+            TEST_ASSERT_EQUAL_INT32(want, s.out_mv[i]);
+            TEST_ASSERT_EQUAL_INT32(b->out_mv, a->out_mv);
+            TEST_ASSERT_EQUAL_INT64(b->out, a->out);
+            TEST_ASSERT_EQUAL_INT64(b->integ, a->integ);
+            TEST_ASSERT_EQUAL_INT64(b->dterm, a->dterm);
+            TEST_ASSERT_EQUAL_INT64(b->dq, a->dq);
+            TEST_ASSERT_EQUAL_INT64(b->ff, a->ff);
+            TEST_ASSERT_EQUAL_INT64(b->extra, a->extra);
+            TEST_ASSERT_EQUAL_INT32(b->err_nm, a->err_nm);
+            TEST_ASSERT_EQUAL_INT64(b->meas_prev, a->meas_prev);
+            TEST_ASSERT_EQUAL(b->saturated, a->saturated);
+            TEST_ASSERT_EQUAL_UINT32(b->sat_ticks, a->sat_ticks);
+            TEST_ASSERT_EQUAL_UINT32(b->sat_total, a->sat_total);
+            sat += a->saturated;
+        }
+    }
+    TEST_ASSERT_TRUE(lean > 5900); /* X and Y took the lean step */
+    TEST_ASSERT_TRUE(sat > 10);
+    if (PID_REST) {
+        TEST_ASSERT_TRUE(rest > 2700); /* Z the cached rest step */
+    }
+}
+
+/* A tick with the contour error controller on (tick_cec_on on 64-bit
+ * hosts) counts itself and takes step 1 as every tick does: an encoder
+ * fault and an amplifier fault (the per-axis callback and, on a second
+ * servo, the one-call mask) are raised in the tick they come in. */
+static void test_cec_on_tick_counts_and_input_faults(void)
+{
+    static servo_t s2;
+    servo_params_t p;
+    servo_fb_t fb, fb0;
+    motion_ref_t ref;
+    const int64_t v[CORE_AXES] = {100000000, 0, 0};
+    unsigned k;
+
+    servo_params_default(&p, HZ);
+    p.cec.mode = CEC_MODE_TANGENT;
+    start(&p, &fb);
+    fb0 = fb;
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_init(&s2, &p, &io));
+    servo_set_io_all(&s2, fake_set_mv_all, fake_amp_fault_mask);
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_enable(&s2, &fb));
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s));
+    TEST_ASSERT_EQUAL_INT(SERVO_OK, servo_run(&s2));
+    mask_calls = 0;
+    for (k = 0; k < 100; k++) {
+        ramp_ref(&ref, &fb0, v, k);
+        memcpy(fb.pos, ref.pos, sizeof fb.pos);
+        fb.pos[1] += 10000;
+        servo_tick(&s, &ref, &fb);
+        servo_tick(&s2, &ref, &fb);
+    }
+    TEST_ASSERT_TRUE(s.cec.active);
+    TEST_ASSERT_EQUAL_UINT64(100, s.ticks);
+    TEST_ASSERT_EQUAL_UINT64(100, s2.ticks);
+    TEST_ASSERT_EQUAL_UINT32(100, mask_calls);
+    TEST_ASSERT_EQUAL_UINT32(0, s.faults);
+    fb.enc_fault = 1u << 2;
+    servo_tick(&s, &ref, &fb);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_ENCODER, s.faults);
+    TEST_ASSERT_EQUAL_UINT32(1u << 2, s.fault_axes);
+    TEST_ASSERT_EQUAL_INT32(0, mv_log[2]);
+    fb.enc_fault = 0;
+    amp_bad[1] = true;
+    servo_tick(&s, &ref, &fb);
+    servo_tick(&s2, &ref, &fb);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_ENCODER | SERVO_FAULT_AMPLIFIER, s.faults);
+    TEST_ASSERT_EQUAL_UINT32(SERVO_FAULT_AMPLIFIER, s2.faults);
+    TEST_ASSERT_EQUAL_UINT32(1u << 1, s2.fault_axes);
+    TEST_ASSERT_EQUAL_INT32(0, mv_log[1]);
+    TEST_ASSERT_EQUAL_INT32(0, mv_all_log[1]);
+}
+
 int main(void)
 {
     UNITY_BEGIN();
@@ -813,6 +937,8 @@ int main(void)
     RUN_TEST(test_run_equals_the_loops);
     RUN_TEST(test_fast_tick_and_one_call_io);
     RUN_TEST(test_cec_in_the_tick_and_handover);
+    RUN_TEST(test_cec_tick_axis_steps_equal_pid_step_e);
+    RUN_TEST(test_cec_on_tick_counts_and_input_faults);
     RUN_TEST(test_following_error_disables_everything);
     RUN_TEST(test_encoder_fault_controlled_stop);
     RUN_TEST(test_amplifier_fault);
