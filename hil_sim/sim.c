@@ -229,7 +229,6 @@ int sim_axis_set(unsigned axis, const char *name, double value)
     if (axis >= SIM_AXES || name == NULL || !isfinite(value)) {
         return SIM_E_ARG;
     }
-    S.started = 0;
     f = sim_field(axis, name);
     if (f != NULL) {
         if ((strcmp(name, "home_side") == 0 && value != -1.0 && value != 0.0 && value != 1.0) ||
@@ -237,6 +236,7 @@ int sim_axis_set(unsigned axis, const char *name, double value)
             return SIM_E_ARG;
         }
         *f = value;
+        S.started = 0;
         return 0;
     }
     if (strcmp(name, "lead") == 0) {
@@ -244,6 +244,7 @@ int sim_axis_set(unsigned axis, const char *name, double value)
             return SIM_E_ARG;
         }
         S.par[axis].l = value / (2.0 * PI_D);
+        S.started = 0;
         return 0;
     }
     if (strcmp(name, "seed") == 0) {
@@ -251,6 +252,7 @@ int sim_axis_set(unsigned axis, const char *name, double value)
             return SIM_E_ARG;
         }
         S.par[axis].seed = (uint64_t)value;
+        S.started = 0;
         return 0;
     }
     f = field_ptr(&S.par[axis], name);
@@ -258,6 +260,7 @@ int sim_axis_set(unsigned axis, const char *name, double value)
         return SIM_E_ARG;
     }
     *f = value;
+    S.started = 0;
     return 0;
 }
 
@@ -388,10 +391,6 @@ int sim_gain_set(int loop, const char *name, double v)
     p = loop == -2 ? &S.dcfg.servo.cec.pid_line
         : loop < 0 ? &S.dcfg.servo.cec.pid
                    : &S.dcfg.servo.axis[loop];
-    if (loop == -2) {
-        S.dcfg.servo.cec.line_gains = true;
-    }
-    S.started = 0;
     if (strcmp(name, "kp") == 0 || strcmp(name, "ki") == 0 || strcmp(name, "kd") == 0 ||
         strcmp(name, "kvff") == 0 || strcmp(name, "kaff") == 0 || strcmp(name, "kt") == 0) {
         q32_32_t q;
@@ -433,6 +432,11 @@ int sim_gain_set(int loop, const char *name, double v)
     } else {
         return SIM_E_ARG;
     }
+    /* taken: a refused value changes nothing (no restart needed) */
+    if (loop == -2) {
+        S.dcfg.servo.cec.line_gains = true;
+    }
+    S.started = 0;
     return 0;
 }
 
@@ -445,7 +449,6 @@ int sim_servo_set(unsigned axis, const char *name, double v)
     if (name == NULL || axis >= CORE_AXES) {
         return SIM_E_ARG;
     }
-    S.started = 0;
     if (strcmp(name, "ferr_limit") == 0 && in_range(v, 0.0, 2.0)) {
         p->ferr_limit_nm[axis] = (int32_t)floor(v * 1e9 + 0.5);
     } else if (strcmp(name, "stop_decel") == 0 && in_range(v, 1e-6, 1000.0)) {
@@ -477,6 +480,7 @@ int sim_servo_set(unsigned axis, const char *name, double v)
     } else {
         return SIM_E_ARG;
     }
+    S.started = 0;
     return 0;
 }
 
@@ -489,7 +493,6 @@ int sim_plan_set(unsigned axis, const char *name, double v)
     if (name == NULL || axis >= CORE_AXES) {
         return SIM_E_ARG;
     }
-    S.started = 0;
     if (strcmp(name, "v_max") == 0 && in_range(v, 1e-9, 4.29)) {
         p->v_max[axis] = (int64_t)floor(v * 1e9 + 0.5);
     } else if (strcmp(name, "a_max") == 0 && in_range(v, 1e-6, 1000.0)) {
@@ -517,6 +520,7 @@ int sim_plan_set(unsigned axis, const char *name, double v)
     } else {
         return SIM_E_ARG;
     }
+    S.started = 0;
     return 0;
 }
 

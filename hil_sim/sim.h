@@ -89,7 +89,10 @@
  *   amplifier input).
  *
  * All functions return 0 on success and a negative SIM_E_* code otherwise
- * (sim_run returns rows written or a negative code).
+ * (sim_run returns rows written or a negative code). A setting taken by
+ * sim_axis_set, sim_gain_set, sim_servo_set or sim_plan_set acts from the
+ * next sim_start (until then sim_run returns SIM_E_STATE); a refused one
+ * (SIM_E_ARG) changes nothing, and a running simulator runs on.
  */
 #ifndef SIM_H
 #define SIM_H

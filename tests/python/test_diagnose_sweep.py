@@ -28,3 +28,15 @@ def test_sweep_worse_lists_a_worse_row():
         },
     ]
     assert diagnose.sweep_worse(rows) == [("F", 30, 2, "ccw", "cec-exact", "cd", 1.0, 1.02)]
+
+
+def test_sweep_main_refuses_an_unknown_setup_before_running(monkeypatch, capsys):
+    """`diagnose sweep A,X` refused at once (a KeyError after all of A's
+    circles had run before), and ids in any case taken (`sweep f`)."""
+    ran = []
+    monkeypatch.setattr(diagnose, "sweep", lambda setups: ran.append(list(setups)) or [])
+    assert diagnose.sweep_main(["A,X"]) == 2
+    assert ran == []
+    assert "unknown set-up X" in capsys.readouterr().err
+    assert diagnose.sweep_main(["f, c10"]) == 0
+    assert ran == [["F", "C10"]]

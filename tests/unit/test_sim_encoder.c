@@ -488,6 +488,35 @@ static void test_plain_loop_leaves_options_to_the_general_path(void)
     option = 0;
 }
 
+/* A refused setting (SIM_E_ARG) changes nothing: a running simulator runs
+ * on (the refusal stopped it: sim_run SIM_E_STATE until sim_start), and a
+ * refused CEC straight-path gain does not turn the gain switching on. A
+ * setting taken still needs sim_start. */
+static void test_refused_setting_changes_nothing(void)
+{
+    static double row[SIM_TRACE_COLS];
+    TEST_ASSERT_EQUAL_INT(0, sim_setup(10000.0, 2));
+    TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_gain_set(-2, "kq", 1.0));
+    TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_gain_set(-2, "kp", -1.0));
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_FALSE(drive_config()->servo.cec.line_gains);
+    TEST_ASSERT_EQUAL_INT(1, sim_run(1, row, 1, 1));
+    TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_gain_set(0, "kp", -1.0));
+    TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_servo_set(0, "qg_comp", 2.0));
+    TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_plan_set(0, "v_max", 0.0));
+    TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_axis_set(0, "home_side", 2.0));
+    TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_axis_set(0, "lead", -1.0));
+    TEST_ASSERT_EQUAL_INT(SIM_E_ARG, sim_axis_set(0, "no_such_field", 1.0));
+    TEST_ASSERT_EQUAL_INT(1, sim_run(1, row, 1, 1));
+    TEST_ASSERT_EQUAL_INT(0, sim_servo_set(0, "qg_comp", 1.0));
+    TEST_ASSERT_EQUAL_INT(SIM_E_STATE, sim_run(1, row, 1, 1));
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_TRUE(drive_config()->qg_comp);
+    TEST_ASSERT_EQUAL_INT(0, sim_gain_set(-2, "kp", 100.0));
+    TEST_ASSERT_EQUAL_INT(0, sim_start());
+    TEST_ASSERT_TRUE(drive_config()->servo.cec.line_gains);
+}
+
 /* The home switches and reference scales computed when the firmware reads
  * them (HAL sources, the default) against set at every tick's start
  * (sim_test_eager_inputs(1)): the homing (the switch ends the search), the
@@ -634,6 +663,7 @@ int main(void)
     RUN_TEST(test_plain_loop_same_as_general);
     RUN_TEST(test_plain_loop_leaves_options_to_the_general_path);
     RUN_TEST(test_plain_loop_with_fewer_axes);
+    RUN_TEST(test_refused_setting_changes_nothing);
     RUN_TEST(test_inputs_read_when_read_same_as_every_tick);
     RUN_TEST(test_run_until_idle_same_as_polling);
     RUN_TEST(test_hal_sim_set_after_a_source_is_read);

@@ -398,8 +398,17 @@ def sweep_worse(rows: list, tol: float = 0.01) -> list:
 
 def sweep_main(argv: list) -> int:
     """`python -m contour.sim.diagnose sweep [SETUPS]`: the sweep and its
-    worse rows (SETUPS: comma-separated ids, default all)."""
-    setups = argv[0].split(",") if argv else tuple(SWEEP_SETUPS)
+    worse rows (SETUPS: comma-separated ids, any case, default all). An
+    unknown id is refused before any circle runs (not after the ids before
+    it have run)."""
+    setups = [s.strip().upper() for s in argv[0].split(",")] if argv else list(SWEEP_SETUPS)
+    bad = [s for s in setups if s not in SWEEP_SETUPS]
+    if bad:
+        print(
+            f"sweep: unknown set-up {', '.join(bad)} (known: {', '.join(SWEEP_SETUPS)})",
+            file=sys.stderr,
+        )
+        return 2
     rows = sweep(setups)
     worse = sweep_worse(rows)
     for sid in setups:
