@@ -49,18 +49,29 @@
 #include "core_config.h"
 #include "drive.h"
 
+/* Longest window of the quadrant-glitch reading, ticks (1 s at 10 kHz). */
+#define DRIVE_FF_QG_WIN_MAX 10000
+
+enum { DRIVE_FF_QG_IDLE = 0, DRIVE_FF_QG_BEFORE, DRIVE_FF_QG_AFTER };
+
+/* Quadrant-glitch state of one axis (tick; drive_ff_config restarts it). */
 typedef struct {
-    bool on;         /* some correction is set (main writes, tick reads)   */
-    int32_t adv_q32; /* ff_advance_ns in s * 2^32 (main)                   */
-    bool qg;         /* qg_comp (main)                                     */
-    /* quadrant state (tick): sign of the reference velocity last tick (0:
-     * none yet), axis integrator before the last reversal out of + ([0])
-     * and out of - ([1]), U; qg_have bit 0 / 1: that one is known */
-    int8_t qg_sign[CORE_AXES];
-    uint8_t qg_have[CORE_AXES];
-    int64_t qg_ipre[CORE_AXES][2];
-    int32_t fric_mv[CORE_AXES]; /* friction_ff_mv in use (main)         */
-    int64_t band_nm_s;          /* friction_ff_band_nm_s, > 0 (main)    */
+    int8_t sign;   /* sign of the reference velocity last tick (0: none yet) */
+    uint8_t phase; /* DRIVE_FF_QG_*: idle, sampled before, sampled at      */
+    int32_t win;   /* window, ticks                                         */
+    int32_t n;     /* ticks since the last sample                           */
+    int64_t ib;    /* held a window before the reversal, U                  */
+    int64_t i0;    /* held at the reversal (before the jump), U             */
+    int64_t jump;  /* the friction step learned, toward the new direction, U */
+} drive_ff_qg_t;
+
+typedef struct {
+    bool on;                      /* some correction is set (main writes, tick reads)   */
+    int32_t adv_q32;              /* ff_advance_ns in s * 2^32 (main)                   */
+    bool qg;                      /* qg_comp (main)                                     */
+    drive_ff_qg_t qgs[CORE_AXES]; /* quadrant state (tick) */
+    int32_t fric_mv[CORE_AXES];   /* friction_ff_mv in use (main)         */
+    int64_t band_nm_s;            /* friction_ff_band_nm_s, > 0 (main)    */
     /* mean alignment (main): enc_mean; 2^32 / (2 f), 2^32 / f, 2^32 / (6 f) */
     bool mean;
     int32_t k_half, k_tick, k_sixth;
