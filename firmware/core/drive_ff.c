@@ -78,24 +78,30 @@ static void qg_step(drive_ff_t *f, servo_t *servo, unsigned i, int64_t v, int64_
     }
     if (sg == 0 || sg == old) {
         if (q->phase == DRIVE_FF_QG_AFTER && q->n >= q->win) {
-            /* the symmetric second difference: the step the loops still
-             * made across the reversal beyond the jump */
+            /* the second difference over equal windows: the step the
+             * loops made across the reversal (the jump included); what
+             * is smooth there (the feed-forward errors) cancels to first
+             * order */
             int64_t d2 = qg_held(servo, i) - 2 * q->i0 + q->ib;
             lim = (fr < 0 ? -fr : fr) << 33; /* 2 |fr| mV in U */
-            q->jump = fx_clamp_sym64(old > 0 ? d2 : -d2, lim);
+            jc = fx_clamp_sym64(q->jump, lim);
+            d2 = (old > 0 ? d2 : -d2) - jc; /* what the jump missed, as seen */
+            q->jump = fx_clamp_sym64(jc + d2 + (d2 >> 1), lim);
             q->phase = DRIVE_FF_QG_IDLE;
         } else if (q->phase == DRIVE_FF_QG_BEFORE && q->n > 2 * q->win) {
             q->phase = DRIVE_FF_QG_IDLE; /* no reversal came: a stop */
         } else if (q->phase == DRIVE_FF_QG_IDLE && sg != 0 && (v ^ a) < 0) {
             /* decelerating: the reversal in |v| / |a| s; take the sample
-             * before it once that is within one integral time */
+             * before it once that is within the window, two integral
+             * times Kp / Ki (drive_ff.h) */
             const pid_params_t *pp = &servo->p.axis[i];
             int64_t va = v < 0 ? -v : v, aa = a < 0 ? -a : a, win;
             if (pp->ki <= 0) {
                 return;
             }
             win = fx_muldiv64(pp->kp, (int64_t)servo->p.tick_hz, pp->ki);
-            win = win < 1 ? 1 : (win > DRIVE_FF_QG_WIN_MAX ? DRIVE_FF_QG_WIN_MAX : win);
+            win =
+                2 * (win < 1 ? 1 : (win > DRIVE_FF_QG_WIN_MAX / 2 ? DRIVE_FF_QG_WIN_MAX / 2 : win));
             if (va * (int64_t)servo->p.tick_hz <= aa * win) {
                 q->win = (int32_t)win;
                 q->n = 0;
