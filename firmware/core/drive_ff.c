@@ -32,8 +32,9 @@ void drive_ff_config(drive_ff_t *f, const drive_config_t *cfg, unsigned axes)
     f->k_tick = (int32_t)((((int64_t)1 << 32) - 1) / hz);
     f->k_sixth = (int32_t)(((int64_t)1 << 32) / (6 * hz));
     for (i = 0; i < CORE_AXES && restart; i++) {
-        f->qg_sign[i] = 0;
-        f->qg_have[i] = 0;
+        f->qgs[i].sign = 0;
+        f->qgs[i].phase = DRIVE_FF_QG_IDLE;
+        f->qgs[i].jump = 0;
     }
     CORE_BARRIER(); /* the fields above before `on` */
     f->on = on;
@@ -55,35 +56,76 @@ static int64_t cec_held(const cec_t *c, unsigned i)
     return u;
 }
 
-/* Quadrant-glitch compensation of axis i: v the reference velocity, fr
- * the friction feed-forward (mV, > 0 or < 0). The friction the loops hold
- * is in the axis integrator and, along the normal (at a reversal: this
- * axis), in the CEC's: the swing is read from both, made on the axis's. */
-static void qg_step(drive_ff_t *f, servo_t *servo, unsigned i, int64_t v, int64_t fr)
+/* What the loops hold on axis i, U: the axis integrator and, along the
+ * normal (at a reversal: this axis), the CEC's. */
+static int64_t qg_held(servo_t *servo, unsigned i)
 {
-    pid_loop_t *pid = &servo->pid[i];
-    int8_t sg = v > 0 ? 1 : (v < 0 ? -1 : 0);
-    int8_t old = f->qg_sign[i];
+    return servo->pid[i].integ + cec_held(&servo->cec, i);
+}
 
+/* Quadrant-glitch compensation of axis i (drive_ff.h "Quadrant-glitch
+ * compensation"): v, a the reference velocity and acceleration, fr the
+ * friction feed-forward (mV, > 0 or < 0). */
+static void qg_step(drive_ff_t *f, servo_t *servo, unsigned i, int64_t v, int64_t a, int64_t fr)
+{
+    drive_ff_qg_t *q = &f->qgs[i];
+    int8_t sg = v > 0 ? 1 : (v < 0 ? -1 : 0);
+    int8_t old = q->sign;
+    int64_t lim, jc;
+
+    if (q->phase != DRIVE_FF_QG_IDLE) {
+        q->n++;
+    }
     if (sg == 0 || sg == old) {
+        if (q->phase == DRIVE_FF_QG_AFTER && q->n >= q->win) {
+            /* the second difference over equal windows: the step the
+             * loops made across the reversal (the jump included); what
+             * is smooth there (the feed-forward errors) cancels to first
+             * order */
+            int64_t d2 = qg_held(servo, i) - 2 * q->i0 + q->ib;
+            lim = (fr < 0 ? -fr : fr) << 33; /* 2 |fr| mV in U */
+            jc = fx_clamp_sym64(q->jump, lim);
+            d2 = (old > 0 ? d2 : -d2) - jc; /* what the jump missed, as seen */
+            q->jump = fx_clamp_sym64(jc + d2 + (d2 >> 1), lim);
+            q->phase = DRIVE_FF_QG_IDLE;
+        } else if (q->phase == DRIVE_FF_QG_BEFORE && q->n > 2 * q->win) {
+            q->phase = DRIVE_FF_QG_IDLE; /* no reversal came: a stop */
+        } else if (q->phase == DRIVE_FF_QG_IDLE && sg != 0 && (v ^ a) < 0) {
+            /* decelerating: the reversal in |v| / |a| s; take the sample
+             * before it once that is within the window, two integral
+             * times Kp / Ki (drive_ff.h) */
+            const pid_params_t *pp = &servo->p.axis[i];
+            int64_t va = v < 0 ? -v : v, aa = a < 0 ? -a : a, win;
+            if (pp->ki <= 0) {
+                return;
+            }
+            win = fx_muldiv64(pp->kp, (int64_t)servo->p.tick_hz, pp->ki);
+            win =
+                2 * (win < 1 ? 1 : (win > DRIVE_FF_QG_WIN_MAX / 2 ? DRIVE_FF_QG_WIN_MAX / 2 : win));
+            if (va * (int64_t)servo->p.tick_hz <= aa * win) {
+                q->win = (int32_t)win;
+                q->n = 0;
+                q->ib = qg_held(servo, i);
+                q->phase = DRIVE_FF_QG_BEFORE;
+            }
+        }
         return;
     }
-    f->qg_sign[i] = sg;
-    if (old != 0) {
-        unsigned k = old > 0 ? 0u : 1u; /* out of + or out of - */
-
-        f->qg_ipre[i][k] = pid->integ + cec_held(&servo->cec, i);
-        f->qg_have[i] |= (uint8_t)(1u << k);
-        if (f->qg_have[i] == 3u) {
-            /* I(+ -> -) - I(- -> +) = twice the friction the integrator
-             * held, toward the new direction; at most 2 |fr| */
-            int64_t lim = (fr < 0 ? -fr : fr) << 33; /* 2 |fr| mV in U */
-            int64_t d = f->qg_ipre[i][0] - f->qg_ipre[i][1];
-
-            d = d > lim ? lim : (d < -lim ? -lim : d);
-            pid_add_integrator(pid, sg > 0 ? d : -d);
-        }
+    q->sign = sg;
+    if (old == 0) {
+        return;
     }
+    lim = (fr < 0 ? -fr : fr) << 33;
+    jc = fx_clamp_sym64(q->jump, lim);
+    if (q->phase == DRIVE_FF_QG_BEFORE && q->n <= 2 * q->win) {
+        q->i0 = qg_held(servo, i);
+        q->win = q->n; /* the window after: as long as the one before */
+        q->n = 0;
+        q->phase = DRIVE_FF_QG_AFTER;
+    } else {
+        q->phase = DRIVE_FF_QG_IDLE;
+    }
+    pid_add_integrator(&servo->pid[i], sg > 0 ? jc : -jc);
 }
 
 /* x * y in q1_30 */
@@ -150,7 +192,7 @@ const motion_ref_t *drive_ff_step(drive_ff_t *f, servo_t *servo, motion_ref_t *r
         fr = f->fric_mv[i];
         v = ref->vel[i];
         if (f->qg) {
-            qg_step(f, servo, i, v, fr);
+            qg_step(f, servo, i, v, ref->acc[i], fr);
         }
         kaff = servo->p.axis[i].kaff >> 16;
         if (kaff <= 0 || v == 0) {
