@@ -115,15 +115,25 @@
  * hold up to 2^23). The decoder itself accepts up to 2^30 - 1 per sample. */
 #define ENC_INTERP_MOVE_MAX (1ll << 23)
 
+/* Events kept (a power of two), the newest last: the fit's oldest node
+ * is chosen among them (enc_interp_pos). */
+#define ENC_INTERP_EVENTS 8u
+
+/* The fit's reach: its oldest node at least this many times the
+ * extrapolation (the time from the newest event to the estimate) before
+ * the newest, where the kept events allow. */
+#define ENC_INTERP_REACH 2
+
 typedef struct {
-    int64_t e[3];   /* events, half counts (2 n - dir), [2] the newest  */
-    int64_t t[3];   /* their times, ns (the decoder's extended clock)  */
-    uint8_t n;      /* events held, 0..3                               */
-    bool edged;     /* the last sample saw counted edges               */
-    bool back;      /* ... more than its count moved: back and forth    */
-    int64_t pos;    /* count at the last sample                        */
-    int64_t prev;   /* count at the sample before                      */
-    uint32_t nedge; /* counted edges at the last sample (wrapping)     */
+    int64_t e[ENC_INTERP_EVENTS]; /* events, half counts (2 n - dir), a ring */
+    int64_t t[ENC_INTERP_EVENTS]; /* their times, ns (the decoder's clock)   */
+    uint8_t n;                    /* events held, 0..ENC_INTERP_EVENTS       */
+    uint8_t head;                 /* index of the newest                     */
+    bool edged;                   /* the last sample saw counted edges               */
+    bool back;                    /* ... more than its count moved: back and forth    */
+    int64_t pos;                  /* count at the last sample                        */
+    int64_t prev;                 /* count at the sample before                      */
+    uint32_t nedge;               /* counted edges at the last sample (wrapping)     */
 } enc_interp_t;
 
 /* Start with no event at count pos, nedge counted edges. */
