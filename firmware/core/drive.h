@@ -340,8 +340,8 @@ typedef struct {
      * the count the axis is. Needs edge input on every axis (an
      * enc_counter axis has no edge times: drive_init returns
      * DRIVE_E_UNSUPPORTED). Default false; set at drive_init only. On
-     * the Cortex-M4 about 475 instructions per axis and tick
-     * (control_tick_instructions_m4_interp: 2907 against 1484 for the
+     * the Cortex-M4 about 535 instructions per axis and tick
+     * (control_tick_instructions_m4_interp: 3089 against 1483 for the
      * three-axis helix): the 1500 budget holds with it off only. */
     bool enc_interp;
     int64_t stop_decel_nm_s2; /* drive_stop: path deceleration, > 0          */

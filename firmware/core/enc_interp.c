@@ -8,9 +8,12 @@
 
 #define HALF 32768 /* half a count in 2^-16 counts */
 
+#define EV_MASK (ENC_INTERP_EVENTS - 1u)
+
 void enc_interp_reset(enc_interp_t *s, int64_t pos, uint32_t nedge)
 {
     s->n = 0;
+    s->head = 0;
     s->pos = pos;
     s->prev = pos;
     s->nedge = nedge;
@@ -27,15 +30,12 @@ void enc_interp_update(enc_interp_t *s, int64_t pos, uint32_t nedge, int8_t dir,
         uint32_t edges = nedge - s->nedge;
 
         s->back = edges > fx_uabs64(pos - s->pos);
-        if (s->n == 0 || t_edge_ns > s->t[2]) { /* else it replaces the newest */
-            s->e[0] = s->e[1];
-            s->t[0] = s->t[1];
-            s->e[1] = s->e[2];
-            s->t[1] = s->t[2];
-            s->n = (uint8_t)(s->n < 3u ? s->n + 1u : 3u);
+        if (s->n == 0 || t_edge_ns > s->t[s->head]) { /* else it replaces the newest */
+            s->head = (uint8_t)((s->head + 1u) & EV_MASK);
+            s->n = (uint8_t)(s->n < ENC_INTERP_EVENTS ? s->n + 1u : ENC_INTERP_EVENTS);
         }
-        s->e[2] = 2 * pos - (dir < 0 ? -1 : 1);
-        s->t[2] = t_edge_ns;
+        s->e[s->head] = 2 * pos - (dir < 0 ? -1 : 1);
+        s->t[s->head] = t_edge_ns;
         s->nedge = nedge;
     }
     s->pos = pos;
@@ -107,26 +107,59 @@ int64_t enc_interp_muldiv(int64_t e, int64_t ab, int64_t c)
 
 /* The events' quadratic (or line) at t_ns, in 2^-16 counts relative to
  * the count; false when fewer than two events lie within the span before
- * the sample now_ns (the newest k events, k the first one outside). */
+ * the sample now_ns. The nodes: the newest event, the oldest one k3 of
+ * the newest that lie within the span, moved back from the third newest
+ * until it lies at least twice the extrapolation (t_ns - the newest)
+ * before the newest (or no older one is in the span), and between them
+ * the one nearest the middle of the two. */
 static inline bool enc_interp_eval(const enc_interp_t *s, int64_t now_ns, int64_t t_ns, int64_t *x)
 {
-    int64_t m, est, a, b, d1;
+    int64_t m, est, a, b, d1, t2, e2;
+    unsigned h = s->head, i0, i1;
 
-    if (s->n < 2u || now_ns - s->t[2] > ENC_INTERP_SPAN_NS ||
-        now_ns - s->t[1] > ENC_INTERP_SPAN_NS) {
+    if (s->n < 2u || now_ns - s->t[h] > ENC_INTERP_SPAN_NS ||
+        now_ns - s->t[(h - 1u) & EV_MASK] > ENC_INTERP_SPAN_NS) {
         return false;
     }
-    m = t_ns - s->t[2];
-    d1 = s->t[1] - s->t[2];
-    est = (s->e[2] - 2 * s->pos) * HALF;
-    if (s->n < 3u || now_ns - s->t[0] > ENC_INTERP_SPAN_NS) {
-        a = enc_interp_term(s->e[1] - s->e[2], m, d1);
+    t2 = s->t[h];
+    e2 = s->e[h];
+    m = t_ns - t2;
+    est = (e2 - 2 * s->pos) * HALF;
+    i1 = (h - 1u) & EV_MASK;
+    i0 = (h - 2u) & EV_MASK;
+    if (s->n < 3u || now_ns - s->t[i0] > ENC_INTERP_SPAN_NS) {
+        d1 = s->t[i1] - t2;
+        a = enc_interp_term(s->e[i1] - e2, m, d1);
         b = 0;
     } else {
-        int64_t d0 = s->t[0] - s->t[2];
+        int64_t d0;
+        unsigned k = 2u;
 
-        a = enc_interp_term(s->e[1] - s->e[2], m * (m - d0), d1 * (d1 - d0));
-        b = enc_interp_term(s->e[0] - s->e[2], m * (m - d1), d0 * (d0 - d1));
+        /* the oldest node: at least 2 m before the newest, within the span */
+        while (t2 - s->t[i0] < ENC_INTERP_REACH * m && k + 1u < s->n &&
+               now_ns - s->t[(h - k - 1u) & EV_MASK] <= ENC_INTERP_SPAN_NS) {
+            k++;
+            i0 = (h - k) & EV_MASK;
+        }
+        if (k > 2u) {
+            /* the middle node: the one nearest (t2 + t0) / 2 */
+            int64_t mid = t2 - (t2 - s->t[i0]) / 2, best = -1;
+            unsigned j;
+
+            for (j = 1u; j < k; j++) {
+                unsigned ij = (h - j) & EV_MASK;
+                int64_t dist = s->t[ij] > mid ? s->t[ij] - mid : mid - s->t[ij];
+
+                if (best < 0 || dist < best) {
+                    best = dist;
+                    i1 = ij;
+                }
+            }
+        }
+        d1 = s->t[i1] - t2;
+        d0 = s->t[i0] - t2;
+        a = enc_interp_term(s->e[i1] - e2, m * (m - d0), d1 * (d1 - d0));
+        b = enc_interp_term(s->e[i0] - e2, m * (m - d1), d0 * (d0 - d1));
     }
     if (fx_uabs64(a) < ((uint64_t)1 << 40) && fx_uabs64(b) < ((uint64_t)1 << 40)) {
         est += a + b; /* no saturation possible: est is +-2^15 */
@@ -183,14 +216,15 @@ int64_t enc_interp_mean_residual(const enc_interp_t *s, int64_t now_ns, uint32_t
         !enc_interp_eval(s, now_ns, t0, &x0) || !enc_interp_eval(s, now_ns, now_ns, &x1)) {
         return 0; /* the count's mean alone (past the move limit: exact) */
     }
-    /* each end inside the cell its sample's count proves */
-    x0 = fx_clamp64(x0, c0 - HALF, c0 + HALF);
-    x1 = fx_clamp64(x1, -HALF, HALF);
-    if (s->edged && s->t[2] > t0) {
+    /* each end inside the cell its sample's count proves, [n - 1/2,
+     * n + 1/2): n + 1/2 is the next count's (round would read it -1/2) */
+    x0 = fx_clamp64(x0, c0 - HALF, c0 + HALF - 1);
+    x1 = fx_clamp64(x1, -HALF, HALF - 1);
+    if (s->edged && s->t[s->head] > t0) {
         /* through the tick's last edge, which is exact: the line crosses
          * it when the axis did */
-        int64_t xe = (s->e[2] - 2 * s->pos) * HALF;
-        int64_t te = s->t[2] < now_ns ? s->t[2] : now_ns; /* stamped after the sample */
+        int64_t xe = (s->e[s->head] - 2 * s->pos) * HALF;
+        int64_t te = s->t[s->head] < now_ns ? s->t[s->head] : now_ns; /* stamped after the sample */
         sum = enc_interp_saw(x0, xe, te - t0) + enc_interp_saw(xe, x1, now_ns - te);
     } else {
         sum = enc_interp_saw(x0, x1, (int64_t)tick_ns);

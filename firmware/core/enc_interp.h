@@ -12,9 +12,10 @@
  * sample times): a counted edge is an exact point of the trajectory,
  * (n - dir / 2, t_edge), 2 n - dir in half counts. enc_interp_update
  * keeps one such event per sample that saw counted edges (its last edge:
- * the ones before it in the same sample are not timed), the newest three.
+ * the ones before it in the same sample are not timed), the newest
+ * ENC_INTERP_EVENTS (16).
  *
- * The model is the quadratic through the three events (Lagrange form,
+ * The model is the quadratic through three of them (Lagrange form,
  * relative to the newest one, E2 at T2):
  *   x(t) = E2 + e1 L1(u) + e0 L0(u),  u = t - T2,  e_i = E_i - E2,
  *   L1 = u (u - d0) / (d1 (d1 - d0)),  L0 = u (u - d1) / (d0 (d0 - d1)),
@@ -25,8 +26,32 @@
  * edge before, E -+ 1 at T0, the three fix a, the peak and the velocity
  * at T2, and the quadratic follows the axis to its next edge, which is
  * where the count alone says nothing for longest). Two events (the start,
- * or the oldest more than ENC_INTERP_SPAN_NS before the sample): the line
- * through them. Fewer: nothing below the count (the count itself).
+ * or the third newest more than ENC_INTERP_SPAN_NS before the sample):
+ * the line through them. Fewer: nothing below the count (the count
+ * itself).
+ *
+ * What the edges prove, and for how long (issue 21, slow reversals):
+ * the events fix the axis at their times; after the newest, only the
+ * cell (no edge since: the axis has not left the count's cell, which
+ * holds every estimate) and, through the fit, the curve's continuation.
+ * An extrapolation u past the newest event amplifies an error p of the
+ * events (edge placement, or a motion that departs from the quadratic:
+ * a ripple of the loop) by L(u) = |L1| + |L0| + |1 - L1 - L0|, which for
+ * nodes spanning S grows as (u / S)^2: with the newest three alone (4-14
+ * ms apart near a reversal at 2 m/min) and u up to 27 ms, more than 15
+ * (a 0.01-count ripple at 30 Hz read 0.17 count off). So the nodes are
+ * chosen: E2 the newest; E0 the newest kept event at least
+ * ENC_INTERP_REACH (2) u before it (u = t - T2 of the estimate), else the
+ * oldest kept one within the span; E1 the kept event nearest the middle
+ * of T0 and T2 (the third and second newest where they reach: every
+ * moving axis, an edge per tick or more, is fitted as before). With the
+ * reach met and equally spaced nodes L <= 7 (u = S / 2); beyond what
+ * the kept events reach (an axis inside its count for longer than half
+ * the time its kept events span) the error grows again, held by the
+ * cell. Measured (Unity test_enc_interp, R 100 mm 2 m/min reversal, 8889
+ * counts/s^2, 0.01-count ripple at 30 Hz, eight phases): worst 0.083
+ * count at a sample and in the tick's mean (0.078 where the reach is
+ * met), against 0.173 with the newest three (0.141 with 8 kept).
  *
  * enc_interp_pos: the model at the sample, held inside the count's cell,
  * [-1/2, +1/2] count from n.
@@ -34,7 +59,8 @@
  * the tick (hal_encoder_mean, drive.h enc_mean): what that mean misses,
  * the mean over the tick of y - round(y) (round: the centred count), y
  * the piecewise line from the model at the previous sample (held inside
- * that sample's cell) through the tick's last edge, when the tick has
+ * that sample's cell, [n - 1/2, n + 1/2 - 2^-16]: at n + 1/2 round()
+ * would read the next count, a whole count off) through the tick's last edge, when the tick has
  * one (exact), to the model at this sample (inside this one's cell),
  * evaluated exactly (the integral of the centred count along a line in
  * closed form, one division per segment that crosses an edge). The
@@ -87,8 +113,12 @@
  * Cost on the Cortex-M4 (bash bench/bench-firmware.sh: the helix of three
  * axes at 5 kHz with enc_interp on, enc_interp_update + enc_interp_pos
  * per axis and tick, X and Y with an edge in most ticks):
- * control_tick_instructions_m4_interp 2907 against 1484 without (3787
- * with two fx_muldiv64 per quadratic), about 475 per axis. Measured
+ * control_tick_instructions_m4_interp 3089 against 1483 without (2907
+ * with the newest three events only, 3787 with two fx_muldiv64 per
+ * quadratic), about 535 per axis; the worst tick
+ * (control_tick_instructions_m4_max_interp) 6000 against 5840 with the
+ * newest three: a slow axis walks the ring for its nodes and its wider
+ * time products take fx_muldiv64's 128-bit path. Measured (2907 figures)
  * apart on typical operands (three events 200 us apart, 3 counts each):
  * enc_interp_pos about 360 (the two quotients about 100 each, the rest
  * the 64-bit times and positions), enc_interp_update about 90 with an
@@ -115,15 +145,25 @@
  * hold up to 2^23). The decoder itself accepts up to 2^30 - 1 per sample. */
 #define ENC_INTERP_MOVE_MAX (1ll << 23)
 
+/* Events kept (a power of two), the newest last: the fit's oldest node
+ * is chosen among them (enc_interp_pos). */
+#define ENC_INTERP_EVENTS 16u
+
+/* The fit's reach: its oldest node at least this many times the
+ * extrapolation (the time from the newest event to the estimate) before
+ * the newest, where the kept events allow. */
+#define ENC_INTERP_REACH 2
+
 typedef struct {
-    int64_t e[3];   /* events, half counts (2 n - dir), [2] the newest  */
-    int64_t t[3];   /* their times, ns (the decoder's extended clock)  */
-    uint8_t n;      /* events held, 0..3                               */
-    bool edged;     /* the last sample saw counted edges               */
-    bool back;      /* ... more than its count moved: back and forth    */
-    int64_t pos;    /* count at the last sample                        */
-    int64_t prev;   /* count at the sample before                      */
-    uint32_t nedge; /* counted edges at the last sample (wrapping)     */
+    int64_t e[ENC_INTERP_EVENTS]; /* events, half counts (2 n - dir), a ring */
+    int64_t t[ENC_INTERP_EVENTS]; /* their times, ns (the decoder's clock)   */
+    uint8_t n;                    /* events held, 0..ENC_INTERP_EVENTS       */
+    uint8_t head;                 /* index of the newest                     */
+    bool edged;                   /* the last sample saw counted edges               */
+    bool back;                    /* ... more than its count moved: back and forth    */
+    int64_t pos;                  /* count at the last sample                        */
+    int64_t prev;                 /* count at the sample before                      */
+    uint32_t nedge;               /* counted edges at the last sample (wrapping)     */
 } enc_interp_t;
 
 /* Start with no event at count pos, nedge counted edges. */
