@@ -5,7 +5,8 @@
 # definition) and per second of the process's CPU time
 # (hil_realtime_factor_cpu: what the code controls while other jobs take the
 # cores of a shared machine; the 500 x target is judged on it, see
-# docs/simulator.md), each the best of five 20 s runs, with the
+# docs/simulator.md), each the best of 25 runs of 20 simulated s (and the
+# median CPU factor: what contention from other jobs left), with the
 # default (fast) encoder model and with the edge-accurate reference; the
 # machine's 1-minute load average at the time (wall clock on a shared
 # machine); and the deterministic companion: x86 instructions per simulated

@@ -4,7 +4,7 @@
  * 10 m/min, full feed-forward, exact CEC, trace of every tick written, the
  * instrument recording the table at 10 kHz as contour sim circle does:
  * sim_table_record).
- *   bench_hil [fast|edges]        five runs of 20 simulated seconds with
+ *   bench_hil [fast|edges]        25 runs of 20 simulated seconds with
  *                                 that encoder model (default fast, the
  *                                 simulator's default): the best wall-clock
  *                                 factor (hil_realtime_factor) and the best
@@ -12,6 +12,8 @@
  *                                 second of the process's CPU time
  *                                 (hil_realtime_factor_cpu: what the code
  *                                 controls when other jobs take the cores)
+ *                                 and the median CPU-time factor
+ *                                 (hil_realtime_factor_cpu_median)
  *   bench_hil ticks N [fast|edges]  one run of N ticks (for callgrind:
  *                                 instructions in sim_run per tick)
  *   bench_hil hash N [fast|edges]   one run of N ticks; prints the FNV-1a
@@ -107,6 +109,17 @@ static double one_run(uint64_t ticks, int model, int hash, double *cpu)
     return (double)done / 10000.0 / (t1 - t0);
 }
 
+/* Runs per model: each is about 35 ms of CPU, and a burst of contention on a
+ * shared host takes a few of them; the best of 25 is the code's speed, the
+ * median shows what the contention left. */
+#define BENCH_RUNS 25
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
 static int model_arg(const char *s)
 {
     return (s != NULL && strcmp(s, "edges") == 0) ? SIM_ENC_EDGES : SIM_ENC_FAST;
@@ -115,6 +128,8 @@ static int model_arg(const char *s)
 int main(int argc, char **argv)
 {
     double best = 0.0, best_cpu = 0.0, cpu = 0.0;
+    double cpus[BENCH_RUNS];
+    const char *sfx;
     int i, model;
 
     if (argc > 2 && strcmp(argv[1], "ticks") == 0) {
@@ -134,7 +149,7 @@ int main(int argc, char **argv)
         return 0;
     }
     model = model_arg(argc > 1 ? argv[1] : NULL);
-    for (i = 0; i < 5; i++) {
+    for (i = 0; i < BENCH_RUNS; i++) {
         double f = one_run(200000u, model, 0, &cpu);
         if (f < 0) {
             fprintf(stderr, "bench_hil: simulator failed\n");
@@ -143,11 +158,15 @@ int main(int argc, char **argv)
         if (f > best) {
             best = f;
         }
+        cpus[i] = cpu;
         if (cpu > best_cpu) {
             best_cpu = cpu;
         }
     }
-    printf("hil_realtime_factor%s: %.0f x\n", model == SIM_ENC_EDGES ? "_edges" : "", best);
-    printf("hil_realtime_factor_cpu%s: %.0f x\n", model == SIM_ENC_EDGES ? "_edges" : "", best_cpu);
+    sfx = (model == SIM_ENC_EDGES) ? "_edges" : "";
+    qsort(cpus, BENCH_RUNS, sizeof(cpus[0]), cmp_double);
+    printf("hil_realtime_factor%s: %.0f x\n", sfx, best);
+    printf("hil_realtime_factor_cpu%s: %.0f x\n", sfx, best_cpu);
+    printf("hil_realtime_factor_cpu_median%s: %.0f x\n", sfx, cpus[BENCH_RUNS / 2]);
     return 0;
 }
