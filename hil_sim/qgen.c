@@ -416,6 +416,20 @@ qgen_run_commit(qgen_t *g, qgen_pos_t x1, uint64_t dt, int64_t d, uint64_t t_las
     return (uint64_t)(d > 0 ? d : -d);
 }
 
+/* A run from x0 to x1 ending in count c1 (d = its signed count change, not
+ * 0): returns the run's length |x1 - x0|; *dist the distance from x0 to the
+ * last edge crossed (the run's direction decides which side of c1 it is). */
+static inline uint64_t qgen_run_den(qgen_pos_t x0, qgen_pos_t x1, int64_t c1, int64_t d,
+                                    uint64_t *dist)
+{
+    if (d > 0) {
+        *dist = (uint64_t)(c1 * QGEN_ONE - x0);
+        return (uint64_t)(x1 - x0);
+    }
+    *dist = (uint64_t)(x0 - (c1 + 1) * QGEN_ONE);
+    return (uint64_t)(x0 - x1);
+}
+
 /* Any run: the index window's span recomputed when the count left it, a
  * 128-bit division when the product needs it. */
 __attribute__((noinline)) static uint64_t qgen_move_run_any(qgen_t *g, qgen_pos_t x1, uint64_t dt)
@@ -440,13 +454,7 @@ __attribute__((noinline)) static uint64_t qgen_move_run_any(qgen_t *g, qgen_pos_
         /* the span is contiguous: both ends inside, all inside */
         return qgen_move_events(g, x1, dt);
     }
-    if (d > 0) {
-        den = (uint64_t)(x1 - x0);
-        dist = (uint64_t)(c1 * QGEN_ONE - x0);
-    } else {
-        den = (uint64_t)(x0 - x1);
-        dist = (uint64_t)(x0 - (c1 + 1) * QGEN_ONE);
-    }
+    den = qgen_run_den(x0, x1, c1, d, &dist);
     qgen_divmod((qgen_u128)dist * dt, den, &q, &r);
     return qgen_run_commit(g, x1, dt, d, g->t + (uint64_t)q);
 }
@@ -468,13 +476,7 @@ static inline uint64_t qgen_move_run(qgen_t *g, qgen_pos_t x1, uint64_t dt)
     if (d > INT32_MAX || d < -INT32_MAX || !qgen_z_low(g, c0) || !qgen_z_low(g, c1)) {
         return qgen_move_run_any(g, x1, dt);
     }
-    if (d > 0) {
-        den = (uint64_t)(x1 - x0);
-        dist = (uint64_t)(c1 * QGEN_ONE - x0);
-    } else {
-        den = (uint64_t)(x0 - x1);
-        dist = (uint64_t)(x0 - (c1 + 1) * QGEN_ONE);
-    }
+    den = qgen_run_den(x0, x1, c1, d, &dist);
     p = (qgen_u128)dist * dt;
     if ((p >> 64) != 0u) {
         return qgen_move_run_any(g, x1, dt);
