@@ -16,32 +16,7 @@
 #include "hal_sim.h"
 #include "unity.h"
 
-#define TICK_NS 100000ull /* 10 kHz */
-
-static uint64_t t_ns;
-
-void setUp(void)
-{
-    hal_sim_reset();
-    t_ns = 1000000;
-    hal_sim_set_time_ns(t_ns);
-}
-
-void tearDown(void)
-{
-}
-
-static void tick(void)
-{
-    const drive_tick_out_t *t;
-
-    t_ns += TICK_NS;
-    hal_sim_set_time_ns(t_ns);
-    t = drive_tick(calib_sampling());
-    if (t != NULL) {
-        calib_tick(t->st, t->vel_ref);
-    }
-}
+#include "drive_tick_fixture.h"
 
 static void config(drive_config_t *cfg)
 {
