@@ -14,8 +14,8 @@ cd "$(dirname "$0")/.."
 bin=build/bench/bench_servo
 mkdir -p build/bench
 cc -std=c99 -O2 -g -D_DEFAULT_SOURCE -Ifirmware/core -Ifirmware/hal -Ihil_sim -o "$bin" \
-  bench/bench_servo.c firmware/core/fixmath.c firmware/core/fixmath_div.c firmware/core/pid.c firmware/core/cec.c \
-  firmware/core/servo.c firmware/core/qdec.c firmware/core/comp.c firmware/core/crc.c \
+  bench/bench_servo.c firmware/core/fixmath.c firmware/core/fixmath_div.c firmware/core/pid.c \
+  firmware/core/cec.c firmware/core/cec_hist.c firmware/core/servo.c firmware/core/qdec.c firmware/core/comp.c firmware/core/crc.c \
   hil_sim/qgen.c -lm
 n=10000
 "$bin" exact "$n" # fails the bench if the run itself faults
