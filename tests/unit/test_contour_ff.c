@@ -171,25 +171,32 @@ static void test_ff_advance_removes_the_zoh_radius_error(void)
     TEST_ASSERT_TRUE(adv.dev_um < 2.0);
 }
 
+/* Friction on, 90 % of it fed forward; the circle without and with the
+ * quadrant-glitch compensation: both without faults, and the compensation
+ * must cut the circular deviation below `ratio` of the run without it. */
+static void qg_off_on(circ_cfg_t c, const char *what, double ratio)
+{
+    circ_out_t off, on;
+
+    c.friction = true;
+    /* (0.01 N m + 10 N * l) * Ra / (kt kx), 90 % */
+    c.fric_v = 0.9 * (0.01 + 10.0 * 0.005 / (2 * M_PI)) * 9.0 / (0.2 * 16.0);
+    c.qg = 0;
+    off = circle(&c);
+    c.qg = 1;
+    on = circle(&c);
+    printf("%s: dev %.2f -> %.2f um with qg_comp\n", what, off.dev_um, on.dev_um);
+    TEST_ASSERT_EQUAL_HEX32(0, off.faults | on.faults);
+    TEST_ASSERT_TRUE(on.dev_um < ratio * off.dev_um);
+}
+
 /* Friction on both axes, 90 % fed forward, PIDs alone: the compensation
  * cuts the circular deviation by a fifth at least (5.38 -> 4.30 um; 3.98
  * while it read the last two reversals, which here, with exact
  * feed-forward gains, hold nothing but the friction). */
 static void test_quadrant_glitch_compensation(void)
 {
-    circ_cfg_t c = realistic();
-    circ_out_t off, on;
-
-    c.friction = true;
-    /* (0.01 N m + 10 N * l) * Ra / (kt kx), 90 % */
-    c.fric_v = 0.9 * (0.01 + 10.0 * 0.005 / (2 * M_PI)) * 9.0 / (0.2 * 16.0);
-    off = circle(&c);
-    c.qg = 1;
-    on = circle(&c);
-    printf("friction 90 %% fed forward, PIDs: dev %.2f -> %.2f um with qg_comp\n", off.dev_um,
-           on.dev_um);
-    TEST_ASSERT_EQUAL_HEX32(0, off.faults | on.faults);
-    TEST_ASSERT_TRUE(on.dev_um < 0.8 * off.dev_um);
+    qg_off_on(realistic(), "friction 90 % fed forward, PIDs", 0.8);
 }
 
 /* The same with the CEC (curvature), R 20 mm at 2 m/min: along the normal,
@@ -202,20 +209,11 @@ static void test_quadrant_glitch_compensation(void)
 static void test_quadrant_glitch_compensation_with_the_cec(void)
 {
     circ_cfg_t c = realistic();
-    circ_out_t off, on;
 
-    c.friction = true;
     c.feed_mm_min = 2000.0;
     c.seconds = 8.0;
     c.cec = DRIVE_CEC_CURVATURE;
-    c.fric_v = 0.9 * (0.01 + 10.0 * 0.005 / (2 * M_PI)) * 9.0 / (0.2 * 16.0);
-    off = circle(&c);
-    c.qg = 1;
-    on = circle(&c);
-    printf("friction 90 %% fed forward, CEC: dev %.2f -> %.2f um with qg_comp\n", off.dev_um,
-           on.dev_um);
-    TEST_ASSERT_EQUAL_HEX32(0, off.faults | on.faults);
-    TEST_ASSERT_TRUE(on.dev_um < 0.8 * off.dev_um);
+    qg_off_on(c, "friction 90 % fed forward, CEC", 0.8);
 }
 
 /* Set-up F at a high path acceleration (R 20 mm, 20 m/min: 5.6 m/s^2):
@@ -230,23 +228,14 @@ static void test_quadrant_glitch_compensation_with_the_cec(void)
 static void test_quadrant_glitch_compensation_with_ff_gain_error(void)
 {
     circ_cfg_t c = realistic();
-    circ_out_t off, on;
 
-    c.friction = true;
     c.feed_mm_min = 20000.0;
     c.seconds = 4.0;
     c.kv_scale[0] = 0.98;
     c.kv_scale[1] = 1.02;
     c.cec = DRIVE_CEC_CURVATURE;
     c.ffl = 100.0;
-    c.fric_v = 0.9 * (0.01 + 10.0 * 0.005 / (2 * M_PI)) * 9.0 / (0.2 * 16.0);
-    off = circle(&c);
-    c.qg = 1;
-    on = circle(&c);
-    printf("F, R 20 mm 20 m/min, CEC + learning: dev %.2f -> %.2f um with qg_comp\n", off.dev_um,
-           on.dev_um);
-    TEST_ASSERT_EQUAL_HEX32(0, off.faults | on.faults);
-    TEST_ASSERT_TRUE(on.dev_um < 0.9 * off.dev_um);
+    qg_off_on(c, "F, R 20 mm 20 m/min, CEC + learning", 0.9);
 }
 
 /* Kvff / Kaff X 2 % low, Y 2 % high, exact CEC: the learning takes the
